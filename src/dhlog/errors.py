@@ -1,0 +1,98 @@
+"""The one error hierarchy of dhlog.
+
+Every error dhlog raises on purpose derives from :class:`DhlogError`. Each class writes its own
+message from the facts it is given, as whole sentences that name the joint, file or topic at fault
+and say what to do. Only the command line catches ``DhlogError`` and turns it into a one-line
+message and an exit code.
+"""
+
+from __future__ import annotations
+
+import math
+
+
+class DhlogError(Exception):
+    """Base of every error dhlog raises on purpose."""
+
+
+class GeometryError(DhlogError):
+    """A geometric construction or fit cannot be carried out on the data given."""
+
+
+class NonFiniteError(GeometryError):
+    """Input holds NaN or infinite values."""
+
+    def __init__(self, what: str, count: int) -> None:
+        self.what = what
+        self.count = count
+        super().__init__(
+            f"{what}: {count} non-finite value(s) (NaN or inf) in the input; "
+            "drop or repair those samples before fitting."
+        )
+
+
+class TooFewPointsError(GeometryError):
+    """Fewer distinct points than the model needs."""
+
+    def __init__(self, what: str, n_distinct: int, needed: int) -> None:
+        self.what = what
+        self.n_distinct = n_distinct
+        self.needed = needed
+        super().__init__(
+            f"{what}: only {n_distinct} distinct point(s), at least {needed} are needed; "
+            "record more samples over the sweep."
+        )
+
+
+class CollinearPointsError(GeometryError):
+    """Points given to a circle fit lie on a line."""
+
+    def __init__(self, what: str) -> None:
+        self.what = what
+        super().__init__(
+            f"{what}: the points are collinear, so no circle passes through them; "
+            "if this joint is prismatic, declare it so (or fit a line)."
+        )
+
+
+class SweepTooSmallError(GeometryError):
+    """The measured motion is too short to identify an axis."""
+
+    def __init__(self, what: str, sweep: float, minimum: float, unit: str) -> None:
+        self.what = what
+        self.sweep = sweep
+        self.minimum = minimum
+        if unit == "rad":
+            shown = f"{math.degrees(sweep):.3g}° (minimum {math.degrees(minimum):.3g}°)"
+        else:
+            shown = f"{sweep * 1e3:.4g} mm (minimum {minimum * 1e3:.4g} mm)"
+        super().__init__(
+            f"{what}: the sweep covers only {shown}; move the joint further while it is measured."
+        )
+
+
+class EncoderScaleError(GeometryError):
+    """The encoder values do not agree with the measured travel."""
+
+    def __init__(self, what: str, scale: float) -> None:
+        self.what = what
+        self.scale = scale
+        super().__init__(
+            f"{what}: the measured travel is {scale:.6g} times the encoder travel; "
+            "check the encoder and length units (m vs mm) in the pipeline."
+        )
+
+
+class DegenerateGeometryError(GeometryError):
+    """A construction is undefined for the configuration given (parallel line and plane, …)."""
+
+    def __init__(self, message: str) -> None:
+        super().__init__(message)
+
+
+class ShapeError(DhlogError, ValueError):
+    """An array argument has the wrong shape or holds non-finite values."""
+
+    def __init__(self, name: str, expected: str, got: object) -> None:
+        self.name = name
+        super().__init__(f"{name} must be {expected}, got {got}.")

@@ -1,0 +1,434 @@
+"""Exact DH parameters from measured joint axes by line geometry (seed 000, Sec. 3.1).
+
+Frames 1 … n+1 are built recursively from the oriented joint axes at the reference pose
+(Eq. 16–20) and the four parameters of each row read off consecutive frames (Eq. 21–24).
+The ambiguous choices follow ``shared/DESIGN.md`` and are deterministic:
+
+* intersecting axes: ``x_{i+1} = z_i × z_{i+1}`` (Eq. 17), origin at the intersection;
+* skew axes: ``x_{i+1}`` along the common normal from axis i to axis i+1 (Eq. 19), so ``a_i > 0``;
+* parallel axes: the common normal through ``o_i`` (Eq. 11–13, 18), so ``d_i = 0``;
+* collinear axes (and a target on the last axis): ``x_{i+1}`` is ``x_i`` turned by ``θ_i`` at the
+  reference pose (``θ_offset_i = 0``), and ``a_i = d_i = 0``;
+* frame 1: origin at axis 1 ∩ base plane (seed 002, Eq. 7) when a base plane is given, else at
+  the foot of the common normal to axis 2, else (axes 1 and 2 parallel) at the point of axis 1
+  nearest the measurement origin; ``x_1`` such that ``θ_offset_1 = 0``;
+* frame n+1: ``z_{n+1} ∥ z_n`` through the target (Sec. 3.1), common normal through ``o_n``; the
+  target in frame n+1 is the tool point;
+* prismatic joints: only the direction is physical. The axis is placed to meet the previous axis
+  (``a_{i−1} = 0``) and, where possible, the next revolute axis (``a_i = 0``); a last prismatic
+  axis passes as close to the target as meeting the previous axis allows; a first one meets axis 2
+  and passes as close to the measurement origin as that allows. Without a neighbour to meet, the
+  axis passes as close to the measurement origin as the remaining constraint allows.
+
+With a nominal table every ambiguous choice takes the branch that matches it: the sign of each
+``x_{i+1}`` (the sign of ``α_i`` for intersecting axes, of ``a_i`` otherwise), ``d_i`` of parallel
+axes, ``d_1`` without base plane, ``θ_offset_1``, prismatic axes placed at the nominal ``a``/``d``,
+the last frame as frame n times the nominal ``A_n``, and angles reported nearest the nominal.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from dhlog.dh import JointType, ModifiedDH, StandardDH, standard_dh_transform, standard_to_modified
+from dhlog.errors import DegenerateGeometryError, ShapeError
+from dhlog.geometry._checks import (
+    FloatArray,
+    check_vector3,
+    perpendicular_basis,
+    rotation_about,
+    wrap_angle,
+)
+from dhlog.geometry.lines import (
+    ANGLE_TOL,
+    DISTANCE_TOL,
+    Line,
+    LineRelation,
+    Plane,
+    RelationKind,
+    classify_lines,
+    common_normal_feet,
+    intersect_line_plane,
+)
+
+
+@dataclass(frozen=True, eq=False)
+class PairRelation:
+    """How the axes of joints ``joints = (i, i+1)`` (1-based) lie relative to each other."""
+
+    joints: tuple[int, int]
+    relation: LineRelation
+
+
+@dataclass(frozen=True, eq=False)
+class Extraction:
+    """The DH model recovered from the joint axes.
+
+    ``frames`` (n+1, 4, 4) are frames 1 … n+1 in the measurement frame at the reference pose;
+    ``axes`` are the joint axes used (prismatic ones as placed); ``T_modified_tool`` is the fixed
+    transform the modified table leaves at the tool end (see :func:`standard_to_modified`).
+    """
+
+    standard: StandardDH
+    modified: ModifiedDH
+    T_modified_tool: FloatArray
+    T_measurement_base: FloatArray
+    tool_point: FloatArray
+    reference_pose: FloatArray
+    frames: FloatArray
+    axes: tuple[Line, ...]
+    relations: tuple[PairRelation, ...]
+
+
+def _unit(v: FloatArray) -> FloatArray:
+    return np.asarray(v / np.linalg.norm(v), dtype=np.float64)
+
+
+def _reject(v: FloatArray, axis: FloatArray) -> FloatArray:
+    return np.asarray(v - (v @ axis) * axis, dtype=np.float64)
+
+
+def place_prismatic_axis(
+    direction: FloatArray, anchors: Sequence[Line | FloatArray], *, angle_tol: float = ANGLE_TOL
+) -> Line:
+    """A line along ``direction`` meeting the anchors in priority order (see the module rules).
+
+    Works in the plane perpendicular to ``direction``: a line anchor projects to a 2D line (or to
+    a point when parallel to ``direction``), a point anchor to a point. The first anchor is met
+    exactly; a second is met if it crosses the first, else approached as closely as possible;
+    what freedom remains is spent approaching the measurement origin.
+    """
+    e = _unit(direction)
+    u, v = perpendicular_basis(e)
+    P = np.stack([u, v])
+    constraint: tuple[FloatArray, FloatArray] | None = None
+    point: FloatArray | None = None
+    for anchor in anchors:
+        if isinstance(anchor, Line):
+            d2 = P @ anchor.direction
+            p2 = P @ anchor.point
+            if np.linalg.norm(d2) < np.sin(angle_tol):
+                item: tuple[FloatArray, FloatArray | None] = (p2, None)
+            else:
+                item = (p2, d2 / np.linalg.norm(d2))
+        else:
+            item = (P @ check_vector3("anchor", anchor), None)
+        p2, d2_or_none = item
+        if constraint is None:
+            if d2_or_none is None:
+                point = p2
+                break
+            constraint = (p2, d2_or_none)
+            continue
+        c0, cd = constraint
+        if d2_or_none is None:
+            point = c0 + ((p2 - c0) @ cd) * cd
+            break
+        cross = cd[0] * d2_or_none[1] - cd[1] * d2_or_none[0]
+        if abs(cross) < np.sin(angle_tol):
+            continue
+        diff = p2 - c0
+        t = (diff[0] * d2_or_none[1] - diff[1] * d2_or_none[0]) / cross
+        point = c0 + t * cd
+        break
+    if point is None:
+        point = (
+            np.zeros(2)
+            if constraint is None
+            else constraint[0] - (constraint[0] @ constraint[1]) * constraint[1]
+        )
+    return Line(point[0] * u + point[1] * v, e)
+
+
+def _frame(origin: FloatArray, x: FloatArray, z: FloatArray) -> FloatArray:
+    T = np.eye(4)
+    T[:3, 0], T[:3, 1], T[:3, 2], T[:3, 3] = x, np.cross(z, x), z, origin
+    return T
+
+
+def extract_dh(
+    axes: Sequence[Line],
+    joint_types: Sequence[JointType | str],
+    *,
+    target: ArrayLike,
+    reference_pose: ArrayLike,
+    base_plane: Plane | None = None,
+    nominal: StandardDH | None = None,
+    angle_tol: float = ANGLE_TOL,
+    distance_tol: float = DISTANCE_TOL,
+) -> Extraction:
+    """Standard and modified DH tables, base transform and tool point from oriented joint axes.
+
+    ``axes``: joint 1 … n axes in the measurement frame M at ``reference_pose`` (n,), each oriented
+    along positive joint motion; ``target`` (3,) the target point in M at that pose. Seed 000,
+    Sec. 3.1: Plücker lines (Eq. 16), pair classification (Eq. 3), intersection (Eq. 4–10), parallel
+    (Eq. 11–13, 18) and skew (Eq. 14–15, 19) common normals, ``y = z × x`` (Eq. 20) and the
+    parameters ``d_i = (o_{i+1} − o_i)·z_i`` (Eq. 21), ``θ_i`` (Eq. 22),
+    ``a_i = (o_{i+1} − o_i)·x_{i+1}``
+    (Eq. 23), ``α_i`` (Eq. 24). The tie-breaks are listed in the module docstring.
+    """
+    types = tuple(JointType.parse(str(t)) for t in joint_types)
+    n = len(types)
+    if len(axes) != n or n == 0:
+        raise ShapeError("axes", f"one axis per joint ({n})", f"{len(axes)} axes")
+    q_ref = np.asarray(reference_pose, dtype=np.float64).reshape(-1)
+    if q_ref.shape != (n,) or not np.all(np.isfinite(q_ref)):
+        raise ShapeError("reference_pose", f"{n} finite joint values", q_ref.tolist())
+    p_target = check_vector3("target", target)
+    if nominal is not None and nominal.joint_types != types:
+        raise ShapeError(
+            "nominal table",
+            f"joint types {[t.value for t in types]}",
+            [t.value for t in nominal.joint_types],
+        )
+    revolute = [t is JointType.REVOLUTE for t in types]
+    if nominal is not None:
+        desired_theta = nominal.theta(q_ref)
+        nominal_d = nominal.d(q_ref)
+    else:
+        desired_theta = np.where(revolute, q_ref, 0.0)
+        nominal_d = np.zeros(n)
+    lines: list[Line] = list(axes)
+    placed = [revolute[i] for i in range(n)]
+
+    def anchor_place(i: int) -> None:
+        """Place prismatic axis i (0-based) by the anchor rule."""
+        anchors: list[Line | FloatArray] = []
+        if i > 0:
+            anchors.append(lines[i - 1])
+        if i + 1 < n and placed[i + 1]:
+            anchors.append(lines[i + 1])
+        if i == n - 1:
+            anchors.append(p_target)
+        lines[i] = place_prismatic_axis(lines[i].direction, anchors, angle_tol=angle_tol)
+        placed[i] = True
+
+    z = [line.direction for line in lines] + [lines[-1].direction]
+    origins: list[FloatArray | None] = [None] * (n + 1)
+    xs: list[FloatArray | None] = [None] * (n + 1)
+
+    for i in range(n if nominal is None else 1):
+        if not placed[i]:
+            anchor_place(i)
+            if i == 0 and nominal is not None and n > 1 and placed[1]:
+                cross = np.cross(lines[0].direction, lines[1].direction)
+                if np.linalg.norm(cross) >= np.sin(angle_tol):  # meet the nominal a_1
+                    x2 = _unit(cross) * (1.0 if np.sin(nominal.alpha[0]) >= 0.0 else -1.0)
+                    anchor = lines[0].point
+                else:  # parallel: x_1 has no physical anchor; take the default one
+                    x2 = rotation_about(z[0], float(desired_theta[0])) @ _default_x(z[0])
+                    anchor = lines[1].point
+                lines[0] = Line(anchor - nominal.a[0] * x2, lines[0].direction)
+    origins[0] = _frame1_origin(lines, placed, base_plane, nominal_d, angle_tol, distance_tol)
+
+    relations: list[PairRelation] = []
+    for i in range(n):
+        o_i = origins[i]
+        assert o_i is not None
+        z_i = z[i]
+        line_i = Line(o_i, z_i)
+        if i == n - 1:
+            if nominal is not None:
+                break  # the last frame follows the nominal A_n, built once x_n is known
+            line_next = Line(p_target, z_i)
+        else:
+            if not placed[i + 1]:
+                _place_with_nominal(
+                    i,
+                    lines,
+                    xs,
+                    origins,
+                    z,
+                    nominal,
+                    desired_theta,
+                    nominal_d,
+                    angle_tol,
+                    anchor_place,
+                )
+                placed[i + 1] = True
+            line_next = lines[i + 1]
+        rel = classify_lines(line_i, line_next, angle_tol=angle_tol, distance_tol=distance_tol)
+        if i < n - 1:
+            rel_fitted = classify_lines(
+                lines[i], lines[i + 1], angle_tol=angle_tol, distance_tol=distance_tol
+            )
+            relations.append(PairRelation((i + 1, i + 2), rel_fitted))
+        z_next = line_next.direction
+        if rel.kind is RelationKind.COLLINEAR:
+            origins[i + 1] = line_next.project(o_i + nominal_d[i] * z_i)
+            xs[i + 1] = None
+        elif rel.kind.is_parallel:
+            base = o_i + nominal_d[i] * z_i
+            o_next = line_next.project(base)
+            x_next = _unit(_reject(_reject(o_next - base, z_i), z_next))  # Eq. 18
+            if nominal is not None and nominal.a[i] < 0.0:
+                x_next = -x_next
+            origins[i + 1], xs[i + 1] = o_next, x_next
+        else:
+            p_i, p_next = common_normal_feet(line_i, line_next)  # Eq. 14-15
+            normal = _unit(np.cross(z_i, z_next))
+            if rel.kind is RelationKind.INTERSECTING:
+                sign = 1.0  # Eq. 17
+            else:
+                sign = 1.0 if (p_next - p_i) @ normal >= 0.0 else -1.0  # Eq. 19
+            if nominal is not None:
+                if rel.kind is RelationKind.SKEW and abs(nominal.a[i]) > distance_tol:
+                    a_here = float((p_next - p_i) @ normal)
+                    sign = 1.0 if a_here * nominal.a[i] >= 0.0 else -1.0
+                elif abs(np.sin(nominal.alpha[i])) > np.sin(angle_tol):
+                    sign = 1.0 if np.sin(nominal.alpha[i]) > 0.0 else -1.0
+            origins[i + 1], xs[i + 1] = p_next, sign * normal
+
+    _resolve_x(xs, z, desired_theta, n if nominal is not None else n + 1)
+    frames = np.empty((n + 1, 4, 4))
+    for i in range(n + 1 if nominal is None else n):
+        o_i, x_i = origins[i], xs[i]
+        assert o_i is not None and x_i is not None
+        frames[i] = _frame(o_i, x_i, z[i])
+    if nominal is not None:
+        frames[n] = frames[n - 1] @ standard_dh_transform(
+            desired_theta[n - 1], nominal_d[n - 1], nominal.a[n - 1], nominal.alpha[n - 1]
+        )
+    table = _table_from_frames(frames, types, q_ref, nominal)
+    modified, T_post = standard_to_modified(table)
+    T_last_inv = np.linalg.inv(frames[n])
+    tool = T_last_inv[:3, :3] @ p_target + T_last_inv[:3, 3]
+    return Extraction(
+        standard=table,
+        modified=modified,
+        T_modified_tool=T_post,
+        T_measurement_base=frames[0].copy(),
+        tool_point=np.asarray(tool, dtype=np.float64),
+        reference_pose=q_ref,
+        frames=frames,
+        axes=tuple(lines),
+        relations=tuple(relations),
+    )
+
+
+def _frame1_origin(
+    lines: list[Line],
+    placed: list[bool],
+    base_plane: Plane | None,
+    nominal_d: FloatArray,
+    angle_tol: float,
+    distance_tol: float,
+) -> FloatArray:
+    """Origin of frame 1: axis 1 ∩ base plane (seed 002, Eq. 7); else the foot on axis 1 of the
+    common normal to axis 2 (Eq. 14), carried through a run of parallel axes 1 … k to the first
+    defined common normal (axes k, k+1) so that the parallel rows keep ``d = 0`` (or the nominal
+    ``d``); else the point of axis 1 nearest the measurement origin."""
+    if base_plane is not None:
+        return intersect_line_plane(lines[0], base_plane, angle_tol=angle_tol)
+    shift = np.zeros(3)
+    for k in range(len(lines) - 1):
+        if not placed[k + 1]:
+            break
+        shift = shift + nominal_d[k] * lines[k].direction
+        relation = classify_lines(
+            lines[k], lines[k + 1], angle_tol=angle_tol, distance_tol=distance_tol
+        )
+        if not relation.kind.is_parallel:
+            foot = common_normal_feet(lines[k], lines[k + 1])[0]
+            return lines[0].project(foot - shift)
+    return lines[0].project(np.zeros(3))
+
+
+def _place_with_nominal(
+    i: int,
+    lines: list[Line],
+    xs: list[FloatArray | None],
+    origins: list[FloatArray | None],
+    z: list[FloatArray],
+    nominal: StandardDH | None,
+    desired_theta: FloatArray,
+    nominal_d: FloatArray,
+    angle_tol: float,
+    anchor_place: object,
+) -> None:
+    """Place prismatic axis i+1 (0-based) so that row i matches the nominal d_i, a_i, α_i."""
+    assert callable(anchor_place)
+    o_i = origins[i]
+    assert o_i is not None
+    z_i, e = z[i], lines[i + 1].direction
+    if nominal is None:
+        anchor_place(i + 1)
+        return
+    cross = np.cross(z_i, e)
+    if np.linalg.norm(cross) >= np.sin(angle_tol):
+        x_next = _unit(cross) * (1.0 if np.sin(nominal.alpha[i]) >= 0.0 else -1.0)
+    else:
+        if xs[i] is None and i == 0:
+            xs[0] = _default_x(z_i)  # x_1 has no physical anchor before axis 2 is placed
+        x_i = xs[i]
+        if x_i is None:
+            anchor_place(i + 1)
+            return
+        x_next = rotation_about(z_i, float(desired_theta[i])) @ x_i
+    point = o_i + nominal_d[i] * z_i + nominal.a[i] * x_next
+    lines[i + 1] = Line(point, e)
+
+
+def _default_x(z: FloatArray) -> FloatArray:
+    """The measurement x axis (or y, when z is near x) made perpendicular to ``z``."""
+    seed = np.array([1.0, 0.0, 0.0]) if abs(z[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    return _unit(_reject(seed, z))
+
+
+def _resolve_x(
+    xs: list[FloatArray | None], z: list[FloatArray], desired_theta: FloatArray, limit: int
+) -> None:
+    """Fill the x axes left open by collinear axes: ``x_{i+1} = Rot(z_i, θ_i) x_i`` at the
+    reference pose; ``x_1`` from the first known x further up the chain, turned back."""
+    known = [k for k in range(1, limit) if xs[k] is not None]
+    if known:
+        for j in range(known[0] - 1, -1, -1):
+            x_next = xs[j + 1]
+            assert x_next is not None
+            xs[j] = rotation_about(z[j], -float(desired_theta[j])) @ x_next
+    elif xs[0] is None:
+        xs[0] = _default_x(z[0])
+    for j in range(limit - 1):
+        if xs[j + 1] is None:
+            x_j = xs[j]
+            assert x_j is not None
+            xs[j + 1] = rotation_about(z[j], float(desired_theta[j])) @ x_j
+
+
+def _near(value: float, reference: float | None) -> float:
+    """``value`` wrapped to (−π, π], or to within π of ``reference`` when one is given."""
+    if reference is None:
+        return wrap_angle(value)
+    return float(reference + wrap_angle(value - reference))
+
+
+def _table_from_frames(
+    frames: FloatArray,
+    types: tuple[JointType, ...],
+    q_ref: FloatArray,
+    nominal: StandardDH | None,
+) -> StandardDH:
+    """Seed 000, Eq. 21–24, from consecutive frames; offsets from the reference pose."""
+    n = len(types)
+    theta_off, d_off, a, alpha = (np.zeros(n) for _ in range(4))
+    for i in range(n):
+        o_i, x_i, z_i = frames[i][:3, 3], frames[i][:3, 0], frames[i][:3, 2]
+        o_n, x_n, z_n = frames[i + 1][:3, 3], frames[i + 1][:3, 0], frames[i + 1][:3, 2]
+        d_i = float((o_n - o_i) @ z_i)  # Eq. 21
+        theta_i = float(np.arctan2(np.cross(x_i, x_n) @ z_i, x_i @ x_n))  # Eq. 22
+        a[i] = float((o_n - o_i) @ x_n)  # Eq. 23
+        alpha_i = float(np.arctan2(np.cross(z_i, z_n) @ x_n, z_i @ z_n))  # Eq. 24
+        revolute = types[i] is JointType.REVOLUTE
+        theta_off[i] = _near(
+            theta_i - (q_ref[i] if revolute else 0.0),
+            None if nominal is None else float(nominal.theta_offset[i]),
+        )
+        d_off[i] = d_i - (0.0 if revolute else q_ref[i])
+        alpha[i] = _near(alpha_i, None if nominal is None else float(nominal.alpha[i]))
+    if not np.all(np.isfinite(np.concatenate([theta_off, d_off, a, alpha]))):
+        raise DegenerateGeometryError("The joint axes give a non-finite DH table; check the fits.")
+    return StandardDH(types, theta_off, d_off, a, alpha)

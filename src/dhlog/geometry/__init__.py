@@ -1,0 +1,1 @@
+"""Pure geometry: lines, planes, fits. numpy/scipy only; no I/O."""

@@ -1,0 +1,81 @@
+"""Forward kinematics and the spatial manipulator Jacobian of DH chains (seed 004).
+
+All functions take a table, joint vector(s) ``q`` of shape (..., n) and an optional base transform
+``T_base`` (frame 1 of a standard table, or frame 0 of a modified one, in the world/measurement
+frame) and broadcast over leading dimensions of ``q``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from dhlog.dh import ModifiedDH, StandardDH
+from dhlog.geometry._checks import FloatArray, check_vector3
+
+DHTable = StandardDH | ModifiedDH
+
+
+def _base(T_base: ArrayLike | None) -> FloatArray:
+    return np.eye(4) if T_base is None else np.asarray(T_base, dtype=np.float64)
+
+
+def fk_frames(table: DHTable, q: ArrayLike, *, T_base: ArrayLike | None = None) -> FloatArray:
+    """All link frames in the world frame, shape (..., n+1, 4, 4) (seed 004, Eq. 3).
+
+    Standard table: entry 0 is frame 1 (``T_base``) and entry i is frame i+1, whose z axis is joint
+    i+1's axis (entry n is the tool-side frame n+1). Modified table: entry 0 is frame 0 and entry i
+    is frame i, whose z axis is joint i's axis.
+    """
+    links = table.link_transforms(q)
+    base = _base(T_base)
+    frames = np.empty((*links.shape[:-3], table.n + 1, 4, 4))
+    frames[..., 0, :, :] = base
+    current = np.broadcast_to(base, (*links.shape[:-3], 4, 4))
+    for i in range(table.n):
+        current = current @ links[..., i, :, :]
+        frames[..., i + 1, :, :] = current
+    return frames
+
+
+def joint_axes(
+    table: DHTable, q: ArrayLike, *, T_base: ArrayLike | None = None
+) -> tuple[FloatArray, FloatArray]:
+    """Points and unit directions of the n joint axes in the world frame, each (..., n, 3)."""
+    frames = fk_frames(table, q, T_base=T_base)
+    axis_frames = frames[..., :-1, :, :] if isinstance(table, StandardDH) else frames[..., 1:, :, :]
+    return axis_frames[..., :3, 3], axis_frames[..., :3, 2]
+
+
+def fk_point(
+    table: DHTable,
+    q: ArrayLike,
+    tool_point: ArrayLike,
+    *,
+    T_base: ArrayLike | None = None,
+    T_tool: ArrayLike | None = None,
+) -> FloatArray:
+    """World position of ``tool_point`` (given in the last frame, after ``T_tool``), (..., 3).
+
+    The result-contract check: ``T_measurement_base · A_1 ⋯ A_n · [tool, 1]``.
+    """
+    tool = check_vector3("tool point", tool_point)
+    T_last = fk_frames(table, q, T_base=T_base)[..., -1, :, :]
+    if T_tool is not None:
+        T_last = T_last @ np.asarray(T_tool, dtype=np.float64)
+    return np.asarray(T_last[..., :3, :3] @ tool + T_last[..., :3, 3], dtype=np.float64)
+
+
+def spatial_jacobian(
+    table: DHTable, q: ArrayLike, *, T_base: ArrayLike | None = None
+) -> FloatArray:
+    """Spatial manipulator Jacobian, shape (..., 6, n), rows ``[v; ω]`` (seed 004, Eq. 5–6).
+
+    Column i is joint i's twist in the world frame: ``[−ω_i × q_i; ω_i]`` for a revolute joint
+    (``ω_i`` its axis direction, ``q_i`` a point on it), ``[ω_i; 0]`` for a prismatic joint.
+    """
+    points, dirs = joint_axes(table, q, T_base=T_base)
+    revolute = table.revolute[:, None]
+    v = revolute * -np.cross(dirs, points) + (1.0 - revolute) * dirs
+    w = revolute * dirs
+    return np.asarray(np.swapaxes(np.concatenate([v, w], axis=-1), -1, -2), dtype=np.float64)

@@ -1,0 +1,97 @@
+"""The robot library: the seed robots as data (``robots.toml``), loadable by name."""
+
+from __future__ import annotations
+
+import math
+import tomllib
+from dataclasses import dataclass
+from functools import cache
+from importlib import resources
+from typing import Any
+
+import numpy as np
+
+from dhlog.dh import JointType, ModifiedDH, StandardDH, modified_to_standard
+from dhlog.errors import DhlogError
+from dhlog.geometry._checks import FloatArray
+
+_LENGTH_SCALE = {"m": 1.0, "mm": 1e-3, "cm": 1e-2}
+
+
+class UnknownRobotError(DhlogError):
+    """A robot name that is not in the library."""
+
+    def __init__(self, name: str, known: list[str]) -> None:
+        super().__init__(
+            f"Unknown robot '{name}'; the library has {', '.join(known)} "
+            "(or give a DH file instead)."
+        )
+
+
+@dataclass(frozen=True, eq=False)
+class Robot:
+    """A library robot in SI units: its standard DH table, the base transform that places frame 1
+    (identity unless the source table is modified DH), a tool point in the last frame and the joint
+    limits (n, 2) in rad or m."""
+
+    name: str
+    title: str
+    source: str
+    table: StandardDH
+    T_base: FloatArray
+    tool_point: FloatArray
+    limits: FloatArray
+
+    @property
+    def n(self) -> int:
+        """Number of joints."""
+        return self.table.n
+
+
+def _robot_from_entry(name: str, entry: dict[str, Any]) -> Robot:
+    scale = _LENGTH_SCALE[entry.get("length_unit", "m")]
+    types = tuple(JointType.parse(t) for t in entry["type"])
+    rad = math.radians
+    theta = [rad(v) for v in entry["theta"]]
+    alpha = [rad(v) for v in entry["alpha"]]
+    d = [v * scale for v in entry["d"]]
+    a = [v * scale for v in entry["a"]]
+    if entry["convention"] == "modified":
+        T_base, table = modified_to_standard(ModifiedDH(types, theta, d, a, alpha))
+    else:
+        T_base, table = np.eye(4), StandardDH(types, theta, d, a, alpha)
+    limits = np.array(
+        [
+            [rad(lo), rad(hi)] if t is JointType.REVOLUTE else [lo * scale, hi * scale]
+            for t, (lo, hi) in zip(types, entry["limits"], strict=True)
+        ]
+    )
+    return Robot(
+        name=name,
+        title=entry["title"],
+        source=entry["source"],
+        table=table,
+        T_base=T_base,
+        tool_point=np.asarray(entry["tool"], dtype=np.float64) * scale,
+        limits=limits,
+    )
+
+
+@cache
+def _library() -> dict[str, dict[str, Any]]:
+    text = resources.files("dhlog").joinpath("robots.toml").read_text(encoding="utf-8")
+    return tomllib.loads(text)
+
+
+def robot_names() -> list[str]:
+    """Names of the robots in the library."""
+    return sorted(_library())
+
+
+def load_robot(name: str) -> Robot:
+    """The library robot called ``name`` (case-insensitive), in SI units."""
+    key = name.strip().lower().replace(" ", "").replace("-", "").replace("_", "")
+    library = _library()
+    if key not in library:
+        raise UnknownRobotError(name, robot_names())
+    return _robot_from_entry(key, library[key])
