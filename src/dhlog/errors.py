@@ -96,3 +96,66 @@ class ShapeError(DhlogError, ValueError):
     def __init__(self, name: str, expected: str, got: object) -> None:
         self.name = name
         super().__init__(f"{name} must be {expected}, got {got}.")
+
+
+class InputError(DhlogError):
+    """A log, pipeline or DH file cannot be used as given."""
+
+
+class NotMcapError(InputError):
+    """The file does not start with the MCAP magic."""
+
+    def __init__(self, path: str) -> None:
+        super().__init__(
+            f"{path}: not an MCAP file (no MCAP magic bytes at the start); give the .mcap file "
+            "the recorder wrote (rosbag2 writes a folder: pass the .mcap inside it)."
+        )
+
+
+class UnknownSchemaError(InputError):
+    """A configured topic carries a message type dhlog cannot decode for that stream."""
+
+    def __init__(self, path: str, topic: str, schema: str, encoding: str, accepted: str) -> None:
+        super().__init__(
+            f"{path}: topic {topic} carries '{schema}' ({encoding}), which the pipeline cannot "
+            f"read as this stream; accepted: {accepted}. Point the pipeline at another topic "
+            "or give its field paths."
+        )
+
+
+class MissingTopicError(InputError):
+    """A required topic is not in the log."""
+
+    def __init__(self, path: str, stream: str, topic: str, present: list[str]) -> None:
+        listed = ", ".join(present) if present else "none"
+        super().__init__(
+            f"{path}: no topic {topic} for the '{stream}' stream; topics present: {listed}. "
+            "Set the topic in a pipeline file (--pipeline)."
+        )
+
+
+class JointNamesError(InputError):
+    """The joint names in the log do not match the pipeline."""
+
+    def __init__(self, path: str, topic: str, expected: list[str], found: list[str]) -> None:
+        super().__init__(
+            f"{path}: topic {topic} names joints {found}, but the pipeline expects {expected}; "
+            "fix [joints] names in the pipeline file."
+        )
+
+
+class TooFewSamplesError(InputError):
+    """A stream or joint has too few usable samples."""
+
+    def __init__(self, what: str, n: int, needed: int) -> None:
+        super().__init__(
+            f"{what}: only {n} usable sample(s), at least {needed} are needed; "
+            "record a longer sweep or check the topic."
+        )
+
+
+class PipelineError(InputError):
+    """A pipeline file is malformed or matches nothing."""
+
+    def __init__(self, where: str, problem: str) -> None:
+        super().__init__(f"{where}: {problem}")

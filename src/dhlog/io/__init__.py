@@ -1,0 +1,1 @@
+"""Reading and writing calibration logs (MCAP) and pipelines."""

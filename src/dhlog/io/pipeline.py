@@ -1,0 +1,186 @@
+"""Pipelines: TOML files that map a log's channels to dhlog's four input streams.
+
+A pipeline names, per stream (``point``, ``joints``, ``base``, ``phase``), the topic and, for JSON
+messages of other shapes, the field paths; the length unit; the joints in chain order and their
+types; and the segmentation tolerances. Shipped pipelines live in ``pipelines/`` and are chosen
+from the schemas a log holds when none is named.
+"""
+
+from __future__ import annotations
+
+import math
+import tomllib
+from dataclasses import dataclass, field
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+from dhlog.dh import JointType
+from dhlog.errors import PipelineError
+
+STREAMS = ("point", "joints", "base", "phase")
+DEFAULT_TOPICS = {
+    "point": "/tracker/point",
+    "joints": "/joint_states",
+    "base": "/tracker/base_plane",
+    "phase": "/calibration/phase",
+}
+ENCODINGS = ("cdr", "json", "protobuf")
+
+
+@dataclass(frozen=True)
+class StreamSpec:
+    """One input stream: its topic, whether the pipeline needs it, and JSON field paths."""
+
+    topic: str
+    required: bool
+    fields: dict[str, str] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class SegmentationSettings:
+    """Tolerances of the segmentation, in SI units (rad for revolute, m for prismatic joints).
+
+    ``lock_tolerance``: a joint is locked while it stays this close to its locked value.
+    ``motion_window``: half-width (s) of the window over which a joint's motion is judged.
+    ``join_tolerance``: largest gap (s) between a target sample and the encoder samples around it.
+    ``min_samples``: fewest target samples a sweep needs. ``min_sweep``: smallest sweep (rad)
+    and ``min_travel`` (m) a segment needs to count as a sweep. ``clock_offset``: seconds added
+    to the joint-state stamps to bring them onto the tracker's clock.
+    """
+
+    lock_tolerance: float = 2e-5
+    motion_window: float = 0.05
+    join_tolerance: float = 0.05
+    min_samples: int = 10
+    min_sweep: float = math.radians(5.0)
+    min_travel: float = 1e-3
+    clock_offset: float = 0.0
+
+
+@dataclass(frozen=True)
+class Pipeline:
+    """A parsed pipeline file."""
+
+    name: str
+    description: str
+    source: str
+    encodings: tuple[str, ...]
+    length_unit: str
+    streams: dict[str, StreamSpec]
+    joint_names: tuple[str, ...] | None
+    joint_types: tuple[JointType | None, ...] | None
+    segmentation: SegmentationSettings
+
+    @property
+    def length_scale(self) -> float:
+        """Factor from the log's length unit to metres."""
+        return 1e-3 if self.length_unit == "mm" else 1.0
+
+
+def _table(where: str, data: dict[str, Any], key: str) -> dict[str, Any]:
+    value = data.get(key, {})
+    if not isinstance(value, dict):
+        raise PipelineError(where, f"[{key}] must be a table.")
+    return value
+
+
+def parse_pipeline(text: str, source: str) -> Pipeline:
+    """Parse pipeline TOML ``text``; ``source`` names the file in error messages."""
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise PipelineError(source, f"not valid TOML ({exc}).") from None
+    name = str(data.get("name", Path(source).stem))
+    raw_enc = data.get("encoding", list(ENCODINGS))
+    encodings = tuple([raw_enc] if isinstance(raw_enc, str) else raw_enc)
+    bad = [e for e in encodings if e not in ENCODINGS]
+    if bad:
+        raise PipelineError(source, f"encoding {bad} unknown; use one of {list(ENCODINGS)}.")
+    unit = str(data.get("length_unit", "m"))
+    if unit not in ("m", "mm"):
+        raise PipelineError(source, f"length_unit '{unit}' unknown; use 'm' or 'mm'.")
+    streams_table = _table(source, data, "streams")
+    unknown = sorted(set(streams_table) - set(STREAMS))
+    if unknown:
+        raise PipelineError(source, f"unknown stream(s) {unknown}; streams are {list(STREAMS)}.")
+    streams: dict[str, StreamSpec] = {}
+    for stream in STREAMS:
+        spec = streams_table.get(stream)
+        if spec is None:
+            continue
+        if not isinstance(spec, dict):
+            raise PipelineError(source, f"[streams.{stream}] must be a table.")
+        required = bool(spec.get("required", stream == "point"))
+        fields = {str(k): str(v) for k, v in _table(source, spec, "fields").items()}
+        streams[stream] = StreamSpec(
+            str(spec.get("topic", DEFAULT_TOPICS[stream])), required, fields
+        )
+    if "point" not in streams:
+        raise PipelineError(source, "it has no [streams.point]; the target stream is required.")
+    joints = _table(source, data, "joints")
+    names = joints.get("names")
+    types_raw = joints.get("types")
+    types: tuple[JointType | None, ...] | None = None
+    if types_raw is not None:
+        try:
+            types = tuple(None if t in ("", "auto") else JointType.parse(str(t)) for t in types_raw)
+        except ValueError as exc:
+            raise PipelineError(source, f"[joints] types: {exc}") from None
+        if names is not None and len(types) != len(names):
+            raise PipelineError(source, "[joints] names and types differ in length.")
+    seg_table = _table(source, data, "segmentation")
+    known = set(SegmentationSettings.__dataclass_fields__)
+    unknown = sorted(set(seg_table) - known)
+    if unknown:
+        raise PipelineError(
+            source, f"[segmentation] keys {unknown} unknown; known: {sorted(known)}."
+        )
+    try:
+        seg = SegmentationSettings(
+            **{k: type(getattr(SegmentationSettings, k))(v) for k, v in seg_table.items()}
+        )
+    except (TypeError, ValueError) as exc:
+        raise PipelineError(source, f"[segmentation]: {exc}") from None
+    return Pipeline(
+        name=name,
+        description=str(data.get("description", "")),
+        source=source,
+        encodings=encodings,
+        length_unit=unit,
+        streams=streams,
+        joint_names=tuple(str(n) for n in names) if names is not None else None,
+        joint_types=types,
+        segmentation=seg,
+    )
+
+
+def load_pipeline(path: str | Path) -> Pipeline:
+    """Read a pipeline file."""
+    try:
+        text = Path(path).read_text(encoding="utf-8")
+    except OSError as exc:
+        raise PipelineError(str(path), f"cannot be read ({exc.strerror}).") from None
+    return parse_pipeline(text, str(path))
+
+
+def shipped_pipelines() -> list[Pipeline]:
+    """The pipelines shipped with dhlog, in order of preference."""
+    folder = resources.files("dhlog").joinpath("pipelines")
+    if not folder.is_dir():  # a source checkout: pipelines/ at the top level
+        repo = Path(__file__).resolve().parents[3] / "pipelines"
+        files = sorted(repo.glob("*.toml"))
+        found = [parse_pipeline(f.read_text(encoding="utf-8"), str(f)) for f in files]
+    else:
+        found = [
+            parse_pipeline(f.read_text(encoding="utf-8"), f"pipelines/{f.name}")
+            for f in sorted(folder.iterdir(), key=lambda f: f.name)
+            if f.name.endswith(".toml")
+        ]
+    order = {"ros2_tracker": 0, "foxglove_json": 1, "foxglove_protobuf": 2}
+    return sorted(found, key=lambda p: (order.get(p.name, 9), p.name))
+
+
+def pipeline_by_name(name: str) -> Pipeline | None:
+    """The shipped pipeline called ``name``, or None."""
+    return next((p for p in shipped_pipelines() if p.name == name), None)

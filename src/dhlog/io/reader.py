@@ -1,0 +1,490 @@
+"""Decode a calibration log's streams (point, joints, base, phase) into polars tables.
+
+Two paths give identical tables: the fast path walks the file with numpy
+(:mod:`dhlog.io.mcapscan`) and decodes the fixed-layout ROS 2 messages in bulk
+(:mod:`dhlog.io.ros2`); the general path reads every message through the mcap library's decoders
+(``mcap_ros2``, protobuf, JSON). JSON and protobuf messages are decoded one by one on both paths,
+by the same field extractors. Time is the message's own stamp where it has one, else log time.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import polars as pl
+from numpy.typing import NDArray
+
+from dhlog.errors import (
+    InputError,
+    JointNamesError,
+    MissingTopicError,
+    PipelineError,
+    UnknownSchemaError,
+)
+from dhlog.io import ros2
+from dhlog.io.mcapscan import ChannelInfo, RawMessages, scan_mcap
+from dhlog.io.pipeline import Pipeline, shipped_pipelines
+
+POINT_SCHEMAS = {
+    ros2.POINT_STAMPED: "point",
+    ros2.POSE_STAMPED: "pose.position",
+    "foxglove.Point3InFrame": "point",
+    "foxglove.PoseInFrame": "pose.position",
+}
+JOINT_SCHEMAS = (ros2.JOINT_STATE, "foxglove.JointStates")
+PHASE_SCHEMAS = (ros2.STRING,)
+
+
+@dataclass
+class LogData:
+    """The decoded streams of one log, in SI units, sorted by time.
+
+    ``points``/``base``: ``t_ns, x, y, z``; ``joints``: ``t_ns, q_1 … q_n`` in chain order
+    (``joint_names``); ``phase``: ``t_ns, joint`` (1-based, null between sweeps).
+    ``set_aside`` counts samples dropped on reading, by reason.
+    """
+
+    path: str
+    pipeline: Pipeline
+    points: pl.DataFrame
+    joints: pl.DataFrame | None
+    joint_names: list[str]
+    base: pl.DataFrame | None
+    phase: pl.DataFrame | None
+    set_aside: dict[str, int] = field(default_factory=dict)
+    warnings: list[str] = field(default_factory=list)
+
+
+def _get(obj: Any, path: str) -> Any:
+    for part in path.split("."):
+        obj = obj[part] if isinstance(obj, dict) else getattr(obj, part)
+    return obj
+
+
+def _first(obj: Any, names: Iterable[str]) -> Any:
+    for name in names:
+        try:
+            return _get(obj, name)
+        except (KeyError, AttributeError, TypeError):
+            continue
+    return None
+
+
+def _stamp_ns(obj: Any) -> int | None:
+    """The message's own stamp: ROS ``header.stamp`` or Foxglove ``timestamp``; None if absent."""
+    stamp = _first(obj, ("header.stamp", "timestamp"))
+    if stamp is None:
+        return None
+    sec = _first(stamp, ("sec", "seconds"))
+    nsec = _first(stamp, ("nanosec", "nsec", "nanos"))
+    if sec is None:
+        return None
+    value = int(sec) * 1_000_000_000 + int(nsec or 0)
+    return value if value != 0 else None
+
+
+Extracted = tuple[int | None, Any]
+
+
+def _point_extractor(schema: str, fields: dict[str, str]) -> Callable[[Any], Extracted] | None:
+    if fields:
+        paths = [fields.get(k, k) for k in ("x", "y", "z")]
+        stamp_path = fields.get("stamp_ns")
+
+        def custom(msg: Any) -> Extracted:
+            stamp = int(_get(msg, stamp_path)) if stamp_path else _stamp_ns(msg)
+            return stamp, [float(_get(msg, p)) for p in paths]
+
+        return custom
+    base = POINT_SCHEMAS.get(schema)
+    if base is None:
+        return None
+
+    def standard(msg: Any) -> Extracted:
+        p = _get(msg, base)
+        return _stamp_ns(msg), [float(_get(p, "x")), float(_get(p, "y")), float(_get(p, "z"))]
+
+    return standard
+
+
+def _joint_extractor(schema: str, fields: dict[str, str]) -> Callable[[Any], Extracted] | None:
+    if schema == "foxglove.JointStates" or fields.get("joints"):
+        key = fields.get("joints", "joints")
+
+        def foxglove(msg: Any) -> Extracted:
+            joints = _get(msg, key)
+            return _stamp_ns(msg), (
+                [str(_get(j, "name")) for j in joints],
+                [float(_get(j, "position")) for j in joints],
+            )
+
+        return foxglove
+    if schema == ros2.JOINT_STATE or fields.get("names"):
+        names_path, pos_path = fields.get("names", "name"), fields.get("positions", "position")
+
+        def ros(msg: Any) -> Extracted:
+            return _stamp_ns(msg), (
+                [str(n) for n in _get(msg, names_path)],
+                [float(v) for v in _get(msg, pos_path)],
+            )
+
+        return ros
+    return None
+
+
+_JOINT_IN_TEXT = re.compile(r"(\d+)\s*$")
+
+
+def _phase_value(value: Any, joint_names: list[str]) -> int | None:
+    """A phase marker as a 1-based joint index, or None for 'no joint is being moved'."""
+    if value is None or isinstance(value, bool):
+        return None
+    if isinstance(value, int | float):
+        return int(value) if int(value) > 0 else None
+    text = str(value).strip()
+    if text.startswith("{"):
+        try:
+            return _phase_value(json.loads(text).get("joint"), joint_names)
+        except (ValueError, AttributeError):
+            return None
+    if text in joint_names:
+        return joint_names.index(text) + 1
+    match = _JOINT_IN_TEXT.search(text)
+    return int(match.group(1)) if match and int(match.group(1)) > 0 else None
+
+
+def _phase_extractor(schema: str, fields: dict[str, str]) -> Callable[[Any], Extracted]:
+    key = fields.get("joint")
+
+    def phase(msg: Any) -> Extracted:
+        if key:
+            return _stamp_ns(msg), _get(msg, key)
+        value = _first(msg, ("joint", "data"))
+        return _stamp_ns(msg), value
+
+    return phase
+
+
+def _json_decoder(data: bytes) -> Any:
+    return json.loads(data)
+
+
+def _message_decoder(info: ChannelInfo) -> Callable[[bytes], Any] | None:
+    """Per-message decoder for a channel's encoding (the mcap library's, or json)."""
+    if info.message_encoding == "json":
+        return _json_decoder
+    schema = _schema_record(info)
+    if info.message_encoding == "cdr":
+        from mcap_ros2.decoder import DecoderFactory as Ros2Factory
+
+        return Ros2Factory().decoder_for("cdr", schema)
+    if info.message_encoding == "protobuf":
+        from mcap_protobuf.decoder import DecoderFactory as ProtobufFactory
+
+        return ProtobufFactory().decoder_for("protobuf", schema)
+    return None
+
+
+def _schema_record(info: ChannelInfo) -> Any:
+    from mcap.records import Schema
+
+    return Schema(id=1, name=info.schema_name, encoding=info.schema_encoding, data=info.schema_data)
+
+
+ACCEPTED = {
+    "point": "geometry_msgs/msg/PointStamped, geometry_msgs/msg/PoseStamped, "
+    "foxglove.Point3InFrame, foxglove.PoseInFrame, or JSON with field paths",
+    "base": "the same types as the point stream",
+    "joints": "sensor_msgs/msg/JointState, foxglove.JointStates, or JSON with field paths",
+    "phase": 'std_msgs/msg/String or JSON {"joint": k}',
+}
+
+
+def _extractor(
+    stream: str, info: ChannelInfo, fields: dict[str, str]
+) -> Callable[[Any], Extracted] | None:
+    if stream in ("point", "base"):
+        return _point_extractor(info.schema_name, fields)
+    if stream == "joints":
+        return _joint_extractor(info.schema_name, fields)
+    if info.schema_name in PHASE_SCHEMAS or info.message_encoding == "json" or fields:
+        return _phase_extractor(info.schema_name, fields)
+    return None
+
+
+def _channels_for(scan_channels: dict[int, ChannelInfo], topic: str) -> list[ChannelInfo]:
+    return [c for c in scan_channels.values() if c.topic == topic]
+
+
+def choose_pipeline(path: str, channels: dict[int, ChannelInfo]) -> tuple[Pipeline, str]:
+    """The shipped pipeline that fits the log's topics and encodings best, and why."""
+    best: tuple[int, Pipeline] | None = None
+    for pipeline in shipped_pipelines():
+        score = 0
+        fits = True
+        for spec in pipeline.streams.values():
+            found = [
+                c
+                for c in _channels_for(channels, spec.topic)
+                if c.message_encoding in pipeline.encodings
+            ]
+            if found:
+                score += 1
+            elif spec.required:
+                fits = False
+        if fits and (best is None or score > best[0]):
+            best = (score, pipeline)
+    if best is None:
+        listed = ", ".join(
+            sorted(
+                {f"{c.topic} ({c.schema_name or c.message_encoding})" for c in channels.values()}
+            )
+        )
+        raise PipelineError(
+            path,
+            f"no shipped pipeline matches its topics ({listed or 'none'}); "
+            "write a pipeline file for it and pass --pipeline.",
+        )
+    pipeline = best[1]
+    point = _channels_for(channels, pipeline.streams["point"].topic)[0]
+    reason = f"{pipeline.streams['point'].topic} is {point.schema_name} ({point.message_encoding})"
+    return pipeline, reason
+
+
+def _decode_stream(
+    stream: str,
+    infos: list[ChannelInfo],
+    raw_by_channel: dict[int, RawMessages] | None,
+    general: dict[int, list[tuple[int, Any]]] | None,
+    fields: dict[str, str],
+    path: str,
+    fast: bool,
+) -> tuple[NDArray[np.int64], list[Any], NDArray[np.float64] | None]:
+    """Times and values of one stream over all its channels; bulk arrays where the fast path can."""
+    times: list[NDArray[np.int64]] = []
+    values: list[Any] = []
+    arrays: list[NDArray[np.float64]] = []
+    bulk_only = True
+    for info in infos:
+        extract = _extractor(stream, info, fields)
+        if extract is None:
+            raise UnknownSchemaError(
+                path, info.topic, info.schema_name, info.message_encoding, ACCEPTED[stream]
+            )
+        if raw_by_channel is not None:
+            raw = raw_by_channel.get(info.id)
+            if raw is None or len(raw) == 0:
+                continue
+            if (
+                fast
+                and stream in ("point", "base")
+                and info.message_encoding == "cdr"
+                and info.schema_name in (ros2.POINT_STAMPED, ros2.POSE_STAMPED)
+                and not fields
+                and bool(np.all(ros2.little_endian(raw)))
+            ):
+                stamps, xyz = ros2.decode_point_bulk(raw)
+                times.append(np.where(stamps != 0, stamps, raw.log_time))
+                arrays.append(xyz)
+                continue
+            if (
+                fast
+                and stream == "joints"
+                and info.message_encoding == "cdr"
+                and info.schema_name == ros2.JOINT_STATE
+                and not fields
+                and bool(np.all(ros2.little_endian(raw)))
+            ):
+                stamps, names, q = ros2.decode_joint_state_bulk(raw)
+                t = np.where(stamps != 0, stamps, raw.log_time)
+                times.append(t)
+                values.extend((names, row) for row in q.tolist())
+                bulk_only = False
+                continue
+            decode = _message_decoder(info)
+            if decode is None:
+                raise UnknownSchemaError(
+                    path, info.topic, info.schema_name, info.message_encoding, ACCEPTED[stream]
+                )
+            msgs = [(int(raw.log_time[i]), decode(raw.payload(i))) for i in range(len(raw))]
+        else:
+            assert general is not None
+            msgs = general.get(info.id, [])
+        bulk_only = False
+        t_list = []
+        for log_time, msg in msgs:
+            try:
+                stamp, value = extract(msg)
+            except (KeyError, AttributeError, TypeError, ValueError) as exc:
+                raise UnknownSchemaError(
+                    path,
+                    info.topic,
+                    info.schema_name,
+                    info.message_encoding,
+                    f"{ACCEPTED[stream]} (missing field {exc})",
+                ) from None
+            t_list.append(stamp if stamp is not None else log_time)
+            values.append(value)
+        times.append(np.asarray(t_list, dtype=np.int64))
+    t_all = np.concatenate(times) if times else np.zeros(0, dtype=np.int64)
+    if bulk_only and arrays:
+        return t_all, [], np.concatenate(arrays)
+    if arrays:  # mixed bulk and per-message channels on one stream
+        values = [list(r) for r in np.concatenate(arrays).tolist()] + values
+    return t_all, values, None
+
+
+def _points_frame(
+    t: NDArray[np.int64], values: list[Any], xyz: NDArray[np.float64] | None, scale: float
+) -> pl.DataFrame:
+    arr = xyz if xyz is not None else np.asarray(values, dtype=np.float64).reshape(-1, 3)
+    arr = arr * scale
+    return pl.DataFrame(
+        {"t_ns": t.astype(np.int64), "x": arr[:, 0], "y": arr[:, 1], "z": arr[:, 2]}
+    )
+
+
+def read_log(
+    path: str | Path,
+    pipeline: Pipeline | None = None,
+    *,
+    fast: bool = True,
+) -> LogData:
+    """Decode the streams of the log at ``path`` with ``pipeline`` (chosen from the log if None).
+
+    ``fast=False`` reads through the mcap library's per-message decoders (the reference path).
+    Non-finite samples are set aside and counted; a truncated file keeps what precedes the damage.
+    """
+    name = str(path)
+    scan = scan_mcap(
+        path, topics=None if pipeline is None else [s.topic for s in pipeline.streams.values()]
+    )
+    warnings = list(scan.warnings)
+    if pipeline is None:
+        pipeline, reason = choose_pipeline(name, scan.channels)
+        warnings.append(f"Using pipeline '{pipeline.name}' ({reason}).")
+    present = scan.topics()
+    infos: dict[str, list[ChannelInfo]] = {}
+    for stream, spec in pipeline.streams.items():
+        found = _channels_for(scan.channels, spec.topic)
+        if not found:
+            if spec.required:
+                raise MissingTopicError(name, stream, spec.topic, present)
+            continue
+        infos[stream] = found
+    general: dict[int, list[tuple[int, Any]]] | None = None
+    if not fast:
+        general = _read_general(name, [c for cs in infos.values() for c in cs])
+    set_aside: dict[str, int] = {}
+
+    def stream_frame(
+        stream: str,
+    ) -> tuple[NDArray[np.int64], list[Any], NDArray[np.float64] | None]:
+        return _decode_stream(
+            stream,
+            infos[stream],
+            None if not fast else scan.messages,
+            general,
+            pipeline.streams[stream].fields,
+            name,
+            fast,
+        )
+
+    t, vals, xyz = stream_frame("point")
+    points = _clean(_points_frame(t, vals, xyz, pipeline.length_scale), "point", set_aside)
+    base = None
+    if "base" in infos:
+        t, vals, xyz = stream_frame("base")
+        base = _clean(_points_frame(t, vals, xyz, pipeline.length_scale), "base", set_aside)
+    joints, joint_names = None, list(pipeline.joint_names or [])
+    if "joints" in infos:
+        t, vals, _ = stream_frame("joints")
+        joints, joint_names = _joints_frame(name, infos["joints"][0].topic, t, vals, pipeline)
+        joints = _clean(joints, "joints", set_aside)
+    phase = None
+    if "phase" in infos:
+        t, vals, _ = stream_frame("phase")
+        marks = [_phase_value(v, joint_names) for v in vals]
+        phase = pl.DataFrame({"t_ns": t, "joint": pl.Series(marks, dtype=pl.Int32)}).sort("t_ns")
+    return LogData(name, pipeline, points, joints, joint_names, base, phase, set_aside, warnings)
+
+
+def _clean(frame: pl.DataFrame, stream: str, set_aside: dict[str, int]) -> pl.DataFrame:
+    value_cols = [c for c in frame.columns if c != "t_ns"]
+    finite = (
+        pl.all_horizontal([pl.col(c).is_finite() for c in value_cols])
+        if value_cols
+        else pl.lit(True)
+    )
+    kept = frame.filter(finite)
+    dropped = frame.height - kept.height
+    if dropped:
+        set_aside[f"non_finite_{stream}"] = dropped
+    return kept.sort("t_ns", maintain_order=True)
+
+
+def _joints_frame(
+    path: str, topic: str, t: NDArray[np.int64], values: list[Any], pipeline: Pipeline
+) -> tuple[pl.DataFrame, list[str]]:
+    seen: list[str] = []
+    for names, _ in values:
+        seen.extend(n for n in names if n not in seen)
+    expected = list(pipeline.joint_names) if pipeline.joint_names else seen
+    missing = [n for n in expected if n not in seen]
+    if missing or not expected:
+        raise JointNamesError(path, topic, expected, seen)
+    q = np.full((len(values), len(expected)), np.nan)
+    column = {n: i for i, n in enumerate(expected)}
+    layouts: dict[tuple[str, ...], list[int]] = {}
+    for i, (names, _) in enumerate(values):
+        layouts.setdefault(tuple(names), []).append(i)
+    for names_key, rows in layouts.items():
+        src = [k for k, n in enumerate(names_key) if n in column]
+        dst = [column[names_key[k]] for k in src]
+        block = np.asarray([values[r][1] for r in rows], dtype=np.float64)
+        q[np.ix_(rows, dst)] = block[:, src]
+    if pipeline.joint_types is not None:
+        for j, jt in enumerate(pipeline.joint_types):
+            if jt is not None and jt.value == "prismatic":
+                q[:, j] *= pipeline.length_scale
+    offset_ns = round(pipeline.segmentation.clock_offset * 1e9)
+    data: dict[str, Any] = {"t_ns": t.astype(np.int64) + offset_ns}
+    data.update({f"q_{j + 1}": q[:, j] for j in range(len(expected))})
+    return pl.DataFrame(data), expected
+
+
+def _read_general(path: str, infos: list[ChannelInfo]) -> dict[int, list[tuple[int, Any]]]:
+    """Every message of ``infos``' topics through the mcap library's reader and decoders."""
+    from mcap.decoder import DecoderFactory
+    from mcap.exceptions import McapError
+    from mcap.reader import make_reader
+    from mcap_protobuf.decoder import DecoderFactory as ProtobufFactory
+    from mcap_ros2.decoder import DecoderFactory as Ros2Factory
+
+    class JsonFactory(DecoderFactory):
+        def decoder_for(self, message_encoding: str, schema: Any) -> Callable[[bytes], Any] | None:
+            return _json_decoder if message_encoding == "json" else None
+
+    out: dict[int, list[tuple[int, Any]]] = {}
+    topics = sorted({i.topic for i in infos})
+    by_topic = {(i.topic, i.schema_name): i.id for i in infos}
+    try:
+        with open(path, "rb") as f:
+            reader = make_reader(
+                f, decoder_factories=[Ros2Factory(), ProtobufFactory(), JsonFactory()]
+            )
+            for schema, channel, message, decoded in reader.iter_decoded_messages(
+                topics=topics, log_time_order=False
+            ):
+                key = by_topic.get((channel.topic, schema.name if schema else ""))
+                if key is not None:
+                    out.setdefault(key, []).append((message.log_time, decoded))
+    except (McapError, EOFError, ValueError) as exc:
+        raise InputError(f"{path}: the mcap library could not read it ({exc}).") from None
+    return out

@@ -1,0 +1,196 @@
+"""ROS 2 CDR for the message types of the input contract, in bulk with numpy.
+
+Decoding works on :class:`~dhlog.io.mcapscan.RawMessages` without a Python step per message:
+``geometry_msgs/msg/PointStamped`` and ``PoseStamped`` have a fixed layout once the length of the
+``frame_id`` is known; ``sensor_msgs/msg/JointState`` has a fixed layout per distinct name list,
+which is parsed once per distinct header. Encoding builds the same layouts for the simulator.
+
+CDR (XCDR1, little endian): a 4-byte encapsulation header ``00 01 00 00``, then each primitive
+aligned to its size relative to the end of that header; strings are ``u32 length`` (with the NUL)
+followed by the bytes and a NUL; sequences are ``u32 count`` followed by the elements.
+"""
+
+from __future__ import annotations
+
+import struct
+from collections.abc import Sequence
+
+import numpy as np
+from numpy.typing import NDArray
+
+from dhlog.io.mcapscan import RawMessages, gather
+
+CDR_LE = b"\x00\x01\x00\x00"
+
+POINT_STAMPED = "geometry_msgs/msg/PointStamped"
+POSE_STAMPED = "geometry_msgs/msg/PoseStamped"
+JOINT_STATE = "sensor_msgs/msg/JointState"
+STRING = "std_msgs/msg/String"
+
+_SEP = "=" * 80 + "\n"
+_HEADER_DEFS = (
+    _SEP
+    + "MSG: std_msgs/Header\nbuiltin_interfaces/Time stamp\nstring frame_id\n"
+    + _SEP
+    + "MSG: builtin_interfaces/Time\nint32 sec\nuint32 nanosec\n"
+)
+MSGDEFS = {
+    POINT_STAMPED: "std_msgs/Header header\ngeometry_msgs/Point point\n"
+    + _HEADER_DEFS
+    + _SEP
+    + "MSG: geometry_msgs/Point\nfloat64 x\nfloat64 y\nfloat64 z\n",
+    POSE_STAMPED: "std_msgs/Header header\ngeometry_msgs/Pose pose\n"
+    + _HEADER_DEFS
+    + _SEP
+    + "MSG: geometry_msgs/Pose\ngeometry_msgs/Point position\n"
+    + "geometry_msgs/Quaternion orientation\n"
+    + _SEP
+    + "MSG: geometry_msgs/Point\nfloat64 x\nfloat64 y\nfloat64 z\n"
+    + _SEP
+    + "MSG: geometry_msgs/Quaternion\nfloat64 x\nfloat64 y\nfloat64 z\nfloat64 w\n",
+    JOINT_STATE: "std_msgs/Header header\nstring[] name\nfloat64[] position\n"
+    + "float64[] velocity\nfloat64[] effort\n"
+    + _HEADER_DEFS,
+    STRING: "string data\n",
+}
+
+
+def _align(n: int, k: int) -> int:
+    return (n + k - 1) // k * k
+
+
+def _stamps(raw: RawMessages) -> NDArray[np.int64]:
+    sec = gather(raw.data, raw.starts + 4, 4, "<i4").astype(np.int64)
+    nsec = gather(raw.data, raw.starts + 8, 4, "<u4").astype(np.int64)
+    return sec * 1_000_000_000 + nsec
+
+
+def little_endian(raw: RawMessages) -> NDArray[np.bool_]:
+    """True for each message encoded as little-endian CDR (the fast path reads only those)."""
+    if len(raw) == 0:
+        return np.zeros(0, dtype=bool)
+    return np.asarray(raw.data[raw.starts + 1] == 1)
+
+
+def decode_point_bulk(raw: RawMessages) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
+    """Header stamps (ns) and positions (m, 3) of PointStamped or PoseStamped messages.
+
+    The point (or the pose's position) follows the header at the next multiple of 8 after
+    ``stamp (8) + frame_id length (4) + frame_id``.
+    """
+    frame_len = gather(raw.data, raw.starts + 12, 4, "<u4").astype(np.int64)
+    rel = ((12 + frame_len + 7) // 8) * 8
+    if np.any(rel + 24 + 4 > raw.lengths):
+        raise ValueError("PointStamped payload shorter than its layout")
+    pos = raw.starts + 4 + rel
+    xyz = gather(raw.data, (pos[:, None] + np.array([0, 8, 16])).reshape(-1), 8, "<f8")
+    return _stamps(raw), np.asarray(xyz.reshape(-1, 3), dtype=np.float64)
+
+
+def _parse_joint_layout(buf: bytes) -> tuple[list[str], int, int]:
+    """Names, position count and byte offset (relative to the CDR body) of one JointState."""
+    (flen,) = struct.unpack_from("<I", buf, 8)
+    p = _align(12 + flen, 4)
+    (count,) = struct.unpack_from("<I", buf, p)
+    p += 4
+    names = []
+    for _ in range(count):
+        p = _align(p, 4)
+        (n,) = struct.unpack_from("<I", buf, p)
+        names.append(buf[p + 4 : p + 4 + n - 1].decode("utf-8", "replace"))
+        p += 4 + n
+    p = _align(p, 4)
+    (n_pos,) = struct.unpack_from("<I", buf, p)
+    p += 4
+    if n_pos:
+        p = _align(p, 8)
+    return names, n_pos, p
+
+
+def decode_joint_state_bulk(
+    raw: RawMessages,
+) -> tuple[NDArray[np.int64], list[str], NDArray[np.float64]]:
+    """Header stamps (ns), the union of joint names (first-seen order) and positions (m, n_names).
+
+    Messages are grouped by payload length and header bytes; each distinct layout is parsed once
+    and its positions gathered for the whole group. Joints a message does not carry are NaN.
+    """
+    m = len(raw)
+    stamps = _stamps(raw)
+    names_all: list[str] = []
+    values: list[tuple[NDArray[np.int64], list[str], NDArray[np.float64]]] = []
+    for length in np.unique(raw.lengths):
+        group = np.flatnonzero(raw.lengths == length)
+        first = raw.payload(int(group[0]))[4:]
+        _, _, offset = _parse_joint_layout(first)
+        # the bytes after the stamp and before the positions fix the layout and the names
+        head = raw.data[(raw.starts[group] + 12)[:, None] + np.arange(offset - 8)]
+        uniq, inverse = np.unique(head, axis=0, return_inverse=True)
+        for k in range(uniq.shape[0]):
+            members = group[inverse.reshape(-1) == k]
+            names, n_pos, offset = _parse_joint_layout(raw.payload(int(members[0]))[4:])
+            n_use = min(n_pos, len(names))
+            pos = (raw.starts[members] + 4 + offset)[:, None] + 8 * np.arange(n_use)
+            vals = gather(raw.data, pos.reshape(-1), 8, "<f8").reshape(-1, n_use)
+            values.append((members, names[:n_use], np.asarray(vals, dtype=np.float64)))
+            names_all.extend(n for n in names[:n_use] if n not in names_all)
+    out = np.full((m, len(names_all)), np.nan)
+    for members, names, vals in values:
+        cols = np.array([names_all.index(n) for n in names], dtype=np.int64)
+        out[np.ix_(members, cols)] = vals
+    return stamps, names_all, out
+
+
+# ---------------------------------------------------------------------------------------------
+# encoding (simulator)
+
+
+def _header(t_ns: int, frame_id: str) -> bytes:
+    sec, nsec = divmod(int(t_ns), 1_000_000_000)
+    fid = frame_id.encode() + b"\x00"
+    return struct.pack("<iiI", sec, nsec, len(fid)) + fid
+
+
+def encode_point_stamped(
+    t_ns: Sequence[int] | NDArray[np.int64], xyz: NDArray[np.float64], frame_id: str
+) -> list[bytes]:
+    """CDR payloads of PointStamped messages (also readable as the prefix of PoseStamped)."""
+    out = []
+    for t, p in zip(np.asarray(t_ns).tolist(), np.asarray(xyz, dtype="<f8"), strict=True):
+        body = _header(t, frame_id)
+        body += b"\x00" * (_align(len(body), 8) - len(body))
+        out.append(CDR_LE + body + p.tobytes())
+    return out
+
+
+def encode_pose_stamped(
+    t_ns: Sequence[int] | NDArray[np.int64], xyz: NDArray[np.float64], frame_id: str
+) -> list[bytes]:
+    """CDR payloads of PoseStamped messages with an identity orientation."""
+    quat = np.array([0.0, 0.0, 0.0, 1.0], dtype="<f8").tobytes()
+    return [p + quat for p in encode_point_stamped(t_ns, xyz, frame_id)]
+
+
+def encode_joint_state(
+    t_ns: Sequence[int] | NDArray[np.int64], names: Sequence[str], positions: NDArray[np.float64]
+) -> list[bytes]:
+    """CDR payloads of JointState messages with positions only (empty velocity and effort)."""
+    out = []
+    for t, q in zip(np.asarray(t_ns).tolist(), np.asarray(positions, dtype="<f8"), strict=True):
+        body = bytearray(_header(t, ""))
+        body += b"\x00" * (_align(len(body), 4) - len(body)) + struct.pack("<I", len(names))
+        for name in names:
+            raw_name = name.encode() + b"\x00"
+            body += b"\x00" * (_align(len(body), 4) - len(body))
+            body += struct.pack("<I", len(raw_name)) + raw_name
+        body += b"\x00" * (_align(len(body), 4) - len(body)) + struct.pack("<I", len(q))
+        body += b"\x00" * (_align(len(body), 8) - len(body)) + q.tobytes()
+        body += struct.pack("<II", 0, 0)  # velocity, effort
+        out.append(CDR_LE + bytes(body))
+    return out
+
+
+def encode_string(text: str) -> bytes:
+    """CDR payload of a std_msgs/msg/String."""
+    data = text.encode() + b"\x00"
+    return CDR_LE + struct.pack("<I", len(data)) + data

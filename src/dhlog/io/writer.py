@@ -1,0 +1,269 @@
+"""Write simulated sessions as MCAP files, in each encoding of the input contract.
+
+* ``ros2``: as rosbag2 writes it: profile ``ros2``, schemas ``ros2msg``, CDR messages, a
+  ``rosbag2`` metadata record, no chunk CRCs.
+* ``json``: ``jsonschema`` schemas ``foxglove.Point3InFrame`` and ``foxglove.JointStates``,
+  phase markers as ``{"joint": k}``.
+* ``protobuf``: the Foxglove protobuf schemas; phase markers as JSON on their own channel.
+
+Files are written to a temporary name beside the target and renamed into place.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
+from typing import IO, Any, Literal
+
+import numpy as np
+from mcap.writer import CompressionType, Writer
+
+from dhlog.io import ros2
+from dhlog.simulate import Session
+
+Encoding = Literal["ros2", "json", "protobuf"]
+TOPICS = {
+    "point": "/tracker/point",
+    "joints": "/joint_states",
+    "base": "/tracker/base_plane",
+    "phase": "/calibration/phase",
+}
+
+_TIME = {"type": "object", "properties": {"sec": {"type": "integer"}, "nsec": {"type": "integer"}}}
+_VEC3 = {"type": "object", "properties": {k: {"type": "number"} for k in "xyz"}}
+JSON_SCHEMAS: dict[str, dict[str, Any]] = {
+    "foxglove.Point3InFrame": {
+        "title": "foxglove.Point3InFrame",
+        "type": "object",
+        "properties": {"timestamp": _TIME, "frame_id": {"type": "string"}, "point": _VEC3},
+    },
+    "foxglove.JointStates": {
+        "title": "foxglove.JointStates",
+        "type": "object",
+        "properties": {
+            "timestamp": _TIME,
+            "joints": {
+                "type": "array",
+                "items": {
+                    "type": "object",
+                    "properties": {"name": {"type": "string"}, "position": {"type": "number"}},
+                },
+            },
+        },
+    },
+    "dhlog.Phase": {
+        "title": "dhlog.Phase",
+        "type": "object",
+        "properties": {"joint": {"type": ["integer", "null"]}},
+    },
+}
+
+
+@contextmanager
+def atomic_output(path: str | Path) -> Iterator[IO[bytes]]:
+    """A binary file that replaces ``path`` only when the block finishes without error."""
+    target = Path(path)
+    target.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".part", dir=target.parent)
+    try:
+        with os.fdopen(fd, "wb") as f:
+            yield f
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(tmp, 0o666 & ~umask)
+        os.replace(tmp, target)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def _stamp(t_ns: int) -> dict[str, int]:
+    sec, nsec = divmod(int(t_ns), 1_000_000_000)
+    return {"sec": sec, "nsec": nsec}
+
+
+def _events(session: Session) -> list[tuple[int, str, int]]:
+    """(time, stream, index) of every message, in time order."""
+    ev: list[tuple[int, str, int]] = []
+    ev += [(int(t), "base", i) for i, t in enumerate(session.base_t_ns)]
+    ev += [(int(t), "point", i) for i, t in enumerate(session.point_t_ns)]
+    ev += [(int(t), "joints", i) for i, t in enumerate(session.joint_t_ns)]
+    ev += [(t, "phase", i) for i, (t, _) in enumerate(session.phase)]
+    ev.sort(key=lambda e: e[0])
+    return ev
+
+
+def _phase_text(joint: int | None) -> str:
+    return "none" if joint is None else f"joint_{joint}"
+
+
+def write_session(
+    session: Session,
+    path: str | Path,
+    encoding: Encoding = "ros2",
+    *,
+    point_type: Literal["point", "pose"] = "point",
+) -> None:
+    """Write ``session`` to ``path`` (atomically) in ``encoding``."""
+    with atomic_output(path) as f:
+        if encoding == "ros2":
+            _write_ros2(session, f, point_type)
+        elif encoding == "json":
+            _write_json(session, f)
+        else:
+            _write_protobuf(session, f)
+
+
+def _write_ros2(session: Session, f: IO[bytes], point_type: str) -> None:
+    writer = Writer(f, compression=CompressionType.ZSTD, enable_crcs=False)
+    writer.start(profile="ros2", library="rosbag2 (simulated by dhlog)")
+    point_schema = ros2.POSE_STAMPED if point_type == "pose" else ros2.POINT_STAMPED
+    schema_ids = {
+        name: writer.register_schema(name, "ros2msg", ros2.MSGDEFS[name].encode())
+        for name in (point_schema, ros2.POINT_STAMPED, ros2.JOINT_STATE, ros2.STRING)
+    }
+    encode = ros2.encode_pose_stamped if point_type == "pose" else ros2.encode_point_stamped
+    payloads: dict[str, list[bytes]] = {
+        "point": encode(session.point_t_ns, session.point_xyz, "tracker"),
+        "base": ros2.encode_point_stamped(session.base_t_ns, session.base_xyz, "tracker"),
+        "joints": ros2.encode_joint_state(session.joint_t_ns, session.joint_names, session.joint_q),
+        "phase": [ros2.encode_string(_phase_text(j)) for _, j in session.phase],
+    }
+    stream_schema = {
+        "point": point_schema,
+        "base": ros2.POINT_STAMPED,
+        "joints": ros2.JOINT_STATE,
+        "phase": ros2.STRING,
+    }
+    channels = {
+        s: writer.register_channel(
+            TOPICS[s], "cdr", schema_ids[stream_schema[s]], {"offered_qos_profiles": ""}
+        )
+        for s in payloads
+        if payloads[s]
+    }
+    counts = {s: len(p) for s, p in payloads.items()}
+    for t, stream, i in _events(session):
+        writer.add_message(channels[stream], t, payloads[stream][i], t)
+    writer.add_metadata(
+        "rosbag2",
+        {
+            "serialized_metadata": json.dumps(
+                {"version": 9, "storage_identifier": "mcap", "message_counts": counts}
+            )
+        },
+    )
+    writer.finish()  # type: ignore[no-untyped-call]
+
+
+def _write_json(session: Session, f: IO[bytes]) -> None:
+    writer = Writer(f, compression=CompressionType.ZSTD)
+    writer.start(profile="", library="dhlog simulate")
+    ids = {
+        name: writer.register_schema(name, "jsonschema", json.dumps(s).encode())
+        for name, s in JSON_SCHEMAS.items()
+    }
+    channels = {
+        "point": writer.register_channel(TOPICS["point"], "json", ids["foxglove.Point3InFrame"]),
+        "base": writer.register_channel(TOPICS["base"], "json", ids["foxglove.Point3InFrame"]),
+    }
+    if session.joint_t_ns.size:
+        channels["joints"] = writer.register_channel(
+            TOPICS["joints"], "json", ids["foxglove.JointStates"]
+        )
+    if session.phase:
+        channels["phase"] = writer.register_channel(TOPICS["phase"], "json", ids["dhlog.Phase"])
+    for t, stream, i in _events(session):
+        if stream in ("point", "base"):
+            xyz = (session.point_xyz if stream == "point" else session.base_xyz)[i]
+            msg: dict[str, Any] = {
+                "timestamp": _stamp(t),
+                "frame_id": "tracker",
+                "point": {"x": float(xyz[0]), "y": float(xyz[1]), "z": float(xyz[2])},
+            }
+        elif stream == "joints":
+            msg = {
+                "timestamp": _stamp(t),
+                "joints": [
+                    {"name": n, "position": float(v)}
+                    for n, v in zip(session.joint_names, session.joint_q[i], strict=True)
+                ],
+            }
+        else:
+            msg = {"joint": session.phase[i][1]}
+        writer.add_message(channels[stream], t, json.dumps(msg).encode(), t)
+    writer.finish()  # type: ignore[no-untyped-call]
+
+
+def _write_protobuf(session: Session, f: IO[bytes]) -> None:
+    from foxglove_schemas_protobuf.JointState_pb2 import JointState
+    from foxglove_schemas_protobuf.JointStates_pb2 import JointStates
+    from foxglove_schemas_protobuf.Point3_pb2 import Point3
+    from foxglove_schemas_protobuf.Point3InFrame_pb2 import Point3InFrame
+    from google.protobuf.timestamp_pb2 import Timestamp
+    from mcap_protobuf.schema import register_schema
+
+    writer = Writer(f, compression=CompressionType.ZSTD)
+    writer.start(profile="protobuf", library="dhlog simulate")
+    point_schema = register_schema(writer, Point3InFrame)
+    channels = {
+        "point": writer.register_channel(TOPICS["point"], "protobuf", point_schema),
+        "base": writer.register_channel(TOPICS["base"], "protobuf", point_schema),
+    }
+    if session.joint_t_ns.size:
+        channels["joints"] = writer.register_channel(
+            TOPICS["joints"], "protobuf", register_schema(writer, JointStates)
+        )
+    if session.phase:
+        phase_schema = writer.register_schema(
+            "dhlog.Phase", "jsonschema", json.dumps(JSON_SCHEMAS["dhlog.Phase"]).encode()
+        )
+        channels["phase"] = writer.register_channel(TOPICS["phase"], "json", phase_schema)
+
+    def stamp(t: int) -> Timestamp:
+        sec, nsec = divmod(t, 1_000_000_000)
+        return Timestamp(seconds=sec, nanos=nsec)
+
+    for t, stream, i in _events(session):
+        if stream in ("point", "base"):
+            xyz = (session.point_xyz if stream == "point" else session.base_xyz)[i]
+            data = Point3InFrame(
+                timestamp=stamp(t),
+                frame_id="tracker",
+                point=Point3(x=float(xyz[0]), y=float(xyz[1]), z=float(xyz[2])),
+            )
+            payload = data.SerializeToString()
+        elif stream == "joints":
+            joints = [
+                JointState(name=n, position=float(v))
+                for n, v in zip(session.joint_names, session.joint_q[i], strict=True)
+            ]
+            payload = JointStates(timestamp=stamp(t), joints=joints).SerializeToString()
+        else:
+            payload = json.dumps({"joint": session.phase[i][1]}).encode()
+        writer.add_message(channels[stream], t, payload, t)
+    writer.finish()  # type: ignore[no-untyped-call]
+
+
+def write_truth(document: dict[str, object], path: str | Path) -> None:
+    """Write a truth/result document as indented JSON, atomically."""
+    with atomic_output(path) as f:
+        f.write((json.dumps(document, indent=2) + "\n").encode())
+
+
+def sha256_of(path: str | Path) -> str:
+    """Hex SHA-256 of a file."""
+    import hashlib
+
+    digest = hashlib.sha256()
+    with open(path, "rb") as f:
+        for block in iter(lambda: f.read(1 << 20), b""):
+            digest.update(block)
+    return digest.hexdigest()
+
+
+__all__ = ["atomic_output", "np", "sha256_of", "write_session", "write_truth"]

@@ -1,0 +1,347 @@
+"""Segmentation: the measurement table, with each target sample assigned to one joint's sweep.
+
+With encoders: a joint is *moving* at an encoder sample when it changes by more than the lock
+tolerance across a short window around it; samples where exactly one joint moves, and the still
+samples next to them whose other joints keep that sweep's locked pose, form a sweep; samples
+where two or more joints move are transitions. Target samples take the label of the encoder
+samples around them and their encoder values by linear interpolation between the encoder samples
+found by ``join_asof`` (backward and forward, within the join tolerance).
+
+Without encoders: phase markers label the time intervals between them.
+
+Nothing is dropped silently: every target sample not in a sweep is counted under its reason.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import polars as pl
+from numpy.typing import NDArray
+
+from dhlog.dh import JointType
+from dhlog.errors import TooFewSamplesError
+from dhlog.io.pipeline import SegmentationSettings
+from dhlog.io.reader import LogData
+
+TRANSITION, IDLE = -1, -2
+
+
+@dataclass
+class Segmentation:
+    """The measurement table and what was found in it.
+
+    ``table``: ``t_ns, x, y, z, q_1 … q_n, joint, segment`` (joint 1-based, both null where a
+    sample is in no sweep). ``segments``: one row per sweep: ``segment, joint, n, q_start, q_end,
+    sweep, t_start_ns, t_end_ns, lock_q_1 … lock_q_n``. ``set_aside``: target samples (and other
+    samples) not used, by reason. ``reference_pose``: the locked pose most sweeps share.
+    """
+
+    table: pl.DataFrame
+    segments: pl.DataFrame
+    n_joints: int
+    joint_names: list[str]
+    set_aside: dict[str, int]
+    reference_pose: NDArray[np.float64] | None
+    base: pl.DataFrame | None
+    has_encoders: bool
+    warnings: list[str] = field(default_factory=list)
+
+
+def _moving(
+    t: NDArray[np.int64], q: NDArray[np.float64], window_ns: int, tol: float
+) -> NDArray[np.bool_]:
+    """(m, n) mask: joint k moves by more than ``tol`` across ``[t - w, t + w]`` at each sample."""
+    lo = np.searchsorted(t, t - window_ns, side="left")
+    hi = np.searchsorted(t, t + window_ns, side="right") - 1
+    return np.asarray(np.abs(q[hi] - q[lo]) > tol)
+
+
+def _runs(state: NDArray[np.int64]) -> list[tuple[int, int, int]]:
+    """Run-length encoding: (state, first index, last index + 1)."""
+    if state.size == 0:
+        return []
+    edges = np.flatnonzero(np.diff(state)) + 1
+    starts = np.concatenate([[0], edges])
+    ends = np.concatenate([edges, [state.size]])
+    return [(int(state[s]), int(s), int(e)) for s, e in zip(starts, ends, strict=True)]
+
+
+def _label_encoder_samples(
+    t: NDArray[np.int64], q: NDArray[np.float64], settings: SegmentationSettings
+) -> tuple[NDArray[np.int64], list[tuple[int, int, int, NDArray[np.float64]]]]:
+    """Segment label per encoder sample (id ≥ 0, or TRANSITION / IDLE) and the segments as
+    (joint index 0-based, first, last + 1, locked pose)."""
+    m, n = q.shape
+    window = int(settings.motion_window * 1e9)
+    tol = settings.lock_tolerance
+    moving = _moving(t, q, window, tol)
+    count = moving.sum(axis=1)
+    state = np.where(count >= 2, TRANSITION, np.where(count == 1, np.argmax(moving, axis=1), IDLE))
+    labels = np.full(m, TRANSITION, dtype=np.int64)
+    segments: list[tuple[int, int, int, NDArray[np.float64]]] = []
+    current: list[int | NDArray[np.float64]] | None = None  # [joint, start, end, lock]
+    pending_idle: tuple[int, int] | None = None
+
+    def compatible(start: int, end: int, joint: int, lock: NDArray[np.float64]) -> bool:
+        others = np.arange(n) != joint
+        return bool(np.all(np.abs(q[start:end][:, others] - lock[others]) <= tol))
+
+    def close() -> None:
+        nonlocal current
+        if current is not None:
+            joint, start, end, lock = current
+            assert isinstance(joint, int) and isinstance(start, int) and isinstance(end, int)
+            assert isinstance(lock, np.ndarray)
+            labels[start:end] = len(segments)
+            segments.append((joint, start, end, lock))
+            current = None
+
+    for st, start, end in _runs(state):
+        if st == TRANSITION:
+            close()
+            pending_idle = None
+            continue
+        if st == IDLE:
+            if current is not None:
+                joint, _, _, lock = current
+                assert isinstance(joint, int) and isinstance(lock, np.ndarray)
+                if compatible(start, end, joint, lock):
+                    current[2] = end
+                    continue
+                close()
+            labels[start:end] = IDLE
+            pending_idle = (start, end)
+            continue
+        joint = st
+        if current is not None:
+            cj, _, _, clock = current
+            assert isinstance(clock, np.ndarray)
+            if cj == joint and compatible(start, end, joint, clock):
+                current[2] = end
+                continue
+            close()
+        first = start
+        lock = q[start].copy()
+        if (
+            pending_idle is not None
+            and pending_idle[1] == start
+            and compatible(*pending_idle, joint, lock)
+        ):
+            first = pending_idle[0]
+        current = [joint, first, end, lock]
+        pending_idle = None
+    close()
+    return labels, segments
+
+
+def _interpolate_encoders(
+    points: pl.DataFrame, joints: pl.DataFrame, n: int, tol_ns: int
+) -> pl.DataFrame:
+    """Encoder values at each target time: linear between the encoder samples before and after
+    (``join_asof`` backward and forward within ``tol_ns``); null where either is missing."""
+    cols = [f"q_{j + 1}" for j in range(n)]
+    enc = joints.select(["t_ns", *cols]).with_columns(pl.col("t_ns").alias("t_enc"))
+    prev = points.join_asof(enc, on="t_ns", strategy="backward", tolerance=tol_ns)
+    nxt = points.select("t_ns").join_asof(enc, on="t_ns", strategy="forward", tolerance=tol_ns)
+    t0, t1 = prev["t_enc"], nxt["t_enc"]
+    span = (t1 - t0).cast(pl.Float64)
+    w = ((points["t_ns"] - t0).cast(pl.Float64) / span).fill_nan(0.0)
+    out = points.clone()
+    for c in cols:
+        out = out.with_columns((prev[c] + (nxt[c] - prev[c]) * w).alias(c))
+    return out
+
+
+def segment_log(
+    log: LogData,
+    *,
+    joint_types: list[JointType | None] | None = None,
+    reference_pose: NDArray[np.float64] | None = None,
+) -> Segmentation:
+    """Build the measurement table of ``log`` and find its sweeps (see the module docstring)."""
+    settings = log.pipeline.segmentation
+    points = log.points
+    if points.height < 3:
+        raise TooFewSamplesError(f"{log.path}: point stream", points.height, 3)
+    set_aside = dict(log.set_aside)
+    warnings = list(log.warnings)
+    if log.joints is not None and log.joints.height > 0:
+        seg = _segment_with_encoders(log, settings, joint_types, set_aside, warnings)
+    elif log.phase is not None:
+        seg = _segment_with_phase(log, settings, set_aside, warnings)
+    else:
+        raise TooFewSamplesError(f"{log.path}: joint-state and phase streams", 0, 1)
+    table, segments, n, names = seg
+    ref = reference_pose
+    if ref is None and log.joints is not None and segments.height:
+        ref = shared_locked_pose(segments, n, settings.lock_tolerance)
+    return Segmentation(
+        table, segments, n, names, set_aside, ref, log.base, log.joints is not None, warnings
+    )
+
+
+def _segment_with_encoders(
+    log: LogData,
+    settings: SegmentationSettings,
+    joint_types: list[JointType | None] | None,
+    set_aside: dict[str, int],
+    warnings: list[str],
+) -> tuple[pl.DataFrame, pl.DataFrame, int, list[str]]:
+    assert log.joints is not None
+    n = len(log.joint_names)
+    cols = [f"q_{j + 1}" for j in range(n)]
+    joints = log.joints.sort("t_ns")
+    t_enc = joints["t_ns"].to_numpy()
+    q_enc = joints.select(cols).to_numpy()
+    labels, found = _label_encoder_samples(t_enc, q_enc, settings)
+    tol_ns = int(settings.join_tolerance * 1e9)
+    table = _interpolate_encoders(log.points, joints, n, tol_ns)
+    t = table["t_ns"].to_numpy()
+    # a target sample takes the label of the encoder samples on both sides, if they agree
+    i_next = np.clip(np.searchsorted(t_enc, t, side="left"), 0, t_enc.size - 1)
+    i_prev = np.clip(np.searchsorted(t_enc, t, side="right") - 1, 0, t_enc.size - 1)
+    label = np.where(labels[i_prev] == labels[i_next], labels[i_prev], TRANSITION)
+    outside = (t < t_enc[0]) | (t > t_enc[-1])
+    no_encoder = table.select(pl.any_horizontal(pl.col(cols).is_null())).to_series().to_numpy()
+    label = np.where(outside | no_encoder, IDLE - 1, label)
+    seg_rows: list[dict[str, float | int]] = []
+    seg_id = np.full(t.size, -1, dtype=np.int64)
+    for k, (joint, start, end, _lock) in enumerate(found):
+        members = np.flatnonzero(label == k)
+        q_joint = q_enc[start:end, joint]
+        jt = joint_types[joint] if joint_types and joint < len(joint_types) else None
+        minimum = settings.min_travel if jt is JointType.PRISMATIC else settings.min_sweep
+        if jt is None:
+            minimum = min(settings.min_sweep, settings.min_travel)
+        sweep = float(q_joint.max() - q_joint.min())
+        name = log.joint_names[joint]
+        if sweep < minimum:
+            set_aside["short_sweep"] = set_aside.get("short_sweep", 0) + members.size
+            continue
+        if members.size < settings.min_samples:
+            set_aside["too_few_samples"] = set_aside.get("too_few_samples", 0) + members.size
+            warnings.append(
+                f"joint {joint + 1} ({name}): a sweep with only {members.size} target sample(s) "
+                f"(minimum {settings.min_samples}) was set aside."
+            )
+            continue
+        sid = len(seg_rows) + 1
+        seg_id[members] = sid
+        lock_pose = np.median(q_enc[start:end], axis=0)
+        seg_rows.append(
+            {
+                "segment": sid,
+                "joint": joint + 1,
+                "n": int(members.size),
+                "q_start": float(q_joint[0]),
+                "q_end": float(q_joint[-1]),
+                "sweep": sweep,
+                "t_start_ns": int(t[members].min()),
+                "t_end_ns": int(t[members].max()),
+                **{
+                    f"lock_q_{j + 1}": (float(lock_pose[j]) if j != joint else float("nan"))
+                    for j in range(n)
+                },
+            }
+        )
+    _count(set_aside, "transition", int(np.count_nonzero(label == TRANSITION)))
+    _count(set_aside, "idle", int(np.count_nonzero(label == IDLE)))
+    _count(set_aside, "no_encoder", int(np.count_nonzero(label == IDLE - 1)))
+    joint_col = np.zeros(t.size, dtype=np.int64)
+    for row in seg_rows:
+        joint_col[seg_id == row["segment"]] = row["joint"]
+    table = table.with_columns(
+        pl.Series("joint", np.where(seg_id > 0, joint_col, 0)).cast(pl.Int32).replace(0, None),
+        pl.Series("segment", seg_id).cast(pl.Int32).replace(-1, None),
+    )
+    return table, _segments_frame(seg_rows, n), n, list(log.joint_names)
+
+
+def _count(set_aside: dict[str, int], key: str, value: int) -> None:
+    if value:
+        set_aside[key] = set_aside.get(key, 0) + value
+
+
+def _segments_frame(rows: list[dict[str, float | int]], n: int) -> pl.DataFrame:
+    schema: dict[str, type[pl.DataType]] = {
+        "segment": pl.Int32,
+        "joint": pl.Int32,
+        "n": pl.Int64,
+        "q_start": pl.Float64,
+        "q_end": pl.Float64,
+        "sweep": pl.Float64,
+        "t_start_ns": pl.Int64,
+        "t_end_ns": pl.Int64,
+    }
+    schema.update({f"lock_q_{j + 1}": pl.Float64 for j in range(n)})
+    return pl.DataFrame(rows, schema=schema)
+
+
+def _segment_with_phase(
+    log: LogData,
+    settings: SegmentationSettings,
+    set_aside: dict[str, int],
+    warnings: list[str],
+) -> tuple[pl.DataFrame, pl.DataFrame, int, list[str]]:
+    assert log.phase is not None
+    marks = log.phase.sort("t_ns")
+    labelled = log.points.sort("t_ns").join_asof(marks, on="t_ns", strategy="backward")
+    joint = labelled["joint"].to_numpy(allow_copy=True)
+    joint = np.where(np.isnan(joint.astype(np.float64)), 0, joint).astype(np.int64)
+    marked = marks["joint"].drop_nulls().to_numpy()
+    n = int(marked.max()) if marked.size else 0
+    names = list(log.joint_names) or [f"joint_{j + 1}" for j in range(n)]
+    n = max(n, len(names))
+    t = labelled["t_ns"].to_numpy()
+    seg_id = np.full(t.size, -1, dtype=np.int64)
+    rows: list[dict[str, float | int]] = []
+    for st, start, end in _runs(joint):
+        if st == 0:
+            _count(set_aside, "idle", end - start)
+            continue
+        if end - start < settings.min_samples:
+            _count(set_aside, "too_few_samples", end - start)
+            warnings.append(f"joint {st}: a sweep with only {end - start} sample(s) was set aside.")
+            continue
+        sid = len(rows) + 1
+        seg_id[start:end] = sid
+        rows.append(
+            {
+                "segment": sid,
+                "joint": st,
+                "n": end - start,
+                "q_start": float("nan"),
+                "q_end": float("nan"),
+                "sweep": float("nan"),
+                "t_start_ns": int(t[start]),
+                "t_end_ns": int(t[end - 1]),
+                **{f"lock_q_{j + 1}": float("nan") for j in range(n)},
+            }
+        )
+    table = labelled.drop("joint").with_columns(
+        *[pl.lit(None, dtype=pl.Float64).alias(f"q_{j + 1}") for j in range(n)],
+        pl.Series("joint", np.where(seg_id > 0, joint, 0)).cast(pl.Int32).replace(0, None),
+        pl.Series("segment", seg_id).cast(pl.Int32).replace(-1, None),
+    )
+    return table, _segments_frame(rows, n), n, names
+
+
+def shared_locked_pose(segments: pl.DataFrame, n: int, tol: float) -> NDArray[np.float64]:
+    """The locked pose most sweeps share: each sweep's locked values (its own joint free) are
+    merged with every sweep that agrees with them within ``tol``; the largest group wins."""
+    locks = segments.select([f"lock_q_{j + 1}" for j in range(n)]).to_numpy()
+    best: tuple[int, NDArray[np.float64]] | None = None
+    for seed in locks:
+        agree = np.all(np.isnan(locks) | np.isnan(seed) | (np.abs(locks - seed) <= tol), axis=1)
+        merged = np.nanmedian(np.where(agree[:, None], locks, np.nan), axis=0)
+        count = int(np.count_nonzero(agree))
+        if best is None or count > best[0]:
+            best = (count, merged)
+    assert best is not None
+    pose = best[1]
+    # a joint locked in none of the agreeing sweeps: its median locked value over all sweeps
+    fallback = np.nanmedian(np.where(np.isnan(locks), np.nan, locks), axis=0)
+    pose = np.where(np.isnan(pose), fallback, pose)
+    return np.asarray(np.where(np.isnan(pose), 0.0, pose), dtype=np.float64)

@@ -1,0 +1,353 @@
+"""Simulated calibration sessions: what a tracker and the robot's encoders would have recorded.
+
+A session moves the robot through piecewise-linear joint trajectories: for each joint, a move
+that drives several joints at once to that joint's locked pose (a transition), a dwell, the sweep
+(continuous at constant speed, or step-and-measure), a dwell. The tracker samples the target
+(FK of the true robot, plus noise, gross outliers and dropouts) at its own rate; the encoders are
+sampled at another rate with another clock phase and jitter. Base-plane points are probed first.
+Everything is pure numpy; :mod:`dhlog.io.writer` turns a :class:`Session` into an MCAP file.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Literal
+
+import numpy as np
+from numpy.typing import NDArray
+
+from dhlog.dh import JointType, StandardDH, standard_to_modified
+from dhlog.extract import extract_dh
+from dhlog.geometry._checks import FloatArray, rotation_about
+from dhlog.geometry.lines import Line
+from dhlog.kinematics import fk_point, joint_axes
+from dhlog.robots import Robot
+
+START_NS = 1_763_700_000_000_000_000
+
+
+@dataclass(frozen=True)
+class SimulationConfig:
+    """Settings of a simulated session (SI units; noise is σ, or the half-width if uniform)."""
+
+    noise: float = 1e-5
+    noise_kind: Literal["gaussian", "uniform"] = "gaussian"
+    tracker_rate: float = 100.0
+    joint_rate: float = 250.0
+    motion: Literal["continuous", "step"] = "continuous"
+    sweep: float = math.radians(90.0)
+    travel: float = 0.1
+    speed: float = 0.5
+    linear_speed: float = 0.05
+    steps: int = 12
+    dwell: float = 0.3
+    lock_poses: Literal["home", "random"] = "home"
+    base_points: int = 12
+    outliers: float = 0.0
+    outlier_size: float = 3e-3
+    dropouts: float = 0.0
+    encoders: bool = True
+    phase: bool = False
+    perturb_length: float = 0.0
+    perturb_angle: float = 0.0
+    clock_jitter: float = 2e-4
+    seed: int = 0
+
+
+@dataclass
+class Session:
+    """A simulated session and its ground truth.
+
+    ``point_t_ns``/``point_xyz``: tracker samples (m, 3) in M; ``joint_t_ns``/``joint_q``:
+    encoder samples (in chain order, names ``joint_names``); ``base_xyz``: probed base points;
+    ``phase``: (t_ns, joint or None) markers; ``table``, ``T_measurement_base``, ``tool_point``,
+    ``reference_pose``: the truth, in the result contract's convention.
+    """
+
+    robot_name: str
+    joint_names: list[str]
+    joint_types: tuple[JointType, ...]
+    point_t_ns: NDArray[np.int64]
+    point_xyz: FloatArray
+    joint_t_ns: NDArray[np.int64]
+    joint_q: FloatArray
+    base_t_ns: NDArray[np.int64]
+    base_xyz: FloatArray
+    phase: list[tuple[int, int | None]]
+    table: StandardDH
+    T_measurement_base: FloatArray
+    tool_point: FloatArray
+    reference_pose: FloatArray
+    config: SimulationConfig
+    n_outliers: int = 0
+    n_dropped: int = 0
+    notes: list[str] = field(default_factory=list)
+
+
+def default_measurement_pose() -> FloatArray:
+    """A tracker 2.5 m in front of the robot, turned and slightly tilted (T_measurement_base)."""
+    T = np.eye(4)
+    T[:3, :3] = rotation_about(np.array([0.0, 0.0, 1.0]), math.radians(155.0)) @ rotation_about(
+        np.array([1.0, 0.0, 0.0]), math.radians(1.5)
+    )
+    T[:3, 3] = [2.1, -1.3, -0.42]
+    return T
+
+
+def _perturbed(table: StandardDH, rng: np.random.Generator, cfg: SimulationConfig) -> StandardDH:
+    n = table.n
+    return StandardDH(
+        table.joint_types,
+        table.theta_offset + rng.normal(scale=cfg.perturb_angle, size=n),
+        table.d_offset + rng.normal(scale=cfg.perturb_length, size=n),
+        table.a + rng.normal(scale=cfg.perturb_length, size=n),
+        table.alpha + rng.normal(scale=cfg.perturb_angle, size=n),
+    )
+
+
+def _keyframes(
+    robot: Robot, home: FloatArray, cfg: SimulationConfig, rng: np.random.Generator
+) -> tuple[list[tuple[float, FloatArray]], list[tuple[float, int | None]]]:
+    """Piecewise-linear trajectory (time s, q) and phase markers (time s, joint or None)."""
+    n = robot.n
+    lo, hi = robot.limits[:, 0], robot.limits[:, 1]
+    frames: list[tuple[float, FloatArray]] = [(0.0, home.copy())]
+    marks: list[tuple[float, int | None]] = [(0.0, None)]
+    t, q = 0.0, home.copy()
+    revolute = [jt is JointType.REVOLUTE for jt in robot.table.joint_types]
+
+    def go(target: FloatArray, speed_scale: float = 1.0) -> None:
+        nonlocal t, q
+        step = np.abs(target - q)
+        speed = np.where(revolute, cfg.speed, cfg.linear_speed) * speed_scale
+        duration = float(np.max(step / speed)) if np.any(step > 0) else 0.0
+        t += max(duration, 0.05)
+        q = target.copy()
+        frames.append((t, q.copy()))
+
+    def hold(seconds: float) -> None:
+        nonlocal t
+        t += seconds
+        frames.append((t, q.copy()))
+
+    for k in range(n):
+        lock = home.copy()
+        if cfg.lock_poses == "random":
+            span = hi - lo
+            lock = np.clip(home + rng.uniform(-0.15, 0.15, n) * span, lo, hi)
+        half = (cfg.sweep if revolute[k] else cfg.travel) / 2.0
+        start = float(np.clip(lock[k] - half, lo[k], hi[k]))
+        end = float(np.clip(lock[k] + half, lo[k], hi[k]))
+        target = lock.copy()
+        target[k] = start
+        go(target, 1.5)  # transition: several joints at once
+        hold(cfg.dwell)
+        marks.append((t - cfg.dwell * 0.9, k + 1))
+        if cfg.motion == "continuous":
+            target[k] = end
+            go(target)
+        else:
+            for value in np.linspace(start, end, cfg.steps)[1:]:
+                target[k] = value
+                go(target)
+                hold(cfg.dwell)
+        hold(cfg.dwell)
+        marks.append((t - cfg.dwell * 0.1, None))
+    go(home, 1.5)
+    hold(cfg.dwell)
+    return frames, marks
+
+
+def _interp(frames: list[tuple[float, FloatArray]], times: FloatArray) -> FloatArray:
+    """Joint values at ``times``: each keyframe-to-keyframe move follows the smooth profile
+    ``s = 3τ² − 2τ³`` (zero speed at both ends), as a robot's point-to-point motion does."""
+    ft = np.array([f[0] for f in frames])
+    fq = np.stack([f[1] for f in frames])
+    i = np.clip(np.searchsorted(ft, times, side="right") - 1, 0, len(ft) - 2)
+    tau = np.clip((times - ft[i]) / (ft[i + 1] - ft[i]), 0.0, 1.0)
+    s = tau * tau * (3.0 - 2.0 * tau)
+    return np.asarray(fq[i] + (fq[i + 1] - fq[i]) * s[:, None], dtype=np.float64)
+
+
+def _static(frames: list[tuple[float, FloatArray]], times: FloatArray) -> NDArray[np.bool_]:
+    """True where ``times`` fall in a keyframe interval without motion."""
+    ft = np.array([f[0] for f in frames])
+    fq = np.stack([f[1] for f in frames])
+    still = np.all(fq[1:] == fq[:-1], axis=1)
+    idx = np.clip(np.searchsorted(ft, times, side="right") - 1, 0, len(still) - 1)
+    return np.asarray(still[idx])
+
+
+def simulate_session(
+    robot: Robot,
+    cfg: SimulationConfig,
+    *,
+    T_measurement_robot: FloatArray | None = None,
+    tool_point: FloatArray | None = None,
+    home: FloatArray | None = None,
+) -> Session:
+    """Simulate one session of ``robot`` (see the module docstring)."""
+    rng = np.random.default_rng(cfg.seed)
+    T_mr = default_measurement_pose() if T_measurement_robot is None else T_measurement_robot
+    T_mb = T_mr @ robot.T_base
+    table = (
+        _perturbed(robot.table, rng, cfg)
+        if (cfg.perturb_length or cfg.perturb_angle)
+        else robot.table
+    )
+    tool = robot.tool_point if tool_point is None else tool_point
+    q_home = (
+        np.clip(np.zeros(robot.n), robot.limits[:, 0], robot.limits[:, 1]) if home is None else home
+    )
+    frames, marks = _keyframes(robot, q_home, cfg, rng)
+    duration = frames[-1][0]
+    base_time = 2.0 if cfg.base_points else 0.0
+    # tracker: its own clock; step-and-measure triggers it only while the robot is still
+    t_trk = np.arange(0.0, duration, 1.0 / cfg.tracker_rate) + rng.uniform(
+        0, 1.0 / cfg.tracker_rate
+    )
+    if cfg.motion == "step":
+        t_trk = t_trk[_static(frames, t_trk)]
+    q_trk = _interp(frames, t_trk)
+    xyz = fk_point(table, q_trk, tool, T_base=T_mb)
+    if cfg.noise_kind == "uniform":
+        xyz = xyz + rng.uniform(-cfg.noise, cfg.noise, xyz.shape)
+    else:
+        xyz = xyz + rng.normal(scale=cfg.noise, size=xyz.shape)
+    n_out = round(cfg.outliers * xyz.shape[0])
+    if n_out:
+        idx = rng.choice(xyz.shape[0], n_out, replace=False)
+        direction = rng.normal(size=(n_out, 3))
+        direction /= np.linalg.norm(direction, axis=1, keepdims=True)
+        xyz[idx] += direction * rng.uniform(1.0, 3.0, (n_out, 1)) * cfg.outlier_size
+    keep = np.ones(xyz.shape[0], dtype=bool)
+    if cfg.dropouts:
+        n_drop = round(cfg.dropouts * keep.size)
+        while np.count_nonzero(~keep) < n_drop:
+            start = int(rng.integers(0, keep.size))
+            keep[start : start + int(rng.integers(3, 20))] = False
+    t_trk_ns = START_NS + ((t_trk + base_time) * 1e9).astype(np.int64)
+    # encoders: another clock phase, rate and jitter
+    t_enc = np.arange(0.0, duration, 1.0 / cfg.joint_rate) + rng.uniform(0, 1.0 / cfg.joint_rate)
+    t_enc = np.sort(t_enc + rng.uniform(-cfg.clock_jitter, cfg.clock_jitter, t_enc.size))
+    q_enc = _interp(frames, np.clip(t_enc, 0.0, duration))
+    # base plane: points of frame 1's xy plane (the mounting plane) around the base origin
+    radius = rng.uniform(0.15, 0.45, cfg.base_points)
+    angle = rng.uniform(0, 2 * np.pi, cfg.base_points)
+    local = np.column_stack(
+        [radius * np.cos(angle), radius * np.sin(angle), np.zeros(cfg.base_points)]
+    )
+    base = local @ T_mb[:3, :3].T + T_mb[:3, 3]
+    if cfg.noise_kind == "uniform":
+        base = base + rng.uniform(-cfg.noise, cfg.noise, base.shape)
+    else:
+        base = base + rng.normal(scale=cfg.noise, size=base.shape)
+    base_t = START_NS + (np.linspace(0.1, base_time - 0.2, cfg.base_points) * 1e9).astype(np.int64)
+    phase = [(START_NS + int((t + base_time) * 1e9), j) for t, j in marks] if cfg.phase else []
+    return Session(
+        robot_name=robot.name,
+        joint_names=[f"joint_{j + 1}" for j in range(robot.n)],
+        joint_types=table.joint_types,
+        point_t_ns=t_trk_ns[keep],
+        point_xyz=np.asarray(xyz[keep], dtype=np.float64),
+        joint_t_ns=START_NS + ((t_enc + base_time) * 1e9).astype(np.int64)
+        if cfg.encoders
+        else np.zeros(0, dtype=np.int64),
+        joint_q=q_enc if cfg.encoders else np.zeros((0, robot.n)),
+        base_t_ns=base_t,
+        base_xyz=np.asarray(base, dtype=np.float64),
+        phase=phase,
+        table=table,
+        T_measurement_base=T_mb,
+        tool_point=np.asarray(tool, dtype=np.float64),
+        reference_pose=np.asarray(q_home, dtype=np.float64),
+        config=cfg,
+        n_outliers=n_out,
+        n_dropped=int(np.count_nonzero(~keep)),
+    )
+
+
+def truth_document(
+    session: Session, *, source_path: str, sha256: str, pipeline: str, version: str
+) -> dict[str, object]:
+    """The ground truth of ``session`` in the shape of the result contract (``dhlog.result/1``)."""
+    table, q = session.table, session.reference_pose
+    points, dirs = joint_axes(table, q, T_base=session.T_measurement_base)
+    target = fk_point(table, q, session.tool_point, T_base=session.T_measurement_base)
+    relations = extract_dh(
+        [Line(p, d) for p, d in zip(points, dirs, strict=True)],
+        table.joint_types,
+        target=target,
+        reference_pose=q,
+    ).relations
+    modified, _ = standard_to_modified(table)
+    theta, d = table.theta(q), table.d(q)
+    cfg = session.config
+    return {
+        "format": "dhlog.result/1",
+        "dhlog_version": version,
+        "source": {"path": source_path, "sha256": sha256, "pipeline": pipeline},
+        "units": {"length": "m", "angle": "rad"},
+        "reference_pose": q.tolist(),
+        "joints": [
+            {
+                "index": i + 1,
+                "name": session.joint_names[i],
+                "type": table.joint_types[i].value,
+                "axis": {"point": points[i].tolist(), "direction": dirs[i].tolist()},
+            }
+            for i in range(table.n)
+        ],
+        "standard_dh": [
+            {
+                "theta": float(theta[i]),
+                "d": float(d[i]),
+                "a": float(table.a[i]),
+                "alpha": float(table.alpha[i]),
+                "theta_offset": float(table.theta_offset[i]),
+                "d_offset": float(table.d_offset[i]),
+                "std": {"theta": 0.0, "d": 0.0, "a": 0.0, "alpha": 0.0},
+            }
+            for i in range(table.n)
+        ],
+        "modified_dh": [
+            {
+                "alpha": float(modified.alpha[i]),
+                "a": float(modified.a[i]),
+                "theta": float(modified.theta(q)[i]),
+                "d": float(modified.d(q)[i]),
+            }
+            for i in range(table.n)
+        ],
+        "relations": [
+            {
+                "joints": list(r.joints),
+                "kind": r.relation.kind.value,
+                "angle": r.relation.angle,
+                "distance": r.relation.distance,
+            }
+            for r in relations
+        ],
+        "base": {"T_measurement_base": session.T_measurement_base.tolist()},
+        "tool": {"point": session.tool_point.tolist()},
+        "validation": {"fk_rms": 0.0, "fk_max": 0.0, "n_points": int(session.point_xyz.shape[0])},
+        "warnings": [],
+        "simulation": {
+            "robot": session.robot_name,
+            "noise_m": cfg.noise,
+            "noise_kind": cfg.noise_kind,
+            "tracker_rate_hz": cfg.tracker_rate,
+            "joint_rate_hz": cfg.joint_rate,
+            "motion": cfg.motion,
+            "sweep_rad": cfg.sweep,
+            "travel_m": cfg.travel,
+            "lock_poses": cfg.lock_poses,
+            "base_points": cfg.base_points,
+            "outliers": session.n_outliers,
+            "dropped": session.n_dropped,
+            "encoders": cfg.encoders,
+            "phase": cfg.phase,
+            "seed": cfg.seed,
+        },
+    }
