@@ -14,6 +14,7 @@ Nothing is dropped silently: every target sample not in a sweep is counted under
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -166,11 +167,11 @@ def segment_log(
     if points.height < 3:
         raise TooFewSamplesError(f"{log.path}: point stream", points.height, 3)
     set_aside = dict(log.set_aside)
-    warnings = list(log.warnings)
+    notes = list(log.warnings)
     if log.joints is not None and log.joints.height > 0:
-        seg = _segment_with_encoders(log, settings, joint_types, set_aside, warnings)
+        seg = _segment_with_encoders(log, settings, joint_types, set_aside, notes)
     elif log.phase is not None:
-        seg = _segment_with_phase(log, settings, set_aside, warnings)
+        seg = _segment_with_phase(log, settings, set_aside, notes)
     else:
         raise TooFewSamplesError(f"{log.path}: joint-state and phase streams", 0, 1)
     table, segments, n, names = seg
@@ -178,7 +179,7 @@ def segment_log(
     if ref is None and log.joints is not None and segments.height:
         ref = shared_locked_pose(segments, n, settings.lock_tolerance)
     return Segmentation(
-        table, segments, n, names, set_aside, ref, log.base, log.joints is not None, warnings
+        table, segments, n, names, set_aside, ref, log.base, log.joints is not None, notes
     )
 
 
@@ -187,7 +188,7 @@ def _segment_with_encoders(
     settings: SegmentationSettings,
     joint_types: list[JointType | None] | None,
     set_aside: dict[str, int],
-    warnings: list[str],
+    notes: list[str],
 ) -> tuple[pl.DataFrame, pl.DataFrame, int, list[str]]:
     assert log.joints is not None
     n = len(log.joint_names)
@@ -222,7 +223,7 @@ def _segment_with_encoders(
             continue
         if members.size < settings.min_samples:
             set_aside["too_few_samples"] = set_aside.get("too_few_samples", 0) + members.size
-            warnings.append(
+            notes.append(
                 f"joint {joint + 1} ({name}): a sweep with only {members.size} target sample(s) "
                 f"(minimum {settings.min_samples}) was set aside."
             )
@@ -283,7 +284,7 @@ def _segment_with_phase(
     log: LogData,
     settings: SegmentationSettings,
     set_aside: dict[str, int],
-    warnings: list[str],
+    notes: list[str],
 ) -> tuple[pl.DataFrame, pl.DataFrame, int, list[str]]:
     assert log.phase is not None
     marks = log.phase.sort("t_ns")
@@ -303,7 +304,7 @@ def _segment_with_phase(
             continue
         if end - start < settings.min_samples:
             _count(set_aside, "too_few_samples", end - start)
-            warnings.append(f"joint {st}: a sweep with only {end - start} sample(s) was set aside.")
+            notes.append(f"joint {st}: a sweep with only {end - start} sample(s) was set aside.")
             continue
         sid = len(rows) + 1
         seg_id[start:end] = sid
@@ -329,19 +330,30 @@ def _segment_with_phase(
 
 
 def shared_locked_pose(segments: pl.DataFrame, n: int, tol: float) -> NDArray[np.float64]:
-    """The locked pose most sweeps share: each sweep's locked values (its own joint free) are
-    merged with every sweep that agrees with them within ``tol``; the largest group wins."""
+    """The locked pose most sweeps share.
+
+    From each sweep's locked values (its own joint free), sweeps are merged greedily, in time
+    order, while they agree within ``tol`` with the values merged so far; the largest group wins
+    (ties: the earliest seed). A joint free in the whole group takes its median locked value.
+    """
     locks = segments.select([f"lock_q_{j + 1}" for j in range(n)]).to_numpy()
     best: tuple[int, NDArray[np.float64]] | None = None
-    for seed in locks:
-        agree = np.all(np.isnan(locks) | np.isnan(seed) | (np.abs(locks - seed) <= tol), axis=1)
-        merged = np.nanmedian(np.where(agree[:, None], locks, np.nan), axis=0)
-        count = int(np.count_nonzero(agree))
+    for seed in range(locks.shape[0]):
+        merged = locks[seed].copy()
+        count = 1
+        for k in range(locks.shape[0]):
+            if k == seed:
+                continue
+            both = ~np.isnan(merged) & ~np.isnan(locks[k])
+            if np.all(np.abs(merged[both] - locks[k][both]) <= tol):
+                merged = np.where(np.isnan(merged), locks[k], merged)
+                count += 1
         if best is None or count > best[0]:
             best = (count, merged)
     assert best is not None
     pose = best[1]
-    # a joint locked in none of the agreeing sweeps: its median locked value over all sweeps
-    fallback = np.nanmedian(np.where(np.isnan(locks), np.nan, locks), axis=0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN columns
+        fallback = np.nanmedian(locks, axis=0)
     pose = np.where(np.isnan(pose), fallback, pose)
     return np.asarray(np.where(np.isnan(pose), 0.0, pose), dtype=np.float64)

@@ -107,19 +107,21 @@ def write_session(
     encoding: Encoding = "ros2",
     *,
     point_type: Literal["point", "pose"] = "point",
+    chunk_size: int = 768 * 1024,
 ) -> None:
-    """Write ``session`` to ``path`` (atomically) in ``encoding``."""
+    """Write ``session`` to ``path`` (atomically) in ``encoding``, in chunks of ``chunk_size``
+    bytes (rosbag2's default)."""
     with atomic_output(path) as f:
         if encoding == "ros2":
-            _write_ros2(session, f, point_type)
+            _write_ros2(session, f, point_type, chunk_size)
         elif encoding == "json":
-            _write_json(session, f)
+            _write_json(session, f, chunk_size)
         else:
-            _write_protobuf(session, f)
+            _write_protobuf(session, f, chunk_size)
 
 
-def _write_ros2(session: Session, f: IO[bytes], point_type: str) -> None:
-    writer = Writer(f, compression=CompressionType.ZSTD, enable_crcs=False)
+def _write_ros2(session: Session, f: IO[bytes], point_type: str, chunk_size: int) -> None:
+    writer = Writer(f, chunk_size=chunk_size, compression=CompressionType.ZSTD, enable_crcs=False)
     writer.start(profile="ros2", library="rosbag2 (simulated by dhlog)")
     point_schema = ros2.POSE_STAMPED if point_type == "pose" else ros2.POINT_STAMPED
     schema_ids = {
@@ -160,8 +162,8 @@ def _write_ros2(session: Session, f: IO[bytes], point_type: str) -> None:
     writer.finish()  # type: ignore[no-untyped-call]
 
 
-def _write_json(session: Session, f: IO[bytes]) -> None:
-    writer = Writer(f, compression=CompressionType.ZSTD)
+def _write_json(session: Session, f: IO[bytes], chunk_size: int) -> None:
+    writer = Writer(f, chunk_size=chunk_size, compression=CompressionType.ZSTD)
     writer.start(profile="", library="dhlog simulate")
     ids = {
         name: writer.register_schema(name, "jsonschema", json.dumps(s).encode())
@@ -199,7 +201,7 @@ def _write_json(session: Session, f: IO[bytes]) -> None:
     writer.finish()  # type: ignore[no-untyped-call]
 
 
-def _write_protobuf(session: Session, f: IO[bytes]) -> None:
+def _write_protobuf(session: Session, f: IO[bytes], chunk_size: int) -> None:
     from foxglove_schemas_protobuf.JointState_pb2 import JointState
     from foxglove_schemas_protobuf.JointStates_pb2 import JointStates
     from foxglove_schemas_protobuf.Point3_pb2 import Point3
@@ -207,7 +209,7 @@ def _write_protobuf(session: Session, f: IO[bytes]) -> None:
     from google.protobuf.timestamp_pb2 import Timestamp
     from mcap_protobuf.schema import register_schema
 
-    writer = Writer(f, compression=CompressionType.ZSTD)
+    writer = Writer(f, chunk_size=chunk_size, compression=CompressionType.ZSTD)
     writer.start(profile="protobuf", library="dhlog simulate")
     point_schema = register_schema(writer, Point3InFrame)
     channels = {

@@ -1,0 +1,294 @@
+"""MCAP ingestion: simulator → reader round trips, an independent rosbag2 writer, the fast and
+general paths, pipeline choice, and every bad-input case."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import polars as pl
+import pytest
+
+from dhlog.errors import (
+    JointNamesError,
+    MissingTopicError,
+    NotMcapError,
+    PipelineError,
+    TooFewSamplesError,
+    UnknownSchemaError,
+)
+from dhlog.io.pipeline import load_pipeline, parse_pipeline, pipeline_by_name, shipped_pipelines
+from dhlog.io.reader import read_log
+from dhlog.io.writer import write_session
+from dhlog.robots import load_robot
+from dhlog.segment import segment_log
+from dhlog.simulate import Session, SimulationConfig, simulate_session
+
+ENCODINGS = ["ros2", "json", "protobuf"]
+
+
+@pytest.fixture(scope="module")
+def session() -> Session:
+    cfg = SimulationConfig(
+        noise=2e-5,
+        seed=11,
+        phase=True,
+        sweep=math.radians(40),
+        dwell=0.1,
+        outliers=0.01,
+        dropouts=0.02,
+    )
+    return simulate_session(load_robot("scara"), cfg)
+
+
+def written(session: Session, tmp_path: Path, encoding: str, **kwargs: object) -> Path:
+    path = tmp_path / f"run_{encoding}.mcap"
+    write_session(session, path, encoding, **kwargs)  # type: ignore[arg-type]
+    return path
+
+
+@pytest.mark.parametrize("encoding", ENCODINGS)
+def test_round_trip_gives_back_what_was_written(
+    session: Session, tmp_path: Path, encoding: str
+) -> None:
+    log = read_log(written(session, tmp_path, encoding))
+    assert (
+        log.pipeline.name
+        == {"ros2": "ros2_tracker", "json": "foxglove_json", "protobuf": "foxglove_protobuf"}[
+            encoding
+        ]
+    )
+    np.testing.assert_array_equal(log.points["t_ns"].to_numpy(), session.point_t_ns)
+    np.testing.assert_array_equal(log.points.select(["x", "y", "z"]).to_numpy(), session.point_xyz)
+    assert log.joints is not None and log.joint_names == session.joint_names
+    np.testing.assert_array_equal(log.joints["t_ns"].to_numpy(), session.joint_t_ns)
+    np.testing.assert_array_equal(log.joints.drop("t_ns").to_numpy(), session.joint_q)
+    assert log.base is not None
+    np.testing.assert_array_equal(log.base.select(["x", "y", "z"]).to_numpy(), session.base_xyz)
+    assert log.phase is not None
+    assert log.phase["joint"].to_list() == [j for _, j in session.phase]
+    assert log.set_aside == {}
+
+
+@pytest.mark.parametrize("encoding", ENCODINGS)
+def test_fast_and_general_paths_give_identical_tables(
+    session: Session, tmp_path: Path, encoding: str
+) -> None:
+    path = written(session, tmp_path, encoding)
+    fast, general = read_log(path), read_log(path, fast=False)
+    assert fast.points.equals(general.points)
+    assert fast.joints is not None and fast.joints.equals(general.joints)
+    assert fast.base is not None and fast.base.equals(general.base)
+    assert fast.phase is not None and fast.phase.equals(general.phase)
+    assert segment_log(fast).table.equals(segment_log(general).table)
+
+
+def test_pose_stamped_targets_are_read(session: Session, tmp_path: Path) -> None:
+    path = written(session, tmp_path, "ros2", point_type="pose")
+    for fast in (True, False):
+        log = read_log(path, fast=fast)
+        np.testing.assert_array_equal(
+            log.points.select(["x", "y", "z"]).to_numpy(), session.point_xyz
+        )
+
+
+def test_rosbag2_written_by_rosbags_is_read(tmp_path: Path) -> None:
+    """A ROS 2 bag from an independent writer (rosbags' rosbag2 MCAP storage)."""
+    from rosbags.rosbag2 import StoragePlugin, Writer
+    from rosbags.typesys import Stores, get_typestore
+
+    store = get_typestore(Stores.ROS2_HUMBLE)
+    T = store.types
+    rng = np.random.default_rng(0)
+    xyz = rng.normal(size=(50, 3))
+    q = rng.normal(size=(60, 2))
+    t_pt = 1_700_000_000_000_000_000 + np.arange(50) * 10_000_000
+    t_q = 1_700_000_000_000_000_000 + np.arange(60) * 8_000_000 + 1234
+    bag = tmp_path / "bag"
+    with Writer(bag, version=9, storage_plugin=StoragePlugin.MCAP) as writer:
+        pc = writer.add_connection(
+            "/tracker/point", "geometry_msgs/msg/PointStamped", typestore=store
+        )
+        jc = writer.add_connection("/joint_states", "sensor_msgs/msg/JointState", typestore=store)
+        for t, p in zip(t_pt.tolist(), xyz, strict=True):
+            stamp = T["builtin_interfaces/msg/Time"](sec=t // 10**9, nanosec=t % 10**9)
+            msg = T["geometry_msgs/msg/PointStamped"](
+                header=T["std_msgs/msg/Header"](stamp=stamp, frame_id="laser_tracker"),
+                point=T["geometry_msgs/msg/Point"](x=p[0], y=p[1], z=p[2]),
+            )
+            writer.write(pc, t + 5, store.serialize_cdr(msg, "geometry_msgs/msg/PointStamped"))
+        for t, row in zip(t_q.tolist(), q, strict=True):
+            stamp = T["builtin_interfaces/msg/Time"](sec=t // 10**9, nanosec=t % 10**9)
+            msg = T["sensor_msgs/msg/JointState"](
+                header=T["std_msgs/msg/Header"](stamp=stamp, frame_id=""),
+                name=["shoulder", "elbow"],
+                position=row,
+                velocity=np.zeros(2),
+                effort=np.zeros(0),
+            )
+            writer.write(jc, t + 7, store.serialize_cdr(msg, "sensor_msgs/msg/JointState"))
+    mcap_file = next(bag.glob("*.mcap"))
+    for fast in (True, False):
+        log = read_log(mcap_file, fast=fast)
+        assert log.pipeline.name == "ros2_tracker"
+        np.testing.assert_array_equal(log.points["t_ns"].to_numpy(), t_pt)  # header stamps
+        np.testing.assert_array_equal(log.points.select(["x", "y", "z"]).to_numpy(), xyz)
+        assert log.joint_names == ["shoulder", "elbow"]
+        assert log.joints is not None
+        np.testing.assert_array_equal(log.joints.drop("t_ns").to_numpy(), q)
+
+
+def test_length_unit_mm_is_scaled(session: Session, tmp_path: Path) -> None:
+    path = written(session, tmp_path, "ros2")
+    text = Path(pipeline_by_name("ros2_tracker").source).read_text()  # type: ignore[union-attr]
+    mm = parse_pipeline(text.replace('length_unit = "m"', 'length_unit = "mm"'), "mm.toml")
+    log = read_log(path, mm)
+    np.testing.assert_allclose(log.points["x"].to_numpy(), session.point_xyz[:, 0] * 1e-3)
+
+
+def test_shipped_pipelines_are_valid() -> None:
+    names = [p.name for p in shipped_pipelines()]
+    assert names[:3] == ["ros2_tracker", "foxglove_json", "foxglove_protobuf"]
+    assert "phase_markers" in names
+
+
+def test_pipeline_for_logs_without_encoders(tmp_path: Path) -> None:
+    cfg = SimulationConfig(seed=2, encoders=False, phase=True, sweep=math.radians(30), dwell=0.1)
+    sess = simulate_session(load_robot("kr5"), cfg)
+    log = read_log(written(sess, tmp_path, "ros2"))
+    assert log.pipeline.name == "phase_markers"
+    assert log.joints is None
+    seg = segment_log(log)
+    assert seg.segments["joint"].to_list() == [1, 2, 3, 4, 5, 6]
+    assert "idle" in seg.set_aside
+
+
+# ---- bad input ---------------------------------------------------------------------------------
+
+
+def test_not_mcap(tmp_path: Path) -> None:
+    path = tmp_path / "notes.mcap"
+    path.write_text("x, y, z\n1, 2, 3\n")
+    with pytest.raises(NotMcapError, match=r"notes\.mcap: not an MCAP file"):
+        read_log(path)
+
+
+def test_truncated_file_keeps_what_precedes_the_damage(session: Session, tmp_path: Path) -> None:
+    path = tmp_path / "small_chunks.mcap"
+    write_session(session, path, "ros2", chunk_size=16 * 1024)
+    data = path.read_bytes()
+    cut = tmp_path / "cut.mcap"
+    cut.write_bytes(data[: int(len(data) * 0.6)])
+    log = read_log(cut, pipeline_by_name("ros2_tracker"))
+    warning = next(w for w in log.warnings if "cut short" in w)
+    assert "cut.mcap" in warning and "recovered" in warning
+    n = log.points.height
+    assert 0 < n < session.point_t_ns.size
+    np.testing.assert_array_equal(
+        log.points.select(["x", "y", "z"]).to_numpy(), session.point_xyz[:n]
+    )
+
+
+def test_unknown_schema_on_configured_topic(session: Session, tmp_path: Path) -> None:
+    path = written(session, tmp_path, "ros2")
+    wrong = parse_pipeline('[streams.point]\ntopic = "/joint_states"\n', "wrong.toml")
+    with pytest.raises(
+        UnknownSchemaError, match="/joint_states carries 'sensor_msgs/msg/JointState'"
+    ):
+        read_log(path, wrong)
+
+
+def test_missing_topic_lists_the_topics_present(session: Session, tmp_path: Path) -> None:
+    path = written(session, tmp_path, "ros2")
+    other = parse_pipeline('[streams.point]\ntopic = "/laser/point"\n', "other.toml")
+    with pytest.raises(
+        MissingTopicError,
+        match=r"no topic /laser/point.*/joint_states, /tracker/base_plane, /tracker/point",
+    ):
+        read_log(path, other)
+
+
+def test_non_finite_samples_are_set_aside_and_counted(tmp_path: Path) -> None:
+    cfg = SimulationConfig(seed=3, sweep=math.radians(30), dwell=0.1)
+    sess = simulate_session(load_robot("scara"), cfg)
+    sess.point_xyz[[3, 10, 11]] = [np.nan, np.inf, -np.inf]
+    log = read_log(written(sess, tmp_path, "ros2"))
+    assert log.set_aside == {"non_finite_point": 3}
+    assert log.points.height == sess.point_t_ns.size - 3
+
+
+def test_joint_names_that_do_not_match_the_pipeline(session: Session, tmp_path: Path) -> None:
+    path = written(session, tmp_path, "ros2")
+    named = parse_pipeline(
+        '[streams.point]\n[streams.joints]\n[joints]\nnames = ["a1", "a2"]\n', "named.toml"
+    )
+    with pytest.raises(JointNamesError, match=r"names joints \['joint_1'.*expects \['a1', 'a2'\]"):
+        read_log(path, named)
+
+
+def test_too_few_samples(tmp_path: Path) -> None:
+    cfg = SimulationConfig(seed=3, sweep=math.radians(30), dwell=0.1, tracker_rate=100)
+    sess = simulate_session(load_robot("scara"), cfg)
+    keep = 2
+    sess.point_t_ns, sess.point_xyz = sess.point_t_ns[:keep], sess.point_xyz[:keep]
+    with pytest.raises(TooFewSamplesError, match="point stream: only 2 usable sample"):
+        segment_log(read_log(written(sess, tmp_path, "ros2")))
+
+
+def test_a_sweep_with_too_few_samples_is_named(tmp_path: Path) -> None:
+    cfg = SimulationConfig(seed=3, sweep=math.radians(30), dwell=0.1, tracker_rate=10)
+    sess = simulate_session(load_robot("scara"), cfg)
+    pipe = parse_pipeline(
+        "[streams.point]\n[streams.joints]\n[segmentation]\nmin_samples = 40\n", "strict.toml"
+    )
+    seg = segment_log(read_log(written(sess, tmp_path, "ros2"), pipe))
+    assert seg.set_aside["too_few_samples"] > 0
+    assert any("joint 1 (joint_1): a sweep with only" in w for w in seg.warnings)
+
+
+@pytest.mark.parametrize(
+    ("text", "message"),
+    [
+        ("name = [", "not valid TOML"),
+        ('[streams.target]\ntopic = "/x"\n', "unknown stream"),
+        ('encoding = "ros1"\n[streams.point]\n', "encoding"),
+        ('length_unit = "inch"\n[streams.point]\n', "length_unit"),
+        ("[streams.joints]\n", "no \\[streams.point\\]"),
+        ("[streams.point]\n[segmentation]\nlock = 1\n", "keys \\['lock'\\] unknown"),
+    ],
+)
+def test_malformed_pipelines(text: str, message: str) -> None:
+    with pytest.raises(PipelineError, match=message):
+        parse_pipeline(text, "bad.toml")
+
+
+def test_missing_pipeline_file(tmp_path: Path) -> None:
+    with pytest.raises(PipelineError, match=r"nothing\.toml: cannot be read"):
+        load_pipeline(tmp_path / "nothing.toml")
+
+
+def test_no_pipeline_matches(tmp_path: Path) -> None:
+    from mcap.writer import Writer
+
+    path = tmp_path / "odd.mcap"
+    with open(path, "wb") as f:
+        w = Writer(f)
+        w.start()
+        cid = w.register_channel("/camera", "json", w.register_schema("x", "jsonschema", b"{}"))
+        w.add_message(cid, 1, b"{}", 1)
+        w.finish()  # type: ignore[no-untyped-call]
+    with pytest.raises(PipelineError, match=r"no shipped pipeline matches its topics \(/camera"):
+        read_log(path)
+
+
+def test_segmented_table_has_the_contract_columns(session: Session, tmp_path: Path) -> None:
+    seg = segment_log(read_log(written(session, tmp_path, "ros2")))
+    t = seg.table
+    assert t.schema["t_ns"] == pl.Int64
+    assert all(t.schema[c] == pl.Float64 for c in ["x", "y", "z", "q_1", "q_2", "q_3", "q_4"])
+    assert t.schema["joint"] == pl.Int32 and t.schema["segment"] == pl.Int32
+    assert seg.segments["joint"].to_list() == [1, 2, 3, 4]
+    # every target sample is either in a sweep or counted
+    unassigned = t.filter(pl.col("segment").is_null()).height
+    assert unassigned == sum(v for k, v in seg.set_aside.items() if not k.startswith("non_finite"))
