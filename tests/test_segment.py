@@ -143,9 +143,10 @@ def test_clock_offset_within_the_join_tolerance_and_its_correction() -> None:
     pipe = parse_pipeline(
         "[streams.point]\n[streams.joints]\n[segmentation]\nclock_offset = -0.004\n", "fix.toml"
     )
-    t = late.joints["t_ns"].to_numpy()
-    values = [(late.joint_names, row) for row in late.joints.drop("t_ns").to_numpy().tolist()]
-    late.joints, _ = _joints_frame("crafted.mcap", "/joint_states", t, values, pipe)
+    blocks = [
+        (late.joints["t_ns"].to_numpy(), (late.joint_names, late.joints.drop("t_ns").to_numpy()))
+    ]
+    late.joints, _ = _joints_frame("crafted.mcap", "/joint_states", blocks, pipe)
     fixed = segment_log(late).table.filter(pl.col("segment") == 1)
     corners = np.array([k[0] for k in SESSION]) * S
     smooth = np.abs(fixed["t_ns"].to_numpy()[:, None] - corners).min(axis=1) > 0.011 * S

@@ -139,20 +139,37 @@ def _label_encoder_samples(
 
 def _interpolate_encoders(
     points: pl.DataFrame, joints: pl.DataFrame, n: int, tol_ns: int
-) -> pl.DataFrame:
-    """Encoder values at each target time: linear between the encoder samples before and after
-    (``join_asof`` backward and forward within ``tol_ns``); null where either is missing."""
+) -> tuple[pl.DataFrame, NDArray[np.int64], NDArray[np.int64]]:
+    """Encoder values at each target time, linear between the encoder sample before (found by
+    ``join_asof`` backward within ``tol_ns``) and the one after (the next encoder sample, if
+    within ``tol_ns``); null where either is missing.
+
+    Also returns the row numbers of those two encoder samples (-1 where missing).
+    """
     cols = [f"q_{j + 1}" for j in range(n)]
-    enc = joints.select(["t_ns", *cols]).with_columns(pl.col("t_ns").alias("t_enc"))
-    prev = points.join_asof(enc, on="t_ns", strategy="backward", tolerance=tol_ns)
-    nxt = points.select("t_ns").join_asof(enc, on="t_ns", strategy="forward", tolerance=tol_ns)
-    t0, t1 = prev["t_enc"], nxt["t_enc"]
-    span = (t1 - t0).cast(pl.Float64)
-    w = ((points["t_ns"] - t0).cast(pl.Float64) / span).fill_nan(0.0)
-    out = points.clone()
-    for c in cols:
-        out = out.with_columns((prev[c] + (nxt[c] - prev[c]) * w).alias(c))
-    return out
+    enc = joints.select("t_ns").with_columns(pl.int_range(pl.len(), dtype=pl.Int64).alias("i_enc"))
+    prev = points.select("t_ns").join_asof(enc, on="t_ns", strategy="backward", tolerance=tol_ns)
+    i_prev = prev["i_enc"].fill_null(-1).to_numpy()
+    t_enc = joints["t_ns"].to_numpy()
+    q_enc = joints.select(cols).to_numpy(order="fortran")
+    t = points["t_ns"].to_numpy()
+    exact = (i_prev >= 0) & (t_enc[np.maximum(i_prev, 0)] == t)
+    after = np.minimum(i_prev + 1, t_enc.size - 1)
+    has_next = (i_prev >= 0) & (i_prev + 1 < t_enc.size) & (t_enc[after] - t <= tol_ns)
+    i_next = np.where(exact, i_prev, np.where(has_next, after, -1))
+    ok = (i_prev >= 0) & (i_next >= 0)
+    lo, hi = np.maximum(i_prev, 0), np.maximum(i_next, 0)
+    span = (t_enc[hi] - t_enc[lo]).astype(np.float64)
+    w = np.divide((t - t_enc[lo]).astype(np.float64), span, out=np.zeros(t.size), where=span > 0)
+    values = []
+    for j, c in enumerate(cols):
+        column = np.ascontiguousarray(q_enc[:, j])
+        q_lo = column[lo]
+        values.append(
+            pl.Series(c, q_lo + (column[hi] - q_lo) * w).scatter(np.flatnonzero(~ok), None)
+        )
+    out = points.with_columns(values)
+    return out, np.where(ok, i_prev, -1), np.where(ok, i_next, -1)
 
 
 def segment_log(
@@ -198,15 +215,12 @@ def _segment_with_encoders(
     q_enc = joints.select(cols).to_numpy()
     labels, found = _label_encoder_samples(t_enc, q_enc, settings)
     tol_ns = int(settings.join_tolerance * 1e9)
-    table = _interpolate_encoders(log.points, joints, n, tol_ns)
+    table, i_prev, i_next = _interpolate_encoders(log.points, joints, n, tol_ns)
     t = table["t_ns"].to_numpy()
-    # a target sample takes the label of the encoder samples on both sides, if they agree
-    i_next = np.clip(np.searchsorted(t_enc, t, side="left"), 0, t_enc.size - 1)
-    i_prev = np.clip(np.searchsorted(t_enc, t, side="right") - 1, 0, t_enc.size - 1)
+    # a target sample takes the label of the encoder samples on both sides, if they agree;
+    # without an encoder sample on each side within the join tolerance it has no encoder values
     label = np.where(labels[i_prev] == labels[i_next], labels[i_prev], TRANSITION)
-    outside = (t < t_enc[0]) | (t > t_enc[-1])
-    no_encoder = table.select(pl.any_horizontal(pl.col(cols).is_null())).to_series().to_numpy()
-    label = np.where(outside | no_encoder, IDLE - 1, label)
+    label = np.where((i_prev < 0) | (i_next < 0), IDLE - 1, label)
     seg_rows: list[dict[str, float | int]] = []
     seg_id = np.full(t.size, -1, dtype=np.int64)
     for k, (joint, start, end, _lock) in enumerate(found):

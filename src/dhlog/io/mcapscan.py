@@ -12,8 +12,10 @@ bytes``; a Message body is ``channel_id u16, sequence u32, log_time u64, publish
 
 from __future__ import annotations
 
+import os
 import struct
 from collections.abc import Iterable
+from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -85,11 +87,27 @@ def _string(buf: bytes | memoryview, pos: int) -> tuple[str, int]:
 
 
 def gather(buf: U8, positions: NDArray[np.int64], width: int, dtype: str) -> NDArray[np.generic]:
-    """Values of ``dtype`` (``width`` bytes, little-endian) at each byte position in ``buf``."""
+    """Values of ``dtype`` (``width`` bytes, little-endian) at each byte position in ``buf``.
+
+    Reads through a view of the buffer with one element starting at every byte (stride 1), so
+    each value, aligned or not, is one fancy-index load.
+    """
     if positions.size == 0:
         return np.zeros(0, dtype=dtype)
-    index = positions[:, None] + np.arange(width, dtype=np.int64)
-    return np.asarray(buf[index].copy().view(dtype).reshape(-1))
+    every_byte = np.ndarray(
+        shape=(buf.shape[0] - width + 1,), dtype=dtype, buffer=buf, offset=0, strides=(1,)
+    )
+    return np.asarray(every_byte[positions])
+
+
+def gather_rows(buf: U8, positions: NDArray[np.int64], width: int) -> U8:
+    """The ``width`` bytes starting at each position, as an (m, width) array (one row copy each)."""
+    if positions.size == 0:
+        return np.zeros((0, width), dtype=np.uint8)
+    rows = np.ndarray(
+        shape=(buf.shape[0] - width + 1, width), dtype=np.uint8, buffer=buf, strides=(1, 1)
+    )
+    return np.asarray(rows[positions])
 
 
 class _Walker:
@@ -136,32 +154,35 @@ class _Walker:
         return self.wanted is None or topic in self.wanted
 
     def chunk(self, chunk: U8, index: dict[int, NDArray[np.uint64]] | None) -> None:
-        """Locate the messages of a decompressed chunk, via its index when there is one."""
+        """Locate the messages of a decompressed chunk via its MessageIndex records (one per
+        channel: log times and offsets), or record by record when it has none."""
         chunk_no = len(self.chunks)
         self.chunks.append(chunk)
         if index is None:
             self._walk_chunk(chunk, chunk_no)
             return
-        offsets = np.sort(np.concatenate(list(index.values()))).astype(np.int64)
-        lengths = gather(chunk, offsets + 1, 8, "<u8").astype(np.int64)
-        ends = offsets + 9 + lengths
-        # records between the indexed messages (schemas, channels) are read one by one
-        gap_starts = np.concatenate([[0], ends])
-        gap_ends = np.concatenate([offsets, [chunk.shape[0]]])
-        for start, end in zip(
-            gap_starts[gap_ends > gap_starts], gap_ends[gap_ends > gap_starts], strict=True
-        ):
-            self._walk_chunk(chunk[int(start) : int(end)], chunk_no, base=int(start))
-        channel_ids = gather(chunk, offsets + 9, 2, "<u2").astype(np.int64)
-        log_times = gather(chunk, offsets + 15, 8, "<u8").astype(np.int64)
-        self.count += int(offsets.shape[0])
-        for cid in np.unique(channel_ids):
-            if not self.keep(int(cid)):
-                continue
-            sel = channel_ids == cid
-            self.parts.setdefault(int(cid), []).append(
-                (chunk_no, offsets[sel] + _MESSAGE_HEADER, lengths[sel] - 22, log_times[sel])
-            )
+        covered = 0
+        found: list[tuple[int, I64, I64, I64]] = []
+        for cid, pairs in index.items():
+            offsets = pairs[:, 1].astype(np.int64)
+            lengths = gather(chunk, offsets + 1, 8, "<u8").astype(np.int64)
+            covered += int(lengths.sum()) + 9 * offsets.size
+            found.append((cid, offsets, lengths, pairs[:, 0].astype(np.int64)))
+            self.count += int(offsets.size)
+        if covered < chunk.shape[0]:
+            # records between the indexed messages (schemas, channels) are read one by one
+            offsets = np.sort(np.concatenate([f[1] for f in found]))
+            lengths = gather(chunk, offsets + 1, 8, "<u8").astype(np.int64)
+            gap_starts = np.concatenate([[0], offsets + 9 + lengths])
+            gap_ends = np.concatenate([offsets, [chunk.shape[0]]])
+            has_gap = gap_ends > gap_starts
+            for begin, stop in zip(gap_starts[has_gap], gap_ends[has_gap], strict=True):
+                self._walk_chunk(chunk[int(begin) : int(stop)], chunk_no, base=int(begin))
+        for cid, offsets, lengths, log_times in found:
+            if self.keep(cid):
+                self.parts.setdefault(cid, []).append(
+                    (chunk_no, offsets + _MESSAGE_HEADER, lengths - 22, log_times)
+                )
 
     def _walk_chunk(self, chunk: U8, chunk_no: int, base: int = 0) -> None:
         buf = memoryview(chunk.data if base == 0 else chunk.tobytes())
@@ -215,9 +236,9 @@ class _Walker:
         return out
 
 
-def _decompress(compression: str, payload: bytes, size: int, path: str) -> bytes:
+def _decompress(compression: str, payload: bytes | memoryview, size: int, path: str) -> bytes:
     if compression == "":
-        return payload
+        return bytes(payload)
     if compression == "zstd":
         import zstandard
 
@@ -243,13 +264,14 @@ def scan_mcap(path: str | Path, topics: Iterable[str] | None = None) -> McapScan
     pos, end = len(MAGIC), len(blob)
     profile = ""
     truncated_at: int | None = None
-    pending: tuple[U8, dict[int, NDArray[np.uint64]]] | None = None
+    pending: tuple[Future[bytes], dict[int, NDArray[np.uint64]]] | None = None
+    chunks: list[tuple[Future[bytes], dict[int, NDArray[np.uint64]]]] = []
+    decompressed = ThreadPoolExecutor(max_workers=os.cpu_count() or 1)
 
     def flush() -> None:
         nonlocal pending
         if pending is not None:
-            chunk, index = pending
-            walker.chunk(chunk, index or None)
+            chunks.append(pending)
             pending = None
 
     while pos < end:
@@ -266,7 +288,7 @@ def scan_mcap(path: str | Path, topics: Iterable[str] | None = None) -> McapScan
             (cid,) = struct.unpack_from("<H", blob, body)
             (n,) = struct.unpack_from("<I", blob, body + 2)
             pairs = np.frombuffer(blob, dtype="<u8", count=n // 8, offset=body + 6).reshape(-1, 2)
-            pending[1][cid] = pairs[:, 1]
+            pending[1][cid] = pairs
         else:
             flush()
             if op == OP_HEADER:
@@ -275,8 +297,12 @@ def scan_mcap(path: str | Path, topics: Iterable[str] | None = None) -> McapScan
                 _, _, size, _ = struct.unpack_from("<QQQI", blob, body)
                 compression, p = _string(view, body + 28)
                 (n,) = struct.unpack_from("<Q", blob, p)
-                raw = _decompress(compression, blob[p + 8 : p + 8 + n], size, name)
-                pending = (np.frombuffer(raw, dtype=np.uint8), {})
+                pending = (
+                    decompressed.submit(
+                        _decompress, compression, view[p + 8 : p + 8 + n], size, name
+                    ),
+                    {},
+                )
             elif op == OP_MESSAGE:
                 cid, _, log_time = struct.unpack_from("<HIQ", blob, body)
                 walker.count += 1
@@ -289,6 +315,9 @@ def scan_mcap(path: str | Path, topics: Iterable[str] | None = None) -> McapScan
                 walker.record(op, view[body : body + length])
         pos = body + length
     flush()
+    with decompressed:
+        for future, index in chunks:
+            walker.chunk(np.frombuffer(future.result(), dtype=np.uint8), index or None)
     scan = McapScan(
         path=name,
         channels=dict(walker.channels),

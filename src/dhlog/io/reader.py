@@ -257,6 +257,20 @@ def choose_pipeline(path: str, channels: dict[int, ChannelInfo]) -> tuple[Pipeli
     return pipeline, reason
 
 
+Block = tuple[NDArray[np.int64], Any]
+
+
+def _bulk_ok(
+    raw: RawMessages, info: ChannelInfo, schemas: tuple[str, ...], fields: dict[str, str]
+) -> bool:
+    return (
+        info.message_encoding == "cdr"
+        and info.schema_name in schemas
+        and not fields
+        and bool(np.all(ros2.little_endian(raw)))
+    )
+
+
 def _decode_stream(
     stream: str,
     infos: list[ChannelInfo],
@@ -264,13 +278,14 @@ def _decode_stream(
     general: dict[int, list[tuple[int, Any]]] | None,
     fields: dict[str, str],
     path: str,
-    fast: bool,
-) -> tuple[NDArray[np.int64], list[Any], NDArray[np.float64] | None]:
-    """Times and values of one stream over all its channels; bulk arrays where the fast path can."""
-    times: list[NDArray[np.int64]] = []
-    values: list[Any] = []
-    arrays: list[NDArray[np.float64]] = []
-    bulk_only = True
+) -> list[Block]:
+    """Blocks of (times, values) of one stream over all its channels.
+
+    Values are an (m, 3) array for point streams, ``(names, (m, k) array)`` for joints and a
+    list for phase markers. ``raw_by_channel`` is the fast path's input (bulk CDR where the
+    layout allows, per-message decoding otherwise); ``general`` the mcap library's messages.
+    """
+    blocks: list[Block] = []
     for info in infos:
         extract = _extractor(stream, info, fields)
         if extract is None:
@@ -281,31 +296,15 @@ def _decode_stream(
             raw = raw_by_channel.get(info.id)
             if raw is None or len(raw) == 0:
                 continue
-            if (
-                fast
-                and stream in ("point", "base")
-                and info.message_encoding == "cdr"
-                and info.schema_name in (ros2.POINT_STAMPED, ros2.POSE_STAMPED)
-                and not fields
-                and bool(np.all(ros2.little_endian(raw)))
+            if stream in ("point", "base") and _bulk_ok(
+                raw, info, (ros2.POINT_STAMPED, ros2.POSE_STAMPED), fields
             ):
                 stamps, xyz = ros2.decode_point_bulk(raw)
-                times.append(np.where(stamps != 0, stamps, raw.log_time))
-                arrays.append(xyz)
+                blocks.append((np.where(stamps != 0, stamps, raw.log_time), xyz))
                 continue
-            if (
-                fast
-                and stream == "joints"
-                and info.message_encoding == "cdr"
-                and info.schema_name == ros2.JOINT_STATE
-                and not fields
-                and bool(np.all(ros2.little_endian(raw)))
-            ):
-                stamps, names, q = ros2.decode_joint_state_bulk(raw)
-                t = np.where(stamps != 0, stamps, raw.log_time)
-                times.append(t)
-                values.extend((names, row) for row in q.tolist())
-                bulk_only = False
+            if stream == "joints" and _bulk_ok(raw, info, (ros2.JOINT_STATE,), fields):
+                for stamps, names, q in ros2.decode_joint_state_bulk(raw):
+                    blocks.append((stamps, (names, q)))
                 continue
             decode = _message_decoder(info)
             if decode is None:
@@ -316,8 +315,7 @@ def _decode_stream(
         else:
             assert general is not None
             msgs = general.get(info.id, [])
-        bulk_only = False
-        t_list = []
+        t_list, values = [], []
         for log_time, msg in msgs:
             try:
                 stamp, value = extract(msg)
@@ -331,20 +329,24 @@ def _decode_stream(
                 ) from None
             t_list.append(stamp if stamp is not None else log_time)
             values.append(value)
-        times.append(np.asarray(t_list, dtype=np.int64))
-    t_all = np.concatenate(times) if times else np.zeros(0, dtype=np.int64)
-    if bulk_only and arrays:
-        return t_all, [], np.concatenate(arrays)
-    if arrays:  # mixed bulk and per-message channels on one stream
-        values = [list(r) for r in np.concatenate(arrays).tolist()] + values
-    return t_all, values, None
+        t = np.asarray(t_list, dtype=np.int64)
+        if stream in ("point", "base"):
+            blocks.append((t, np.asarray(values, dtype=np.float64).reshape(-1, 3)))
+        elif stream == "joints":
+            layouts: dict[tuple[str, ...], list[int]] = {}
+            for i, (names, _) in enumerate(values):
+                layouts.setdefault(tuple(names), []).append(i)
+            for names_key, rows in layouts.items():
+                q = np.asarray([values[r][1] for r in rows], dtype=np.float64)
+                blocks.append((t[rows], (list(names_key), q.reshape(len(rows), -1))))
+        else:
+            blocks.append((t, values))
+    return blocks
 
 
-def _points_frame(
-    t: NDArray[np.int64], values: list[Any], xyz: NDArray[np.float64] | None, scale: float
-) -> pl.DataFrame:
-    arr = xyz if xyz is not None else np.asarray(values, dtype=np.float64).reshape(-1, 3)
-    arr = arr * scale
+def _points_frame(blocks: list[Block], scale: float) -> pl.DataFrame:
+    t = np.concatenate([b[0] for b in blocks]) if blocks else np.zeros(0, dtype=np.int64)
+    arr = np.concatenate([b[1] for b in blocks]) * scale if blocks else np.zeros((0, 3))
     return pl.DataFrame(
         {"t_ns": t.astype(np.int64), "x": arr[:, 0], "y": arr[:, 1], "z": arr[:, 2]}
     )
@@ -383,34 +385,31 @@ def read_log(
         general = _read_general(name, [c for cs in infos.values() for c in cs])
     set_aside: dict[str, int] = {}
 
-    def stream_frame(
-        stream: str,
-    ) -> tuple[NDArray[np.int64], list[Any], NDArray[np.float64] | None]:
+    def blocks_of(stream: str) -> list[Block]:
         return _decode_stream(
             stream,
             infos[stream],
-            None if not fast else scan.messages,
+            scan.messages if fast else None,
             general,
             pipeline.streams[stream].fields,
             name,
-            fast,
         )
 
-    t, vals, xyz = stream_frame("point")
-    points = _clean(_points_frame(t, vals, xyz, pipeline.length_scale), "point", set_aside)
+    points = _clean(_points_frame(blocks_of("point"), pipeline.length_scale), "point", set_aside)
     base = None
     if "base" in infos:
-        t, vals, xyz = stream_frame("base")
-        base = _clean(_points_frame(t, vals, xyz, pipeline.length_scale), "base", set_aside)
+        base = _clean(_points_frame(blocks_of("base"), pipeline.length_scale), "base", set_aside)
     joints, joint_names = None, list(pipeline.joint_names or [])
     if "joints" in infos:
-        t, vals, _ = stream_frame("joints")
-        joints, joint_names = _joints_frame(name, infos["joints"][0].topic, t, vals, pipeline)
+        joints, joint_names = _joints_frame(
+            name, infos["joints"][0].topic, blocks_of("joints"), pipeline
+        )
         joints = _clean(joints, "joints", set_aside)
     phase = None
     if "phase" in infos:
-        t, vals, _ = stream_frame("phase")
-        marks = [_phase_value(v, joint_names) for v in vals]
+        marks_blocks = blocks_of("phase")
+        t = np.concatenate([b[0] for b in marks_blocks]) if marks_blocks else np.zeros(0, np.int64)
+        marks = [_phase_value(v, joint_names) for b in marks_blocks for v in b[1]]
         phase = pl.DataFrame({"t_ns": t, "joint": pl.Series(marks, dtype=pl.Int32)}).sort("t_ns")
     return LogData(name, pipeline, points, joints, joint_names, base, phase, set_aside, warnings)
 
@@ -430,31 +429,31 @@ def _clean(frame: pl.DataFrame, stream: str, set_aside: dict[str, int]) -> pl.Da
 
 
 def _joints_frame(
-    path: str, topic: str, t: NDArray[np.int64], values: list[Any], pipeline: Pipeline
+    path: str, topic: str, blocks: list[Block], pipeline: Pipeline
 ) -> tuple[pl.DataFrame, list[str]]:
+    """The joints table in chain order from blocks of (times, (names, positions))."""
     seen: list[str] = []
-    for names, _ in values:
+    for _, (names, _) in blocks:
         seen.extend(n for n in names if n not in seen)
     expected = list(pipeline.joint_names) if pipeline.joint_names else seen
     missing = [n for n in expected if n not in seen]
     if missing or not expected:
         raise JointNamesError(path, topic, expected, seen)
-    q = np.full((len(values), len(expected)), np.nan)
     column = {n: i for i, n in enumerate(expected)}
-    layouts: dict[tuple[str, ...], list[int]] = {}
-    for i, (names, _) in enumerate(values):
-        layouts.setdefault(tuple(names), []).append(i)
-    for names_key, rows in layouts.items():
-        src = [k for k, n in enumerate(names_key) if n in column]
-        dst = [column[names_key[k]] for k in src]
-        block = np.asarray([values[r][1] for r in rows], dtype=np.float64)
-        q[np.ix_(rows, dst)] = block[:, src]
+    t = np.concatenate([b[0] for b in blocks]).astype(np.int64)
+    q = np.full((t.size, len(expected)), np.nan)
+    row = 0
+    for times, (names, values) in blocks:
+        src = [k for k, n in enumerate(names) if n in column]
+        dst = [column[names[k]] for k in src]
+        q[row : row + times.size, dst] = values[:, src]
+        row += times.size
     if pipeline.joint_types is not None:
         for j, jt in enumerate(pipeline.joint_types):
             if jt is not None and jt.value == "prismatic":
                 q[:, j] *= pipeline.length_scale
     offset_ns = round(pipeline.segmentation.clock_offset * 1e9)
-    data: dict[str, Any] = {"t_ns": t.astype(np.int64) + offset_ns}
+    data: dict[str, Any] = {"t_ns": t + offset_ns}
     data.update({f"q_{j + 1}": q[:, j] for j in range(len(expected))})
     return pl.DataFrame(data), expected
 

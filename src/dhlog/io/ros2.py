@@ -18,7 +18,7 @@ from collections.abc import Sequence
 import numpy as np
 from numpy.typing import NDArray
 
-from dhlog.io.mcapscan import RawMessages, gather
+from dhlog.io.mcapscan import RawMessages, gather, gather_rows
 
 CDR_LE = b"\x00\x01\x00\x00"
 
@@ -59,9 +59,9 @@ def _align(n: int, k: int) -> int:
     return (n + k - 1) // k * k
 
 
-def _stamps(raw: RawMessages) -> NDArray[np.int64]:
-    sec = gather(raw.data, raw.starts + 4, 4, "<i4").astype(np.int64)
-    nsec = gather(raw.data, raw.starts + 8, 4, "<u4").astype(np.int64)
+def _block_stamps(rows: NDArray[np.uint8]) -> NDArray[np.int64]:
+    sec = rows[:, 4:8].copy().view("<i4").reshape(-1).astype(np.int64)
+    nsec = rows[:, 8:12].copy().view("<u4").reshape(-1).astype(np.int64)
     return sec * 1_000_000_000 + nsec
 
 
@@ -76,15 +76,22 @@ def decode_point_bulk(raw: RawMessages) -> tuple[NDArray[np.int64], NDArray[np.f
     """Header stamps (ns) and positions (m, 3) of PointStamped or PoseStamped messages.
 
     The point (or the pose's position) follows the header at the next multiple of 8 after
-    ``stamp (8) + frame_id length (4) + frame_id``.
+    ``stamp (8) + frame_id length (4) + frame_id``. Messages are grouped by frame-id length;
+    each group's fixed-layout prefix is copied out in one row gather.
     """
     frame_len = gather(raw.data, raw.starts + 12, 4, "<u4").astype(np.int64)
     rel = ((12 + frame_len + 7) // 8) * 8
     if np.any(rel + 24 + 4 > raw.lengths):
         raise ValueError("PointStamped payload shorter than its layout")
-    pos = raw.starts + 4 + rel
-    xyz = gather(raw.data, (pos[:, None] + np.array([0, 8, 16])).reshape(-1), 8, "<f8")
-    return _stamps(raw), np.asarray(xyz.reshape(-1, 3), dtype=np.float64)
+    stamps = np.empty(len(raw), dtype=np.int64)
+    xyz = np.empty((len(raw), 3), dtype=np.float64)
+    for r in np.unique(rel):
+        sel = slice(None) if bool(np.all(rel == r)) else np.flatnonzero(rel == r)
+        width = 4 + int(r) + 24
+        rows = gather_rows(raw.data, raw.starts[sel], width)
+        stamps[sel] = _block_stamps(rows)
+        xyz[sel] = rows[:, width - 24 :].copy().view("<f8").reshape(-1, 3)
+    return stamps, xyz
 
 
 def _parse_joint_layout(buf: bytes) -> tuple[list[str], int, int]:
@@ -109,36 +116,29 @@ def _parse_joint_layout(buf: bytes) -> tuple[list[str], int, int]:
 
 def decode_joint_state_bulk(
     raw: RawMessages,
-) -> tuple[NDArray[np.int64], list[str], NDArray[np.float64]]:
-    """Header stamps (ns), the union of joint names (first-seen order) and positions (m, n_names).
+) -> list[tuple[NDArray[np.int64], list[str], NDArray[np.float64]]]:
+    """JointState messages as blocks of (header stamps (ns), names, positions (k, len(names))).
 
-    Messages are grouped by payload length and header bytes; each distinct layout is parsed once
-    and its positions gathered for the whole group. Joints a message does not carry are NaN.
+    Messages are grouped by payload length and by the bytes between stamp and positions (frame
+    id and names): each distinct layout is parsed once and its messages copied out in one row
+    gather.
     """
-    m = len(raw)
-    stamps = _stamps(raw)
-    names_all: list[str] = []
-    values: list[tuple[NDArray[np.int64], list[str], NDArray[np.float64]]] = []
+    blocks: list[tuple[NDArray[np.int64], list[str], NDArray[np.float64]]] = []
     for length in np.unique(raw.lengths):
-        group = np.flatnonzero(raw.lengths == length)
-        first = raw.payload(int(group[0]))[4:]
-        _, _, offset = _parse_joint_layout(first)
-        # the bytes after the stamp and before the positions fix the layout and the names
-        head = raw.data[(raw.starts[group] + 12)[:, None] + np.arange(offset - 8)]
-        uniq, inverse = np.unique(head, axis=0, return_inverse=True)
-        for k in range(uniq.shape[0]):
-            members = group[inverse.reshape(-1) == k]
-            names, n_pos, offset = _parse_joint_layout(raw.payload(int(members[0]))[4:])
+        remaining = np.flatnonzero(raw.lengths == length)
+        while remaining.size:
+            first = raw.payload(int(remaining[0]))[4:]
+            names, n_pos, offset = _parse_joint_layout(first)
             n_use = min(n_pos, len(names))
-            pos = (raw.starts[members] + 4 + offset)[:, None] + 8 * np.arange(n_use)
-            vals = gather(raw.data, pos.reshape(-1), 8, "<f8").reshape(-1, n_use)
-            values.append((members, names[:n_use], np.asarray(vals, dtype=np.float64)))
-            names_all.extend(n for n in names[:n_use] if n not in names_all)
-    out = np.full((m, len(names_all)), np.nan)
-    for members, names, vals in values:
-        cols = np.array([names_all.index(n) for n in names], dtype=np.int64)
-        out[np.ix_(members, cols)] = vals
-    return stamps, names_all, out
+            width = 4 + offset + 8 * n_use
+            rows = gather_rows(raw.data, raw.starts[remaining], width)
+            # the bytes between stamp and positions (frame id, names) fix the layout
+            same = np.all(rows[:, 12 : 4 + offset] == rows[0, 12 : 4 + offset], axis=1)
+            remaining = remaining[~same]
+            rows = rows[same]
+            vals = rows[:, 4 + offset :].copy().view("<f8").reshape(-1, n_use)
+            blocks.append((_block_stamps(rows), names[:n_use], np.asarray(vals, dtype=np.float64)))
+    return blocks
 
 
 # ---------------------------------------------------------------------------------------------
