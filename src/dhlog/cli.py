@@ -6,16 +6,21 @@ exiting with 2 (unreadable or unusable input); usage errors exit with 1.
 
 from __future__ import annotations
 
+import json
 import math
 import sys
 from pathlib import Path
-from typing import Annotated, Literal
+from typing import TYPE_CHECKING, Annotated, Literal
 
+import numpy as np
 import typer
 from rich.console import Console
 
 from dhlog import __version__
 from dhlog.errors import DhlogError
+
+if TYPE_CHECKING:
+    from dhlog.dhfile import DHModel
 
 app = typer.Typer(
     name="dhlog",
@@ -24,20 +29,20 @@ app = typer.Typer(
     add_completion=False,
     pretty_exceptions_enable=False,
 )
-err = Console(stderr=True, highlight=False)
-out = Console(highlight=False)
+stderr = Console(stderr=True, highlight=False, soft_wrap=True)
+stdout = Console(highlight=False)
 
 EXIT_USAGE, EXIT_INPUT, EXIT_PARTIAL = 1, 2, 3
 
 
 def _fail(exc: DhlogError) -> None:
-    err.print(f"[bold red]error:[/] {exc}", soft_wrap=True)
+    stderr.print(f"[bold red]error:[/] {exc}", soft_wrap=True)
     raise typer.Exit(EXIT_INPUT)
 
 
 def _version(value: bool) -> None:
     if value:
-        out.print(f"dhlog {__version__}")
+        stdout.print(f"dhlog {__version__}")
         raise typer.Exit(0)
 
 
@@ -107,6 +112,12 @@ def simulate(
     perturb_deg: Annotated[
         float, typer.Option(help="σ of angle errors of the simulated robot, degrees.")
     ] = 0.0,
+    skip_joints: Annotated[
+        str,
+        typer.Option(
+            help="Joints (1-based, comma-separated) never swept, to make a partial session."
+        ),
+    ] = "",
     seed: Annotated[int, typer.Option(help="Random seed.")] = 0,
     force: Annotated[bool, typer.Option("--force", help="Overwrite existing outputs.")] = False,
 ) -> None:
@@ -124,12 +135,12 @@ def simulate(
     }
     for option, (value, allowed) in choices.items():
         if value not in allowed:
-            err.print(f"error: --{option} must be one of {', '.join(allowed)}, not '{value}'.")
+            stderr.print(f"error: --{option} must be one of {', '.join(allowed)}, not '{value}'.")
             raise typer.Exit(EXIT_USAGE)
     truth_path = output.with_name(output.stem + ".truth.json")
     for path in (output, truth_path):
         if path.exists() and not force:
-            err.print(f"error: {path} exists; pass --force to overwrite it.")
+            stderr.print(f"error: {path} exists; pass --force to overwrite it.")
             raise typer.Exit(EXIT_USAGE)
     try:
         rob = robot_or_dh_file(robot)
@@ -150,6 +161,7 @@ def simulate(
             phase=phase or no_encoders,
             perturb_length=perturb_mm * 1e-3,
             perturb_angle=math.radians(perturb_deg),
+            skip_joints=tuple(int(v) for v in _floats(skip_joints, "--skip-joints")),
             seed=seed,
         )
         session = simulate_session(rob, cfg)
@@ -172,16 +184,214 @@ def simulate(
         write_truth(doc, truth_path)
     except DhlogError as exc:
         _fail(exc)
-    out.print(
+    stdout.print(
         f"wrote {output} ({session.point_xyz.shape[0]} target samples, "
         f"{session.joint_t_ns.size} joint states, {encoding}) and {truth_path}"
     )
 
 
-def run() -> None:
-    """Entry point: run the app, mapping stray DhlogErrors to exit code 2."""
+def _floats(text: str, what: str) -> list[float]:
     try:
-        app()
+        return [float(v) for v in text.replace(",", " ").split()]
+    except ValueError:
+        stderr.print(f"error: {what} must be numbers separated by commas, not '{text}'.")
+        raise typer.Exit(EXIT_USAGE) from None
+
+
+def _model(spec: str) -> DHModel:
+    """A DH model from a DH file or a library robot name."""
+    from dhlog.dhfile import DHModel, load_dh
+    from dhlog.robots import load_robot
+
+    if Path(spec).suffix in (".json", ".toml") or Path(spec).exists():
+        return load_dh(spec)
+    robot = load_robot(spec)
+    names = tuple(f"joint_{i + 1}" for i in range(robot.n))
+    return DHModel(robot.table, robot.T_base, robot.tool_point, names, robot.name)
+
+
+@app.command()
+def process(
+    log: Annotated[Path, typer.Argument(help="The session log (.mcap).")],
+    pipeline: Annotated[
+        Path | None,
+        typer.Option(help="A pipeline file (default: chosen from the log's schemas)."),
+    ] = None,
+    nominal: Annotated[
+        str | None,
+        typer.Option(
+            help="A nominal DH file (or library robot): ambiguous choices follow it, "
+            "and measured - nominal is shown."
+        ),
+    ] = None,
+    reference_pose: Annotated[
+        str | None,
+        typer.Option(
+            help="Joint values of the reference pose, comma-separated (rad, m for prismatic); "
+            "default: the locked pose most sweeps share."
+        ),
+    ] = None,
+    out: Annotated[
+        Path | None, typer.Option(help="Folder for the results (default: beside the log).")
+    ] = None,
+    units: Annotated[
+        str,
+        typer.Option(help="Units on the console and in the CSV: mm (mm, degrees) or m (m, rad)."),
+    ] = "mm",
+    no_rrd: Annotated[
+        bool, typer.Option("--no-rrd", help="Do not write the Rerun recording.")
+    ] = False,
+    force: Annotated[bool, typer.Option("--force", help="Overwrite existing results.")] = False,
+) -> None:
+    """Identify the DH parameters from a calibration log and write <stem>.dh.json, .dh.csv, .rrd."""
+    from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
+
+    from dhlog.io.pipeline import load_pipeline
+    from dhlog.io.writer import atomic_output
+    from dhlog.process import process_log, result_csv, result_document
+    from dhlog.recording import write_process_recording
+    from dhlog.report import print_result
+
+    if units not in ("mm", "m"):
+        stderr.print(f"error: --units must be mm or m, not '{units}'.")
+        raise typer.Exit(EXIT_USAGE)
+    folder = out if out is not None else log.parent
+    stem = log.name.removesuffix(".mcap")
+    outputs = [folder / f"{stem}.dh.json", folder / f"{stem}.dh.csv"]
+    if not no_rrd:
+        outputs.append(folder / f"{stem}.rrd")
+    existing = [str(p) for p in outputs if p.exists()]
+    if existing and not force:
+        stderr.print(f"error: {', '.join(existing)} exist(s); pass --force to overwrite.")
+        raise typer.Exit(EXIT_USAGE)
+    ref = None if reference_pose is None else np.array(_floats(reference_pose, "--reference-pose"))
+    try:
+        pipe = load_pipeline(pipeline) if pipeline is not None else None
+        nom = _model(nominal) if nominal is not None else None
+        with Progress(
+            TextColumn("{task.description}"),
+            BarColumn(),
+            TimeElapsedColumn(),
+            console=stderr,
+            transient=True,
+            disable=not stderr.is_terminal,
+        ) as bar:
+            task = bar.add_task(f"reading {log.name}", total=1.0)
+            result = process_log(
+                log,
+                pipeline=pipe,
+                nominal=nom,
+                reference_pose=ref,
+                progress=lambda f: bar.update(task, completed=f),
+            )
+            bar.update(task, completed=1.0)
+        if result.log.pipeline_reason:
+            stdout.print(f"{log.name}: {result.log.pipeline_reason}", soft_wrap=True)
+        folder.mkdir(parents=True, exist_ok=True)
+        document = result_document(result)
+        with atomic_output(outputs[0]) as f:
+            f.write((json.dumps(document, indent=2) + "\n").encode())
+        with atomic_output(outputs[1]) as f:
+            f.write(result_csv(result, units=units).encode())
+        if not no_rrd:
+            write_process_recording(result, outputs[2])
+    except DhlogError as exc:
+        _fail(exc)
+    print_result(stdout, result, units=units)
+    stdout.print("wrote " + ", ".join(str(p) for p in outputs))
+    if not no_rrd:
+        stdout.print(f"open the recording with: rerun {outputs[2]}")
+    if not result.complete:
+        names = ", ".join(f"joint {j.index} ({j.name})" for j in result.failed)
+        stderr.print(f"partial result: {names} not identified; the rest was written.")
+        raise typer.Exit(EXIT_PARTIAL)
+
+
+@app.command()
+def fk(
+    dh: Annotated[str, typer.Argument(help="A DH file, a result JSON, or a library robot name.")],
+    q: Annotated[
+        str, typer.Option("--q", help="Joint values, comma-separated (rad, m for prismatic).")
+    ],
+    units: Annotated[str, typer.Option(help="mm or m for the printed translation.")] = "m",
+) -> None:
+    """Pose of the last frame and the spatial manipulator Jacobian at q (seed 004)."""
+    from dhlog.kinematics import fk_frames, fk_point, spatial_jacobian
+
+    try:
+        model = _model(dh)
+    except DhlogError as exc:
+        _fail(exc)
+    values = np.array(_floats(q, "--q"))
+    if values.size != model.table.n:
+        stderr.print(f"error: --q has {values.size} values but {dh} has {model.table.n} joints.")
+        raise typer.Exit(EXIT_USAGE)
+    scale = 1e3 if units == "mm" else 1.0
+    T = fk_frames(model.table, values, T_base=model.T_base)[-1]
+    J = spatial_jacobian(model.table, values, T_base=model.T_base)
+    np.set_printoptions(precision=6, suppress=True, linewidth=120)
+    shown = T.copy()
+    shown[:3, 3] *= scale
+    stdout.print(f"T_base_last (translation in {units}):")
+    stdout.print(str(shown))
+    tool = fk_point(model.table, values, model.tool_point, T_base=model.T_base) * scale
+    stdout.print(f"tool point ({units}): {tool}")
+    stdout.print("spatial Jacobian [v; w] (rows vx vy vz wx wy wz, one column per joint):")
+    stdout.print(str(J))
+
+
+@app.command()
+def show(
+    dh: Annotated[
+        str,
+        typer.Argument(
+            help="A DH file, a result JSON, or a library robot "
+            "(elbow, scara, stanford, kr5, puma560, ur5)."
+        ),
+    ],
+    output: Annotated[
+        Path | None,
+        typer.Option("-o", "--output", help="The .rrd to write (default: <name>.rrd)."),
+    ] = None,
+    steps: Annotated[int, typer.Option(help="Steps per joint sweep.")] = 60,
+    force: Annotated[
+        bool, typer.Option("--force", help="Overwrite an existing recording.")
+    ] = False,
+) -> None:
+    """A Rerun recording of a robot from its DH table, each joint swept in turn (seed 004)."""
+    from dhlog.recording import write_robot_recording
+    from dhlog.robots import load_robot
+
+    try:
+        model = _model(dh)
+        limits = None
+        if not (Path(dh).suffix in (".json", ".toml") or Path(dh).exists()):
+            limits = load_robot(dh).limits
+        path = output if output is not None else Path(f"{Path(dh).stem}.rrd")
+        if path.exists() and not force:
+            stderr.print(f"error: {path} exists; pass --force to overwrite it.")
+            raise typer.Exit(EXIT_USAGE)
+        write_robot_recording(
+            model.table, path, T_base=model.T_base, limits=limits, title=Path(dh).stem, steps=steps
+        )
+    except DhlogError as exc:
+        _fail(exc)
+    stdout.print(f"wrote {path}; open it with: rerun {path}")
+
+
+def run() -> None:
+    """Entry point: exit codes 0 success, 1 usage error, 2 unusable input, 3 partial result."""
+    try:
+        code = app(standalone_mode=False)
+    except typer.Abort:
+        sys.exit(EXIT_USAGE)
     except DhlogError as exc:  # pragma: no cover - commands catch their own
-        err.print(f"error: {exc}")
+        stderr.print(f"error: {exc}")
         sys.exit(EXIT_INPUT)
+    except Exception as exc:
+        # usage errors of the command-line parser carry their own message and exit code
+        if hasattr(exc, "format_message") and hasattr(exc, "exit_code"):
+            stderr.print(f"error: {exc.format_message()} (see dhlog --help)")
+            sys.exit(EXIT_USAGE)
+        raise
+    sys.exit(code if isinstance(code, int) else 0)

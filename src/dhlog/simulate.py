@@ -52,6 +52,7 @@ class SimulationConfig:
     perturb_length: float = 0.0
     perturb_angle: float = 0.0
     clock_jitter: float = 2e-4
+    skip_joints: tuple[int, ...] = ()
     seed: int = 0
 
 
@@ -132,6 +133,8 @@ def _keyframes(
         frames.append((t, q.copy()))
 
     for k in range(n):
+        if k + 1 in cfg.skip_joints:
+            continue
         lock = home.copy()
         if cfg.lock_poses == "random":
             span = hi - lo

@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 from typing import Literal
 
 import numpy as np
-from numpy.typing import ArrayLike
+from numpy.typing import ArrayLike, NDArray
 from scipy.optimize import least_squares
 
 from dhlog.errors import (
@@ -38,11 +38,18 @@ CircleMethod = Literal["auto", "algebraic", "geometric", "encoder"]
 
 @dataclass(frozen=True, eq=False)
 class PlaneFit:
-    """A plane fitted by SVD, with the signed residual of every point (m) and their RMS."""
+    """A plane fitted by SVD, with the signed residual of every point (m) and their RMS.
+
+    ``covariance`` (3, 3) is that of ``[δn·u, δn·v, δ(offset)]``: the tilt of the normal (rad)
+    towards the in-plane unit vectors ``basis = (u, v)`` and the shift of the plane along its
+    normal at ``plane.point`` (m), with σ from the residuals.
+    """
 
     plane: Plane
     residuals: FloatArray
     rms: float
+    basis: FloatArray
+    covariance: FloatArray
 
 
 @dataclass(frozen=True, eq=False)
@@ -126,7 +133,14 @@ def fit_plane(points: ArrayLike, *, what: str = "base plane") -> PlaneFit:
     normal = vt[2] if vt[2][2] >= 0.0 else -vt[2]
     plane = Plane(centroid, normal)
     residuals = plane.signed_distance(pts)
-    return PlaneFit(plane, residuals, float(np.sqrt(np.mean(residuals**2))))
+    m = pts.shape[0]
+    sigma2 = float(residuals @ residuals) / max(m - 3, 1)
+    u, v = perpendicular_basis(plane.normal)
+    A = (pts - centroid) @ np.stack([u, v]).T
+    cov = np.zeros((3, 3))
+    cov[:2, :2] = sigma2 * np.linalg.inv(A.T @ A)
+    cov[2, 2] = sigma2 / m
+    return PlaneFit(plane, residuals, float(np.sqrt(np.mean(residuals**2))), np.stack([u, v]), cov)
 
 
 def _order_key(encoder: FloatArray | None, m: int) -> FloatArray:
@@ -522,3 +536,76 @@ def fit_line(
         encoder_scale=scale,
         warnings=tuple(warnings),
     )
+
+
+def detect_joint_type(points: ArrayLike, *, what: str = "joint") -> tuple[str, str]:
+    """Whether a sweep looks prismatic or revolute, and why.
+
+    A sweep is prismatic when a straight line fits it within the noise: the line's residual RMS
+    is no more than 1.5 times the circle's (a circle fitted to a straight sweep only absorbs the
+    noise), or the points are collinear outright. Returns ``("prismatic" | "revolute", reason)``.
+    """
+    pts = _check_samples(points, what)
+    line = fit_line(pts, min_travel=0.0, what=what)
+    try:
+        center, normal, radius = _algebraic_circle(pts, what)
+    except CollinearPointsError:
+        return "prismatic", "the points are collinear"
+    circle_rms = float(
+        np.sqrt(np.mean(np.sum(_circle_residuals(pts, center, normal, radius) ** 2, axis=1)))
+    )
+    ratio = line.rms / max(circle_rms, 1e-15)
+    if ratio <= 1.5:
+        return "prismatic", f"a line fits as well as a circle (RMS {line.rms * 1e6:.1f} µm)"
+    return "revolute", f"a circle fits {ratio:.0f}x better than a line"
+
+
+def fit_axis_robust(
+    points: ArrayLike,
+    *,
+    kind: Literal["circle", "line"],
+    encoder: ArrayLike | None = None,
+    method: CircleMethod = "auto",
+    threshold: float = 5.0,
+    max_rounds: int = 5,
+    min_sweep: float = MIN_SWEEP,
+    what: str = "axis fit",
+) -> tuple[AxisFit, NDArray[np.bool_]]:
+    """A circle or line fit with iterative rejection of gross outliers.
+
+    After each fit, samples whose orthogonal distance from the circle (or line) exceeds
+    ``threshold`` times the robust noise scale (median distance / 1.1774, the median of a 2-dof
+    chi variable) are set aside and the fit repeated, until nothing changes. Returns the fit on
+    the inliers and the inlier mask over the input samples.
+    """
+    pts = check_points(f"{what} points", points)
+    q = None if encoder is None else np.asarray(encoder, dtype=np.float64).reshape(-1)
+    keep = np.ones(pts.shape[0], dtype=bool)
+
+    def run(mask: NDArray[np.bool_]) -> AxisFit:
+        enc = None if q is None else q[mask]
+        if kind == "line":
+            return fit_line(pts[mask], encoder=enc, what=what)
+        return fit_circle(pts[mask], encoder=enc, method=method, min_sweep=min_sweep, what=what)
+
+    fit = run(keep)
+    for _ in range(max_rounds):
+        distance = _orthogonal_distances(fit, pts)
+        # median of a 2-dof chi variable is sqrt(2 ln 2) = 1.1774 σ
+        scale = float(np.median(distance[keep])) / 1.1774
+        new_keep = distance <= threshold * max(scale, 1e-12)
+        if np.array_equal(new_keep, keep) or np.count_nonzero(new_keep) < 3:
+            break
+        keep = new_keep
+        fit = run(keep)
+    return fit, keep
+
+
+def _orthogonal_distances(fit: AxisFit, pts: FloatArray) -> NDArray[np.float64]:
+    """Distance of every sample from the fitted circle or line (the 2-dof orthogonal residual)."""
+    if fit.kind == "line":
+        rel = pts - fit.center
+        d = fit.axis.direction
+        return np.asarray(np.linalg.norm(rel - np.outer(rel @ d, d), axis=1), dtype=np.float64)
+    residuals = _circle_residuals(pts, fit.center, fit.axis.direction, fit.radius)
+    return np.asarray(np.linalg.norm(residuals, axis=1), dtype=np.float64)

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import os
 import struct
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -250,8 +250,14 @@ def _decompress(compression: str, payload: bytes | memoryview, size: int, path: 
     raise InputError(f"{path}: chunk compression '{compression}' is not supported (zstd, lz4).")
 
 
-def scan_mcap(path: str | Path, topics: Iterable[str] | None = None) -> McapScan:
-    """Walk ``path`` and return its channels and the raw payloads of ``topics`` (all if None)."""
+def scan_mcap(
+    path: str | Path,
+    topics: Iterable[str] | None = None,
+    progress: Callable[[float], None] | None = None,
+) -> McapScan:
+    """Walk ``path`` and return its channels and the raw payloads of ``topics`` (all if None).
+
+    ``progress`` (optional) is called with the fraction of the work done."""
     name = str(path)
     try:
         blob = Path(path).read_bytes()
@@ -314,10 +320,14 @@ def scan_mcap(path: str | Path, topics: Iterable[str] | None = None) -> McapScan
             else:
                 walker.record(op, view[body : body + length])
         pos = body + length
+        if progress is not None and op == OP_CHUNK:
+            progress(0.5 * pos / end)
     flush()
     with decompressed:
-        for future, index in chunks:
+        for done, (future, index) in enumerate(chunks, start=1):
             walker.chunk(np.frombuffer(future.result(), dtype=np.uint8), index or None)
+            if progress is not None and done % 16 == 0:
+                progress(0.5 + 0.5 * done / len(chunks))
     scan = McapScan(
         path=name,
         channels=dict(walker.channels),

@@ -59,6 +59,7 @@ class LogData:
     phase: pl.DataFrame | None
     set_aside: dict[str, int] = field(default_factory=dict)
     warnings: list[str] = field(default_factory=list)
+    pipeline_reason: str | None = None
 
 
 def _get(obj: Any, path: str) -> Any:
@@ -357,20 +358,26 @@ def read_log(
     pipeline: Pipeline | None = None,
     *,
     fast: bool = True,
+    progress: Callable[[float], None] | None = None,
 ) -> LogData:
     """Decode the streams of the log at ``path`` with ``pipeline`` (chosen from the log if None).
+
+    ``progress`` is called with the fraction of the file read so far.
 
     ``fast=False`` reads through the mcap library's per-message decoders (the reference path).
     Non-finite samples are set aside and counted; a truncated file keeps what precedes the damage.
     """
     name = str(path)
     scan = scan_mcap(
-        path, topics=None if pipeline is None else [s.topic for s in pipeline.streams.values()]
+        path,
+        topics=None if pipeline is None else [s.topic for s in pipeline.streams.values()],
+        progress=progress,
     )
     warnings = list(scan.warnings)
+    reason = None
     if pipeline is None:
-        pipeline, reason = choose_pipeline(name, scan.channels)
-        warnings.append(f"Using pipeline '{pipeline.name}' ({reason}).")
+        pipeline, why = choose_pipeline(name, scan.channels)
+        reason = f"using pipeline '{pipeline.name}' ({why})"
     present = scan.topics()
     infos: dict[str, list[ChannelInfo]] = {}
     for stream, spec in pipeline.streams.items():
@@ -411,7 +418,9 @@ def read_log(
         t = np.concatenate([b[0] for b in marks_blocks]) if marks_blocks else np.zeros(0, np.int64)
         marks = [_phase_value(v, joint_names) for b in marks_blocks for v in b[1]]
         phase = pl.DataFrame({"t_ns": t, "joint": pl.Series(marks, dtype=pl.Int32)}).sort("t_ns")
-    return LogData(name, pipeline, points, joints, joint_names, base, phase, set_aside, warnings)
+    return LogData(
+        name, pipeline, points, joints, joint_names, base, phase, set_aside, warnings, reason
+    )
 
 
 def _clean(frame: pl.DataFrame, stream: str, set_aside: dict[str, int]) -> pl.DataFrame:

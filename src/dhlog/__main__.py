@@ -1,0 +1,5 @@
+"""``python -m dhlog``: the command line."""
+
+from dhlog.cli import run
+
+run()

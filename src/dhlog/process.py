@@ -1,0 +1,814 @@
+"""``dhlog process``: from a calibration log to the DH model, its uncertainty and its check.
+
+read (``io.reader``) → segment (``segment``) → per joint: pick the sweeps, decide the type, fit
+the axis robustly, bring it to the reference pose → base plane, target at the reference pose →
+extract (``extract``) → propagate the fits' covariance to every parameter → forward kinematics of
+the result against every sample → the result document of the contract.
+
+When some joints cannot be identified, what was identified is kept: their fits and axes, and the
+DH rows that only need identified axes; the joints at fault are named with the reason.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import polars as pl
+from numpy.typing import NDArray
+
+from dhlog import __version__
+from dhlog.dh import JointType, StandardDH
+from dhlog.dhfile import DHModel
+from dhlog.errors import DhlogError, GeometryError, InputError
+from dhlog.extract import Extraction, extract_dh
+from dhlog.geometry._checks import FloatArray, perpendicular_basis, wrap_angle
+from dhlog.geometry.fitting import AxisFit, PlaneFit, detect_joint_type, fit_axis_robust, fit_plane
+from dhlog.geometry.lines import ANGLE_TOL, DISTANCE_TOL, Line, Plane
+from dhlog.geometry.screws import chain_motion, chain_motions
+from dhlog.io.pipeline import Pipeline
+from dhlog.io.reader import LogData, read_log
+from dhlog.io.writer import sha256_of
+from dhlog.kinematics import fk_point
+from dhlog.segment import Segmentation, segment_log
+
+RESULT_FORMAT = "dhlog.result/1"
+
+
+@dataclass
+class JointReport:
+    """What became of one joint: its type (and where the type came from), the fit, the axis at
+    the reference pose, the sweeps used, the outliers set aside, or why it failed."""
+
+    index: int
+    name: str
+    type: JointType | None = None
+    type_source: str = ""
+    fit: AxisFit | None = None
+    axis: Line | None = None
+    segments: list[int] = field(default_factory=list)
+    rows: NDArray[np.int64] = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+    inliers: NDArray[np.bool_] = field(default_factory=lambda: np.zeros(0, dtype=bool))
+    lock_pose: FloatArray | None = None
+    reason: str | None = None
+
+    @property
+    def ok(self) -> bool:
+        """True when the joint's axis was identified."""
+        return self.axis is not None and self.reason is None
+
+    @property
+    def n_outliers(self) -> int:
+        """Samples of the joint's sweeps set aside as gross outliers."""
+        return int(np.count_nonzero(~self.inliers))
+
+
+@dataclass
+class Validation:
+    """FK of the result against each assigned sample with encoder values (m), and summaries."""
+
+    residuals: FloatArray
+    per_joint: dict[int, tuple[float, float, int]]
+    rms: float
+    max: float
+    n_points: int
+
+
+@dataclass
+class ProcessResult:
+    """Everything ``dhlog process`` found, ready to be written and shown."""
+
+    path: str
+    sha256: str
+    log: LogData
+    segmentation: Segmentation
+    joints: list[JointReport]
+    reference_pose: FloatArray
+    extraction: Extraction | None
+    std: FloatArray | None
+    base: PlaneFit | None
+    target: FloatArray | None
+    validation: Validation | None
+    nominal: DHModel | None
+    warnings: list[str]
+    covariance: FloatArray | None = None
+
+    @property
+    def complete(self) -> bool:
+        """True when every joint was identified."""
+        return all(j.ok for j in self.joints)
+
+    @property
+    def failed(self) -> list[JointReport]:
+        """The joints that could not be identified."""
+        return [j for j in self.joints if not j.ok]
+
+
+def _groups_by_lock(seg: Segmentation, joint: int, tol: float) -> list[list[int]]:
+    """The joint's segments grouped by compatible locked poses (each group: segment ids)."""
+    rows = seg.segments.filter(pl.col("joint") == joint)
+    locks = rows.select([f"lock_q_{j + 1}" for j in range(seg.n_joints)]).to_numpy()
+    ids = rows["segment"].to_list()
+    groups: list[tuple[FloatArray, list[int]]] = []
+    for sid, lock in zip(ids, locks, strict=True):
+        for pose, members in groups:
+            both = ~np.isnan(pose) & ~np.isnan(lock)
+            if np.all(np.abs(pose[both] - lock[both]) <= tol):
+                members.append(int(sid))
+                break
+        else:
+            groups.append((lock, [int(sid)]))
+    return [members for _, members in groups]
+
+
+def _lock_matches(lock: FloatArray, ref: FloatArray, joint: int, tol: float) -> bool:
+    others = np.arange(lock.size) != joint - 1
+    values = lock[others]
+    known = ~np.isnan(values)
+    return bool(np.all(np.abs(values[known] - ref[others][known]) <= tol))
+
+
+def _joint_type(
+    k: int, name: str, points: FloatArray, log: LogData, nominal: DHModel | None, notes: list[str]
+) -> tuple[JointType, str]:
+    declared = log.pipeline.joint_types
+    if declared is not None and k - 1 < len(declared) and declared[k - 1] is not None:
+        jt = declared[k - 1]
+        assert jt is not None
+        return jt, "pipeline"
+    if nominal is not None:
+        return nominal.table.joint_types[k - 1], "nominal"
+    kind, why = detect_joint_type(points, what=f"joint {k} ({name})")
+    jt = JointType(kind)
+    if jt is JointType.PRISMATIC:
+        notes.append(f"joint {k} ({name}): detected as prismatic ({why}).")
+    return jt, f"detected: {why}"
+
+
+def _fit_joint(
+    report: JointReport,
+    seg: Segmentation,
+    log: LogData,
+    ref: FloatArray,
+    identified: list[JointReport],
+    nominal: DHModel | None,
+    fit_method: str,
+    notes: list[str],
+) -> None:
+    k, name = report.index, report.name
+    tol = log.pipeline.segmentation.lock_tolerance
+    what = f"joint {k} ({name})"
+    groups = _groups_by_lock(seg, k, tol)
+    if not groups:
+        report.reason = "it was never swept (no segment in which it alone moved)"
+        return
+    segments = seg.segments
+    chosen = groups[0]
+    for group in groups:
+        lock = (
+            segments.filter(pl.col("segment") == group[0])
+            .select([f"lock_q_{j + 1}" for j in range(seg.n_joints)])
+            .to_numpy()[0]
+        )
+        if _lock_matches(lock, ref, k, tol):
+            chosen = group
+            break
+    else:
+        chosen = max(
+            groups, key=lambda g: int(segments.filter(pl.col("segment").is_in(g))["n"].sum())
+        )
+    lock = (
+        segments.filter(pl.col("segment") == chosen[0])
+        .select([f"lock_q_{j + 1}" for j in range(seg.n_joints)])
+        .to_numpy()[0]
+    )
+    report.segments = chosen
+    table = seg.table.with_row_index("row")
+    rows = table.filter(pl.col("segment").is_in(chosen))
+    report.rows = rows["row"].to_numpy().astype(np.int64)
+    points = rows.select(["x", "y", "z"]).to_numpy()
+    encoder = rows[f"q_{k}"].to_numpy() if seg.has_encoders else None
+    try:
+        jt, source = _joint_type(k, name, points, log, nominal, notes)
+        report.type, report.type_source = jt, source
+        settings = log.pipeline.segmentation
+        fit, inliers = fit_axis_robust(
+            points,
+            kind="line" if jt is JointType.PRISMATIC else "circle",
+            encoder=encoder,
+            method=fit_method,  # type: ignore[arg-type]
+            min_sweep=settings.min_sweep,
+            what=what,
+        )
+    except GeometryError as exc:
+        report.reason = str(exc).removeprefix(f"{what}: ")
+        return
+    report.fit, report.inliers = fit, inliers
+    for w in fit.warnings:
+        notes.append(w)
+    report.lock_pose = np.where(np.isnan(lock), ref, lock)
+    if seg.has_encoders and not _lock_matches(lock, ref, k, tol):
+        upstream = identified[: k - 1]
+        if any(not j.ok for j in upstream):
+            report.reason = (
+                "it was swept only from another pose, and an upstream joint needed to carry its "
+                "axis to the reference pose was not identified"
+            )
+            return
+        axes = [j.axis for j in upstream]
+        types = [j.type for j in upstream]
+        assert all(a is not None for a in axes) and all(t is not None for t in types)
+        M = chain_motion(axes, types, report.lock_pose[: k - 1], ref[: k - 1])  # type: ignore[arg-type]
+        report.axis = fit.axis.transformed(np.linalg.inv(M))
+        notes.append(
+            f"{what}: swept from another pose; its axis was carried to the reference pose "
+            "through the upstream axes."
+        )
+    else:
+        report.axis = fit.axis
+
+
+def _target_at_reference(
+    seg: Segmentation, joints: list[JointReport], ref: FloatArray
+) -> tuple[FloatArray, FloatArray]:
+    """The target at the reference pose, and its covariance (3, 3).
+
+    With encoders: every inlier sample moved back to the reference pose through the identified
+    axes (``M_n(q)⁻¹ p``), averaged. Without: the point nearest all fitted circles (every sweep
+    starts from the same pose, so every circle passes through it).
+    """
+    if seg.has_encoders:
+        table = seg.table
+        rows = np.concatenate([j.rows[j.inliers] for j in joints])
+        cols = [f"q_{i + 1}" for i in range(seg.n_joints)]
+        Q = table.select(cols).to_numpy()[rows]
+        P = table.select(["x", "y", "z"]).to_numpy()[rows]
+        axes = [j.axis for j in joints]
+        types = [j.type for j in joints]
+        M = chain_motions(axes, types, Q, ref)  # type: ignore[arg-type]
+        Minv = np.linalg.inv(M)
+        back = np.einsum("mij,mj->mi", Minv[:, :3, :3], P) + Minv[:, :3, 3]
+        mean = back.mean(axis=0)
+        cov = np.cov(back.T) / back.shape[0]
+        return mean, cov
+    fits = [j.fit for j in joints if j.fit is not None]
+    return _common_point_of_circles(fits), np.eye(3) * (max(f.sigma for f in fits) ** 2 / len(fits))
+
+
+def _common_point_of_circles(fits: list[AxisFit]) -> FloatArray:
+    """The point nearest (least squares) to all circles, from the best-agreeing sample."""
+    from scipy.optimize import least_squares
+
+    def distances(p: FloatArray) -> FloatArray:
+        out = []
+        for f in fits:
+            w = p - f.center
+            h = w @ f.axis.direction
+            rho = np.linalg.norm(w - h * f.axis.direction)
+            out += [h, rho - f.radius]
+        return np.asarray(out)
+
+    candidates = []
+    for f in fits:
+        u, v = f.basis
+        for a in np.linspace(0, 2 * np.pi, 72, endpoint=False):
+            candidates.append(f.center + f.radius * (np.cos(a) * u + np.sin(a) * v))
+    start = min(candidates, key=lambda c: float(np.sum(distances(c) ** 2)))
+    return np.asarray(least_squares(distances, start).x, dtype=np.float64)
+
+
+def _rotvec(R: FloatArray) -> FloatArray:
+    """Rotation vector (axis × angle) of the rotation matrix ``R``."""
+    angle = math.acos(max(-1.0, min(1.0, (float(np.trace(R)) - 1.0) / 2.0)))
+    w = np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]])
+    if angle < 1e-12:
+        return 0.5 * w
+    return angle / (2.0 * math.sin(angle)) * w
+
+
+def state_vector(ex: Extraction, R0: FloatArray | None = None) -> FloatArray:
+    """The identified model as one vector: per row ``θ_offset, d_offset, a, α`` (4n), the tool
+    point (3), the translation of ``T_measurement_base`` (3) and its rotation relative to ``R0``
+    as a rotation vector (3)."""
+    table = ex.standard
+    R0 = ex.T_measurement_base[:3, :3] if R0 is None else R0
+    return np.concatenate(
+        [
+            np.column_stack([table.theta_offset, table.d_offset, table.a, table.alpha]).ravel(),
+            ex.tool_point,
+            ex.T_measurement_base[:3, 3],
+            _rotvec(R0.T @ ex.T_measurement_base[:3, :3]),
+        ]
+    )
+
+
+def model_from_state(
+    x: FloatArray, types: tuple[JointType, ...], R0: FloatArray
+) -> tuple[StandardDH, FloatArray, FloatArray]:
+    """Inverse of :func:`state_vector`: (table, tool point, T_measurement_base)."""
+    n = len(types)
+    rows = x[: 4 * n].reshape(n, 4)
+    table = StandardDH(types, rows[:, 0], rows[:, 1], rows[:, 2], rows[:, 3])
+    tool = x[4 * n : 4 * n + 3]
+    rv = x[4 * n + 6 : 4 * n + 9]
+    angle = float(np.linalg.norm(rv))
+    from dhlog.geometry._checks import rotation_about
+
+    R = R0 @ (rotation_about(rv, angle) if angle > 0 else np.eye(3))
+    T = np.eye(4)
+    T[:3, :3], T[:3, 3] = R, x[4 * n + 3 : 4 * n + 6]
+    return table, tool, T
+
+
+def fk_prediction_std(result: ProcessResult, Q: FloatArray) -> FloatArray:
+    """Predicted RMS position error (m) of the result's FK at each joint vector in ``Q``, from
+    the propagated covariance of the model (first order)."""
+    ex, cov = result.extraction, result.covariance
+    assert ex is not None and cov is not None
+    R0 = ex.T_measurement_base[:3, :3]
+    x0 = state_vector(ex, R0)
+    types = ex.standard.joint_types
+
+    def fk(x: FloatArray) -> FloatArray:
+        table, tool, T = model_from_state(x, types, R0)
+        return fk_point(table, Q, tool, T_base=T)
+
+    J = np.zeros((Q.shape[0], 3, x0.size))
+    for i in range(x0.size):
+        h = 1e-7
+        e = np.zeros(x0.size)
+        e[i] = h
+        J[:, :, i] = (fk(x0 + e) - fk(x0 - e)) / (2 * h)
+    var = np.einsum("mij,jk,mik->m", J, cov, J)
+    return np.asarray(np.sqrt(np.clip(var, 0.0, None)), dtype=np.float64)
+
+
+def _propagate(
+    joints: list[JointReport],
+    ref: FloatArray,
+    target: FloatArray,
+    target_cov: FloatArray,
+    base: PlaneFit | None,
+    nominal: StandardDH | None,
+    extract_kwargs: dict[str, Any],
+    center: Extraction,
+) -> FloatArray:
+    """First-order covariance of the identified model (:func:`state_vector`, 4n + 9).
+
+    The Jacobian of the extraction with respect to each axis's tilt and shift (4 per axis), the
+    base plane (3) and the target (3) is taken by central differences; the inputs' covariances
+    are the fits' own.
+    """
+    n = len(joints)
+    types = [j.type for j in joints]
+    axes = [j.axis for j in joints]
+    assert all(a is not None for a in axes)
+    params: list[tuple[str, int, int]] = [("axis", i, p) for i in range(n) for p in range(4)]
+    blocks: list[FloatArray] = []
+    for j in joints:
+        assert j.fit is not None
+        blocks.append(j.fit.axis_covariance)
+    if base is not None:
+        params += [("plane", 0, p) for p in range(3)]
+        blocks.append(base.covariance)
+    params += [("target", 0, p) for p in range(3)]
+    blocks.append(target_cov)
+    sizes = [b.shape[0] for b in blocks]
+    cov = np.zeros((sum(sizes), sum(sizes)))
+    at = 0
+    for b in blocks:
+        cov[at : at + b.shape[0], at : at + b.shape[0]] = b
+        at += b.shape[0]
+    R0 = center.T_measurement_base[:3, :3]
+    base_vec = state_vector(center, R0)
+    J = np.zeros((base_vec.size, len(params)))
+    for col, (kind, i, p) in enumerate(params):
+        h = 1e-7
+        outs = []
+        for sign in (1.0, -1.0):
+            ax = list(axes)
+            plane = base.plane if base is not None else None
+            tgt = target.copy()
+            if kind == "axis":
+                fit = joints[i].fit
+                assert fit is not None and ax[i] is not None
+                u, v = fit.basis
+                a = ax[i]
+                assert a is not None
+                # the fit's basis is in the measurement frame at the fit pose; the axis at the
+                # reference pose differs by a rigid motion, which the basis follows
+                R = _rotation_between(fit.axis.direction, a.direction)
+                u, v = R @ u, R @ v
+                if p < 2:
+                    ax[i] = Line(a.point, a.direction + sign * h * (u if p == 0 else v))
+                else:
+                    ax[i] = Line(a.point + sign * h * (u if p == 2 else v), a.direction)
+            elif kind == "plane":
+                assert base is not None and plane is not None
+                u, v = base.basis
+                if p < 2:
+                    plane = Plane(plane.point, plane.normal + sign * h * (u if p == 0 else v))
+                else:
+                    plane = Plane(plane.point + sign * h * plane.normal, plane.normal)
+            else:
+                tgt[p] += sign * h
+            ex = extract_dh(
+                ax,  # type: ignore[arg-type]
+                types,  # type: ignore[arg-type]
+                target=tgt,
+                reference_pose=ref,
+                base_plane=plane,
+                nominal=nominal,
+                **extract_kwargs,
+            )
+            outs.append(state_vector(ex, R0))
+        diff = outs[0] - outs[1]
+        angles = np.zeros(base_vec.size, dtype=bool)
+        angles[: 4 * n] = np.tile([True, False, False, True], n)
+        diff[angles] = [wrap_angle(d) for d in diff[angles]]
+        J[:, col] = diff / (2 * h)
+    return np.asarray(J @ cov @ J.T, dtype=np.float64)
+
+
+def _rotation_between(a: FloatArray, b: FloatArray) -> FloatArray:
+    """The smallest rotation taking unit vector ``a`` to ``b``."""
+    v = np.cross(a, b)
+    s, c = float(np.linalg.norm(v)), float(a @ b)
+    if s < 1e-15:
+        return np.eye(3) if c > 0 else -np.eye(3)
+    K = np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]]) / s
+    angle = math.atan2(s, c)
+    return np.eye(3) + math.sin(angle) * K + (1 - math.cos(angle)) * (K @ K)
+
+
+def _validate(seg: Segmentation, joints: list[JointReport], ex: Extraction) -> Validation | None:
+    """FK of the result at every assigned inlier sample's own encoder values against the sample."""
+    if not seg.has_encoders:
+        return None
+    table = seg.table
+    cols = [f"q_{i + 1}" for i in range(seg.n_joints)]
+    Q = table.select(cols).to_numpy()
+    P = table.select(["x", "y", "z"]).to_numpy()
+    residuals = np.full(table.height, np.nan)
+    per_joint: dict[int, tuple[float, float, int]] = {}
+    used: list[FloatArray] = []
+    for j in joints:
+        rows = j.rows[j.inliers]
+        if rows.size == 0:
+            continue
+        pred = fk_point(ex.standard, Q[rows], ex.tool_point, T_base=ex.T_measurement_base)
+        r = np.linalg.norm(pred - P[rows], axis=1)
+        residuals[rows] = r
+        per_joint[j.index] = (float(np.sqrt(np.mean(r**2))), float(r.max()), int(r.size))
+        used.append(r)
+    allr = np.concatenate(used) if used else np.zeros(0)
+    return Validation(
+        residuals=residuals,
+        per_joint=per_joint,
+        rms=float(np.sqrt(np.mean(allr**2))) if allr.size else float("nan"),
+        max=float(allr.max()) if allr.size else float("nan"),
+        n_points=int(allr.size),
+    )
+
+
+def process_log(
+    path: str | Path,
+    *,
+    pipeline: Pipeline | None = None,
+    nominal: DHModel | None = None,
+    reference_pose: FloatArray | None = None,
+    fit_method: str = "auto",
+    angle_tol: float = ANGLE_TOL,
+    distance_tol: float = DISTANCE_TOL,
+    fast: bool = True,
+    progress: Callable[[float], None] | None = None,
+) -> ProcessResult:
+    """Run the whole identification on the log at ``path`` (see the module docstring)."""
+    name = str(path)
+    log = read_log(path, pipeline, fast=fast, progress=progress)
+    types_hint = list(log.pipeline.joint_types) if log.pipeline.joint_types else None
+    if types_hint is None and nominal is not None:
+        types_hint = list(nominal.table.joint_types)
+    seg = segment_log(log, joint_types=types_hint, reference_pose=reference_pose)
+    n = seg.n_joints
+    notes = list(seg.warnings)
+    if nominal is not None and nominal.table.n != n:
+        raise InputError(
+            f"{nominal.source}: the nominal table has {nominal.table.n} joints but {name} "
+            f"has {n}; give the nominal of this robot."
+        )
+    if reference_pose is not None and np.asarray(reference_pose).shape != (n,):
+        raise InputError(
+            f"--reference-pose has {np.asarray(reference_pose).size} values but {name} has {n} "
+            "joints; give one value per joint."
+        )
+    ref = (
+        np.asarray(reference_pose, dtype=np.float64)
+        if reference_pose is not None
+        else (seg.reference_pose if seg.reference_pose is not None else np.zeros(n))
+    )
+    if not seg.has_encoders:
+        notes.append(
+            "no encoders: the reference pose is the pose every sweep starts from (all zeros), "
+            "and the sense of motion comes from time order."
+        )
+    joints = [JointReport(k + 1, seg.joint_names[k]) for k in range(n)]
+    for report in joints:
+        _fit_joint(report, seg, log, ref, joints, nominal, fit_method, notes)
+    for report in joints:
+        if report.reason:
+            notes.append(
+                f"joint {report.index} ({report.name}) was not identified: {report.reason}."
+            )
+    base = None
+    if log.base is not None and log.base.height >= 3:
+        try:
+            base = fit_plane(
+                log.base.select(["x", "y", "z"]).to_numpy(), what=f"{name}: base plane"
+            )
+        except GeometryError as exc:
+            notes.append(f"the base plane was not used: {exc}")
+    extraction = std = target = validation = covariance = None
+    kwargs = {"angle_tol": angle_tol, "distance_tol": distance_tol}
+    nominal_table = nominal.table if nominal is not None else None
+    ok = [j for j in joints if j.ok]
+    if len(ok) == n:
+        target, target_cov = _target_at_reference(seg, joints, ref)
+        extraction = extract_dh(
+            [j.axis for j in joints],  # type: ignore[misc]
+            [j.type for j in joints],  # type: ignore[misc]
+            target=target,
+            reference_pose=ref,
+            base_plane=base.plane if base is not None else None,
+            nominal=nominal_table,
+            **kwargs,
+        )
+        covariance = _propagate(
+            joints, ref, target, target_cov, base, nominal_table, kwargs, extraction
+        )
+        std = np.sqrt(np.clip(np.diag(covariance), 0.0, None))
+        validation = _validate(seg, joints, extraction)
+        if validation is not None:
+            sigma = math.sqrt(np.mean([j.fit.sigma**2 for j in joints if j.fit is not None]))
+            expected = math.sqrt(3.0) * sigma
+            if validation.rms > 1.5 * expected:
+                notes.append(
+                    f"the FK residual RMS ({validation.rms * 1e3:.4f} mm) is larger than the fit "
+                    f"noise explains ({expected * 1e3:.4f} mm): the axes disagree with one "
+                    "kinematic chain more than the noise allows."
+                )
+        else:
+            notes.append("no encoder values: FK of the result cannot be checked sample by sample.")
+    else:
+        prefix = 0
+        while prefix < n and joints[prefix].ok:
+            prefix += 1
+        if prefix >= 2:
+            pre = joints[:prefix]
+            last = pre[-1].fit
+            assert last is not None
+            extraction = extract_dh(
+                [j.axis for j in pre],  # type: ignore[misc]
+                [j.type for j in pre],  # type: ignore[misc]
+                target=last.center + last.radius * last.basis[0] + 0.1 * last.basis[1],
+                reference_pose=ref[:prefix],
+                base_plane=base.plane if base is not None else None,
+                nominal=None if nominal_table is None else _prefix_table(nominal_table, prefix),
+                **kwargs,
+            )
+    return ProcessResult(
+        path=name,
+        sha256=sha256_of(path),
+        log=log,
+        segmentation=seg,
+        joints=joints,
+        reference_pose=ref,
+        extraction=extraction,
+        std=std,
+        base=base,
+        target=target,
+        validation=validation,
+        nominal=nominal,
+        warnings=notes,
+        covariance=covariance,
+    )
+
+
+def _prefix_table(table: StandardDH, k: int) -> StandardDH:
+    return StandardDH(
+        table.joint_types[:k],
+        table.theta_offset[:k],
+        table.d_offset[:k],
+        table.a[:k],
+        table.alpha[:k],
+    )
+
+
+# ---- the result document --------------------------------------------------------------------
+
+
+def _fit_doc(j: JointReport) -> dict[str, Any] | None:
+    f = j.fit
+    if f is None:
+        return None
+    return {
+        "method": f.method,
+        "n_points": int(f.n_points),
+        "n_outliers": j.n_outliers,
+        "rms": float(f.rms),
+        "sweep": float(f.sweep),
+        "radius": float(f.radius),
+        "sigma": float(f.sigma),
+        "segments": j.segments,
+        "axis_std": {"direction": f.direction_std, "position": f.position_std},
+        **({"encoder_scale": f.encoder_scale} if f.encoder_scale is not None else {}),
+    }
+
+
+def result_document(result: ProcessResult) -> dict[str, Any]:
+    """The ``<stem>.dh.json`` document (the result contract, ``dhlog.result/1``)."""
+    ex = result.extraction
+    n_rows = 0 if ex is None else (ex.standard.n if result.complete else ex.standard.n - 1)
+    std = result.std
+    rows: list[dict[str, Any]] = []
+    mod_rows: list[dict[str, Any]] = []
+    relations: list[dict[str, Any]] = []
+    if ex is not None:
+        t, q = ex.standard, ex.reference_pose
+        theta, d = t.theta(q), t.d(q)
+        for i in range(n_rows):
+            s = std[4 * i : 4 * i + 4] if std is not None else np.full(4, float("nan"))
+            rows.append(
+                {
+                    "type": t.joint_types[i].value,
+                    "theta": float(theta[i]),
+                    "d": float(d[i]),
+                    "a": float(t.a[i]),
+                    "alpha": float(t.alpha[i]),
+                    "theta_offset": float(t.theta_offset[i]),
+                    "d_offset": float(t.d_offset[i]),
+                    "std": {
+                        "theta": _num(s[0]),
+                        "d": _num(s[1]),
+                        "a": _num(s[2]),
+                        "alpha": _num(s[3]),
+                    },
+                }
+            )
+            m = ex.modified
+            mod_rows.append(
+                {
+                    "alpha": float(m.alpha[i]),
+                    "a": float(m.a[i]),
+                    "theta": float(m.theta(q)[i]),
+                    "d": float(m.d(q)[i]),
+                }
+            )
+        relations = [
+            {
+                "joints": list(r.joints),
+                "kind": r.relation.kind.value,
+                "angle": r.relation.angle,
+                "distance": r.relation.distance,
+            }
+            for r in ex.relations
+        ]
+    val = result.validation
+    per_joint = {} if val is None else val.per_joint
+    doc: dict[str, Any] = {
+        "format": RESULT_FORMAT,
+        "dhlog_version": __version__,
+        "source": {
+            "path": Path(result.path).name,
+            "sha256": result.sha256,
+            "pipeline": result.log.pipeline.name,
+        },
+        "units": {"length": "m", "angle": "rad"},
+        "reference_pose": [float(v) for v in result.reference_pose],
+        "joints": [
+            {
+                "index": j.index,
+                "name": j.name,
+                "type": j.type.value if j.type else None,
+                "axis": None
+                if j.axis is None
+                else {"point": j.axis.point.tolist(), "direction": j.axis.direction.tolist()},
+                "fit": _fit_doc(j),
+                **(
+                    {
+                        "validation": {
+                            "fk_rms": per_joint[j.index][0],
+                            "fk_max": per_joint[j.index][1],
+                            "n_points": per_joint[j.index][2],
+                        }
+                    }
+                    if j.index in per_joint
+                    else {}
+                ),
+                **({"error": j.reason} if j.reason else {}),
+            }
+            for j in result.joints
+        ],
+        "standard_dh": rows,
+        "modified_dh": mod_rows,
+        "relations": relations,
+        "base": {"T_measurement_base": None if ex is None else ex.T_measurement_base.tolist()},
+        "tool": {"point": None if (ex is None or not result.complete) else ex.tool_point.tolist()},
+        "validation": {
+            "fk_rms": None if val is None else val.rms,
+            "fk_max": None if val is None else val.max,
+            "n_points": 0 if val is None else val.n_points,
+        },
+        "warnings": list(result.warnings),
+    }
+    if ex is not None and result.complete:
+        doc["modified_dh_tool"] = {"T_n_tool": ex.T_modified_tool.tolist()}
+        if std is not None:
+            n = ex.standard.n
+            doc["tool"]["std"] = [float(v) for v in std[4 * n : 4 * n + 3]]
+            doc["base"]["std"] = {
+                "translation": [float(v) for v in std[4 * n + 3 : 4 * n + 6]],
+                "rotation": [float(v) for v in std[4 * n + 6 : 4 * n + 9]],
+            }
+    if result.base is not None:
+        doc["base"]["plane"] = {
+            "point": result.base.plane.point.tolist(),
+            "normal": result.base.plane.normal.tolist(),
+            "rms": result.base.rms,
+            "n_points": int(result.base.residuals.size),
+        }
+    doc["segmentation"] = {
+        "segments": result.segmentation.segments.height,
+        "set_aside": dict(result.segmentation.set_aside),
+    }
+    return doc
+
+
+def _num(value: float) -> float | None:
+    return None if not math.isfinite(value) else float(value)
+
+
+def result_csv(result: ProcessResult, *, units: str = "mm") -> str:
+    """The standard DH table as CSV, in mm and degrees (or m and rad), with ±1σ columns."""
+    length = 1e3 if units == "mm" else 1.0
+    angle = 180.0 / math.pi if units == "mm" else 1.0
+    lu, au = ("mm", "deg") if units == "mm" else ("m", "rad")
+    header = (
+        f"joint,name,type,theta_offset_{au},d_{lu},a_{lu},alpha_{au},"
+        f"std_theta_{au},std_d_{lu},std_a_{lu},std_alpha_{au}"
+    )
+    lines = [header]
+    doc = result_document(result)
+    for i, row in enumerate(doc["standard_dh"]):
+        s = row["std"]
+        vals = [
+            row["theta_offset"] * angle,
+            row["d_offset"] * length,
+            row["a"] * length,
+            row["alpha"] * angle,
+        ]
+        sd = [s["theta"], s["d"], s["a"], s["alpha"]]
+        sd_scaled = [
+            None if v is None else v * f
+            for v, f in zip(sd, [angle, length, length, angle], strict=True)
+        ]
+        lines.append(
+            ",".join(
+                [str(i + 1), result.joints[i].name, row["type"]]
+                + [f"{v:.9g}" for v in vals]
+                + ["" if v is None else f"{v:.3g}" for v in sd_scaled]
+            )
+        )
+    return "\n".join(lines) + "\n"
+
+
+def nominal_difference(result: ProcessResult) -> FloatArray | None:
+    """measured − nominal per row (n, 4) in SI units, angles wrapped; None without nominal."""
+    if result.nominal is None or result.extraction is None:
+        return None
+    t, nom = result.extraction.standard, result.nominal.table
+    n = t.n if result.complete else t.n - 1
+    diff = np.zeros((n, 4))
+    for i in range(n):
+        diff[i] = [
+            wrap_angle(t.theta_offset[i] - nom.theta_offset[i]),
+            t.d_offset[i] - nom.d_offset[i],
+            t.a[i] - nom.a[i],
+            wrap_angle(t.alpha[i] - nom.alpha[i]),
+        ]
+    return diff
+
+
+__all__ = [
+    "DhlogError",
+    "ProcessResult",
+    "nominal_difference",
+    "perpendicular_basis",
+    "process_log",
+    "result_csv",
+    "result_document",
+]

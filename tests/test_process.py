@@ -1,0 +1,256 @@
+"""``dhlog process`` end to end: every sample log against its truth, the result files, the
+recording, partial results and the command line."""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+import subprocess
+import sys
+from importlib import resources
+from pathlib import Path
+
+import jsonschema
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from dhlog.cli import app
+from dhlog.dhfile import load_dh
+from dhlog.io.writer import write_session
+from dhlog.kinematics import fk_point
+from dhlog.process import (
+    ProcessResult,
+    fk_prediction_std,
+    nominal_difference,
+    process_log,
+    result_csv,
+    result_document,
+)
+from dhlog.recording import write_process_recording
+from dhlog.robots import load_robot
+from dhlog.simulate import SimulationConfig, simulate_session
+
+SAMPLES = Path(__file__).parents[1] / "sample_logs"
+LOGS = sorted(SAMPLES.glob("*.mcap"))
+SCHEMA = json.loads(resources.files("dhlog").joinpath("schemas/result.schema.json").read_text())
+RERUN = str(Path(sys.executable).with_name("rerun"))
+runner = CliRunner()
+
+
+def truth_of(path: Path) -> tuple[dict[str, object], object]:
+    truth_path = path.with_name(path.stem + ".truth.json")
+    return json.loads(truth_path.read_text()), load_dh(truth_path)
+
+
+@pytest.fixture(scope="module", params=LOGS, ids=lambda p: p.stem)
+def processed(request: pytest.FixtureRequest) -> tuple[Path, ProcessResult, ProcessResult]:
+    path: Path = request.param
+    _, truth = truth_of(path)
+    return path, process_log(path), process_log(path, nominal=truth)  # type: ignore[arg-type]
+
+
+def test_fk_of_the_result_matches_the_truth_within_the_noise(processed) -> None:  # type: ignore[no-untyped-def]
+    """At 300 random joint vectors within the robot's limits, the FK error against the truth is
+    within what the propagated uncertainty predicts: every point within 4 predicted σ (3D) and
+    the RMS within 2x the predicted RMS."""
+    path, result, _ = processed
+    doc, truth = truth_of(path)
+    robot = load_robot(doc["simulation"]["robot"])  # type: ignore[index]
+    assert result.complete and result.extraction is not None
+    Q = np.random.default_rng(0).uniform(robot.limits[:, 0], robot.limits[:, 1], (300, robot.n))
+    ex = result.extraction
+    got = fk_point(ex.standard, Q, ex.tool_point, T_base=ex.T_measurement_base)
+    want = fk_point(truth.table, Q, truth.tool_point, T_base=truth.T_base)  # type: ignore[attr-defined]
+    err = np.linalg.norm(got - want, axis=1)
+    pred = fk_prediction_std(result, Q)
+    assert np.all(err <= 4.0 * pred), (err / pred).max()
+    assert np.sqrt(np.mean(err**2)) <= 2.0 * np.sqrt(np.mean(pred**2))
+
+
+def test_with_the_truth_as_nominal_every_parameter_is_within_3_sigma(processed) -> None:  # type: ignore[no-untyped-def]
+    _path, _, result = processed
+    diff = nominal_difference(result)
+    assert diff is not None and result.std is not None
+    n = diff.shape[0]
+    sigma = result.std[: 4 * n].reshape(n, 4)
+    free = sigma > 0
+    assert np.all(np.abs(diff[free]) <= 3.0 * sigma[free]), (
+        np.abs(diff) / np.where(free, sigma, 1)
+    ).max()
+    assert np.all(np.abs(diff[~free]) < 1e-9)  # fixed by convention or by the nominal
+    assert free.sum() >= n  # the identifiable parameters have an uncertainty
+
+
+def test_result_documents_follow_the_contract(processed) -> None:  # type: ignore[no-untyped-def]
+    path, result, with_nominal = processed
+    for r in (result, with_nominal):
+        doc = result_document(r)
+        jsonschema.validate(doc, SCHEMA)
+        assert doc["source"]["path"] == path.name
+        assert len(doc["standard_dh"]) == len(doc["joints"]) == len(doc["modified_dh"])
+        # any consumer can check the result with the contract's FK convention: the JSON alone
+        # gives back the FK residuals dhlog reports
+        table, T_base, tool = load_dh_from(doc)
+        if r.validation is None:
+            continue
+        seg = r.segmentation.table
+        rows = np.flatnonzero(np.isfinite(r.validation.residuals))
+        Q = seg.select([f"q_{i + 1}" for i in range(table.n)]).to_numpy()[rows]
+        P = seg.select(["x", "y", "z"]).to_numpy()[rows]
+        residual = np.linalg.norm(fk_point(table, Q, tool, T_base=T_base) - P, axis=1)
+        np.testing.assert_allclose(residual, r.validation.residuals[rows], atol=1e-12)
+        assert doc["validation"]["fk_rms"] == pytest.approx(np.sqrt(np.mean(residual**2)))
+
+
+def load_dh_from(doc: dict) -> tuple:  # type: ignore[type-arg]
+    from dhlog.dhfile import parse_dh
+
+    model = parse_dh(doc, "result")
+    return model.table, model.T_base, model.tool_point
+
+
+def test_csv_has_one_row_per_joint(processed) -> None:  # type: ignore[no-untyped-def]
+    _, result, _ = processed
+    rows = list(csv.DictReader(result_csv(result).splitlines()))
+    assert len(rows) == len(result.joints)
+    assert set(rows[0]) >= {"joint", "a_mm", "alpha_deg", "std_a_mm"}
+
+
+def test_the_recording_verifies_and_holds_the_entities(processed, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
+    from rerun.chunk import RrdReader
+
+    _, result, _ = processed
+    path = tmp_path / "run.rrd"
+    write_process_recording(result, path)
+    check = subprocess.run(
+        [RERUN, "rrd", "verify", str(path)],
+        capture_output=True,
+        text=True,
+        env={"RERUN_ANALYTICS": "false", "PATH": ""},
+    )
+    assert check.returncode == 0, check.stderr
+    rows: dict[str, int] = {}
+    for chunk in RrdReader(path).stream():
+        rows[chunk.entity_path] = rows.get(chunk.entity_path, 0) + chunk.num_rows
+    n = len(result.joints)
+    seg = result.segmentation
+    for sid, count in zip(seg.segments["segment"], seg.segments["n"], strict=True):
+        outliers = sum(
+            int(np.count_nonzero(~j.inliers)) for j in result.joints if sid in j.segments
+        )
+        assert rows[f"/world/samples/segment_{sid}"] == count - outliers + 1  # + static style row
+    for k in range(1, n + 1):
+        assert f"/world/joints/j{k}/axis" in rows and f"/world/joints/j{k}/fit" in rows
+        assert f"/residuals/fit/j{k}" in rows
+    assert all(f"/world/dh/frame_{i}" in rows for i in range(1, n + 2))
+    assert "/world/robot/links" in rows and "/report/dh_table" in rows
+    assert ("/residuals/fk/j1" in rows) == seg.has_encoders
+
+
+def test_gross_outliers_are_rejected(tmp_path: Path) -> None:
+    cfg = SimulationConfig(seed=21, noise=1e-5, outliers=0.05, sweep=math.radians(60))
+    session = simulate_session(load_robot("puma560"), cfg)
+    path = tmp_path / "outliers.mcap"
+    write_session(session, path)
+    result = process_log(path)
+    found = sum(j.n_outliers for j in result.joints)
+    assert found >= 0.8 * session.n_outliers * (
+        result.segmentation.table["segment"].is_not_null().mean()
+    )  # type: ignore[operator]
+    assert result.validation is not None and result.validation.rms < 3e-5
+
+
+# ---- the command line ----------------------------------------------------------------------
+
+
+def test_process_command_writes_three_files_and_keeps_them(tmp_path: Path) -> None:
+    log = SAMPLES / "kr5_0.01mm.mcap"
+    result = runner.invoke(
+        app,
+        [
+            "process",
+            str(log),
+            "--out",
+            str(tmp_path),
+            "--nominal",
+            str(SAMPLES / "kr5_0.01mm.truth.json"),
+        ],
+    )
+    assert result.exit_code == 0, result.output
+    assert "Standard DH" in result.output and "Δa" in result.output and "FK check" in result.output
+    for suffix in (".dh.json", ".dh.csv", ".rrd"):
+        assert (tmp_path / f"kr5_0.01mm{suffix}").exists()
+    jsonschema.validate(json.loads((tmp_path / "kr5_0.01mm.dh.json").read_text()), SCHEMA)
+    again = runner.invoke(app, ["process", str(log), "--out", str(tmp_path)])
+    assert again.exit_code == 1 and "--force" in again.output
+    forced = runner.invoke(
+        app, ["process", str(log), "--out", str(tmp_path), "--force", "--no-rrd", "--units", "m"]
+    )
+    assert forced.exit_code == 0 and "a [m]" in forced.output
+
+
+def test_partial_result_names_the_joint_and_exits_3(tmp_path: Path) -> None:
+    session = simulate_session(
+        load_robot("ur5"), SimulationConfig(seed=9, skip_joints=(4,), sweep=math.radians(60))
+    )
+    log = tmp_path / "partial.mcap"
+    write_session(session, log)
+    result = runner.invoke(app, ["process", str(log), "--no-rrd"])
+    assert result.exit_code == 3
+    assert "joint 4 (joint_4) not identified" in result.output
+    doc = json.loads((tmp_path / "partial.dh.json").read_text())
+    jsonschema.validate(doc, SCHEMA)
+    assert doc["joints"][3]["error"].startswith("it was never swept")
+    assert doc["joints"][2]["axis"] is not None and len(doc["standard_dh"]) == 2
+
+
+def test_unusable_input_exits_2_with_one_line(tmp_path: Path) -> None:
+    bad = tmp_path / "notes.mcap"
+    bad.write_text("not a log")
+    result = runner.invoke(app, ["process", str(bad)])
+    assert result.exit_code == 2
+    assert "not an MCAP file" in result.output and "Traceback" not in result.output
+
+
+def test_usage_errors_exit_1() -> None:
+    proc = subprocess.run(
+        [sys.executable, "-m", "dhlog", "process", "--bogus"], capture_output=True, text=True
+    )
+    assert proc.returncode == 1 and "error:" in proc.stderr
+    proc = subprocess.run(
+        [sys.executable, "-m", "dhlog", "--version"], capture_output=True, text=True
+    )
+    assert proc.returncode == 0 and "dhlog" in proc.stdout
+
+
+def test_fk_command_prints_pose_and_jacobian() -> None:
+    result = runner.invoke(app, ["fk", "scara", "--q", "0,0,0,0"])
+    assert result.exit_code == 0, result.output
+    assert "0.15" in result.output and "spatial Jacobian" in result.output
+    wrong = runner.invoke(app, ["fk", "scara", "--q", "0,0"])
+    assert wrong.exit_code == 1
+
+
+def test_fk_command_reads_a_result_json(tmp_path: Path) -> None:
+    log = SAMPLES / "scara.mcap"
+    assert (
+        runner.invoke(app, ["process", str(log), "--out", str(tmp_path), "--no-rrd"]).exit_code == 0
+    )
+    result = runner.invoke(app, ["fk", str(tmp_path / "scara.dh.json"), "--q", "0.1,0.2,0.3,-0.01"])
+    assert result.exit_code == 0, result.output
+
+
+@pytest.mark.parametrize("robot", ["elbow", "scara", "stanford"])
+def test_show_writes_a_valid_recording(robot: str, tmp_path: Path) -> None:
+    out = tmp_path / f"{robot}.rrd"
+    result = runner.invoke(app, ["show", robot, "-o", str(out), "--steps", "10"])
+    assert result.exit_code == 0, result.output
+    check = subprocess.run(
+        [RERUN, "rrd", "verify", str(out)],
+        capture_output=True,
+        text=True,
+        env={"RERUN_ANALYTICS": "false", "PATH": ""},
+    )
+    assert check.returncode == 0, check.stderr
