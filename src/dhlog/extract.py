@@ -39,6 +39,7 @@ from dhlog.errors import DegenerateGeometryError, ShapeError
 from dhlog.geometry._checks import (
     FloatArray,
     check_vector3,
+    cross3,
     perpendicular_basis,
     rotation_about,
     wrap_angle,
@@ -146,7 +147,7 @@ def place_prismatic_axis(
 
 def _frame(origin: FloatArray, x: FloatArray, z: FloatArray) -> FloatArray:
     T = np.eye(4)
-    T[:3, 0], T[:3, 1], T[:3, 2], T[:3, 3] = x, np.cross(z, x), z, origin
+    T[:3, 0], T[:3, 1], T[:3, 2], T[:3, 3] = x, cross3(z, x), z, origin
     return T
 
 
@@ -215,7 +216,7 @@ def extract_dh(
         if not placed[i]:
             anchor_place(i)
             if i == 0 and nominal is not None and n > 1 and placed[1]:
-                cross = np.cross(lines[0].direction, lines[1].direction)
+                cross = cross3(lines[0].direction, lines[1].direction)
                 if np.linalg.norm(cross) >= np.sin(angle_tol):  # meet the nominal a_1
                     x2 = _unit(cross) * (1.0 if np.sin(nominal.alpha[0]) >= 0.0 else -1.0)
                     anchor = lines[0].point
@@ -270,7 +271,7 @@ def extract_dh(
             origins[i + 1], xs[i + 1] = o_next, x_next
         else:
             p_i, p_next = common_normal_feet(line_i, line_next)  # Eq. 14-15
-            normal = _unit(np.cross(z_i, z_next))
+            normal = _unit(cross3(z_i, z_next))
             if rel.kind is RelationKind.INTERSECTING:
                 sign = 1.0  # Eq. 17
             else:
@@ -358,7 +359,7 @@ def _place_with_nominal(
     if nominal is None:
         anchor_place(i + 1)
         return
-    cross = np.cross(z_i, e)
+    cross = cross3(z_i, e)
     if np.linalg.norm(cross) >= np.sin(angle_tol):
         x_next = _unit(cross) * (1.0 if np.sin(nominal.alpha[i]) >= 0.0 else -1.0)
     else:
@@ -419,9 +420,9 @@ def _table_from_frames(
         o_i, x_i, z_i = frames[i][:3, 3], frames[i][:3, 0], frames[i][:3, 2]
         o_n, x_n, z_n = frames[i + 1][:3, 3], frames[i + 1][:3, 0], frames[i + 1][:3, 2]
         d_i = float((o_n - o_i) @ z_i)  # Eq. 21
-        theta_i = float(np.arctan2(np.cross(x_i, x_n) @ z_i, x_i @ x_n))  # Eq. 22
+        theta_i = float(np.arctan2(cross3(x_i, x_n) @ z_i, x_i @ x_n))  # Eq. 22
         a[i] = float((o_n - o_i) @ x_n)  # Eq. 23
-        alpha_i = float(np.arctan2(np.cross(z_i, z_n) @ x_n, z_i @ z_n))  # Eq. 24
+        alpha_i = float(np.arctan2(cross3(z_i, z_n) @ x_n, z_i @ z_n))  # Eq. 24
         revolute = types[i] is JointType.REVOLUTE
         theta_off[i] = _near(
             theta_i - (q_ref[i] if revolute else 0.0),

@@ -54,6 +54,7 @@ class JointReport:
     rows: NDArray[np.int64] = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
     inliers: NDArray[np.bool_] = field(default_factory=lambda: np.zeros(0, dtype=bool))
     lock_pose: FloatArray | None = None
+    carried: bool = False
     reason: str | None = None
 
     @property
@@ -211,7 +212,8 @@ def _fit_joint(
     for w in fit.warnings:
         notes.append(w)
     report.lock_pose = np.where(np.isnan(lock), ref, lock)
-    if seg.has_encoders and not _lock_matches(lock, ref, k, tol):
+    report.carried = bool(seg.has_encoders and not _lock_matches(lock, ref, k, tol))
+    if report.carried:
         upstream = identified[: k - 1]
         if any(not j.ok for j in upstream):
             report.reason = (
@@ -219,44 +221,59 @@ def _fit_joint(
                 "axis to the reference pose was not identified"
             )
             return
-        axes = [j.axis for j in upstream]
-        types = [j.type for j in upstream]
-        assert all(a is not None for a in axes) and all(t is not None for t in types)
-        M = chain_motion(axes, types, report.lock_pose[: k - 1], ref[: k - 1])  # type: ignore[arg-type]
-        report.axis = fit.axis.transformed(np.linalg.inv(M))
         notes.append(
             f"{what}: swept from another pose; its axis was carried to the reference pose "
             "through the upstream axes."
         )
-    else:
-        report.axis = fit.axis
+    report.axis = _carried_axis(report, fit.axis, identified, ref)
 
 
-def _target_at_reference(
-    seg: Segmentation, joints: list[JointReport], ref: FloatArray
-) -> tuple[FloatArray, FloatArray]:
-    """The target at the reference pose, and its covariance (3, 3).
+def _carried_axis(
+    report: JointReport, fitted: Line, joints: list[JointReport], ref: FloatArray
+) -> Line:
+    """The joint's axis at the reference pose: as fitted when it was swept there, else moved
+    back from its locked pose through the upstream axes (product of exponentials)."""
+    if not report.carried:
+        return fitted
+    k = report.index
+    assert report.lock_pose is not None
+    upstream = joints[: k - 1]
+    axes = [j.axis for j in upstream]
+    types = [j.type for j in upstream]
+    M = chain_motion(axes, types, report.lock_pose[: k - 1], ref[: k - 1])  # type: ignore[arg-type]
+    return fitted.transformed(np.linalg.inv(M))
 
-    With encoders: every inlier sample moved back to the reference pose through the identified
-    axes (``M_n(q)⁻¹ p``), averaged. Without: the point nearest all fitted circles (every sweep
-    starts from the same pose, so every circle passes through it).
+
+class _TargetAtReference:
+    """The target at the reference pose, from the inlier samples of all sweeps.
+
+    With encoders: every inlier sample moved back to the reference pose through the axes
+    (``M_n(q)⁻¹ p``, product of exponentials), averaged; its covariance is the scatter over the
+    number of samples. Without encoders: the point nearest all fitted circles (every sweep starts
+    from the same pose, so every circle passes through it).
     """
-    if seg.has_encoders:
-        table = seg.table
-        rows = np.concatenate([j.rows[j.inliers] for j in joints])
-        cols = [f"q_{i + 1}" for i in range(seg.n_joints)]
-        Q = table.select(cols).to_numpy()[rows]
-        P = table.select(["x", "y", "z"]).to_numpy()[rows]
-        axes = [j.axis for j in joints]
+
+    def __init__(self, seg: Segmentation, joints: list[JointReport], ref: FloatArray) -> None:
+        self.joints, self.ref = joints, ref
+        self.encoders = seg.has_encoders
+        if self.encoders:
+            rows = np.concatenate([j.rows[j.inliers] for j in joints])
+            cols = [f"q_{i + 1}" for i in range(seg.n_joints)]
+            self.Q = seg.table.select(cols).to_numpy()[rows]
+            self.P = seg.table.select(["x", "y", "z"]).to_numpy()[rows]
+
+    def __call__(self, axes: list[Line | None] | None = None) -> tuple[FloatArray, FloatArray]:
+        joints = self.joints
+        if not self.encoders:
+            fits = [j.fit for j in joints if j.fit is not None]
+            spread = max(f.sigma for f in fits) ** 2 / len(fits)
+            return _common_point_of_circles(fits), np.eye(3) * spread
+        axes = [j.axis for j in joints] if axes is None else axes
         types = [j.type for j in joints]
-        M = chain_motions(axes, types, Q, ref)  # type: ignore[arg-type]
-        Minv = np.linalg.inv(M)
-        back = np.einsum("mij,mj->mi", Minv[:, :3, :3], P) + Minv[:, :3, 3]
-        mean = back.mean(axis=0)
-        cov = np.cov(back.T) / back.shape[0]
-        return mean, cov
-    fits = [j.fit for j in joints if j.fit is not None]
-    return _common_point_of_circles(fits), np.eye(3) * (max(f.sigma for f in fits) ** 2 / len(fits))
+        M = chain_motions(axes, types, self.Q, self.ref)  # type: ignore[arg-type]
+        R, t = M[:, :3, :3], M[:, :3, 3]
+        back = np.einsum("mji,mj->mi", R, self.P - t)  # R^T (p - t)
+        return back.mean(axis=0), np.cov(back.T) / back.shape[0]
 
 
 def _common_point_of_circles(fits: list[AxisFit]) -> FloatArray:
@@ -356,12 +373,14 @@ def _propagate(
     nominal: StandardDH | None,
     extract_kwargs: dict[str, Any],
     center: Extraction,
+    target_of: Callable[[list[Line | None]], FloatArray] | None = None,
 ) -> FloatArray:
     """First-order covariance of the identified model (:func:`state_vector`, 4n + 9).
 
-    The Jacobian of the extraction with respect to each axis's tilt and shift (4 per axis), the
-    base plane (3) and the target (3) is taken by central differences; the inputs' covariances
-    are the fits' own.
+    The Jacobian of the extraction with respect to each fitted axis's tilt and shift (4 per axis,
+    carried to the reference pose with the axes downstream of it and moving the target with it),
+    the base plane (3) and the target's own scatter (3) is taken by central differences; the
+    inputs' covariances are the fits' own.
     """
     n = len(joints)
     types = [j.type for j in joints]
@@ -395,18 +414,16 @@ def _propagate(
             tgt = target.copy()
             if kind == "axis":
                 fit = joints[i].fit
-                assert fit is not None and ax[i] is not None
+                assert fit is not None
                 u, v = fit.basis
-                a = ax[i]
-                assert a is not None
-                # the fit's basis is in the measurement frame at the fit pose; the axis at the
-                # reference pose differs by a rigid motion, which the basis follows
-                R = _rotation_between(fit.axis.direction, a.direction)
-                u, v = R @ u, R @ v
+                a = fit.axis
                 if p < 2:
-                    ax[i] = Line(a.point, a.direction + sign * h * (u if p == 0 else v))
+                    moved = Line(a.point, a.direction + sign * h * (u if p == 0 else v))
                 else:
-                    ax[i] = Line(a.point + sign * h * (u if p == 2 else v), a.direction)
+                    moved = Line(a.point + sign * h * (u if p == 2 else v), a.direction)
+                ax = _axes_with(joints, i, moved, ref)
+                if target_of is not None:
+                    tgt = target_of(ax)
             elif kind == "plane":
                 assert base is not None and plane is not None
                 u, v = base.basis
@@ -434,15 +451,30 @@ def _propagate(
     return np.asarray(J @ cov @ J.T, dtype=np.float64)
 
 
-def _rotation_between(a: FloatArray, b: FloatArray) -> FloatArray:
-    """The smallest rotation taking unit vector ``a`` to ``b``."""
-    v = np.cross(a, b)
-    s, c = float(np.linalg.norm(v)), float(a @ b)
-    if s < 1e-15:
-        return np.eye(3) if c > 0 else -np.eye(3)
-    K = np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]]) / s
-    angle = math.atan2(s, c)
-    return np.eye(3) + math.sin(angle) * K + (1 - math.cos(angle)) * (K @ K)
+def _axes_with(
+    joints: list[JointReport], i: int, fitted: Line, ref: FloatArray
+) -> list[Line | None]:
+    """The axes at the reference pose with joint ``i``'s fitted axis replaced by ``fitted``:
+    joints carried through it (swept from other poses) move with it."""
+    trial = [
+        JointReport(
+            j.index,
+            j.name,
+            j.type,
+            j.type_source,
+            j.fit,
+            j.axis,
+            lock_pose=j.lock_pose,
+            carried=j.carried,
+        )
+        for j in joints
+    ]
+    for k, report in enumerate(trial):
+        assert report.fit is not None
+        base = fitted if k == i else report.fit.axis
+        if k == i or (k > i and report.carried):
+            report.axis = _carried_axis(report, base, trial, ref)
+    return [t.axis for t in trial]
 
 
 def _validate(seg: Segmentation, joints: list[JointReport], ex: Extraction) -> Validation | None:
@@ -488,8 +520,30 @@ def process_log(
     progress: Callable[[float], None] | None = None,
 ) -> ProcessResult:
     """Run the whole identification on the log at ``path`` (see the module docstring)."""
-    name = str(path)
     log = read_log(path, pipeline, fast=fast, progress=progress)
+    return process_data(
+        log,
+        sha256=sha256_of(path),
+        nominal=nominal,
+        reference_pose=reference_pose,
+        fit_method=fit_method,
+        angle_tol=angle_tol,
+        distance_tol=distance_tol,
+    )
+
+
+def process_data(
+    log: LogData,
+    *,
+    sha256: str = "",
+    nominal: DHModel | None = None,
+    reference_pose: FloatArray | None = None,
+    fit_method: str = "auto",
+    angle_tol: float = ANGLE_TOL,
+    distance_tol: float = DISTANCE_TOL,
+) -> ProcessResult:
+    """The identification of :func:`process_log` on streams already decoded (``LogData``)."""
+    name = log.path
     types_hint = list(log.pipeline.joint_types) if log.pipeline.joint_types else None
     if types_hint is None and nominal is not None:
         types_hint = list(nominal.table.joint_types)
@@ -537,7 +591,8 @@ def process_log(
     nominal_table = nominal.table if nominal is not None else None
     ok = [j for j in joints if j.ok]
     if len(ok) == n:
-        target, target_cov = _target_at_reference(seg, joints, ref)
+        target_at = _TargetAtReference(seg, joints, ref)
+        target, target_cov = target_at()
         extraction = extract_dh(
             [j.axis for j in joints],  # type: ignore[misc]
             [j.type for j in joints],  # type: ignore[misc]
@@ -547,8 +602,20 @@ def process_log(
             nominal=nominal_table,
             **kwargs,
         )
+
+        def target_of(axes: list[Line | None]) -> FloatArray:
+            return target_at(axes)[0]
+
         covariance = _propagate(
-            joints, ref, target, target_cov, base, nominal_table, kwargs, extraction
+            joints,
+            ref,
+            target,
+            target_cov,
+            base,
+            nominal_table,
+            kwargs,
+            extraction,
+            target_of if seg.has_encoders else None,
         )
         std = np.sqrt(np.clip(np.diag(covariance), 0.0, None))
         validation = _validate(seg, joints, extraction)
@@ -582,7 +649,7 @@ def process_log(
             )
     return ProcessResult(
         path=name,
-        sha256=sha256_of(path),
+        sha256=sha256,
         log=log,
         segmentation=seg,
         joints=joints,

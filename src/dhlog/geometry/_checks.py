@@ -56,6 +56,13 @@ def check_transform(name: str, value: ArrayLike, *, tol: float = 1e-9) -> FloatA
     return arr
 
 
+def cross3(a: FloatArray, b: FloatArray) -> FloatArray:
+    """Cross product of two 3-vectors (without the general machinery of ``np.cross``)."""
+    return np.array(
+        [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
+    )
+
+
 def perpendicular_basis(direction: FloatArray) -> tuple[FloatArray, FloatArray]:
     """Two unit vectors ``u, v`` with ``(u, v, direction)`` right-handed and orthonormal.
 
@@ -66,7 +73,7 @@ def perpendicular_basis(direction: FloatArray) -> tuple[FloatArray, FloatArray]:
     seed[int(np.argmin(np.abs(e)))] = 1.0
     u = seed - (seed @ e) * e
     u /= np.linalg.norm(u)
-    v = np.cross(e, u)
+    v = cross3(e, u)
     return u, v
 
 

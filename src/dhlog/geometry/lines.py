@@ -16,7 +16,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from dhlog.errors import DegenerateGeometryError
-from dhlog.geometry._checks import FloatArray, check_unit_direction, check_vector3
+from dhlog.geometry._checks import FloatArray, check_unit_direction, check_vector3, cross3
 
 #: Default tolerance below which two directions count as parallel (rad).
 ANGLE_TOL = 1e-3
@@ -44,12 +44,12 @@ class Line:
         e = check_unit_direction("Plücker direction", direction)
         scale = float(np.linalg.norm(np.asarray(direction, dtype=np.float64)))
         k = check_vector3("Plücker moment", moment) / scale
-        return cls(np.cross(e, k), e)
+        return cls(cross3(e, k), e)
 
     @property
     def moment(self) -> FloatArray:
         """Moment vector ``k = c × e`` (seed 000, Eq. 1), shape (3,)."""
-        return np.cross(self.point, self.direction)
+        return cross3(self.point, self.direction)
 
     @property
     def plucker(self) -> FloatArray:
@@ -64,7 +64,7 @@ class Line:
     def distance_to(self, point: ArrayLike) -> float:
         """Distance (m) from ``point`` to the line."""
         p = np.asarray(point, dtype=np.float64)
-        return float(np.linalg.norm(np.cross(p - self.point, self.direction)))
+        return float(np.linalg.norm(cross3(p - self.point, self.direction)))
 
     def reversed(self) -> Line:
         """The same line with the opposite orientation."""
@@ -155,7 +155,7 @@ def classify_lines(
     ``sin β``; of parallel lines, the distance between them.
     """
     dot = line_dot(line1, line2)
-    sin_beta = float(np.linalg.norm(np.cross(line1.direction, line2.direction)))
+    sin_beta = float(np.linalg.norm(cross3(line1.direction, line2.direction)))
     beta = float(np.arctan2(sin_beta, dot.real))
     if beta < angle_tol or np.pi - beta < angle_tol:
         distance = line1.distance_to(line2.point)
@@ -182,7 +182,7 @@ def intersection_point(line1: Line, line2: Line) -> FloatArray:
     use :func:`common_normal_feet` there.
     """
     e1, e2 = line1.direction, line2.direction
-    n = np.cross(e1, e2)
+    n = cross3(e1, e2)
     n2 = float(n @ n)
     if n2 < 1e-24:
         raise DegenerateGeometryError(
@@ -190,11 +190,11 @@ def intersection_point(line1: Line, line2: Line) -> FloatArray:
         )
     k1, k2 = line1.moment, line2.moment
     if abs(e2 @ k1) >= 0.5 * n2:
-        return np.asarray(np.cross(k1, k2) / (e2 @ k1), dtype=np.float64)
+        return np.asarray(cross3(k1, k2) / (e2 @ k1), dtype=np.float64)
     o_g = n  # Eq. 5
-    k1_g = k1 - np.cross(o_g, e1)  # Eq. 8: (c - o_G) x e
-    k2_g = k2 - np.cross(o_g, e2)
-    p_g = np.cross(k1_g, k2_g) / (e2 @ k1_g)  # Eq. 9
+    k1_g = k1 - cross3(o_g, e1)  # Eq. 8: (c - o_G) x e
+    k2_g = k2 - cross3(o_g, e2)
+    p_g = cross3(k1_g, k2_g) / (e2 @ k1_g)  # Eq. 9
     return np.asarray(o_g + p_g, dtype=np.float64)  # Eq. 10
 
 
@@ -208,15 +208,15 @@ def common_normal_feet(line1: Line, line2: Line) -> tuple[FloatArray, FloatArray
     """
     e1, e2 = line1.direction, line2.direction
     k1, k2 = line1.moment, line2.moment
-    n = np.cross(e1, e2)
+    n = cross3(e1, e2)
     sin2 = float(n @ n)
     if sin2 < 1e-24:
         raise DegenerateGeometryError(
             "The two lines are parallel, so their common normal is not unique."
         )
     cos_beta = float(e1 @ e2)
-    p1 = ((k2 @ n - cos_beta * (k1 @ n)) / sin2) * e1 + np.cross(e1, k1)
-    p2 = ((-(k1 @ n) + cos_beta * (k2 @ n)) / sin2) * e2 + np.cross(e2, k2)
+    p1 = ((k2 @ n - cos_beta * (k1 @ n)) / sin2) * e1 + cross3(e1, k1)
+    p2 = ((-(k1 @ n) + cos_beta * (k2 @ n)) / sin2) * e2 + cross3(e2, k2)
     return np.asarray(p1, dtype=np.float64), np.asarray(p2, dtype=np.float64)
 
 
@@ -231,13 +231,13 @@ def parallel_common_normal(line1: Line, line2: Line, through: ArrayLike) -> tupl
     c1 = check_vector3("through", through)
     e1 = line1.direction
     c12 = line2.point - c1
-    e1p = np.cross(c12, e1)  # Eq. 11
+    e1p = cross3(c12, e1)  # Eq. 11
     norm = float(np.linalg.norm(e1p))
     if norm < 1e-15:
         raise DegenerateGeometryError(
             "The two lines are collinear, so their common normal is undefined."
         )
-    e1pp = np.cross(e1, e1p) / norm  # Eq. 12
+    e1pp = cross3(e1, e1p) / norm  # Eq. 12
     normal = Line(c1, e1pp)  # Eq. 13
     foot = line2.point + ((c1 - line2.point) @ line2.direction) * line2.direction
     return normal, np.asarray(foot, dtype=np.float64)
@@ -257,4 +257,4 @@ def intersect_line_plane(line: Line, plane: Plane, *, angle_tol: float = ANGLE_T
             "The joint axis is parallel to the base plane, so it has no intersection with it; "
             "probe the plane the robot is mounted on."
         )
-    return np.asarray((np.cross(n, k) - plane.offset * e) / n_dot_e, dtype=np.float64)
+    return np.asarray((cross3(n, k) - plane.offset * e) / n_dot_e, dtype=np.float64)
