@@ -254,3 +254,34 @@ def test_show_writes_a_valid_recording(robot: str, tmp_path: Path) -> None:
         env={"RERUN_ANALYTICS": "false", "PATH": ""},
     )
     assert check.returncode == 0, check.stderr
+
+
+@pytest.mark.parametrize("robot", ["kr5", "puma560"])
+def test_sweeps_from_anywhere_are_carried_to_the_reference_pose(robot: str) -> None:
+    """Every joint swept from its own random locked pose: the axes are carried to the reference
+    pose through the upstream axes, and the result still agrees with the truth within the
+    propagated uncertainty (with the truth as nominal: every parameter within 3σ)."""
+    from dhlog.dhfile import DHModel
+    from dhlog.io.memory import log_data_from_session
+    from dhlog.process import process_data
+
+    rob = load_robot(robot)
+    session = simulate_session(
+        rob, SimulationConfig(seed=3, noise=2e-5, lock_poses="random", sweep=math.radians(60))
+    )
+    nominal = DHModel(
+        rob.table, rob.T_base, rob.tool_point, tuple(f"joint_{i + 1}" for i in range(rob.n)), robot
+    )
+    result = process_data(log_data_from_session(session), nominal=nominal)
+    assert result.complete and sum(j.carried for j in result.joints) >= rob.n - 1
+    ex = result.extraction
+    assert ex is not None and result.std is not None
+    Q = np.random.default_rng(1).uniform(rob.limits[:, 0], rob.limits[:, 1], (200, rob.n))
+    got = fk_point(ex.standard, Q, ex.tool_point, T_base=ex.T_measurement_base)
+    want = fk_point(session.table, Q, session.tool_point, T_base=session.T_measurement_base)
+    assert np.all(np.linalg.norm(got - want, axis=1) <= 4.0 * fk_prediction_std(result, Q))
+    diff = nominal_difference(result)
+    assert diff is not None
+    sigma = result.std[: diff.size].reshape(diff.shape)
+    free = sigma > 0
+    assert np.all(np.abs(diff[free]) <= 3.0 * sigma[free])

@@ -1,8 +1,8 @@
-"""Monte Carlo check of the reported uncertainty on seeded simulated sessions.
+"""Monte Carlo checks on seeded simulated sessions.
 
-Each session simulates a library robot (its own table as truth and as nominal), identifies it
-in memory (no MCAP file) and records, for every standard-DH parameter, the error and the σ
-dhlog reported. Over many sessions the RMS of the reported σ should equal the empirical spread.
+Each session simulates a library robot (its own table as truth and as nominal), identifies it in
+memory (no MCAP file) and records, for every standard-DH parameter, the error and the σ dhlog
+reported. Over many sessions the RMS of the reported σ should equal the empirical spread.
 """
 
 from __future__ import annotations
@@ -20,10 +20,13 @@ from dhlog.robots import load_robot
 from dhlog.simulate import SimulationConfig, simulate_session
 
 
-def one_session(args: tuple[str, int, float, float]) -> tuple[FloatArray, FloatArray]:
-    """Errors and reported σ (both 4n, rows θ, d, a, α) of one seeded session
-    (Gaussian noise ``args[2]`` m, tracker rate ``args[3]`` Hz, 60° sweeps, 12 base points)."""
-    name, seed, noise, rate = args
+def one_session(args: tuple[str, int, float, float, float]) -> tuple[FloatArray, FloatArray]:
+    """Errors and reported σ (both 4n, rows θ, d, a, α) of one seeded session.
+
+    ``args``: robot name, seed, Gaussian noise σ (m), tracker rate (Hz), fraction of gross
+    outliers (3–9 mm); sweeps of 60°, 12 base points.
+    """
+    name, seed, noise, rate, outliers = args
     robot = load_robot(name)
     nominal = DHModel(
         robot.table,
@@ -32,29 +35,38 @@ def one_session(args: tuple[str, int, float, float]) -> tuple[FloatArray, FloatA
         tuple(f"joint_{i + 1}" for i in range(robot.n)),
         name,
     )
-    cfg = SimulationConfig(seed=seed, noise=noise, tracker_rate=rate, sweep=math.radians(60))
+    cfg = SimulationConfig(
+        seed=seed, noise=noise, tracker_rate=rate, sweep=math.radians(60), outliers=outliers
+    )
     result = process_data(log_data_from_session(simulate_session(robot, cfg)), nominal=nominal)
     diff = nominal_difference(result)
     assert diff is not None and result.std is not None
     return diff.ravel(), result.std[: diff.size]
 
 
-def calibration(
+def sessions(
     name: str,
-    sessions: int,
+    count: int,
     *,
     workers: int = 2,
     noise: float = 2e-5,
     rate: float = 30.0,
+    outliers: float = 0.0,
     first_seed: int = 1000,
 ) -> tuple[FloatArray, FloatArray]:
-    """(RMS of the reported σ, empirical σ of the error) per parameter over ``sessions``."""
-    jobs = [(name, first_seed + s, noise, rate) for s in range(sessions)]
+    """Errors and reported σ, each (count, 4n), of ``count`` seeded sessions."""
+    jobs = [(name, first_seed + s, noise, rate, outliers) for s in range(count)]
     if workers > 1:
         with ProcessPoolExecutor(workers) as pool:
             out = list(pool.map(one_session, jobs, chunksize=8))
     else:
         out = [one_session(j) for j in jobs]
-    errors = np.array([o[0] for o in out])
-    reported = np.array([o[1] for o in out])
+    return np.array([o[0] for o in out]), np.array([o[1] for o in out])
+
+
+def calibration(
+    name: str, count: int, *, workers: int = 2, noise: float = 2e-5, rate: float = 30.0
+) -> tuple[FloatArray, FloatArray]:
+    """(RMS of the reported σ, empirical σ of the error) per parameter over ``count`` sessions."""
+    errors, reported = sessions(name, count, workers=workers, noise=noise, rate=rate)
     return np.sqrt(np.mean(reported**2, axis=0)), errors.std(axis=0)

@@ -678,7 +678,7 @@ def _prefix_table(table: StandardDH, k: int) -> StandardDH:
 # ---- the result document --------------------------------------------------------------------
 
 
-def _fit_doc(j: JointReport) -> dict[str, Any] | None:
+def _fit_doc(j: JointReport, t_ns: NDArray[np.int64]) -> dict[str, Any] | None:
     f = j.fit
     if f is None:
         return None
@@ -691,6 +691,7 @@ def _fit_doc(j: JointReport) -> dict[str, Any] | None:
         "radius": float(f.radius),
         "sigma": float(f.sigma),
         "segments": j.segments,
+        "outliers_t_ns": [int(t) for t in t_ns[j.rows[~j.inliers]]],
         "axis_std": {"direction": f.direction_std, "position": f.position_std},
         **({"encoder_scale": f.encoder_scale} if f.encoder_scale is not None else {}),
     }
@@ -746,6 +747,7 @@ def result_document(result: ProcessResult) -> dict[str, Any]:
         ]
     val = result.validation
     per_joint = {} if val is None else val.per_joint
+    t_ns = result.segmentation.table["t_ns"].to_numpy()
     doc: dict[str, Any] = {
         "format": RESULT_FORMAT,
         "dhlog_version": __version__,
@@ -764,7 +766,7 @@ def result_document(result: ProcessResult) -> dict[str, Any]:
                 "axis": None
                 if j.axis is None
                 else {"point": j.axis.point.tolist(), "direction": j.axis.direction.tolist()},
-                "fit": _fit_doc(j),
+                "fit": _fit_doc(j, t_ns),
                 **(
                     {
                         "validation": {
