@@ -285,3 +285,74 @@ def test_sweeps_from_anywhere_are_carried_to_the_reference_pose(robot: str) -> N
     sigma = result.std[: diff.size].reshape(diff.shape)
     free = sigma > 0
     assert np.all(np.abs(diff[free]) <= 3.0 * sigma[free])
+
+
+def test_nearly_parallel_axes_get_hayati_parameters_and_a_warning() -> None:
+    """UR5 axes 2, 3, 4 are parallel. Exactly parallel in the truth: the data cannot tell them
+    from parallel, so d = 0 by convention. Tilted by about 1 mrad (a real misalignment, far
+    beyond the noise): the DH d explodes, which is said, and the Hayati–Mirmirani parameters
+    (β in place of d) describe the pair."""
+    from dhlog.io.memory import log_data_from_session
+    from dhlog.process import process_data
+
+    rob = load_robot("ur5")
+    exact = process_data(log_data_from_session(simulate_session(rob, SimulationConfig(seed=5))))
+    doc = result_document(exact)
+    assert doc["relations"][1]["kind"] == "parallel" and doc["relations"][2]["kind"] == "parallel"
+    assert [h["joints"] for h in doc["hayati"]] == [[2, 3], [3, 4]]
+    assert not any("ill-conditioned" in w for w in exact.warnings)
+    tilted_cfg = SimulationConfig(seed=5, perturb_angle=2e-3, perturb_length=1e-4)
+    session = simulate_session(rob, tilted_cfg)
+    tilted = process_data(log_data_from_session(session))
+    doc = result_document(tilted)
+    assert doc["relations"][1]["kind"] == "skew"
+    assert any(
+        "joints 2 and 3 are nearly parallel" in w and "ill-conditioned" in w
+        for w in tilted.warnings
+    )
+    hayati = {tuple(h["joints"]): h for h in doc["hayati"]}
+    # the tilt about the common normal is the DH twist of the truth
+    assert abs(abs(hayati[(2, 3)]["alpha"]) - abs(session.table.alpha[1])) < 5e-5
+    assert abs(hayati[(2, 3)]["a"] - abs(session.table.a[1])) < 1e-3
+    # and the FK of the (ill-conditioned) DH table is still right
+    Q = np.random.default_rng(2).uniform(-1, 1, (100, 6))
+    ex = tilted.extraction
+    assert ex is not None
+    err = np.linalg.norm(
+        fk_point(ex.standard, Q, ex.tool_point, T_base=ex.T_measurement_base)
+        - fk_point(session.table, Q, session.tool_point, T_base=session.T_measurement_base),
+        axis=1,
+    )
+    assert np.all(err <= 4.0 * fk_prediction_std(tilted, Q))
+
+
+def test_global_refinement_lowers_the_fk_residual_and_the_error() -> None:
+    """KR5 with 60° sweeps: the analytic model is already near the noise on the samples, but
+    the least-squares refinement over all samples lowers the FK residual further, brings the
+    model closer to the truth over the whole workspace, and its uncertainty still covers it."""
+    from dhlog.io.memory import log_data_from_session
+    from dhlog.process import process_data
+    from dhlog.refine import apply_refinement, refine
+
+    rob = load_robot("kr5")
+    session = simulate_session(rob, SimulationConfig(seed=5, noise=2e-5, sweep=math.radians(60)))
+    analytic = process_data(log_data_from_session(session))
+    refined = apply_refinement(analytic, refine(analytic))
+    assert refined.refinement is not None and analytic.validation is not None
+    assert refined.validation is not None
+    assert refined.refinement.fk_rms_after < refined.refinement.fk_rms_before
+    assert refined.validation.rms < 1.05 * math.sqrt(3) * 2e-5
+    doc = result_document(refined)
+    jsonschema.validate(doc, SCHEMA)
+    assert doc["refinement"]["lowered"] is True
+    Q = np.random.default_rng(3).uniform(rob.limits[:, 0], rob.limits[:, 1], (200, rob.n))
+    want = fk_point(session.table, Q, session.tool_point, T_base=session.T_measurement_base)
+
+    def err(r: ProcessResult) -> np.ndarray:
+        ex = r.extraction
+        assert ex is not None
+        got = fk_point(ex.standard, Q, ex.tool_point, T_base=ex.T_measurement_base)
+        return np.linalg.norm(got - want, axis=1)
+
+    assert np.sqrt(np.mean(err(refined) ** 2)) < 0.5 * np.sqrt(np.mean(err(analytic) ** 2))
+    assert np.all(err(refined) <= 4.0 * fk_prediction_std(refined, Q))

@@ -241,6 +241,13 @@ def process(
     no_rrd: Annotated[
         bool, typer.Option("--no-rrd", help="Do not write the Rerun recording.")
     ] = False,
+    refine: Annotated[
+        bool,
+        typer.Option(
+            "--refine",
+            help="Refine the whole model by least squares against every sample (robust loss).",
+        ),
+    ] = False,
     force: Annotated[bool, typer.Option("--force", help="Overwrite existing results.")] = False,
 ) -> None:
     """Identify the DH parameters from a calibration log and write <stem>.dh.json, .dh.csv, .rrd."""
@@ -285,6 +292,14 @@ def process(
                 progress=lambda f: bar.update(task, completed=f),
             )
             bar.update(task, completed=1.0)
+        if refine:
+            from dhlog.refine import apply_refinement
+            from dhlog.refine import refine as refine_model
+
+            if result.complete and result.segmentation.has_encoders:
+                result = apply_refinement(result, refine_model(result))
+            else:
+                result.warnings.append("--refine needs every joint identified and encoder values.")
         if result.log.pipeline_reason:
             stdout.print(f"{log.name}: {result.log.pipeline_reason}", soft_wrap=True)
         folder.mkdir(parents=True, exist_ok=True)

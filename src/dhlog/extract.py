@@ -28,7 +28,7 @@ the last frame as frame n times the nominal ``A_n``, and angles reported nearest
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -161,8 +161,13 @@ def extract_dh(
     nominal: StandardDH | None = None,
     angle_tol: float = ANGLE_TOL,
     distance_tol: float = DISTANCE_TOL,
+    pair_tolerances: Sequence[tuple[float, float]] | None = None,
 ) -> Extraction:
     """Standard and modified DH tables, base transform and tool point from oriented joint axes.
+
+    ``angle_tol`` (rad) and ``distance_tol`` (m) decide when two axes count as parallel or
+    meeting; ``pair_tolerances[i]`` (angle, distance) overrides them for axes i+1, i+2 (1-based),
+    e.g. with tolerances from the fits' uncertainty.
 
     ``axes``: joint 1 … n axes in the measurement frame M at ``reference_pose`` (n,), each oriented
     along positive joint motion; ``target`` (3,) the target point in M at that pose. Seed 000,
@@ -208,6 +213,11 @@ def extract_dh(
         lines[i] = place_prismatic_axis(lines[i].direction, anchors, angle_tol=angle_tol)
         placed[i] = True
 
+    def tolerance(i: int) -> tuple[float, float]:
+        if pair_tolerances is not None and i < len(pair_tolerances) and i < n - 1:
+            return pair_tolerances[i]
+        return angle_tol, distance_tol
+
     z = [line.direction for line in lines] + [lines[-1].direction]
     origins: list[FloatArray | None] = [None] * (n + 1)
     xs: list[FloatArray | None] = [None] * (n + 1)
@@ -224,7 +234,7 @@ def extract_dh(
                     x2 = rotation_about(z[0], float(desired_theta[0])) @ _default_x(z[0])
                     anchor = lines[1].point
                 lines[0] = Line(anchor - nominal.a[0] * x2, lines[0].direction)
-    origins[0] = _frame1_origin(lines, placed, base_plane, nominal_d, angle_tol, distance_tol)
+    origins[0] = _frame1_origin(lines, placed, base_plane, nominal_d, tolerance)
 
     relations: list[PairRelation] = []
     for i in range(n):
@@ -252,11 +262,10 @@ def extract_dh(
                 )
                 placed[i + 1] = True
             line_next = lines[i + 1]
-        rel = classify_lines(line_i, line_next, angle_tol=angle_tol, distance_tol=distance_tol)
+        a_tol, d_tol = tolerance(i)
+        rel = classify_lines(line_i, line_next, angle_tol=a_tol, distance_tol=d_tol)
         if i < n - 1:
-            rel_fitted = classify_lines(
-                lines[i], lines[i + 1], angle_tol=angle_tol, distance_tol=distance_tol
-            )
+            rel_fitted = classify_lines(lines[i], lines[i + 1], angle_tol=a_tol, distance_tol=d_tol)
             relations.append(PairRelation((i + 1, i + 2), rel_fitted))
         z_next = line_next.direction
         if rel.kind is RelationKind.COLLINEAR:
@@ -316,23 +325,21 @@ def _frame1_origin(
     placed: list[bool],
     base_plane: Plane | None,
     nominal_d: FloatArray,
-    angle_tol: float,
-    distance_tol: float,
+    tolerance: Callable[[int], tuple[float, float]],
 ) -> FloatArray:
     """Origin of frame 1: axis 1 ∩ base plane (seed 002, Eq. 7); else the foot on axis 1 of the
     common normal to axis 2 (Eq. 14), carried through a run of parallel axes 1 … k to the first
     defined common normal (axes k, k+1) so that the parallel rows keep ``d = 0`` (or the nominal
     ``d``); else the point of axis 1 nearest the measurement origin."""
     if base_plane is not None:
-        return intersect_line_plane(lines[0], base_plane, angle_tol=angle_tol)
+        return intersect_line_plane(lines[0], base_plane)
     shift = np.zeros(3)
     for k in range(len(lines) - 1):
         if not placed[k + 1]:
             break
         shift = shift + nominal_d[k] * lines[k].direction
-        relation = classify_lines(
-            lines[k], lines[k + 1], angle_tol=angle_tol, distance_tol=distance_tol
-        )
+        a_tol, d_tol = tolerance(k)
+        relation = classify_lines(lines[k], lines[k + 1], angle_tol=a_tol, distance_tol=d_tol)
         if not relation.kind.is_parallel:
             foot = common_normal_feet(lines[k], lines[k + 1])[0]
             return lines[0].project(foot - shift)
@@ -433,3 +440,42 @@ def _table_from_frames(
     if not np.all(np.isfinite(np.concatenate([theta_off, d_off, a, alpha]))):
         raise DegenerateGeometryError("The joint axes give a non-finite DH table; check the fits.")
     return StandardDH(types, theta_off, d_off, a, alpha)
+
+
+@dataclass(frozen=True, eq=False)
+class HayatiRow:
+    """Hayati–Mirmirani parameters of a nearly parallel pair: ``Rz(θ) Tx(a) Rx(α) Ry(β)``
+    from frame i to the frame on axis i+1 (no ``d``: the common normal runs through ``o_i``)."""
+
+    joints: tuple[int, int]
+    theta: float
+    a: float
+    alpha: float
+    beta: float
+
+
+def hayati_parameters(frame_i: FloatArray, line_next: Line, joints: tuple[int, int]) -> HayatiRow:
+    """The Hayati–Mirmirani parameters of axis i+1 seen from DH frame i (4x4 in M).
+
+    ``x'`` runs from ``o_i`` to where axis i+1 crosses the plane ``z_i``-normal through ``o_i``
+    (angle θ about ``z_i``, length a); then ``z_{i+1} = Rx(α) Ry(β) z_i`` in the frame
+    ``(x', z_i × x', z_i)``: ``β = asin(z·x')``, ``α = atan2(−z·y', z·z_i)``. Well conditioned
+    when the axes are (nearly) parallel, where the DH ``d`` is not.
+    """
+    o, x, z = frame_i[:3, 3], frame_i[:3, 0], frame_i[:3, 2]
+    e = line_next.direction
+    denom = float(e @ z)
+    if abs(denom) < 1e-9:
+        raise DegenerateGeometryError(
+            f"Axes {joints[0]} and {joints[1]} are perpendicular: Hayati parameters are undefined."
+        )
+    t = float((o - line_next.point) @ z) / denom
+    crossing = line_next.point + t * e
+    offset = crossing - o
+    a = float(np.linalg.norm(offset))
+    xp = offset / a if a > 1e-12 else x
+    yp = cross3(z, xp)
+    theta = float(np.arctan2(cross3(x, xp) @ z, x @ xp))
+    beta = float(np.arcsin(np.clip(e @ xp, -1.0, 1.0)))
+    alpha = float(np.arctan2(-(e @ yp), e @ z))
+    return HayatiRow(joints, theta, a, alpha, beta)

@@ -8,6 +8,7 @@ reported. Over many sessions the RMS of the reported σ should equal the empiric
 from __future__ import annotations
 
 import math
+import multiprocessing
 from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
@@ -57,7 +58,9 @@ def sessions(
     """Errors and reported σ, each (count, 4n), of ``count`` seeded sessions."""
     jobs = [(name, first_seed + s, noise, rate, outliers) for s in range(count)]
     if workers > 1:
-        with ProcessPoolExecutor(workers) as pool:
+        # spawn, not fork: forking a process whose polars/zstd thread pools are running can hang
+        context = multiprocessing.get_context("spawn")
+        with ProcessPoolExecutor(workers, mp_context=context) as pool:
             out = list(pool.map(one_session, jobs, chunksize=8))
     else:
         out = [one_session(j) for j in jobs]

@@ -25,7 +25,7 @@ from dhlog import __version__
 from dhlog.dh import JointType, StandardDH
 from dhlog.dhfile import DHModel
 from dhlog.errors import DhlogError, GeometryError, InputError
-from dhlog.extract import Extraction, extract_dh
+from dhlog.extract import Extraction, HayatiRow, extract_dh, hayati_parameters
 from dhlog.geometry._checks import FloatArray, perpendicular_basis, wrap_angle
 from dhlog.geometry.fitting import AxisFit, PlaneFit, detect_joint_type, fit_axis_robust, fit_plane
 from dhlog.geometry.lines import ANGLE_TOL, DISTANCE_TOL, Line, Plane
@@ -97,6 +97,8 @@ class ProcessResult:
     nominal: DHModel | None
     warnings: list[str]
     covariance: FloatArray | None = None
+    hayati: list[HayatiRow] = field(default_factory=list)
+    refinement: Any = None
 
     @property
     def complete(self) -> bool:
@@ -587,7 +589,12 @@ def process_data(
         except GeometryError as exc:
             notes.append(f"the base plane was not used: {exc}")
     extraction = std = target = validation = covariance = None
-    kwargs = {"angle_tol": angle_tol, "distance_tol": distance_tol}
+    hayati: list[HayatiRow] = []
+    kwargs: dict[str, Any] = {
+        "angle_tol": angle_tol,
+        "distance_tol": distance_tol,
+        "pair_tolerances": _pair_tolerances(joints, nominal, angle_tol, distance_tol),
+    }
     nominal_table = nominal.table if nominal is not None else None
     ok = [j for j in joints if j.ok]
     if len(ok) == n:
@@ -618,6 +625,7 @@ def process_data(
             target_of if seg.has_encoders else None,
         )
         std = np.sqrt(np.clip(np.diag(covariance), 0.0, None))
+        hayati = _near_parallel(joints, extraction, std, notes)
         validation = _validate(seg, joints, extraction)
         if validation is not None:
             sigma = math.sqrt(np.mean([j.fit.sigma**2 for j in joints if j.fit is not None]))
@@ -662,7 +670,76 @@ def process_data(
         nominal=nominal,
         warnings=notes,
         covariance=covariance,
+        hayati=hayati,
     )
+
+
+#: 2D 99.73 % radius (the "3σ" of a two-dimensional tilt or offset): sqrt(χ²₂(0.9973)).
+THREE_SIGMA_2D = 3.44
+#: With a nominal that says parallel (or meeting), the data must exceed this many σ to overrule it.
+NOMINAL_SIGMA_2D = 5.0
+#: Axes closer than this to parallel (rad) also get Hayati–Mirmirani parameters.
+NEAR_PARALLEL = 0.01
+
+
+def _pair_tolerances(
+    joints: list[JointReport], nominal: DHModel | None, angle_floor: float, distance_floor: float
+) -> list[tuple[float, float]] | None:
+    """Per consecutive pair, the angle (rad) and distance (m) below which the data cannot tell
+    the axes from parallel / meeting: 3σ (2D: 3.44σ) of the difference of the two fitted axes,
+    from the fits' covariances (5σ when the nominal says parallel / meeting). ``angle_floor`` and
+    ``distance_floor`` apply only when a fit has no covariance (never below 1e-7)."""
+    if any(j.fit is None for j in joints):
+        return None
+    out = []
+    for i in range(len(joints) - 1):
+        f1, f2 = joints[i].fit, joints[i + 1].fit
+        assert f1 is not None and f2 is not None
+        var_dir = (np.trace(f1.axis_covariance[:2, :2]) + np.trace(f2.axis_covariance[:2, :2])) / 2
+        lever = float(np.linalg.norm(f1.center - f2.center))
+        var_pos = (
+            np.trace(f1.axis_covariance[2:, 2:]) + np.trace(f2.axis_covariance[2:, 2:])
+        ) / 2 + var_dir * lever**2
+        k_angle = k_dist = THREE_SIGMA_2D
+        if nominal is not None:
+            if abs(math.sin(nominal.table.alpha[i])) < 1e-9:
+                k_angle = NOMINAL_SIGMA_2D
+            if abs(nominal.table.a[i]) < 1e-12:
+                k_dist = NOMINAL_SIGMA_2D
+        angle = k_angle * math.sqrt(var_dir) if var_dir > 0 else angle_floor
+        distance = k_dist * math.sqrt(var_pos) if var_pos > 0 else distance_floor
+        out.append((max(angle, 1e-7), max(distance, 1e-7)))
+    return out
+
+
+def _near_parallel(
+    joints: list[JointReport], ex: Extraction, std: FloatArray | None, notes: list[str]
+) -> list[HayatiRow]:
+    """Hayati–Mirmirani rows for nearly parallel pairs, and a warning where d is ill-conditioned."""
+    rows = []
+    for rel in ex.relations:
+        i, k = rel.joints
+        angle = min(rel.relation.angle, math.pi - rel.relation.angle)
+        if angle >= NEAR_PARALLEL:
+            continue
+        axis = joints[k - 1].axis
+        assert axis is not None
+        try:
+            rows.append(hayati_parameters(ex.frames[i - 1], axis, (i, k)))
+        except DhlogError:
+            continue
+        if not rel.relation.kind.is_parallel:
+            d, sd = (
+                ex.standard.d_offset[i - 1],
+                float("nan") if std is None else std[4 * (i - 1) + 1],
+            )
+            notes.append(
+                f"joints {i} and {k} are nearly parallel ({math.degrees(angle):.4f}°, beyond what "
+                f"the noise explains): d{i} = {d * 1e3:.1f} mm ± {sd * 1e3:.1f} mm is "
+                "ill-conditioned; the Hayati–Mirmirani parameters (β in place of d) are in the "
+                "result."
+            )
+    return rows
 
 
 def _prefix_table(table: StandardDH, k: int) -> StandardDH:
@@ -803,6 +880,30 @@ def result_document(result: ProcessResult) -> dict[str, Any]:
                 "translation": [float(v) for v in std[4 * n + 3 : 4 * n + 6]],
                 "rotation": [float(v) for v in std[4 * n + 6 : 4 * n + 9]],
             }
+    if result.refinement is not None:
+        ref = result.refinement
+        doc["refinement"] = {
+            "fk_rms_before": ref.fk_rms_before,
+            "fk_rms_after": ref.fk_rms_after,
+            "lowered": ref.fk_rms_after < ref.fk_rms_before,
+            "n_points": ref.n_points,
+            "evaluations": ref.iterations,
+        }
+    if result.hayati:
+        q = result.reference_pose
+        doc["hayati"] = [
+            {
+                "joints": list(h.joints),
+                "theta": h.theta,
+                "theta_offset": h.theta - float(q[h.joints[0] - 1])
+                if result.joints[h.joints[0] - 1].type is JointType.REVOLUTE
+                else h.theta,
+                "a": h.a,
+                "alpha": h.alpha,
+                "beta": h.beta,
+            }
+            for h in result.hayati
+        ]
     if result.base is not None:
         doc["base"]["plane"] = {
             "point": result.base.plane.point.tolist(),
