@@ -21,13 +21,15 @@ from dhlog.robots import load_robot
 from dhlog.simulate import SimulationConfig, simulate_session
 
 
-def one_session(args: tuple[str, int, float, float, float]) -> tuple[FloatArray, FloatArray]:
+def one_session(job: dict[str, object]) -> tuple[FloatArray, FloatArray]:
     """Errors and reported σ (both 4n, rows θ, d, a, α) of one seeded session.
 
-    ``args``: robot name, seed, Gaussian noise σ (m), tracker rate (Hz), fraction of gross
-    outliers (3–9 mm); sweeps of 60°, 12 base points.
+    ``job`` keys: ``robot``, ``seed``, ``noise`` (m; σ, or half-width if ``noise_kind`` is
+    ``"uniform"``), ``rate`` (tracker, Hz), ``outliers`` (fraction, 3–9 mm), ``sweep`` (rad),
+    ``fit_method`` (``"auto"`` = encoder-aided, ``"algebraic"`` = seed 002), ``refine`` (bool).
+    The robot's own table is the truth and the nominal; 12 base points.
     """
-    name, seed, noise, rate, outliers = args
+    name = str(job["robot"])
     robot = load_robot(name)
     nominal = DHModel(
         robot.table,
@@ -37,9 +39,22 @@ def one_session(args: tuple[str, int, float, float, float]) -> tuple[FloatArray,
         name,
     )
     cfg = SimulationConfig(
-        seed=seed, noise=noise, tracker_rate=rate, sweep=math.radians(60), outliers=outliers
+        seed=int(job["seed"]),  # type: ignore[call-overload]
+        noise=float(job.get("noise", 2e-5)),  # type: ignore[arg-type]
+        noise_kind=str(job.get("noise_kind", "gaussian")),  # type: ignore[arg-type]
+        tracker_rate=float(job.get("rate", 30.0)),  # type: ignore[arg-type]
+        sweep=float(job.get("sweep", math.radians(60))),  # type: ignore[arg-type]
+        outliers=float(job.get("outliers", 0.0)),  # type: ignore[arg-type]
     )
-    result = process_data(log_data_from_session(simulate_session(robot, cfg)), nominal=nominal)
+    result = process_data(
+        log_data_from_session(simulate_session(robot, cfg)),
+        nominal=nominal,
+        fit_method=str(job.get("fit_method", "auto")),
+    )
+    if job.get("refine"):
+        from dhlog.refine import apply_refinement, refine
+
+        result = apply_refinement(result, refine(result))
     diff = nominal_difference(result)
     assert diff is not None and result.std is not None
     return diff.ravel(), result.std[: diff.size]
@@ -54,9 +69,21 @@ def sessions(
     rate: float = 30.0,
     outliers: float = 0.0,
     first_seed: int = 1000,
+    **options: object,
 ) -> tuple[FloatArray, FloatArray]:
-    """Errors and reported σ, each (count, 4n), of ``count`` seeded sessions."""
-    jobs = [(name, first_seed + s, noise, rate, outliers) for s in range(count)]
+    """Errors and reported σ, each (count, 4n), of ``count`` seeded sessions (``options`` are
+    further :func:`one_session` keys)."""
+    jobs = [
+        {
+            "robot": name,
+            "seed": first_seed + s,
+            "noise": noise,
+            "rate": rate,
+            "outliers": outliers,
+            **options,
+        }
+        for s in range(count)
+    ]
     if workers > 1:
         # spawn, not fork: forking a process whose polars/zstd thread pools are running can hang
         context = multiprocessing.get_context("spawn")
