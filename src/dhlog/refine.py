@@ -88,10 +88,18 @@ def refine(result: ProcessResult) -> Refinement:
     x = full(sol.x)
     fk_res = residuals(sol.x)[: 3 * len(rows)].reshape(-1, 3) * sigma
     after = float(np.sqrt(np.mean(np.sum(fk_res**2, axis=1))))
-    m = sol.fun.size
-    dof = max(m - int(free.sum()), 1)
-    s2 = float(np.sum(sol.fun**2)) / dof * sigma**2
-    J = np.asarray(sol.jac, dtype=np.float64) * sigma  # d(residual in m)/dx
+    # covariance from the plain (unweighted) Jacobian over the residuals the robust loss kept
+    # in its quadratic zone: the loss's down-weighting would otherwise inflate it
+    keep = np.abs(sol.fun) <= 3.0
+    J = np.zeros((sol.fun.size, sol.x.size))
+    for k in range(sol.x.size):
+        h = 1e-3 * max(float(std0[free][k]), 1e-9)
+        e = np.zeros(sol.x.size)
+        e[k] = h
+        J[:, k] = (residuals(sol.x + e) - residuals(sol.x - e)) / (2 * h)
+    J = J[keep] * sigma  # d(residual in m)/dx
+    dof = max(int(keep.sum()) - int(free.sum()), 1)
+    s2 = float(np.sum(sol.fun[keep] ** 2)) / dof * sigma**2
     cov_free = s2 * np.linalg.pinv(J.T @ J)
     covariance = np.zeros((x.size, x.size))
     covariance[np.ix_(free, free)] = cov_free
