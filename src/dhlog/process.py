@@ -22,6 +22,7 @@ import polars as pl
 from numpy.typing import NDArray
 
 from dhlog import __version__
+from dhlog.contract import RESULT_FORMAT, dh_documents, relation_documents
 from dhlog.dh import JointType, StandardDH
 from dhlog.dhfile import DHModel
 from dhlog.errors import DhlogError, GeometryError, InputError
@@ -35,8 +36,6 @@ from dhlog.io.reader import LogData, read_log
 from dhlog.io.writer import sha256_of
 from dhlog.kinematics import fk_point
 from dhlog.segment import Segmentation, segment_log
-
-RESULT_FORMAT = "dhlog.result/1"
 
 
 @dataclass
@@ -783,45 +782,8 @@ def result_document(result: ProcessResult) -> dict[str, Any]:
     mod_rows: list[dict[str, Any]] = []
     relations: list[dict[str, Any]] = []
     if ex is not None:
-        t, q = ex.standard, ex.reference_pose
-        theta, d = t.theta(q), t.d(q)
-        for i in range(n_rows):
-            s = std[4 * i : 4 * i + 4] if std is not None else np.full(4, float("nan"))
-            rows.append(
-                {
-                    "type": t.joint_types[i].value,
-                    "theta": float(theta[i]),
-                    "d": float(d[i]),
-                    "a": float(t.a[i]),
-                    "alpha": float(t.alpha[i]),
-                    "theta_offset": float(t.theta_offset[i]),
-                    "d_offset": float(t.d_offset[i]),
-                    "std": {
-                        "theta": _num(s[0]),
-                        "d": _num(s[1]),
-                        "a": _num(s[2]),
-                        "alpha": _num(s[3]),
-                    },
-                }
-            )
-            m = ex.modified
-            mod_rows.append(
-                {
-                    "alpha": float(m.alpha[i]),
-                    "a": float(m.a[i]),
-                    "theta": float(m.theta(q)[i]),
-                    "d": float(m.d(q)[i]),
-                }
-            )
-        relations = [
-            {
-                "joints": list(r.joints),
-                "kind": r.relation.kind.value,
-                "angle": r.relation.angle,
-                "distance": r.relation.distance,
-            }
-            for r in ex.relations
-        ]
+        rows, mod_rows = dh_documents(ex.standard, ex.reference_pose, std, n_rows)
+        relations = relation_documents(ex.relations)
     val = result.validation
     per_joint = {} if val is None else val.per_joint
     t_ns = result.segmentation.table["t_ns"].to_numpy()
@@ -918,41 +880,47 @@ def result_document(result: ProcessResult) -> dict[str, Any]:
     return doc
 
 
-def _num(value: float) -> float | None:
-    return None if not math.isfinite(value) else float(value)
+def display_scales(units: str) -> tuple[float, float, str, str]:
+    """Factors and unit names for display: ``mm`` → (1e3, 180/π, "mm", "deg"), ``m`` → SI."""
+    if units == "m":
+        return 1.0, 1.0, "m", "rad"
+    return 1e3, 180.0 / math.pi, "mm", "deg"
+
+
+def display_rows(
+    result: ProcessResult, units: str = "mm"
+) -> list[tuple[str, list[float], list[float | None]]]:
+    """Per standard-DH row: its type and ``θ_offset, d_offset, a, α`` with their σ, in display
+    units (``display_scales``)."""
+    length, angle, _, _ = display_scales(units)
+    factors = [angle, length, length, angle]
+    out = []
+    for row in result_document(result)["standard_dh"]:
+        s = row["std"]
+        values = [row["theta_offset"], row["d_offset"], row["a"], row["alpha"]]
+        stds = [s["theta"], s["d"], s["a"], s["alpha"]]
+        out.append(
+            (
+                row["type"],
+                [v * f for v, f in zip(values, factors, strict=True)],
+                [None if v is None else v * f for v, f in zip(stds, factors, strict=True)],
+            )
+        )
+    return out
 
 
 def result_csv(result: ProcessResult, *, units: str = "mm") -> str:
     """The standard DH table as CSV, in mm and degrees (or m and rad), with ±1σ columns."""
-    length = 1e3 if units == "mm" else 1.0
-    angle = 180.0 / math.pi if units == "mm" else 1.0
-    lu, au = ("mm", "deg") if units == "mm" else ("m", "rad")
-    header = (
+    _, _, lu, au = display_scales(units)
+    lines = [
         f"joint,name,type,theta_offset_{au},d_{lu},a_{lu},alpha_{au},"
         f"std_theta_{au},std_d_{lu},std_a_{lu},std_alpha_{au}"
-    )
-    lines = [header]
-    doc = result_document(result)
-    for i, row in enumerate(doc["standard_dh"]):
-        s = row["std"]
-        vals = [
-            row["theta_offset"] * angle,
-            row["d_offset"] * length,
-            row["a"] * length,
-            row["alpha"] * angle,
-        ]
-        sd = [s["theta"], s["d"], s["a"], s["alpha"]]
-        sd_scaled = [
-            None if v is None else v * f
-            for v, f in zip(sd, [angle, length, length, angle], strict=True)
-        ]
-        lines.append(
-            ",".join(
-                [str(i + 1), result.joints[i].name, row["type"]]
-                + [f"{v:.9g}" for v in vals]
-                + ["" if v is None else f"{v:.3g}" for v in sd_scaled]
-            )
-        )
+    ]
+    for i, (kind, values, stds) in enumerate(display_rows(result, units)):
+        cells = [str(i + 1), result.joints[i].name, kind]
+        cells += [f"{v:.9g}" for v in values]
+        cells += ["" if v is None else f"{v:.3g}" for v in stds]
+        lines.append(",".join(cells))
     return "\n".join(lines) + "\n"
 
 

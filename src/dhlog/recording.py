@@ -22,6 +22,8 @@ from __future__ import annotations
 import math
 import os
 import tempfile
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
@@ -49,6 +51,28 @@ PALETTE = np.array(
 )
 DIM = np.array([150, 150, 150, 90], dtype=np.uint8)
 TIMELINE = "sensor_time"
+
+
+@contextmanager
+def _recording_file(
+    path: str | Path, application_id: str, blueprint: rrb.Blueprint, recording_id: str | None = None
+) -> Iterator[rr.RecordingStream]:
+    """A recording streamed to a temporary file beside ``path``, renamed into place (complete:
+    flushed and disconnected) only when the block finishes without error."""
+    target = Path(path)
+    fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".part", dir=target.parent)
+    os.close(fd)
+    rec = rr.RecordingStream(application_id, recording_id=recording_id)
+    try:
+        rec.save(tmp, default_blueprint=blueprint)
+        rec.log("world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
+        yield rec
+        rec.flush()
+        rec.disconnect()
+        os.replace(tmp, target)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
 
 
 def _color(k: int) -> FloatArray:
@@ -112,13 +136,9 @@ def write_process_recording(result: object, path: str | Path) -> None:
     from dhlog.report import result_markdown
 
     assert isinstance(result, ProcessResult)
-    target = Path(path)
-    fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".part", dir=target.parent)
-    os.close(fd)
-    rec = rr.RecordingStream("dhlog", recording_id=result.sha256[:32])
-    try:
-        rec.save(tmp, default_blueprint=_process_blueprint(result))
-        rec.log("world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
+    with _recording_file(
+        path, "dhlog", _process_blueprint(result), result.sha256[:32] or None
+    ) as rec:
         log_samples(rec, result)
         log_fits(rec, result)
         log_base(rec, result)
@@ -127,20 +147,13 @@ def write_process_recording(result: object, path: str | Path) -> None:
             if not result.complete:
                 frames = frames[:-1]
             log_frames(rec, frames)
-            tool = result.target if result.complete else None
-            log_links(rec, frames, tool)
+            log_links(rec, frames, result.target if result.complete else None)
         log_residuals(rec, result)
         rec.log(
             "report/dh_table",
             rr.TextDocument(result_markdown(result), media_type=rr.MediaType.MARKDOWN),
             static=True,
         )
-        rec.flush()
-        rec.disconnect()
-        os.replace(tmp, target)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
 
 
 def log_samples(rec: rr.RecordingStream, result: object) -> None:
@@ -323,9 +336,6 @@ def write_robot_recording(
 ) -> None:
     """A recording of ``table`` with each joint swept in turn on the ``step`` time line
     (seed 004's visualisation): the frames, the links and the tool path."""
-    target = Path(path)
-    fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".part", dir=target.parent)
-    os.close(fd)
     n = table.n
     if limits is None:
         limits = np.array(
@@ -334,24 +344,17 @@ def write_robot_recording(
                 for t in table.joint_types
             ]
         )
-    rec = rr.RecordingStream("dhlog_show")
-    try:
-        everything = rrb.VisibleTimeRange(
-            "step",
-            start=rrb.TimeRangeBoundary.infinite(),
-            end=rrb.TimeRangeBoundary.cursor_relative(),
+    everything = rrb.VisibleTimeRange(
+        "step", start=rrb.TimeRangeBoundary.infinite(), end=rrb.TimeRangeBoundary.cursor_relative()
+    )
+    bp = rrb.Blueprint(
+        rrb.Horizontal(
+            rrb.Spatial3DView(name=title, origin="world"),
+            rrb.Spatial3DView(name="tool path", origin="world/tool_path", time_ranges=[everything]),
+            column_shares=[3, 1],
         )
-        bp = rrb.Blueprint(
-            rrb.Horizontal(
-                rrb.Spatial3DView(name=title, origin="world"),
-                rrb.Spatial3DView(
-                    name="tool path", origin="world/tool_path", time_ranges=[everything]
-                ),
-                column_shares=[3, 1],
-            )
-        )
-        rec.save(tmp, default_blueprint=bp)
-        rec.log("world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
+    )
+    with _recording_file(path, "dhlog_show", bp) as rec:
         home = np.clip(np.zeros(n), limits[:, 0], limits[:, 1])
         step = 0
         scale = max(0.05, float(np.sum(np.abs(table.a)) + np.sum(np.abs(table.d_offset))) / (3 * n))
@@ -379,9 +382,3 @@ def write_robot_recording(
                 step += 1
         for i in range(1, n + 2):
             rec.log(f"world/frames/frame_{i}", rr.TransformAxes3D(scale), static=True)
-        rec.flush()
-        rec.disconnect()
-        os.replace(tmp, target)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise

@@ -6,42 +6,30 @@ measured − nominal when a nominal table was given.
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 from rich.console import Console
 from rich.markup import escape
 from rich.table import Table
 
-from dhlog.process import ProcessResult, nominal_difference, result_document
+from dhlog.process import ProcessResult, display_rows, display_scales, nominal_difference
 
 NAMES = ("θ", "d", "a", "α")
 
 
 def _scales(units: str) -> tuple[float, float, str, str]:
-    if units == "m":
-        return 1.0, 1.0, "m", "rad"
-    return 1e3, 180.0 / math.pi, "mm", "°"
+    length, angle, lu, au = display_scales(units)
+    return length, angle, lu, "°" if au == "deg" else au
 
 
 def _rows(result: ProcessResult, units: str) -> list[list[str]]:
     length, angle, _, _ = _scales(units)
-    doc = result_document(result)
     diff = nominal_difference(result)
+    factors = [angle, length, length, angle]
     out = []
-    for i, row in enumerate(doc["standard_dh"]):
-        s = row["std"]
-        values = [
-            row["theta_offset"] * angle,
-            row["d_offset"] * length,
-            row["a"] * length,
-            row["alpha"] * angle,
-        ]
-        stds = [s["theta"], s["d"], s["a"], s["alpha"]]
-        factors = [angle, length, length, angle]
-        cells = [str(i + 1), result.joints[i].name, row["type"][0].upper()]
+    for i, (kind, values, stds) in enumerate(display_rows(result, units)):
+        cells = [str(i + 1), result.joints[i].name, kind[0].upper()]
         for k in range(4):
-            sd = "" if stds[k] is None else f" ± {stds[k] * factors[k]:.4f}"
+            sd = "" if stds[k] is None else f" ± {stds[k]:.4f}"
             cells.append(f"{values[k]:.4f}{sd}")
         if diff is not None:
             cells += [f"{diff[i][k] * factors[k]:+.4f}" for k in range(4)]

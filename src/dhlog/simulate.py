@@ -17,7 +17,8 @@ from typing import Literal
 import numpy as np
 from numpy.typing import NDArray
 
-from dhlog.dh import JointType, StandardDH, standard_to_modified
+from dhlog.contract import RESULT_FORMAT, dh_documents, relation_documents
+from dhlog.dh import JointType, StandardDH
 from dhlog.extract import extract_dh
 from dhlog.geometry._checks import FloatArray, rotation_about
 from dhlog.geometry.lines import Line
@@ -284,11 +285,10 @@ def truth_document(
         target=target,
         reference_pose=q,
     ).relations
-    modified, _ = standard_to_modified(table)
-    theta, d = table.theta(q), table.d(q)
+    standard, modified = dh_documents(table, q, np.zeros(4 * table.n))
     cfg = session.config
     return {
-        "format": "dhlog.result/1",
+        "format": RESULT_FORMAT,
         "dhlog_version": version,
         "source": {"path": source_path, "sha256": sha256, "pipeline": pipeline},
         "units": {"length": "m", "angle": "rad"},
@@ -302,36 +302,9 @@ def truth_document(
             }
             for i in range(table.n)
         ],
-        "standard_dh": [
-            {
-                "theta": float(theta[i]),
-                "d": float(d[i]),
-                "a": float(table.a[i]),
-                "alpha": float(table.alpha[i]),
-                "theta_offset": float(table.theta_offset[i]),
-                "d_offset": float(table.d_offset[i]),
-                "std": {"theta": 0.0, "d": 0.0, "a": 0.0, "alpha": 0.0},
-            }
-            for i in range(table.n)
-        ],
-        "modified_dh": [
-            {
-                "alpha": float(modified.alpha[i]),
-                "a": float(modified.a[i]),
-                "theta": float(modified.theta(q)[i]),
-                "d": float(modified.d(q)[i]),
-            }
-            for i in range(table.n)
-        ],
-        "relations": [
-            {
-                "joints": list(r.joints),
-                "kind": r.relation.kind.value,
-                "angle": r.relation.angle,
-                "distance": r.relation.distance,
-            }
-            for r in relations
-        ],
+        "standard_dh": standard,
+        "modified_dh": modified,
+        "relations": relation_documents(relations),
         "base": {"T_measurement_base": session.T_measurement_base.tolist()},
         "tool": {"point": session.tool_point.tolist()},
         "validation": {"fk_rms": 0.0, "fk_max": 0.0, "n_points": int(session.point_xyz.shape[0])},
