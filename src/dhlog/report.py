@@ -130,7 +130,22 @@ def result_markdown(result: ProcessResult, *, units: str = "mm") -> str:
                 f"{m.theta(q)[i] * angle:.4f} | {m.d(q)[i] * length:.4f} |"
             )
         tool = ex.tool_point * length
-        lines += ["", f"Tool point (frame {m.n + 1}): {np.array2string(tool, precision=4)} {lu}"]
+        shown = ", ".join(f"{v:.4f}" for v in tool)
+        lines += ["", f"Tool point (frame {m.n + 1}): ({shown}) {lu}"]
+    if result.hayati:
+        length, angle, _, _ = _scales(units)
+        lines += [
+            "",
+            "## Nearly parallel pairs (Hayati–Mirmirani, β in place of d)",
+            "",
+            f"| joints | θ [{au}] | a [{lu}] | α [{au}] | β [{au}] |",
+            "|---|---|---|---|---|",
+        ]
+        for h in result.hayati:
+            lines.append(
+                f"| {h.joints[0]}–{h.joints[1]} | {h.theta * angle:.4f} | {h.a * length:.4f} | "
+                f"{h.alpha * angle:.5f} | {h.beta * angle:.5f} |"
+            )
     lines += [
         "",
         "## Fits",
