@@ -6,7 +6,6 @@ measured − nominal when a nominal table was given.
 
 from __future__ import annotations
 
-import numpy as np
 from rich.console import Console
 from rich.markup import escape
 from rich.table import Table
