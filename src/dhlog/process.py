@@ -27,7 +27,7 @@ from dhlog.dh import JointType, StandardDH
 from dhlog.dhfile import DHModel
 from dhlog.errors import DhlogError, GeometryError, InputError
 from dhlog.extract import Extraction, HayatiRow, extract_dh, hayati_parameters
-from dhlog.geometry._checks import FloatArray, perpendicular_basis, wrap_angle
+from dhlog.geometry._checks import FloatArray, wrap_angle
 from dhlog.geometry.fitting import AxisFit, PlaneFit, detect_joint_type, fit_axis_robust, fit_plane
 from dhlog.geometry.lines import ANGLE_TOL, DISTANCE_TOL, Line, Plane
 from dhlog.geometry.screws import chain_motion, chain_motions
@@ -939,14 +939,3 @@ def nominal_difference(result: ProcessResult) -> FloatArray | None:
             wrap_angle(t.alpha[i] - nom.alpha[i]),
         ]
     return diff
-
-
-__all__ = [
-    "DhlogError",
-    "ProcessResult",
-    "nominal_difference",
-    "perpendicular_basis",
-    "process_log",
-    "result_csv",
-    "result_document",
-]

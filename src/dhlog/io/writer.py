@@ -19,7 +19,6 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import IO, Any, Literal
 
-import numpy as np
 from mcap.writer import CompressionType, Writer
 
 from dhlog.io import ros2
@@ -266,6 +265,3 @@ def sha256_of(path: str | Path) -> str:
         for block in iter(lambda: f.read(1 << 20), b""):
             digest.update(block)
     return digest.hexdigest()
-
-
-__all__ = ["atomic_output", "np", "sha256_of", "write_session", "write_truth"]
