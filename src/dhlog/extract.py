@@ -356,10 +356,9 @@ def _place_with_nominal(
     desired_theta: FloatArray,
     nominal_d: FloatArray,
     angle_tol: float,
-    anchor_place: object,
+    anchor_place: Callable[[int], None],
 ) -> None:
     """Place prismatic axis i+1 (0-based) so that row i matches the nominal d_i, a_i, α_i."""
-    assert callable(anchor_place)
     o_i = origins[i]
     assert o_i is not None
     z_i, e = z[i], lines[i + 1].direction
