@@ -162,12 +162,12 @@ def _interpolate_encoders(
     span = (t_enc[hi] - t_enc[lo]).astype(np.float64)
     w = np.divide((t - t_enc[lo]).astype(np.float64), span, out=np.zeros(t.size), where=span > 0)
     values = []
+    missing = np.flatnonzero(~ok)
     for j, c in enumerate(cols):
         column = np.ascontiguousarray(q_enc[:, j])
         q_lo = column[lo]
-        values.append(
-            pl.Series(c, q_lo + (column[hi] - q_lo) * w).scatter(np.flatnonzero(~ok), None)
-        )
+        series = pl.Series(c, q_lo + (column[hi] - q_lo) * w)
+        values.append(series.scatter(missing, None) if missing.size else series)
     out = points.with_columns(values)
     return out, np.where(ok, i_prev, -1), np.where(ok, i_next, -1)
 

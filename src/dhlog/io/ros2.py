@@ -85,8 +85,9 @@ def decode_point_bulk(raw: RawMessages) -> tuple[NDArray[np.int64], NDArray[np.f
         raise ValueError("PointStamped payload shorter than its layout")
     stamps = np.empty(len(raw), dtype=np.int64)
     xyz = np.empty((len(raw), 3), dtype=np.float64)
-    for r in np.unique(rel):
-        sel = slice(None) if bool(np.all(rel == r)) else np.flatnonzero(rel == r)
+    uniform = bool(np.all(rel == rel[0])) if rel.size else True
+    for r in rel[:1] if uniform else np.unique(rel):
+        sel = slice(None) if uniform else np.flatnonzero(rel == r)
         width = 4 + int(r) + 24
         rows = gather_rows(raw.data, raw.starts[sel], width)
         stamps[sel] = _block_stamps(rows)
@@ -124,8 +125,9 @@ def decode_joint_state_bulk(
     gather.
     """
     blocks: list[tuple[NDArray[np.int64], list[str], NDArray[np.float64]]] = []
-    for length in np.unique(raw.lengths):
-        remaining = np.flatnonzero(raw.lengths == length)
+    same_length = bool(np.all(raw.lengths == raw.lengths[0])) if len(raw) else True
+    for length in raw.lengths[:1] if same_length else np.unique(raw.lengths):
+        remaining = np.arange(len(raw)) if same_length else np.flatnonzero(raw.lengths == length)
         while remaining.size:
             first = raw.payload(int(remaining[0]))[4:]
             names, n_pos, offset = _parse_joint_layout(first)
