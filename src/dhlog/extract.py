@@ -273,7 +273,9 @@ def extract_dh(
             xs[i + 1] = None
         elif rel.kind.is_parallel:
             base = o_i + nominal_d[i] * z_i
-            o_next = line_next.project(base)
+            # the common normal lies in the plane through o_i (+ d) normal to z_i, so d_i is the
+            # convention exactly even when the axes are only parallel within the tolerance
+            o_next = intersect_line_plane(line_next, Plane(base, z_i))
             x_next = _unit(_reject(_reject(o_next - base, z_i), z_next))  # Eq. 18
             if nominal is not None and nominal.a[i] < 0.0:
                 x_next = -x_next
