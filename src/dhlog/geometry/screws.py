@@ -62,8 +62,3 @@ def chain_motions(
             T[:, :3, 3] = axis.point - R @ axis.point
         M = M @ T
     return M
-
-
-def line_after(T: ArrayLike, line: Line) -> Line:
-    """``line`` moved by the rigid motion ``T`` (4x4)."""
-    return line.transformed(T)
