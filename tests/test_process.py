@@ -39,6 +39,30 @@ RERUN = str(Path(sys.executable).with_name("rerun"))
 runner = CliRunner()
 
 
+def rrd_verify(path: Path) -> None:
+    """``rerun rrd verify`` accepts the recording."""
+    check = subprocess.run(
+        [RERUN, "rrd", "verify", str(path)],
+        capture_output=True,
+        text=True,
+        env={"RERUN_ANALYTICS": "false", "PATH": ""},
+    )
+    assert check.returncode == 0, check.stderr
+
+
+def assert_within_3_sigma(result: ProcessResult) -> np.ndarray:
+    """Every parameter with an uncertainty is within 3 reported σ of the nominal; the others
+    (fixed by a convention or by the nominal) equal it. Returns the mask of free parameters."""
+    diff = nominal_difference(result)
+    assert diff is not None and result.std is not None
+    sigma = result.std[: diff.size].reshape(diff.shape)
+    free = sigma > 0
+    ratio = np.abs(diff) / np.where(free, sigma, 1)
+    assert np.all(ratio[free] <= 3.0), ratio.max()
+    assert np.all(np.abs(diff[~free]) < 1e-9)
+    return free
+
+
 def truth_of(path: Path) -> tuple[dict[str, object], object]:
     truth_path = path.with_name(path.stem + ".truth.json")
     return json.loads(truth_path.read_text()), load_dh(truth_path)
@@ -71,15 +95,8 @@ def test_fk_of_the_result_matches_the_truth_within_the_noise(processed) -> None:
 
 def test_with_the_truth_as_nominal_every_parameter_is_within_3_sigma(processed) -> None:  # type: ignore[no-untyped-def]
     _path, _, result = processed
-    diff = nominal_difference(result)
-    assert diff is not None and result.std is not None
-    n = diff.shape[0]
-    sigma = result.std[: 4 * n].reshape(n, 4)
-    free = sigma > 0
-    assert np.all(np.abs(diff[free]) <= 3.0 * sigma[free]), (
-        np.abs(diff) / np.where(free, sigma, 1)
-    ).max()
-    assert np.all(np.abs(diff[~free]) < 1e-9)  # fixed by convention or by the nominal
+    free = assert_within_3_sigma(result)
+    n = free.shape[0]
     assert free.sum() >= n  # the identifiable parameters have an uncertainty
 
 
@@ -124,13 +141,7 @@ def test_the_recording_verifies_and_holds_the_entities(processed, tmp_path: Path
     _, result, _ = processed
     path = tmp_path / "run.rrd"
     write_process_recording(result, path)
-    check = subprocess.run(
-        [RERUN, "rrd", "verify", str(path)],
-        capture_output=True,
-        text=True,
-        env={"RERUN_ANALYTICS": "false", "PATH": ""},
-    )
-    assert check.returncode == 0, check.stderr
+    rrd_verify(path)
     rows: dict[str, int] = {}
     for chunk in RrdReader(path).stream():
         rows[chunk.entity_path] = rows.get(chunk.entity_path, 0) + chunk.num_rows
@@ -247,13 +258,7 @@ def test_show_writes_a_valid_recording(robot: str, tmp_path: Path) -> None:
     out = tmp_path / f"{robot}.rrd"
     result = runner.invoke(app, ["show", robot, "-o", str(out), "--steps", "10"])
     assert result.exit_code == 0, result.output
-    check = subprocess.run(
-        [RERUN, "rrd", "verify", str(out)],
-        capture_output=True,
-        text=True,
-        env={"RERUN_ANALYTICS": "false", "PATH": ""},
-    )
-    assert check.returncode == 0, check.stderr
+    rrd_verify(out)
 
 
 @pytest.mark.parametrize("robot", ["kr5", "puma560"])
@@ -280,11 +285,7 @@ def test_sweeps_from_anywhere_are_carried_to_the_reference_pose(robot: str) -> N
     got = fk_point(ex.standard, Q, ex.tool_point, T_base=ex.T_measurement_base)
     want = fk_point(session.table, Q, session.tool_point, T_base=session.T_measurement_base)
     assert np.all(np.linalg.norm(got - want, axis=1) <= 4.0 * fk_prediction_std(result, Q))
-    diff = nominal_difference(result)
-    assert diff is not None
-    sigma = result.std[: diff.size].reshape(diff.shape)
-    free = sigma > 0
-    assert np.all(np.abs(diff[free]) <= 3.0 * sigma[free])
+    assert_within_3_sigma(result)
 
 
 def test_nearly_parallel_axes_get_hayati_parameters_and_a_warning() -> None:

@@ -189,9 +189,8 @@ def _fit_joint(
         .to_numpy()[0]
     )
     report.segments = chosen
-    table = seg.table.with_row_index("row")
-    rows = table.filter(pl.col("segment").is_in(chosen))
-    report.rows = rows["row"].to_numpy().astype(np.int64)
+    report.rows = np.flatnonzero(seg.table["segment"].is_in(chosen).fill_null(False).to_numpy())
+    rows = seg.table[report.rows]
     points = rows.select(["x", "y", "z"]).to_numpy()
     encoder = rows[f"q_{k}"].to_numpy() if seg.has_encoders else None
     try:
