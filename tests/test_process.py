@@ -327,25 +327,41 @@ def test_nearly_parallel_axes_get_hayati_parameters_and_a_warning() -> None:
     assert np.all(err <= 4.0 * fk_prediction_std(tilted, Q))
 
 
-def test_global_refinement_lowers_the_fk_residual_and_the_error() -> None:
-    """KR5 with 60° sweeps: the analytic model is already near the noise on the samples, but
-    the least-squares refinement over all samples lowers the FK residual further, brings the
-    model closer to the truth over the whole workspace, and its uncertainty still covers it."""
+def test_the_whole_model_fit_is_closer_to_the_truth_than_the_seed_method() -> None:
+    """KR5 with 60° sweeps: the analytic model (seed method) is already near the noise on the
+    samples, but the maximum-likelihood fit of the whole model to every sample (the default)
+    brings the model closer to the truth over the whole workspace, its uncertainty covers the
+    error, and the result carries the analytic table, the covariance and the noise model."""
     from dhlog.io.memory import log_data_from_session
     from dhlog.process import process_data
-    from dhlog.refine import apply_refinement, refine
 
     rob = load_robot("kr5")
     session = simulate_session(rob, SimulationConfig(seed=5, noise=2e-5, sweep=math.radians(60)))
-    analytic = process_data(log_data_from_session(session))
-    refined = apply_refinement(analytic, refine(analytic))
-    assert refined.refinement is not None and analytic.validation is not None
-    assert refined.validation is not None
-    assert refined.refinement.fk_rms_after < refined.refinement.fk_rms_before
-    assert refined.validation.rms < 1.05 * math.sqrt(3) * 2e-5
-    doc = result_document(refined)
+    log = log_data_from_session(session)
+    analytic = process_data(log, analytic_only=True)
+    whole = process_data(log)
+    assert analytic.method == "analytic" and whole.method.startswith("whole-model")
+    assert whole.validation is not None and analytic.validation is not None
+    # σ per coordinate is 20 µm, so the 3-D residual RMS is √3 · 20 µm at the optimum
+    assert whole.validation.rms < 1.05 * math.sqrt(3) * 2e-5
+    doc = result_document(whole)
     jsonschema.validate(doc, SCHEMA)
-    assert doc["refinement"]["lowered"] is True
+    assert doc["method"] == "whole-model maximum likelihood"
+    assert 0.9 < doc["noise"]["chi2_dof"] < 1.1
+    assert doc["analytic"]["max_deviation_sigma"] > 0.0
+    names = doc["covariance"]["parameters"]
+    matrix = np.array(doc["covariance"]["matrix"])
+    assert matrix.shape == (len(names), len(names)) and np.allclose(matrix, matrix.T)
+    assert np.all(np.linalg.eigvalsh(matrix) > -1e-18)
+    # conventions are marked fixed, with a reason, and have no σ: θ1 (x1), d2 (parallel 2-3)
+    assert (
+        "theta" in doc["standard_dh"][0]["fixed"] and doc["standard_dh"][0]["std"]["theta"] is None
+    )
+    assert (
+        "d" in doc["standard_dh"][1]["fixed"]
+        and "parallel" in doc["standard_dh"][1]["fixed_reason"]
+    )
+    assert "theta_offset_1" not in names and "d_2" not in names
     Q = np.random.default_rng(3).uniform(rob.limits[:, 0], rob.limits[:, 1], (200, rob.n))
     want = fk_point(session.table, Q, session.tool_point, T_base=session.T_measurement_base)
 
@@ -355,5 +371,5 @@ def test_global_refinement_lowers_the_fk_residual_and_the_error() -> None:
         got = fk_point(ex.standard, Q, ex.tool_point, T_base=ex.T_measurement_base)
         return np.linalg.norm(got - want, axis=1)
 
-    assert np.sqrt(np.mean(err(refined) ** 2)) < 0.5 * np.sqrt(np.mean(err(analytic) ** 2))
-    assert np.all(err(refined) <= 4.0 * fk_prediction_std(refined, Q))
+    assert np.sqrt(np.mean(err(whole) ** 2)) < 0.5 * np.sqrt(np.mean(err(analytic) ** 2))
+    assert np.all(err(whole) <= 4.0 * fk_prediction_std(whole, Q))

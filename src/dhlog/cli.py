@@ -241,22 +241,38 @@ def process(
     no_rrd: Annotated[
         bool, typer.Option("--no-rrd", help="Do not write the Rerun recording.")
     ] = False,
+    analytic_only: Annotated[
+        bool,
+        typer.Option(
+            "--analytic-only",
+            help="The seed method alone (per-joint fits + line geometry), without the fit of "
+            "the whole model to every sample.",
+        ),
+    ] = False,
+    fit_encoder_scales: Annotated[
+        bool,
+        typer.Option(
+            "--fit-encoder-scales",
+            help="Also fit one scale per encoder (gear ratio errors), reported with σ.",
+        ),
+    ] = False,
     refine: Annotated[
         bool,
         typer.Option(
             "--refine",
-            help="Refine the whole model by least squares against every sample (robust loss).",
+            hidden=True,
+            help="No-op: the whole-model fit against every sample is the default.",
         ),
     ] = False,
     force: Annotated[bool, typer.Option("--force", help="Overwrite existing results.")] = False,
 ) -> None:
     """Identify the DH parameters from a calibration log and write <stem>.dh.json, .dh.csv, .rrd."""
+    from rich.markup import escape
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
     from dhlog.io.pipeline import load_pipeline
     from dhlog.io.writer import atomic_output
     from dhlog.process import process_log, result_csv, result_document
-    from dhlog.recording import write_process_recording
     from dhlog.report import print_result
 
     if units not in ("mm", "m"):
@@ -283,35 +299,41 @@ def process(
             transient=True,
             disable=not stderr.is_terminal,
         ) as bar:
-            task = bar.add_task(f"reading {log.name}", total=1.0)
+            task = bar.add_task(f"reading {escape(log.name)}", total=1.0)
+
+            def advance(stage: str, fraction: float) -> None:
+                bar.update(task, description=f"{stage} {escape(log.name)}", completed=fraction)
+
             result = process_log(
                 log,
                 pipeline=pipe,
                 nominal=nom,
                 reference_pose=ref,
-                progress=lambda f: bar.update(task, completed=f),
+                analytic_only=analytic_only,
+                fit_scales=fit_encoder_scales,
+                progress=advance,
             )
-            bar.update(task, completed=1.0)
-        if refine:
-            from dhlog.refine import apply_refinement
-            from dhlog.refine import refine as refine_model
+            if refine:
+                result.warnings.append(
+                    "--refine is a no-op: the fit of the whole model to every sample is the "
+                    "default (--analytic-only gives the seed method alone)."
+                )
+            advance("writing", 0.0)
+            folder.mkdir(parents=True, exist_ok=True)
+            document = result_document(result)
+            with atomic_output(outputs[0]) as f:
+                f.write((json.dumps(document, indent=2) + "\n").encode())
+            with atomic_output(outputs[1]) as f:
+                f.write(result_csv(result, units=units).encode())
+            if not no_rrd:
+                from dhlog.recording import write_process_recording
 
-            if result.complete and result.segmentation.has_encoders:
-                result = apply_refinement(result, refine_model(result))
-            else:
-                result.warnings.append("--refine needs every joint identified and encoder values.")
-        if result.log.pipeline_reason:
-            stdout.print(f"{log.name}: {result.log.pipeline_reason}", soft_wrap=True)
-        folder.mkdir(parents=True, exist_ok=True)
-        document = result_document(result)
-        with atomic_output(outputs[0]) as f:
-            f.write((json.dumps(document, indent=2) + "\n").encode())
-        with atomic_output(outputs[1]) as f:
-            f.write(result_csv(result, units=units).encode())
-        if not no_rrd:
-            write_process_recording(result, outputs[2])
+                advance("recording", 0.5)
+                write_process_recording(result, outputs[2])
     except DhlogError as exc:
         _fail(exc)
+    if result.log.pipeline_reason:
+        stdout.print(f"{log.name}: {result.log.pipeline_reason}", soft_wrap=True)
     print_result(stdout, result, units=units)
     stdout.print("wrote " + ", ".join(str(p) for p in outputs))
     if not no_rrd:

@@ -79,3 +79,44 @@ def spatial_jacobian(
     v = revolute * -np.cross(dirs, points) + (1.0 - revolute) * dirs
     w = revolute * dirs
     return np.asarray(np.swapaxes(np.concatenate([v, w], axis=-1), -1, -2), dtype=np.float64)
+
+
+def fk_points_chunked(
+    table: StandardDH,
+    Q: ArrayLike,
+    tool_point: ArrayLike,
+    *,
+    T_base: ArrayLike | None = None,
+    chunk: int = 65536,
+) -> FloatArray:
+    """``fk_point`` of a standard table for many joint vectors ``Q`` (m, n) → (m, 3), without
+    building the link frames: the tool point is carried back through ``A_n … A_1`` (each
+    ``Rz(θ) Tz(d) Tx(a) Rx(α)``) one joint at a time, in chunks of samples, so memory stays
+    bounded and every operation is on contiguous rows."""
+    tool = check_vector3("tool point", tool_point)
+    Qa = table.check_q(Q)
+    if Qa.ndim != 2:
+        raise ValueError("fk_points_chunked takes a 2-D array of joint vectors")
+    base = _base(T_base)
+    m = Qa.shape[0]
+    out = np.empty((m, 3))
+    ca, sa = np.cos(table.alpha), np.sin(table.alpha)
+    for start in range(0, m, chunk):
+        q = Qa[start : start + chunk].T
+        theta = table.theta_offset[:, None] + q * table.revolute[:, None]
+        d = table.d_offset[:, None] + q * (1.0 - table.revolute[:, None])
+        x = np.full(q.shape[1], tool[0])
+        y = np.full(q.shape[1], tool[1])
+        z = np.full(q.shape[1], tool[2])
+        for i in range(table.n - 1, -1, -1):
+            # Rx(α), then Tx(a) and Tz(d), then Rz(θ)
+            y, z = ca[i] * y - sa[i] * z, sa[i] * y + ca[i] * z
+            x = x + table.a[i]
+            z = z + d[i]
+            c, s = np.cos(theta[i]), np.sin(theta[i])
+            x, y = c * x - s * y, s * x + c * y
+        R, t = base[:3, :3], base[:3, 3]
+        out[start : start + q.shape[1]] = np.column_stack(
+            [R[a, 0] * x + R[a, 1] * y + R[a, 2] * z + t[a] for a in range(3)]
+        )
+    return out

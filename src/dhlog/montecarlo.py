@@ -26,7 +26,8 @@ def one_session(job: dict[str, object]) -> tuple[FloatArray, FloatArray]:
 
     ``job`` keys: ``robot``, ``seed``, ``noise`` (m; σ, or half-width if ``noise_kind`` is
     ``"uniform"``), ``rate`` (tracker, Hz), ``outliers`` (fraction, 3–9 mm), ``sweep`` (rad),
-    ``fit_method`` (``"auto"`` = encoder-aided, ``"algebraic"`` = seed 002), ``refine`` (bool).
+    ``fit_method`` (``"auto"`` = encoder-aided, ``"algebraic"`` = seed 002), ``analytic_only``
+    (bool: the seed method alone instead of the whole-model fit).
     The robot's own table is the truth and the nominal; 12 base points.
     """
     name = str(job["robot"])
@@ -50,11 +51,8 @@ def one_session(job: dict[str, object]) -> tuple[FloatArray, FloatArray]:
         log_data_from_session(simulate_session(robot, cfg)),
         nominal=nominal,
         fit_method=str(job.get("fit_method", "auto")),
+        analytic_only=bool(job.get("analytic_only", False)),
     )
-    if job.get("refine"):
-        from dhlog.refine import apply_refinement, refine
-
-        result = apply_refinement(result, refine(result))
     diff = nominal_difference(result)
     assert diff is not None and result.std is not None
     return diff.ravel(), result.std[: diff.size]
@@ -99,4 +97,6 @@ def calibration(
 ) -> tuple[FloatArray, FloatArray]:
     """(RMS of the reported σ, empirical σ of the error) per parameter over ``count`` sessions."""
     errors, reported = sessions(name, count, workers=workers, noise=noise, rate=rate)
-    return np.sqrt(np.mean(reported**2, axis=0)), errors.std(axis=0)
+    held = np.isnan(reported).all(axis=0)  # fixed by a convention (σ null) in every session
+    rms = np.sqrt(np.mean(np.nan_to_num(reported) ** 2, axis=0))
+    return np.where(held, 0.0, rms), errors.std(axis=0)

@@ -31,11 +31,27 @@ from dhlog.geometry._checks import FloatArray, wrap_angle
 from dhlog.geometry.fitting import AxisFit, PlaneFit, detect_joint_type, fit_axis_robust, fit_plane
 from dhlog.geometry.lines import ANGLE_TOL, DISTANCE_TOL, Line, Plane
 from dhlog.geometry.screws import chain_motion, chain_motions
+from dhlog.identify.noise import NoiseModel
+from dhlog.identify.propagate import (
+    fixed_reasons,
+    frame_rotation,
+    propagate,
+    state_names,
+    state_vector,
+)
+from dhlog.identify.whole import AxisModel, WholeFit, axis_covariances, fit_whole_model
 from dhlog.io.pipeline import Pipeline
 from dhlog.io.reader import LogData, read_log
 from dhlog.io.writer import sha256_of
-from dhlog.kinematics import fk_point
+from dhlog.kinematics import fk_point, fk_points_chunked
 from dhlog.segment import Segmentation, segment_log
+
+#: Largest number of samples per joint the per-joint fits (the whole-model fit's start) use.
+START_FIT_POINTS = 4000
+#: Largest number of samples the target at the reference pose is averaged over for the start.
+START_TARGET_POINTS = 20000
+#: Correlations beyond this between free parameters are reported.
+CORRELATION_WARNING = 0.95
 
 
 @dataclass
@@ -97,7 +113,13 @@ class ProcessResult:
     warnings: list[str]
     covariance: FloatArray | None = None
     hayati: list[HayatiRow] = field(default_factory=list)
-    refinement: Any = None
+    hayati_std: list[FloatArray] = field(default_factory=list)
+    method: str = "analytic"
+    analytic: Extraction | None = None
+    whole: WholeFit | None = None
+    fixed: dict[int, str] = field(default_factory=dict)
+    noise: NoiseModel = field(default_factory=NoiseModel)
+    sigma: float | None = None
 
     @property
     def complete(self) -> bool:
@@ -160,6 +182,7 @@ def _fit_joint(
     nominal: DHModel | None,
     fit_method: str,
     notes: list[str],
+    max_points: int | None = None,
 ) -> None:
     k, name = report.index, report.name
     tol = log.pipeline.segmentation.lock_tolerance
@@ -194,7 +217,8 @@ def _fit_joint(
     points = rows.select(["x", "y", "z"]).to_numpy()
     encoder = rows[f"q_{k}"].to_numpy() if seg.has_encoders else None
     try:
-        jt, source = _joint_type(k, name, points, log, nominal, notes)
+        stride = 1 if max_points is None else max(1, points.shape[0] // max_points)
+        jt, source = _joint_type(k, name, points[::stride], log, nominal, notes)
         report.type, report.type_source = jt, source
         settings = log.pipeline.segmentation
         fit, inliers = fit_axis_robust(
@@ -203,6 +227,7 @@ def _fit_joint(
             encoder=encoder,
             method=fit_method,  # type: ignore[arg-type]
             min_sweep=settings.min_sweep,
+            max_points=max_points,
             what=what,
         )
     except GeometryError as exc:
@@ -253,11 +278,19 @@ class _TargetAtReference:
     from the same pose, so every circle passes through it).
     """
 
-    def __init__(self, seg: Segmentation, joints: list[JointReport], ref: FloatArray) -> None:
+    def __init__(
+        self,
+        seg: Segmentation,
+        joints: list[JointReport],
+        ref: FloatArray,
+        max_rows: int | None = None,
+    ) -> None:
         self.joints, self.ref = joints, ref
         self.encoders = seg.has_encoders
         if self.encoders:
             rows = np.concatenate([j.rows[j.inliers] for j in joints])
+            if max_rows is not None and rows.size > max_rows:
+                rows = rows[:: -(-rows.size // max_rows)]
             cols = [f"q_{i + 1}" for i in range(seg.n_joints)]
             self.Q = seg.table.select(cols).to_numpy()[rows]
             self.P = seg.table.select(["x", "y", "z"]).to_numpy()[rows]
@@ -298,31 +331,6 @@ def _common_point_of_circles(fits: list[AxisFit]) -> FloatArray:
     return np.asarray(least_squares(distances, start).x, dtype=np.float64)
 
 
-def _rotvec(R: FloatArray) -> FloatArray:
-    """Rotation vector (axis × angle) of the rotation matrix ``R``."""
-    angle = math.acos(max(-1.0, min(1.0, (float(np.trace(R)) - 1.0) / 2.0)))
-    w = np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]])
-    if angle < 1e-12:
-        return 0.5 * w
-    return angle / (2.0 * math.sin(angle)) * w
-
-
-def state_vector(ex: Extraction, R0: FloatArray | None = None) -> FloatArray:
-    """The identified model as one vector: per row ``θ_offset, d_offset, a, α`` (4n), the tool
-    point (3), the translation of ``T_measurement_base`` (3) and its rotation relative to ``R0``
-    as a rotation vector (3)."""
-    table = ex.standard
-    R0 = ex.T_measurement_base[:3, :3] if R0 is None else R0
-    return np.concatenate(
-        [
-            np.column_stack([table.theta_offset, table.d_offset, table.a, table.alpha]).ravel(),
-            ex.tool_point,
-            ex.T_measurement_base[:3, 3],
-            _rotvec(R0.T @ ex.T_measurement_base[:3, :3]),
-        ]
-    )
-
-
 def model_from_state(
     x: FloatArray, types: tuple[JointType, ...], R0: FloatArray
 ) -> tuple[StandardDH, FloatArray, FloatArray]:
@@ -331,11 +339,7 @@ def model_from_state(
     rows = x[: 4 * n].reshape(n, 4)
     table = StandardDH(types, rows[:, 0], rows[:, 1], rows[:, 2], rows[:, 3])
     tool = x[4 * n : 4 * n + 3]
-    rv = x[4 * n + 6 : 4 * n + 9]
-    angle = float(np.linalg.norm(rv))
-    from dhlog.geometry._checks import rotation_about
-
-    R = R0 @ (rotation_about(rv, angle) if angle > 0 else np.eye(3))
+    R = frame_rotation(R0, x[4 * n + 6 : 4 * n + 9])
     T = np.eye(4)
     T[:3, :3], T[:3, 3] = R, x[4 * n + 3 : 4 * n + 6]
     return table, tool, T
@@ -507,6 +511,9 @@ def _validate(seg: Segmentation, joints: list[JointReport], ex: Extraction) -> V
     )
 
 
+Stage = Callable[[str, float], None]
+
+
 def process_log(
     path: str | Path,
     *,
@@ -517,10 +524,19 @@ def process_log(
     angle_tol: float = ANGLE_TOL,
     distance_tol: float = DISTANCE_TOL,
     fast: bool = True,
-    progress: Callable[[float], None] | None = None,
+    analytic_only: bool = False,
+    fit_scales: bool = False,
+    progress: Stage | None = None,
 ) -> ProcessResult:
-    """Run the whole identification on the log at ``path`` (see the module docstring)."""
-    log = read_log(path, pipeline, fast=fast, progress=progress)
+    """Run the whole identification on the log at ``path`` (see the module docstring).
+
+    ``progress(stage, fraction)`` is called as each stage advances."""
+    log = read_log(
+        path,
+        pipeline,
+        fast=fast,
+        progress=None if progress is None else (lambda f: progress("reading", f)),
+    )
     return process_data(
         log,
         sha256=sha256_of(path),
@@ -529,6 +545,9 @@ def process_log(
         fit_method=fit_method,
         angle_tol=angle_tol,
         distance_tol=distance_tol,
+        analytic_only=analytic_only,
+        fit_scales=fit_scales,
+        progress=progress,
     )
 
 
@@ -541,12 +560,26 @@ def process_data(
     fit_method: str = "auto",
     angle_tol: float = ANGLE_TOL,
     distance_tol: float = DISTANCE_TOL,
+    analytic_only: bool = False,
+    fit_scales: bool = False,
+    progress: Stage | None = None,
 ) -> ProcessResult:
-    """The identification of :func:`process_log` on streams already decoded (``LogData``)."""
+    """The identification of :func:`process_log` on streams already decoded (``LogData``).
+
+    Default: the maximum-likelihood fit of the whole model to every sample with encoder
+    values, started from the analytic result (per-joint fits + line geometry). With
+    ``analytic_only`` (or without encoders), the analytic result with its propagated covariance.
+    """
+
+    def stage(what: str, fraction: float) -> None:
+        if progress is not None:
+            progress(what, fraction)
+
     name = log.path
     types_hint = list(log.pipeline.joint_types) if log.pipeline.joint_types else None
     if types_hint is None and nominal is not None:
         types_hint = list(nominal.table.joint_types)
+    stage("segmenting", 0.0)
     seg = segment_log(log, joint_types=types_hint, reference_pose=reference_pose)
     n = seg.n_joints
     notes = list(seg.warnings)
@@ -570,9 +603,12 @@ def process_data(
             "no encoders: the reference pose is the pose every sweep starts from (all zeros), "
             "and the sense of motion comes from time order."
         )
+    whole_wanted = seg.has_encoders and not analytic_only
+    max_points = START_FIT_POINTS if whole_wanted else None
     joints = [JointReport(k + 1, seg.joint_names[k]) for k in range(n)]
     for report in joints:
-        _fit_joint(report, seg, log, ref, joints, nominal, fit_method, notes)
+        stage("fitting", (report.index - 1) / n)
+        _fit_joint(report, seg, log, ref, joints, nominal, fit_method, notes, max_points)
     for report in joints:
         if report.reason:
             notes.append(
@@ -586,89 +622,290 @@ def process_data(
             )
         except GeometryError as exc:
             notes.append(f"the base plane was not used: {exc}")
-    extraction = std = target = validation = covariance = None
-    hayati: list[HayatiRow] = []
-    kwargs: dict[str, Any] = {
-        "angle_tol": angle_tol,
-        "distance_tol": distance_tol,
-        "pair_tolerances": _pair_tolerances(joints, nominal, angle_tol, distance_tol),
-    }
-    nominal_table = nominal.table if nominal is not None else None
-    ok = [j for j in joints if j.ok]
-    if len(ok) == n:
-        target_at = _TargetAtReference(seg, joints, ref)
-        target, target_cov = target_at()
-        extraction = extract_dh(
-            [j.axis for j in joints],  # type: ignore[misc]
-            [j.type for j in joints],  # type: ignore[misc]
-            target=target,
-            reference_pose=ref,
-            base_plane=base.plane if base is not None else None,
-            nominal=nominal_table,
-            **kwargs,
-        )
-
-        def target_of(axes: list[Line | None]) -> FloatArray:
-            return target_at(axes)[0]
-
-        covariance = _propagate(
-            joints,
-            ref,
-            target,
-            target_cov,
-            base,
-            nominal_table,
-            kwargs,
-            extraction,
-            target_of if seg.has_encoders else None,
-        )
-        std = np.sqrt(np.clip(np.diag(covariance), 0.0, None))
-        hayati = _near_parallel(joints, extraction, std, notes)
-        validation = _validate(seg, joints, extraction)
-        if validation is not None:
-            sigma = math.sqrt(np.mean([j.fit.sigma**2 for j in joints if j.fit is not None]))
-            expected = math.sqrt(3.0) * sigma
-            if validation.rms > 1.5 * expected:
-                notes.append(
-                    f"the FK residual RMS ({validation.rms * 1e3:.4f} mm) is larger than the fit "
-                    f"noise explains ({expected * 1e3:.4f} mm): the axes disagree with one "
-                    "kinematic chain more than the noise allows."
-                )
-        else:
-            notes.append("no encoder values: FK of the result cannot be checked sample by sample.")
-    else:
-        prefix = 0
-        while prefix < n and joints[prefix].ok:
-            prefix += 1
-        if prefix >= 2:
-            pre = joints[:prefix]
-            last = pre[-1].fit
-            assert last is not None
-            extraction = extract_dh(
-                [j.axis for j in pre],  # type: ignore[misc]
-                [j.type for j in pre],  # type: ignore[misc]
-                target=last.center + last.radius * last.basis[0] + 0.1 * last.basis[1],
-                reference_pose=ref[:prefix],
-                base_plane=base.plane if base is not None else None,
-                nominal=None if nominal_table is None else _prefix_table(nominal_table, prefix),
-                **kwargs,
-            )
-    return ProcessResult(
+    result = ProcessResult(
         path=name,
         sha256=sha256,
         log=log,
         segmentation=seg,
         joints=joints,
         reference_pose=ref,
-        extraction=extraction,
-        std=std,
+        extraction=None,
+        std=None,
         base=base,
-        target=target,
-        validation=validation,
+        target=None,
+        validation=None,
         nominal=nominal,
         warnings=notes,
-        covariance=covariance,
-        hayati=hayati,
+        noise=log.pipeline.noise,
+    )
+    kwargs: dict[str, Any] = {
+        "angle_tol": angle_tol,
+        "distance_tol": distance_tol,
+        "pair_tolerances": _pair_tolerances(
+            [(j.fit.axis_covariance, j.fit.center) for j in joints if j.fit is not None]
+            if all(j.fit is not None for j in joints)
+            else None,
+            nominal,
+            angle_tol,
+            distance_tol,
+        ),
+    }
+    nominal_table = nominal.table if nominal is not None else None
+    if not all(j.ok for j in joints):
+        result.extraction = _partial_extraction(joints, ref, base, nominal_table, kwargs)
+        return result
+    stage("identifying", 0.0)
+    target_at = _TargetAtReference(seg, joints, ref, START_TARGET_POINTS if whole_wanted else None)
+    target, target_cov = target_at()
+    analytic = extract_dh(
+        [j.axis for j in joints],  # type: ignore[misc]
+        [j.type for j in joints],  # type: ignore[misc]
+        target=target,
+        reference_pose=ref,
+        base_plane=base.plane if base is not None else None,
+        nominal=nominal_table,
+        **kwargs,
+    )
+    result.target = target
+    if whole_wanted:
+        try:
+            _identify_whole(result, analytic, kwargs, fit_scales, stage)
+            return result
+        except GeometryError as exc:
+            notes.append(f"the whole-model fit failed ({exc}); the result is the analytic one.")
+    elif seg.has_encoders:
+        notes.append("--analytic-only: the seed method's result (per-joint fits, line geometry).")
+    else:
+        notes.append(
+            "no encoder values: the whole-model fit needs them; the result is the analytic one."
+        )
+
+    def target_of(axes: list[Line | None]) -> FloatArray:
+        return target_at(axes)[0]
+
+    stage("uncertainty", 0.0)
+    covariance = _propagate(
+        joints,
+        ref,
+        target,
+        target_cov,
+        base,
+        nominal_table,
+        kwargs,
+        analytic,
+        target_of if seg.has_encoders else None,
+    )
+    std = np.sqrt(np.clip(np.diag(covariance), 0.0, None))
+    fixed = std < 1e-12
+    result.extraction, result.covariance = analytic, covariance
+    result.fixed = fixed_reasons(
+        analytic, fixed, base_plane=base is not None, nominal=nominal is not None
+    )
+    result.std = np.where(fixed, np.nan, std)
+    result.hayati = _near_parallel([j.axis for j in joints], analytic, result.std, notes)
+    stage("validating", 0.0)
+    result.validation = _validate(seg, joints, analytic)
+    if result.validation is not None:
+        sigma = math.sqrt(np.mean([j.fit.sigma**2 for j in joints if j.fit is not None]))
+        _check_residual(result.validation, sigma, notes)
+    else:
+        notes.append("no encoder values: FK of the result cannot be checked sample by sample.")
+    return result
+
+
+def _check_residual(validation: Validation, sigma: float, notes: list[str]) -> None:
+    expected = math.sqrt(3.0) * sigma
+    if validation.rms > 1.5 * expected:
+        notes.append(
+            f"the FK residual RMS ({validation.rms * 1e3:.4f} mm, 3-D) is larger than the fit "
+            f"noise explains ({expected * 1e3:.4f} mm): the axes disagree with one "
+            "kinematic chain more than the noise allows."
+        )
+
+
+def _partial_extraction(
+    joints: list[JointReport],
+    ref: FloatArray,
+    base: PlaneFit | None,
+    nominal_table: StandardDH | None,
+    kwargs: dict[str, Any],
+) -> Extraction | None:
+    """The rows that only need the identified prefix of the chain (or None)."""
+    n = len(joints)
+    prefix = 0
+    while prefix < n and joints[prefix].ok:
+        prefix += 1
+    if prefix < 2:
+        return None
+    pre = joints[:prefix]
+    last = pre[-1].fit
+    assert last is not None
+    return extract_dh(
+        [j.axis for j in pre],  # type: ignore[misc]
+        [j.type for j in pre],  # type: ignore[misc]
+        target=last.center + last.radius * last.basis[0] + 0.1 * last.basis[1],
+        reference_pose=ref[:prefix],
+        base_plane=base.plane if base is not None else None,
+        nominal=None if nominal_table is None else _prefix_table(nominal_table, prefix),
+        **kwargs,
+    )
+
+
+def _samples_with_encoders(seg: Segmentation) -> tuple[NDArray[np.int64], FloatArray, FloatArray]:
+    """Rows of the measurement table with every encoder value (sweeps, coupled moves, still
+    poses), their encoder values (m, n) and points (m, 3)."""
+    table = seg.table
+    Q = table.select([f"q_{i + 1}" for i in range(seg.n_joints)]).to_numpy()
+    P = table.select(["x", "y", "z"]).to_numpy()
+    ok = np.isfinite(Q).all(axis=1) & np.isfinite(P).all(axis=1)
+    rows = np.flatnonzero(ok)
+    if rows.size == table.height:
+        return rows, Q, P
+    return rows, Q[rows], P[rows]
+
+
+def _identify_whole(
+    result: ProcessResult,
+    analytic: Extraction,
+    kwargs: dict[str, Any],
+    fit_scales: bool,
+    stage: Stage,
+) -> None:
+    """The maximum-likelihood fit of the whole model, its DH model, covariance and check."""
+    seg, joints, ref = result.segmentation, result.joints, result.reference_pose
+    notes, base, nominal = result.warnings, result.base, result.nominal
+    types = tuple(j.type for j in joints)
+    assert result.target is not None and all(t is not None for t in types)
+    start = AxisModel(
+        tuple(j.axis for j in joints),  # type: ignore[misc]
+        types,  # type: ignore[arg-type]
+        result.target,
+        ref,
+        np.ones(len(joints)),
+    )
+    rows, Q, P = _samples_with_encoders(seg)
+    sigma = math.sqrt(np.mean([j.fit.sigma**2 for j in joints if j.fit is not None]))
+    stage("identifying", 0.1)
+    whole = fit_whole_model(
+        start,
+        Q,
+        P,
+        noise=result.noise,
+        sigma=sigma,
+        fit_scales=fit_scales,
+        progress=lambda f: stage("identifying", 0.1 + 0.9 * f),
+    )
+    nominal_table = nominal.table if nominal is not None else None
+    covs = axis_covariances(whole)
+    kw = dict(kwargs)
+    kw["pair_tolerances"] = _pair_tolerances(
+        [(c, a.point) for c, a in zip(covs, whole.model.axes, strict=True)],
+        nominal,
+        kwargs["angle_tol"],
+        kwargs["distance_tol"],
+    )
+
+    def extract(axes: list[Line], target: FloatArray, plane: Plane | None) -> Extraction:
+        return extract_dh(
+            axes,
+            types,  # type: ignore[arg-type]
+            target=target,
+            reference_pose=ref,
+            base_plane=plane,
+            nominal=nominal_table,
+            **kw,
+        )
+
+    stage("uncertainty", 0.0)
+    ex = extract(list(whole.model.axes), whole.model.target, None if base is None else base.plane)
+    pairs = _near_parallel_pairs(ex)
+    prop = propagate(whole, base, extract, ex, pairs)
+    std = np.sqrt(np.clip(np.diag(prop.covariance), 0.0, None))
+    result.method = "whole-model maximum likelihood"
+    result.extraction, result.analytic, result.whole = ex, analytic, whole
+    result.covariance, result.std = prop.covariance, np.where(prop.fixed, np.nan, std)
+    result.target, result.sigma = whole.model.target, sigma * math.sqrt(whole.chi2_dof)
+    result.fixed = fixed_reasons(
+        ex, prop.fixed, base_plane=base is not None, nominal=nominal is not None
+    )
+    result.hayati = _near_parallel(list(ex.axes), ex, result.std, notes)
+    result.hayati_std = [
+        np.sqrt(np.clip(np.diag(prop.hayati_covariance)[4 * k : 4 * k + 4], 0.0, None))
+        for k in range(len(pairs))
+    ]
+    notes.extend(_correlation_notes(prop.covariance, prop.fixed, len(joints)))
+    if result.noise.model != "isotropic" and not 0.5 < whole.chi2_dof < 2.0:
+        notes.append(
+            f"χ²/dof = {whole.chi2_dof:.2f} under the {result.noise.described} noise model: the "
+            "residuals contradict it; the uncertainty is scaled by the residuals."
+        )
+    stage("validating", 0.0)
+    result.validation = _validate_samples(seg, rows, Q, P, ex, whole.inliers)
+    _check_residual(result.validation, sigma, notes)
+
+
+def _near_parallel_pairs(ex: Extraction) -> list[tuple[int, int]]:
+    out = []
+    for rel in ex.relations:
+        angle = min(rel.relation.angle, math.pi - rel.relation.angle)
+        if angle < NEAR_PARALLEL:
+            out.append(rel.joints)
+    return out
+
+
+def _correlation_notes(cov: FloatArray, fixed: NDArray[np.bool_], n: int) -> list[str]:
+    """One warning naming the free parameter pairs correlated beyond ``CORRELATION_WARNING``."""
+    free = np.flatnonzero(~fixed)
+    sd = np.sqrt(np.diag(cov)[free])
+    ok = sd > 0
+    free, sd = free[ok], sd[ok]
+    corr = cov[np.ix_(free, free)] / np.outer(sd, sd)
+    names = state_names(n)
+    iu = np.triu_indices(free.size, 1)
+    strong = np.abs(corr[iu]) > CORRELATION_WARNING
+    if not np.any(strong):
+        return []
+    order = np.argsort(-np.abs(corr[iu][strong]))
+    pairs = [
+        f"{names[free[iu[0][strong][k]]]}–{names[free[iu[1][strong][k]]]} "
+        f"{corr[iu][strong][k]:+.3f}"
+        for k in order[:4]
+    ]
+    more = int(np.count_nonzero(strong)) - len(pairs)
+    return [
+        f"{int(np.count_nonzero(strong))} parameter pair(s) correlated beyond "
+        f"{CORRELATION_WARNING}: {', '.join(pairs)}"
+        + (f" and {more} more" if more > 0 else "")
+        + " (full covariance in the JSON)."
+    ]
+
+
+def _validate_samples(
+    seg: Segmentation,
+    rows: NDArray[np.int64],
+    Q: FloatArray,
+    P: FloatArray,
+    ex: Extraction,
+    inliers: NDArray[np.bool_],
+) -> Validation:
+    """FK of the DH result at every sample with encoder values against the sample (per joint by
+    the sweep it belongs to; coupled moves and still poses under joint 0)."""
+    pred = fk_points_chunked(ex.standard, Q, ex.tool_point, T_base=ex.T_measurement_base)
+    r = np.sqrt(np.sum((pred - P) ** 2, axis=1))
+    residuals = np.full(seg.table.height, np.nan)
+    residuals[rows[inliers]] = r[inliers]
+    labels = seg.table["joint"].fill_null(0).to_numpy()[rows]
+    per_joint: dict[int, tuple[float, float, int]] = {}
+    for k in np.unique(labels[inliers]):
+        rk = r[inliers & (labels == k)]
+        per_joint[int(k)] = (float(np.sqrt(np.mean(rk**2))), float(rk.max()), int(rk.size))
+    used = r[inliers]
+    return Validation(
+        residuals=residuals,
+        per_joint=per_joint,
+        rms=float(np.sqrt(np.mean(used**2))) if used.size else float("nan"),
+        max=float(used.max()) if used.size else float("nan"),
+        n_points=int(used.size),
     )
 
 
@@ -681,23 +918,25 @@ NEAR_PARALLEL = 0.01
 
 
 def _pair_tolerances(
-    joints: list[JointReport], nominal: DHModel | None, angle_floor: float, distance_floor: float
+    axes: list[tuple[FloatArray, FloatArray]] | None,
+    nominal: DHModel | None,
+    angle_floor: float,
+    distance_floor: float,
 ) -> list[tuple[float, float]] | None:
     """Per consecutive pair, the angle (rad) and distance (m) below which the data cannot tell
-    the axes from parallel / meeting: 3σ (2D: 3.44σ) of the difference of the two fitted axes,
-    from the fits' covariances (5σ when the nominal says parallel / meeting). ``angle_floor`` and
-    ``distance_floor`` apply only when a fit has no covariance (never below 1e-7)."""
-    if any(j.fit is None for j in joints):
+    the axes from parallel / meeting: 3σ (2D: 3.44σ) of the difference of the two axes, from
+    their covariances (``axes``: per axis the 4×4 covariance of ``[δe·u, δe·v, δc·u, δc·v]``
+    and the point ``c`` it refers to; 5σ when the nominal says parallel / meeting).
+    ``angle_floor`` and ``distance_floor`` apply only when an axis has no covariance (never
+    below 1e-7)."""
+    if axes is None:
         return None
     out = []
-    for i in range(len(joints) - 1):
-        f1, f2 = joints[i].fit, joints[i + 1].fit
-        assert f1 is not None and f2 is not None
-        var_dir = (np.trace(f1.axis_covariance[:2, :2]) + np.trace(f2.axis_covariance[:2, :2])) / 2
-        lever = float(np.linalg.norm(f1.center - f2.center))
-        var_pos = (
-            np.trace(f1.axis_covariance[2:, 2:]) + np.trace(f2.axis_covariance[2:, 2:])
-        ) / 2 + var_dir * lever**2
+    for i in range(len(axes) - 1):
+        (c1, p1), (c2, p2) = axes[i], axes[i + 1]
+        var_dir = (np.trace(c1[:2, :2]) + np.trace(c2[:2, :2])) / 2
+        lever = float(np.linalg.norm(p1 - p2))
+        var_pos = (np.trace(c1[2:, 2:]) + np.trace(c2[2:, 2:])) / 2 + var_dir * lever**2
         k_angle = k_dist = THREE_SIGMA_2D
         if nominal is not None:
             if abs(math.sin(nominal.table.alpha[i])) < 1e-9:
@@ -711,7 +950,7 @@ def _pair_tolerances(
 
 
 def _near_parallel(
-    joints: list[JointReport], ex: Extraction, std: FloatArray | None, notes: list[str]
+    axes: list[Line | None], ex: Extraction, std: FloatArray | None, notes: list[str]
 ) -> list[HayatiRow]:
     """Hayati–Mirmirani rows for nearly parallel pairs, and a warning where d is ill-conditioned."""
     rows = []
@@ -720,7 +959,7 @@ def _near_parallel(
         angle = min(rel.relation.angle, math.pi - rel.relation.angle)
         if angle >= NEAR_PARALLEL:
             continue
-        axis = joints[k - 1].axis
+        axis = axes[k - 1]
         assert axis is not None
         try:
             rows.append(hayati_parameters(ex.frames[i - 1], axis, (i, k)))
@@ -836,24 +1075,25 @@ def result_document(result: ProcessResult) -> dict[str, Any]:
         doc["modified_dh_tool"] = {"T_n_tool": ex.T_modified_tool.tolist()}
         if std is not None:
             n = ex.standard.n
-            doc["tool"]["std"] = [float(v) for v in std[4 * n : 4 * n + 3]]
+            doc["tool"]["std"] = [_num_or_none(v) for v in std[4 * n : 4 * n + 3]]
             doc["base"]["std"] = {
-                "translation": [float(v) for v in std[4 * n + 3 : 4 * n + 6]],
-                "rotation": [float(v) for v in std[4 * n + 6 : 4 * n + 9]],
+                "translation": [_num_or_none(v) for v in std[4 * n + 3 : 4 * n + 6]],
+                "rotation": [_num_or_none(v) for v in std[4 * n + 6 : 4 * n + 9]],
             }
-    if result.refinement is not None:
-        ref = result.refinement
-        doc["refinement"] = {
-            "fk_rms_before": ref.fk_rms_before,
-            "fk_rms_after": ref.fk_rms_after,
-            "lowered": ref.fk_rms_after < ref.fk_rms_before,
-            "n_points": ref.n_points,
-            "evaluations": ref.iterations,
-        }
+        _mark_fixed(doc, result)
+        doc["method"] = result.method
+        if result.covariance is not None:
+            doc["covariance"] = _covariance_document(result)
+        if result.analytic is not None and result.std is not None:
+            doc["analytic"] = _analytic_document(result)
+        doc["noise"] = _noise_document(result)
+        if result.whole is not None:
+            doc["whole_fit"] = _whole_fit_document(result)
     if result.hayati:
         q = result.reference_pose
-        doc["hayati"] = [
-            {
+        doc["hayati"] = []
+        for k, h in enumerate(result.hayati):
+            row: dict[str, Any] = {
                 "joints": list(h.joints),
                 "theta": h.theta,
                 "theta_offset": h.theta - float(q[h.joints[0] - 1])
@@ -863,8 +1103,10 @@ def result_document(result: ProcessResult) -> dict[str, Any]:
                 "alpha": h.alpha,
                 "beta": h.beta,
             }
-            for h in result.hayati
-        ]
+            if k < len(result.hayati_std):
+                sd = result.hayati_std[k]
+                row["std"] = dict(zip(("theta", "a", "alpha", "beta"), map(float, sd), strict=True))
+            doc["hayati"].append(row)
     if result.base is not None:
         doc["base"]["plane"] = {
             "point": result.base.plane.point.tolist(),
@@ -879,6 +1121,94 @@ def result_document(result: ProcessResult) -> dict[str, Any]:
     return doc
 
 
+def _num_or_none(value: float) -> float | None:
+    return float(value) if math.isfinite(value) else None
+
+
+def _mark_fixed(doc: dict[str, Any], result: ProcessResult) -> None:
+    """``fixed`` / ``fixed_reason`` on each DH row, on the tool and on the base."""
+    names = ("theta", "d", "a", "alpha")
+    n = len(doc["standard_dh"])
+    for i, row in enumerate(doc["standard_dh"]):
+        held = [(names[p], result.fixed[4 * i + p]) for p in range(4) if 4 * i + p in result.fixed]
+        if held:
+            row["fixed"] = [name for name, _ in held]
+            row["fixed_reason"] = "; ".join(dict.fromkeys(f"{name}: {why}" for name, why in held))
+    tool = [("xyz"[p], result.fixed[4 * n + p]) for p in range(3) if 4 * n + p in result.fixed]
+    if tool:
+        doc["tool"]["fixed"] = [c for c, _ in tool]
+        doc["tool"]["fixed_reason"] = tool[0][1]
+
+
+def _covariance_document(result: ProcessResult) -> dict[str, Any]:
+    """The covariance of every free parameter (names as :func:`state_names`, SI units)."""
+    cov = result.covariance
+    assert cov is not None
+    n = len(result.joints)
+    free = [k for k in range(4 * n + 9) if k not in result.fixed]
+    names = state_names(n)
+    return {
+        "parameters": [names[k] for k in free],
+        "matrix": [[float(cov[a, b]) for b in free] for a in free],
+    }
+
+
+def _analytic_document(result: ProcessResult) -> dict[str, Any]:
+    """The seed method's table (the start of the whole-model fit) and its distance from the
+    result in the result's σ."""
+    an, ex, std = result.analytic, result.extraction, result.std
+    assert an is not None and ex is not None and std is not None
+    rows, _ = dh_documents(an.standard, an.reference_pose)
+    for row in rows:
+        del row["std"]
+    R0 = ex.T_measurement_base[:3, :3]
+    diff = state_vector(an, R0) - state_vector(ex, R0)
+    n = ex.standard.n
+    ang = np.zeros(diff.size, dtype=bool)
+    ang[: 4 * n] = np.tile([True, False, False, True], n)
+    diff[ang] = [wrap_angle(d) for d in diff[ang]]
+    ratio = np.where(np.isfinite(std) & (std > 0), np.abs(diff) / np.where(std > 0, std, 1), 0)
+    worst = int(np.argmax(ratio))
+    return {
+        "standard_dh": rows,
+        "max_deviation_sigma": float(ratio[worst]),
+        "max_deviation_parameter": state_names(n)[worst],
+    }
+
+
+def _noise_document(result: ProcessResult) -> dict[str, Any]:
+    doc: dict[str, Any] = {"model": result.noise.model, **result.noise.document()}
+    if result.whole is not None:
+        doc["chi2_dof"] = result.whole.chi2_dof
+        if result.noise.model == "isotropic":
+            doc["sigma"] = result.sigma
+            doc["sigma_source"] = "estimated from the residuals"
+    else:
+        fits = [j.fit.sigma for j in result.joints if j.fit is not None]
+        doc["sigma"] = float(math.sqrt(np.mean(np.square(fits)))) if fits else None
+        doc["sigma_source"] = "the per-joint fits' residuals"
+    return doc
+
+
+def _whole_fit_document(result: ProcessResult) -> dict[str, Any]:
+    w = result.whole
+    assert w is not None
+    doc: dict[str, Any] = {
+        "n_points": w.n_points,
+        "n_outliers": int(np.count_nonzero(~w.inliers)),
+        "iterations": w.iterations,
+        "rms": w.rms,
+    }
+    if w.layout.scale_at is not None:
+        k = w.layout.scale_at
+        n = w.model.n
+        doc["encoder_scales"] = {
+            "value": [float(v) for v in w.model.scales],
+            "std": [float(math.sqrt(max(w.covariance[k + i, k + i], 0.0))) for i in range(n)],
+        }
+    return doc
+
+
 def display_scales(units: str) -> tuple[float, float, str, str]:
     """Factors and unit names for display: ``mm`` → (1e3, 180/π, "mm", "deg"), ``m`` → SI."""
     if units == "m":
@@ -888,9 +1218,9 @@ def display_scales(units: str) -> tuple[float, float, str, str]:
 
 def display_rows(
     result: ProcessResult, units: str = "mm"
-) -> list[tuple[str, list[float], list[float | None]]]:
-    """Per standard-DH row: its type and ``θ_offset, d_offset, a, α`` with their σ, in display
-    units (``display_scales``)."""
+) -> list[tuple[str, list[float], list[float | None], list[bool]]]:
+    """Per standard-DH row: its type, ``θ_offset, d_offset, a, α``, their σ (None when fixed)
+    in display units (``display_scales``), and which of the four are held fixed."""
     length, angle, _, _ = display_scales(units)
     factors = [angle, length, length, angle]
     out = []
@@ -898,29 +1228,41 @@ def display_rows(
         s = row["std"]
         values = [row["theta_offset"], row["d_offset"], row["a"], row["alpha"]]
         stds = [s["theta"], s["d"], s["a"], s["alpha"]]
+        held = row.get("fixed", [])
         out.append(
             (
                 row["type"],
                 [v * f for v, f in zip(values, factors, strict=True)],
                 [None if v is None else v * f for v, f in zip(stds, factors, strict=True)],
+                [name in held for name in ("theta", "d", "a", "alpha")],
             )
         )
     return out
 
 
 def result_csv(result: ProcessResult, *, units: str = "mm") -> str:
-    """The standard DH table as CSV, in mm and degrees (or m and rad), with ±1σ columns."""
+    """The standard DH table as CSV, in mm and degrees (or m and rad), with ±1σ columns; a
+    parameter held by a convention has ``fixed`` in its σ column."""
     _, _, lu, au = display_scales(units)
     lines = [
         f"joint,name,type,theta_offset_{au},d_{lu},a_{lu},alpha_{au},"
         f"std_theta_{au},std_d_{lu},std_a_{lu},std_alpha_{au}"
     ]
-    for i, (kind, values, stds) in enumerate(display_rows(result, units)):
-        cells = [str(i + 1), result.joints[i].name, kind]
+    for i, (kind, values, stds, held) in enumerate(display_rows(result, units)):
+        cells = [str(i + 1), _csv_cell(result.joints[i].name), kind]
         cells += [f"{v:.9g}" for v in values]
-        cells += ["" if v is None else f"{v:.3g}" for v in stds]
+        cells += [
+            "fixed" if h else ("" if v is None else f"{v:.3g}")
+            for v, h in zip(stds, held, strict=True)
+        ]
         lines.append(",".join(cells))
     return "\n".join(lines) + "\n"
+
+
+def _csv_cell(text: str) -> str:
+    if any(c in text for c in ',"\n'):
+        return '"' + text.replace('"', '""') + '"'
+    return text
 
 
 def nominal_difference(result: ProcessResult) -> FloatArray | None:

@@ -25,10 +25,10 @@ def _rows(result: ProcessResult, units: str) -> list[list[str]]:
     diff = nominal_difference(result)
     factors = [angle, length, length, angle]
     out = []
-    for i, (kind, values, stds) in enumerate(display_rows(result, units)):
-        cells = [str(i + 1), result.joints[i].name, kind[0].upper()]
+    for i, (kind, values, stds, held) in enumerate(display_rows(result, units)):
+        cells = [str(i + 1), escape(result.joints[i].name), kind[0].upper()]
         for k in range(4):
-            sd = "" if stds[k] is None else f" ± {stds[k]:.4f}"
+            sd = " fixed" if held[k] else ("" if stds[k] is None else f" ± {stds[k]:.4f}")
             cells.append(f"{values[k]:.4f}{sd}")
         if diff is not None:
             cells += [f"{diff[i][k] * factors[k]:+.4f}" for k in range(4)]

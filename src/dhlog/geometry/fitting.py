@@ -102,7 +102,10 @@ def _check_samples(points: ArrayLike, what: str, needed: int = 3) -> FloatArray:
     bad = int(np.count_nonzero(~np.isfinite(pts).all(axis=1)))
     if bad:
         raise NonFiniteError(what, bad)
-    n_distinct = int(np.unique(pts, axis=0).shape[0])
+    stride = max(1, pts.shape[0] // 1000)  # a strided thousand decides almost always
+    n_distinct = int(np.unique(pts[::stride], axis=0).shape[0])
+    if n_distinct < needed and stride > 1:
+        n_distinct = int(np.unique(pts, axis=0).shape[0])
     if n_distinct < needed:
         raise TooFewPointsError(what, n_distinct, needed)
     return pts
@@ -569,6 +572,7 @@ def fit_axis_robust(
     threshold: float = 5.0,
     max_rounds: int = 5,
     min_sweep: float = MIN_SWEEP,
+    max_points: int | None = None,
     what: str = "axis fit",
 ) -> tuple[AxisFit, NDArray[np.bool_]]:
     """A circle or line fit with iterative rejection of gross outliers.
@@ -577,9 +581,18 @@ def fit_axis_robust(
     ``threshold`` times the robust noise scale (median distance / 1.1774, the median of a 2-dof
     chi variable) are set aside and the fit repeated, until nothing changes. Returns the fit on
     the inliers and the inlier mask over the input samples.
+
+    ``max_points``: fit an evenly strided subset of at most this many samples (a start for the
+    whole-model fit needs no more); the inlier mask still covers every sample, judged against
+    that fit.
     """
-    pts = check_points(f"{what} points", points)
-    q = None if encoder is None else np.asarray(encoder, dtype=np.float64).reshape(-1)
+    pts_all = check_points(f"{what} points", points)
+    q_all = None if encoder is None else np.asarray(encoder, dtype=np.float64).reshape(-1)
+    stride = 1
+    if max_points is not None and pts_all.shape[0] > max_points:
+        stride = -(-pts_all.shape[0] // max_points)
+    pts = pts_all[::stride]
+    q = None if q_all is None else q_all[::stride]
     keep = np.ones(pts.shape[0], dtype=bool)
 
     def run(mask: NDArray[np.bool_]) -> AxisFit:
@@ -598,6 +611,9 @@ def fit_axis_robust(
             break
         keep = new_keep
         fit = run(keep)
+    if stride > 1:
+        scale = float(np.median(_orthogonal_distances(fit, pts[keep]))) / 1.1774
+        keep = _orthogonal_distances(fit, pts_all) <= threshold * max(scale, 1e-12)
     return fit, keep
 
 

@@ -16,7 +16,8 @@ from pathlib import Path
 from typing import Any
 
 from dhlog.dh import JointType
-from dhlog.errors import PipelineError
+from dhlog.errors import DhlogError, PipelineError
+from dhlog.identify.noise import NoiseModel
 
 STREAMS = ("point", "joints", "base", "phase")
 DEFAULT_TOPICS = {
@@ -71,6 +72,7 @@ class Pipeline:
     joint_names: tuple[str, ...] | None
     joint_types: tuple[JointType | None, ...] | None
     segmentation: SegmentationSettings
+    noise: NoiseModel = field(default_factory=NoiseModel)
 
     @property
     def length_scale(self) -> float:
@@ -142,6 +144,27 @@ def parse_pipeline(text: str, source: str) -> Pipeline:
         )
     except (TypeError, ValueError) as exc:
         raise PipelineError(source, f"[segmentation]: {exc}") from None
+    noise_table = _table(source, data, "noise")
+    noise_keys = {"model", "sigma", "radial", "transverse", "transverse_per_m", "station"}
+    unknown = sorted(set(noise_table) - noise_keys)
+    if unknown:
+        raise PipelineError(source, f"[noise] keys {unknown} unknown; known: {sorted(noise_keys)}.")
+    try:
+        kwargs: dict[str, Any] = {
+            k: (
+                str(v)
+                if k == "model"
+                else tuple(float(x) for x in v)
+                if k == "station"
+                else float(v)
+            )
+            for k, v in noise_table.items()
+        }
+        if "station" in kwargs and len(kwargs["station"]) != 3:
+            raise ValueError("station needs three coordinates [x, y, z] in metres")
+        noise = NoiseModel(**kwargs)
+    except (TypeError, ValueError, DhlogError) as exc:
+        raise PipelineError(source, f"[noise]: {exc}") from None
     return Pipeline(
         name=name,
         description=str(data.get("description", "")),
@@ -152,6 +175,7 @@ def parse_pipeline(text: str, source: str) -> Pipeline:
         joint_names=tuple(str(n) for n in names) if names is not None else None,
         joint_types=types,
         segmentation=seg,
+        noise=noise,
     )
 
 

@@ -1,0 +1,96 @@
+"""Noise models of the measured target positions, as per-sample whitening.
+
+The whole-model fit weighs each residual ``r = p_measured − p_model`` (m, 3) by ``W`` with
+``WᵀW = C⁻¹`` for the sample's covariance ``C``:
+
+* ``isotropic``: ``C = σ² I`` (the default; σ estimated from the per-joint fits);
+* ``tracker``: a laser tracker's specification: a radial (ranging) standard deviation along the
+  line of sight from the tracker station and a transverse (angular) one perpendicular to it that
+  grows with the distance, ``σ_t = transverse + transverse_per_m · distance``, so
+  ``C = σ_r² ûûᵀ + σ_t² (I − ûûᵀ)`` with ``û`` the unit line of sight;
+* per-sample covariances carried by the log (three standard deviations or full 3×3 matrices).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from dhlog.errors import InputError
+from dhlog.geometry._checks import FloatArray
+
+
+@dataclass(frozen=True)
+class NoiseModel:
+    """How the target positions scatter: ``model`` is ``isotropic`` or ``tracker`` (metres)."""
+
+    model: str = "isotropic"
+    sigma: float | None = None
+    radial: float = 10e-6
+    transverse: float = 15e-6
+    transverse_per_m: float = 6e-6
+    station: tuple[float, float, float] = (0.0, 0.0, 0.0)
+
+    def __post_init__(self) -> None:
+        if self.model not in ("isotropic", "tracker"):
+            raise InputError(
+                f"noise model '{self.model}' is not known; use 'isotropic' or 'tracker'."
+            )
+        values = [self.radial, self.transverse, self.transverse_per_m]
+        if self.sigma is not None:
+            values.append(self.sigma)
+        if not all(np.isfinite(v) and v >= 0 for v in values) or (
+            self.model == "tracker" and (self.radial <= 0 or self.transverse <= 0)
+        ):
+            raise InputError(
+                "the [noise] section needs positive standard deviations (m): radial, "
+                "transverse, and transverse_per_m >= 0."
+            )
+
+    @property
+    def described(self) -> str:
+        """One line for the console and the result."""
+        if self.model == "tracker":
+            return (
+                f"tracker (radial {self.radial * 1e6:.1f} µm, transverse "
+                f"{self.transverse * 1e6:.1f} µm + {self.transverse_per_m * 1e6:.1f} µm/m, "
+                f"station {list(self.station)})"
+            )
+        return "isotropic"
+
+    def whiten(self, points: FloatArray, sigma: float) -> FloatArray | float:
+        """The whitening of samples at ``points`` (m, 3): a scalar ``1/σ`` for the isotropic model
+        (``σ`` given), else ``W`` (m, 3, 3) with ``WᵀW = C⁻¹``."""
+        if self.model == "isotropic":
+            return 1.0 / (self.sigma if self.sigma is not None else sigma)
+        rel = points - np.asarray(self.station)
+        dist = np.linalg.norm(rel, axis=1)
+        u = rel / np.maximum(dist, 1e-9)[:, None]
+        s_t = self.transverse + self.transverse_per_m * dist
+        uu = u[:, :, None] * u[:, None, :]
+        eye = np.eye(3)[None]
+        return np.asarray(uu / self.radial + (eye - uu) / s_t[:, None, None], dtype=np.float64)
+
+    def document(self) -> dict[str, object]:
+        """The noise model's parameters for the result JSON."""
+        if self.model == "tracker":
+            return {
+                "radial": self.radial,
+                "transverse": self.transverse,
+                "transverse_per_m": self.transverse_per_m,
+                "station": list(self.station),
+            }
+        return {}
+
+
+def whitening_from_std(std: FloatArray) -> FloatArray:
+    """Whitening (m, 3, 3) of per-sample covariances given as standard deviations (m, 3) along
+    the measurement axes, or as full matrices (m, 3, 3)."""
+    if std.ndim == 2:
+        W = np.zeros((std.shape[0], 3, 3))
+        idx = np.arange(3)
+        W[:, idx, idx] = 1.0 / std
+        return W
+    L = np.linalg.cholesky(std)  # C = L Lᵀ → W = L⁻¹
+    return np.asarray(np.linalg.inv(L), dtype=np.float64)

@@ -1,0 +1,216 @@
+"""From the fitted whole model to the DH model: its covariance, and what is held by convention.
+
+The DH table, base and tool are read off the fitted axes and target by the line geometry of
+seed 000 (``extract_dh``). Its Jacobian with respect to the fit's parameters (and the base
+plane's) is taken by central differences — cheap, since no sample is involved — and carries the
+fit's covariance to every DH parameter. A parameter on which no fitted quantity has any effect is
+held by a convention or a gauge choice of the extraction: it is reported as fixed, with the reason,
+never as a measurement.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from dhlog.dh import JointType
+from dhlog.errors import DhlogError
+from dhlog.extract import Extraction, hayati_parameters
+from dhlog.geometry._checks import FloatArray, rotation_about, wrap_angle
+from dhlog.geometry.fitting import PlaneFit
+from dhlog.geometry.lines import Line, Plane
+from dhlog.identify.whole import AxisModel, WholeFit
+
+#: A DH parameter whose derivatives with respect to every fitted quantity stay below this is
+#: held by a convention (its numerical derivative is then ~1e-9 at most).
+FIXED_BELOW = 1e-6
+
+Extractor = Callable[[list[Line], FloatArray, Plane | None], Extraction]
+
+
+def rotvec(R: FloatArray) -> FloatArray:
+    """Rotation vector (axis × angle) of the rotation matrix ``R``."""
+    angle = math.acos(max(-1.0, min(1.0, (float(np.trace(R)) - 1.0) / 2.0)))
+    w = np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]])
+    if angle < 1e-12:
+        return 0.5 * w
+    return angle / (2.0 * math.sin(angle)) * w
+
+
+def state_names(n: int) -> list[str]:
+    """Names of the entries of :func:`state_vector` (4n + 9)."""
+    names = []
+    for i in range(n):
+        names += [f"theta_offset_{i + 1}", f"d_{i + 1}", f"a_{i + 1}", f"alpha_{i + 1}"]
+    names += ["tool_x", "tool_y", "tool_z", "base_x", "base_y", "base_z"]
+    names += ["base_rx", "base_ry", "base_rz"]
+    return names
+
+
+def state_vector(ex: Extraction, R0: FloatArray | None = None) -> FloatArray:
+    """The DH model as one vector: per row ``θ_offset, d_offset, a, α`` (4n), the tool point (3),
+    the translation of ``T_measurement_base`` (3) and its rotation relative to ``R0`` as a
+    rotation vector (3)."""
+    table = ex.standard
+    R0 = ex.T_measurement_base[:3, :3] if R0 is None else R0
+    return np.concatenate(
+        [
+            np.column_stack([table.theta_offset, table.d_offset, table.a, table.alpha]).ravel(),
+            ex.tool_point,
+            ex.T_measurement_base[:3, 3],
+            rotvec(R0.T @ ex.T_measurement_base[:3, :3]),
+        ]
+    )
+
+
+def angle_mask(n: int) -> FloatArray:
+    """True for the angular entries of :func:`state_vector` whose differences must be wrapped."""
+    mask = np.zeros(4 * n + 9, dtype=bool)
+    mask[: 4 * n] = np.tile([True, False, False, True], n)
+    return mask
+
+
+def hayati_vector(ex: Extraction, pairs: list[tuple[int, int]]) -> FloatArray:
+    """θ, a, α, β of the Hayati–Mirmirani rows of ``pairs`` (1-based joints) in ``ex``."""
+    out = []
+    for i, k in pairs:
+        h = hayati_parameters(ex.frames[i - 1], ex.axes[k - 1], (i, k))
+        out += [h.theta, h.a, h.alpha, h.beta]
+    return np.asarray(out, dtype=np.float64)
+
+
+@dataclass(frozen=True, eq=False)
+class Propagation:
+    """Covariance of :func:`state_vector` and of the Hayati rows, and the fixed entries."""
+
+    covariance: FloatArray
+    fixed: np.ndarray
+    hayati_covariance: FloatArray
+
+
+def propagate(
+    fit: WholeFit,
+    base: PlaneFit | None,
+    extract: Extractor,
+    center: Extraction,
+    hayati_pairs: list[tuple[int, int]],
+) -> Propagation:
+    """First-order covariance of the DH model extracted from ``fit`` (and the base plane)."""
+    model: AxisModel = fit.model
+    layout, bases = fit.layout, fit.bases
+    n = model.n
+    R0 = center.T_measurement_base[:3, :3]
+    plane = None if base is None else base.plane
+    n_fit = layout.size
+    n_in = n_fit + (3 if base is not None else 0)
+    cov_in = np.zeros((n_in, n_in))
+    cov_in[:n_fit, :n_fit] = fit.covariance
+    if base is not None:
+        cov_in[n_fit:, n_fit:] = base.covariance
+
+    def evaluate(delta: FloatArray, plane_delta: FloatArray) -> FloatArray:
+        moved = model.moved(delta, layout, bases) if np.any(delta) else model
+        pl = plane
+        if pl is not None and base is not None and np.any(plane_delta):
+            u, v = base.basis
+            normal = pl.normal + plane_delta[0] * u + plane_delta[1] * v
+            pl = Plane(pl.point + plane_delta[2] * pl.normal, normal)
+        ex = extract(list(moved.axes), moved.target, pl)
+        parts = [state_vector(ex, R0)]
+        if hayati_pairs:
+            parts.append(hayati_vector(ex, hayati_pairs))
+        return np.concatenate(parts)
+
+    zero_fit, zero_plane = np.zeros(n_fit), np.zeros(3)
+    h = 1e-7
+    size = 4 * n + 9 + 4 * len(hayati_pairs)
+    wrap = np.concatenate([angle_mask(n), np.tile([True, False, True, True], len(hayati_pairs))])
+    J = np.zeros((size, n_in))
+    for col in range(n_in):
+        outs: list[FloatArray | None] = []
+        for sign in (1.0, -1.0):
+            d_fit, d_plane = zero_fit.copy(), zero_plane.copy()
+            if col < n_fit:
+                d_fit[col] = sign * h
+            else:
+                d_plane[col - n_fit] = sign * h
+            try:
+                outs.append(evaluate(d_fit, d_plane))
+            except DhlogError:
+                outs.append(None)
+        plus, minus = outs
+        if plus is None or minus is None:
+            continue
+        diff = plus - minus
+        diff[wrap] = [wrap_angle(d) for d in diff[wrap]]
+        J[:, col] = diff / (2 * h)
+    cov = J @ cov_in @ J.T
+    n_state = 4 * n + 9
+    fixed = np.max(np.abs(J[:n_state]), axis=1) < FIXED_BELOW
+    cov_state = cov[:n_state, :n_state].copy()
+    cov_state[fixed, :] = 0.0
+    cov_state[:, fixed] = 0.0
+    return Propagation(
+        covariance=np.asarray(cov_state, dtype=np.float64),
+        fixed=fixed,
+        hayati_covariance=np.asarray(cov[n_state:, n_state:], dtype=np.float64),
+    )
+
+
+def fixed_reasons(
+    ex: Extraction, fixed: np.ndarray, *, base_plane: bool, nominal: bool
+) -> dict[int, str]:
+    """Why each fixed entry of :func:`state_vector` is held (index → one sentence)."""
+    n = ex.standard.n
+    types = ex.standard.joint_types
+    kinds = {r.joints[0]: r.relation.kind for r in ex.relations}
+    out: dict[int, str] = {}
+    for idx in (int(k) for k in np.flatnonzero(fixed)):
+        if idx >= 4 * n:
+            out[idx] = (
+                "the target defines the last frame (z_{n+1} ∥ z_n through the target)"
+                if not nominal
+                else "held by the nominal's last row"
+            )
+            continue
+        row, p = divmod(idx, 4)
+        name = ("θ", "d", "a", "α")[p]
+        kind = kinds.get(row + 1)
+        if row == 0 and p == 0:
+            why = (
+                "x₁ follows the nominal θ₁ offset"
+                if nominal
+                else "x₁ is chosen so that θ₁ = 0 at encoder zero"
+            )
+        elif row == 0 and p == 1 and not base_plane:
+            why = (
+                "frame 1's origin: foot of the common normal to axis 2 — no base points in the log"
+            )
+        elif row == n - 1:
+            why = (
+                "last row from the nominal (frame n+1 = frame n · nominal A_n)"
+                if nominal
+                else "last frame convention: z_{n+1} ∥ z_n through the target"
+            )
+        elif kind is not None and kind.value == "collinear":
+            why = f"axes {row + 1} and {row + 2} are collinear: {name} by convention"
+        elif kind is not None and kind.is_parallel and p == 1:
+            why = (
+                f"axes {row + 1} and {row + 2} are parallel: d by convention "
+                "(common normal through the previous origin)"
+            )
+        elif JointType.PRISMATIC in types[max(row - 1, 0) : row + 2]:
+            why = "placement of a prismatic axis (only its direction is physical)"
+        else:
+            why = f"{name} held by a convention of the extraction"
+        out[idx] = why
+    return out
+
+
+def frame_rotation(R0: FloatArray, rv: FloatArray) -> FloatArray:
+    """``R0 · exp(rv)``: the rotation the state vector's rotation entries describe."""
+    angle = float(np.linalg.norm(rv))
+    return np.asarray(R0 @ (rotation_about(rv, angle) if angle > 0 else np.eye(3)))

@@ -1,0 +1,521 @@
+"""Maximum-likelihood fit of the whole kinematic model to every sample.
+
+The model is held in its minimal, gauge-free form: the joint axes at the reference pose as lines
+in the measurement frame M (4 numbers per revolute axis, 2 per prismatic direction: only a
+prismatic direction is physical), the target point at the reference pose (3), and, as an option,
+a scale per encoder. A sample with encoder values ``q`` is predicted by the product of
+exponentials about those axes (seed 004, Eq. 5–6):
+
+    p(q) = g_1(s_1 (q_1 − q_ref,1)) ⋯ g_n(s_n (q_n − q_ref,n)) · target
+
+This parametrisation has no conventions to hold and stays well conditioned for parallel and
+nearly parallel axes, where DH's ``d`` is not; the DH table is read off the fitted axes by the
+line geometry of seed 000 (``extract_dh``), which is exact, so the table reproduces the fitted
+model's forward kinematics.
+
+Each axis is moved by a small rigid motion ``h = exp(η)`` (the joint's motion becomes
+``h g h⁻¹``): two tilts about the perpendicular unit vectors ``u, v`` through the axis point and
+two shifts along them. The Jacobian of ``p`` with respect to ``η`` of joint i is analytic:
+
+    δp = R_<i [ η_ω × (S_i − c) + η_v − R_i (η_ω × (S_{i+1} − c) + η_v) ]
+
+with ``R_<i`` the rotation of joints 1 … i−1, ``R_i`` that of joint i, and ``S_i`` the target
+moved by joints i … n. The normal equations ``JᵀWJ δ = −JᵀWr`` are accumulated over chunks of
+samples (no per-parameter pass over the data, bounded memory) and solved by Levenberg–Marquardt.
+Gross outliers are held out by a truncated quadratic at ``threshold`` times the noise scale. The
+covariance of the parameters is ``(JᵀWJ)⁻¹ · χ²/dof``.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+
+from dhlog.dh import JointType
+from dhlog.errors import DegenerateGeometryError
+from dhlog.geometry._checks import FloatArray, perpendicular_basis, rotation_about
+from dhlog.geometry.lines import Line
+from dhlog.identify.noise import NoiseModel
+
+#: Samples per chunk of the normal-equation accumulation.
+CHUNK = 8192
+#: Median of a 3-dof chi variable (|r|/σ of an isotropic 3-D residual).
+CHI3_MEDIAN = 1.5382
+#: Expected decrease of the weighted cost below which the fit has converged (a step of about
+#: 1 % of σ in every parameter).
+CONVERGED = 1e-3
+
+
+@dataclass(frozen=True, eq=False)
+class AxisModel:
+    """The whole model: joint axes and target at the reference pose (M), encoder scales."""
+
+    axes: tuple[Line, ...]
+    types: tuple[JointType, ...]
+    target: FloatArray
+    reference_pose: FloatArray
+    scales: FloatArray
+
+    @property
+    def n(self) -> int:
+        """Number of joints."""
+        return len(self.types)
+
+    def bases(self) -> list[tuple[FloatArray, FloatArray]]:
+        """The perpendicular unit vectors ``(u, v)`` of each axis (right-handed with it)."""
+        return [perpendicular_basis(a.direction) for a in self.axes]
+
+    def moved(
+        self, delta: FloatArray, layout: ParameterLayout, bases: list[tuple[FloatArray, FloatArray]]
+    ) -> AxisModel:
+        """The model moved by the local parameter increments ``delta`` (``layout.size``,)."""
+        axes = []
+        for i, (axis, jt) in enumerate(zip(self.axes, self.types, strict=True)):
+            u, v = bases[i]
+            k = layout.axis_at[i]
+            w = delta[k] * u + delta[k + 1] * v
+            shift = np.zeros(3)
+            if jt is JointType.REVOLUTE:
+                shift = delta[k + 2] * u + delta[k + 3] * v
+            angle = float(np.linalg.norm(w))
+            R = rotation_about(w, angle) if angle > 0 else np.eye(3)
+            c = axis.point
+            axes.append(Line(c + shift, R @ axis.direction))
+        t = layout.target_at
+        target = self.target + delta[t : t + 3]
+        scales = self.scales.copy()
+        if layout.scale_at is not None:
+            scales = scales + delta[layout.scale_at : layout.scale_at + self.n]
+        return AxisModel(tuple(axes), self.types, target, self.reference_pose, scales)
+
+
+@dataclass(frozen=True)
+class ParameterLayout:
+    """Where each parameter sits in the local parameter vector, and its name."""
+
+    axis_at: tuple[int, ...]
+    target_at: int
+    scale_at: int | None
+    size: int
+    names: tuple[str, ...]
+
+    @classmethod
+    def of(cls, types: Sequence[JointType], *, fit_scales: bool = False) -> ParameterLayout:
+        """Revolute axis: tilt u, tilt v, shift u, shift v; prismatic: tilt u, tilt v; then the
+        target (x, y, z) and, with ``fit_scales``, one encoder scale per joint."""
+        at, names, k = [], [], 0
+        for i, jt in enumerate(types):
+            at.append(k)
+            parts = ["tilt_u", "tilt_v"] + (
+                ["shift_u", "shift_v"] if jt is JointType.REVOLUTE else []
+            )
+            names += [f"axis_{i + 1}_{p}" for p in parts]
+            k += len(parts)
+        target_at = k
+        names += ["target_x", "target_y", "target_z"]
+        k += 3
+        scale_at = None
+        if fit_scales:
+            scale_at = k
+            names += [f"encoder_scale_{i + 1}" for i in range(len(types))]
+            k += len(types)
+        return cls(tuple(at), target_at, scale_at, k, tuple(names))
+
+
+def _cross(w: FloatArray, X: FloatArray) -> FloatArray:
+    """``w × X`` for one vector ``w`` (3,) and many ``X`` laid out (3, m)."""
+    return np.stack(
+        [w[1] * X[2] - w[2] * X[1], w[2] * X[0] - w[0] * X[2], w[0] * X[1] - w[1] * X[0]]
+    )
+
+
+def _rotate(R: FloatArray, X: FloatArray) -> FloatArray:
+    """``R X`` for per-sample rotations ``R`` (3, 3, m) and vectors ``X`` (3, m) or blocks
+    (3, k, m)."""
+    if X.ndim == 2:
+        return np.stack([R[a, 0] * X[0] + R[a, 1] * X[1] + R[a, 2] * X[2] for a in range(3)])
+    return np.stack(
+        [R[a, 0][None] * X[0] + R[a, 1][None] * X[1] + R[a, 2][None] * X[2] for a in range(3)]
+    )
+
+
+def _rotations(direction: FloatArray, angles: FloatArray) -> FloatArray:
+    """Rotations (3, 3, m) by ``angles`` (m,) about the unit ``direction`` (Rodrigues)."""
+    k = direction
+    K = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
+    K2 = K @ K
+    s, c1 = np.sin(angles), 1.0 - np.cos(angles)
+    R = K[:, :, None] * s + K2[:, :, None] * c1
+    R[0, 0] += 1.0
+    R[1, 1] += 1.0
+    R[2, 2] += 1.0
+    return np.asarray(R, dtype=np.float64)
+
+
+def predict_columns(
+    model: AxisModel,
+    Q: FloatArray,
+    layout: ParameterLayout | None = None,
+    bases: list[tuple[FloatArray, FloatArray]] | None = None,
+) -> tuple[FloatArray, FloatArray | None]:
+    """Predicted target positions (3, m) at the joint vectors ``Q`` (m, n) and, with ``layout``,
+    the Jacobian (``layout.size``, 3, m) with respect to the local parameters. Samples run along
+    the last axis so that every operation is on contiguous rows."""
+    m, n = Q.shape[0], model.n
+    dq = ((Q - model.reference_pose) * model.scales).T
+    Rs: list[FloatArray | None] = []
+    ts: list[FloatArray] = []
+    for i, (axis, jt) in enumerate(zip(model.axes, model.types, strict=True)):
+        if jt is JointType.PRISMATIC:
+            Rs.append(None)
+            ts.append(axis.direction[:, None] * dq[i])
+        else:
+            Ri = _rotations(axis.direction, dq[i])
+            Rs.append(Ri)
+            ts.append(
+                axis.point[:, None] - _rotate(Ri, np.broadcast_to(axis.point[:, None], (3, m)))
+            )
+    # S[i]: the target moved by joints i … n (S[n] is the target itself)
+    S = [np.empty((3, 0))] * (n + 1)
+    S[n] = np.broadcast_to(model.target[:, None], (3, m))
+    for i in range(n - 1, -1, -1):
+        Rj = Rs[i]
+        S[i] = (S[i + 1] + ts[i]) if Rj is None else _rotate(Rj, S[i + 1]) + ts[i]
+    if layout is None:
+        return S[0], None
+    assert bases is not None
+    J = np.empty((layout.size, 3, m))
+    prefix: FloatArray | None = None  # R_<i, None for the identity
+    for i, axis in enumerate(model.axes):
+        u, v = bases[i]
+        R = Rs[i]
+        cols: list[FloatArray] = []
+        if R is None:
+            travel = S[i] - S[i + 1]
+            cols = [_cross(u, travel), _cross(v, travel)]
+        else:
+            X, Y = S[i] - axis.point[:, None], S[i + 1] - axis.point[:, None]
+            for w in (u, v):
+                cols.append(_cross(w, X) - _rotate(R, _cross(w, Y)))
+            for w in (u, v):
+                cols.append(w[:, None] - _rotate(R, np.broadcast_to(w[:, None], (3, m))))
+        if layout.scale_at is not None:
+            dq_i = Q[:, i] - model.reference_pose[i]
+            if R is None:
+                cols.append(axis.direction[:, None] * dq_i)
+            else:
+                cols.append(_cross(axis.direction, S[i] - axis.point[:, None]) * dq_i)
+        block = np.stack(cols, axis=1)  # (3, k, m)
+        if prefix is not None:
+            block = _rotate(prefix, block)
+        k = layout.axis_at[i]
+        width = 4 if R is not None else 2
+        J[k : k + width] = np.moveaxis(block[:, :width], 1, 0)
+        if layout.scale_at is not None:
+            J[layout.scale_at + i] = block[:, width]
+        if R is not None:
+            prefix = (
+                R
+                if prefix is None
+                else np.stack(
+                    [
+                        np.stack(
+                            [
+                                prefix[a, 0] * R[0, b]
+                                + prefix[a, 1] * R[1, b]
+                                + prefix[a, 2] * R[2, b]
+                                for b in range(3)
+                            ]
+                        )
+                        for a in range(3)
+                    ]
+                )
+            )
+    t = layout.target_at
+    if prefix is None:
+        J[t : t + 3] = np.eye(3)[:, :, None]
+    else:
+        J[t : t + 3] = np.moveaxis(prefix, 1, 0)
+    return S[0], J
+
+
+def predict(
+    model: AxisModel,
+    Q: FloatArray,
+    layout: ParameterLayout | None = None,
+    bases: list[tuple[FloatArray, FloatArray]] | None = None,
+) -> tuple[FloatArray, FloatArray | None]:
+    """Predicted target positions (m, 3) at the joint vectors ``Q`` (m, n) and, with ``layout``,
+    the Jacobian (m, 3, ``layout.size``) with respect to the local parameters."""
+    p, J = predict_columns(model, Q, layout, bases)
+    return p.T.copy(), None if J is None else np.transpose(J, (2, 1, 0)).copy()
+
+
+@dataclass
+class WholeFit:
+    """The fitted model, its covariance (``layout`` order), and what the fit saw.
+
+    ``inliers`` is over the samples given; ``chi2_dof`` is the weighted residual variance per
+    degree of freedom (1 when the noise model is right); ``scale`` the robust noise scale in
+    whitened units found at the start.
+    """
+
+    model: AxisModel
+    layout: ParameterLayout
+    covariance: FloatArray
+    inliers: NDArray[np.bool_]
+    chi2_dof: float
+    rms: float
+    n_points: int
+    iterations: int
+    scale: float
+    bases: list[tuple[FloatArray, FloatArray]] = field(default_factory=list)
+
+
+Whitening = Callable[[FloatArray, FloatArray | None], FloatArray | float]
+
+
+def _accumulate(
+    model: AxisModel,
+    layout: ParameterLayout,
+    bases: list[tuple[FloatArray, FloatArray]],
+    data: _Samples,
+    limit: float,
+    norms: FloatArray,
+) -> tuple[FloatArray, FloatArray, float, int, float]:
+    """One pass over the samples at ``model``: ``JᵀWJ``, ``JᵀWr`` over the samples allowed in
+    ``data.keep`` whose whitened residual is at most ``limit``, the truncated cost, the inlier
+    count and the sum of squared whitened inlier residuals. Writes each sample's whitened
+    residual norm into ``norms``."""
+    H = np.zeros((layout.size, layout.size))
+    g = np.zeros(layout.size)
+    cost, chi2, count = 0.0, 0.0, 0
+    m = data.Q.shape[0]
+    for start in range(0, m, CHUNK):
+        sl = slice(start, min(start + CHUNK, m))
+        pred, J = predict_columns(model, data.Q[sl], layout, bases)
+        assert J is not None
+        r = pred - data.P[sl].T  # (3, c)
+        W = data.whiten(data.P[sl], None if data.W is None else data.W[sl])
+        if isinstance(W, float):
+            rw, Jw = r * W, J * W
+        else:
+            Wt = np.transpose(W, (1, 2, 0))  # (3, 3, c)
+            rw = _rotate(Wt, r)
+            Jw = np.moveaxis(_rotate(Wt, np.moveaxis(J, 0, 1)), 1, 0)
+        nrm = np.sqrt(rw[0] ** 2 + rw[1] ** 2 + rw[2] ** 2)
+        norms[sl] = nrm
+        keep = data.keep[sl]
+        use = keep & (nrm <= limit)
+        cost += float(np.sum(np.minimum(nrm[keep], limit) ** 2))
+        if not np.all(use):
+            Jw, rw = Jw[:, :, use], rw[:, use]
+        Ju = Jw.reshape(layout.size, -1)
+        ru = rw.reshape(-1)
+        H += Ju @ Ju.T
+        g += Ju @ ru
+        chi2 += float(ru @ ru)
+        count += int(np.count_nonzero(use))
+    return H, g, cost, count, chi2
+
+
+@dataclass(frozen=True)
+class _Samples:
+    Q: FloatArray
+    P: FloatArray
+    keep: NDArray[np.bool_]
+    W: FloatArray | None
+    whiten: Whitening
+
+    def strided(self, stride: int) -> _Samples:
+        return _Samples(
+            self.Q[::stride],
+            self.P[::stride],
+            self.keep[::stride],
+            None if self.W is None else self.W[::stride],
+            self.whiten,
+        )
+
+
+@dataclass
+class _State:
+    model: AxisModel
+    bases: list[tuple[FloatArray, FloatArray]]
+    H: FloatArray
+    g: FloatArray
+    cost: float
+    count: int
+    chi2: float
+    norms: FloatArray
+    iterations: int = 0
+
+
+def _levenberg_marquardt(
+    model: AxisModel,
+    layout: ParameterLayout,
+    data: _Samples,
+    limit: float,
+    max_iterations: int,
+    progress: Callable[[float], None] | None = None,
+) -> _State:
+    """Levenberg–Marquardt from ``model`` over ``data`` with the truncation ``limit``."""
+    m = data.Q.shape[0]
+    bases = model.bases()
+    norms = np.zeros(m)
+    st = _State(model, bases, *_accumulate(model, layout, bases, data, limit, norms), norms)
+    if st.count <= layout.size:
+        raise DegenerateGeometryError(
+            f"the whole-model fit has {st.count} usable samples for {layout.size} parameters."
+        )
+    lam = 1e-6
+    for it in range(1, max_iterations + 1):
+        st.iterations = it
+        if progress is not None:
+            progress(min(it / 3.0, 0.95))
+        D = np.diag(np.maximum(np.diag(st.H), 1e-30))
+        try:
+            delta = np.asarray(np.linalg.solve(st.H + lam * D, -st.g), dtype=np.float64)
+        except np.linalg.LinAlgError:
+            lam *= 10.0
+            continue
+        predicted = float(-(st.g @ delta))  # expected decrease of the cost (Gauss–Newton)
+        if predicted < CONVERGED:  # a step far below σ: take it, keep H (same to first order)
+            st.model = st.model.moved(delta, layout, st.bases)
+            st.bases = st.model.bases()
+            break
+        trial = st.model.moved(delta, layout, st.bases)
+        trial_bases = trial.bases()
+        tnorms = np.zeros(m)
+        H, g, cost, count, chi2 = _accumulate(trial, layout, trial_bases, data, limit, tnorms)
+        if cost <= st.cost + 1e-12 * max(st.cost, 1.0):
+            converged = st.cost - cost < 1e-12 * st.cost
+            st = _State(trial, trial_bases, H, g, cost, count, chi2, tnorms, it)
+            lam = max(lam / 10.0, 1e-12)
+            if converged:
+                break
+        else:
+            lam *= 10.0
+            if lam > 1e8:
+                break
+    return st
+
+
+def _finish_on_all(
+    sub: _State, layout: ParameterLayout, data: _Samples, limit: float, max_iterations: int
+) -> tuple[_State, float]:
+    """From the optimum ``sub`` of a strided subset to the optimum of every sample.
+
+    One pass gives ``JᵀWJ`` and ``JᵀWr`` of all samples there; the subset's optimum lies within
+    a few of its own σ of the full optimum, where the model is linear to far below the noise
+    (lengths of metres against residuals of micrometres), so the Gauss–Newton step from it is
+    the optimum. Should the step be larger than the subset's uncertainty explains, the fit goes
+    on by Levenberg–Marquardt over every sample. Returns the state and the χ² at the optimum.
+    """
+    norms = np.zeros(data.Q.shape[0])
+    H, g, cost, count, chi2 = _accumulate(sub.model, layout, sub.bases, data, limit, norms)
+    try:
+        delta = np.asarray(np.linalg.solve(H, -g), dtype=np.float64)
+    except np.linalg.LinAlgError:
+        delta = None
+    if delta is not None and float(delta @ sub.H @ delta) <= 100.0 * layout.size:
+        model = sub.model.moved(delta, layout, sub.bases)
+        decrease = float(-(g @ delta))  # the quadratic model's decrease: exact to first order
+        state = _State(model, model.bases(), H, g, cost - decrease, count, chi2, norms, 1)
+        return state, max(chi2 - decrease, 0.0)
+    st = _levenberg_marquardt(sub.model, layout, data, limit, max_iterations)
+    return st, st.chi2
+
+
+def fit_whole_model(
+    start: AxisModel,
+    Q: FloatArray,
+    P: FloatArray,
+    *,
+    noise: NoiseModel,
+    sigma: float,
+    keep: NDArray[np.bool_] | None = None,
+    sample_std: FloatArray | None = None,
+    fit_scales: bool = False,
+    threshold: float = 5.0,
+    max_iterations: int = 30,
+    subsample: int = 40000,
+    progress: Callable[[float], None] | None = None,
+) -> WholeFit:
+    """Levenberg–Marquardt fit of ``start`` to the samples ``P`` (m, 3) at encoder values ``Q``
+    (m, n), weighted by ``noise`` (isotropic σ = ``sigma`` unless the model names its own), or by
+    ``sample_std`` (m, 3) when the log carries per-sample standard deviations. ``keep`` marks the
+    samples that may enter (default: all).
+
+    With more than ``subsample`` samples the fit first converges on an evenly strided subset and
+    then finishes on every sample (usually one pass: the step left is far below σ)."""
+    from dhlog.identify.noise import whitening_from_std
+
+    m = Q.shape[0]
+    layout = ParameterLayout.of(start.types, fit_scales=fit_scales)
+
+    def whiten(points: FloatArray, W: FloatArray | None) -> FloatArray | float:
+        return W if W is not None else noise.whiten(points, sigma)
+
+    data = _Samples(
+        Q,
+        P,
+        np.ones(m, dtype=bool) if keep is None else keep.copy(),
+        None if sample_std is None else whitening_from_std(sample_std),
+        whiten,
+    )
+    stride = -(-m // subsample) if m > subsample else 1
+    first = data.strided(stride) if stride > 1 else data
+    probe = np.zeros(first.Q.shape[0])
+    _accumulate(start, layout, start.bases(), first, threshold, probe)
+    kept = probe[first.keep]
+    scale = float(np.median(kept)) / CHI3_MEDIAN if kept.size else 1.0
+    # the noise model is off by more than 2x: judge outliers on the data's own scale
+    limit = threshold * scale if not 0.5 < scale < 2.0 else threshold
+    st = _levenberg_marquardt(start, layout, first, limit, max_iterations, progress)
+    iterations = st.iterations
+    chi2 = st.chi2
+    if stride > 1:
+        st, chi2 = _finish_on_all(st, layout, data, limit, max_iterations)
+        iterations += st.iterations
+    inliers = data.keep & (st.norms <= limit)
+    dof = max(3 * st.count - layout.size, 1)
+    chi2_dof = chi2 / dof
+    try:
+        covariance = np.linalg.inv(st.H) * chi2_dof
+    except np.linalg.LinAlgError:
+        covariance = np.linalg.pinv(st.H) * chi2_dof
+    scale_m = sigma if noise.model == "isotropic" and data.W is None else 1.0
+    return WholeFit(
+        model=st.model,
+        layout=layout,
+        covariance=np.asarray(covariance, dtype=np.float64),
+        inliers=inliers,
+        chi2_dof=float(chi2_dof),
+        rms=float(math.sqrt(chi2 / max(st.count, 1)) * scale_m),
+        n_points=int(st.count),
+        iterations=iterations,
+        scale=scale,
+        bases=st.bases,
+    )
+
+
+def axis_covariances(fit: WholeFit) -> list[FloatArray]:
+    """Per axis, the 4×4 covariance of ``[δe·u, δe·v, δc·u, δc·v]`` (the form of
+    ``AxisFit.axis_covariance``): a tilt ``a`` about u moves the direction by ``−a v``, a tilt
+    ``b`` about v by ``+b u``."""
+    out = []
+    layout = fit.layout
+    for i, jt in enumerate(fit.model.types):
+        k = layout.axis_at[i]
+        width = 4 if jt is JointType.REVOLUTE else 2
+        C = fit.covariance[k : k + width, k : k + width]
+        B = np.zeros((4, width))
+        B[0, 1], B[1, 0] = 1.0, -1.0
+        if width == 4:
+            B[2, 2], B[3, 3] = 1.0, 1.0
+        out.append(np.asarray(B @ C @ B.T, dtype=np.float64))
+    return out
