@@ -29,7 +29,9 @@ covariance of the parameters is ``(JᵀWJ)⁻¹ · χ²/dof``.
 from __future__ import annotations
 
 import math
+import os
 from collections.abc import Callable, Sequence
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -42,7 +44,9 @@ from dhlog.geometry.lines import Line
 from dhlog.identify.noise import NoiseModel
 
 #: Samples per chunk of the normal-equation accumulation.
-CHUNK = 8192
+CHUNK = 16384
+#: Threads over which the chunks of a pass are spread (numpy releases the GIL in its kernels).
+THREADS = 1
 #: Median of a 3-dof chi variable (|r|/σ of an isotropic 3-D residual).
 CHI3_MEDIAN = 1.5382
 #: Expected decrease of the weighted cost below which the fit has converged (a step of about
@@ -291,11 +295,9 @@ def _accumulate(
     ``data.keep`` whose whitened residual is at most ``limit``, the truncated cost, the inlier
     count and the sum of squared whitened inlier residuals. Writes each sample's whitened
     residual norm into ``norms``."""
-    H = np.zeros((layout.size, layout.size))
-    g = np.zeros(layout.size)
-    cost, chi2, count = 0.0, 0.0, 0
     m = data.Q.shape[0]
-    for start in range(0, m, CHUNK):
+
+    def chunk(start: int) -> tuple[FloatArray, FloatArray, float, int, float]:
         sl = slice(start, min(start + CHUNK, m))
         pred, J = predict_columns(model, data.Q[sl], layout, bases)
         assert J is not None
@@ -311,15 +313,24 @@ def _accumulate(
         norms[sl] = nrm
         keep = data.keep[sl]
         use = keep & (nrm <= limit)
-        cost += float(np.sum(np.minimum(nrm[keep], limit) ** 2))
+        cost = float(np.sum(np.minimum(nrm[keep], limit) ** 2))
         if not np.all(use):
             Jw, rw = Jw[:, :, use], rw[:, use]
         Ju = Jw.reshape(layout.size, -1)
         ru = rw.reshape(-1)
-        H += Ju @ Ju.T
-        g += Ju @ ru
-        chi2 += float(ru @ ru)
-        count += int(np.count_nonzero(use))
+        return Ju @ Ju.T, Ju @ ru, cost, int(np.count_nonzero(use)), float(ru @ ru)
+
+    starts = range(0, m, CHUNK)
+    if len(starts) > 1 and THREADS > 1:
+        with ThreadPoolExecutor(THREADS) as pool:
+            parts = list(pool.map(chunk, starts))
+    else:
+        parts = [chunk(s) for s in starts]
+    H = np.sum([p[0] for p in parts], axis=0)
+    g = np.sum([p[1] for p in parts], axis=0)
+    cost = float(sum(p[2] for p in parts))
+    count = int(sum(p[3] for p in parts))
+    chi2 = float(sum(p[4] for p in parts))
     return H, g, cost, count, chi2
 
 
