@@ -29,7 +29,7 @@ from dhlog.errors import DhlogError, GeometryError, InputError
 from dhlog.extract import Extraction, HayatiRow, extract_dh, hayati_parameters
 from dhlog.geometry._checks import FloatArray, wrap_angle
 from dhlog.geometry.fitting import AxisFit, PlaneFit, detect_joint_type, fit_axis_robust, fit_plane
-from dhlog.geometry.lines import ANGLE_TOL, DISTANCE_TOL, Line, Plane
+from dhlog.geometry.lines import ANGLE_TOL, DISTANCE_TOL, Line, Plane, RelationKind, classify_lines
 from dhlog.geometry.screws import chain_motion, chain_motions
 from dhlog.identify.noise import NoiseModel
 from dhlog.identify.propagate import (
@@ -39,7 +39,13 @@ from dhlog.identify.propagate import (
     state_names,
     state_vector,
 )
-from dhlog.identify.whole import AxisModel, WholeFit, axis_covariances, fit_whole_model
+from dhlog.identify.whole import (
+    AxisModel,
+    WholeFit,
+    axis_covariances,
+    constrain_pairs,
+    fit_whole_model,
+)
 from dhlog.io.pipeline import Pipeline
 from dhlog.io.reader import LogData, read_log
 from dhlog.io.writer import sha256_of
@@ -798,12 +804,13 @@ def _identify_whole(
     nominal_table = nominal.table if nominal is not None else None
     covs = axis_covariances(whole)
     kw = dict(kwargs)
-    kw["pair_tolerances"] = _pair_tolerances(
+    kw["pair_tolerances"] = tolerances = _pair_tolerances(
         [(c, a.point) for c, a in zip(covs, whole.model.axes, strict=True)],
         nominal,
         kwargs["angle_tol"],
         kwargs["distance_tol"],
     )
+    whole = _with_fixed_relations(whole, tolerances)
 
     def extract(axes: list[Line], target: FloatArray, plane: Plane | None) -> Extraction:
         return extract_dh(
@@ -826,7 +833,11 @@ def _identify_whole(
     result.covariance, result.std = prop.covariance, np.where(prop.fixed, np.nan, std)
     result.target, result.sigma = whole.model.target, sigma * math.sqrt(whole.chi2_dof)
     result.fixed = fixed_reasons(
-        ex, prop.fixed, base_plane=base is not None, nominal=nominal is not None
+        ex,
+        prop.fixed,
+        base_plane=base is not None,
+        nominal=nominal is not None,
+        constrained=whole.constrained,
     )
     result.hayati = _near_parallel(list(ex.axes), ex, result.std, notes)
     result.hayati_std = [
@@ -841,7 +852,47 @@ def _identify_whole(
         )
     stage("validating", 0.0)
     result.validation = _validate_samples(seg, rows, Q, P, ex, whole.inliers)
+    gap = _table_gap(whole, ex, Q)
+    if gap > 1e-6:
+        notes.append(
+            f"the DH table departs from the fitted model by up to {gap * 1e3:.4f} mm: a pair "
+            "was classified (parallel / meeting) where the fitted axes are not; check the "
+            "relations and the FK check."
+        )
     _check_residual(result.validation, sigma, notes)
+
+
+def _with_fixed_relations(
+    whole: WholeFit, tolerances: list[tuple[float, float]] | None
+) -> WholeFit:
+    """The fit constrained to the pair relations the data cannot reject: consecutive revolute
+    axes within their tolerance of parallel are made parallel (collinear: the same line), so
+    that the DH conventions of those pairs hold exactly and the table equals the model."""
+    if tolerances is None:
+        return whole
+    axes, types = whole.model.axes, whole.model.types
+    parallel, collinear = [], []
+    for i, (a_tol, d_tol) in enumerate(tolerances):
+        if JointType.PRISMATIC in (types[i], types[i + 1]):
+            continue
+        kind = classify_lines(axes[i], axes[i + 1], angle_tol=a_tol, distance_tol=d_tol).kind
+        if kind is RelationKind.COLLINEAR:
+            collinear.append(i)
+        elif kind.is_parallel:
+            parallel.append(i)
+    return constrain_pairs(whole, parallel, collinear)
+
+
+def _table_gap(whole: WholeFit, ex: Extraction, Q: FloatArray) -> float:
+    """Largest distance (m) between the fitted model and its DH table at the reference pose and
+    at up to 64 of the sampled joint vectors: 0 up to rounding when the extraction is exact."""
+    from dhlog.identify.whole import predict
+
+    pick = np.unique(np.linspace(0, Q.shape[0] - 1, min(64, Q.shape[0])).astype(int))
+    Qs = np.vstack([whole.model.reference_pose, Q[pick]])
+    fitted, _ = predict(whole.model, Qs)
+    table = fk_points_chunked(ex.standard, Qs, ex.tool_point, T_base=ex.T_measurement_base)
+    return float(np.max(np.linalg.norm(fitted - table, axis=1)))
 
 
 def _near_parallel_pairs(ex: Extraction) -> list[tuple[int, int]]:
@@ -913,8 +964,11 @@ def _validate_samples(
 THREE_SIGMA_2D = 3.44
 #: With a nominal that says parallel (or meeting), the data must exceed this many σ to overrule it.
 NOMINAL_SIGMA_2D = 5.0
-#: Axes closer than this to parallel (rad) also get Hayati–Mirmirani parameters.
+#: Axes closer than this to parallel (rad) also get Hayati–Mirmirani parameters; no pair
+#: further from parallel is ever classified parallel, however uncertain its axes.
 NEAR_PARALLEL = 0.01
+#: No pair of axes further apart than this (m) is ever classified as meeting.
+MAX_MEETING_DISTANCE = 1e-3
 
 
 def _pair_tolerances(
@@ -945,6 +999,8 @@ def _pair_tolerances(
                 k_dist = NOMINAL_SIGMA_2D
         angle = k_angle * math.sqrt(var_dir) if var_dir > 0 else angle_floor
         distance = k_dist * math.sqrt(var_pos) if var_pos > 0 else distance_floor
+        # never a convention for a relation far beyond any real robot's tolerance
+        angle, distance = min(angle, NEAR_PARALLEL), min(distance, MAX_MEETING_DISTANCE)
         out.append((max(angle, 1e-7), max(distance, 1e-7)))
     return out
 

@@ -150,6 +150,10 @@ def propagate(
     cov = J @ cov_in @ J.T
     n_state = 4 * n + 9
     fixed = np.max(np.abs(J[:n_state]), axis=1) < FIXED_BELOW
+    for i, kind in fit.constrained.items():  # held by the constraint: α (and a, collinear)
+        fixed[4 * i + 3] = True
+        if kind == "collinear":
+            fixed[4 * i + 2] = True
     cov_state = cov[:n_state, :n_state].copy()
     cov_state[fixed, :] = 0.0
     cov_state[:, fixed] = 0.0
@@ -161,9 +165,16 @@ def propagate(
 
 
 def fixed_reasons(
-    ex: Extraction, fixed: np.ndarray, *, base_plane: bool, nominal: bool
+    ex: Extraction,
+    fixed: np.ndarray,
+    *,
+    base_plane: bool,
+    nominal: bool,
+    constrained: dict[int, str] | None = None,
 ) -> dict[int, str]:
-    """Why each fixed entry of :func:`state_vector` is held (index → one sentence)."""
+    """Why each fixed entry of :func:`state_vector` is held (index → one sentence);
+    ``constrained`` maps the 0-based first joint of a pair held parallel / collinear."""
+    held = constrained or {}
     n = ex.standard.n
     types = ex.standard.joint_types
     kinds = {r.joints[0]: r.relation.kind for r in ex.relations}
@@ -179,7 +190,12 @@ def fixed_reasons(
         row, p = divmod(idx, 4)
         name = ("θ", "d", "a", "α")[p]
         kind = kinds.get(row + 1)
-        if row == 0 and p == 0:
+        if row in held and p in (2, 3) and row < n - 1:
+            why = (
+                f"axes {row + 1} and {row + 2} are {held[row]} within the noise (the data "
+                f"cannot reject it), so {name} is held by that relation"
+            )
+        elif row == 0 and p == 0:
             why = (
                 "x₁ follows the nominal θ₁ offset"
                 if nominal

@@ -29,7 +29,6 @@ covariance of the parameters is ``(JᵀWJ)⁻¹ · χ²/dof``.
 from __future__ import annotations
 
 import math
-import os
 from collections.abc import Callable, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
@@ -278,6 +277,7 @@ class WholeFit:
     iterations: int
     scale: float
     bases: list[tuple[FloatArray, FloatArray]] = field(default_factory=list)
+    constrained: dict[int, str] = field(default_factory=dict)
 
 
 Whitening = Callable[[FloatArray, FloatArray | None], FloatArray | float]
@@ -378,9 +378,10 @@ def _levenberg_marquardt(
     bases = model.bases()
     norms = np.zeros(m)
     st = _State(model, bases, *_accumulate(model, layout, bases, data, limit, norms), norms)
-    if st.count <= layout.size:
+    if 3 * st.count <= layout.size:
         raise DegenerateGeometryError(
-            f"the whole-model fit has {st.count} usable samples for {layout.size} parameters."
+            f"the whole-model fit has {st.count} usable samples (3 coordinates each) for "
+            f"{layout.size} parameters."
         )
     lam = 1e-6
     for it in range(1, max_iterations + 1):
@@ -530,3 +531,72 @@ def axis_covariances(fit: WholeFit) -> list[FloatArray]:
             B[2, 2], B[3, 3] = 1.0, 1.0
         out.append(np.asarray(B @ C @ B.T, dtype=np.float64))
     return out
+
+
+def constrain_pairs(fit: WholeFit, parallel: list[int], collinear: list[int]) -> WholeFit:
+    """The fit under the constraint that axes ``i, i+1`` (0-based ``i``) are exactly parallel
+    (``parallel``) or the same line (``collinear``): the relations a classification fixes when
+    the data cannot reject them.
+
+    To first order the constrained optimum and its covariance follow from the unconstrained
+    ones without another pass over the samples (the model is linear far beyond these moves):
+    ``x = −C Aᵀ (A C Aᵀ)⁻¹ c₀`` and ``C' = C − C Aᵀ (A C Aᵀ)⁻¹ A C`` for the linearised
+    constraints ``c₀ + A x = 0``; then the constrained axes are made exactly parallel (or
+    coincident), a change of second order."""
+    model, layout, bases = fit.model, fit.layout, fit.bases
+    rows: list[FloatArray] = []
+    c0: list[float] = []
+    for i in sorted(set(parallel) | set(collinear)):
+        d1, d2 = model.axes[i].direction, model.axes[i + 1].direction
+        sign = 1.0 if d1 @ d2 >= 0 else -1.0
+        (u1, v1), (u2, v2) = bases[i], bases[i + 1]
+        k1, k2 = layout.axis_at[i], layout.axis_at[i + 1]
+        # δd = −a v + b u for tilts (a about u, b about v)
+        for e in (u1, v1):
+            row = np.zeros(layout.size)
+            row[k2], row[k2 + 1] = -(e @ v2), e @ u2
+            row[k1], row[k1 + 1] = sign * (e @ v1), -sign * (e @ u1)
+            rows.append(row)
+            c0.append(float(e @ (d2 - sign * d1)))
+        if i in collinear:
+            c1, c2 = model.axes[i].point, model.axes[i + 1].point
+            for e in (u1, v1):
+                row = np.zeros(layout.size)
+                row[k2 + 2], row[k2 + 3] = e @ u2, e @ v2
+                row[k1 + 2], row[k1 + 3] = -(e @ u1), -(e @ v1)
+                rows.append(row)
+                c0.append(float(e @ (c2 - c1)))
+    if not rows:
+        return fit
+    A, c = np.array(rows), np.array(c0)
+    C = fit.covariance
+    CA = C @ A.T
+    S = A @ CA
+    K = CA @ np.linalg.pinv(S)
+    delta = -K @ c
+    cov = C - K @ CA.T
+    moved = model.moved(np.asarray(delta, dtype=np.float64), layout, bases)
+    axes = list(moved.axes)
+    for i in range(len(axes) - 1):
+        if i in parallel or i in collinear:
+            d1 = axes[i].direction
+            sign = 1.0 if d1 @ axes[i + 1].direction >= 0 else -1.0
+            point = axes[i].project(axes[i + 1].point) if i in collinear else axes[i + 1].point
+            axes[i + 1] = Line(point, sign * d1)
+    snapped = AxisModel(tuple(axes), moved.types, moved.target, moved.reference_pose, moved.scales)
+    return WholeFit(
+        model=snapped,
+        layout=layout,
+        covariance=np.asarray((cov + cov.T) / 2, dtype=np.float64),
+        inliers=fit.inliers,
+        chi2_dof=fit.chi2_dof,
+        rms=fit.rms,
+        n_points=fit.n_points,
+        iterations=fit.iterations,
+        scale=fit.scale,
+        bases=snapped.bases(),
+        constrained={
+            **{i: "parallel" for i in parallel},
+            **{i: "collinear" for i in collinear},
+        },
+    )

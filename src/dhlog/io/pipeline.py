@@ -53,7 +53,7 @@ class SegmentationSettings:
     lock_tolerance: float = 2e-5
     motion_window: float = 0.05
     join_tolerance: float = 0.05
-    min_samples: int = 10
+    min_samples: int = 3
     min_sweep: float = math.radians(5.0)
     min_travel: float = 1e-3
     clock_offset: float = 0.0
