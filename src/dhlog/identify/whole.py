@@ -493,6 +493,14 @@ def fit_whole_model(
     if stride > 1:
         st, chi2 = _finish_on_all(st, layout, data, limit, max_iterations)
         iterations += st.iterations
+    d = np.sqrt(np.maximum(np.diag(st.H), 1e-300))
+    eig = np.linalg.eigvalsh(st.H / np.outer(d, d))
+    if eig[0] < 1e-12 * eig[-1]:
+        weak = int(np.count_nonzero(eig < 1e-12 * eig[-1]))
+        raise DegenerateGeometryError(
+            f"the samples do not determine the whole model ({weak} direction(s) of its "
+            f"{layout.size} parameters are unconstrained): sweep every joint over more stops."
+        )
     inliers = data.keep & (st.norms <= limit)
     dof = max(3 * st.count - layout.size, 1)
     chi2_dof = chi2 / dof
