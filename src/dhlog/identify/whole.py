@@ -167,83 +167,113 @@ def predict_columns(
 ) -> tuple[FloatArray, FloatArray | None]:
     """Predicted target positions (3, m) at the joint vectors ``Q`` (m, n) and, with ``layout``,
     the Jacobian (``layout.size``, 3, m) with respect to the local parameters. Samples run along
-    the last axis so that every operation is on contiguous rows."""
-    m, n = Q.shape[0], model.n
+    the last axis so that every operation is on contiguous rows.
+
+    With ``g_<i = (R_<i, t_<i)`` the motion of joints 1 … i−1 and ``D_i = p − g_<i(c_i)`` the
+    target relative to axis i's point as it sits at this sample, a move ``η = (w, v)`` of axis i
+    gives ``δp = b × D_i + R_<i (I − R_i) v`` with ``b = R_<i (I − R_i) w`` (joint i's own rotation
+    leaves its axis point where it is), so a tilt column is ``b_w × D_i`` and a shift column
+    ``b_w`` itself; ``(I − R_i) w = −(sin δ K w + (1 − cos δ) K² w)`` for ``K = [ω]×``."""
+    m = Q.shape[0]
     dq = ((Q - model.reference_pose) * model.scales).T
-    Rs: list[FloatArray | None] = []
-    ts: list[FloatArray] = []
+    # prefix motions g_<i (rotation rows (3, 3, m) or None for the identity; translation (3, m))
+    pre_R: list[FloatArray | None] = [None]
+    pre_t: list[FloatArray] = [np.zeros((3, 1))]
+    sins: list[FloatArray | None] = []
+    coss: list[FloatArray | None] = []
     for i, (axis, jt) in enumerate(zip(model.axes, model.types, strict=True)):
+        R0, t0 = pre_R[-1], pre_t[-1]
         if jt is JointType.PRISMATIC:
-            Rs.append(None)
-            ts.append(axis.direction[:, None] * dq[i])
+            step = axis.direction[:, None] * dq[i]
+            sins.append(None)
+            coss.append(None)
+            pre_R.append(R0)
+            pre_t.append(t0 + (step if R0 is None else _rotate(R0, step)))
+            continue
+        K = _skew(axis.direction)
+        K2 = K @ K
+        s, c1 = np.sin(dq[i]), 1.0 - np.cos(dq[i])
+        sins.append(s)
+        coss.append(c1)
+        Ri = K[:, :, None] * s + K2[:, :, None] * c1
+        Ri[0, 0] += 1.0
+        Ri[1, 1] += 1.0
+        Ri[2, 2] += 1.0
+        ti = -((K @ axis.point)[:, None] * s + (K2 @ axis.point)[:, None] * c1)
+        if R0 is None:
+            pre_R.append(Ri)
+            pre_t.append(t0 + ti)
         else:
-            Ri = _rotations(axis.direction, dq[i])
-            Rs.append(Ri)
-            ts.append(
-                axis.point[:, None] - _rotate(Ri, np.broadcast_to(axis.point[:, None], (3, m)))
-            )
-    # S[i]: the target moved by joints i … n (S[n] is the target itself)
-    S = [np.empty((3, 0))] * (n + 1)
-    S[n] = np.broadcast_to(model.target[:, None], (3, m))
-    for i in range(n - 1, -1, -1):
-        Rj = Rs[i]
-        S[i] = (S[i + 1] + ts[i]) if Rj is None else _rotate(Rj, S[i + 1]) + ts[i]
+            pre_R.append(_compose(R0, Ri))
+            pre_t.append(t0 + _rotate(R0, ti))
+    R_all, t_all = pre_R[-1], pre_t[-1]
+    p = (
+        np.broadcast_to(model.target[:, None], (3, m))
+        if R_all is None
+        else _rotate(R_all, np.broadcast_to(model.target[:, None], (3, m)))
+    ) + t_all
+    p = np.ascontiguousarray(np.broadcast_to(p, (3, m)))
     if layout is None:
-        return S[0], None
+        return p, None
     assert bases is not None
     J = np.empty((layout.size, 3, m))
-    prefix: FloatArray | None = None  # R_<i, None for the identity
-    for i, axis in enumerate(model.axes):
+    for i, (axis, jt) in enumerate(zip(model.axes, model.types, strict=True)):
         u, v = bases[i]
-        R = Rs[i]
-        cols: list[FloatArray] = []
-        if R is None:
-            travel = S[i] - S[i + 1]
-            cols = [_cross(u, travel), _cross(v, travel)]
-        else:
-            X, Y = S[i] - axis.point[:, None], S[i + 1] - axis.point[:, None]
-            for w in (u, v):
-                cols.append(_cross(w, X) - _rotate(R, _cross(w, Y)))
-            for w in (u, v):
-                cols.append(w[:, None] - _rotate(R, np.broadcast_to(w[:, None], (3, m))))
-        if layout.scale_at is not None:
-            dq_i = Q[:, i] - model.reference_pose[i]
-            if R is None:
-                cols.append(axis.direction[:, None] * dq_i)
-            else:
-                cols.append(_cross(axis.direction, S[i] - axis.point[:, None]) * dq_i)
-        block = np.stack(cols, axis=1)  # (3, k, m)
-        if prefix is not None:
-            block = _rotate(prefix, block)
+        R0, t0 = pre_R[i], pre_t[i]
         k = layout.axis_at[i]
-        width = 4 if R is not None else 2
-        J[k : k + width] = np.moveaxis(block[:, :width], 1, 0)
-        if layout.scale_at is not None:
-            J[layout.scale_at + i] = block[:, width]
-        if R is not None:
-            prefix = (
-                R
-                if prefix is None
-                else np.stack(
-                    [
-                        np.stack(
-                            [
-                                prefix[a, 0] * R[0, b]
-                                + prefix[a, 1] * R[1, b]
-                                + prefix[a, 2] * R[2, b]
-                                for b in range(3)
-                            ]
-                        )
-                        for a in range(3)
-                    ]
+        omega = axis.direction[:, None] if R0 is None else _rotate(R0, _col(axis.direction, m))
+        if jt is JointType.PRISMATIC:
+            for col, w in enumerate((u, v)):
+                w_world = w[:, None] if R0 is None else _rotate(R0, _col(w, m))
+                J[k + col] = _cross_rows(w_world, omega) * dq[i]
+            if layout.scale_at is not None:
+                J[layout.scale_at + i] = np.broadcast_to(omega, (3, m)) * (
+                    Q[:, i] - model.reference_pose[i]
                 )
+            continue
+        s, c1 = sins[i], coss[i]
+        assert s is not None and c1 is not None
+        K = _skew(axis.direction)
+        K2 = K @ K
+        c_world = (axis.point[:, None] if R0 is None else _rotate(R0, _col(axis.point, m))) + t0
+        D = p - c_world
+        for col, w in enumerate((u, v)):
+            a = -((K @ w)[:, None] * s + (K2 @ w)[:, None] * c1)  # (I − R_i) w
+            b = a if R0 is None else _rotate(R0, a)
+            J[k + col] = _cross_rows(b, D)
+            J[k + 2 + col] = b
+        if layout.scale_at is not None:
+            J[layout.scale_at + i] = _cross_rows(np.broadcast_to(omega, (3, m)), D) * (
+                Q[:, i] - model.reference_pose[i]
             )
     t = layout.target_at
-    if prefix is None:
-        J[t : t + 3] = np.eye(3)[:, :, None]
-    else:
-        J[t : t + 3] = np.moveaxis(prefix, 1, 0)
-    return S[0], J
+    J[t : t + 3] = np.eye(3)[:, :, None] if R_all is None else np.moveaxis(R_all, 1, 0)
+    return p, J
+
+
+def _skew(k: FloatArray) -> FloatArray:
+    return np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
+
+
+def _col(x: FloatArray, m: int) -> FloatArray:
+    return np.broadcast_to(x[:, None], (3, m))
+
+
+def _cross_rows(a: FloatArray, b: FloatArray) -> FloatArray:
+    """Row-wise ``a × b`` for (3, m) arrays (either may broadcast from (3, 1))."""
+    return np.stack(
+        [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
+    )
+
+
+def _compose(A: FloatArray, B: FloatArray) -> FloatArray:
+    """Per-sample product ``A B`` of rotation rows (3, 3, m)."""
+    return np.stack(
+        [
+            np.stack([A[r, 0] * B[0, c] + A[r, 1] * B[1, c] + A[r, 2] * B[2, c] for c in range(3)])
+            for r in range(3)
+        ]
+    )
 
 
 def predict(
