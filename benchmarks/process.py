@@ -9,9 +9,10 @@ joint states 250 Hz, σ 10 µm) is written once as rosbag2 writes it (cached in
 
 * ``dhlog process LOG --no-rrd --force --out DIR`` as a separate process, ``--repeat`` times:
   wall time (median, min, max) and peak RSS of that process (``wait4``);
-* the baseline: a separate process that decodes every message of the same file through
-  ``mcap_ros2``'s per-message decoder (``iter_decoded_messages``) and touches each point — the
-  plain way to read such a log in Python (sizes up to ``--baseline-max``);
+* the baseline: a separate process that decodes every message of the same file (points and
+  joint states) through ``mcap_ros2``'s per-message decoder (``iter_decoded_messages``) and
+  counts the points — the plain way to read such a log in Python, before any identification
+  (sizes up to ``--baseline-max``);
 * the per-stage breakdown of one in-process run (``process_log`` with its progress callback).
 """
 
@@ -41,8 +42,9 @@ n = 0
 with open(sys.argv[1], "rb") as f:
     for _schema, channel, _message, msg in make_reader(
         f, decoder_factories=[DecoderFactory()]
-    ).iter_decoded_messages(topics=["/tracker/point"]):
-        n += msg.point.x is not None
+    ).iter_decoded_messages():
+        if channel.topic == "/tracker/point":
+            n += msg.point.x is not None
 print(n)
 """
 

@@ -658,6 +658,8 @@ def process_data(
     }
     nominal_table = nominal.table if nominal is not None else None
     if not all(j.ok for j in joints):
+        if whole_wanted and nominal is not None and _from_the_nominal(result, kwargs, stage):
+            return result
         result.extraction = _partial_extraction(joints, ref, base, nominal_table, kwargs)
         return result
     stage("identifying", 0.0)
@@ -719,6 +721,90 @@ def process_data(
     return result
 
 
+def _from_the_nominal(result: ProcessResult, kwargs: dict[str, Any], stage: Stage) -> bool:
+    """Joints never moved alone, identified by the whole-model fit from every other sample
+    (coupled moves, still poses), started from the nominal placed on the identified axes.
+    Returns False (and changes nothing) when the data do not determine them."""
+    from dhlog.kinematics import joint_axes
+
+    nominal = result.nominal
+    joints, ref, seg = result.joints, result.reference_pose, result.segmentation
+    assert nominal is not None
+    known = [j for j in joints if j.ok and j.axis is not None]
+    points, dirs = joint_axes(nominal.table, ref, T_base=nominal.T_base)
+    if len(known) < 2:
+        return False
+    T = _align_lines(
+        [(points[j.index - 1], dirs[j.index - 1]) for j in known],
+        [(j.axis.point, j.axis.direction) for j in known if j.axis is not None],
+    )
+    if T is None:
+        return False
+    axes = [
+        j.axis
+        if j.ok and j.axis is not None
+        else Line(T[:3, :3] @ points[j.index - 1] + T[:3, 3], T[:3, :3] @ dirs[j.index - 1])
+        for j in joints
+    ]
+    types = tuple(nominal.table.joint_types)
+    rows, Q, P = _samples_with_encoders(seg)
+    if rows.size == 0:
+        return False
+    nearest = int(np.argmin(np.sum((Q - ref) ** 2, axis=1)))
+    M = chain_motion(axes, types, Q[nearest], ref)
+    target = np.asarray(np.linalg.solve(M, np.r_[P[nearest], 1.0])[:3], dtype=np.float64)
+    missing = [j for j in joints if not j.ok]
+    saved = [(j.type, j.axis, j.reason, j.type_source) for j in missing]
+    for j in missing:
+        j.type, j.axis, j.reason, j.type_source = (
+            types[j.index - 1],
+            axes[j.index - 1],
+            None,
+            "nominal",
+        )
+    result.target = target
+    try:
+        _identify_whole(result, None, kwargs, False, stage)
+    except GeometryError:
+        for j, (jt, axis, reason, source) in zip(missing, saved, strict=True):
+            j.type, j.axis, j.reason, j.type_source = jt, axis, reason, source
+        result.target = None
+        return False
+    assert result.whole is not None
+    for j in missing:
+        j.axis = result.whole.model.axes[j.index - 1]
+    names = ", ".join(f"joint {j.index} ({j.name})" for j in missing)
+    result.warnings.append(
+        f"{names}: never moved alone; identified by the whole-model fit from the other samples "
+        "(coupled moves, still poses), started from the nominal."
+    )
+    return True
+
+
+def _align_lines(
+    nominal: list[tuple[FloatArray, FloatArray]], measured: list[tuple[FloatArray, FloatArray]]
+) -> FloatArray | None:
+    """The rigid transform (4×4) that best carries the nominal lines onto the measured ones:
+    the rotation from the directions (Kabsch), the translation putting each nominal point on
+    its measured line (least squares). None when the directions do not fix the rotation."""
+    A = np.array([d for _, d in nominal])
+    B = np.array([d for _, d in measured])
+    U, S, Vt = np.linalg.svd(B.T @ A)
+    if S[1] < 1e-3 * S[0]:
+        return None
+    D = np.diag([1.0, 1.0, float(np.sign(np.linalg.det(U @ Vt)))])
+    R = U @ D @ Vt
+    rows, rhs = [], []
+    for (p, _), (c, e) in zip(nominal, measured, strict=True):
+        perp = np.eye(3) - np.outer(e, e)
+        rows.append(perp)
+        rhs.append(perp @ (c - R @ p))
+    t, *_ = np.linalg.lstsq(np.vstack(rows), np.concatenate(rhs), rcond=None)
+    T = np.eye(4)
+    T[:3, :3], T[:3, 3] = R, t
+    return T
+
+
 def _check_residual(validation: Validation, sigma: float, notes: list[str]) -> None:
     expected = math.sqrt(3.0) * sigma
     if validation.rms > 1.5 * expected:
@@ -772,7 +858,7 @@ def _samples_with_encoders(seg: Segmentation) -> tuple[NDArray[np.int64], FloatA
 
 def _identify_whole(
     result: ProcessResult,
-    analytic: Extraction,
+    analytic: Extraction | None,
     kwargs: dict[str, Any],
     fit_scales: bool,
     stage: Stage,
@@ -790,7 +876,8 @@ def _identify_whole(
         np.ones(len(joints)),
     )
     rows, Q, P = _samples_with_encoders(seg)
-    sigma = math.sqrt(np.mean([j.fit.sigma**2 for j in joints if j.fit is not None]))
+    fit_sigmas = [j.fit.sigma**2 for j in joints if j.fit is not None]
+    sigma = math.sqrt(np.mean(fit_sigmas)) if fit_sigmas else 1e-5
     stage("identifying", 0.1)
     whole = fit_whole_model(
         start,

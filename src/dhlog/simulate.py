@@ -54,6 +54,7 @@ class SimulationConfig:
     perturb_angle: float = 0.0
     clock_jitter: float = 2e-4
     skip_joints: tuple[int, ...] = ()
+    coupled: tuple[tuple[int, int, float], ...] = ()
     seed: int = 0
 
 
@@ -158,6 +159,17 @@ def _keyframes(
                 hold(cfg.dwell)
         hold(cfg.dwell)
         marks.append((t - cfg.dwell * 0.1, None))
+    for a, b, ratio in cfg.coupled:  # coupled moves: q_b follows ratio · q_a (e.g. q3 = −q2)
+        q_from, q_to = home.copy(), home.copy()
+        half = cfg.sweep / 2.0
+        q_from[a - 1] -= half
+        q_from[b - 1] -= ratio * half
+        q_to[a - 1] += half
+        q_to[b - 1] += ratio * half
+        go(np.clip(q_from, lo, hi), 1.5)
+        hold(cfg.dwell)
+        go(np.clip(q_to, lo, hi))
+        hold(cfg.dwell)
     go(home, 1.5)
     hold(cfg.dwell)
     return frames, marks

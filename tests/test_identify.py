@@ -1,0 +1,176 @@
+"""The whole-model fit: its Jacobian, its optimum against the truth, the noise model, the pair
+relations it holds, discrete-point protocols and joints never moved alone."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+
+from dhlog.dhfile import DHModel
+from dhlog.geometry.lines import Line
+from dhlog.identify.noise import NoiseModel
+from dhlog.identify.whole import AxisModel, ParameterLayout, fit_whole_model, predict
+from dhlog.io.memory import log_data_from_session
+from dhlog.kinematics import fk_point, joint_axes
+from dhlog.process import ProcessResult, fk_prediction_std, process_data, result_document
+from dhlog.robots import load_robot
+from dhlog.simulate import Session, SimulationConfig, simulate_session
+
+
+def truth_model(session: Session, ref: np.ndarray) -> AxisModel:
+    pts, dirs = joint_axes(session.table, ref, T_base=session.T_measurement_base)
+    return AxisModel(
+        tuple(Line(p, d) for p, d in zip(pts, dirs, strict=True)),
+        session.table.joint_types,
+        fk_point(session.table, ref, session.tool_point, T_base=session.T_measurement_base),
+        ref,
+        np.ones(session.table.n),
+    )
+
+
+def fk_error(result: ProcessResult, session: Session, Q: np.ndarray) -> np.ndarray:
+    ex = result.extraction
+    assert ex is not None
+    got = fk_point(ex.standard, Q, ex.tool_point, T_base=ex.T_measurement_base)
+    want = fk_point(session.table, Q, session.tool_point, T_base=session.T_measurement_base)
+    return np.asarray(np.linalg.norm(got - want, axis=1))
+
+
+@pytest.mark.parametrize("robot", ["kr5", "stanford", "scara"])
+@pytest.mark.parametrize("fit_scales", [False, True])
+def test_the_jacobian_is_the_derivative_of_the_prediction(robot: str, fit_scales: bool) -> None:
+    """Analytic columns against a first-order step of 1e-6 in every local parameter: the
+    difference is second order (≤ 1e-10 m for moves of 1e-6)."""
+    rob = load_robot(robot)
+    session = simulate_session(rob, SimulationConfig(seed=1))
+    model = truth_model(session, session.reference_pose)
+    layout = ParameterLayout.of(model.types, fit_scales=fit_scales)
+    bases = model.bases()
+    Q = np.random.default_rng(0).uniform(rob.limits[:, 0], rob.limits[:, 1], (40, rob.n))
+    step = np.random.default_rng(1).normal(size=layout.size) * 1e-6
+    p0, J = predict(model, Q, layout, bases)
+    p1, _ = predict(model.moved(step, layout, bases), Q)
+    assert J is not None
+    assert np.abs(p1 - p0 - J @ step).max() < 1e-10 < np.abs(J @ step).max()
+
+
+def test_from_a_start_a_millimetre_off_the_fit_reaches_the_truth_within_its_sigma() -> None:
+    """Started 1 mm / 1 mrad away from the truth, the fit converges, χ²/dof is 1 within its
+    spread, and every parameter is within 4σ of the truth (the start cannot be told apart)."""
+    rob = load_robot("puma560")
+    session = simulate_session(rob, SimulationConfig(seed=2, noise=2e-5, tracker_rate=50.0))
+    seg_log = log_data_from_session(session)
+    result = process_data(seg_log, analytic_only=True)
+    table = result.segmentation.table
+    Q = table.select([f"q_{i + 1}" for i in range(rob.n)]).drop_nulls().to_numpy()
+    P = table.drop_nulls(subset=[f"q_{i + 1}" for i in range(rob.n)]).select("x", "y", "z")
+    truth = truth_model(session, result.reference_pose)
+    layout = ParameterLayout.of(truth.types)
+    start = truth.moved(
+        np.random.default_rng(3).normal(size=layout.size) * 1e-3, layout, truth.bases()
+    )
+    fit = fit_whole_model(start, Q, P.to_numpy(), noise=NoiseModel(), sigma=2e-5)
+    dof = 3 * fit.n_points - layout.size
+    assert abs(fit.chi2_dof - 1.0) < 4 * math.sqrt(2 / dof)
+    # the truth in the fit's local coordinates: the first-order step from the fit to the truth
+    p_fit, J = predict(fit.model, Q, layout, fit.bases)
+    p_true, _ = predict(truth, Q)
+    assert J is not None
+    delta, *_ = np.linalg.lstsq(J.reshape(-1, layout.size), (p_true - p_fit).ravel(), rcond=None)
+    z = delta / np.sqrt(np.diag(fit.covariance))
+    assert np.all(np.abs(z) < 4.0), np.abs(z).max()
+
+
+def test_the_table_equals_the_fitted_model_and_pairs_held_parallel_are_fixed() -> None:
+    """KR5 exactly at its nominal, given as the nominal: axes 2 and 3 are parallel within the
+    noise, the fit holds them parallel, so d2 and α2 are fixed (with the reason) and the DH
+    table reproduces the fitted model to rounding at the samples' joint vectors."""
+    rob = load_robot("kr5")
+    nominal = DHModel(rob.table, rob.T_base, rob.tool_point, ("a",) * 6, "kr5")
+    session = simulate_session(rob, SimulationConfig(seed=4, noise=2e-5))
+    result = process_data(log_data_from_session(session), nominal=nominal)
+    assert result.whole is not None and 1 in result.whole.constrained
+    doc = result_document(result)
+    row2 = doc["standard_dh"][1]
+    assert set(row2["fixed"]) == {"d", "alpha"} and row2["std"]["alpha"] is None
+    assert "parallel" in row2["fixed_reason"]
+    assert not any("departs from the fitted model" in w for w in result.warnings)
+    Q = result.segmentation.table.select([f"q_{i + 1}" for i in range(6)]).drop_nulls()
+    Q = Q.to_numpy()[::50]
+    ex = result.extraction
+    assert ex is not None
+    fitted, _ = predict(result.whole.model, Q)
+    table = fk_point(ex.standard, Q, ex.tool_point, T_base=ex.T_measurement_base)
+    assert np.abs(fitted - table).max() < 1e-9
+
+
+def test_a_tracker_noise_model_weighs_the_fit_and_is_checked_by_chi2() -> None:
+    """Samples with a tracker's anisotropic noise (radial 5 µm, transverse 30 µm + 10 µm/m from
+    a station 2.5 m away): under the right model χ²/dof is 1 and the FK error is covered by the
+    reported uncertainty; under a model 3x too optimistic χ²/dof is far from 1 and said so."""
+    rob = load_robot("kr5")
+    session = simulate_session(rob, SimulationConfig(seed=6, noise=1e-9, tracker_rate=50.0))
+    rng = np.random.default_rng(7)
+    station = np.array([2.5, 0.3, 0.5])
+    model = NoiseModel("tracker", radial=5e-6, transverse=30e-6, transverse_per_m=10e-6)
+    model = dataclasses.replace(model, station=tuple(station))
+    rel = session.point_xyz - station
+    dist = np.linalg.norm(rel, axis=1)
+    u = rel / dist[:, None]
+    noise = rng.normal(size=rel.shape)
+    radial = (noise * u).sum(axis=1)
+    transverse = noise - radial[:, None] * u
+    s_t = 30e-6 + 10e-6 * dist
+    session.point_xyz = session.point_xyz + 5e-6 * radial[:, None] * u + s_t[:, None] * transverse
+    log = log_data_from_session(session)
+    right = process_data(
+        dataclasses.replace(log, pipeline=dataclasses.replace(log.pipeline, noise=model))
+    )
+    assert right.whole is not None and 0.9 < right.whole.chi2_dof < 1.1
+    doc = result_document(right)
+    assert doc["noise"]["model"] == "tracker" and doc["noise"]["radial"] == 5e-6
+    Q = np.random.default_rng(8).uniform(rob.limits[:, 0], rob.limits[:, 1], (200, 6))
+    assert np.all(fk_error(right, session, Q) <= 4.0 * fk_prediction_std(right, Q))
+    wrong = dataclasses.replace(model, radial=5e-6 / 3, transverse=10e-6, transverse_per_m=3e-6)
+    off = process_data(
+        dataclasses.replace(log, pipeline=dataclasses.replace(log.pipeline, noise=wrong))
+    )
+    assert off.whole is not None and off.whole.chi2_dof > 4.0
+    assert any("contradict" in w for w in off.warnings)
+
+
+def test_a_discrete_point_protocol_with_six_stops_per_joint_works_with_the_defaults() -> None:
+    """Step-and-measure with one tracker point per stop, 6 stops per joint (the common laser
+    tracker practice): identified with the shipped defaults, FK within the uncertainty."""
+    rob = load_robot("kr5")
+    cfg = SimulationConfig(seed=3, motion="step", steps=6, noise=1e-5, tracker_rate=1 / 0.3)
+    session = simulate_session(rob, cfg)
+    result = process_data(log_data_from_session(session))
+    assert result.complete and result.whole is not None
+    assert all(j.fit is not None and j.fit.n_points <= 12 for j in result.joints)
+    Q = np.random.default_rng(9).uniform(rob.limits[:, 0], rob.limits[:, 1], (200, 6))
+    assert np.all(fk_error(result, session, Q) <= 4.0 * fk_prediction_std(result, Q))
+
+
+def test_a_joint_never_moved_alone_is_identified_from_coupled_moves() -> None:
+    """KR5 off its nominal; joint 3 is only moved together with joint 2 (q3 = −q2, the level
+    forearm sweep): with the nominal, the whole-model fit identifies it and the FK error is
+    covered by the uncertainty. Without the coupled moves nothing determines it: partial result."""
+    rob = load_robot("kr5")
+    nominal = DHModel(
+        rob.table, rob.T_base, rob.tool_point, tuple(f"joint_{i}" for i in range(6)), "kr5"
+    )
+    base = {"seed": 11, "noise": 2e-5, "skip_joints": (3,), "perturb_length": 5e-4}
+    coupled = SimulationConfig(**base, coupled=((2, 3, -1.0),))  # type: ignore[arg-type]
+    session = simulate_session(rob, coupled)
+    result = process_data(log_data_from_session(session), nominal=nominal)
+    assert result.complete and result.whole is not None
+    assert any("never moved alone" in w for w in result.warnings)
+    Q = np.random.default_rng(10).uniform(rob.limits[:, 0], rob.limits[:, 1], (200, 6))
+    assert np.all(fk_error(result, session, Q) <= 4.0 * fk_prediction_std(result, Q))
+    alone = simulate_session(rob, SimulationConfig(**base))  # type: ignore[arg-type]
+    partial = process_data(log_data_from_session(alone), nominal=nominal)
+    assert not partial.complete and partial.failed[0].index == 3
