@@ -27,10 +27,11 @@ import numpy as np
 
 from dhlog.geometry.lines import Line
 from dhlog.identify.noise import NoiseModel
+from dhlog.identify.sweeps import samples_with_encoders
 from dhlog.identify.whole import AxisModel, fit_whole_model, predict
 from dhlog.io.memory import log_data_from_session
 from dhlog.kinematics import fk_point, joint_axes
-from dhlog.process import _samples_with_encoders, process_data
+from dhlog.process import process_data
 from dhlog.robots import load_robot
 from dhlog.simulate import SimulationConfig, simulate_session
 
@@ -107,7 +108,7 @@ def one(job: tuple[str, str, int, int]) -> tuple[np.ndarray, np.ndarray, np.ndar
         ref,
         np.ones(robot.n),
     )
-    _, Qs, Ps = _samples_with_encoders(default.segmentation)
+    _, Qs, Ps = samples_with_encoders(default.segmentation)
     limit = fit_whole_model(truth, Qs, Ps, noise=NoiseModel(), sigma=float(cfg.noise))
     got, _ = predict(limit.model, Q)
     return error(default), error(analytic), np.sum((got - want) ** 2, axis=1)

@@ -65,7 +65,8 @@ def run(cmd: list[str]) -> tuple[float, float, str]:
 
 def stages(path: Path) -> list[tuple[str, float]]:
     """Seconds spent in each stage of one in-process run."""
-    from dhlog.process import process_log, result_csv, result_document
+    from dhlog.process import process_log
+    from dhlog.result import result_csv, result_document
 
     marks: list[tuple[str, float]] = [("start", time.perf_counter())]
 

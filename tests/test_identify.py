@@ -15,9 +15,11 @@ from dhlog.identify.noise import NoiseModel
 from dhlog.identify.whole import AxisModel, ParameterLayout, fit_whole_model, predict
 from dhlog.io.memory import log_data_from_session
 from dhlog.kinematics import fk_point, joint_axes
-from dhlog.process import ProcessResult, fk_prediction_std, process_data, result_document
+from dhlog.process import ProcessResult, process_data
+from dhlog.result import result_document
 from dhlog.robots import load_robot
 from dhlog.simulate import Session, SimulationConfig, simulate_session
+from dhlog.validate import fk_prediction_std
 
 
 def truth_model(session: Session, ref: np.ndarray) -> AxisModel:

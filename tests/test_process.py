@@ -20,17 +20,12 @@ from dhlog.cli import app
 from dhlog.dhfile import load_dh
 from dhlog.io.writer import write_session
 from dhlog.kinematics import fk_point
-from dhlog.process import (
-    ProcessResult,
-    fk_prediction_std,
-    nominal_difference,
-    process_log,
-    result_csv,
-    result_document,
-)
+from dhlog.process import ProcessResult, process_log
 from dhlog.recording import write_process_recording
+from dhlog.result import nominal_difference, result_csv, result_document
 from dhlog.robots import load_robot
 from dhlog.simulate import SimulationConfig, simulate_session
+from dhlog.validate import fk_prediction_std
 
 SAMPLES = Path(__file__).parents[1] / "sample_logs"
 LOGS = sorted(SAMPLES.glob("*.mcap"))

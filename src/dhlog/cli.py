@@ -272,8 +272,9 @@ def process(
 
     from dhlog.io.pipeline import load_pipeline
     from dhlog.io.writer import atomic_output
-    from dhlog.process import process_log, result_csv, result_document
+    from dhlog.process import process_log
     from dhlog.report import print_result
+    from dhlog.result import result_csv, result_document
 
     if units not in ("mm", "m"):
         stderr.print(f"error: --units must be mm or m, not '{units}'.")

@@ -16,7 +16,8 @@ import numpy as np
 from dhlog.dhfile import DHModel
 from dhlog.geometry._checks import FloatArray
 from dhlog.io.memory import log_data_from_session
-from dhlog.process import nominal_difference, process_data
+from dhlog.process import process_data
+from dhlog.result import nominal_difference
 from dhlog.robots import load_robot
 from dhlog.simulate import SimulationConfig, simulate_session
 

@@ -10,7 +10,8 @@ from rich.console import Console
 from rich.markup import escape
 from rich.table import Table
 
-from dhlog.process import ProcessResult, display_rows, display_scales, nominal_difference
+from dhlog.process import ProcessResult
+from dhlog.result import display_rows, display_scales, nominal_difference
 
 NAMES = ("θ", "d", "a", "α")
 

@@ -1,0 +1,311 @@
+"""The result contract (``dhlog.result/1``): the JSON document, the CSV and the display rows."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from dhlog import __version__
+from dhlog.contract import RESULT_FORMAT, dh_documents, relation_documents
+from dhlog.dh import JointType
+from dhlog.geometry._checks import FloatArray, wrap_angle
+from dhlog.identify.propagate import (
+    state_names,
+    state_vector,
+)
+from dhlog.identify.sweeps import JointReport
+from dhlog.process import ProcessResult
+
+
+def _fit_doc(j: JointReport, t_ns: NDArray[np.int64]) -> dict[str, Any] | None:
+    f = j.fit
+    if f is None:
+        return None
+    return {
+        "method": f.method,
+        "n_points": int(f.n_points),
+        "n_outliers": j.n_outliers,
+        "rms": float(f.rms),
+        "sweep": float(f.sweep),
+        "radius": float(f.radius),
+        "sigma": float(f.sigma),
+        "segments": j.segments,
+        "outliers_t_ns": [int(t) for t in t_ns[j.rows[~j.inliers]]],
+        "axis_std": {"direction": f.direction_std, "position": f.position_std},
+        **({"encoder_scale": f.encoder_scale} if f.encoder_scale is not None else {}),
+    }
+
+
+def result_document(result: ProcessResult) -> dict[str, Any]:
+    """The ``<stem>.dh.json`` document (the result contract, ``dhlog.result/1``)."""
+    ex = result.extraction
+    n_rows = 0 if ex is None else (ex.standard.n if result.complete else ex.standard.n - 1)
+    std = result.std
+    rows: list[dict[str, Any]] = []
+    mod_rows: list[dict[str, Any]] = []
+    relations: list[dict[str, Any]] = []
+    if ex is not None:
+        rows, mod_rows = dh_documents(ex.standard, ex.reference_pose, std, n_rows)
+        relations = relation_documents(ex.relations)
+    val = result.validation
+    per_joint = {} if val is None else val.per_joint
+    t_ns = result.segmentation.table["t_ns"].to_numpy()
+    doc: dict[str, Any] = {
+        "format": RESULT_FORMAT,
+        "dhlog_version": __version__,
+        "source": {
+            "path": Path(result.path).name,
+            "sha256": result.sha256,
+            "pipeline": result.log.pipeline.name,
+        },
+        "units": {"length": "m", "angle": "rad"},
+        "reference_pose": [float(v) for v in result.reference_pose],
+        "joints": [
+            {
+                "index": j.index,
+                "name": j.name,
+                "type": j.type.value if j.type else None,
+                "axis": None
+                if j.axis is None
+                else {"point": j.axis.point.tolist(), "direction": j.axis.direction.tolist()},
+                "fit": _fit_doc(j, t_ns),
+                **(
+                    {
+                        "validation": {
+                            "fk_rms": per_joint[j.index][0],
+                            "fk_max": per_joint[j.index][1],
+                            "n_points": per_joint[j.index][2],
+                        }
+                    }
+                    if j.index in per_joint
+                    else {}
+                ),
+                **({"error": j.reason} if j.reason else {}),
+            }
+            for j in result.joints
+        ],
+        "standard_dh": rows,
+        "modified_dh": mod_rows,
+        "relations": relations,
+        "base": {"T_measurement_base": None if ex is None else ex.T_measurement_base.tolist()},
+        "tool": {"point": None if (ex is None or not result.complete) else ex.tool_point.tolist()},
+        "validation": {
+            "fk_rms": None if val is None else val.rms,
+            "fk_max": None if val is None else val.max,
+            "n_points": 0 if val is None else val.n_points,
+        },
+        "warnings": list(result.warnings),
+    }
+    if ex is not None and result.complete:
+        doc["modified_dh_tool"] = {"T_n_tool": ex.T_modified_tool.tolist()}
+        if std is not None:
+            n = ex.standard.n
+            doc["tool"]["std"] = [_num_or_none(v) for v in std[4 * n : 4 * n + 3]]
+            doc["base"]["std"] = {
+                "translation": [_num_or_none(v) for v in std[4 * n + 3 : 4 * n + 6]],
+                "rotation": [_num_or_none(v) for v in std[4 * n + 6 : 4 * n + 9]],
+            }
+        _mark_fixed(doc, result)
+        doc["method"] = result.method
+        if result.covariance is not None:
+            doc["covariance"] = _covariance_document(result)
+        if result.analytic is not None and result.std is not None:
+            doc["analytic"] = _analytic_document(result)
+        doc["noise"] = _noise_document(result)
+        if result.whole is not None:
+            doc["whole_fit"] = _whole_fit_document(result)
+    if result.hayati:
+        q = result.reference_pose
+        doc["hayati"] = []
+        for k, h in enumerate(result.hayati):
+            row: dict[str, Any] = {
+                "joints": list(h.joints),
+                "theta": h.theta,
+                "theta_offset": h.theta - float(q[h.joints[0] - 1])
+                if result.joints[h.joints[0] - 1].type is JointType.REVOLUTE
+                else h.theta,
+                "a": h.a,
+                "alpha": h.alpha,
+                "beta": h.beta,
+            }
+            if k < len(result.hayati_std):
+                sd = result.hayati_std[k]
+                row["std"] = dict(zip(("theta", "a", "alpha", "beta"), map(float, sd), strict=True))
+            doc["hayati"].append(row)
+    if result.base is not None:
+        doc["base"]["plane"] = {
+            "point": result.base.plane.point.tolist(),
+            "normal": result.base.plane.normal.tolist(),
+            "rms": result.base.rms,
+            "n_points": int(result.base.residuals.size),
+        }
+    doc["segmentation"] = {
+        "segments": result.segmentation.segments.height,
+        "set_aside": dict(result.segmentation.set_aside),
+    }
+    return doc
+
+
+def _num_or_none(value: float) -> float | None:
+    return float(value) if math.isfinite(value) else None
+
+
+def _mark_fixed(doc: dict[str, Any], result: ProcessResult) -> None:
+    """``fixed`` / ``fixed_reason`` on each DH row, on the tool and on the base."""
+    names = ("theta", "d", "a", "alpha")
+    n = len(doc["standard_dh"])
+    for i, row in enumerate(doc["standard_dh"]):
+        held = [(names[p], result.fixed[4 * i + p]) for p in range(4) if 4 * i + p in result.fixed]
+        if held:
+            row["fixed"] = [name for name, _ in held]
+            row["fixed_reason"] = "; ".join(dict.fromkeys(f"{name}: {why}" for name, why in held))
+    tool = [("xyz"[p], result.fixed[4 * n + p]) for p in range(3) if 4 * n + p in result.fixed]
+    if tool:
+        doc["tool"]["fixed"] = [c for c, _ in tool]
+        doc["tool"]["fixed_reason"] = tool[0][1]
+
+
+def _covariance_document(result: ProcessResult) -> dict[str, Any]:
+    """The covariance of every free parameter (names as :func:`state_names`, SI units)."""
+    cov = result.covariance
+    assert cov is not None
+    n = len(result.joints)
+    free = [k for k in range(4 * n + 9) if k not in result.fixed]
+    names = state_names(n)
+    return {
+        "parameters": [names[k] for k in free],
+        "matrix": [[float(cov[a, b]) for b in free] for a in free],
+    }
+
+
+def _analytic_document(result: ProcessResult) -> dict[str, Any]:
+    """The seed method's table (the start of the whole-model fit) and its distance from the
+    result in the result's σ."""
+    an, ex, std = result.analytic, result.extraction, result.std
+    assert an is not None and ex is not None and std is not None
+    rows, _ = dh_documents(an.standard, an.reference_pose)
+    for row in rows:
+        del row["std"]
+    R0 = ex.T_measurement_base[:3, :3]
+    diff = state_vector(an, R0) - state_vector(ex, R0)
+    n = ex.standard.n
+    ang = np.zeros(diff.size, dtype=bool)
+    ang[: 4 * n] = np.tile([True, False, False, True], n)
+    diff[ang] = [wrap_angle(d) for d in diff[ang]]
+    ratio = np.where(np.isfinite(std) & (std > 0), np.abs(diff) / np.where(std > 0, std, 1), 0)
+    worst = int(np.argmax(ratio))
+    return {
+        "standard_dh": rows,
+        "max_deviation_sigma": float(ratio[worst]),
+        "max_deviation_parameter": state_names(n)[worst],
+    }
+
+
+def _noise_document(result: ProcessResult) -> dict[str, Any]:
+    doc: dict[str, Any] = {"model": result.noise.model, **result.noise.document()}
+    if result.whole is not None:
+        doc["chi2_dof"] = result.whole.chi2_dof
+        if result.noise.model == "isotropic":
+            doc["sigma"] = result.sigma
+            doc["sigma_source"] = "estimated from the residuals"
+    else:
+        fits = [j.fit.sigma for j in result.joints if j.fit is not None]
+        doc["sigma"] = float(math.sqrt(np.mean(np.square(fits)))) if fits else None
+        doc["sigma_source"] = "the per-joint fits' residuals"
+    return doc
+
+
+def _whole_fit_document(result: ProcessResult) -> dict[str, Any]:
+    w = result.whole
+    assert w is not None
+    doc: dict[str, Any] = {
+        "n_points": w.n_points,
+        "n_outliers": int(np.count_nonzero(~w.inliers)),
+        "iterations": w.iterations,
+        "rms": w.rms,
+    }
+    if w.layout.scale_at is not None:
+        k = w.layout.scale_at
+        n = w.model.n
+        doc["encoder_scales"] = {
+            "value": [float(v) for v in w.model.scales],
+            "std": [float(math.sqrt(max(w.covariance[k + i, k + i], 0.0))) for i in range(n)],
+        }
+    return doc
+
+
+def display_scales(units: str) -> tuple[float, float, str, str]:
+    """Factors and unit names for display: ``mm`` → (1e3, 180/π, "mm", "deg"), ``m`` → SI."""
+    if units == "m":
+        return 1.0, 1.0, "m", "rad"
+    return 1e3, 180.0 / math.pi, "mm", "deg"
+
+
+def display_rows(
+    result: ProcessResult, units: str = "mm"
+) -> list[tuple[str, list[float], list[float | None], list[bool]]]:
+    """Per standard-DH row: its type, ``θ_offset, d_offset, a, α``, their σ (None when fixed)
+    in display units (``display_scales``), and which of the four are held fixed."""
+    length, angle, _, _ = display_scales(units)
+    factors = [angle, length, length, angle]
+    out = []
+    for row in result_document(result)["standard_dh"]:
+        s = row["std"]
+        values = [row["theta_offset"], row["d_offset"], row["a"], row["alpha"]]
+        stds = [s["theta"], s["d"], s["a"], s["alpha"]]
+        held = row.get("fixed", [])
+        out.append(
+            (
+                row["type"],
+                [v * f for v, f in zip(values, factors, strict=True)],
+                [None if v is None else v * f for v, f in zip(stds, factors, strict=True)],
+                [name in held for name in ("theta", "d", "a", "alpha")],
+            )
+        )
+    return out
+
+
+def result_csv(result: ProcessResult, *, units: str = "mm") -> str:
+    """The standard DH table as CSV, in mm and degrees (or m and rad), with ±1σ columns; a
+    parameter held by a convention has ``fixed`` in its σ column."""
+    _, _, lu, au = display_scales(units)
+    lines = [
+        f"joint,name,type,theta_offset_{au},d_{lu},a_{lu},alpha_{au},"
+        f"std_theta_{au},std_d_{lu},std_a_{lu},std_alpha_{au}"
+    ]
+    for i, (kind, values, stds, held) in enumerate(display_rows(result, units)):
+        cells = [str(i + 1), _csv_cell(result.joints[i].name), kind]
+        cells += [f"{v:.9g}" for v in values]
+        cells += [
+            "fixed" if h else ("" if v is None else f"{v:.3g}")
+            for v, h in zip(stds, held, strict=True)
+        ]
+        lines.append(",".join(cells))
+    return "\n".join(lines) + "\n"
+
+
+def _csv_cell(text: str) -> str:
+    if any(c in text for c in ',"\n'):
+        return '"' + text.replace('"', '""') + '"'
+    return text
+
+
+def nominal_difference(result: ProcessResult) -> FloatArray | None:
+    """measured − nominal per row (n, 4) in SI units, angles wrapped; None without nominal."""
+    if result.nominal is None or result.extraction is None:
+        return None
+    t, nom = result.extraction.standard, result.nominal.table
+    n = t.n if result.complete else t.n - 1
+    diff = np.zeros((n, 4))
+    for i in range(n):
+        diff[i] = [
+            wrap_angle(t.theta_offset[i] - nom.theta_offset[i]),
+            t.d_offset[i] - nom.d_offset[i],
+            t.a[i] - nom.a[i],
+            wrap_angle(t.alpha[i] - nom.alpha[i]),
+        ]
+    return diff

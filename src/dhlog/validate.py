@@ -1,0 +1,159 @@
+"""The check of a result against every sample: forward kinematics of the DH table at each
+sample's encoder values, per joint and overall; the predicted FK error from the covariance."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+from numpy.typing import NDArray
+
+from dhlog.dh import JointType, StandardDH
+from dhlog.extract import Extraction
+from dhlog.geometry._checks import FloatArray
+from dhlog.identify.propagate import (
+    frame_rotation,
+    state_vector,
+)
+from dhlog.identify.sweeps import JointReport
+from dhlog.identify.whole import (
+    WholeFit,
+)
+from dhlog.kinematics import fk_point, fk_points_chunked
+from dhlog.segment import Segmentation
+
+if TYPE_CHECKING:
+    from dhlog.process import ProcessResult
+
+
+@dataclass
+class Validation:
+    """FK of the result against each assigned sample with encoder values (m), and summaries."""
+
+    residuals: FloatArray
+    per_joint: dict[int, tuple[float, float, int]]
+    rms: float
+    max: float
+    n_points: int
+
+
+def model_from_state(
+    x: FloatArray, types: tuple[JointType, ...], R0: FloatArray
+) -> tuple[StandardDH, FloatArray, FloatArray]:
+    """Inverse of :func:`state_vector`: (table, tool point, T_measurement_base)."""
+    n = len(types)
+    rows = x[: 4 * n].reshape(n, 4)
+    table = StandardDH(types, rows[:, 0], rows[:, 1], rows[:, 2], rows[:, 3])
+    tool = x[4 * n : 4 * n + 3]
+    R = frame_rotation(R0, x[4 * n + 6 : 4 * n + 9])
+    T = np.eye(4)
+    T[:3, :3], T[:3, 3] = R, x[4 * n + 3 : 4 * n + 6]
+    return table, tool, T
+
+
+def fk_prediction_std(result: ProcessResult, Q: FloatArray) -> FloatArray:
+    """Predicted RMS position error (m) of the result's FK at each joint vector in ``Q``, from
+    the propagated covariance of the model (first order)."""
+    ex, cov = result.extraction, result.covariance
+    assert ex is not None and cov is not None
+    R0 = ex.T_measurement_base[:3, :3]
+    x0 = state_vector(ex, R0)
+    types = ex.standard.joint_types
+
+    def fk(x: FloatArray) -> FloatArray:
+        table, tool, T = model_from_state(x, types, R0)
+        return fk_point(table, Q, tool, T_base=T)
+
+    J = np.zeros((Q.shape[0], 3, x0.size))
+    for i in range(x0.size):
+        h = 1e-7
+        e = np.zeros(x0.size)
+        e[i] = h
+        J[:, :, i] = (fk(x0 + e) - fk(x0 - e)) / (2 * h)
+    var = np.einsum("mij,jk,mik->m", J, cov, J)
+    return np.asarray(np.sqrt(np.clip(var, 0.0, None)), dtype=np.float64)
+
+
+def validate_sweeps(
+    seg: Segmentation, joints: list[JointReport], ex: Extraction
+) -> Validation | None:
+    """FK of the result at every assigned inlier sample's own encoder values against the sample."""
+    if not seg.has_encoders:
+        return None
+    table = seg.table
+    cols = [f"q_{i + 1}" for i in range(seg.n_joints)]
+    Q = table.select(cols).to_numpy()
+    P = table.select(["x", "y", "z"]).to_numpy()
+    residuals = np.full(table.height, np.nan)
+    per_joint: dict[int, tuple[float, float, int]] = {}
+    used: list[FloatArray] = []
+    for j in joints:
+        rows = j.rows[j.inliers]
+        if rows.size == 0:
+            continue
+        pred = fk_point(ex.standard, Q[rows], ex.tool_point, T_base=ex.T_measurement_base)
+        r = np.linalg.norm(pred - P[rows], axis=1)
+        residuals[rows] = r
+        per_joint[j.index] = (float(np.sqrt(np.mean(r**2))), float(r.max()), int(r.size))
+        used.append(r)
+    allr = np.concatenate(used) if used else np.zeros(0)
+    return Validation(
+        residuals=residuals,
+        per_joint=per_joint,
+        rms=float(np.sqrt(np.mean(allr**2))) if allr.size else float("nan"),
+        max=float(allr.max()) if allr.size else float("nan"),
+        n_points=int(allr.size),
+    )
+
+
+def validate_samples(
+    seg: Segmentation,
+    rows: NDArray[np.int64],
+    Q: FloatArray,
+    P: FloatArray,
+    ex: Extraction,
+    inliers: NDArray[np.bool_],
+) -> Validation:
+    """FK of the DH result at every sample with encoder values against the sample (per joint by
+    the sweep it belongs to; coupled moves and still poses under joint 0)."""
+    pred = fk_points_chunked(ex.standard, Q, ex.tool_point, T_base=ex.T_measurement_base)
+    r = np.sqrt(np.sum((pred - P) ** 2, axis=1))
+    residuals = np.full(seg.table.height, np.nan)
+    residuals[rows[inliers]] = r[inliers]
+    labels = seg.table["joint"].fill_null(0).to_numpy()[rows]
+    per_joint: dict[int, tuple[float, float, int]] = {}
+    for k in np.unique(labels[inliers]):
+        rk = r[inliers & (labels == k)]
+        per_joint[int(k)] = (float(np.sqrt(np.mean(rk**2))), float(rk.max()), int(rk.size))
+    used = r[inliers]
+    return Validation(
+        residuals=residuals,
+        per_joint=per_joint,
+        rms=float(np.sqrt(np.mean(used**2))) if used.size else float("nan"),
+        max=float(used.max()) if used.size else float("nan"),
+        n_points=int(used.size),
+    )
+
+
+def check_residual(validation: Validation, sigma: float, notes: list[str]) -> None:
+    expected = math.sqrt(3.0) * sigma
+    if validation.rms > 1.5 * expected:
+        notes.append(
+            f"the FK residual RMS ({validation.rms * 1e3:.4f} mm, 3-D) is larger than the fit "
+            f"noise explains ({expected * 1e3:.4f} mm): the axes disagree with one "
+            "kinematic chain more than the noise allows."
+        )
+
+
+def table_gap(whole: WholeFit, ex: Extraction, Q: FloatArray) -> float:
+    """Largest distance (m) between the fitted model and its DH table at the reference pose and
+    at up to 64 of the sampled joint vectors: 0 up to rounding when the extraction is exact."""
+    from dhlog.identify.whole import predict
+
+    pick = np.unique(np.linspace(0, Q.shape[0] - 1, min(64, Q.shape[0])).astype(int))
+    Qs = np.vstack([whole.model.reference_pose, Q[pick]])
+    fitted, _ = predict(whole.model, Qs)
+    table = fk_points_chunked(ex.standard, Qs, ex.tool_point, T_base=ex.T_measurement_base)
+    return float(np.max(np.linalg.norm(fitted - table, axis=1)))
