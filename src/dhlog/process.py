@@ -439,7 +439,7 @@ def _identify_whole(
         nominal,
         kwargs["angle_tol"],
         kwargs["distance_tol"],
-        k_data=AIC_SIGMA_2D,
+        k_parallel=AIC_SIGMA_2D,
     )
     whole = _with_fixed_relations(whole, tolerances)
 

@@ -56,12 +56,14 @@ def pair_tolerances(
     *,
     k_data: float = THREE_SIGMA_2D,
     k_nominal: float = NOMINAL_SIGMA_2D,
+    k_parallel: float | None = None,
 ) -> list[tuple[float, float]] | None:
     """Per consecutive pair, the angle (rad) and distance (m) below which the data cannot tell
     the axes from parallel / meeting: 3σ (2D: 3.44σ) of the difference of the two axes, from
     their covariances (``axes``: per axis the 4×4 covariance of ``[δe·u, δe·v, δc·u, δc·v]``
     and the point ``c`` it refers to; 5σ when the nominal says parallel / meeting).
-    ``angle_floor`` and ``distance_floor`` apply only when an axis has no covariance (never
+    ``k_parallel`` replaces the σ count of the parallel decision (without a nominal) where that
+    decision constrains the model (the whole-model fit: Akaike's 2σ). ``angle_floor`` and ``distance_floor`` apply only when an axis has no covariance (never
     below 1e-7)."""
     if axes is None:
         return None
@@ -72,6 +74,8 @@ def pair_tolerances(
         lever = float(np.linalg.norm(p1 - p2))
         var_pos = (np.trace(c1[2:, 2:]) + np.trace(c2[2:, 2:])) / 2 + var_dir * lever**2
         k_angle = k_dist = k_data
+        if k_parallel is not None:
+            k_angle = k_parallel
         if nominal is not None:
             if abs(math.sin(nominal.table.alpha[i])) < 1e-9:
                 k_angle = k_nominal
