@@ -176,3 +176,76 @@ def test_a_joint_never_moved_alone_is_identified_from_coupled_moves() -> None:
     alone = simulate_session(rob, SimulationConfig(**base))  # type: ignore[arg-type]
     partial = process_data(log_data_from_session(alone), nominal=nominal)
     assert not partial.complete and partial.failed[0].index == 3
+
+
+def test_per_sample_covariance_of_pose_with_covariance_stamped_weighs_the_fit(tmp_path) -> None:  # type: ignore[no-untyped-def]
+    """A log whose target stream is ``geometry_msgs/msg/PoseWithCovarianceStamped`` (written by
+    the real ``mcap_ros2`` writer) with a different anisotropic covariance per sample and noise
+    drawn from it: the reader carries the covariance into the measurement table, the fit is
+    weighted by it (noise model "per-sample", χ²/dof ≈ 1) and the FK error is covered."""
+    from mcap_ros2.writer import Writer
+
+    from dhlog.io import ros2
+    from dhlog.process import process_log
+
+    rob = load_robot("kr5")
+    session = simulate_session(rob, SimulationConfig(seed=12, noise=1e-9, tracker_rate=50.0))
+    rng = np.random.default_rng(13)
+    m = session.point_xyz.shape[0]
+    scales = np.column_stack([rng.uniform(5e-6, 40e-6, m) for _ in range(3)])
+    rotations = [np.linalg.qr(rng.normal(size=(3, 3)))[0] for _ in range(m)]
+    covs = np.array([R @ np.diag(s**2) @ R.T for R, s in zip(rotations, scales, strict=True)])
+    noisy = session.point_xyz + np.einsum(
+        "mij,mj->mi", np.linalg.cholesky(covs), rng.normal(size=(m, 3))
+    )
+    path = tmp_path / "pose_cov.mcap"
+    with path.open("wb") as f:
+        writer = Writer(f)
+        pose = writer.register_msgdef(
+            ros2.POSE_WITH_COVARIANCE, ros2.MSGDEFS[ros2.POSE_WITH_COVARIANCE]
+        )
+        joint = writer.register_msgdef(ros2.JOINT_STATE, ros2.MSGDEFS[ros2.JOINT_STATE])
+
+        def stamp(t: int) -> dict[str, object]:
+            return {"sec": t // 1_000_000_000, "nanosec": t % 1_000_000_000}
+
+        messages = []
+        for t, p, c in zip(session.point_t_ns, noisy, covs, strict=True):
+            full = np.zeros((6, 6))
+            full[:3, :3] = c
+            full[3:, 3:] = np.eye(3)
+            msg = {
+                "header": {"stamp": stamp(int(t)), "frame_id": "tracker"},
+                "pose": {
+                    "pose": {
+                        "position": {"x": p[0], "y": p[1], "z": p[2]},
+                        "orientation": {"x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0},
+                    },
+                    "covariance": full.ravel().tolist(),
+                },
+            }
+            messages.append((int(t), "/tracker/point", pose, msg))
+        for t, q in zip(session.joint_t_ns, session.joint_q, strict=True):
+            msg = {
+                "header": {"stamp": stamp(int(t)), "frame_id": ""},
+                "name": session.joint_names,
+                "position": q.tolist(),
+                "velocity": [],
+                "effort": [],
+            }
+            messages.append((int(t), "/joint_states", joint, msg))
+        for t, topic, schema, msg in sorted(messages, key=lambda x: x[0]):
+            writer.write_message(topic, schema, msg, log_time=t, publish_time=t)
+        writer.finish()
+    result = process_log(path)
+    assert "cxx" in result.segmentation.table.columns
+    assert result.noise.model == "per-sample" and result.whole is not None
+    dof = 3 * result.whole.n_points
+    assert abs(result.whole.chi2_dof - 1.0) < 5 * math.sqrt(2 / dof)
+    assert result_document(result)["noise"]["model"] == "per-sample"
+    Q = np.random.default_rng(14).uniform(rob.limits[:, 0], rob.limits[:, 1], (200, 6))
+    assert np.all(fk_error(result, session, Q) <= 4.0 * fk_prediction_std(result, Q))
+    # the general reader (mcap's own decoders) gives the same covariance
+    fast = result.segmentation.table.select("cxx", "cyz").to_numpy()
+    general = process_log(path, fast=False).segmentation.table.select("cxx", "cyz").to_numpy()
+    assert np.allclose(fast, general, equal_nan=True)

@@ -419,6 +419,9 @@ def _identify_whole(
         np.ones(len(joints)),
     )
     rows, Q, P = samples_with_encoders(seg)
+    sample_cov = _sample_covariance(seg, rows)
+    if sample_cov is not None:
+        result.noise = NoiseModel("per-sample")
     fit_sigmas = [j.fit.sigma**2 for j in joints if j.fit is not None]
     sigma = math.sqrt(np.mean(fit_sigmas)) if fit_sigmas else 1e-5
     stage("identifying", 0.1)
@@ -429,6 +432,7 @@ def _identify_whole(
         noise=result.noise,
         sigma=sigma,
         fit_scales=fit_scales,
+        sample_cov=sample_cov,
         progress=lambda f: stage("identifying", 0.1 + 0.9 * f),
     )
     nominal_table = nominal.table if nominal is not None else None
@@ -491,6 +495,25 @@ def _identify_whole(
             "relations and the FK check."
         )
     check_residual(result.validation, sigma, notes)
+
+
+def _sample_covariance(seg: Segmentation, rows: NDArray[np.int64]) -> FloatArray | None:
+    """The position covariance (m, 3, 3) the log carries for the samples ``rows``
+    (``PoseWithCovarianceStamped``), or None when any of them has none or one that is not
+    positive definite (the noise model then applies to all)."""
+    from dhlog.io.reader import COVARIANCE_COLUMNS
+
+    if not all(c in seg.table.columns for c in COVARIANCE_COLUMNS):
+        return None
+    c = seg.table.select(COVARIANCE_COLUMNS).to_numpy()[rows]
+    if not np.all(np.isfinite(c)):
+        return None
+    cov = np.empty((rows.size, 3, 3))
+    for k, (a, b) in enumerate(((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2))):
+        cov[:, a, b] = cov[:, b, a] = c[:, k]
+    if not np.all(np.linalg.eigvalsh(cov)[:, 0] > 0):
+        return None
+    return cov
 
 
 def _with_fixed_relations(

@@ -212,6 +212,8 @@ def _noise_document(result: ProcessResult) -> dict[str, Any]:
         if result.noise.model == "isotropic":
             doc["sigma"] = result.sigma
             doc["sigma_source"] = "estimated from the residuals"
+        elif result.noise.model == "per-sample":
+            doc["source"] = "the position covariance each sample carries in the log"
     else:
         fits = [j.fit.sigma for j in result.joints if j.fit is not None]
         doc["sigma"] = float(math.sqrt(np.mean(np.square(fits)))) if fits else None
@@ -226,7 +228,7 @@ def _whole_fit_document(result: ProcessResult) -> dict[str, Any]:
         "n_points": w.n_points,
         "n_outliers": int(np.count_nonzero(~w.inliers)),
         "iterations": w.iterations,
-        "rms": w.rms,
+        "rms": None if result.validation is None else result.validation.rms,
     }
     if w.layout.scale_at is not None:
         k = w.layout.scale_at

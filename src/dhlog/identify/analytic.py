@@ -63,8 +63,8 @@ def pair_tolerances(
     their covariances (``axes``: per axis the 4×4 covariance of ``[δe·u, δe·v, δc·u, δc·v]``
     and the point ``c`` it refers to; 5σ when the nominal says parallel / meeting).
     ``k_parallel`` replaces the σ count of the parallel decision (without a nominal) where that
-    decision constrains the model (the whole-model fit: Akaike's 2σ). ``angle_floor`` and ``distance_floor`` apply only when an axis has no covariance (never
-    below 1e-7)."""
+    decision constrains the model (the whole-model fit: Akaike's 2σ). ``angle_floor`` and
+    ``distance_floor`` apply only when an axis has no covariance (never below 1e-7)."""
     if axes is None:
         return None
     out = []

@@ -33,7 +33,7 @@ class NoiseModel:
     station: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
     def __post_init__(self) -> None:
-        if self.model not in ("isotropic", "tracker"):
+        if self.model not in ("isotropic", "tracker", "per-sample"):
             raise InputError(
                 f"noise model '{self.model}' is not known; use 'isotropic' or 'tracker'."
             )
@@ -51,6 +51,8 @@ class NoiseModel:
     @property
     def described(self) -> str:
         """One line for the console and the result."""
+        if self.model == "per-sample":
+            return "per-sample covariance from the log"
         if self.model == "tracker":
             return (
                 f"tracker (radial {self.radial * 1e6:.1f} µm, transverse "

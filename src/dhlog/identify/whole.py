@@ -480,7 +480,7 @@ def fit_whole_model(
     noise: NoiseModel,
     sigma: float,
     keep: NDArray[np.bool_] | None = None,
-    sample_std: FloatArray | None = None,
+    sample_cov: FloatArray | None = None,
     fit_scales: bool = False,
     threshold: float = 5.0,
     max_iterations: int = 30,
@@ -489,7 +489,8 @@ def fit_whole_model(
 ) -> WholeFit:
     """Levenberg–Marquardt fit of ``start`` to the samples ``P`` (m, 3) at encoder values ``Q``
     (m, n), weighted by ``noise`` (isotropic σ = ``sigma`` unless the model names its own), or by
-    ``sample_std`` (m, 3) when the log carries per-sample standard deviations. ``keep`` marks the
+    ``sample_cov`` (m, 3) standard deviations or (m, 3, 3) covariances when the log carries them
+    per sample. ``keep`` marks the
     samples that may enter (default: all).
 
     With more than ``subsample`` samples the fit first converges on an evenly strided subset and
@@ -506,7 +507,7 @@ def fit_whole_model(
         Q,
         P,
         np.ones(m, dtype=bool) if keep is None else keep.copy(),
-        None if sample_std is None else whitening_from_std(sample_std),
+        None if sample_cov is None else whitening_from_std(sample_cov),
         whiten,
     )
     stride = -(-m // subsample) if m > subsample else 1
@@ -538,7 +539,7 @@ def fit_whole_model(
         covariance = np.linalg.inv(st.H) * chi2_dof
     except np.linalg.LinAlgError:
         covariance = np.linalg.pinv(st.H) * chi2_dof
-    scale_m = sigma if noise.model == "isotropic" and data.W is None else 1.0
+    scale_m = sigma if noise.model == "isotropic" and data.W is None else float("nan")
     return WholeFit(
         model=st.model,
         layout=layout,

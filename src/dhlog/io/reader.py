@@ -36,7 +36,12 @@ POINT_SCHEMAS = {
     ros2.POSE_STAMPED: "pose.position",
     "foxglove.Point3InFrame": "point",
     "foxglove.PoseInFrame": "pose.position",
+    ros2.POSE_WITH_COVARIANCE: "pose.pose.position",
 }
+#: Point schemas that carry a covariance: the path of the row-major 6×6 (pose) covariance.
+COVARIANCE_SCHEMAS = {ros2.POSE_WITH_COVARIANCE: "pose.covariance"}
+#: Columns of the position covariance (m²) in the point frames and the measurement table.
+COVARIANCE_COLUMNS = ("cxx", "cxy", "cxz", "cyy", "cyz", "czz")
 JOINT_SCHEMAS = (ros2.JOINT_STATE, "foxglove.JointStates")
 PHASE_SCHEMAS = (ros2.STRING,)
 
@@ -107,9 +112,17 @@ def _point_extractor(schema: str, fields: dict[str, str]) -> Callable[[Any], Ext
     if base is None:
         return None
 
+    cov_path = COVARIANCE_SCHEMAS.get(schema)
+
     def standard(msg: Any) -> Extracted:
         p = _get(msg, base)
-        return _stamp_ns(msg), [float(_get(p, "x")), float(_get(p, "y")), float(_get(p, "z"))]
+        xyz = [float(_get(p, "x")), float(_get(p, "y")), float(_get(p, "z"))]
+        if cov_path is not None:
+            c = [float(v) for v in _get(msg, cov_path)]
+            if len(c) != 36:
+                raise ValueError(f"covariance has {len(c)} entries, not 36")
+            xyz += [c[0], c[1], c[2], c[7], c[8], c[14]]
+        return _stamp_ns(msg), xyz
 
     return standard
 
@@ -200,7 +213,8 @@ def _schema_record(info: ChannelInfo) -> Any:
 
 ACCEPTED = {
     "point": "geometry_msgs/msg/PointStamped, geometry_msgs/msg/PoseStamped, "
-    "foxglove.Point3InFrame, foxglove.PoseInFrame, or JSON with field paths",
+    "geometry_msgs/msg/PoseWithCovarianceStamped, foxglove.Point3InFrame, "
+    "foxglove.PoseInFrame, or JSON with field paths",
     "base": "the same types as the point stream",
     "joints": "sensor_msgs/msg/JointState, foxglove.JointStates, or JSON with field paths",
     "phase": 'std_msgs/msg/String or JSON {"joint": k}',
@@ -303,6 +317,12 @@ def _decode_stream(
                 stamps, xyz = ros2.decode_point_bulk(raw)
                 blocks.append((np.where(stamps != 0, stamps, raw.log_time), xyz))
                 continue
+            if stream in ("point", "base") and _bulk_ok(
+                raw, info, (ros2.POSE_WITH_COVARIANCE,), fields
+            ):
+                stamps, xyz = ros2.decode_point_bulk(raw, covariance=True)
+                blocks.append((np.where(stamps != 0, stamps, raw.log_time), xyz))
+                continue
             if stream == "joints" and _bulk_ok(raw, info, (ros2.JOINT_STATE,), fields):
                 for stamps, names, q in ros2.decode_joint_state_bulk(raw):
                     blocks.append((stamps, (names, q)))
@@ -332,7 +352,8 @@ def _decode_stream(
             values.append(value)
         t = np.asarray(t_list, dtype=np.int64)
         if stream in ("point", "base"):
-            blocks.append((t, np.asarray(values, dtype=np.float64).reshape(-1, 3)))
+            width = len(values[0]) if values else 3
+            blocks.append((t, np.asarray(values, dtype=np.float64).reshape(-1, width)))
         elif stream == "joints":
             layouts: dict[tuple[str, ...], list[int]] = {}
             for i, (names, _) in enumerate(values):
@@ -346,11 +367,28 @@ def _decode_stream(
 
 
 def _points_frame(blocks: list[Block], scale: float) -> pl.DataFrame:
+    """``t_ns, x, y, z`` (m), and the position covariance (m², ``COVARIANCE_COLUMNS``) when any
+    channel carries one (null for samples of channels that do not)."""
     t = np.concatenate([b[0] for b in blocks]) if blocks else np.zeros(0, dtype=np.int64)
-    arr = np.concatenate([b[1] for b in blocks]) * scale if blocks else np.zeros((0, 3))
-    return pl.DataFrame(
-        {"t_ns": t.astype(np.int64), "x": arr[:, 0], "y": arr[:, 1], "z": arr[:, 2]}
-    )
+    with_cov = any(b[1].shape[1] == 9 for b in blocks)
+    width = 9 if with_cov else 3
+    parts = []
+    for b in blocks:
+        v = b[1]
+        if v.shape[1] < width:
+            v = np.hstack([v, np.full((v.shape[0], width - v.shape[1]), np.nan)])
+        parts.append(v)
+    arr = np.concatenate(parts) if parts else np.zeros((0, width))
+    cols: dict[str, Any] = {
+        "t_ns": t.astype(np.int64),
+        "x": arr[:, 0] * scale,
+        "y": arr[:, 1] * scale,
+        "z": arr[:, 2] * scale,
+    }
+    if with_cov:
+        for k, name in enumerate(COVARIANCE_COLUMNS):
+            cols[name] = pl.Series(name, arr[:, 3 + k] * scale**2, nan_to_null=True)
+    return pl.DataFrame(cols)
 
 
 def read_log(
@@ -426,7 +464,12 @@ def read_log(
 def _clean(frame: pl.DataFrame, stream: str, set_aside: dict[str, int]) -> pl.DataFrame:
     value_cols = [c for c in frame.columns if c != "t_ns"]
     finite = (
-        pl.all_horizontal([pl.col(c).is_finite() for c in value_cols])
+        pl.all_horizontal(
+            [
+                pl.col(c).is_finite().fill_null(c in COVARIANCE_COLUMNS)  # no covariance: kept
+                for c in value_cols
+            ]
+        )
         if value_cols
         else pl.lit(True)
     )

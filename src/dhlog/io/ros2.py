@@ -24,6 +24,7 @@ CDR_LE = b"\x00\x01\x00\x00"
 
 POINT_STAMPED = "geometry_msgs/msg/PointStamped"
 POSE_STAMPED = "geometry_msgs/msg/PoseStamped"
+POSE_WITH_COVARIANCE = "geometry_msgs/msg/PoseWithCovarianceStamped"
 JOINT_STATE = "sensor_msgs/msg/JointState"
 STRING = "std_msgs/msg/String"
 
@@ -41,6 +42,17 @@ MSGDEFS = {
     + "MSG: geometry_msgs/Point\nfloat64 x\nfloat64 y\nfloat64 z\n",
     POSE_STAMPED: "std_msgs/Header header\ngeometry_msgs/Pose pose\n"
     + _HEADER_DEFS
+    + _SEP
+    + "MSG: geometry_msgs/Pose\ngeometry_msgs/Point position\n"
+    + "geometry_msgs/Quaternion orientation\n"
+    + _SEP
+    + "MSG: geometry_msgs/Point\nfloat64 x\nfloat64 y\nfloat64 z\n"
+    + _SEP
+    + "MSG: geometry_msgs/Quaternion\nfloat64 x\nfloat64 y\nfloat64 z\nfloat64 w\n",
+    POSE_WITH_COVARIANCE: "std_msgs/Header header\ngeometry_msgs/PoseWithCovariance pose\n"
+    + _HEADER_DEFS
+    + _SEP
+    + "MSG: geometry_msgs/PoseWithCovariance\ngeometry_msgs/Pose pose\nfloat64[36] covariance\n"
     + _SEP
     + "MSG: geometry_msgs/Pose\ngeometry_msgs/Point position\n"
     + "geometry_msgs/Quaternion orientation\n"
@@ -72,26 +84,36 @@ def little_endian(raw: RawMessages) -> NDArray[np.bool_]:
     return np.asarray(raw.data[raw.starts + 1] == 1)
 
 
-def decode_point_bulk(raw: RawMessages) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
-    """Header stamps (ns) and positions (m, 3) of PointStamped or PoseStamped messages.
+def decode_point_bulk(
+    raw: RawMessages, *, covariance: bool = False
+) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
+    """Header stamps (ns) and positions (m, 3) of PointStamped or PoseStamped messages; with
+    ``covariance`` (PoseWithCovarianceStamped) also the position block of the covariance, as
+    (m, 9): ``x, y, z, cxx, cxy, cxz, cyy, cyz, czz``.
 
     The point (or the pose's position) follows the header at the next multiple of 8 after
-    ``stamp (8) + frame_id length (4) + frame_id``. Messages are grouped by frame-id length;
-    each group's fixed-layout prefix is copied out in one row gather.
+    ``stamp (8) + frame_id length (4) + frame_id``; the 6×6 covariance (row-major) follows the
+    orientation. Messages are grouped by frame-id length; each group's fixed-layout prefix is
+    copied out in one row gather.
     """
     frame_len = gather(raw.data, raw.starts + 12, 4, "<u4").astype(np.int64)
     rel = ((12 + frame_len + 7) // 8) * 8
-    if np.any(rel + 24 + 4 > raw.lengths):
+    span = 24 + (32 + 36 * 8 if covariance else 0)
+    if np.any(rel + span + 4 > raw.lengths):
         raise ValueError("PointStamped payload shorter than its layout")
     stamps = np.empty(len(raw), dtype=np.int64)
-    xyz = np.empty((len(raw), 3), dtype=np.float64)
+    xyz = np.empty((len(raw), 9 if covariance else 3), dtype=np.float64)
     uniform = bool(np.all(rel == rel[0])) if rel.size else True
     for r in rel[:1] if uniform else np.unique(rel):
         sel = slice(None) if uniform else np.flatnonzero(rel == r)
-        width = 4 + int(r) + 24
+        width = 4 + int(r) + span
         rows = gather_rows(raw.data, raw.starts[sel], width)
         stamps[sel] = _block_stamps(rows)
-        xyz[sel] = rows[:, width - 24 :].copy().view("<f8").reshape(-1, 3)
+        at = 4 + int(r)
+        xyz[sel, :3] = rows[:, at : at + 24].copy().view("<f8").reshape(-1, 3)
+        if covariance:
+            cov = rows[:, at + 56 : at + 56 + 288].copy().view("<f8").reshape(-1, 6, 6)
+            xyz[sel, 3:] = cov[:, [0, 0, 0, 1, 1, 2], [0, 1, 2, 1, 2, 2]]
     return stamps, xyz
 
 
