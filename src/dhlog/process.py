@@ -27,12 +27,12 @@ from numpy.typing import NDArray
 
 from dhlog.dh import JointType
 from dhlog.dhfile import DHModel
-from dhlog.errors import GeometryError, InputError
+from dhlog.errors import DegenerateGeometryError, GeometryError, InputError
 from dhlog.extract import Extraction, HayatiRow, extract_dh
 from dhlog.geometry._checks import FloatArray
 from dhlog.geometry.fitting import PlaneFit, fit_plane
 from dhlog.geometry.lines import ANGLE_TOL, DISTANCE_TOL, Line, Plane, RelationKind, classify_lines
-from dhlog.geometry.screws import chain_motion
+from dhlog.geometry.screws import chain_motion, chain_motions
 from dhlog.identify.analytic import (
     AIC_SIGMA_2D,
     NEAR_PARALLEL,
@@ -47,7 +47,13 @@ from dhlog.identify.propagate import (
     propagate,
     state_names,
 )
-from dhlog.identify.sweeps import JointReport, TargetAtReference, fit_joint, samples_with_encoders
+from dhlog.identify.sweeps import (
+    JointReport,
+    TargetAtReference,
+    fit_joint,
+    samples_with_encoders,
+    target_labels,
+)
 from dhlog.identify.whole import (
     AxisModel,
     WholeFit,
@@ -99,6 +105,8 @@ class ProcessResult:
     fixed: dict[int, str] = field(default_factory=dict)
     noise: NoiseModel = field(default_factory=NoiseModel)
     sigma: float | None = None
+    extra_tool_points: FloatArray = field(default_factory=lambda: np.zeros((0, 3)))
+    extra_tool_std: FloatArray = field(default_factory=lambda: np.zeros((0, 3)))
 
     @property
     def complete(self) -> bool:
@@ -411,14 +419,25 @@ def _identify_whole(
     notes, base, nominal = result.warnings, result.base, result.nominal
     types = tuple(j.type for j in joints)
     assert result.target is not None and all(t is not None for t in types)
+    rows, Q, P = samples_with_encoders(seg)
+    which = target_labels(seg, rows)
+    axes0 = [j.axis for j in joints]
+    extra = np.zeros((0, 3))
+    if which is not None:  # further targets: their samples moved back to the reference pose
+        extra = np.array(
+            [
+                _mean_at_reference(axes0, types, Q[which == k], P[which == k], ref)  # type: ignore[arg-type]
+                for k in range(1, int(which.max()) + 1)
+            ]
+        ).reshape(-1, 3)
     start = AxisModel(
-        tuple(j.axis for j in joints),  # type: ignore[misc]
+        tuple(axes0),  # type: ignore[arg-type]
         types,  # type: ignore[arg-type]
         result.target,
         ref,
         np.ones(len(joints)),
+        extra,
     )
-    rows, Q, P = samples_with_encoders(seg)
     sample_cov = _sample_covariance(seg, rows)
     if sample_cov is not None:
         result.noise = NoiseModel("per-sample")
@@ -433,6 +452,7 @@ def _identify_whole(
         sigma=sigma,
         fit_scales=fit_scales,
         sample_cov=sample_cov,
+        which=which,
         progress=lambda f: stage("identifying", 0.1 + 0.9 * f),
     )
     nominal_table = nominal.table if nominal is not None else None
@@ -479,6 +499,10 @@ def _identify_whole(
         np.sqrt(np.clip(np.diag(prop.hayati_covariance)[4 * k : 4 * k + 4], 0.0, None))
         for k in range(len(pairs))
     ]
+    result.extra_tool_points = prop.extra_tool_points
+    result.extra_tool_std = np.sqrt(
+        np.clip(np.diag(prop.extra_tool_covariance), 0.0, None)
+    ).reshape(-1, 3)
     notes.extend(_correlation_notes(prop.covariance, prop.fixed, len(joints)))
     if result.noise.model != "isotropic" and not 0.5 < whole.chi2_dof < 2.0:
         notes.append(
@@ -486,7 +510,8 @@ def _identify_whole(
             "residuals contradict it; the uncertainty is scaled by the residuals."
         )
     stage("validating", 0.0)
-    result.validation = validate_samples(seg, rows, Q, P, ex, whole.inliers)
+    tools = np.vstack([ex.tool_point[None], result.extra_tool_points])
+    result.validation = validate_samples(seg, rows, Q, P, ex, whole.inliers, tools, which)
     gap = table_gap(whole, ex, Q)
     if gap > 1e-6:
         notes.append(
@@ -495,6 +520,19 @@ def _identify_whole(
             "relations and the FK check."
         )
     check_residual(result.validation, sigma, notes)
+
+
+def _mean_at_reference(
+    axes: list[Line], types: tuple[JointType, ...], Q: FloatArray, P: FloatArray, ref: FloatArray
+) -> FloatArray:
+    """A target's position at the reference pose: its samples (at most 20 000, evenly strided)
+    moved back through the axes and averaged."""
+    if Q.shape[0] == 0:
+        raise DegenerateGeometryError("a further target has no sample with encoder values.")
+    stride = max(1, Q.shape[0] // START_TARGET_POINTS)
+    M = chain_motions(axes, types, Q[::stride], ref)
+    back = np.einsum("mji,mj->mi", M[:, :3, :3], P[::stride] - M[:, :3, 3])
+    return np.asarray(back.mean(axis=0), dtype=np.float64)
 
 
 def _sample_covariance(seg: Segmentation, rows: NDArray[np.int64]) -> FloatArray | None:

@@ -110,6 +110,19 @@ def result_document(result: ProcessResult) -> dict[str, Any]:
                 "rotation": [_num_or_none(v) for v in std[4 * n + 6 : 4 * n + 9]],
             }
         _mark_fixed(doc, result)
+        if len(result.extra_tool_points):
+            topics = result.log.pipeline.streams["point"].extra_topics
+            doc["tool"]["further_targets"] = [
+                {
+                    "target": k + 2,
+                    "topic": topics[k] if k < len(topics) else None,
+                    "point": [float(v) for v in p],
+                    "std": [float(v) for v in sd],
+                }
+                for k, (p, sd) in enumerate(
+                    zip(result.extra_tool_points, result.extra_tool_std, strict=True)
+                )
+            ]
         doc["method"] = result.method
         if result.covariance is not None:
             doc["covariance"] = _covariance_document(result)

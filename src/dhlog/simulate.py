@@ -55,6 +55,7 @@ class SimulationConfig:
     clock_jitter: float = 2e-4
     skip_joints: tuple[int, ...] = ()
     coupled: tuple[tuple[int, int, float], ...] = ()
+    extra_tools: tuple[tuple[float, float, float], ...] = ()
     seed: int = 0
 
 
@@ -86,6 +87,8 @@ class Session:
     n_outliers: int = 0
     n_dropped: int = 0
     notes: list[str] = field(default_factory=list)
+    extra_tool_points: list[FloatArray] = field(default_factory=list)
+    extra_point_xyz: list[FloatArray] = field(default_factory=list)
 
 
 def default_measurement_pose() -> FloatArray:
@@ -243,6 +246,14 @@ def simulate_session(
         while np.count_nonzero(~keep) < n_drop:
             start = int(rng.integers(0, keep.size))
             keep[start : start + int(rng.integers(3, 20))] = False
+    extra_xyz = []
+    for extra in cfg.extra_tools:  # further targets, measured at the same instants
+        e = fk_point(table, q_trk, np.asarray(extra, dtype=np.float64), T_base=T_mb)
+        if cfg.noise_kind == "uniform":
+            e = e + rng.uniform(-cfg.noise, cfg.noise, e.shape)
+        else:
+            e = e + rng.normal(scale=cfg.noise, size=e.shape)
+        extra_xyz.append(e)
     t_trk_ns = START_NS + ((t_trk + base_time) * 1e9).astype(np.int64)
     # encoders: another clock phase, rate and jitter
     t_enc = np.arange(0.0, duration, 1.0 / cfg.joint_rate) + rng.uniform(0, 1.0 / cfg.joint_rate)
@@ -281,6 +292,8 @@ def simulate_session(
         config=cfg,
         n_outliers=n_out,
         n_dropped=int(np.count_nonzero(~keep)),
+        extra_tool_points=[np.asarray(e, dtype=np.float64) for e in cfg.extra_tools],
+        extra_point_xyz=[np.asarray(e[keep], dtype=np.float64) for e in extra_xyz],
     )
 
 

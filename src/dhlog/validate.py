@@ -115,10 +115,19 @@ def validate_samples(
     P: FloatArray,
     ex: Extraction,
     inliers: NDArray[np.bool_],
+    tools: FloatArray | None = None,
+    which: NDArray[np.int64] | None = None,
 ) -> Validation:
     """FK of the DH result at every sample with encoder values against the sample (per joint by
-    the sweep it belongs to; coupled moves and still poses under joint 0)."""
-    pred = fk_points_chunked(ex.standard, Q, ex.tool_point, T_base=ex.T_measurement_base)
+    the sweep it belongs to; coupled moves and still poses under joint 0). ``tools`` (k, 3):
+    the tool point of each target in the last frame, ``which`` each sample's target."""
+    if tools is None or which is None:
+        pred = fk_points_chunked(ex.standard, Q, ex.tool_point, T_base=ex.T_measurement_base)
+    else:
+        pred = np.empty_like(P)
+        for k, tool in enumerate(tools):
+            mask = which == k
+            pred[mask] = fk_points_chunked(ex.standard, Q[mask], tool, T_base=ex.T_measurement_base)
     r = np.sqrt(np.sum((pred - P) ** 2, axis=1))
     residuals = np.full(seg.table.height, np.nan)
     residuals[rows[inliers]] = r[inliers]

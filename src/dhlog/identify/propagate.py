@@ -89,6 +89,8 @@ class Propagation:
     covariance: FloatArray
     fixed: np.ndarray
     hayati_covariance: FloatArray
+    extra_tool_points: FloatArray
+    extra_tool_covariance: FloatArray
 
 
 def propagate(
@@ -122,12 +124,22 @@ def propagate(
         parts = [state_vector(ex, R0)]
         if hayati_pairs:
             parts.append(hayati_vector(ex, hayati_pairs))
+        if len(moved.extra_targets):  # further targets in the last frame (tool points)
+            T = np.linalg.inv(ex.frames[-1])
+            parts.append((moved.extra_targets @ T[:3, :3].T + T[:3, 3]).ravel())
         return np.concatenate(parts)
 
     zero_fit, zero_plane = np.zeros(n_fit), np.zeros(3)
     h = 1e-7
-    size = 4 * n + 9 + 4 * len(hayati_pairs)
-    wrap = np.concatenate([angle_mask(n), np.tile([True, False, True, True], len(hayati_pairs))])
+    n_extra = 3 * len(model.extra_targets)
+    size = 4 * n + 9 + 4 * len(hayati_pairs) + n_extra
+    wrap = np.concatenate(
+        [
+            angle_mask(n),
+            np.tile([True, False, True, True], len(hayati_pairs)),
+            np.zeros(n_extra, dtype=bool),
+        ]
+    )
     J = np.zeros((size, n_in))
     for col in range(n_in):
         outs: list[FloatArray | None] = []
@@ -157,10 +169,14 @@ def propagate(
     cov_state = cov[:n_state, :n_state].copy()
     cov_state[fixed, :] = 0.0
     cov_state[:, fixed] = 0.0
+    n_h = n_state + 4 * len(hayati_pairs)
+    extra_points = evaluate(zero_fit, zero_plane)[n_h:].reshape(-1, 3)
     return Propagation(
         covariance=np.asarray(cov_state, dtype=np.float64),
         fixed=fixed,
-        hayati_covariance=np.asarray(cov[n_state:, n_state:], dtype=np.float64),
+        hayati_covariance=np.asarray(cov[n_state:n_h, n_state:n_h], dtype=np.float64),
+        extra_tool_points=np.asarray(extra_points, dtype=np.float64),
+        extra_tool_covariance=np.asarray(cov[n_h:, n_h:], dtype=np.float64),
     )
 
 

@@ -129,7 +129,10 @@ def fit_joint(
         .to_numpy()[0]
     )
     report.segments = chosen
-    report.rows = np.flatnonzero(seg.table["segment"].is_in(chosen).fill_null(False).to_numpy())
+    in_sweep = seg.table["segment"].is_in(chosen).fill_null(False)
+    if "target" in seg.table.columns:  # the per-joint fits use the primary target's circles
+        in_sweep = in_sweep & (seg.table["target"] == 0)
+    report.rows = np.flatnonzero(in_sweep.to_numpy())
     rows = seg.table[report.rows]
     points = rows.select(["x", "y", "z"]).to_numpy()
     encoder = rows[f"q_{k}"].to_numpy() if seg.has_encoders else None
@@ -259,3 +262,10 @@ def samples_with_encoders(seg: Segmentation) -> tuple[NDArray[np.int64], FloatAr
     if rows.size == table.height:
         return rows, Q, P
     return rows, Q[rows], P[rows]
+
+
+def target_labels(seg: Segmentation, rows: NDArray[np.int64]) -> NDArray[np.int64] | None:
+    """Which target each of ``rows`` measured (0 the primary one), or None with one target."""
+    if "target" not in seg.table.columns:
+        return None
+    return np.asarray(seg.table["target"].to_numpy()[rows], dtype=np.int64)

@@ -62,6 +62,11 @@ class AxisModel:
     target: FloatArray
     reference_pose: FloatArray
     scales: FloatArray
+    extra_targets: FloatArray = field(default_factory=lambda: np.zeros((0, 3)))
+
+    def targets(self) -> FloatArray:
+        """Every target at the reference pose, (k, 3): the primary one first."""
+        return np.vstack([self.target[None], self.extra_targets])
 
     @property
     def n(self) -> int:
@@ -90,10 +95,13 @@ class AxisModel:
             axes.append(Line(c + shift, R @ axis.direction))
         t = layout.target_at
         target = self.target + delta[t : t + 3]
+        extra = self.extra_targets + delta[t + 3 : t + 3 + 3 * len(self.extra_targets)].reshape(
+            -1, 3
+        )
         scales = self.scales.copy()
         if layout.scale_at is not None:
             scales = scales + delta[layout.scale_at : layout.scale_at + self.n]
-        return AxisModel(tuple(axes), self.types, target, self.reference_pose, scales)
+        return AxisModel(tuple(axes), self.types, target, self.reference_pose, scales, extra)
 
 
 @dataclass(frozen=True)
@@ -107,9 +115,12 @@ class ParameterLayout:
     names: tuple[str, ...]
 
     @classmethod
-    def of(cls, types: Sequence[JointType], *, fit_scales: bool = False) -> ParameterLayout:
+    def of(
+        cls, types: Sequence[JointType], *, fit_scales: bool = False, extra_targets: int = 0
+    ) -> ParameterLayout:
         """Revolute axis: tilt u, tilt v, shift u, shift v; prismatic: tilt u, tilt v; then the
-        target (x, y, z) and, with ``fit_scales``, one encoder scale per joint."""
+        target (x, y, z), each further target (x, y, z) and, with ``fit_scales``, one encoder
+        scale per joint."""
         at, names, k = [], [], 0
         for i, jt in enumerate(types):
             at.append(k)
@@ -121,6 +132,9 @@ class ParameterLayout:
         target_at = k
         names += ["target_x", "target_y", "target_z"]
         k += 3
+        for j in range(extra_targets):
+            names += [f"target_{j + 2}_{c}" for c in "xyz"]
+            k += 3
         scale_at = None
         if fit_scales:
             scale_at = k
@@ -164,10 +178,12 @@ def predict_columns(
     Q: FloatArray,
     layout: ParameterLayout | None = None,
     bases: list[tuple[FloatArray, FloatArray]] | None = None,
+    which: NDArray[np.int64] | None = None,
 ) -> tuple[FloatArray, FloatArray | None]:
     """Predicted target positions (3, m) at the joint vectors ``Q`` (m, n) and, with ``layout``,
     the Jacobian (``layout.size``, 3, m) with respect to the local parameters. Samples run along
-    the last axis so that every operation is on contiguous rows.
+    the last axis so that every operation is on contiguous rows. ``which`` (m,) names each
+    sample's target (0 the primary one, j the j-th of ``extra_targets``; default all 0).
 
     With ``g_<i = (R_<i, t_<i)`` the motion of joints 1 … i−1 and ``D_i = p − g_<i(c_i)`` the
     target relative to axis i's point as it sits at this sample, a move ``η = (w, v)`` of axis i
@@ -207,11 +223,11 @@ def predict_columns(
             pre_R.append(_compose(R0, Ri))
             pre_t.append(t0 + _rotate(R0, ti))
     R_all, t_all = pre_R[-1], pre_t[-1]
-    p = (
-        np.broadcast_to(model.target[:, None], (3, m))
-        if R_all is None
-        else _rotate(R_all, np.broadcast_to(model.target[:, None], (3, m)))
-    ) + t_all
+    if which is None or not len(model.extra_targets):
+        tgt = np.broadcast_to(model.target[:, None], (3, m))
+    else:
+        tgt = np.ascontiguousarray(model.targets()[which].T)
+    p = (tgt if R_all is None else _rotate(R_all, tgt)) + t_all
     p = np.ascontiguousarray(np.broadcast_to(p, (3, m)))
     if layout is None:
         return p, None
@@ -247,7 +263,17 @@ def predict_columns(
                 Q[:, i] - model.reference_pose[i]
             )
     t = layout.target_at
-    J[t : t + 3] = np.eye(3)[:, :, None] if R_all is None else np.moveaxis(R_all, 1, 0)
+    rot = np.broadcast_to(np.eye(3)[:, :, None], (3, 3, m)) if R_all is None else R_all
+    J[t : t + 3] = np.moveaxis(rot, 1, 0)
+    extra = len(model.extra_targets)
+    if extra:
+        J[t + 3 : t + 3 + 3 * extra] = 0.0
+        if which is not None:
+            for j in range(extra + 1):
+                mask = which == j
+                if j:
+                    J[t + 3 * j : t + 3 * j + 3, :, mask] = J[t : t + 3, :, mask]
+            J[t : t + 3, :, which != 0] = 0.0
     return p, J
 
 
@@ -281,10 +307,11 @@ def predict(
     Q: FloatArray,
     layout: ParameterLayout | None = None,
     bases: list[tuple[FloatArray, FloatArray]] | None = None,
+    which: NDArray[np.int64] | None = None,
 ) -> tuple[FloatArray, FloatArray | None]:
     """Predicted target positions (m, 3) at the joint vectors ``Q`` (m, n) and, with ``layout``,
     the Jacobian (m, 3, ``layout.size``) with respect to the local parameters."""
-    p, J = predict_columns(model, Q, layout, bases)
+    p, J = predict_columns(model, Q, layout, bases, which)
     return p.T.copy(), None if J is None else np.transpose(J, (2, 1, 0)).copy()
 
 
@@ -329,7 +356,9 @@ def _accumulate(
 
     def chunk(start: int) -> tuple[FloatArray, FloatArray, float, int, float]:
         sl = slice(start, min(start + CHUNK, m))
-        pred, J = predict_columns(model, data.Q[sl], layout, bases)
+        pred, J = predict_columns(
+            model, data.Q[sl], layout, bases, None if data.which is None else data.which[sl]
+        )
         assert J is not None
         r = pred - data.P[sl].T  # (3, c)
         W = data.whiten(data.P[sl], None if data.W is None else data.W[sl])
@@ -371,6 +400,7 @@ class _Samples:
     keep: NDArray[np.bool_]
     W: FloatArray | None
     whiten: Whitening
+    which: NDArray[np.int64] | None = None
 
     def strided(self, stride: int) -> _Samples:
         return _Samples(
@@ -379,6 +409,7 @@ class _Samples:
             self.keep[::stride],
             None if self.W is None else self.W[::stride],
             self.whiten,
+            None if self.which is None else self.which[::stride],
         )
 
 
@@ -481,6 +512,7 @@ def fit_whole_model(
     sigma: float,
     keep: NDArray[np.bool_] | None = None,
     sample_cov: FloatArray | None = None,
+    which: NDArray[np.int64] | None = None,
     fit_scales: bool = False,
     threshold: float = 5.0,
     max_iterations: int = 30,
@@ -490,7 +522,8 @@ def fit_whole_model(
     """Levenberg–Marquardt fit of ``start`` to the samples ``P`` (m, 3) at encoder values ``Q``
     (m, n), weighted by ``noise`` (isotropic σ = ``sigma`` unless the model names its own), or by
     ``sample_cov`` (m, 3) standard deviations or (m, 3, 3) covariances when the log carries them
-    per sample. ``keep`` marks the
+    per sample; ``which`` (m,) each sample's target (0 primary, j the j-th extra target of
+    ``start``). ``keep`` marks the
     samples that may enter (default: all).
 
     With more than ``subsample`` samples the fit first converges on an evenly strided subset and
@@ -498,7 +531,9 @@ def fit_whole_model(
     from dhlog.identify.noise import whitening_from_std
 
     m = Q.shape[0]
-    layout = ParameterLayout.of(start.types, fit_scales=fit_scales)
+    layout = ParameterLayout.of(
+        start.types, fit_scales=fit_scales, extra_targets=len(start.extra_targets)
+    )
 
     def whiten(points: FloatArray, W: FloatArray | None) -> FloatArray | float:
         return W if W is not None else noise.whiten(points, sigma)
@@ -509,6 +544,7 @@ def fit_whole_model(
         np.ones(m, dtype=bool) if keep is None else keep.copy(),
         None if sample_cov is None else whitening_from_std(sample_cov),
         whiten,
+        which,
     )
     stride = -(-m // subsample) if m > subsample else 1
     first = data.strided(stride) if stride > 1 else data
@@ -622,7 +658,14 @@ def constrain_pairs(fit: WholeFit, parallel: list[int], collinear: list[int]) ->
             sign = 1.0 if d1 @ axes[i + 1].direction >= 0 else -1.0
             point = axes[i].project(axes[i + 1].point) if i in collinear else axes[i + 1].point
             axes[i + 1] = Line(point, sign * d1)
-    snapped = AxisModel(tuple(axes), moved.types, moved.target, moved.reference_pose, moved.scales)
+    snapped = AxisModel(
+        tuple(axes),
+        moved.types,
+        moved.target,
+        moved.reference_pose,
+        moved.scales,
+        moved.extra_targets,
+    )
     return WholeFit(
         model=snapped,
         layout=layout,

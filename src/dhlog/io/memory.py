@@ -23,6 +23,14 @@ def log_data_from_session(session: Session, pipeline: Pipeline | None = None) ->
     points = pl.DataFrame(
         {"t_ns": session.point_t_ns, "x": xyz[:, 0], "y": xyz[:, 1], "z": xyz[:, 2]}
     )
+    if session.extra_point_xyz:
+        frames = [points.with_columns(pl.lit(0, dtype=pl.Int32).alias("target"))]
+        for k, extra in enumerate(session.extra_point_xyz):
+            frame = pl.DataFrame(
+                {"t_ns": session.point_t_ns, "x": extra[:, 0], "y": extra[:, 1], "z": extra[:, 2]}
+            )
+            frames.append(frame.with_columns(pl.lit(k + 1, dtype=pl.Int32).alias("target")))
+        points = pl.concat(frames).sort("t_ns", maintain_order=True)
     joints = None
     if has_encoders:
         joints = pl.DataFrame(

@@ -36,6 +36,7 @@ class StreamSpec:
     topic: str
     required: bool
     fields: dict[str, str] = field(default_factory=dict)
+    extra_topics: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -115,8 +116,13 @@ def parse_pipeline(text: str, source: str) -> Pipeline:
             raise PipelineError(source, f"[streams.{stream}] must be a table.")
         required = bool(spec.get("required", stream == "point"))
         fields = {str(k): str(v) for k, v in _table(source, spec, "fields").items()}
+        extra = spec.get("extra_topics", [])
+        if stream != "point" and extra:
+            raise PipelineError(source, f"[streams.{stream}] extra_topics is for the point stream.")
+        if not isinstance(extra, list) or not all(isinstance(t, str) for t in extra):
+            raise PipelineError(source, "[streams.point] extra_topics must be a list of topics.")
         streams[stream] = StreamSpec(
-            str(spec.get("topic", DEFAULT_TOPICS[stream])), required, fields
+            str(spec.get("topic", DEFAULT_TOPICS[stream])), required, fields, tuple(extra)
         )
     if "point" not in streams:
         raise PipelineError(source, "it has no [streams.point]; the target stream is required.")

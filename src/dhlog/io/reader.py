@@ -408,7 +408,9 @@ def read_log(
     name = str(path)
     scan = scan_mcap(
         path,
-        topics=None if pipeline is None else [s.topic for s in pipeline.streams.values()],
+        topics=None
+        if pipeline is None
+        else [t for s in pipeline.streams.values() for t in (s.topic, *s.extra_topics)],
         progress=progress,
     )
     warnings = list(scan.warnings)
@@ -441,6 +443,26 @@ def read_log(
         )
 
     points = _clean(_points_frame(blocks_of("point"), pipeline.length_scale), "point", set_aside)
+    extra_topics = pipeline.streams["point"].extra_topics
+    if extra_topics:  # further targets: one frame per topic, labelled 1, 2, … (0 the primary)
+        frames = [points.with_columns(pl.lit(0, dtype=pl.Int32).alias("target"))]
+        for k, topic in enumerate(extra_topics):
+            found = _channels_for(scan.channels, topic)
+            if not found:
+                raise MissingTopicError(name, f"point (target {k + 2})", topic, present)
+            if general is not None:
+                general.update(_read_general(name, found))
+            blocks = _decode_stream(
+                "point",
+                found,
+                scan.messages if fast else None,
+                general,
+                pipeline.streams["point"].fields,
+                name,
+            )
+            frame = _clean(_points_frame(blocks, pipeline.length_scale), "point", set_aside)
+            frames.append(frame.with_columns(pl.lit(k + 1, dtype=pl.Int32).alias("target")))
+        points = pl.concat(frames, how="diagonal").sort("t_ns", maintain_order=True)
     base = None
     if "base" in infos:
         base = _clean(_points_frame(blocks_of("base"), pipeline.length_scale), "base", set_aside)

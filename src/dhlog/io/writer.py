@@ -85,11 +85,19 @@ def _stamp(t_ns: int) -> dict[str, int]:
     return {"sec": sec, "nsec": nsec}
 
 
-def _events(session: Session) -> list[tuple[int, str, int]]:
-    """(time, stream, index) of every message, in time order."""
+def _extra_streams(session: Session) -> list[str]:
+    """Streams of the further targets: ``point_2``, ``point_3``, … (topics ``/tracker/point_k``)."""
+    return [f"point_{k + 2}" for k in range(len(session.extra_point_xyz))]
+
+
+def _events(session: Session, *, extras: bool = False) -> list[tuple[int, str, int]]:
+    """(time, stream, index) of every message, in time order (with the further targets')."""
     ev: list[tuple[int, str, int]] = []
     ev += [(int(t), "base", i) for i, t in enumerate(session.base_t_ns)]
     ev += [(int(t), "point", i) for i, t in enumerate(session.point_t_ns)]
+    if extras:
+        for stream in _extra_streams(session):
+            ev += [(int(t), stream, i) for i, t in enumerate(session.point_t_ns)]
     ev += [(int(t), "joints", i) for i, t in enumerate(session.joint_t_ns)]
     ev += [(t, "phase", i) for i, (t, _) in enumerate(session.phase)]
     ev.sort(key=lambda e: e[0])
@@ -140,15 +148,21 @@ def _write_ros2(session: Session, f: IO[bytes], point_type: str, chunk_size: int
         "joints": ros2.JOINT_STATE,
         "phase": ros2.STRING,
     }
+    for stream, extra in zip(_extra_streams(session), session.extra_point_xyz, strict=True):
+        payloads[stream] = encode(session.point_t_ns, extra, "tracker")
+        stream_schema[stream] = point_schema
     channels = {
         s: writer.register_channel(
-            TOPICS[s], "cdr", schema_ids[stream_schema[s]], {"offered_qos_profiles": ""}
+            TOPICS.get(s, f"/tracker/{s}"),
+            "cdr",
+            schema_ids[stream_schema[s]],
+            {"offered_qos_profiles": ""},
         )
         for s in payloads
         if payloads[s]
     }
     counts = {s: len(p) for s, p in payloads.items()}
-    for t, stream, i in _events(session):
+    for t, stream, i in _events(session, extras=True):
         writer.add_message(channels[stream], t, payloads[stream][i], t)
     writer.add_metadata(
         "rosbag2",
