@@ -139,15 +139,21 @@ def process_log(
     """Run the whole identification on the log at ``path`` (see the module docstring).
 
     ``progress(stage, fraction)`` is called as each stage advances."""
-    log = read_log(
-        path,
-        pipeline,
-        fast=fast,
-        progress=None if progress is None else (lambda f: progress("reading", f)),
-    )
+    from concurrent.futures import ThreadPoolExecutor
+
+    # the file's hash on the other core while it is read (hashlib releases the GIL)
+    with ThreadPoolExecutor(1) as pool:
+        digest = pool.submit(sha256_of, path)
+        log = read_log(
+            path,
+            pipeline,
+            fast=fast,
+            progress=None if progress is None else (lambda f: progress("reading", f)),
+        )
+        sha256 = digest.result()
     return process_data(
         log,
-        sha256=sha256_of(path),
+        sha256=sha256,
         nominal=nominal,
         reference_pose=reference_pose,
         fit_method=fit_method,
