@@ -107,6 +107,8 @@ class ProcessResult:
     sigma: float | None = None
     extra_tool_points: FloatArray = field(default_factory=lambda: np.zeros((0, 3)))
     extra_tool_std: FloatArray = field(default_factory=lambda: np.zeros((0, 3)))
+    tool_orientation: FloatArray | None = None
+    tool_orientation_std: FloatArray | None = None
 
     @property
     def complete(self) -> bool:
@@ -436,6 +438,7 @@ def _identify_whole(
                 for k in range(1, int(which.max()) + 1)
             ]
         ).reshape(-1, 3)
+    rotations = _measured_rotations(seg, rows)
     start = AxisModel(
         tuple(axes0),  # type: ignore[arg-type]
         types,  # type: ignore[arg-type]
@@ -443,6 +446,7 @@ def _identify_whole(
         ref,
         np.ones(len(joints)),
         extra,
+        None if rotations is None else _rotation_at_reference(axes0, types, Q, rotations, ref),  # type: ignore[arg-type]
     )
     sample_cov = _sample_covariance(seg, rows)
     if sample_cov is not None:
@@ -459,6 +463,8 @@ def _identify_whole(
         fit_scales=fit_scales,
         sample_cov=sample_cov,
         which=which,
+        rotations=rotations,
+        sigma_rotation=result.noise.orientation,
         progress=lambda f: stage("identifying", 0.1 + 0.9 * f),
     )
     nominal_table = nominal.table if nominal is not None else None
@@ -505,6 +511,8 @@ def _identify_whole(
         np.sqrt(np.clip(np.diag(prop.hayati_covariance)[4 * k : 4 * k + 4], 0.0, None))
         for k in range(len(pairs))
     ]
+    result.tool_orientation = prop.tool_orientation
+    result.tool_orientation_std = prop.tool_orientation_std
     result.extra_tool_points = prop.extra_tool_points
     result.extra_tool_std = np.sqrt(
         np.clip(np.diag(prop.extra_tool_covariance), 0.0, None)
@@ -526,6 +534,31 @@ def _identify_whole(
             "relations and the FK check."
         )
     check_residual(result.validation, sigma, notes)
+
+
+def _measured_rotations(seg: Segmentation, rows: NDArray[np.int64]) -> FloatArray | None:
+    """The target frame's measured orientation (m, 3, 3) at ``rows`` when the log carries it
+    (``orientation = true`` in the pipeline), else None."""
+    from dhlog.geometry._checks import matrices_from_quaternions
+    from dhlog.io.reader import ORIENTATION_COLUMNS
+
+    if not all(c in seg.table.columns for c in ORIENTATION_COLUMNS):
+        return None
+    quat = seg.table.select(ORIENTATION_COLUMNS).to_numpy()[rows]
+    return matrices_from_quaternions(quat)
+
+
+def _rotation_at_reference(
+    axes: list[Line], types: tuple[JointType, ...], Q: FloatArray, R: FloatArray, ref: FloatArray
+) -> FloatArray:
+    """The target frame's orientation at the reference pose: every measured orientation moved
+    back through the axes (at most 20 000, evenly strided), their chordal mean."""
+    stride = max(1, Q.shape[0] // START_TARGET_POINTS)
+    M = chain_motions(axes, types, Q[::stride], ref)
+    back = np.einsum("mji,mjk->ik", M[:, :3, :3], R[::stride])
+    U, _, Vt = np.linalg.svd(back)
+    D = np.diag([1.0, 1.0, float(np.sign(np.linalg.det(U @ Vt)))])
+    return np.asarray(U @ D @ Vt, dtype=np.float64)
 
 
 def _mean_at_reference(

@@ -110,6 +110,12 @@ def result_document(result: ProcessResult) -> dict[str, Any]:
                 "rotation": [_num_or_none(v) for v in std[4 * n + 6 : 4 * n + 9]],
             }
         _mark_fixed(doc, result)
+        if result.tool_orientation is not None and result.tool_orientation_std is not None:
+            doc["tool"]["orientation"] = {
+                "matrix": result.tool_orientation.tolist(),
+                "std": [float(v) for v in result.tool_orientation_std],
+                "description": "the target frame in the last frame; std: rotation vector (rad)",
+            }
         if len(result.extra_tool_points):
             topics = result.log.pipeline.streams["point"].extra_topics
             doc["tool"]["further_targets"] = [
@@ -243,6 +249,8 @@ def _whole_fit_document(result: ProcessResult) -> dict[str, Any]:
         "iterations": w.iterations,
         "rms": None if result.validation is None else result.validation.rms,
     }
+    if w.sigma_rotation is not None:
+        doc["sigma_rotation"] = w.sigma_rotation
     if w.layout.scale_at is not None:
         k = w.layout.scale_at
         n = w.model.n

@@ -22,7 +22,7 @@ from dhlog.dh import JointType, StandardDH
 from dhlog.extract import extract_dh
 from dhlog.geometry._checks import FloatArray, rotation_about
 from dhlog.geometry.lines import Line
-from dhlog.kinematics import fk_point, joint_axes
+from dhlog.kinematics import fk_frames, fk_point, joint_axes
 from dhlog.robots import Robot
 
 START_NS = 1_763_700_000_000_000_000
@@ -56,6 +56,8 @@ class SimulationConfig:
     skip_joints: tuple[int, ...] = ()
     coupled: tuple[tuple[int, int, float], ...] = ()
     extra_tools: tuple[tuple[float, float, float], ...] = ()
+    tool_rotation: tuple[float, float, float] | None = None
+    orientation_noise: float = 0.0
     seed: int = 0
 
 
@@ -89,6 +91,8 @@ class Session:
     notes: list[str] = field(default_factory=list)
     extra_tool_points: list[FloatArray] = field(default_factory=list)
     extra_point_xyz: list[FloatArray] = field(default_factory=list)
+    tool_rotation: FloatArray | None = None
+    point_rotation: FloatArray | None = None
 
 
 def default_measurement_pose() -> FloatArray:
@@ -230,6 +234,20 @@ def simulate_session(
         t_trk = t_trk[_static(frames, t_trk)]
     q_trk = _interp(frames, t_trk)
     xyz = fk_point(table, q_trk, tool, T_base=T_mb)
+    R_tool = point_rot = None
+    if cfg.tool_rotation is not None:  # a 6-DoF target: its frame's orientation is measured too
+        w = np.asarray(cfg.tool_rotation, dtype=np.float64)
+        turn = float(np.linalg.norm(w))
+        R_tool = rotation_about(w, turn) if turn > 0 else np.eye(3)
+        point_rot = fk_frames(table, q_trk, T_base=T_mb)[:, -1, :3, :3] @ R_tool
+        if cfg.orientation_noise > 0:
+            tilt = rng.normal(scale=cfg.orientation_noise, size=(q_trk.shape[0], 3))
+            point_rot = np.array(
+                [
+                    rotation_about(v, float(np.linalg.norm(v))) @ r
+                    for v, r in zip(tilt, point_rot, strict=True)
+                ]
+            )
     if cfg.noise_kind == "uniform":
         xyz = xyz + rng.uniform(-cfg.noise, cfg.noise, xyz.shape)
     else:
@@ -294,6 +312,8 @@ def simulate_session(
         n_dropped=int(np.count_nonzero(~keep)),
         extra_tool_points=[np.asarray(e, dtype=np.float64) for e in cfg.extra_tools],
         extra_point_xyz=[np.asarray(e[keep], dtype=np.float64) for e in extra_xyz],
+        tool_rotation=R_tool,
+        point_rotation=None if point_rot is None else np.asarray(point_rot[keep]),
     )
 
 

@@ -31,6 +31,7 @@ class NoiseModel:
     transverse: float = 15e-6
     transverse_per_m: float = 6e-6
     station: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    orientation: float | None = None
 
     def __post_init__(self) -> None:
         if self.model not in ("isotropic", "tracker", "per-sample"):
@@ -40,6 +41,8 @@ class NoiseModel:
         values = [self.radial, self.transverse, self.transverse_per_m]
         if self.sigma is not None:
             values.append(self.sigma)
+        if self.orientation is not None:
+            values.append(self.orientation)
         if not all(np.isfinite(v) and v >= 0 for v in values) or (
             self.model == "tracker" and (self.radial <= 0 or self.transverse <= 0)
         ):

@@ -91,6 +91,8 @@ class Propagation:
     hayati_covariance: FloatArray
     extra_tool_points: FloatArray
     extra_tool_covariance: FloatArray
+    tool_orientation: FloatArray | None = None
+    tool_orientation_std: FloatArray | None = None
 
 
 def propagate(
@@ -127,11 +129,18 @@ def propagate(
         if len(moved.extra_targets):  # further targets in the last frame (tool points)
             T = np.linalg.inv(ex.frames[-1])
             parts.append((moved.extra_targets @ T[:3, :3].T + T[:3, 3]).ravel())
+        if moved.tool_rotation is not None:  # the target frame in the last frame, vs the centre
+            R_tool = ex.frames[-1][:3, :3].T @ moved.tool_rotation
+            parts.append(rotvec(R_center.T @ R_tool) if R_center is not None else np.zeros(3))
         return np.concatenate(parts)
+
+    R_center: FloatArray | None = None
+    if model.tool_rotation is not None:
+        R_center = center.frames[-1][:3, :3].T @ model.tool_rotation
 
     zero_fit, zero_plane = np.zeros(n_fit), np.zeros(3)
     h = 1e-7
-    n_extra = 3 * len(model.extra_targets)
+    n_extra = 3 * len(model.extra_targets) + (3 if model.tool_rotation is not None else 0)
     size = 4 * n + 9 + 4 * len(hayati_pairs) + n_extra
     wrap = np.concatenate(
         [
@@ -170,13 +179,19 @@ def propagate(
     cov_state[fixed, :] = 0.0
     cov_state[:, fixed] = 0.0
     n_h = n_state + 4 * len(hayati_pairs)
-    extra_points = evaluate(zero_fit, zero_plane)[n_h:].reshape(-1, 3)
+    n_e = n_h + 3 * len(model.extra_targets)
+    extra_points = evaluate(zero_fit, zero_plane)[n_h:n_e].reshape(-1, 3)
+    rot_std = None
+    if R_center is not None:
+        rot_std = np.sqrt(np.clip(np.diag(cov[n_e:, n_e:]), 0.0, None))
     return Propagation(
         covariance=np.asarray(cov_state, dtype=np.float64),
         fixed=fixed,
         hayati_covariance=np.asarray(cov[n_state:n_h, n_state:n_h], dtype=np.float64),
         extra_tool_points=np.asarray(extra_points, dtype=np.float64),
-        extra_tool_covariance=np.asarray(cov[n_h:, n_h:], dtype=np.float64),
+        extra_tool_covariance=np.asarray(cov[n_h:n_e, n_h:n_e], dtype=np.float64),
+        tool_orientation=R_center,
+        tool_orientation_std=rot_std,
     )
 
 

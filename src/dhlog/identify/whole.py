@@ -31,7 +31,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Sequence
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from numpy.typing import NDArray
@@ -63,6 +63,7 @@ class AxisModel:
     reference_pose: FloatArray
     scales: FloatArray
     extra_targets: FloatArray = field(default_factory=lambda: np.zeros((0, 3)))
+    tool_rotation: FloatArray | None = None
 
     def targets(self) -> FloatArray:
         """Every target at the reference pose, (k, 3): the primary one first."""
@@ -101,7 +102,14 @@ class AxisModel:
         scales = self.scales.copy()
         if layout.scale_at is not None:
             scales = scales + delta[layout.scale_at : layout.scale_at + self.n]
-        return AxisModel(tuple(axes), self.types, target, self.reference_pose, scales, extra)
+        rotation = self.tool_rotation
+        if layout.rotation_at is not None and rotation is not None:
+            w = delta[layout.rotation_at : layout.rotation_at + 3]
+            angle = float(np.linalg.norm(w))
+            rotation = (rotation_about(w, angle) if angle > 0 else np.eye(3)) @ rotation
+        return AxisModel(
+            tuple(axes), self.types, target, self.reference_pose, scales, extra, rotation
+        )
 
 
 @dataclass(frozen=True)
@@ -113,14 +121,21 @@ class ParameterLayout:
     scale_at: int | None
     size: int
     names: tuple[str, ...]
+    rotation_at: int | None = None
 
     @classmethod
     def of(
-        cls, types: Sequence[JointType], *, fit_scales: bool = False, extra_targets: int = 0
+        cls,
+        types: Sequence[JointType],
+        *,
+        fit_scales: bool = False,
+        extra_targets: int = 0,
+        rotation: bool = False,
     ) -> ParameterLayout:
         """Revolute axis: tilt u, tilt v, shift u, shift v; prismatic: tilt u, tilt v; then the
-        target (x, y, z), each further target (x, y, z) and, with ``fit_scales``, one encoder
-        scale per joint."""
+        target (x, y, z), each further target (x, y, z), with ``rotation`` the target frame's
+        orientation (a rotation in M at the reference pose, 3) and, with ``fit_scales``, one
+        encoder scale per joint."""
         at, names, k = [], [], 0
         for i, jt in enumerate(types):
             at.append(k)
@@ -135,12 +150,17 @@ class ParameterLayout:
         for j in range(extra_targets):
             names += [f"target_{j + 2}_{c}" for c in "xyz"]
             k += 3
+        rotation_at = None
+        if rotation:
+            rotation_at = k
+            names += ["target_rx", "target_ry", "target_rz"]
+            k += 3
         scale_at = None
         if fit_scales:
             scale_at = k
             names += [f"encoder_scale_{i + 1}" for i in range(len(types))]
             k += len(types)
-        return cls(tuple(at), target_at, scale_at, k, tuple(names))
+        return cls(tuple(at), target_at, scale_at, k, tuple(names), rotation_at)
 
 
 def _cross(w: FloatArray, X: FloatArray) -> FloatArray:
@@ -173,24 +193,18 @@ def _rotations(direction: FloatArray, angles: FloatArray) -> FloatArray:
     return np.asarray(R, dtype=np.float64)
 
 
-def predict_columns(
-    model: AxisModel,
-    Q: FloatArray,
-    layout: ParameterLayout | None = None,
-    bases: list[tuple[FloatArray, FloatArray]] | None = None,
-    which: NDArray[np.int64] | None = None,
-) -> tuple[FloatArray, FloatArray | None]:
-    """Predicted target positions (3, m) at the joint vectors ``Q`` (m, n) and, with ``layout``,
-    the Jacobian (``layout.size``, 3, m) with respect to the local parameters. Samples run along
-    the last axis so that every operation is on contiguous rows. ``which`` (m,) names each
-    sample's target (0 the primary one, j the j-th of ``extra_targets``; default all 0).
-
-    With ``g_<i = (R_<i, t_<i)`` the motion of joints 1 … i−1 and ``D_i = p − g_<i(c_i)`` the
-    target relative to axis i's point as it sits at this sample, a move ``η = (w, v)`` of axis i
-    gives ``δp = b × D_i + R_<i (I − R_i) v`` with ``b = R_<i (I − R_i) w`` (joint i's own rotation
-    leaves its axis point where it is), so a tilt column is ``b_w × D_i`` and a shift column
-    ``b_w`` itself; ``(I − R_i) w = −(sin δ K w + (1 − cos δ) K² w)`` for ``K = [ω]×``."""
-    m = Q.shape[0]
+def _prefix_motions(
+    model: AxisModel, Q: FloatArray
+) -> tuple[
+    FloatArray,
+    list[FloatArray | None],
+    list[FloatArray],
+    list[FloatArray | None],
+    list[FloatArray | None],
+]:
+    """The scaled joint moves ``dq`` (n, m) and the prefix motions ``g_<i`` for i = 1 … n+1:
+    rotation rows (3, 3, m) (None for the identity) and translations (3, m), with each revolute
+    joint's ``sin δ`` and ``1 − cos δ``."""
     dq = ((Q - model.reference_pose) * model.scales).T
     # prefix motions g_<i (rotation rows (3, 3, m) or None for the identity; translation (3, m))
     pre_R: list[FloatArray | None] = [None]
@@ -222,6 +236,74 @@ def predict_columns(
         else:
             pre_R.append(_compose(R0, Ri))
             pre_t.append(t0 + _rotate(R0, ti))
+    return dq, pre_R, pre_t, sins, coss
+
+
+def predict_orientation(
+    model: AxisModel,
+    Q: FloatArray,
+    layout: ParameterLayout,
+    bases: list[tuple[FloatArray, FloatArray]],
+) -> tuple[FloatArray, FloatArray]:
+    """The target frame's predicted orientation (3, 3, m) and the Jacobian (``layout.size``,
+    3, m) of a small rotation of it, in M, with respect to the local parameters: a tilt of a
+    revolute axis rotates it by ``b = R_<i (I − R_i) w`` (as in :func:`predict_columns`), a shift
+    or a prismatic joint not at all, the target frame's own rotation by ``R_all δ``."""
+    assert model.tool_rotation is not None and layout.rotation_at is not None
+    m = Q.shape[0]
+    _, pre_R, _, sins, coss = _prefix_motions(model, Q)
+    R_all = pre_R[-1]
+    eye = np.broadcast_to(np.eye(3)[:, :, None], (3, 3, m))
+    R_tool = np.broadcast_to(model.tool_rotation[:, :, None], (3, 3, m))
+    R_pred = np.ascontiguousarray(R_tool if R_all is None else _compose(R_all, R_tool))
+    J = np.zeros((layout.size, 3, m))
+    for i, (axis, jt) in enumerate(zip(model.axes, model.types, strict=True)):
+        if jt is JointType.PRISMATIC:
+            continue
+        u, v = bases[i]
+        R0 = pre_R[i]
+        s, c1 = sins[i], coss[i]
+        assert s is not None and c1 is not None
+        K = _skew(axis.direction)
+        K2 = K @ K
+        k = layout.axis_at[i]
+        for col, w in enumerate((u, v)):
+            a = -((K @ w)[:, None] * s + (K2 @ w)[:, None] * c1)
+            J[k + col] = a if R0 is None else _rotate(R0, a)
+        if layout.scale_at is not None:
+            omega = axis.direction[:, None] if R0 is None else _rotate(R0, _col(axis.direction, m))
+            J[layout.scale_at + i] = omega * (Q[:, i] - model.reference_pose[i])
+    r = layout.rotation_at
+    J[r : r + 3] = np.moveaxis(eye if R_all is None else R_all, 1, 0)
+    return R_pred, J
+
+
+def orientation_residual(R_pred: FloatArray, R_meas: FloatArray) -> FloatArray:
+    """The small rotation (3, m) from the measured to the predicted orientation, in M:
+    ``vee(E − Eᵀ) / 2`` of ``E = R_pred R_measᵀ`` (first order, exact as ``sin`` of the angle)."""
+    E = np.einsum("ikm,jkm->ijm", R_pred, R_meas)
+    return np.stack([E[2, 1] - E[1, 2], E[0, 2] - E[2, 0], E[1, 0] - E[0, 1]]) / 2.0
+
+
+def predict_columns(
+    model: AxisModel,
+    Q: FloatArray,
+    layout: ParameterLayout | None = None,
+    bases: list[tuple[FloatArray, FloatArray]] | None = None,
+    which: NDArray[np.int64] | None = None,
+) -> tuple[FloatArray, FloatArray | None]:
+    """Predicted target positions (3, m) at the joint vectors ``Q`` (m, n) and, with ``layout``,
+    the Jacobian (``layout.size``, 3, m) with respect to the local parameters. Samples run along
+    the last axis so that every operation is on contiguous rows. ``which`` (m,) names each
+    sample's target (0 the primary one, j the j-th of ``extra_targets``; default all 0).
+
+    With ``g_<i = (R_<i, t_<i)`` the motion of joints 1 … i−1 and ``D_i = p − g_<i(c_i)`` the
+    target relative to axis i's point as it sits at this sample, a move ``η = (w, v)`` of axis i
+    gives ``δp = b × D_i + R_<i (I − R_i) v`` with ``b = R_<i (I − R_i) w`` (joint i's own rotation
+    leaves its axis point where it is), so a tilt column is ``b_w × D_i`` and a shift column
+    ``b_w`` itself; ``(I − R_i) w = −(sin δ K w + (1 − cos δ) K² w)`` for ``K = [ω]×``."""
+    m = Q.shape[0]
+    dq, pre_R, pre_t, sins, coss = _prefix_motions(model, Q)
     R_all, t_all = pre_R[-1], pre_t[-1]
     if which is None or not len(model.extra_targets):
         tgt = np.broadcast_to(model.target[:, None], (3, m))
@@ -265,6 +347,8 @@ def predict_columns(
     t = layout.target_at
     rot = np.broadcast_to(np.eye(3)[:, :, None], (3, 3, m)) if R_all is None else R_all
     J[t : t + 3] = np.moveaxis(rot, 1, 0)
+    if layout.rotation_at is not None:  # the target frame's orientation does not move the point
+        J[layout.rotation_at : layout.rotation_at + 3] = 0.0
     extra = len(model.extra_targets)
     if extra:
         J[t + 3 : t + 3 + 3 * extra] = 0.0
@@ -335,6 +419,7 @@ class WholeFit:
     scale: float
     bases: list[tuple[FloatArray, FloatArray]] = field(default_factory=list)
     constrained: dict[int, str] = field(default_factory=dict)
+    sigma_rotation: float | None = None
 
 
 Whitening = Callable[[FloatArray, FloatArray | None], FloatArray | float]
@@ -373,6 +458,14 @@ def _accumulate(
         keep = data.keep[sl]
         use = keep & (nrm <= limit)
         cost = float(np.sum(np.minimum(nrm[keep], limit) ** 2))
+        if data.R is not None:  # the target frame's orientation, weighted by 1/σ_rot
+            R_pred, Jr = predict_orientation(model, data.Q[sl], layout, bases)
+            ro = orientation_residual(R_pred, np.moveaxis(data.R[sl], 0, 2)) / data.sigma_rot
+            nrm_o = np.sqrt(ro[0] ** 2 + ro[1] ** 2 + ro[2] ** 2)
+            use &= nrm_o <= limit
+            cost += float(np.sum(np.minimum(nrm_o[keep], limit) ** 2))
+            rw = np.concatenate([rw, ro])
+            Jw = np.concatenate([Jw, Jr / data.sigma_rot], axis=1)
         if not np.all(use):
             Jw, rw = Jw[:, :, use], rw[:, use]
         Ju = Jw.reshape(layout.size, -1)
@@ -401,6 +494,13 @@ class _Samples:
     W: FloatArray | None
     whiten: Whitening
     which: NDArray[np.int64] | None = None
+    R: FloatArray | None = None
+    sigma_rot: float = 1.0
+
+    @property
+    def per_sample(self) -> int:
+        """Residual components per sample: 3, or 6 with the target frame's orientation."""
+        return 3 if self.R is None else 6
 
     def strided(self, stride: int) -> _Samples:
         return _Samples(
@@ -410,6 +510,8 @@ class _Samples:
             None if self.W is None else self.W[::stride],
             self.whiten,
             None if self.which is None else self.which[::stride],
+            None if self.R is None else self.R[::stride],
+            self.sigma_rot,
         )
 
 
@@ -439,7 +541,7 @@ def _levenberg_marquardt(
     bases = model.bases()
     norms = np.zeros(m)
     st = _State(model, bases, *_accumulate(model, layout, bases, data, limit, norms), norms)
-    if 3 * st.count <= layout.size:
+    if data.per_sample * st.count <= layout.size:
         raise DegenerateGeometryError(
             f"the whole-model fit has {st.count} usable samples (3 coordinates each) for "
             f"{layout.size} parameters."
@@ -475,6 +577,17 @@ def _levenberg_marquardt(
             if lam > 1e8:
                 break
     return st
+
+
+def _orientation_scale(
+    start: AxisModel, layout: ParameterLayout, data: _Samples, stride: int
+) -> float:
+    """A robust σ (rad, per component) of the measured orientations about the start model."""
+    assert data.R is not None
+    R_pred, _ = predict_orientation(start, data.Q[::stride], layout, start.bases())
+    r = orientation_residual(R_pred, np.moveaxis(data.R[::stride], 0, 2))
+    norm = np.sqrt(np.sum(r**2, axis=0))
+    return max(float(np.median(norm)) / CHI3_MEDIAN, 1e-9)
 
 
 def _finish_on_all(
@@ -513,6 +626,8 @@ def fit_whole_model(
     keep: NDArray[np.bool_] | None = None,
     sample_cov: FloatArray | None = None,
     which: NDArray[np.int64] | None = None,
+    rotations: FloatArray | None = None,
+    sigma_rotation: float | None = None,
     fit_scales: bool = False,
     threshold: float = 5.0,
     max_iterations: int = 30,
@@ -532,7 +647,10 @@ def fit_whole_model(
 
     m = Q.shape[0]
     layout = ParameterLayout.of(
-        start.types, fit_scales=fit_scales, extra_targets=len(start.extra_targets)
+        start.types,
+        fit_scales=fit_scales,
+        extra_targets=len(start.extra_targets),
+        rotation=rotations is not None,
     )
 
     def whiten(points: FloatArray, W: FloatArray | None) -> FloatArray | float:
@@ -545,8 +663,12 @@ def fit_whole_model(
         None if sample_cov is None else whitening_from_std(sample_cov),
         whiten,
         which,
+        rotations,
+        1.0 if sigma_rotation is None else sigma_rotation,
     )
     stride = -(-m // subsample) if m > subsample else 1
+    if rotations is not None and sigma_rotation is None:
+        data = replace(data, sigma_rot=_orientation_scale(start, layout, data, stride))
     first = data.strided(stride) if stride > 1 else data
     probe = np.zeros(first.Q.shape[0])
     _accumulate(start, layout, start.bases(), first, threshold, probe)
@@ -555,6 +677,12 @@ def fit_whole_model(
     # the noise model is off by more than 2x: judge outliers on the data's own scale
     limit = threshold * scale if not 0.5 < scale < 2.0 else threshold
     st = _levenberg_marquardt(start, layout, first, limit, max_iterations, progress)
+    if data.R is not None and sigma_rotation is None:
+        # the start's orientation scale includes the start's own error: judge it again at the
+        # optimum of the subset and fit once more with it
+        data = replace(data, sigma_rot=_orientation_scale(st.model, layout, data, stride))
+        first = data.strided(stride) if stride > 1 else data
+        st = _levenberg_marquardt(st.model, layout, first, limit, max_iterations, progress)
     iterations = st.iterations
     chi2 = st.chi2
     if stride > 1:
@@ -569,7 +697,7 @@ def fit_whole_model(
             f"{layout.size} parameters are unconstrained): sweep every joint over more stops."
         )
     inliers = data.keep & (st.norms <= limit)
-    dof = max(3 * st.count - layout.size, 1)
+    dof = max(data.per_sample * st.count - layout.size, 1)
     chi2_dof = chi2 / dof
     try:
         covariance = np.linalg.inv(st.H) * chi2_dof
@@ -587,6 +715,7 @@ def fit_whole_model(
         iterations=iterations,
         scale=scale,
         bases=st.bases,
+        sigma_rotation=None if data.R is None else data.sigma_rot * math.sqrt(chi2_dof),
     )
 
 
@@ -665,6 +794,7 @@ def constrain_pairs(fit: WholeFit, parallel: list[int], collinear: list[int]) ->
         moved.reference_pose,
         moved.scales,
         moved.extra_targets,
+        moved.tool_rotation,
     )
     return WholeFit(
         model=snapped,
@@ -681,4 +811,5 @@ def constrain_pairs(fit: WholeFit, parallel: list[int], collinear: list[int]) ->
             **{i: "parallel" for i in parallel},
             **{i: "collinear" for i in collinear},
         },
+        sigma_rotation=fit.sigma_rotation,
     )

@@ -23,6 +23,14 @@ def log_data_from_session(session: Session, pipeline: Pipeline | None = None) ->
     points = pl.DataFrame(
         {"t_ns": session.point_t_ns, "x": xyz[:, 0], "y": xyz[:, 1], "z": xyz[:, 2]}
     )
+    if session.point_rotation is not None:
+        from dhlog.geometry._checks import quaternions_from_matrices
+        from dhlog.io.reader import ORIENTATION_COLUMNS
+
+        quat = quaternions_from_matrices(session.point_rotation)
+        points = points.with_columns(
+            pl.Series(name, quat[:, k]) for k, name in enumerate(ORIENTATION_COLUMNS)
+        )
     if session.extra_point_xyz:
         frames = [points.with_columns(pl.lit(0, dtype=pl.Int32).alias("target"))]
         for k, extra in enumerate(session.extra_point_xyz):

@@ -37,6 +37,7 @@ class StreamSpec:
     required: bool
     fields: dict[str, str] = field(default_factory=dict)
     extra_topics: tuple[str, ...] = ()
+    orientation: bool = False
 
 
 @dataclass(frozen=True)
@@ -121,8 +122,17 @@ def parse_pipeline(text: str, source: str) -> Pipeline:
             raise PipelineError(source, f"[streams.{stream}] extra_topics is for the point stream.")
         if not isinstance(extra, list) or not all(isinstance(t, str) for t in extra):
             raise PipelineError(source, "[streams.point] extra_topics must be a list of topics.")
+        orientation = spec.get("orientation", False)
+        if not isinstance(orientation, bool) or (orientation and stream != "point"):
+            raise PipelineError(
+                source, "[streams.point] orientation must be true or false (point stream only)."
+            )
         streams[stream] = StreamSpec(
-            str(spec.get("topic", DEFAULT_TOPICS[stream])), required, fields, tuple(extra)
+            str(spec.get("topic", DEFAULT_TOPICS[stream])),
+            required,
+            fields,
+            tuple(extra),
+            orientation,
         )
     if "point" not in streams:
         raise PipelineError(source, "it has no [streams.point]; the target stream is required.")
@@ -151,7 +161,15 @@ def parse_pipeline(text: str, source: str) -> Pipeline:
     except (TypeError, ValueError) as exc:
         raise PipelineError(source, f"[segmentation]: {exc}") from None
     noise_table = _table(source, data, "noise")
-    noise_keys = {"model", "sigma", "radial", "transverse", "transverse_per_m", "station"}
+    noise_keys = {
+        "model",
+        "sigma",
+        "radial",
+        "transverse",
+        "transverse_per_m",
+        "station",
+        "orientation",
+    }
     unknown = sorted(set(noise_table) - noise_keys)
     if unknown:
         raise PipelineError(source, f"[noise] keys {unknown} unknown; known: {sorted(noise_keys)}.")

@@ -42,6 +42,13 @@ POINT_SCHEMAS = {
 COVARIANCE_SCHEMAS = {ros2.POSE_WITH_COVARIANCE: "pose.covariance"}
 #: Columns of the position covariance (m²) in the point frames and the measurement table.
 COVARIANCE_COLUMNS = ("cxx", "cxy", "cxz", "cyy", "cyz", "czz")
+#: Point schemas that carry the target frame's orientation, and where.
+ORIENTATION_SCHEMAS = {
+    ros2.POSE_STAMPED: "pose.orientation",
+    "foxglove.PoseInFrame": "pose.orientation",
+}
+#: Columns of the target frame's orientation (unit quaternion) with ``orientation = true``.
+ORIENTATION_COLUMNS = ("rot_x", "rot_y", "rot_z", "rot_w")
 JOINT_SCHEMAS = (ros2.JOINT_STATE, "foxglove.JointStates")
 PHASE_SCHEMAS = (ros2.STRING,)
 
@@ -98,7 +105,9 @@ def _stamp_ns(obj: Any) -> int | None:
 Extracted = tuple[int | None, Any]
 
 
-def _point_extractor(schema: str, fields: dict[str, str]) -> Callable[[Any], Extracted] | None:
+def _point_extractor(
+    schema: str, fields: dict[str, str], orientation: bool = False
+) -> Callable[[Any], Extracted] | None:
     if fields:
         paths = [fields.get(k, k) for k in ("x", "y", "z")]
         stamp_path = fields.get("stamp_ns")
@@ -113,10 +122,16 @@ def _point_extractor(schema: str, fields: dict[str, str]) -> Callable[[Any], Ext
         return None
 
     cov_path = COVARIANCE_SCHEMAS.get(schema)
+    rot_path = ORIENTATION_SCHEMAS.get(schema) if orientation else None
+    if orientation and rot_path is None:
+        return None
 
     def standard(msg: Any) -> Extracted:
         p = _get(msg, base)
         xyz = [float(_get(p, "x")), float(_get(p, "y")), float(_get(p, "z"))]
+        if rot_path is not None:
+            r = _get(msg, rot_path)
+            return _stamp_ns(msg), xyz + [float(_get(r, c)) for c in ("x", "y", "z", "w")]
         if cov_path is not None:
             c = [float(v) for v in _get(msg, cov_path)]
             if len(c) != 36:
@@ -222,10 +237,10 @@ ACCEPTED = {
 
 
 def _extractor(
-    stream: str, info: ChannelInfo, fields: dict[str, str]
+    stream: str, info: ChannelInfo, fields: dict[str, str], orientation: bool = False
 ) -> Callable[[Any], Extracted] | None:
     if stream in ("point", "base"):
-        return _point_extractor(info.schema_name, fields)
+        return _point_extractor(info.schema_name, fields, orientation and stream == "point")
     if stream == "joints":
         return _joint_extractor(info.schema_name, fields)
     if info.schema_name in PHASE_SCHEMAS or info.message_encoding == "json" or fields:
@@ -293,6 +308,7 @@ def _decode_stream(
     general: dict[int, list[tuple[int, Any]]] | None,
     fields: dict[str, str],
     path: str,
+    orientation: bool = False,
 ) -> list[Block]:
     """Blocks of (times, values) of one stream over all its channels.
 
@@ -302,23 +318,38 @@ def _decode_stream(
     """
     blocks: list[Block] = []
     for info in infos:
-        extract = _extractor(stream, info, fields)
+        extract = _extractor(stream, info, fields, orientation)
         if extract is None:
+            accepted = ACCEPTED[stream]
+            if orientation and stream == "point":
+                accepted = (
+                    "geometry_msgs/msg/PoseStamped or foxglove.PoseInFrame (the pipeline asks "
+                    "for the target's orientation: orientation = true)"
+                )
             raise UnknownSchemaError(
-                path, info.topic, info.schema_name, info.message_encoding, ACCEPTED[stream]
+                path, info.topic, info.schema_name, info.message_encoding, accepted
             )
         if raw_by_channel is not None:
             raw = raw_by_channel.get(info.id)
             if raw is None or len(raw) == 0:
                 continue
-            if stream in ("point", "base") and _bulk_ok(
-                raw, info, (ros2.POINT_STAMPED, ros2.POSE_STAMPED), fields
+            with_rot = orientation and stream == "point"
+            if with_rot and _bulk_ok(raw, info, (ros2.POSE_STAMPED,), fields):
+                stamps, xyz = ros2.decode_point_bulk(raw, orientation=True)
+                blocks.append((np.where(stamps != 0, stamps, raw.log_time), xyz))
+                continue
+            if (
+                not with_rot
+                and stream in ("point", "base")
+                and _bulk_ok(raw, info, (ros2.POINT_STAMPED, ros2.POSE_STAMPED), fields)
             ):
                 stamps, xyz = ros2.decode_point_bulk(raw)
                 blocks.append((np.where(stamps != 0, stamps, raw.log_time), xyz))
                 continue
-            if stream in ("point", "base") and _bulk_ok(
-                raw, info, (ros2.POSE_WITH_COVARIANCE,), fields
+            if (
+                not with_rot
+                and stream in ("point", "base")
+                and _bulk_ok(raw, info, (ros2.POSE_WITH_COVARIANCE,), fields)
             ):
                 stamps, xyz = ros2.decode_point_bulk(raw, covariance=True)
                 blocks.append((np.where(stamps != 0, stamps, raw.log_time), xyz))
@@ -366,12 +397,13 @@ def _decode_stream(
     return blocks
 
 
-def _points_frame(blocks: list[Block], scale: float) -> pl.DataFrame:
+def _points_frame(blocks: list[Block], scale: float, orientation: bool = False) -> pl.DataFrame:
     """``t_ns, x, y, z`` (m), and the position covariance (m², ``COVARIANCE_COLUMNS``) when any
-    channel carries one (null for samples of channels that do not)."""
+    channel carries one (null for samples of channels that do not), or with ``orientation`` the
+    target frame's orientation (``ORIENTATION_COLUMNS``, a unit quaternion)."""
     t = np.concatenate([b[0] for b in blocks]) if blocks else np.zeros(0, dtype=np.int64)
-    with_cov = any(b[1].shape[1] == 9 for b in blocks)
-    width = 9 if with_cov else 3
+    with_cov = not orientation and any(b[1].shape[1] == 9 for b in blocks)
+    width = 7 if orientation else 9 if with_cov else 3
     parts = []
     for b in blocks:
         v = b[1]
@@ -388,6 +420,11 @@ def _points_frame(blocks: list[Block], scale: float) -> pl.DataFrame:
     if with_cov:
         for k, name in enumerate(COVARIANCE_COLUMNS):
             cols[name] = pl.Series(name, arr[:, 3 + k] * scale**2, nan_to_null=True)
+    if orientation:
+        quat = arr[:, 3:7]
+        quat = quat / np.linalg.norm(quat, axis=1, keepdims=True)
+        for k, name in enumerate(ORIENTATION_COLUMNS):
+            cols[name] = quat[:, k]
     return pl.DataFrame(cols)
 
 
@@ -432,6 +469,8 @@ def read_log(
         general = _read_general(name, [c for cs in infos.values() for c in cs])
     set_aside: dict[str, int] = {}
 
+    with_rot = pipeline.streams["point"].orientation
+
     def blocks_of(stream: str) -> list[Block]:
         return _decode_stream(
             stream,
@@ -440,9 +479,12 @@ def read_log(
             general,
             pipeline.streams[stream].fields,
             name,
+            with_rot,
         )
 
-    points = _clean(_points_frame(blocks_of("point"), pipeline.length_scale), "point", set_aside)
+    points = _clean(
+        _points_frame(blocks_of("point"), pipeline.length_scale, with_rot), "point", set_aside
+    )
     extra_topics = pipeline.streams["point"].extra_topics
     if extra_topics:  # further targets: one frame per topic, labelled 1, 2, … (0 the primary)
         frames = [points.with_columns(pl.lit(0, dtype=pl.Int32).alias("target"))]
@@ -459,8 +501,11 @@ def read_log(
                 general,
                 pipeline.streams["point"].fields,
                 name,
+                with_rot,
             )
-            frame = _clean(_points_frame(blocks, pipeline.length_scale), "point", set_aside)
+            frame = _clean(
+                _points_frame(blocks, pipeline.length_scale, with_rot), "point", set_aside
+            )
             frames.append(frame.with_columns(pl.lit(k + 1, dtype=pl.Int32).alias("target")))
         points = pl.concat(frames, how="diagonal").sort("t_ns", maintain_order=True)
     base = None

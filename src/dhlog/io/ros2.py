@@ -85,11 +85,12 @@ def little_endian(raw: RawMessages) -> NDArray[np.bool_]:
 
 
 def decode_point_bulk(
-    raw: RawMessages, *, covariance: bool = False
+    raw: RawMessages, *, covariance: bool = False, orientation: bool = False
 ) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
     """Header stamps (ns) and positions (m, 3) of PointStamped or PoseStamped messages; with
     ``covariance`` (PoseWithCovarianceStamped) also the position block of the covariance, as
-    (m, 9): ``x, y, z, cxx, cxy, cxz, cyy, cyz, czz``.
+    (m, 9): ``x, y, z, cxx, cxy, cxz, cyy, cyz, czz``; with ``orientation`` (PoseStamped) the
+    orientation quaternion, as (m, 7): ``x, y, z, qx, qy, qz, qw``.
 
     The point (or the pose's position) follows the header at the next multiple of 8 after
     ``stamp (8) + frame_id length (4) + frame_id``; the 6×6 covariance (row-major) follows the
@@ -98,11 +99,11 @@ def decode_point_bulk(
     """
     frame_len = gather(raw.data, raw.starts + 12, 4, "<u4").astype(np.int64)
     rel = ((12 + frame_len + 7) // 8) * 8
-    span = 24 + (32 + 36 * 8 if covariance else 0)
+    span = 24 + (32 + 36 * 8 if covariance else 32 if orientation else 0)
     if np.any(rel + span + 4 > raw.lengths):
         raise ValueError("PointStamped payload shorter than its layout")
     stamps = np.empty(len(raw), dtype=np.int64)
-    xyz = np.empty((len(raw), 9 if covariance else 3), dtype=np.float64)
+    xyz = np.empty((len(raw), 9 if covariance else 7 if orientation else 3), dtype=np.float64)
     uniform = bool(np.all(rel == rel[0])) if rel.size else True
     for r in rel[:1] if uniform else np.unique(rel):
         sel = slice(None) if uniform else np.flatnonzero(rel == r)
@@ -114,6 +115,8 @@ def decode_point_bulk(
         if covariance:
             cov = rows[:, at + 56 : at + 56 + 288].copy().view("<f8").reshape(-1, 6, 6)
             xyz[sel, 3:] = cov[:, [0, 0, 0, 1, 1, 2], [0, 1, 2, 1, 2, 2]]
+        elif orientation:
+            xyz[sel, 3:] = rows[:, at + 24 : at + 56].copy().view("<f8").reshape(-1, 4)
     return stamps, xyz
 
 
@@ -188,11 +191,18 @@ def encode_point_stamped(
 
 
 def encode_pose_stamped(
-    t_ns: Sequence[int] | NDArray[np.int64], xyz: NDArray[np.float64], frame_id: str
+    t_ns: Sequence[int] | NDArray[np.int64],
+    xyz: NDArray[np.float64],
+    frame_id: str,
+    quaternions: NDArray[np.float64] | None = None,
 ) -> list[bytes]:
-    """CDR payloads of PoseStamped messages with an identity orientation."""
-    quat = np.array([0.0, 0.0, 0.0, 1.0], dtype="<f8").tobytes()
-    return [p + quat for p in encode_point_stamped(t_ns, xyz, frame_id)]
+    """CDR payloads of PoseStamped messages (orientation ``x, y, z, w`` per message, identity
+    when ``quaternions`` (m, 4) is None)."""
+    points = encode_point_stamped(t_ns, xyz, frame_id)
+    if quaternions is None:
+        quat = np.array([0.0, 0.0, 0.0, 1.0], dtype="<f8").tobytes()
+        return [p + quat for p in points]
+    return [p + q.tobytes() for p, q in zip(points, np.asarray(quaternions, "<f8"), strict=True)]
 
 
 def encode_joint_state(

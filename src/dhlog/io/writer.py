@@ -21,6 +21,7 @@ from typing import IO, Any, Literal
 
 from mcap.writer import CompressionType, Writer
 
+from dhlog.geometry._checks import quaternions_from_matrices
 from dhlog.io import ros2
 from dhlog.simulate import Session
 
@@ -130,14 +131,20 @@ def write_session(
 def _write_ros2(session: Session, f: IO[bytes], point_type: str, chunk_size: int) -> None:
     writer = Writer(f, chunk_size=chunk_size, compression=CompressionType.ZSTD, enable_crcs=False)
     writer.start(profile="ros2", library="rosbag2 (simulated by dhlog)")
+    if session.point_rotation is not None:  # a 6-DoF target: PoseStamped with its orientation
+        point_type = "pose"
     point_schema = ros2.POSE_STAMPED if point_type == "pose" else ros2.POINT_STAMPED
     schema_ids = {
         name: writer.register_schema(name, "ros2msg", ros2.MSGDEFS[name].encode())
         for name in (point_schema, ros2.POINT_STAMPED, ros2.JOINT_STATE, ros2.STRING)
     }
     encode = ros2.encode_pose_stamped if point_type == "pose" else ros2.encode_point_stamped
+    points = encode(session.point_t_ns, session.point_xyz, "tracker")
+    if session.point_rotation is not None:
+        quats = quaternions_from_matrices(session.point_rotation)
+        points = ros2.encode_pose_stamped(session.point_t_ns, session.point_xyz, "tracker", quats)
     payloads: dict[str, list[bytes]] = {
-        "point": encode(session.point_t_ns, session.point_xyz, "tracker"),
+        "point": points,
         "base": ros2.encode_point_stamped(session.base_t_ns, session.base_xyz, "tracker"),
         "joints": ros2.encode_joint_state(session.joint_t_ns, session.joint_names, session.joint_q),
         "phase": [ros2.encode_string(_phase_text(j)) for _, j in session.phase],
