@@ -82,7 +82,7 @@ def print_result(console: Console, result: ProcessResult, *, units: str = "mm") 
             f"{j.index} {j.name}",
             j.type.value[0].upper() if j.type else "?",
             f.method if f else "",
-            str(f.n_points) if f else "0",
+            str(j.rows.size) if f else "0",
             str(j.n_outliers) if f else "",
             f"{f.rms * length:.4f}" if f else "",
             sweep,
@@ -90,6 +90,7 @@ def print_result(console: Console, result: ProcessResult, *, units: str = "mm") 
             "ok" if j.ok else f"[red]not identified: {escape(str(j.reason))}[/]",
         )
     console.print(fits)
+    console.print(_method_line(result, length, lu))
     if val is not None:
         console.print(
             f"FK check: RMS {val.rms * length:.4f} {lu}, max {val.max * length:.4f} {lu} "
@@ -100,6 +101,21 @@ def print_result(console: Console, result: ProcessResult, *, units: str = "mm") 
         console.print("Set aside: " + ", ".join(f"{k} {v}" for k, v in sorted(aside.items())))
     for w in result.warnings:
         console.print(f"[yellow]warning:[/] {escape(w)}", soft_wrap=True)
+
+
+def _method_line(result: ProcessResult, length: float, lu: str) -> str:
+    """How the table was found: the whole-model fit (samples, noise model, χ²/dof) or the seed
+    method."""
+    w = result.whole
+    if w is None:
+        return "Method: the seed method (per-joint fits + line geometry)."
+    noise = result.noise.described
+    if result.noise.model == "isotropic" and result.sigma is not None:
+        noise = f"isotropic, σ {result.sigma * length:.4f} {lu} per coordinate"
+    return (
+        f"Method: whole-model maximum likelihood over {w.n_points} samples "
+        f"({noise}; χ²/dof {w.chi2_dof:.2f})."
+    )
 
 
 def result_markdown(result: ProcessResult, *, units: str = "mm") -> str:
@@ -157,10 +173,11 @@ def result_markdown(result: ProcessResult, *, units: str = "mm") -> str:
     for j in result.joints:
         f = j.fit
         lines.append(
-            f"| {j.index} {j.name} | {f.method if f else ''} | {f.n_points if f else 0} | "
+            f"| {j.index} {j.name} | {f.method if f else ''} | {j.rows.size if f else 0} | "
             f"{j.n_outliers if f else ''} | {f'{f.rms * length:.4f}' if f else ''} | "
             f"{'ok' if j.ok else 'not identified: ' + str(j.reason)} |"
         )
+    lines += ["", _method_line(result, length, lu)]
     if result.validation is not None:
         v = result.validation
         lines += [

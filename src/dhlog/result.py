@@ -27,7 +27,8 @@ def _fit_doc(j: JointReport, t_ns: NDArray[np.int64]) -> dict[str, Any] | None:
         return None
     return {
         "method": f.method,
-        "n_points": int(f.n_points),
+        "n_points": int(j.rows.size),
+        **({"start_fit_points": int(f.n_points)} if f.n_points != j.rows.size else {}),
         "n_outliers": j.n_outliers,
         "rms": float(f.rms),
         "sweep": float(f.sweep),
