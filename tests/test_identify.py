@@ -354,3 +354,21 @@ def test_a_target_whose_orientation_is_measured_fixes_the_wrist(tmp_path) -> Non
     Q = np.random.default_rng(18).uniform(rob.limits[:, 0], rob.limits[:, 1], (200, 6))
     assert np.all(fk_error(with_rot, session, Q) <= 4.0 * fk_prediction_std(with_rot, Q))
     assert rotation_about(np.array([0.0, 0.0, 1.0]), 0.0).shape == (3, 3)
+
+
+def test_scara_gauges_are_fixed_and_the_table_equals_the_model() -> None:
+    """The SCARA sample (axes 1–3 parallel, prismatic joint 4 along axis 3): θ3 (a rotation
+    about the common axis of 3 and 4) and the prismatic axis' placement are gauges, marked fixed
+    with their reasons, never printed as measured; the table reproduces the fitted model."""
+    from pathlib import Path
+
+    from dhlog.process import process_log
+
+    result = process_log(Path(__file__).parents[1] / "sample_logs" / "scara.mcap")
+    rows = result_document(result)["standard_dh"]
+    assert {"theta", "d", "a"} <= set(rows[2]["fixed"])
+    assert "prismatic" in rows[2]["fixed_reason"] and "collinear" in rows[2]["fixed_reason"]
+    assert not any("departs from the fitted model" in w for w in result.warnings)
+    for row in rows:
+        for name, sd in row["std"].items():
+            assert (name in row.get("fixed", [])) == (sd is None)

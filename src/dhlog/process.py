@@ -604,10 +604,11 @@ def _with_fixed_relations(
     axes, types = whole.model.axes, whole.model.types
     parallel, collinear = [], []
     for i, (a_tol, d_tol) in enumerate(tolerances):
-        if JointType.PRISMATIC in (types[i], types[i + 1]):
-            continue
         kind = classify_lines(axes[i], axes[i + 1], angle_tol=a_tol, distance_tol=d_tol).kind
-        if kind is RelationKind.COLLINEAR:
+        if JointType.PRISMATIC in (types[i], types[i + 1]):
+            if kind.is_parallel:  # a prismatic axis has only a direction to hold
+                parallel.append(i)
+        elif kind is RelationKind.COLLINEAR:
             collinear.append(i)
         elif kind.is_parallel:
             parallel.append(i)

@@ -171,6 +171,8 @@ def propagate(
     cov = J @ cov_in @ J.T
     n_state = 4 * n + 9
     fixed = np.max(np.abs(J[:n_state]), axis=1) < FIXED_BELOW
+    # nor is anything measured to 0.1 nm or 0.1 nrad: such a σ is a convention's rounding
+    fixed |= np.sqrt(np.clip(np.diag(cov)[:n_state], 0.0, None)) < 1e-10
     for i, kind in fit.constrained.items():  # held by the constraint: α (and a, collinear)
         fixed[4 * i + 3] = True
         if kind == "collinear":
@@ -221,7 +223,7 @@ def fixed_reasons(
         row, p = divmod(idx, 4)
         name = ("θ", "d", "a", "α")[p]
         kind = kinds.get(row + 1)
-        if row in held and p in (2, 3) and row < n - 1:
+        if row in held and (p == 3 or (p == 2 and held[row] == "collinear")) and row < n - 1:
             why = (
                 f"axes {row + 1} and {row + 2} are {held[row]} within the noise (the data "
                 f"cannot reject it), so {name} is held by that relation"
@@ -242,6 +244,8 @@ def fixed_reasons(
                 if nominal
                 else "last frame convention: z_{n+1} ∥ z_n through the target"
             )
+        elif JointType.PRISMATIC in types[row : row + 2] and p in (1, 2):
+            why = "placement of a prismatic axis (only its direction is physical)"
         elif kind is not None and kind.value == "collinear":
             why = f"axes {row + 1} and {row + 2} are collinear: {name} by convention"
         elif kind is not None and kind.is_parallel and p == 1:
