@@ -23,12 +23,15 @@ from __future__ import annotations
 
 import argparse
 import math
+import sys
 import time
+from pathlib import Path
 
 import numpy as np
 
-from dhlog.montecarlo import sessions
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 from dhlog.robots import load_robot
+from montecarlo import sessions
 
 NAMES = ("θ", "d", "a", "α")
 # seed 002, Table 2: measured − specification (mm, mm, degrees), joints 1–6

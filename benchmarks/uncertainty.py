@@ -5,15 +5,18 @@
 For each session (the robot's own table as truth and as nominal, Gaussian noise σ = 20 µm,
 30 Hz tracker, 60° sweeps, 12 base points) dhlog identifies the model in memory; the script
 prints, for every parameter, the RMS of the σ dhlog reported divided by the empirical standard
-deviation of its error (``dhlog.montecarlo``).
+deviation of its error (``tests/montecarlo.py``).
 """
 
 from __future__ import annotations
 
 import argparse
+import sys
 import time
+from pathlib import Path
 
-from dhlog.montecarlo import calibration
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+from montecarlo import calibration
 
 NAMES = ("θ", "d", "a", "α")
 

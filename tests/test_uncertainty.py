@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from dhlog.montecarlo import calibration
+from montecarlo import calibration
 
 
 @pytest.mark.parametrize("robot", ["kr5", "puma560"])
@@ -26,7 +26,7 @@ def test_reported_sigma_is_within_15_percent_of_the_empirical_spread(robot: str)
 def test_five_percent_gross_outliers_cost_at_most_20_percent(robot: str) -> None:
     """The same 40 seeded sessions with and without 5 % gross outliers (3-9 mm): every
     parameter's RMS error with outliers stays within 1.2x its clean-data RMS error."""
-    from dhlog.montecarlo import sessions
+    from montecarlo import sessions
 
     clean, _ = sessions(robot, 40, workers=2)
     dirty, _ = sessions(robot, 40, workers=2, outliers=0.05)
