@@ -38,6 +38,22 @@ class Validation:
     max: float
     n_points: int
 
+    @classmethod
+    def of(
+        cls,
+        residuals: FloatArray,
+        per_joint: dict[int, tuple[float, float, int]],
+        used: FloatArray,
+    ) -> Validation:
+        """The validation with RMS, max and count over the residuals ``used`` (m)."""
+        return cls(
+            residuals=residuals,
+            per_joint=per_joint,
+            rms=float(np.sqrt(np.mean(used**2))) if used.size else float("nan"),
+            max=float(used.max()) if used.size else float("nan"),
+            n_points=int(used.size),
+        )
+
 
 def model_from_state(
     x: FloatArray, types: tuple[JointType, ...], R0: FloatArray
@@ -98,14 +114,7 @@ def validate_sweeps(
         residuals[rows] = r
         per_joint[j.index] = (float(np.sqrt(np.mean(r**2))), float(r.max()), int(r.size))
         used.append(r)
-    allr = np.concatenate(used) if used else np.zeros(0)
-    return Validation(
-        residuals=residuals,
-        per_joint=per_joint,
-        rms=float(np.sqrt(np.mean(allr**2))) if allr.size else float("nan"),
-        max=float(allr.max()) if allr.size else float("nan"),
-        n_points=int(allr.size),
-    )
+    return Validation.of(residuals, per_joint, np.concatenate(used) if used else np.zeros(0))
 
 
 def validate_samples(
@@ -136,14 +145,7 @@ def validate_samples(
     for k in np.unique(labels[inliers]):
         rk = r[inliers & (labels == k)]
         per_joint[int(k)] = (float(np.sqrt(np.mean(rk**2))), float(rk.max()), int(rk.size))
-    used = r[inliers]
-    return Validation(
-        residuals=residuals,
-        per_joint=per_joint,
-        rms=float(np.sqrt(np.mean(used**2))) if used.size else float("nan"),
-        max=float(used.max()) if used.size else float("nan"),
-        n_points=int(used.size),
-    )
+    return Validation.of(residuals, per_joint, r[inliers])
 
 
 def check_residual(validation: Validation, sigma: float, notes: list[str]) -> None:
