@@ -525,7 +525,9 @@ def _identify_whole(
         )
     stage("validating", 0.0)
     tools = np.vstack([ex.tool_point[None], result.extra_tool_points])
-    result.validation = validate_samples(seg, rows, Q, P, ex, whole.inliers, tools, which)
+    # with fitted encoder scales the table's joint values are ref + s (q − ref)
+    Q_table = ref + whole.model.scales * (Q - ref) if whole.layout.scale_at is not None else Q
+    result.validation = validate_samples(seg, rows, Q_table, P, ex, whole.inliers, tools, which)
     gap = table_gap(whole, ex, Q)
     if gap > 1e-6:
         notes.append(

@@ -111,6 +111,7 @@ def result_document(result: ProcessResult) -> dict[str, Any]:
                 "rotation": [_num_or_none(v) for v in std[4 * n + 6 : 4 * n + 9]],
             }
         _mark_fixed(doc, result)
+        _encoder_scales(doc, result)
         if result.tool_orientation is not None and result.tool_orientation_std is not None:
             doc["tool"]["orientation"] = {
                 "matrix": result.tool_orientation.tolist(),
@@ -172,6 +173,22 @@ def result_document(result: ProcessResult) -> dict[str, Any]:
 
 def _num_or_none(value: float) -> float | None:
     return float(value) if math.isfinite(value) else None
+
+
+def _encoder_scales(doc: dict[str, Any], result: ProcessResult) -> None:
+    """With fitted encoder scales, each row's ``encoder_scale`` (and σ) and its offset at
+    encoder zero such that ``θ_i = θ_offset_i + encoder_scale_i · q_i`` (prismatic: ``d``)."""
+    w = result.whole
+    if w is None or w.layout.scale_at is None:
+        return
+    ref, scales = w.model.reference_pose, w.model.scales
+    k = w.layout.scale_at
+    for i, row in enumerate(doc["standard_dh"]):
+        shift = float((1.0 - scales[i]) * ref[i])
+        key = "theta_offset" if row["type"] == "revolute" else "d_offset"
+        row[key] += shift
+        row["encoder_scale"] = float(scales[i])
+        row["encoder_scale_std"] = float(math.sqrt(max(w.covariance[k + i, k + i], 0.0)))
 
 
 def _mark_fixed(doc: dict[str, Any], result: ProcessResult) -> None:

@@ -58,6 +58,7 @@ class SimulationConfig:
     extra_tools: tuple[tuple[float, float, float], ...] = ()
     tool_rotation: tuple[float, float, float] | None = None
     orientation_noise: float = 0.0
+    encoder_scales: tuple[float, ...] | None = None
     seed: int = 0
 
 
@@ -277,6 +278,8 @@ def simulate_session(
     t_enc = np.arange(0.0, duration, 1.0 / cfg.joint_rate) + rng.uniform(0, 1.0 / cfg.joint_rate)
     t_enc = np.sort(t_enc + rng.uniform(-cfg.clock_jitter, cfg.clock_jitter, t_enc.size))
     q_enc = _interp(frames, np.clip(t_enc, 0.0, duration))
+    if cfg.encoder_scales is not None:  # encoders that count a joint's motion times a scale
+        q_enc = q_home + (q_enc - q_home) / np.asarray(cfg.encoder_scales, dtype=np.float64)
     # base plane: points of frame 1's xy plane (the mounting plane) around the base origin
     radius = rng.uniform(0.15, 0.45, cfg.base_points)
     angle = rng.uniform(0, 2 * np.pi, cfg.base_points)

@@ -166,5 +166,7 @@ def table_gap(whole: WholeFit, ex: Extraction, Q: FloatArray) -> float:
     pick = np.unique(np.linspace(0, Q.shape[0] - 1, min(64, Q.shape[0])).astype(int))
     Qs = np.vstack([whole.model.reference_pose, Q[pick]])
     fitted, _ = predict(whole.model, Qs)
-    table = fk_points_chunked(ex.standard, Qs, ex.tool_point, T_base=ex.T_measurement_base)
+    ref = whole.model.reference_pose
+    Q_table = ref + whole.model.scales * (Qs - ref)  # the table sees scaled encoder values
+    table = fk_points_chunked(ex.standard, Q_table, ex.tool_point, T_base=ex.T_measurement_base)
     return float(np.max(np.linalg.norm(fitted - table, axis=1)))
