@@ -44,7 +44,9 @@ from dhlog.identify.noise import NoiseModel
 
 #: Samples per chunk of the normal-equation accumulation.
 CHUNK = 16384
-#: Threads over which the chunks of a pass are spread (numpy releases the GIL in its kernels).
+#: Threads over which the chunks of a pass are spread. One: two threads were measured slower on
+#: the 2-core machine (1.6 s → 2.3 s per million samples; numpy's many small operations hold
+#: the GIL between its kernels).
 THREADS = 1
 #: Median of a 3-dof chi variable (|r|/σ of an isotropic 3-D residual).
 CHI3_MEDIAN = 1.5382
