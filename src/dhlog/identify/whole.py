@@ -434,9 +434,10 @@ def _accumulate(
     data: _Samples,
     limit: float,
     norms: FloatArray,
+    progress: Callable[[float], None] | None = None,
 ) -> tuple[FloatArray, FloatArray, float, int, float]:
-    """One pass over the samples at ``model``: ``JᵀWJ``, ``JᵀWr`` over the samples allowed in
-    ``data.keep`` whose whitened residual is at most ``limit``, the truncated cost, the inlier
+    """One pass over the samples at ``model`` (``progress`` is told the fraction done):
+    ``JᵀWJ``, ``JᵀWr`` over the samples allowed in ``data.keep`` whose whitened residual is at most ``limit``, the truncated cost, the inlier
     count and the sum of squared whitened inlier residuals. Writes each sample's whitened
     residual norm into ``norms``."""
     m = data.Q.shape[0]
@@ -479,7 +480,11 @@ def _accumulate(
         with ThreadPoolExecutor(THREADS) as pool:
             parts = list(pool.map(chunk, starts))
     else:
-        parts = [chunk(s) for s in starts]
+        parts = []
+        for k, start in enumerate(starts):
+            parts.append(chunk(start))
+            if progress is not None and k % 16 == 15:
+                progress((k + 1) / len(starts))
     H = np.sum([p[0] for p in parts], axis=0)
     g = np.sum([p[1] for p in parts], axis=0)
     cost = float(sum(p[2] for p in parts))
@@ -593,7 +598,12 @@ def _orientation_scale(
 
 
 def _finish_on_all(
-    sub: _State, layout: ParameterLayout, data: _Samples, limit: float, max_iterations: int
+    sub: _State,
+    layout: ParameterLayout,
+    data: _Samples,
+    limit: float,
+    max_iterations: int,
+    progress: Callable[[float], None] | None = None,
 ) -> tuple[_State, float]:
     """From the optimum ``sub`` of a strided subset to the optimum of every sample.
 
@@ -604,7 +614,9 @@ def _finish_on_all(
     on by Levenberg–Marquardt over every sample. Returns the state and the χ² at the optimum.
     """
     norms = np.zeros(data.Q.shape[0])
-    H, g, cost, count, chi2 = _accumulate(sub.model, layout, sub.bases, data, limit, norms)
+    H, g, cost, count, chi2 = _accumulate(
+        sub.model, layout, sub.bases, data, limit, norms, progress
+    )
     try:
         delta = np.asarray(np.linalg.solve(H, -g), dtype=np.float64)
     except np.linalg.LinAlgError:
@@ -678,17 +690,19 @@ def fit_whole_model(
     scale = float(np.median(kept)) / CHI3_MEDIAN if kept.size else 1.0
     # the noise model is off by more than 2x: judge outliers on the data's own scale
     limit = threshold * scale if not 0.5 < scale < 2.0 else threshold
-    st = _levenberg_marquardt(start, layout, first, limit, max_iterations, progress)
+    on_subset = None if progress is None else (lambda f: progress(0.3 * f))
+    st = _levenberg_marquardt(start, layout, first, limit, max_iterations, on_subset)
     if data.R is not None and sigma_rotation is None:
         # the start's orientation scale includes the start's own error: judge it again at the
         # optimum of the subset and fit once more with it
         data = replace(data, sigma_rot=_orientation_scale(st.model, layout, data, stride))
         first = data.strided(stride) if stride > 1 else data
-        st = _levenberg_marquardt(st.model, layout, first, limit, max_iterations, progress)
+        st = _levenberg_marquardt(st.model, layout, first, limit, max_iterations, on_subset)
     iterations = st.iterations
     chi2 = st.chi2
     if stride > 1:
-        st, chi2 = _finish_on_all(st, layout, data, limit, max_iterations)
+        on_all = None if progress is None else (lambda f: progress(0.3 + 0.7 * f))
+        st, chi2 = _finish_on_all(st, layout, data, limit, max_iterations, on_all)
         iterations += st.iterations
     d = np.sqrt(np.maximum(np.diag(st.H), 1e-300))
     eig = np.linalg.eigvalsh(st.H / np.outer(d, d))
