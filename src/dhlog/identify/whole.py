@@ -437,9 +437,9 @@ def _accumulate(
     progress: Callable[[float], None] | None = None,
 ) -> tuple[FloatArray, FloatArray, float, int, float]:
     """One pass over the samples at ``model`` (``progress`` is told the fraction done):
-    ``JᵀWJ``, ``JᵀWr`` over the samples allowed in ``data.keep`` whose whitened residual is at most ``limit``, the truncated cost, the inlier
-    count and the sum of squared whitened inlier residuals. Writes each sample's whitened
-    residual norm into ``norms``."""
+    ``JᵀWJ``, ``JᵀWr`` over the samples allowed in ``data.keep`` whose whitened residual is at
+    most ``limit``, the truncated cost, the inlier count and the sum of squared whitened inlier
+    residuals. Writes each sample's whitened residual norm into ``norms``."""
     m = data.Q.shape[0]
 
     def chunk(start: int) -> tuple[FloatArray, FloatArray, float, int, float]:
