@@ -450,8 +450,13 @@ def _accumulate(
         assert J is not None
         r = pred - data.P[sl].T  # (3, c)
         W = data.whiten(data.P[sl], None if data.W is None else data.W[sl])
+        folded = 1.0  # a scalar weight of J applied to H and g instead of to every entry
         if isinstance(W, float):
-            rw, Jw = r * W, J * W
+            rw, Jw = r * W, J
+            if data.R is None:
+                folded = W
+            else:
+                Jw = J * W
         else:
             Wt = np.transpose(W, (1, 2, 0))  # (3, 3, c)
             rw = _rotate(Wt, r)
@@ -473,7 +478,10 @@ def _accumulate(
             Jw, rw = Jw[:, :, use], rw[:, use]
         Ju = Jw.reshape(layout.size, -1)
         ru = rw.reshape(-1)
-        return Ju @ Ju.T, Ju @ ru, cost, int(np.count_nonzero(use)), float(ru @ ru)
+        H = Ju @ Ju.T
+        if folded != 1.0:
+            H *= folded * folded
+        return H, (Ju @ ru) * folded, cost, int(np.count_nonzero(use)), float(ru @ ru)
 
     starts = range(0, m, CHUNK)
     if len(starts) > 1 and THREADS > 1:
