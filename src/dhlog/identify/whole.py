@@ -415,7 +415,6 @@ class WholeFit:
     covariance: FloatArray
     inliers: NDArray[np.bool_]
     chi2_dof: float
-    rms: float
     n_points: int
     iterations: int
     scale: float
@@ -727,14 +726,12 @@ def fit_whole_model(
         covariance = np.linalg.inv(st.H) * chi2_dof
     except np.linalg.LinAlgError:
         covariance = np.linalg.pinv(st.H) * chi2_dof
-    scale_m = sigma if noise.model == "isotropic" and data.W is None else float("nan")
     return WholeFit(
         model=st.model,
         layout=layout,
         covariance=np.asarray(covariance, dtype=np.float64),
         inliers=inliers,
         chi2_dof=float(chi2_dof),
-        rms=float(math.sqrt(chi2 / max(st.count, 1)) * scale_m),
         n_points=int(st.count),
         iterations=iterations,
         scale=scale,
@@ -826,7 +823,6 @@ def constrain_pairs(fit: WholeFit, parallel: list[int], collinear: list[int]) ->
         covariance=np.asarray((cov + cov.T) / 2, dtype=np.float64),
         inliers=fit.inliers,
         chi2_dof=fit.chi2_dof,
-        rms=fit.rms,
         n_points=fit.n_points,
         iterations=fit.iterations,
         scale=fit.scale,
