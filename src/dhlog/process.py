@@ -289,7 +289,8 @@ def process_data(
         try:
             _identify_whole(result, analytic, kwargs, fit_scales, stage)
             return result
-        except GeometryError as exc:
+        except (GeometryError, np.linalg.LinAlgError) as exc:
+            result.whole, result.analytic, result.method = None, None, "analytic"
             notes.append(f"the whole-model fit failed ({exc}); the result is the analytic one.")
     elif seg.has_encoders:
         notes.append("--analytic-only: the seed method's result (per-joint fits, line geometry).")
@@ -375,7 +376,8 @@ def _from_the_nominal(result: ProcessResult, kwargs: dict[str, Any], stage: Stag
     result.target = target
     try:
         _identify_whole(result, None, kwargs, False, stage)
-    except GeometryError:
+    except (GeometryError, np.linalg.LinAlgError):
+        result.whole, result.method = None, "analytic"
         for j, (jt, axis, reason, source) in zip(missing, saved, strict=True):
             j.type, j.axis, j.reason, j.type_source = jt, axis, reason, source
         result.target = None
