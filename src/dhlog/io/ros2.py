@@ -35,31 +35,25 @@ _HEADER_DEFS = (
     + _SEP
     + "MSG: builtin_interfaces/Time\nint32 sec\nuint32 nanosec\n"
 )
+_POINT_DEF = _SEP + "MSG: geometry_msgs/Point\nfloat64 x\nfloat64 y\nfloat64 z\n"
+_POSE_DEFS = (
+    _SEP
+    + "MSG: geometry_msgs/Pose\ngeometry_msgs/Point position\n"
+    + "geometry_msgs/Quaternion orientation\n"
+    + _POINT_DEF
+    + _SEP
+    + "MSG: geometry_msgs/Quaternion\nfloat64 x\nfloat64 y\nfloat64 z\nfloat64 w\n"
+)
 MSGDEFS = {
     POINT_STAMPED: "std_msgs/Header header\ngeometry_msgs/Point point\n"
     + _HEADER_DEFS
-    + _SEP
-    + "MSG: geometry_msgs/Point\nfloat64 x\nfloat64 y\nfloat64 z\n",
-    POSE_STAMPED: "std_msgs/Header header\ngeometry_msgs/Pose pose\n"
-    + _HEADER_DEFS
-    + _SEP
-    + "MSG: geometry_msgs/Pose\ngeometry_msgs/Point position\n"
-    + "geometry_msgs/Quaternion orientation\n"
-    + _SEP
-    + "MSG: geometry_msgs/Point\nfloat64 x\nfloat64 y\nfloat64 z\n"
-    + _SEP
-    + "MSG: geometry_msgs/Quaternion\nfloat64 x\nfloat64 y\nfloat64 z\nfloat64 w\n",
+    + _POINT_DEF,
+    POSE_STAMPED: "std_msgs/Header header\ngeometry_msgs/Pose pose\n" + _HEADER_DEFS + _POSE_DEFS,
     POSE_WITH_COVARIANCE: "std_msgs/Header header\ngeometry_msgs/PoseWithCovariance pose\n"
     + _HEADER_DEFS
     + _SEP
     + "MSG: geometry_msgs/PoseWithCovariance\ngeometry_msgs/Pose pose\nfloat64[36] covariance\n"
-    + _SEP
-    + "MSG: geometry_msgs/Pose\ngeometry_msgs/Point position\n"
-    + "geometry_msgs/Quaternion orientation\n"
-    + _SEP
-    + "MSG: geometry_msgs/Point\nfloat64 x\nfloat64 y\nfloat64 z\n"
-    + _SEP
-    + "MSG: geometry_msgs/Quaternion\nfloat64 x\nfloat64 y\nfloat64 z\nfloat64 w\n",
+    + _POSE_DEFS,
     JOINT_STATE: "std_msgs/Header header\nstring[] name\nfloat64[] position\n"
     + "float64[] velocity\nfloat64[] effort\n"
     + _HEADER_DEFS,
