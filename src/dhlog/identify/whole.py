@@ -659,8 +659,9 @@ def fit_whole_model(
     (m, n), weighted by ``noise`` (isotropic σ = ``sigma`` unless the model names its own), or by
     ``sample_cov`` (m, 3) standard deviations or (m, 3, 3) covariances when the log carries them
     per sample; ``which`` (m,) each sample's target (0 primary, j the j-th extra target of
-    ``start``). ``keep`` marks the
-    samples that may enter (default: all).
+    ``start``); ``rotations`` (m, 3, 3) the measured orientation of a 6-DoF target, weighted by
+    ``sigma_rotation`` (rad; default: its scale in the data). ``keep`` marks the samples that may
+    enter (default: all).
 
     With more than ``subsample`` samples the fit first converges on an evenly strided subset and
     then finishes on every sample (usually one pass: the step left is far below σ)."""
