@@ -32,7 +32,7 @@ from dhlog.extract import Extraction, HayatiRow, extract_dh
 from dhlog.geometry._checks import FloatArray
 from dhlog.geometry.fitting import PlaneFit, fit_plane
 from dhlog.geometry.lines import ANGLE_TOL, DISTANCE_TOL, Line, Plane, RelationKind, classify_lines
-from dhlog.geometry.screws import chain_motion, chain_motions
+from dhlog.geometry.screws import chain_motion, motions_back, points_at_reference
 from dhlog.identify.analytic import (
     AIC_SIGMA_2D,
     NEAR_PARALLEL,
@@ -141,21 +141,15 @@ def process_log(
     """Run the whole identification on the log at ``path`` (see the module docstring).
 
     ``progress(stage, fraction)`` is called as each stage advances."""
-    from concurrent.futures import ThreadPoolExecutor
-
-    # the file's hash on the other core while it is read (hashlib releases the GIL)
-    with ThreadPoolExecutor(1) as pool:
-        digest = pool.submit(sha256_of, path)
-        log = read_log(
-            path,
-            pipeline,
-            fast=fast,
-            progress=None if progress is None else (lambda f: progress("reading", f)),
-        )
-        sha256 = digest.result()
+    log = read_log(
+        path,
+        pipeline,
+        fast=fast,
+        progress=None if progress is None else (lambda f: progress("reading", f)),
+    )
     return process_data(
         log,
-        sha256=sha256,
+        sha256=sha256_of(path),  # 0.03 s for a 55 MB log
         nominal=nominal,
         reference_pose=reference_pose,
         fit_method=fit_method,
@@ -299,8 +293,14 @@ def process_data(
             "no encoder values: the whole-model fit needs them; the result is the analytic one."
         )
 
+    # the covariance perturbs every axis: the target's derivative is taken on an evenly strided
+    # subset of the samples (the mean's derivative; the target itself is from every sample)
+    perturbed = (
+        target_at if whole_wanted else TargetAtReference(seg, joints, ref, START_TARGET_POINTS)
+    )
+
     def target_of(axes: list[Line | None]) -> FloatArray:
-        return target_at(axes)[0]
+        return perturbed(axes)[0]
 
     stage("uncertainty", 0.0)
     covariance = propagate_analytic(
@@ -401,11 +401,10 @@ def _align_lines(
     its measured line (least squares). None when the directions do not fix the rotation."""
     A = np.array([d for _, d in nominal])
     B = np.array([d for _, d in measured])
-    U, S, Vt = np.linalg.svd(B.T @ A)
+    S = np.linalg.svd(B.T @ A, compute_uv=False)
     if S[1] < 1e-3 * S[0]:
         return None
-    D = np.diag([1.0, 1.0, float(np.sign(np.linalg.det(U @ Vt)))])
-    R = U @ D @ Vt
+    R = _nearest_rotation(B.T @ A)
     rows, rhs = [], []
     for (p, _), (c, e) in zip(nominal, measured, strict=True):
         perp = np.eye(3) - np.outer(e, e)
@@ -543,13 +542,14 @@ def _identify_whole(
 def _measured_rotations(seg: Segmentation, rows: NDArray[np.int64]) -> FloatArray | None:
     """The target frame's measured orientation (m, 3, 3) at ``rows`` when the log carries it
     (``orientation = true`` in the pipeline), else None."""
-    from dhlog.geometry._checks import matrices_from_quaternions
+    from scipy.spatial.transform import Rotation
+
     from dhlog.io.reader import ORIENTATION_COLUMNS
 
     if not all(c in seg.table.columns for c in ORIENTATION_COLUMNS):
         return None
     quat = seg.table.select(ORIENTATION_COLUMNS).to_numpy()[rows]
-    return matrices_from_quaternions(quat)
+    return np.asarray(Rotation.from_quat(quat).as_matrix(), dtype=np.float64)  # x, y, z, w
 
 
 def _rotation_at_reference(
@@ -558,9 +558,13 @@ def _rotation_at_reference(
     """The target frame's orientation at the reference pose: every measured orientation moved
     back through the axes (at most 20 000, evenly strided), their chordal mean."""
     stride = max(1, Q.shape[0] // START_TARGET_POINTS)
-    M = chain_motions(axes, types, Q[::stride], ref)
-    back = np.einsum("mji,mjk->ik", M[:, :3, :3], R[::stride])
-    U, _, Vt = np.linalg.svd(back)
+    Rt, _ = motions_back(axes, types, Q[::stride], ref)
+    return _nearest_rotation(np.einsum("mij,mjk->ik", Rt, R[::stride]))
+
+
+def _nearest_rotation(A: FloatArray) -> FloatArray:
+    """The rotation nearest the 3×3 matrix ``A`` (polar factor by SVD, Kabsch)."""
+    U, _, Vt = np.linalg.svd(A)
     D = np.diag([1.0, 1.0, float(np.sign(np.linalg.det(U @ Vt)))])
     return np.asarray(U @ D @ Vt, dtype=np.float64)
 
@@ -573,8 +577,7 @@ def _mean_at_reference(
     if Q.shape[0] == 0:
         raise DegenerateGeometryError("a further target has no sample with encoder values.")
     stride = max(1, Q.shape[0] // START_TARGET_POINTS)
-    M = chain_motions(axes, types, Q[::stride], ref)
-    back = np.einsum("mji,mj->mi", M[:, :3, :3], P[::stride] - M[:, :3, 3])
+    back = points_at_reference(axes, types, Q[::stride], P[::stride], ref)
     return np.asarray(back.mean(axis=0), dtype=np.float64)
 
 

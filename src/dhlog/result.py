@@ -13,10 +13,7 @@ from dhlog import __version__
 from dhlog.contract import RESULT_FORMAT, dh_documents, relation_documents
 from dhlog.dh import JointType
 from dhlog.geometry._checks import FloatArray, wrap_angle
-from dhlog.identify.propagate import (
-    state_names,
-    state_vector,
-)
+from dhlog.identify.propagate import state_difference, state_names, state_vector
 from dhlog.identify.sweeps import JointReport
 from dhlog.process import ProcessResult
 
@@ -228,11 +225,8 @@ def _analytic_document(result: ProcessResult) -> dict[str, Any]:
     for row in rows:
         del row["std"]
     R0 = ex.T_measurement_base[:3, :3]
-    diff = state_vector(an, R0) - state_vector(ex, R0)
     n = ex.standard.n
-    ang = np.zeros(diff.size, dtype=bool)
-    ang[: 4 * n] = np.tile([True, False, False, True], n)
-    diff[ang] = [wrap_angle(d) for d in diff[ang]]
+    diff = state_difference(state_vector(an, R0), state_vector(ex, R0), n)
     ratio = np.where(np.isfinite(std) & (std > 0), np.abs(diff) / np.where(std > 0, std, 1), 0)
     worst = int(np.argmax(ratio))
     return {

@@ -20,7 +20,7 @@ from numpy.typing import NDArray
 from dhlog.contract import RESULT_FORMAT, dh_documents, relation_documents
 from dhlog.dh import JointType, StandardDH
 from dhlog.extract import extract_dh
-from dhlog.geometry._checks import FloatArray, rotation_about
+from dhlog.geometry._checks import FloatArray, rotation_about, rotation_from_vector
 from dhlog.geometry.lines import Line
 from dhlog.kinematics import fk_frames, fk_point, joint_axes
 from dhlog.robots import Robot
@@ -237,18 +237,13 @@ def simulate_session(
     xyz = fk_point(table, q_trk, tool, T_base=T_mb)
     R_tool = point_rot = None
     if cfg.tool_rotation is not None:  # a 6-DoF target: its frame's orientation is measured too
-        w = np.asarray(cfg.tool_rotation, dtype=np.float64)
-        turn = float(np.linalg.norm(w))
-        R_tool = rotation_about(w, turn) if turn > 0 else np.eye(3)
+        from scipy.spatial.transform import Rotation
+
+        R_tool = rotation_from_vector(np.asarray(cfg.tool_rotation, dtype=np.float64))
         point_rot = fk_frames(table, q_trk, T_base=T_mb)[:, -1, :3, :3] @ R_tool
         if cfg.orientation_noise > 0:
             tilt = rng.normal(scale=cfg.orientation_noise, size=(q_trk.shape[0], 3))
-            point_rot = np.array(
-                [
-                    rotation_about(v, float(np.linalg.norm(v))) @ r
-                    for v, r in zip(tilt, point_rot, strict=True)
-                ]
-            )
+            point_rot = Rotation.from_rotvec(tilt).as_matrix() @ point_rot
     if cfg.noise_kind == "uniform":
         xyz = xyz + rng.uniform(-cfg.noise, cfg.noise, xyz.shape)
     else:

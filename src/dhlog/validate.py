@@ -12,15 +12,10 @@ from numpy.typing import NDArray
 
 from dhlog.dh import JointType, StandardDH
 from dhlog.extract import Extraction
-from dhlog.geometry._checks import FloatArray
-from dhlog.identify.propagate import (
-    frame_rotation,
-    state_vector,
-)
+from dhlog.geometry._checks import FloatArray, rotation_from_vector
+from dhlog.identify.propagate import state_vector
 from dhlog.identify.sweeps import JointReport
-from dhlog.identify.whole import (
-    WholeFit,
-)
+from dhlog.identify.whole import WholeFit
 from dhlog.kinematics import fk_point, fk_points_chunked
 from dhlog.segment import Segmentation
 
@@ -63,7 +58,7 @@ def model_from_state(
     rows = x[: 4 * n].reshape(n, 4)
     table = StandardDH(types, rows[:, 0], rows[:, 1], rows[:, 2], rows[:, 3])
     tool = x[4 * n : 4 * n + 3]
-    R = frame_rotation(R0, x[4 * n + 6 : 4 * n + 9])
+    R = R0 @ rotation_from_vector(x[4 * n + 6 : 4 * n + 9])
     T = np.eye(4)
     T[:3, :3], T[:3, 3] = R, x[4 * n + 3 : 4 * n + 6]
     return table, tool, T
@@ -109,7 +104,7 @@ def validate_sweeps(
         rows = j.rows[j.inliers]
         if rows.size == 0:
             continue
-        pred = fk_point(ex.standard, Q[rows], ex.tool_point, T_base=ex.T_measurement_base)
+        pred = fk_points_chunked(ex.standard, Q[rows], ex.tool_point, T_base=ex.T_measurement_base)
         r = np.linalg.norm(pred - P[rows], axis=1)
         residuals[rows] = r
         per_joint[j.index] = (float(np.sqrt(np.mean(r**2))), float(r.max()), int(r.size))

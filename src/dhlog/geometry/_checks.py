@@ -85,67 +85,13 @@ def rotation_about(axis: FloatArray, angle: float) -> FloatArray:
     return np.asarray(R, dtype=np.float64)
 
 
+def rotation_from_vector(w: FloatArray) -> FloatArray:
+    """Rotation matrix of the rotation vector ``w`` (axis × angle, rad); identity for zero."""
+    angle = float(np.linalg.norm(w))
+    return rotation_about(w, angle) if angle > 0 else np.eye(3)
+
+
 def wrap_angle(angle: float) -> float:
     """``angle`` wrapped to (-pi, pi]."""
     wrapped = float(np.arctan2(np.sin(angle), np.cos(angle)))
     return np.pi if wrapped <= -np.pi + 1e-15 else wrapped
-
-
-def matrices_from_quaternions(q: FloatArray) -> FloatArray:
-    """Rotation matrices (m, 3, 3) of unit quaternions ``x, y, z, w`` (m, 4) (ROS order)."""
-    q = q / np.linalg.norm(q, axis=1, keepdims=True)
-    x, y, z, w = q[:, 0], q[:, 1], q[:, 2], q[:, 3]
-    return np.stack(
-        [
-            np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)], axis=-1),
-            np.stack([2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)], axis=-1),
-            np.stack([2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)], axis=-1),
-        ],
-        axis=-2,
-    )
-
-
-def quaternions_from_matrices(R: FloatArray) -> FloatArray:
-    """Unit quaternions ``x, y, z, w`` (m, 4) of rotation matrices (m, 3, 3), ``w ≥ 0``."""
-    m = R.shape[0]
-    out = np.empty((m, 4))
-    tr = np.trace(R, axis1=1, axis2=2)
-    for k in range(m):  # Shepperd: the largest of w, x, y, z first
-        r = R[k]
-        cand = np.array([tr[k], r[0, 0], r[1, 1], r[2, 2]])
-        i = int(np.argmax(cand))
-        if i == 0:
-            w = np.sqrt(1 + tr[k]) / 2
-            q = [
-                (r[2, 1] - r[1, 2]) / (4 * w),
-                (r[0, 2] - r[2, 0]) / (4 * w),
-                (r[1, 0] - r[0, 1]) / (4 * w),
-                w,
-            ]
-        elif i == 1:
-            x = np.sqrt(1 + 2 * r[0, 0] - tr[k]) / 2
-            q = [
-                x,
-                (r[0, 1] + r[1, 0]) / (4 * x),
-                (r[0, 2] + r[2, 0]) / (4 * x),
-                (r[2, 1] - r[1, 2]) / (4 * x),
-            ]
-        elif i == 2:
-            y = np.sqrt(1 + 2 * r[1, 1] - tr[k]) / 2
-            q = [
-                (r[0, 1] + r[1, 0]) / (4 * y),
-                y,
-                (r[1, 2] + r[2, 1]) / (4 * y),
-                (r[0, 2] - r[2, 0]) / (4 * y),
-            ]
-        else:
-            z = np.sqrt(1 + 2 * r[2, 2] - tr[k]) / 2
-            q = [
-                (r[0, 2] + r[2, 0]) / (4 * z),
-                (r[1, 2] + r[2, 1]) / (4 * z),
-                z,
-                (r[1, 0] - r[0, 1]) / (4 * z),
-            ]
-        qa = np.asarray(q)
-        out[k] = qa if qa[3] >= 0 else -qa
-    return out

@@ -62,3 +62,25 @@ def chain_motions(
             T[:, :3, 3] = axis.point - R @ axis.point
         M = M @ T
     return M
+
+
+def motions_back(
+    axes: Sequence[Line], types: Sequence[JointType], Q: ArrayLike, q_ref: ArrayLike
+) -> tuple[FloatArray, FloatArray]:
+    """Rotations ``Rᵀ`` (m, 3, 3) and translations ``t`` (m, 3) of ``M_n(q)`` for each row of
+    ``Q``: a point ``p`` measured at ``q`` sits at ``Rᵀ (p − t)`` at the reference pose."""
+    M = chain_motions(axes, types, Q, q_ref)
+    return np.swapaxes(M[:, :3, :3], 1, 2), M[:, :3, 3]
+
+
+def points_at_reference(
+    axes: Sequence[Line],
+    types: Sequence[JointType],
+    Q: ArrayLike,
+    P: ArrayLike,
+    q_ref: ArrayLike,
+) -> FloatArray:
+    """Points ``P`` (m, 3) measured at the joint vectors ``Q`` (m, n), moved back to the
+    reference pose through the axes: ``M_n(q)⁻¹ p``."""
+    Rt, t = motions_back(axes, types, Q, q_ref)
+    return np.asarray(np.einsum("mij,mj->mi", Rt, np.asarray(P) - t), dtype=np.float64)

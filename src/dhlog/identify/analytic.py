@@ -14,12 +14,10 @@ from dhlog.dh import StandardDH
 from dhlog.dhfile import DHModel
 from dhlog.errors import DhlogError
 from dhlog.extract import Extraction, HayatiRow, extract_dh, hayati_parameters
-from dhlog.geometry._checks import FloatArray, wrap_angle
+from dhlog.geometry._checks import FloatArray
 from dhlog.geometry.fitting import PlaneFit
 from dhlog.geometry.lines import Line, Plane
-from dhlog.identify.propagate import (
-    state_vector,
-)
+from dhlog.identify.propagate import state_difference, state_vector
 from dhlog.identify.sweeps import JointReport, carried_axis
 
 #: 2D 99.73 % radius (the "3σ" of a two-dimensional tilt or offset): sqrt(χ²₂(0.9973)).
@@ -236,11 +234,7 @@ def propagate_analytic(
                 **extract_kwargs,
             )
             outs.append(state_vector(ex, R0))
-        diff = outs[0] - outs[1]
-        angles = np.zeros(base_vec.size, dtype=bool)
-        angles[: 4 * n] = np.tile([True, False, False, True], n)
-        diff[angles] = [wrap_angle(d) for d in diff[angles]]
-        J[:, col] = diff / (2 * h)
+        J[:, col] = state_difference(outs[0], outs[1], n) / (2 * h)
     return np.asarray(J @ cov @ J.T, dtype=np.float64)
 
 

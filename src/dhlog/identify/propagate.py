@@ -19,7 +19,7 @@ import numpy as np
 from dhlog.dh import JointType
 from dhlog.errors import DhlogError
 from dhlog.extract import Extraction, hayati_parameters
-from dhlog.geometry._checks import FloatArray, rotation_about, wrap_angle
+from dhlog.geometry._checks import FloatArray, wrap_angle
 from dhlog.geometry.fitting import PlaneFit
 from dhlog.geometry.lines import Line, Plane
 from dhlog.identify.whole import AxisModel, WholeFit
@@ -71,6 +71,14 @@ def angle_mask(n: int) -> FloatArray:
     mask = np.zeros(4 * n + 9, dtype=bool)
     mask[: 4 * n] = np.tile([True, False, False, True], n)
     return mask
+
+
+def state_difference(a: FloatArray, b: FloatArray, n: int) -> FloatArray:
+    """``a − b`` of two :func:`state_vector` of an n-joint model, angles wrapped to (−π, π]."""
+    diff = np.asarray(a - b, dtype=np.float64)
+    mask = angle_mask(n)
+    diff[mask] = [wrap_angle(d) for d in diff[mask]]
+    return diff
 
 
 def hayati_vector(ex: Extraction, pairs: list[tuple[int, int]]) -> FloatArray:
@@ -259,9 +267,3 @@ def fixed_reasons(
             why = f"{name} held by a convention of the extraction"
         out[idx] = why
     return out
-
-
-def frame_rotation(R0: FloatArray, rv: FloatArray) -> FloatArray:
-    """``R0 · exp(rv)``: the rotation the state vector's rotation entries describe."""
-    angle = float(np.linalg.norm(rv))
-    return np.asarray(R0 @ (rotation_about(rv, angle) if angle > 0 else np.eye(3)))

@@ -15,7 +15,7 @@ from dhlog.errors import GeometryError
 from dhlog.geometry._checks import FloatArray
 from dhlog.geometry.fitting import AxisFit, detect_joint_type, fit_axis_robust
 from dhlog.geometry.lines import Line
-from dhlog.geometry.screws import chain_motion, chain_motions
+from dhlog.geometry.screws import chain_motion, points_at_reference
 from dhlog.io.reader import LogData
 from dhlog.segment import Segmentation
 
@@ -223,9 +223,7 @@ class TargetAtReference:
             return _common_point_of_circles(fits), np.eye(3) * spread
         axes = [j.axis for j in joints] if axes is None else axes
         types = [j.type for j in joints]
-        M = chain_motions(axes, types, self.Q, self.ref)  # type: ignore[arg-type]
-        R, t = M[:, :3, :3], M[:, :3, 3]
-        back = np.einsum("mji,mj->mi", R, self.P - t)  # R^T (p - t)
+        back = points_at_reference(axes, types, self.Q, self.P, self.ref)  # type: ignore[arg-type]
         return back.mean(axis=0), np.cov(back.T) / back.shape[0]
 
 

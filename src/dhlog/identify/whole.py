@@ -15,12 +15,10 @@ model's forward kinematics.
 
 Each axis is moved by a small rigid motion ``h = exp(η)`` (the joint's motion becomes
 ``h g h⁻¹``): two tilts about the perpendicular unit vectors ``u, v`` through the axis point and
-two shifts along them. The Jacobian of ``p`` with respect to ``η`` of joint i is analytic:
-
-    δp = R_<i [ η_ω × (S_i − c) + η_v − R_i (η_ω × (S_{i+1} − c) + η_v) ]
-
-with ``R_<i`` the rotation of joints 1 … i−1, ``R_i`` that of joint i, and ``S_i`` the target
-moved by joints i … n. The normal equations ``JᵀWJ δ = −JᵀWr`` are accumulated over chunks of
+two shifts along them. The Jacobian is analytic (:func:`predict_columns`): with ``R_<i`` the
+rotation of joints 1 … i−1 and ``D_i`` the target relative to axis i's point as it sits at the
+sample, a tilt ``w`` of axis i moves the target by ``b × D_i`` and a shift ``w`` by ``b``, where
+``b = R_<i (I − R_i) w``. The normal equations ``JᵀWJ δ = −JᵀWr`` are accumulated over chunks of
 samples (no per-parameter pass over the data, bounded memory) and solved by Levenberg–Marquardt.
 Gross outliers are held out by a truncated quadratic at ``threshold`` times the noise scale. The
 covariance of the parameters is ``(JᵀWJ)⁻¹ · χ²/dof``.
@@ -30,7 +28,6 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Sequence
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -38,16 +35,12 @@ from numpy.typing import NDArray
 
 from dhlog.dh import JointType
 from dhlog.errors import DegenerateGeometryError
-from dhlog.geometry._checks import FloatArray, perpendicular_basis, rotation_about
+from dhlog.geometry._checks import FloatArray, perpendicular_basis, rotation_from_vector
 from dhlog.geometry.lines import Line
 from dhlog.identify.noise import NoiseModel
 
 #: Samples per chunk of the normal-equation accumulation.
 CHUNK = 16384
-#: Threads over which the chunks of a pass are spread. One: two threads were measured slower on
-#: the 2-core machine (1.6 s → 2.3 s per million samples; numpy's many small operations hold
-#: the GIL between its kernels).
-THREADS = 1
 #: Median of a 3-dof chi variable (|r|/σ of an isotropic 3-D residual).
 CHI3_MEDIAN = 1.5382
 #: Expected decrease of the weighted cost below which the fit has converged (a step of about
@@ -92,10 +85,7 @@ class AxisModel:
             shift = np.zeros(3)
             if jt is JointType.REVOLUTE:
                 shift = delta[k + 2] * u + delta[k + 3] * v
-            angle = float(np.linalg.norm(w))
-            R = rotation_about(w, angle) if angle > 0 else np.eye(3)
-            c = axis.point
-            axes.append(Line(c + shift, R @ axis.direction))
+            axes.append(Line(axis.point + shift, rotation_from_vector(w) @ axis.direction))
         t = layout.target_at
         target = self.target + delta[t : t + 3]
         extra = self.extra_targets + delta[t + 3 : t + 3 + 3 * len(self.extra_targets)].reshape(
@@ -107,8 +97,7 @@ class AxisModel:
         rotation = self.tool_rotation
         if layout.rotation_at is not None and rotation is not None:
             w = delta[layout.rotation_at : layout.rotation_at + 3]
-            angle = float(np.linalg.norm(w))
-            rotation = (rotation_about(w, angle) if angle > 0 else np.eye(3)) @ rotation
+            rotation = rotation_from_vector(w) @ rotation
         return AxisModel(
             tuple(axes), self.types, target, self.reference_pose, scales, extra, rotation
         )
@@ -165,13 +154,6 @@ class ParameterLayout:
         return cls(tuple(at), target_at, scale_at, k, tuple(names), rotation_at)
 
 
-def _cross(w: FloatArray, X: FloatArray) -> FloatArray:
-    """``w × X`` for one vector ``w`` (3,) and many ``X`` laid out (3, m)."""
-    return np.stack(
-        [w[1] * X[2] - w[2] * X[1], w[2] * X[0] - w[0] * X[2], w[0] * X[1] - w[1] * X[0]]
-    )
-
-
 def _rotate(R: FloatArray, X: FloatArray) -> FloatArray:
     """``R X`` for per-sample rotations ``R`` (3, 3, m) and vectors ``X`` (3, m) or blocks
     (3, k, m)."""
@@ -182,28 +164,16 @@ def _rotate(R: FloatArray, X: FloatArray) -> FloatArray:
     )
 
 
-def _rotations(direction: FloatArray, angles: FloatArray) -> FloatArray:
-    """Rotations (3, 3, m) by ``angles`` (m,) about the unit ``direction`` (Rodrigues)."""
-    k = direction
-    K = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
-    K2 = K @ K
-    s, c1 = np.sin(angles), 1.0 - np.cos(angles)
-    R = K[:, :, None] * s + K2[:, :, None] * c1
-    R[0, 0] += 1.0
-    R[1, 1] += 1.0
-    R[2, 2] += 1.0
-    return np.asarray(R, dtype=np.float64)
-
-
-def _prefix_motions(
-    model: AxisModel, Q: FloatArray
-) -> tuple[
+Prefix = tuple[
     FloatArray,
     list[FloatArray | None],
     list[FloatArray],
     list[FloatArray | None],
     list[FloatArray | None],
-]:
+]
+
+
+def _prefix_motions(model: AxisModel, Q: FloatArray) -> Prefix:
     """The scaled joint moves ``dq`` (n, m) and the prefix motions ``g_<i`` for i = 1 … n+1:
     rotation rows (3, 3, m) (None for the identity) and translations (3, m), with each revolute
     joint's ``sin δ`` and ``1 − cos δ``."""
@@ -241,19 +211,31 @@ def _prefix_motions(
     return dq, pre_R, pre_t, sins, coss
 
 
+def _tilt_move(
+    axis: Line, w: FloatArray, s: FloatArray, c1: FloatArray, R0: FloatArray | None
+) -> FloatArray:
+    """``b = R_<i (I − R_i) w`` (3, m) for a revolute joint turned by δ (``s = sin δ``,
+    ``c1 = 1 − cos δ``): ``(I − R_i) w = −(sin δ K w + (1 − cos δ) K² w)``, ``K = [ω]×``."""
+    K = _skew(axis.direction)
+    a = -((K @ w)[:, None] * s + (K @ (K @ w))[:, None] * c1)
+    return a if R0 is None else _rotate(R0, a)
+
+
 def predict_orientation(
     model: AxisModel,
     Q: FloatArray,
     layout: ParameterLayout,
     bases: list[tuple[FloatArray, FloatArray]],
+    prefix: Prefix | None = None,
 ) -> tuple[FloatArray, FloatArray]:
     """The target frame's predicted orientation (3, 3, m) and the Jacobian (``layout.size``,
     3, m) of a small rotation of it, in M, with respect to the local parameters: a tilt of a
     revolute axis rotates it by ``b = R_<i (I − R_i) w`` (as in :func:`predict_columns`), a shift
-    or a prismatic joint not at all, the target frame's own rotation by ``R_all δ``."""
+    or a prismatic joint not at all, the target frame's own rotation by ``R_all δ``. ``prefix``:
+    the prefix motions at ``Q`` when already computed."""
     assert model.tool_rotation is not None and layout.rotation_at is not None
     m = Q.shape[0]
-    _, pre_R, _, sins, coss = _prefix_motions(model, Q)
+    _, pre_R, _, sins, coss = _prefix_motions(model, Q) if prefix is None else prefix
     R_all = pre_R[-1]
     eye = np.broadcast_to(np.eye(3)[:, :, None], (3, 3, m))
     R_tool = np.broadcast_to(model.tool_rotation[:, :, None], (3, 3, m))
@@ -266,12 +248,9 @@ def predict_orientation(
         R0 = pre_R[i]
         s, c1 = sins[i], coss[i]
         assert s is not None and c1 is not None
-        K = _skew(axis.direction)
-        K2 = K @ K
         k = layout.axis_at[i]
         for col, w in enumerate((u, v)):
-            a = -((K @ w)[:, None] * s + (K2 @ w)[:, None] * c1)
-            J[k + col] = a if R0 is None else _rotate(R0, a)
+            J[k + col] = _tilt_move(axis, w, s, c1, R0)
         if layout.scale_at is not None:
             omega = axis.direction[:, None] if R0 is None else _rotate(R0, _col(axis.direction, m))
             J[layout.scale_at + i] = omega * (Q[:, i] - model.reference_pose[i])
@@ -293,6 +272,7 @@ def predict_columns(
     layout: ParameterLayout | None = None,
     bases: list[tuple[FloatArray, FloatArray]] | None = None,
     which: NDArray[np.int64] | None = None,
+    prefix: Prefix | None = None,
 ) -> tuple[FloatArray, FloatArray | None]:
     """Predicted target positions (3, m) at the joint vectors ``Q`` (m, n) and, with ``layout``,
     the Jacobian (``layout.size``, 3, m) with respect to the local parameters. Samples run along
@@ -303,9 +283,10 @@ def predict_columns(
     target relative to axis i's point as it sits at this sample, a move ``η = (w, v)`` of axis i
     gives ``δp = b × D_i + R_<i (I − R_i) v`` with ``b = R_<i (I − R_i) w`` (joint i's own rotation
     leaves its axis point where it is), so a tilt column is ``b_w × D_i`` and a shift column
-    ``b_w`` itself; ``(I − R_i) w = −(sin δ K w + (1 − cos δ) K² w)`` for ``K = [ω]×``."""
+    ``b_w`` itself (:func:`_tilt_move`). ``prefix``: the prefix motions at ``Q`` when already
+    computed."""
     m = Q.shape[0]
-    dq, pre_R, pre_t, sins, coss = _prefix_motions(model, Q)
+    dq, pre_R, pre_t, sins, coss = _prefix_motions(model, Q) if prefix is None else prefix
     R_all, t_all = pre_R[-1], pre_t[-1]
     if which is None or not len(model.extra_targets):
         tgt = np.broadcast_to(model.target[:, None], (3, m))
@@ -333,13 +314,10 @@ def predict_columns(
             continue
         s, c1 = sins[i], coss[i]
         assert s is not None and c1 is not None
-        K = _skew(axis.direction)
-        K2 = K @ K
         c_world = (axis.point[:, None] if R0 is None else _rotate(R0, _col(axis.point, m))) + t0
         D = p - c_world
         for col, w in enumerate((u, v)):
-            a = -((K @ w)[:, None] * s + (K2 @ w)[:, None] * c1)  # (I − R_i) w
-            b = a if R0 is None else _rotate(R0, a)
+            b = _tilt_move(axis, w, s, c1, R0)
             J[k + col] = _cross_rows(b, D)
             J[k + 2 + col] = b
         if layout.scale_at is not None:
@@ -352,13 +330,12 @@ def predict_columns(
     if layout.rotation_at is not None:  # the target frame's orientation does not move the point
         J[layout.rotation_at : layout.rotation_at + 3] = 0.0
     extra = len(model.extra_targets)
-    if extra:
+    if extra:  # each sample moves only its own target's columns
         J[t + 3 : t + 3 + 3 * extra] = 0.0
         if which is not None:
-            for j in range(extra + 1):
+            for j in range(1, extra + 1):
                 mask = which == j
-                if j:
-                    J[t + 3 * j : t + 3 * j + 3, :, mask] = J[t : t + 3, :, mask]
+                J[t + 3 * j : t + 3 * j + 3, :, mask] = J[t : t + 3, :, mask]
             J[t : t + 3, :, which != 0] = 0.0
     return p, J
 
@@ -443,9 +420,9 @@ def _accumulate(
 
     def chunk(start: int) -> tuple[FloatArray, FloatArray, float, int, float]:
         sl = slice(start, min(start + CHUNK, m))
-        pred, J = predict_columns(
-            model, data.Q[sl], layout, bases, None if data.which is None else data.which[sl]
-        )
+        prefix = _prefix_motions(model, data.Q[sl])
+        which = None if data.which is None else data.which[sl]
+        pred, J = predict_columns(model, data.Q[sl], layout, bases, which, prefix)
         assert J is not None
         r = pred - data.P[sl].T  # (3, c)
         W = data.whiten(data.P[sl], None if data.W is None else data.W[sl])
@@ -466,7 +443,7 @@ def _accumulate(
         use = keep & (nrm <= limit)
         cost = float(np.sum(np.minimum(nrm[keep], limit) ** 2))
         if data.R is not None:  # the target frame's orientation, weighted by 1/σ_rot
-            R_pred, Jr = predict_orientation(model, data.Q[sl], layout, bases)
+            R_pred, Jr = predict_orientation(model, data.Q[sl], layout, bases, prefix)
             ro = orientation_residual(R_pred, np.moveaxis(data.R[sl], 0, 2)) / data.sigma_rot
             nrm_o = np.sqrt(ro[0] ** 2 + ro[1] ** 2 + ro[2] ** 2)
             use &= nrm_o <= limit
@@ -482,16 +459,14 @@ def _accumulate(
             H *= folded * folded
         return H, (Ju @ ru) * folded, cost, int(np.count_nonzero(use)), float(ru @ ru)
 
+    # one thread: two were measured slower on the 2-core machine (1.6 s → 2.3 s per million
+    # samples; numpy's many small operations hold the GIL between its kernels)
     starts = range(0, m, CHUNK)
-    if len(starts) > 1 and THREADS > 1:
-        with ThreadPoolExecutor(THREADS) as pool:
-            parts = list(pool.map(chunk, starts))
-    else:
-        parts = []
-        for k, start in enumerate(starts):
-            parts.append(chunk(start))
-            if progress is not None and k % 16 == 15:
-                progress((k + 1) / len(starts))
+    parts = []
+    for k, start in enumerate(starts):
+        parts.append(chunk(start))
+        if progress is not None and k % 16 == 15:
+            progress((k + 1) / len(starts))
     H = np.sum([p[0] for p in parts], axis=0)
     g = np.sum([p[1] for p in parts], axis=0)
     cost = float(sum(p[2] for p in parts))
@@ -557,7 +532,8 @@ def _levenberg_marquardt(
     st = _State(model, bases, *_accumulate(model, layout, bases, data, limit, norms), norms)
     if data.per_sample * st.count <= layout.size:
         raise DegenerateGeometryError(
-            f"the whole-model fit has {st.count} usable samples (3 coordinates each) for "
+            f"the whole-model fit has {st.count} usable samples ({data.per_sample} residuals "
+            "each) for "
             f"{layout.size} parameters."
         )
     lam = 1e-6
@@ -809,28 +785,14 @@ def constrain_pairs(fit: WholeFit, parallel: list[int], collinear: list[int]) ->
             sign = 1.0 if d1 @ axes[i + 1].direction >= 0 else -1.0
             point = axes[i].project(axes[i + 1].point) if i in collinear else axes[i + 1].point
             axes[i + 1] = Line(point, sign * d1)
-    snapped = AxisModel(
-        tuple(axes),
-        moved.types,
-        moved.target,
-        moved.reference_pose,
-        moved.scales,
-        moved.extra_targets,
-        moved.tool_rotation,
-    )
-    return WholeFit(
+    snapped = replace(moved, axes=tuple(axes))
+    return replace(
+        fit,
         model=snapped,
-        layout=layout,
         covariance=np.asarray((cov + cov.T) / 2, dtype=np.float64),
-        inliers=fit.inliers,
-        chi2_dof=fit.chi2_dof,
-        n_points=fit.n_points,
-        iterations=fit.iterations,
-        scale=fit.scale,
         bases=snapped.bases(),
         constrained={
             **{i: "parallel" for i in parallel},
             **{i: "collinear" for i in collinear},
         },
-        sigma_rotation=fit.sigma_rotation,
     )

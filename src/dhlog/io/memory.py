@@ -24,10 +24,11 @@ def log_data_from_session(session: Session, pipeline: Pipeline | None = None) ->
         {"t_ns": session.point_t_ns, "x": xyz[:, 0], "y": xyz[:, 1], "z": xyz[:, 2]}
     )
     if session.point_rotation is not None:
-        from dhlog.geometry._checks import quaternions_from_matrices
+        from scipy.spatial.transform import Rotation
+
         from dhlog.io.reader import ORIENTATION_COLUMNS
 
-        quat = quaternions_from_matrices(session.point_rotation)
+        quat = Rotation.from_matrix(session.point_rotation).as_quat(canonical=True)
         points = points.with_columns(
             pl.Series(name, quat[:, k]) for k, name in enumerate(ORIENTATION_COLUMNS)
         )

@@ -464,17 +464,25 @@ def read_log(
                 raise MissingTopicError(name, stream, spec.topic, present)
             continue
         infos[stream] = found
+    # further targets (extra_topics): their channels, one list per target, labelled 1, 2, …
+    targets = []
+    for k, topic in enumerate(pipeline.streams["point"].extra_topics):
+        found = _channels_for(scan.channels, topic)
+        if not found:
+            raise MissingTopicError(name, f"point (target {k + 2})", topic, present)
+        targets.append(found)
     general: dict[int, list[tuple[int, Any]]] | None = None
     if not fast:
-        general = _read_general(name, [c for cs in infos.values() for c in cs])
+        wanted = [c for cs in infos.values() for c in cs] + [c for cs in targets for c in cs]
+        general = _read_general(name, wanted)
     set_aside: dict[str, int] = {}
 
     with_rot = pipeline.streams["point"].orientation
 
-    def blocks_of(stream: str) -> list[Block]:
+    def blocks_of(stream: str, channels: list[ChannelInfo] | None = None) -> list[Block]:
         return _decode_stream(
             stream,
-            infos[stream],
+            infos[stream] if channels is None else channels,
             scan.messages if fast else None,
             general,
             pipeline.streams[stream].fields,
@@ -482,30 +490,15 @@ def read_log(
             with_rot,
         )
 
-    points = _clean(
-        _points_frame(blocks_of("point"), pipeline.length_scale, with_rot), "point", set_aside
-    )
-    extra_topics = pipeline.streams["point"].extra_topics
-    if extra_topics:  # further targets: one frame per topic, labelled 1, 2, … (0 the primary)
+    def points_of(channels: list[ChannelInfo] | None = None) -> pl.DataFrame:
+        frame = _points_frame(blocks_of("point", channels), pipeline.length_scale, with_rot)
+        return _clean(frame, "point", set_aside)
+
+    points = points_of()
+    if targets:  # one frame per target, labelled 0 (the primary one), 1, 2, …
         frames = [points.with_columns(pl.lit(0, dtype=pl.Int32).alias("target"))]
-        for k, topic in enumerate(extra_topics):
-            found = _channels_for(scan.channels, topic)
-            if not found:
-                raise MissingTopicError(name, f"point (target {k + 2})", topic, present)
-            if general is not None:
-                general.update(_read_general(name, found))
-            blocks = _decode_stream(
-                "point",
-                found,
-                scan.messages if fast else None,
-                general,
-                pipeline.streams["point"].fields,
-                name,
-                with_rot,
-            )
-            frame = _clean(
-                _points_frame(blocks, pipeline.length_scale, with_rot), "point", set_aside
-            )
+        for k, channels in enumerate(targets):
+            frame = points_of(channels)
             frames.append(frame.with_columns(pl.lit(k + 1, dtype=pl.Int32).alias("target")))
         points = pl.concat(frames, how="diagonal").sort("t_ns", maintain_order=True)
     base = None

@@ -21,7 +21,6 @@ from typing import IO, Any, Literal
 
 from mcap.writer import CompressionType, Writer
 
-from dhlog.geometry._checks import quaternions_from_matrices
 from dhlog.io import ros2
 from dhlog.simulate import Session
 
@@ -141,7 +140,9 @@ def _write_ros2(session: Session, f: IO[bytes], point_type: str, chunk_size: int
     encode = ros2.encode_pose_stamped if point_type == "pose" else ros2.encode_point_stamped
     points = encode(session.point_t_ns, session.point_xyz, "tracker")
     if session.point_rotation is not None:
-        quats = quaternions_from_matrices(session.point_rotation)
+        from scipy.spatial.transform import Rotation
+
+        quats = Rotation.from_matrix(session.point_rotation).as_quat(canonical=True)
         points = ros2.encode_pose_stamped(session.point_t_ns, session.point_xyz, "tracker", quats)
     payloads: dict[str, list[bytes]] = {
         "point": points,
