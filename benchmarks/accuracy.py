@@ -1,6 +1,7 @@
 """FK accuracy of dhlog's result against the achievable limit, over many noise realisations.
 
     .venv/bin/python benchmarks/accuracy.py [--sessions 20] [--workers 2] [--points 300]
+                                            [--cases SUBSTRING] [--parallel-sigma K]
 
 For each case and seeded session (the simulator's truth is a robot that is *not* its nominal
 where the case says so), three models are compared by their forward-kinematics error against the
@@ -13,6 +14,8 @@ simulator's truth at ``--points`` random joint vectors within the robot's limits
 
 Printed per case: the RMS FK error (µm) of each over all sessions and points, and the ratios
 default / limit and analytic / limit. Target: default ≤ 1.05 × limit in every case.
+``--parallel-sigma K`` holds pairs within K σ of parallel in the default (2, Akaike's rule, by
+default; 0 never); ``--cases`` runs the cases whose name contains the text.
 """
 
 from __future__ import annotations
@@ -26,6 +29,7 @@ from concurrent.futures import ProcessPoolExecutor
 import numpy as np
 
 from dhlog.geometry.lines import Line
+from dhlog.identify.analytic import AIC_SIGMA_2D
 from dhlog.identify.noise import NoiseModel
 from dhlog.identify.sweeps import samples_with_encoders
 from dhlog.identify.whole import AxisModel, fit_whole_model, predict
@@ -80,9 +84,9 @@ CASES: dict[str, tuple[str, dict[str, object]]] = {
 }
 
 
-def one(job: tuple[str, str, int, int]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def one(job: tuple[str, str, int, int, float]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Squared FK errors (points,) of default, analytic and limit for one seeded session."""
-    case, robot_name, seed, points = job
+    case, robot_name, seed, points, parallel_sigma = job
     robot = load_robot(robot_name)
     cfg = SimulationConfig(seed=seed, **CASES[case][1])  # type: ignore[arg-type]
     session = simulate_session(robot, cfg)
@@ -96,7 +100,7 @@ def one(job: tuple[str, str, int, int]) -> tuple[np.ndarray, np.ndarray, np.ndar
         got = fk_point(ex.standard, Q, ex.tool_point, T_base=ex.T_measurement_base)
         return np.asarray(np.sum((got - want) ** 2, axis=1))
 
-    default = process_data(log)
+    default = process_data(log, parallel_sigma=parallel_sigma)
     analytic = process_data(log, analytic_only=True)
     # the limit: the whole model fitted to the same samples from the truth
     ref = default.reference_pose
@@ -119,6 +123,8 @@ def main() -> None:
     parser.add_argument("--sessions", type=int, default=20)
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--points", type=int, default=300)
+    parser.add_argument("--cases", default="")
+    parser.add_argument("--parallel-sigma", type=float, default=AIC_SIGMA_2D)
     args = parser.parse_args()
     context = multiprocessing.get_context("spawn")
     print(
@@ -128,8 +134,13 @@ def main() -> None:
     print("|---|---|---|---|---|---|---|")
     with ProcessPoolExecutor(args.workers, mp_context=context) as pool:
         for case, (robot, _) in CASES.items():
+            if args.cases not in case:
+                continue
             started = time.perf_counter()
-            jobs = [(case, robot, 7000 + s, args.points) for s in range(args.sessions)]
+            jobs = [
+                (case, robot, 7000 + s, args.points, args.parallel_sigma)
+                for s in range(args.sessions)
+            ]
             out = list(pool.map(one, jobs))
             rms = [math.sqrt(float(np.mean(np.concatenate([o[k] for o in out])))) for k in range(3)]
             print(

@@ -172,6 +172,7 @@ def process_data(
     distance_tol: float = DISTANCE_TOL,
     analytic_only: bool = False,
     fit_scales: bool = False,
+    parallel_sigma: float = AIC_SIGMA_2D,
     progress: Stage | None = None,
 ) -> ProcessResult:
     """The identification of :func:`process_log` on streams already decoded (``LogData``).
@@ -179,6 +180,8 @@ def process_data(
     Default: the maximum-likelihood fit of the whole model to every sample with encoder
     values, started from the analytic result (per-joint fits + line geometry). With
     ``analytic_only`` (or without encoders), the analytic result with its propagated covariance.
+    ``parallel_sigma``: without a nominal, pairs within this many σ (2-D) of parallel are held
+    parallel in the whole-model fit (0: never).
     """
 
     def stage(what: str, fraction: float) -> None:
@@ -281,7 +284,7 @@ def process_data(
     result.target = target
     if whole_wanted:
         try:
-            _identify_whole(result, analytic, kwargs, fit_scales, stage)
+            _identify_whole(result, analytic, kwargs, fit_scales, stage, parallel_sigma)
             return result
         except (GeometryError, np.linalg.LinAlgError) as exc:
             result.whole, result.analytic, result.method = None, None, "analytic"
@@ -422,6 +425,7 @@ def _identify_whole(
     kwargs: dict[str, Any],
     fit_scales: bool,
     stage: Stage,
+    parallel_sigma: float = AIC_SIGMA_2D,
 ) -> None:
     """The maximum-likelihood fit of the whole model, its DH model, covariance and check."""
     seg, joints, ref = result.segmentation, result.joints, result.reference_pose
@@ -476,7 +480,7 @@ def _identify_whole(
         nominal,
         kwargs["angle_tol"],
         kwargs["distance_tol"],
-        k_parallel=AIC_SIGMA_2D,
+        k_parallel=parallel_sigma,
     )
     whole = _with_fixed_relations(whole, tolerances)
 
