@@ -31,9 +31,10 @@ NOMINAL_SIGMA_2D = 5.0
 
 #: Without a nominal, the whole-model fit holds a pair parallel (collinear) only where that
 #: costs less than it gains: Akaike's rule for the two (four) parameters the relation removes, a
-#: Wald statistic below 2 per parameter, i.e. a 2-D tilt (offset) within 2σ. A wider band
-#: (3.44σ) was measured to cost 1.20x the achievable FK error on a KR5 0.05° off its nominal swept
-#: over 30° arcs. A nominal that says parallel keeps its 5σ (the user's design knowledge).
+#: Wald statistic below 2 per parameter, i.e. a 2-D tilt (offset) within 2σ. On a KR5 0.05° off
+#: its nominal swept over 30° arcs this costs 1.035x the achievable FK error, 3.44σ 1.150x
+#: (``benchmarks/accuracy.py --parallel-sigma``). A nominal that says parallel keeps its 5σ (the
+#: user's design knowledge).
 AIC_SIGMA_2D = 2.0
 
 
