@@ -383,8 +383,7 @@ class WholeFit:
     """The fitted model, its covariance (``layout`` order), and what the fit saw.
 
     ``inliers`` is over the samples given; ``chi2_dof`` is the weighted residual variance per
-    degree of freedom (1 when the noise model is right); ``scale`` the robust noise scale in
-    whitened units found at the start.
+    degree of freedom (1 when the noise model is right).
     """
 
     model: AxisModel
@@ -394,7 +393,6 @@ class WholeFit:
     chi2_dof: float
     n_points: int
     iterations: int
-    scale: float
     bases: list[tuple[FloatArray, FloatArray]] = field(default_factory=list)
     constrained: dict[int, str] = field(default_factory=dict)
     sigma_rotation: float | None = None
@@ -711,7 +709,6 @@ def fit_whole_model(
         chi2_dof=float(chi2_dof),
         n_points=int(st.count),
         iterations=iterations,
-        scale=scale,
         bases=st.bases,
         sigma_rotation=None if data.R is None else data.sigma_rot * math.sqrt(chi2_dof),
     )
