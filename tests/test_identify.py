@@ -59,6 +59,50 @@ def test_the_jacobian_is_the_derivative_of_the_prediction(robot: str, fit_scales
     assert np.abs(p1 - p0 - J @ step).max() < 1e-10 < np.abs(J @ step).max()
 
 
+@pytest.mark.parametrize("robot", ["kr5", "stanford", "scara"])
+@pytest.mark.parametrize("fit_scales", [False, True])
+@pytest.mark.parametrize("noise", ["isotropic", "tracker"])
+def test_the_adjoint_gradient_equals_the_jacobian_transpose_times_the_residual(
+    robot: str, fit_scales: bool, noise: str
+) -> None:
+    """The full pass's gradient by the adjoint of the chain (no J formed) against ``JᵀWr`` of
+    the explicit columns, with two targets, a tracker's 3x3 whitening, held-out samples and
+    samples beyond the truncation: equal to rounding (1e-9 relative)."""
+    from dhlog.identify.whole import _accumulate, _gradient, _Samples
+
+    rob = load_robot(robot)
+    session = simulate_session(rob, SimulationConfig(seed=1))
+    base = truth_model(session, session.reference_pose)
+    model = dataclasses.replace(
+        base,
+        extra_targets=base.target[None] + np.array([[0.03, -0.02, 0.05]]),
+        scales=np.full(rob.n, 1.001),
+    )
+    layout = ParameterLayout.of(model.types, fit_scales=fit_scales, extra_targets=1)
+    bases = model.bases()
+    rng = np.random.default_rng(2)
+    m = 40000  # more than one chunk
+    Q = rng.uniform(rob.limits[:, 0], rob.limits[:, 1], (m, rob.n))
+    which = rng.integers(0, 2, m)
+    P, _ = predict(model, Q, None, None, which)
+    P = P + rng.normal(scale=2e-4, size=P.shape)
+    P[::97] += 0.05  # beyond the truncation
+    nm = (
+        NoiseModel()
+        if noise == "isotropic"
+        else NoiseModel(model="tracker", radial=1e-4, transverse=2e-4, transverse_per_m=5e-5)
+    )
+    data = _Samples(Q, P, rng.random(m) > 0.1, None, lambda x, W: nm.whiten(x, 1e-4), which)
+    n1, n2 = np.zeros(m), np.zeros(m)
+    _, g, cost, count, chi2 = _accumulate(model, layout, bases, data, 5.0, n1)
+    g2, cost2, count2, chi22 = _gradient(model, layout, bases, data, 5.0, n2)
+    assert count == count2 < 0.95 * m
+    assert np.abs(n1 - n2).max() < 1e-8  # in sigma: rounding of metre-sized sums
+    assert cost2 == pytest.approx(cost, rel=1e-12)
+    assert chi22 == pytest.approx(chi2, rel=1e-12)
+    assert np.abs(g2 - g).max() < 1e-9 * np.abs(g).max()
+
+
 def test_from_a_start_a_millimetre_off_the_fit_reaches_the_truth_within_its_sigma() -> None:
     """Started 1 mm / 1 mrad away from the truth, the fit converges, χ²/dof is 1 within its
     spread, and every parameter is within 4σ of the truth (the start cannot be told apart)."""

@@ -546,12 +546,12 @@ def _identify_whole(
 def _measured_rotations(seg: Segmentation, rows: NDArray[np.int64]) -> FloatArray | None:
     """The target frame's measured orientation (m, 3, 3) at ``rows`` when the log carries it
     (``orientation = true`` in the pipeline), else None."""
-    from scipy.spatial.transform import Rotation
-
     from dhlog.io.reader import ORIENTATION_COLUMNS
 
     if not all(c in seg.table.columns for c in ORIENTATION_COLUMNS):
         return None
+    from scipy.spatial.transform import Rotation  # 0.35 s of imports: only when needed
+
     quat = seg.table.select(ORIENTATION_COLUMNS).to_numpy()[rows]
     return np.asarray(Rotation.from_quat(quat).as_matrix(), dtype=np.float64)  # x, y, z, w
 

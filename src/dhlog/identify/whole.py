@@ -473,6 +473,113 @@ def _accumulate(
     return H, g, cost, count, chi2
 
 
+def _turn(
+    K: FloatArray, x: FloatArray, s: FloatArray, c1: FloatArray, sign: float = 1.0
+) -> FloatArray:
+    """``R x`` (``sign`` 1) or ``Rᵀ x`` (``sign`` −1) for the per-sample rotation
+    ``R = I + sin δ K + (1 − cos δ) K²`` of vectors ``x`` (3, m)."""
+    Kx = K @ x
+    return x + (sign * s) * Kx + c1 * (K @ Kx)
+
+
+def _gradient(
+    model: AxisModel,
+    layout: ParameterLayout,
+    bases: list[tuple[FloatArray, FloatArray]],
+    data: _Samples,
+    limit: float,
+    norms: FloatArray,
+    progress: Callable[[float], None] | None = None,
+) -> tuple[FloatArray, float, int, float]:
+    """``JᵀWr`` over every allowed inlier of ``data`` (positions only) by the adjoint of the
+    chain, without forming ``J``; the truncated cost, inlier count and χ² as
+    :func:`_accumulate` gives them, and each sample's whitened residual norm in ``norms``.
+
+    With ``x_i = g_i ⋯ g_n(target)`` (the target carried back to joint i's frame at the
+    reference pose) and ``ρ_i = R_<iᵀ Wᵀ W r``, the columns of :func:`predict_columns` give
+    ``b × D_i · ρ = a · ((x_i − c_i) × ρ_i)`` with ``a = (I − R_i) w``, so each axis needs only
+    the sums of ``sin δ``, ``1 − cos δ`` (and the encoder move) times ``(x_i − c_i) × ρ_i`` and
+    ``ρ_i``: two rotations of a vector per joint and sample in place of 27 columns."""
+    m, n = data.Q.shape[0], model.n
+    g = np.zeros(layout.size)
+    cost, count, chi2 = 0.0, 0, 0.0
+    Ks = [_skew(a.direction) for a in model.axes]
+    targets = model.targets()
+    starts = range(0, m, CHUNK)
+    for k_chunk, start in enumerate(starts):
+        sl = slice(start, min(start + CHUNK, m))
+        c = sl.stop - sl.start
+        moves = (data.Q[sl] - model.reference_pose).T  # (n, c)
+        dq = moves * model.scales[:, None]
+        sins = np.sin(dq)
+        coss = 1.0 - np.cos(dq)
+        which = None if data.which is None else data.which[sl]
+        x = (
+            np.repeat(model.target[:, None], c, axis=1)
+            if which is None or not len(model.extra_targets)
+            else np.ascontiguousarray(targets[which].T)
+        )
+        rel: list[FloatArray | None] = [None] * n
+        for i in range(n - 1, -1, -1):  # inward to outward: x_i = g_i(x_{i+1})
+            axis = model.axes[i]
+            if model.types[i] is JointType.PRISMATIC:
+                x = x + axis.direction[:, None] * dq[i]
+                continue
+            v = x - axis.point[:, None]
+            v = _turn(Ks[i], v, sins[i], coss[i])
+            rel[i] = v
+            x = v + axis.point[:, None]
+        r = x - data.P[sl].T
+        W = data.whiten(data.P[sl], None if data.W is None else data.W[sl])
+        if isinstance(W, float):
+            rw = r * W
+            rho = rw * W
+        else:
+            Wt = np.transpose(W, (1, 2, 0))  # (3, 3, c)
+            rw = _rotate(Wt, r)
+            rho = _rotate(np.transpose(Wt, (1, 0, 2)), rw)
+        nrm = np.sqrt(rw[0] ** 2 + rw[1] ** 2 + rw[2] ** 2)
+        norms[sl] = nrm
+        keep = data.keep[sl]
+        use = keep & (nrm <= limit)
+        cost += float(np.sum(np.minimum(nrm[keep], limit) ** 2))
+        count += int(np.count_nonzero(use))
+        chi2 += float(np.sum(nrm[use] ** 2))
+        rho = np.where(use, rho, 0.0)
+        for i in range(n):  # outward to inward: ρ_{i+1} = R_iᵀ ρ_i
+            axis, k = model.axes[i], layout.axis_at[i]
+            u, v = bases[i]
+            q_i = moves[i]
+            if model.types[i] is JointType.PRISMATIC:
+                t = rho @ dq[i]
+                for col, w in enumerate((u, v)):
+                    g[k + col] += np.cross(w, axis.direction) @ t
+                if layout.scale_at is not None:
+                    g[layout.scale_at + i] += axis.direction @ (rho @ q_i)
+                continue
+            rel_i = rel[i]
+            assert rel_i is not None
+            z = _cross_rows(rel_i, rho)
+            zs, zc, rs, rc = z @ sins[i], z @ coss[i], rho @ sins[i], rho @ coss[i]
+            K = Ks[i]
+            for col, w in enumerate((u, v)):
+                Kw, KKw = K @ w, K @ (K @ w)
+                g[k + col] -= Kw @ zs + KKw @ zc
+                g[k + 2 + col] -= Kw @ rs + KKw @ rc
+            if layout.scale_at is not None:
+                g[layout.scale_at + i] += axis.direction @ (z @ q_i)
+            rho = _turn(K, rho, sins[i], coss[i], -1.0)
+        t0 = layout.target_at
+        if which is None or not len(model.extra_targets):
+            g[t0 : t0 + 3] += rho.sum(axis=1)
+        else:
+            for j in range(len(targets)):
+                g[t0 + 3 * j : t0 + 3 * j + 3] += rho[:, which == j].sum(axis=1)
+        if progress is not None and k_chunk % 16 == 15:
+            progress((k_chunk + 1) / len(starts))
+    return g, cost, count, chi2
+
+
 @dataclass(frozen=True)
 class _Samples:
     Q: FloatArray
@@ -588,16 +695,25 @@ def _finish_on_all(
 ) -> tuple[_State, float]:
     """From the optimum ``sub`` of a strided subset to the optimum of every sample.
 
-    One pass gives ``JᵀWJ`` and ``JᵀWr`` of all samples there; the subset's optimum lies within
-    a few of its own σ of the full optimum, where the model is linear to far below the noise
-    (lengths of metres against residuals of micrometres), so the Gauss–Newton step from it is
-    the optimum. Should the step be larger than the subset's uncertainty explains, the fit goes
-    on by Levenberg–Marquardt over every sample. Returns the state and the χ² at the optimum.
+    One pass over every sample gives ``JᵀWr`` by the adjoint of the chain (:func:`_gradient`)
+    and the inliers; ``JᵀWJ`` is the subset's, scaled by the ratio of inlier counts (an evenly
+    strided subset of smooth sweeps integrates the information like a quadrature rule: every σ
+    within 0.03 % of the full sum's, the result within 0.001 µm, on the 1 M-sample benchmark
+    log). The subset's optimum lies within a few of
+    its own σ of the full optimum, where the model is linear to far below the noise (lengths of
+    metres against residuals of micrometres), so the Gauss–Newton step from it is the optimum.
+    With orientations, or should the step be larger than the subset's uncertainty explains,
+    the full ``JᵀWJ`` is accumulated (and, for the latter, the fit goes on by
+    Levenberg–Marquardt over every sample). Returns the state and the χ² at the optimum.
     """
     norms = np.zeros(data.Q.shape[0])
-    H, g, cost, count, chi2 = _accumulate(
-        sub.model, layout, sub.bases, data, limit, norms, progress
-    )
+    if data.R is None:
+        g, cost, count, chi2 = _gradient(sub.model, layout, sub.bases, data, limit, norms, progress)
+        H = sub.H * (count / max(sub.count, 1))
+    else:
+        H, g, cost, count, chi2 = _accumulate(
+            sub.model, layout, sub.bases, data, limit, norms, progress
+        )
     try:
         delta = np.asarray(np.linalg.solve(H, -g), dtype=np.float64)
     except np.linalg.LinAlgError:
