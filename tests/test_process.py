@@ -286,7 +286,7 @@ def test_sweeps_from_anywhere_are_carried_to_the_reference_pose(robot: str) -> N
     assert_within_3_sigma(result)
 
 
-def test_nearly_parallel_axes_get_hayati_parameters_and_a_warning() -> None:
+def test_nearly_parallel_axes_get_hayati_parameters_and_a_note() -> None:
     """UR5 axes 2, 3, 4 are parallel. Exactly parallel in the truth: the data cannot tell them
     from parallel, so d = 0 by convention. Tilted by about 1 mrad (a real misalignment, far
     beyond the noise): the DH d explodes, which is said, and the Hayati–Mirmirani parameters
@@ -299,16 +299,17 @@ def test_nearly_parallel_axes_get_hayati_parameters_and_a_warning() -> None:
     doc = result_document(exact)
     assert doc["relations"][1]["kind"] == "parallel" and doc["relations"][2]["kind"] == "parallel"
     assert [h["joints"] for h in doc["hayati"]] == [[2, 3], [3, 4]]
-    assert not any("ill-conditioned" in w for w in exact.warnings)
+    assert not any("ill-conditioned" in w for w in exact.warnings + exact.info)
+    assert exact.conditioned is None  # parallel pairs have d by convention: no Hayati rows
     tilted_cfg = SimulationConfig(seed=5, perturb_angle=2e-3, perturb_length=1e-4)
     session = simulate_session(rob, tilted_cfg)
     tilted = process_data(log_data_from_session(session))
     doc = result_document(tilted)
     assert doc["relations"][1]["kind"] == "skew"
     assert any(
-        "joints 2 and 3 are nearly parallel" in w and "ill-conditioned" in w
-        for w in tilted.warnings
+        "joints 2 and 3 are nearly parallel" in w and "ill-conditioned" in w for w in tilted.info
     )
+    assert tilted.conditioned is not None and doc["hayati_dh"]["rows"][1]["form"] == "hayati"
     hayati = {tuple(h["joints"]): h for h in doc["hayati"]}
     # the tilt about the common normal is the DH twist of the truth
     assert abs(abs(hayati[(2, 3)]["alpha"]) - abs(session.table.alpha[1])) < 5e-5

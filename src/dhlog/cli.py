@@ -315,7 +315,7 @@ def process(
                 progress=advance,
             )
             if refine:
-                result.warnings.append(
+                result.info.append(
                     "--refine is a no-op: the fit of the whole model to every sample is the "
                     "default (--analytic-only gives the seed method alone)."
                 )

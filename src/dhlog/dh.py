@@ -119,6 +119,53 @@ class ModifiedDH(_DHTable):
         return modified_dh_transform(self.alpha, self.a, self.theta(q), self.d(q))
 
 
+@dataclass(frozen=True, init=False, eq=False)
+class HayatiDH(StandardDH):
+    """Standard DH in which the rows of nearly parallel pairs take the Hayati–Mirmirani form.
+
+    Row i is ``A_i = Rz(θ_i) Tz(d_i) Tx(a_i) Rx(α_i)``, or, where ``hayati[i]``,
+    ``Rz(θ_i) Tx(a_i) Rx(α_i) Ry(β_i)`` (Hayati & Mirmirani 1985: no ``d``, which is
+    ill-conditioned when axes i and i+1 are nearly parallel; ``d_offset[i]`` is 0 there). Only
+    revolute joints carry such a row. ``beta`` (n,) is 0 on the DH rows.
+    """
+
+    beta: FloatArray
+    hayati: tuple[bool, ...]
+
+    def __init__(
+        self,
+        joint_types: tuple[JointType, ...] | list[JointType] | tuple[str, ...] | list[str],
+        theta_offset: ArrayLike,
+        d_offset: ArrayLike,
+        a: ArrayLike,
+        alpha: ArrayLike,
+        beta: ArrayLike,
+        hayati: tuple[bool, ...] | list[bool],
+    ) -> None:
+        super().__init__(joint_types, theta_offset, d_offset, a, alpha)
+        flags = tuple(bool(h) for h in hayati)
+        if len(flags) != self.n:
+            raise ShapeError("hayati", f"{self.n} flags", str(len(flags)))
+        types = self.joint_types
+        if any(h and t is JointType.PRISMATIC for h, t in zip(flags, types, strict=True)):
+            raise ShapeError("hayati", "rows of revolute joints only", "a prismatic row")
+        object.__setattr__(self, "beta", _row_array("beta", beta, self.n))
+        object.__setattr__(self, "hayati", flags)
+        object.__setattr__(self, "d_offset", np.where(flags, 0.0, self.d_offset))
+
+    def link_transforms(self, q: ArrayLike) -> FloatArray:
+        """The rows' transforms at the joint vector(s) ``q`` (..., n), shape (..., n, 4, 4)."""
+        T = standard_dh_transform(self.theta(q), self.d(q), self.a, self.alpha)
+        rows = [i for i, h in enumerate(self.hayati) if h]
+        if rows:
+            cb, sb = np.cos(self.beta[rows]), np.sin(self.beta[rows])
+            Ry = np.zeros((len(rows), 4, 4))
+            Ry[:, 0, 0], Ry[:, 0, 2], Ry[:, 1, 1] = cb, sb, 1.0
+            Ry[:, 2, 0], Ry[:, 2, 2], Ry[:, 3, 3] = -sb, cb, 1.0
+            T[..., rows, :, :] = T[..., rows, :, :] @ Ry
+        return T
+
+
 def _stack_transform(R: FloatArray, p: FloatArray) -> FloatArray:
     shape = R.shape[:-2]
     T = np.zeros((*shape, 4, 4))

@@ -10,11 +10,13 @@ The ambiguous choices follow ``shared/DESIGN.md`` and are deterministic:
 * collinear axes (and a target on the last axis): ``x_{i+1}`` is ``x_i`` turned by ``θ_i`` at the
   reference pose (``θ_offset_i = 0``), and ``a_i = d_i = 0``;
 * frame 1: origin at axis 1 ∩ base plane (seed 002, Eq. 7) when a base plane is given, else at
-  the foot of the common normal to axis 2, else (axes 1 and 2 parallel) at the point of axis 1
-  nearest the measurement origin; ``x_1`` such that ``θ_offset_1 = 0``;
+  the foot of the common normal to axis 2, else (axes 1 and 2 parallel, or nearly: below
+  :data:`NEAR_PARALLEL`) at the point of axis 1 nearest the measurement origin; ``x_1`` such
+  that ``θ_offset_1 = 0`` (axes 1 and 2 nearly parallel: ``θ_1`` of the Hayati–Mirmirani row);
 * frame n+1: ``z_{n+1} ∥ z_n`` through the target (Sec. 3.1), common normal through ``o_n``; the
   target in frame n+1 is the tool point;
-* prismatic joints: only the direction is physical. The axis is placed to meet the previous axis
+* prismatic joints: only the direction is physical (an anchor line nearly parallel to it is met at
+  its own point). The axis is placed to meet the previous axis
   (``a_{i−1} = 0``) and, where possible, the next revolute axis (``a_i = 0``); a last prismatic
   axis passes as close to the target as meeting the previous axis allows; a first one meets axis 2
   and passes as close to the measurement origin as that allows. Without a neighbour to meet, the
@@ -28,13 +30,21 @@ the last frame as frame n times the nominal ``A_n``, and angles reported nearest
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike
 
-from dhlog.dh import JointType, ModifiedDH, StandardDH, standard_dh_transform, standard_to_modified
+from dhlog.dh import (
+    HayatiDH,
+    JointType,
+    ModifiedDH,
+    StandardDH,
+    standard_dh_transform,
+    standard_to_modified,
+)
 from dhlog.errors import DegenerateGeometryError, ShapeError
 from dhlog.geometry._checks import (
     FloatArray,
@@ -85,6 +95,16 @@ class Extraction:
     relations: tuple[PairRelation, ...]
 
 
+#: Axes closer than this to parallel (rad) have an ill-conditioned common normal: its direction
+#: and feet follow the tilt's noise. Conventions never lean on it (frame 1, prismatic placement),
+#: and such pairs also get the Hayati–Mirmirani form (:func:`hayati_table`).
+NEAR_PARALLEL = 0.01
+
+
+def _nearly_parallel(a: FloatArray, b: FloatArray) -> bool:
+    return float(np.linalg.norm(cross3(a, b))) < math.sin(NEAR_PARALLEL)
+
+
 def _unit(v: FloatArray) -> FloatArray:
     return np.asarray(v / np.linalg.norm(v), dtype=np.float64)
 
@@ -112,7 +132,9 @@ def place_prismatic_axis(
         if isinstance(anchor, Line):
             d2 = P @ anchor.direction
             p2 = P @ anchor.point
-            if np.linalg.norm(d2) < np.sin(angle_tol):
+            if np.linalg.norm(d2) < np.sin(max(angle_tol, NEAR_PARALLEL)):
+                # (nearly) along the direction: meet it at its own point, not where the noise
+                # of a nearly parallel line would put the crossing
                 item: tuple[FloatArray, FloatArray | None] = (p2, None)
             else:
                 item = (p2, d2 / np.linalg.norm(d2))
@@ -204,8 +226,9 @@ def extract_dh(
     def anchor_place(i: int) -> None:
         """Place prismatic axis i (0-based) by the anchor rule."""
         anchors: list[Line | FloatArray] = []
-        if i > 0:
-            anchors.append(lines[i - 1])
+        if i > 0:  # a parallel previous axis is met at its well-conditioned origin
+            prev, o_prev = lines[i - 1], steady[i - 1]
+            anchors.append(prev if o_prev is None else Line(o_prev, prev.direction))
         if i + 1 < n and placed[i + 1]:
             anchors.append(lines[i + 1])
         if i == n - 1:
@@ -221,9 +244,14 @@ def extract_dh(
     z = [line.direction for line in lines] + [lines[-1].direction]
     origins: list[FloatArray | None] = [None] * (n + 1)
     xs: list[FloatArray | None] = [None] * (n + 1)
+    # the origins of the Hayati–Mirmirani chain (hayati_table): the DH ones, except after a
+    # nearly parallel pair, where the plane normal to z_i through the previous one meets the
+    # next axis (the common normal's feet run off with the noise there)
+    steady: list[FloatArray | None] = [None] * (n + 1)
 
     for i in range(n if nominal is None else 1):
-        if not placed[i]:
+        # one nearly parallel to the previous axis waits for that axis' steady origin
+        if not placed[i] and not (i > 0 and _nearly_parallel(z[i - 1], z[i])):
             anchor_place(i)
             if i == 0 and nominal is not None and n > 1 and placed[1]:
                 cross = cross3(lines[0].direction, lines[1].direction)
@@ -235,6 +263,7 @@ def extract_dh(
                     anchor = lines[1].point
                 lines[0] = Line(anchor - nominal.a[0] * x2, lines[0].direction)
     origins[0] = _frame1_origin(lines, placed, base_plane, nominal_d, tolerance)
+    steady[0] = origins[0]
 
     relations: list[PairRelation] = []
     for i in range(n):
@@ -294,8 +323,26 @@ def extract_dh(
                 elif abs(np.sin(nominal.alpha[i])) > np.sin(angle_tol):
                     sign = 1.0 if np.sin(nominal.alpha[i]) > 0.0 else -1.0
             origins[i + 1], xs[i + 1] = p_next, sign * normal
+        s_i = steady[i]
+        if s_i is not None and i < n - 1 and _nearly_parallel(z_i, z_next):
+            steady[i + 1] = intersect_line_plane(line_next, Plane(s_i, z_i))
+        else:
+            steady[i + 1] = origins[i + 1]
 
     _resolve_x(xs, z, desired_theta, n if nominal is not None else n + 1)
+    if (
+        n > 1
+        and revolute[0]
+        and _nearly_parallel(z[0], z[1])
+        and not relations[0].relation.kind.is_parallel
+    ):
+        # x_1 by the Hayati–Mirmirani row 1 (toward where axis 2 crosses the plane normal to
+        # z_1 through o_1), not by the ill-conditioned common normal
+        o_1 = origins[0]
+        assert o_1 is not None
+        toward = _reject(intersect_line_plane(lines[1], Plane(o_1, z[0])) - o_1, z[0])
+        if np.linalg.norm(toward) > distance_tol:
+            xs[0] = rotation_about(z[0], -float(desired_theta[0])) @ _unit(toward)
     frames = np.empty((n + 1, 4, 4))
     for i in range(n + 1 if nominal is None else n):
         o_i, x_i = origins[i], xs[i]
@@ -342,7 +389,8 @@ def _frame1_origin(
         shift = shift + nominal_d[k] * lines[k].direction
         a_tol, d_tol = tolerance(k)
         relation = classify_lines(lines[k], lines[k + 1], angle_tol=a_tol, distance_tol=d_tol)
-        if not relation.kind.is_parallel:
+        nearly = _nearly_parallel(lines[k].direction, lines[k + 1].direction)
+        if not relation.kind.is_parallel and not nearly:
             foot = common_normal_feet(lines[k], lines[k + 1])[0]
             return lines[0].project(foot - shift)
     return lines[0].project(np.zeros(3))
@@ -415,22 +463,41 @@ def _near(value: float, reference: float | None) -> float:
     return float(reference + wrap_angle(value - reference))
 
 
+def _row_between(F: FloatArray, G: FloatArray) -> tuple[float, float, float, float]:
+    """θ, d, a, α of the DH row from frame ``F`` to frame ``G`` (seed 000, Eq. 21–24): ``G``'s
+    x axis meets ``F``'s z axis at a right angle."""
+    o_i, x_i, z_i = F[:3, 3], F[:3, 0], F[:3, 2]
+    o_n, x_n, z_n = G[:3, 3], G[:3, 0], G[:3, 2]
+    d = float((o_n - o_i) @ z_i)  # Eq. 21
+    theta = float(np.arctan2(cross3(x_i, x_n) @ z_i, x_i @ x_n))  # Eq. 22
+    a = float((o_n - o_i) @ x_n)  # Eq. 23
+    alpha = float(np.arctan2(cross3(z_i, z_n) @ x_n, z_i @ z_n))  # Eq. 24
+    return theta, d, a, alpha
+
+
 def _table_from_frames(
     frames: FloatArray,
     types: tuple[JointType, ...],
     q_ref: FloatArray,
     nominal: StandardDH | None,
+    hayati: frozenset[int] = frozenset(),
 ) -> StandardDH:
-    """Seed 000, Eq. 21–24, from consecutive frames; offsets from the reference pose."""
+    """Seed 000, Eq. 21–24, from consecutive frames; offsets from the reference pose. With
+    ``hayati`` (0-based rows), those rows take the Hayati–Mirmirani form toward the next axis
+    (:func:`hayati_parameters`) and the row after each is read from the Hayati frame, so the
+    :class:`HayatiDH` table has the same forward kinematics as the standard one."""
     n = len(types)
-    theta_off, d_off, a, alpha = (np.zeros(n) for _ in range(4))
+    theta_off, d_off, a, alpha, beta = (np.zeros(n) for _ in range(5))
+    F = frames[0]
     for i in range(n):
-        o_i, x_i, z_i = frames[i][:3, 3], frames[i][:3, 0], frames[i][:3, 2]
-        o_n, x_n, z_n = frames[i + 1][:3, 3], frames[i + 1][:3, 0], frames[i + 1][:3, 2]
-        d_i = float((o_n - o_i) @ z_i)  # Eq. 21
-        theta_i = float(np.arctan2(cross3(x_i, x_n) @ z_i, x_i @ x_n))  # Eq. 22
-        a[i] = float((o_n - o_i) @ x_n)  # Eq. 23
-        alpha_i = float(np.arctan2(cross3(z_i, z_n) @ x_n, z_i @ z_n))  # Eq. 24
+        if i in hayati:
+            G = frames[i + 1]
+            h = hayati_parameters(F, Line(G[:3, 3], G[:3, 2]), (i + 1, i + 2))
+            theta_i, d_i, a[i], alpha_i, beta[i] = h.theta, 0.0, h.a, h.alpha, h.beta
+            F = F @ hayati_transform(h.theta, h.a, h.alpha, h.beta)
+        else:
+            theta_i, d_i, a[i], alpha_i = _row_between(F, frames[i + 1])
+            F = frames[i + 1]
         revolute = types[i] is JointType.REVOLUTE
         theta_off[i] = _near(
             theta_i - (q_ref[i] if revolute else 0.0),
@@ -438,9 +505,35 @@ def _table_from_frames(
         )
         d_off[i] = d_i - (0.0 if revolute else q_ref[i])
         alpha[i] = _near(alpha_i, None if nominal is None else float(nominal.alpha[i]))
-    if not np.all(np.isfinite(np.concatenate([theta_off, d_off, a, alpha]))):
+    if not np.all(np.isfinite(np.concatenate([theta_off, d_off, a, alpha, beta]))):
         raise DegenerateGeometryError("The joint axes give a non-finite DH table; check the fits.")
+    if hayati:
+        return HayatiDH(types, theta_off, d_off, a, alpha, beta, [i in hayati for i in range(n)])
     return StandardDH(types, theta_off, d_off, a, alpha)
+
+
+def hayati_table(
+    ex: Extraction, rows: frozenset[int], nominal: StandardDH | None = None
+) -> StandardDH:
+    """The extracted model with ``rows`` (0-based) in the Hayati–Mirmirani form: same frames 1
+    and n+1, same forward kinematics (a :class:`HayatiDH`, or the standard table without rows)."""
+    return _table_from_frames(ex.frames, ex.standard.joint_types, ex.reference_pose, nominal, rows)
+
+
+def table_in_hayati_form(table: StandardDH, q_ref: FloatArray, rows: frozenset[int]) -> StandardDH:
+    """A standard table (a nominal) with ``rows`` in the Hayati–Mirmirani form, same forward
+    kinematics, θ kept on the table's own branch."""
+    from dhlog.kinematics import fk_frames
+
+    frames = fk_frames(table, q_ref)
+    return _table_from_frames(frames, table.joint_types, q_ref, table, rows)
+
+
+def hayati_transform(theta: float, a: float, alpha: float, beta: float) -> FloatArray:
+    """``Rz(θ) Tx(a) Rx(α) Ry(β)`` (4×4)."""
+    cb, sb = math.cos(beta), math.sin(beta)
+    Ry = np.array([[cb, 0.0, sb, 0.0], [0.0, 1.0, 0.0, 0.0], [-sb, 0.0, cb, 0.0], [0, 0, 0, 1.0]])
+    return np.asarray(standard_dh_transform(theta, 0.0, a, alpha) @ Ry, dtype=np.float64)
 
 
 @dataclass(frozen=True, eq=False)

@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike
 
-from dhlog.dh import ModifiedDH, StandardDH
+from dhlog.dh import HayatiDH, ModifiedDH, StandardDH
 from dhlog.geometry._checks import FloatArray, check_vector3
 
 DHTable = StandardDH | ModifiedDH
@@ -89,10 +89,11 @@ def fk_points_chunked(
     T_base: ArrayLike | None = None,
     chunk: int = 65536,
 ) -> FloatArray:
-    """``fk_point`` of a standard table for many joint vectors ``Q`` (m, n) → (m, 3), without
-    building the link frames: the tool point is carried back through ``A_n … A_1`` (each
-    ``Rz(θ) Tz(d) Tx(a) Rx(α)``) one joint at a time, in chunks of samples, so memory stays
-    bounded and every operation is on contiguous rows."""
+    """``fk_point`` of a standard table (Hayati rows included) for many joint vectors ``Q``
+    (m, n) → (m, 3), without building the link frames: the tool point is carried back through
+    ``A_n … A_1`` (each ``Rz(θ) Tz(d) Tx(a) Rx(α)``, Hayati rows ``… Ry(β)``) one joint at a
+    time, in chunks of samples, so memory stays bounded and every operation is on contiguous
+    rows."""
     tool = check_vector3("tool point", tool_point)
     Qa = table.check_q(Q)
     if Qa.ndim != 2:
@@ -101,6 +102,8 @@ def fk_points_chunked(
     m = Qa.shape[0]
     out = np.empty((m, 3))
     ca, sa = np.cos(table.alpha), np.sin(table.alpha)
+    beta = table.beta if isinstance(table, HayatiDH) else np.zeros(table.n)
+    cb, sb = np.cos(beta), np.sin(beta)
     for start in range(0, m, chunk):
         q = Qa[start : start + chunk].T
         theta = table.theta_offset[:, None] + q * table.revolute[:, None]
@@ -109,7 +112,9 @@ def fk_points_chunked(
         y = np.full(q.shape[1], tool[1])
         z = np.full(q.shape[1], tool[2])
         for i in range(table.n - 1, -1, -1):
-            # Rx(α), then Tx(a) and Tz(d), then Rz(θ)
+            # Ry(β) (Hayati rows), Rx(α), then Tx(a) and Tz(d), then Rz(θ)
+            if beta[i] != 0.0:
+                x, z = cb[i] * x + sb[i] * z, -sb[i] * x + cb[i] * z
             y, z = ca[i] * y - sa[i] * z, sa[i] * y + ca[i] * z
             x = x + table.a[i]
             z = z + d[i]

@@ -25,17 +25,24 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from dhlog.dh import JointType
+from dhlog.dh import JointType, StandardDH
 from dhlog.dhfile import DHModel
-from dhlog.errors import DegenerateGeometryError, GeometryError, InputError
-from dhlog.extract import Extraction, HayatiRow, extract_dh
+from dhlog.errors import DegenerateGeometryError, DhlogError, GeometryError, InputError
+from dhlog.extract import (
+    NEAR_PARALLEL,
+    Extraction,
+    HayatiRow,
+    extract_dh,
+    hayati_table,
+    table_in_hayati_form,
+)
 from dhlog.geometry._checks import FloatArray
 from dhlog.geometry.fitting import PlaneFit, fit_plane
 from dhlog.geometry.lines import ANGLE_TOL, DISTANCE_TOL, Line, Plane, RelationKind, classify_lines
 from dhlog.geometry.screws import chain_motion, motions_back, points_at_reference
 from dhlog.identify.analytic import (
     AIC_SIGMA_2D,
-    NEAR_PARALLEL,
+    hayati_rows,
     near_parallel,
     pair_tolerances,
     partial_extraction,
@@ -79,6 +86,19 @@ START_TARGET_POINTS = 20000
 CORRELATION_WARNING = 0.95
 
 
+@dataclass(frozen=True, eq=False)
+class Conditioned:
+    """The result's table with the rows of nearly parallel pairs in the Hayati–Mirmirani form
+    (a :class:`HayatiDH`: β in place of the ill-conditioned d, same forward kinematics), each
+    entry's σ (NaN where fixed, per row θ, d or β, a, α), why fixed entries are held, and the
+    nominal in the same form (None without a nominal, or when it has no such form)."""
+
+    table: StandardDH
+    std: FloatArray
+    fixed: dict[int, str]
+    nominal: StandardDH | None
+
+
 @dataclass
 class ProcessResult:
     """Everything ``dhlog process`` found, ready to be written and shown."""
@@ -109,6 +129,10 @@ class ProcessResult:
     extra_tool_std: FloatArray = field(default_factory=lambda: np.zeros((0, 3)))
     tool_orientation: FloatArray | None = None
     tool_orientation_std: FloatArray | None = None
+    conditioned: Conditioned | None = None
+    #: what a reader should know but need not act on (the method chosen, forms shown); the
+    #: ``warnings`` are for what may need action
+    info: list[str] = field(default_factory=list)
 
     @property
     def complete(self) -> bool:
@@ -211,8 +235,9 @@ def process_data(
         if reference_pose is not None
         else (seg.reference_pose if seg.reference_pose is not None else np.zeros(n))
     )
+    info: list[str] = []
     if not seg.has_encoders:
-        notes.append(
+        info.append(
             "no encoders: the reference pose is the pose every sweep starts from (all zeros), "
             "and the sense of motion comes from time order."
         )
@@ -249,6 +274,7 @@ def process_data(
         validation=None,
         nominal=nominal,
         warnings=notes,
+        info=info,
         noise=log.pipeline.noise,
     )
     kwargs: dict[str, Any] = {
@@ -290,9 +316,9 @@ def process_data(
             result.whole, result.analytic, result.method = None, None, "analytic"
             notes.append(f"the whole-model fit failed ({exc}); the result is the analytic one.")
     elif seg.has_encoders:
-        notes.append("--analytic-only: the seed method's result (per-joint fits, line geometry).")
+        info.append("--analytic-only: the seed method's result (per-joint fits, line geometry).")
     else:
-        notes.append(
+        info.append(
             "no encoder values: the whole-model fit needs them; the result is the analytic one."
         )
 
@@ -306,7 +332,9 @@ def process_data(
         return perturbed(axes)[0]
 
     stage("uncertainty", 0.0)
-    covariance = propagate_analytic(
+    rows = hayati_rows(analytic)
+    nominal_rows = _nominal_rows(nominal_table, ref, rows)
+    covariance, mixed_cov = propagate_analytic(
         joints,
         ref,
         target,
@@ -316,6 +344,8 @@ def process_data(
         kwargs,
         analytic,
         target_of if seg.has_encoders else None,
+        rows,
+        nominal_rows,
     )
     std = np.sqrt(np.clip(np.diag(covariance), 0.0, None))
     fixed = std < 1e-12
@@ -324,7 +354,12 @@ def process_data(
         analytic, fixed, base_plane=base is not None, nominal=nominal is not None
     )
     result.std = np.where(fixed, np.nan, std)
-    result.hayati = near_parallel([j.axis for j in joints], analytic, result.std, notes)
+    result.hayati = near_parallel([j.axis for j in joints], analytic, result.std, result.info)
+    if mixed_cov is not None:
+        mixed_std = np.sqrt(np.clip(np.diag(mixed_cov), 0.0, None))
+        result.conditioned = _conditioned(
+            result, analytic, rows, nominal_rows, mixed_std, mixed_std < 1e-12
+        )
     stage("validating", 0.0)
     result.validation = validate_sweeps(seg, joints, analytic)
     if result.validation is not None:
@@ -498,7 +533,9 @@ def _identify_whole(
     stage("uncertainty", 0.0)
     ex = extract(list(whole.model.axes), whole.model.target, None if base is None else base.plane)
     pairs = _near_parallel_pairs(ex)
-    prop = propagate(whole, base, extract, ex, pairs)
+    h_rows = hayati_rows(ex)
+    nominal_rows = _nominal_rows(nominal_table, ref, h_rows)
+    prop = propagate(whole, base, extract, ex, pairs, h_rows, nominal_rows)
     std = np.sqrt(np.clip(np.diag(prop.covariance), 0.0, None))
     result.method = "whole-model maximum likelihood"
     result.extraction, result.analytic, result.whole = ex, analytic, whole
@@ -511,18 +548,23 @@ def _identify_whole(
         nominal=nominal is not None,
         constrained=whole.constrained,
     )
-    result.hayati = near_parallel(list(ex.axes), ex, result.std, notes)
+    result.hayati = near_parallel(list(ex.axes), ex, result.std, result.info)
     result.hayati_std = [
         np.sqrt(np.clip(np.diag(prop.hayati_covariance)[4 * k : 4 * k + 4], 0.0, None))
         for k in range(len(pairs))
     ]
+    if prop.mixed_covariance is not None and prop.mixed_fixed is not None:
+        mixed_std = np.sqrt(np.clip(np.diag(prop.mixed_covariance), 0.0, None))
+        result.conditioned = _conditioned(
+            result, ex, h_rows, nominal_rows, mixed_std, prop.mixed_fixed
+        )
     result.tool_orientation = prop.tool_orientation
     result.tool_orientation_std = prop.tool_orientation_std
     result.extra_tool_points = prop.extra_tool_points
     result.extra_tool_std = np.sqrt(
         np.clip(np.diag(prop.extra_tool_covariance), 0.0, None)
     ).reshape(-1, 3)
-    notes.extend(_correlation_notes(prop.covariance, prop.fixed, len(joints)))
+    result.info.extend(_correlation_notes(prop.covariance, prop.fixed, len(joints)))
     if result.noise.model != "isotropic" and not 0.5 < whole.chi2_dof < 2.0:
         notes.append(
             f"χ²/dof = {whole.chi2_dof:.2f} under the {result.noise.described} noise model: the "
@@ -624,6 +666,37 @@ def _with_fixed_relations(
         elif kind.is_parallel:
             parallel.append(i)
     return constrain_pairs(whole, parallel, collinear)
+
+
+def _nominal_rows(
+    nominal: StandardDH | None, ref: FloatArray, rows: frozenset[int]
+) -> StandardDH | None:
+    """The nominal with ``rows`` in the Hayati–Mirmirani form (None without rows or nominal, or
+    where the nominal's own axes have no such form: perpendicular there)."""
+    if nominal is None or not rows:
+        return None
+    try:
+        return table_in_hayati_form(nominal, ref, rows)
+    except DhlogError:
+        return None
+
+
+def _conditioned(
+    result: ProcessResult,
+    ex: Extraction,
+    rows: frozenset[int],
+    nominal_rows: StandardDH | None,
+    std: FloatArray,
+    fixed: NDArray[np.bool_],
+) -> Conditioned:
+    """The table in the Hayati form with its σ; fixed entries keep the standard table's reason
+    where the row is the standard one, and are held by a convention elsewhere."""
+    table = hayati_table(ex, rows, nominal_rows)
+    reasons = {
+        int(k): result.fixed.get(int(k), "held by a convention of the extraction")
+        for k in np.flatnonzero(fixed)
+    }
+    return Conditioned(table, np.where(fixed, np.nan, std), reasons, nominal_rows)
 
 
 def _near_parallel_pairs(ex: Extraction) -> list[tuple[int, int]]:

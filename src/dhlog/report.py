@@ -1,19 +1,28 @@
 """Human-facing views of a result: the console tables and the Markdown of the recording.
 
-Lengths in mm and angles in degrees (or m and rad with ``units="m"``); ±1σ beside each value;
-measured − nominal when a nominal table was given.
+Lengths in mm and angles in degrees (or m and rad with ``units="m"``); ±1σ with each value;
+measured − nominal when a nominal table was given. The console tables fit an 80-column terminal,
+a pipe or a file without a wrapped cell: each value stands above its σ, and the differences to
+the nominal are a table of their own. Values are printed to 0.1 µm and 0.0001° (10⁻⁷ m and
+10⁻⁶ rad in SI units), or finer where the σ needs it to show two significant digits.
 """
 
 from __future__ import annotations
 
+import math
+
+import numpy as np
+from rich import box
 from rich.console import Console
 from rich.markup import escape
 from rich.table import Table
 
+from dhlog.geometry._checks import FloatArray
 from dhlog.process import ProcessResult
-from dhlog.result import display_rows, display_scales, nominal_difference
+from dhlog.result import DisplayRow, display_rows, display_scales, nominal_difference
 
-NAMES = ("θ", "d", "a", "α")
+#: Widest joint name shown in full in the console (longer ones end in "…"; the JSON has them).
+NAME_WIDTH = 18
 
 
 def _scales(units: str) -> tuple[float, float, str, str]:
@@ -21,50 +30,160 @@ def _scales(units: str) -> tuple[float, float, str, str]:
     return length, angle, lu, "°" if au == "deg" else au
 
 
-def _rows(result: ProcessResult, units: str) -> list[list[str]]:
-    length, angle, _, _ = _scales(units)
-    diff = nominal_difference(result)
-    factors = [angle, length, length, angle]
+def _decimals(units: str) -> tuple[int, int]:
+    """Decimals of lengths and angles: 0.1 µm and 0.0001° (10⁻⁷ m, 10⁻⁶ rad)."""
+    return (7, 6) if units == "m" else (4, 4)
+
+
+def _places(sigma: float | None, base: int) -> int:
+    """Decimals that show ``sigma`` to two significant digits (at least ``base``, at most
+    ``base + 3``)."""
+    if sigma is None or not math.isfinite(sigma) or sigma <= 0:
+        return base
+    return max(base, min(base + 3, 1 - math.floor(math.log10(sigma))))
+
+
+def _value_sigma(value: float, sigma: float | None, held: bool, base: int) -> tuple[str, str]:
+    """The value and its σ line (``± σ``, ``fixed``, or empty when unknown)."""
+    places = _places(None if held else sigma, base)
+    shown = f"{value:.{places}f}"
+    if held:
+        return shown, "fixed"
+    if sigma is None or not math.isfinite(sigma):
+        return shown, ""
+    return shown, f"± {sigma:.{places}f}"
+
+
+def _cells(row: DisplayRow, units: str) -> list[tuple[str, str]]:
+    """Per parameter (θ, d or β, a, α): the value and its σ line, in display units."""
+    lb, ab = _decimals(units)
     out = []
-    for i, (kind, values, stds, held) in enumerate(display_rows(result, units)):
-        cells = [str(i + 1), escape(result.joints[i].name), kind[0].upper()]
-        for k in range(4):
-            sd = " fixed" if held[k] else ("" if stds[k] is None else f" ± {stds[k]:.4f}")
-            cells.append(f"{values[k]:.4f}{sd}")
-        if diff is not None:
-            cells += [f"{diff[i][k] * factors[k]:+.4f}" for k in range(4)]
-        out.append(cells)
+    for k in range(4):
+        angular = k in (0, 3) or (k == 1 and row.form == "hayati")
+        value, sigma = _value_sigma(row.values[k], row.stds[k], row.held[k], ab if angular else lb)
+        if k == 1 and row.form == "hayati":
+            value = f"β {value}"
+        out.append((value, sigma))
     return out
 
 
+def _hayati_rows(rows: list[DisplayRow]) -> list[int]:
+    return [i + 1 for i, r in enumerate(rows) if r.form == "hayati"]
+
+
+def _table_title(rows: list[DisplayRow]) -> str:
+    hayati = _hayati_rows(rows)
+    if not hayati:
+        return "Standard DH, ±1σ under each value (θ, d: offsets at encoder zero)"
+    which = ", ".join(str(i) for i in hayati)
+    return (
+        f"Standard DH with Hayati–Mirmirani row(s) {which}: Rz(θ) Tx(a) Rx(α) Ry(β), β in place "
+        "of the ill-conditioned d (nearly parallel axes); ±1σ under each value"
+    )
+
+
+def _name(name: str) -> str:
+    return escape(name if len(name) <= NAME_WIDTH else name[: NAME_WIDTH - 1] + "…")
+
+
 def print_result(console: Console, result: ProcessResult, *, units: str = "mm") -> None:
-    """The DH table (±1σ, and measured − nominal), the fit summary, validation and warnings."""
-    _, _, lu, au = _scales(units)
-    dh = Table(title="Standard DH (θ is the offset at encoder zero)", title_justify="left")
-    for col in ("joint", "name", "type", f"θ [{au}]", f"d [{lu}]", f"a [{lu}]", f"α [{au}]"):
-        dh.add_column(escape(col), justify="right" if "[" in col else "left")
-    if result.nominal is not None:
-        for col in (f"Δθ [{au}]", f"Δd [{lu}]", f"Δa [{lu}]", f"Δα [{au}]"):
-            dh.add_column(escape(col), justify="right", style="cyan")
-    for cells in _rows(result, units):
-        dh.add_row(*cells)
-    if dh.row_count:
+    """The DH table (±1σ), measured − nominal, the fits, tool and base, how the table was found,
+    the FK check, what is held by convention, notes and warnings."""
+    length, _, lu, au = _scales(units)
+    rows = display_rows(result, units)
+    if rows:
+        dh = Table(
+            title=_table_title(rows), title_justify="left", box=box.SIMPLE_HEAD, pad_edge=False
+        )
+        dh.add_column("#", justify="right", no_wrap=True)
+        dh.add_column("joint", no_wrap=True, max_width=NAME_WIDTH)
+        dh.add_column("type", no_wrap=True)
+        heads = (f"θ [{au}]", f"d [{lu}]", f"a [{lu}]", f"α [{au}]")
+        for head in heads:
+            dh.add_column(escape(head), justify="right", no_wrap=True)
+        for i, row in enumerate(rows):
+            cells = _cells(row, units)
+            name = _name(result.joints[i].name)
+            dh.add_row(str(i + 1), name, row.type[0].upper(), *(f"{v}\n{s}" for v, s in cells))
         console.print(dh)
-    fits = Table(title="Fits", title_justify="left")
-    for col in (
-        "joint",
-        "type",
-        "method",
-        "samples",
-        "outliers",
-        f"RMS [{lu}]",
-        "sweep",
-        f"FK RMS [{lu}]",
-        "status",
-    ):
-        right = col in ("samples", "outliers") or "[" in col
-        fits.add_column(escape(col), justify="right" if right else "left")
-    length, angle, _, _ = _scales(units)
+        _print_nominal(console, result, rows, units)
+    _print_fits(console, result, units)
+    _print_tool_and_base(console, result, units)
+    lines = [("Method", _method_line(result, length, lu))]
+    val = result.validation
+    if val is not None:
+        lines.append(
+            (
+                "FK check",
+                f"RMS {val.rms * length:.4f} {lu}, max {val.max * length:.4f} {lu} "
+                f"(3-D distance of each of {val.n_points} samples from the FK of the table)",
+            )
+        )
+    aside = result.segmentation.set_aside
+    if aside:
+        lines.append(("Set aside", ", ".join(f"{k} {v}" for k, v in sorted(aside.items()))))
+    lines += [("Fixed", line) for line in _held_lines(result)]
+    lines += [("Note", note) for note in result.info]
+    _prose(console, lines)
+    _prose(console, [("[yellow]Warning[/]", w) for w in result.warnings], markup=True)
+
+
+def _prose(console: Console, lines: list[tuple[str, str]], *, markup: bool = False) -> None:
+    """Labelled lines of text; long ones wrap under their text, not under the label."""
+    if not lines:
+        return
+    grid = Table.grid(padding=(0, 1))
+    grid.add_column(no_wrap=True)
+    grid.add_column(overflow="fold")
+    for label, text in lines:
+        grid.add_row((label if markup else escape(label)) + ":", escape(text))
+    console.print(grid)
+
+
+def _print_nominal(
+    console: Console, result: ProcessResult, rows: list[DisplayRow], units: str
+) -> None:
+    diff = nominal_difference(result, shown=True)
+    if diff is None or result.nominal is None:
+        return
+    length, angle, lu, au = _scales(units)
+    lb, ab = _decimals(units)
+    t = Table(
+        title=f"Measured − nominal ({escape(result.nominal.source)})",
+        title_justify="left",
+        box=box.SIMPLE_HEAD,
+        pad_edge=False,
+    )
+    t.add_column("#", justify="right", no_wrap=True)
+    t.add_column("joint", no_wrap=True, max_width=NAME_WIDTH)
+    for head in (f"Δθ [{au}]", f"Δd [{lu}]", f"Δa [{lu}]", f"Δα [{au}]"):
+        t.add_column(escape(head), justify="right", no_wrap=True)
+    for i, d in enumerate(diff):
+        hayati = i < len(rows) and rows[i].form == "hayati"
+        cells = []
+        for k in range(4):
+            angular = k in (0, 3) or (k == 1 and hayati)
+            v = d[k] * (angle if angular else length)
+            text = "–" if not math.isfinite(v) else f"{v:+.{ab if angular else lb}f}"
+            cells.append(f"Δβ {text}" if k == 1 and hayati else text)
+        t.add_row(str(i + 1), _name(result.joints[i].name), *cells)
+    console.print(t)
+
+
+def _print_fits(console: Console, result: ProcessResult, units: str) -> None:
+    length, angle, lu, au = _scales(units)
+    fits = Table(
+        title="Per-joint fits (RMS: 3-D distance of each sample from its circle or line; "
+        "FK RMS: from the FK of the table)",
+        title_justify="left",
+        box=box.SIMPLE_HEAD,
+        pad_edge=False,
+    )
+    fits.add_column("#", justify="right", no_wrap=True)
+    fits.add_column("joint", no_wrap=True, max_width=NAME_WIDTH)
+    for head in ("samples", "outliers", f"RMS [{lu}]", "sweep", f"FK RMS [{lu}]"):
+        fits.add_column(escape(head), justify="right", no_wrap=True)
+    fits.add_column("status", no_wrap=True)
     val = result.validation
     for j in result.joints:
         f = j.fit
@@ -79,28 +198,86 @@ def print_result(console: Console, result: ProcessResult, *, units: str = "mm") 
         if val is not None and j.index in val.per_joint:
             fk = f"{val.per_joint[j.index][0] * length:.4f}"
         fits.add_row(
-            f"{j.index} {j.name}",
-            j.type.value[0].upper() if j.type else "?",
-            f.method if f else "",
+            str(j.index),
+            _name(j.name),
             str(j.rows.size) if f else "0",
             str(j.n_outliers) if f else "",
             f"{f.rms * length:.4f}" if f else "",
             sweep,
             fk,
-            "ok" if j.ok else f"[red]not identified: {escape(str(j.reason))}[/]",
+            "ok" if j.ok else "[red]failed[/]",
         )
     console.print(fits)
-    console.print(_method_line(result, length, lu))
-    if val is not None:
+    for j in result.failed:
         console.print(
-            f"FK check: RMS {val.rms * length:.4f} {lu}, max {val.max * length:.4f} {lu} "
-            f"over {val.n_points} samples."
+            f"[red]joint {j.index} ({escape(j.name)}) not identified:[/] {escape(str(j.reason))}"
         )
-    aside = result.segmentation.set_aside
-    if aside:
-        console.print("Set aside: " + ", ".join(f"{k} {v}" for k, v in sorted(aside.items())))
-    for w in result.warnings:
-        console.print(f"[yellow]warning:[/] {escape(w)}", soft_wrap=True)
+
+
+def _print_tool_and_base(console: Console, result: ProcessResult, units: str) -> None:
+    """The tool point in the last frame and frame 1 in the measurement frame, with σ."""
+    ex, std = result.extraction, result.std
+    if ex is None or not result.complete:
+        return
+    length, angle, lu, au = _scales(units)
+    lb, ab = _decimals(units)
+    n = ex.standard.n
+    s = np.full(9, np.nan) if std is None else std[4 * n : 4 * n + 9]
+    t = Table(
+        title="Tool and base, ±1σ under each value (M: the measurement frame)",
+        title_justify="left",
+        box=box.SIMPLE_HEAD,
+        pad_edge=False,
+    )
+    t.add_column("")
+    for head in ("x", "y", "z"):
+        t.add_column(head, justify="right", no_wrap=True)
+
+    def row(label: str, values: FloatArray, stds: FloatArray, factor: float, base: int) -> None:
+        cells = []
+        for v, sd in zip(values, stds, strict=True):
+            value, sigma = _value_sigma(float(v) * factor, float(sd) * factor, False, base)
+            cells.append(f"{value}\n{sigma or 'fixed'}")
+        t.add_row(escape(label), *cells)
+
+    row(f"tool point in frame {n + 1} [{lu}]", ex.tool_point, s[0:3], length, lb)
+    T = ex.T_measurement_base
+    row(f"frame 1 origin in M [{lu}]", T[:3, 3], s[3:6], length, lb)
+    row(
+        f"frame 1 rotation in M [{au}]\n(Z-Y-X angles; σ of a small\nrotation about x, y, z)",
+        np.array(_zyx(T[:3, :3])[::-1]),
+        s[6:9],
+        angle,
+        ab,
+    )
+    console.print(t)
+
+
+def _zyx(R: FloatArray) -> tuple[float, float, float]:
+    """Z-Y-X Euler angles (rz, ry, rx) of the rotation ``R`` (R = Rz Ry Rx)."""
+    ry = math.asin(max(-1.0, min(1.0, -float(R[2, 0]))))
+    rz = math.atan2(float(R[1, 0]), float(R[0, 0]))
+    rx = math.atan2(float(R[2, 1]), float(R[2, 2]))
+    return rz, ry, rx
+
+
+def _held_lines(result: ProcessResult) -> list[str]:
+    """One line per reason: the parameters held by it (the displayed table's names)."""
+    fixed = result.conditioned.fixed if result.conditioned is not None else result.fixed
+    if not fixed or result.extraction is None:
+        return []
+    n = result.extraction.standard.n
+    rows = display_rows(result)
+    by_reason: dict[str, list[str]] = {}
+    for idx in sorted(fixed):
+        if idx < 4 * n:
+            row, p = divmod(idx, 4)
+            hayati = row < len(rows) and rows[row].form == "hayati"
+            name = ("θ", "β" if hayati else "d", "a", "α")[p] + str(row + 1)
+        else:
+            name = "tool " + "xyz"[(idx - 4 * n) % 3] if idx < 4 * n + 3 else f"base {idx}"
+        by_reason.setdefault(fixed[idx], []).append(name)
+    return [f"{', '.join(names)}: {why}" for why, names in by_reason.items()]
 
 
 def _method_line(result: ProcessResult, length: float, lu: str) -> str:
@@ -108,30 +285,49 @@ def _method_line(result: ProcessResult, length: float, lu: str) -> str:
     method."""
     w = result.whole
     if w is None:
-        return "Method: the seed method (per-joint fits + line geometry)."
+        return "the seed method (per-joint fits + line geometry)"
     noise = result.noise.described
     if result.noise.model == "isotropic" and result.sigma is not None:
         noise = f"isotropic, σ {result.sigma * length:.4f} {lu} per coordinate"
     return (
-        f"Method: whole-model maximum likelihood over {w.n_points} samples "
-        f"({noise}; χ²/dof {w.chi2_dof:.2f})."
+        f"whole-model maximum likelihood over {w.n_points} samples; noise {noise}, "
+        f"χ²/dof {w.chi2_dof:.2f}"
     )
+
+
+def _markdown_cell(value: str, sigma: str) -> str:
+    return f"{value} {sigma}".strip()
 
 
 def result_markdown(result: ProcessResult, *, units: str = "mm") -> str:
     """The DH tables and fit summary as Markdown (for the recording's text view)."""
-    _, _, lu, au = _scales(units)
-    lines = [f"# {result.path.split('/')[-1]}", "", "## Standard DH (±1σ)", ""]
+    length, angle, lu, au = _scales(units)
+    rows = display_rows(result, units)
+    lines = [f"# {result.path.split('/')[-1]}", "", f"## {_table_title(rows)}", ""]
     head = ["joint", "name", "type", f"θ offset [{au}]", f"d [{lu}]", f"a [{lu}]", f"α [{au}]"]
-    if result.nominal is not None:
-        head += [f"Δθ [{au}]", f"Δd [{lu}]", f"Δa [{lu}]", f"Δα [{au}]"]
     lines.append("| " + " | ".join(head) + " |")
     lines.append("|" + "---|" * len(head))
-    for cells in _rows(result, units):
+    for i, row in enumerate(rows):
+        cells = [str(i + 1), result.joints[i].name, row.type[0].upper()]
+        cells += [_markdown_cell(v, s) for v, s in _cells(row, units)]
         lines.append("| " + " | ".join(cells) + " |")
+    diff = nominal_difference(result, shown=True)
+    if diff is not None and result.nominal is not None:
+        lb, ab = _decimals(units)
+        lines += ["", f"## Measured − nominal ({result.nominal.source})", ""]
+        lines.append(f"| joint | Δθ [{au}] | Δd or Δβ | Δa [{lu}] | Δα [{au}] |")
+        lines.append("|---|---|---|---|---|")
+        for i, d in enumerate(diff):
+            hayati = i < len(rows) and rows[i].form == "hayati"
+            second = (
+                f"Δβ {d[1] * angle:+.{ab}f} {au}" if hayati else f"{d[1] * length:+.{lb}f} {lu}"
+            )
+            lines.append(
+                f"| {i + 1} | {d[0] * angle:+.{ab}f} | {second} | {d[2] * length:+.{lb}f} | "
+                f"{d[3] * angle:+.{ab}f} |"
+            )
     ex = result.extraction
     if ex is not None and result.complete:
-        length, angle, _, _ = _scales(units)
         m, q = ex.modified, ex.reference_pose
         lines += [
             "",
@@ -148,28 +344,13 @@ def result_markdown(result: ProcessResult, *, units: str = "mm") -> str:
         tool = ex.tool_point * length
         shown = ", ".join(f"{v:.4f}" for v in tool)
         lines += ["", f"Tool point (frame {m.n + 1}): ({shown}) {lu}"]
-    if result.hayati:
-        length, angle, _, _ = _scales(units)
-        lines += [
-            "",
-            "## Nearly parallel pairs (Hayati–Mirmirani, β in place of d)",
-            "",
-            f"| joints | θ [{au}] | a [{lu}] | α [{au}] | β [{au}] |",
-            "|---|---|---|---|---|",
-        ]
-        for h in result.hayati:
-            lines.append(
-                f"| {h.joints[0]}–{h.joints[1]} | {h.theta * angle:.4f} | {h.a * length:.4f} | "
-                f"{h.alpha * angle:.5f} | {h.beta * angle:.5f} |"
-            )
     lines += [
         "",
         "## Fits",
         "",
-        f"| joint | method | samples | outliers | RMS [{lu}] | status |",
+        f"| joint | method | samples | outliers | RMS (3-D) [{lu}] | status |",
         "|---|---|---|---|---|---|",
     ]
-    length = _scales(units)[0]
     for j in result.joints:
         f = j.fit
         lines.append(
@@ -177,14 +358,20 @@ def result_markdown(result: ProcessResult, *, units: str = "mm") -> str:
             f"{j.n_outliers if f else ''} | {f'{f.rms * length:.4f}' if f else ''} | "
             f"{'ok' if j.ok else 'not identified: ' + str(j.reason)} |"
         )
-    lines += ["", _method_line(result, length, lu)]
+    lines += ["", f"Method: {_method_line(result, length, lu)}."]
     if result.validation is not None:
         v = result.validation
         lines += [
             "",
             f"FK check: RMS {v.rms * length:.4f} {lu}, max {v.max * length:.4f} {lu} "
-            f"over {v.n_points} samples.",
+            f"over {v.n_points} samples (3-D).",
         ]
+    held = _held_lines(result)
+    if held:
+        lines += ["", "## Held by convention or gauge (not measured)", ""]
+        lines += [f"- {line}" for line in held]
+    if result.info:
+        lines += ["", "## Notes", ""] + [f"- {w}" for w in result.info]
     if result.warnings:
         lines += ["", "## Warnings", ""] + [f"- {w}" for w in result.warnings]
     return "\n".join(lines) + "\n"

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -97,6 +98,7 @@ def result_document(result: ProcessResult) -> dict[str, Any]:
             "n_points": 0 if val is None else val.n_points,
         },
         "warnings": list(result.warnings),
+        "notes": list(result.info),
     }
     if ex is not None and result.complete:
         doc["modified_dh_tool"] = {"T_n_tool": ex.T_modified_tool.tolist()}
@@ -154,6 +156,8 @@ def result_document(result: ProcessResult) -> dict[str, Any]:
                 sd = result.hayati_std[k]
                 row["std"] = dict(zip(("theta", "a", "alpha", "beta"), map(float, sd), strict=True))
             doc["hayati"].append(row)
+    if result.conditioned is not None and ex is not None:
+        doc["hayati_dh"] = _conditioned_document(result, n_rows)
     if result.base is not None:
         doc["base"]["plane"] = {
             "point": result.base.plane.point.tolist(),
@@ -166,6 +170,52 @@ def result_document(result: ProcessResult) -> dict[str, Any]:
         "set_aside": dict(result.segmentation.set_aside),
     }
     return doc
+
+
+HAYATI_DESCRIPTION = (
+    "standard_dh with the rows of nearly parallel pairs in the Hayati-Mirmirani form, same "
+    "forward kinematics: row i is Rz(theta) Tz(d) Tx(a) Rx(alpha) (form dh) or "
+    "Rz(theta) Tx(a) Rx(alpha) Ry(beta) (form hayati: beta in place of the ill-conditioned d)"
+)
+
+
+def _conditioned_document(result: ProcessResult, n_rows: int) -> dict[str, Any]:
+    """``hayati_dh``: the table of :class:`~dhlog.process.Conditioned`, row by row."""
+    c = result.conditioned
+    assert c is not None
+    t = c.table
+    hayati = getattr(t, "hayati", (False,) * t.n)
+    beta = getattr(t, "beta", np.zeros(t.n))
+    scales = None
+    if result.whole is not None and result.whole.layout.scale_at is not None:
+        scales = result.whole.model.scales
+    out = []
+    for i in range(n_rows):
+        second = "beta" if hayati[i] else "d_offset"
+        names = ("theta_offset", second, "a", "alpha")
+        values = [t.theta_offset[i], beta[i] if hayati[i] else t.d_offset[i], t.a[i], t.alpha[i]]
+        if scales is not None:  # offsets at encoder zero under the fitted encoder scale
+            k = 0 if t.joint_types[i] is JointType.REVOLUTE else 1
+            values[k] += float((1.0 - scales[i]) * result.reference_pose[i])
+        row: dict[str, Any] = {
+            "form": "hayati" if hayati[i] else "dh",
+            "type": t.joint_types[i].value,
+            **{name: float(v) for name, v in zip(names, values, strict=True)},
+            "std": {
+                name.removesuffix("_offset"): _num_or_none(float(c.std[4 * i + p]))
+                for p, name in enumerate(names)
+            },
+        }
+        held = [p for p in range(4) if 4 * i + p in c.fixed]
+        if held:
+            row["fixed"] = [names[p].removesuffix("_offset") for p in held]
+            row["fixed_reason"] = "; ".join(
+                dict.fromkeys(
+                    f"{names[p].removesuffix('_offset')}: {c.fixed[4 * i + p]}" for p in held
+                )
+            )
+        out.append(row)
+    return {"description": HAYATI_DESCRIPTION, "rows": out}
 
 
 def _num_or_none(value: float) -> float | None:
@@ -280,45 +330,74 @@ def display_scales(units: str) -> tuple[float, float, str, str]:
     return 1e3, 180.0 / math.pi, "mm", "deg"
 
 
-def display_rows(
-    result: ProcessResult, units: str = "mm"
-) -> list[tuple[str, list[float], list[float | None], list[bool]]]:
-    """Per standard-DH row: its type, ``θ_offset, d_offset, a, α``, their σ (None when fixed)
-    in display units (``display_scales``), and which of the four are held fixed."""
+@dataclass(frozen=True)
+class DisplayRow:
+    """A table row as shown: joint type, form (``dh`` or ``hayati``), ``θ_offset``, ``d_offset``
+    (``β`` on a Hayati row), ``a``, ``α`` in display units (``display_scales``), their σ (None
+    when fixed or unknown) and which of the four are held fixed."""
+
+    type: str
+    form: str
+    values: list[float]
+    stds: list[float | None]
+    held: list[bool]
+
+
+def display_rows(result: ProcessResult, units: str = "mm") -> list[DisplayRow]:
+    """The rows to show: the standard DH table, or, when nearly parallel pairs make a DH ``d``
+    ill-conditioned, the same table with those rows in the Hayati–Mirmirani form."""
     length, angle, _, _ = display_scales(units)
-    factors = [angle, length, length, angle]
+    doc = result_document(result)
+    if "hayati_dh" in doc:
+        rows = doc["hayati_dh"]["rows"]
+    else:
+        rows = [dict(r, form="dh") for r in doc["standard_dh"]]
     out = []
-    for row in result_document(result)["standard_dh"]:
+    for row in rows:
+        hayati = row["form"] == "hayati"
+        second = "beta" if hayati else "d"
+        factors = [angle, angle if hayati else length, length, angle]
         s = row["std"]
-        values = [row["theta_offset"], row["d_offset"], row["a"], row["alpha"]]
-        stds = [s["theta"], s["d"], s["a"], s["alpha"]]
+        values = [row["theta_offset"], row["beta" if hayati else "d_offset"], row["a"]]
+        values.append(row["alpha"])
+        stds = [s["theta"], s[second], s["a"], s["alpha"]]
         held = row.get("fixed", [])
         out.append(
-            (
+            DisplayRow(
                 row["type"],
+                row["form"],
                 [v * f for v, f in zip(values, factors, strict=True)],
                 [None if v is None else v * f for v, f in zip(stds, factors, strict=True)],
-                [name in held for name in ("theta", "d", "a", "alpha")],
+                [name in held for name in ("theta", second, "a", "alpha")],
             )
         )
     return out
 
 
 def result_csv(result: ProcessResult, *, units: str = "mm") -> str:
-    """The standard DH table as CSV, in mm and degrees (or m and rad), with ±1σ columns; a
-    parameter held by a convention has ``fixed`` in its σ column."""
+    """The DH table as CSV, in mm and degrees (or m and rad), with ±1σ columns; a parameter
+    held by a convention has ``fixed`` in its σ column. The last three columns give each row's
+    form: ``dh``, or ``hayati`` for a row of a nearly parallel pair, whose ``d`` is then empty
+    and whose ``β`` (``Rz(θ) Tx(a) Rx(α) Ry(β)``) stands in its place."""
     _, _, lu, au = display_scales(units)
     lines = [
         f"joint,name,type,theta_offset_{au},d_{lu},a_{lu},alpha_{au},"
-        f"std_theta_{au},std_d_{lu},std_a_{lu},std_alpha_{au}"
+        f"std_theta_{au},std_d_{lu},std_a_{lu},std_alpha_{au},form,beta_{au},std_beta_{au}"
     ]
-    for i, (kind, values, stds, held) in enumerate(display_rows(result, units)):
-        cells = [str(i + 1), _csv_cell(result.joints[i].name), kind]
-        cells += [f"{v:.9g}" for v in values]
-        cells += [
-            "fixed" if h else ("" if v is None else f"{v:.3g}")
-            for v, h in zip(stds, held, strict=True)
-        ]
+    for i, row in enumerate(display_rows(result, units)):
+        hayati = row.form == "hayati"
+
+        def sd(k: int, row: DisplayRow = row) -> str:
+            v = row.stds[k]
+            return "fixed" if row.held[k] else ("" if v is None else f"{v:.3g}")
+
+        values = [f"{v:.9g}" for v in row.values]
+        stds = [sd(k) for k in range(4)]
+        beta, std_beta = (values[1], stds[1]) if hayati else ("", "")
+        if hayati:
+            values[1], stds[1] = "", ""
+        cells = [str(i + 1), _csv_cell(result.joints[i].name), row.type, *values, *stds]
+        cells += [row.form, beta, std_beta]
         lines.append(",".join(cells))
     return "\n".join(lines) + "\n"
 
@@ -329,11 +408,38 @@ def _csv_cell(text: str) -> str:
     return text
 
 
-def nominal_difference(result: ProcessResult) -> FloatArray | None:
-    """measured − nominal per row (n, 4) in SI units, angles wrapped; None without nominal."""
+def nominal_difference(result: ProcessResult, *, shown: bool = False) -> FloatArray | None:
+    """measured − nominal per row (n, 4) in SI units, angles wrapped; None without nominal.
+    ``shown``: in the form :func:`display_rows` shows (β in place of d on Hayati rows; NaN on
+    the rows whose nominal has no such form)."""
     if result.nominal is None or result.extraction is None:
         return None
     t, nom = result.extraction.standard, result.nominal.table
+    c = result.conditioned
+    if shown and c is not None:
+        if c.nominal is None:
+            plain = nominal_difference(result)
+            assert plain is not None
+            affected = {i for i, h in enumerate(getattr(c.table, "hayati", ())) if h}
+            for i in affected | {i + 1 for i in affected}:
+                if i < plain.shape[0]:
+                    plain[i] = np.nan
+            return plain
+        t, nom = c.table, c.nominal
+        hay = getattr(t, "hayati", (False,) * t.n)
+        bt, bn = getattr(t, "beta", np.zeros(t.n)), getattr(nom, "beta", np.zeros(t.n))
+        n = t.n if result.complete else t.n - 1
+        return np.array(
+            [
+                [
+                    wrap_angle(t.theta_offset[i] - nom.theta_offset[i]),
+                    wrap_angle(bt[i] - bn[i]) if hay[i] else t.d_offset[i] - nom.d_offset[i],
+                    t.a[i] - nom.a[i],
+                    wrap_angle(t.alpha[i] - nom.alpha[i]),
+                ]
+                for i in range(n)
+            ]
+        ).reshape(n, 4)
     n = t.n if result.complete else t.n - 1
     diff = np.zeros((n, 4))
     for i in range(n):

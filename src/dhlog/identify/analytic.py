@@ -10,14 +10,14 @@ from typing import Any
 
 import numpy as np
 
-from dhlog.dh import StandardDH
+from dhlog.dh import JointType, StandardDH
 from dhlog.dhfile import DHModel
 from dhlog.errors import DhlogError
-from dhlog.extract import Extraction, HayatiRow, extract_dh, hayati_parameters
-from dhlog.geometry._checks import FloatArray
+from dhlog.extract import NEAR_PARALLEL, Extraction, HayatiRow, extract_dh, hayati_parameters
+from dhlog.geometry._checks import FloatArray, wrap_angle
 from dhlog.geometry.fitting import PlaneFit
 from dhlog.geometry.lines import Line, Plane
-from dhlog.identify.propagate import state_difference, state_vector
+from dhlog.identify.propagate import mixed_angles, mixed_vector, state_difference, state_vector
 from dhlog.identify.sweeps import JointReport, carried_axis
 
 #: 2D 99.73 % radius (the "3σ" of a two-dimensional tilt or offset): sqrt(χ²₂(0.9973)).
@@ -38,9 +38,9 @@ NOMINAL_SIGMA_2D = 5.0
 AIC_SIGMA_2D = 2.0
 
 
-#: Axes closer than this to parallel (rad) also get Hayati–Mirmirani parameters; no pair
-#: further from parallel is ever classified parallel, however uncertain its axes.
-NEAR_PARALLEL = 0.01
+#: (:data:`dhlog.extract.NEAR_PARALLEL`) Axes closer than this to parallel (rad) also get
+#: Hayati–Mirmirani parameters; no pair further from parallel is ever classified parallel,
+#: however uncertain its axes.
 
 
 #: No pair of axes further apart than this (m) is ever classified as meeting.
@@ -88,6 +88,31 @@ def pair_tolerances(
     return out
 
 
+def hayati_rows(ex: Extraction) -> frozenset[int]:
+    """The rows (0-based) to give in the Hayati–Mirmirani form: each revolute joint's row whose
+    pair is nearly parallel (below :data:`NEAR_PARALLEL`) but not held parallel (a parallel pair
+    has ``d`` by convention, exactly), and the held-parallel rows that follow such a row (their
+    convention's origin would be the ill-conditioned one)."""
+    types = ex.standard.joint_types
+    kinds = {rel.joints[0] - 1: rel.relation for rel in ex.relations}
+    rows: set[int] = set()
+    for i in range(len(types) - 1):
+        rel = kinds.get(i)
+        if rel is None or types[i] is not JointType.REVOLUTE:
+            continue
+        angle = min(rel.angle, math.pi - rel.angle)
+        if angle < NEAR_PARALLEL and not rel.kind.is_parallel:
+            rows.add(i)
+            k = i + 1
+            while k < len(types) - 1 and types[k] is JointType.REVOLUTE:
+                nxt = kinds.get(k)
+                if nxt is None or not nxt.kind.is_parallel:
+                    break
+                rows.add(k)
+                k += 1
+    return frozenset(rows)
+
+
 def near_parallel(
     axes: list[Line | None], ex: Extraction, std: FloatArray | None, notes: list[str]
 ) -> list[HayatiRow]:
@@ -111,9 +136,9 @@ def near_parallel(
             )
             notes.append(
                 f"joints {i} and {k} are nearly parallel ({math.degrees(angle):.4f}°, beyond what "
-                f"the noise explains): d{i} = {d * 1e3:.1f} mm ± {sd * 1e3:.1f} mm is "
-                "ill-conditioned; the Hayati–Mirmirani parameters (β in place of d) are in the "
-                "result."
+                f"the noise explains): the DH d{i} ({d * 1e3:.1f} mm ± {sd * 1e3:.1f} mm) is "
+                f"ill-conditioned, so row {i} is given in the Hayati–Mirmirani form (β in place "
+                "of d; the JSON keeps both)."
             )
     return rows
 
@@ -166,8 +191,11 @@ def propagate_analytic(
     extract_kwargs: dict[str, Any],
     center: Extraction,
     target_of: Callable[[list[Line | None]], FloatArray] | None = None,
-) -> FloatArray:
-    """First-order covariance of the identified model (:func:`state_vector`, 4n + 9).
+    rows: frozenset[int] = frozenset(),
+    nominal_rows: StandardDH | None = None,
+) -> tuple[FloatArray, FloatArray | None]:
+    """First-order covariance of the identified model (:func:`state_vector`, 4n + 9) and, with
+    ``rows``, of the table with those rows in the Hayati–Mirmirani form (:func:`mixed_vector`).
 
     The Jacobian of the extraction with respect to each fitted axis's tilt and shift (4 per axis,
     carried to the reference pose with the axes downstream of it and moving the target with it),
@@ -195,8 +223,9 @@ def propagate_analytic(
         cov[at : at + b.shape[0], at : at + b.shape[0]] = b
         at += b.shape[0]
     R0 = center.T_measurement_base[:3, :3]
-    base_vec = state_vector(center, R0)
-    J = np.zeros((base_vec.size, len(params)))
+    n_state = 4 * n + 9
+    J = np.zeros((n_state + (4 * n if rows else 0), len(params)))
+    wrap = mixed_angles(n, rows)
     for col, (kind, i, p) in enumerate(params):
         h = 1e-7
         outs = []
@@ -235,8 +264,15 @@ def propagate_analytic(
                 **extract_kwargs,
             )
             outs.append(state_vector(ex, R0))
-        J[:, col] = state_difference(outs[0], outs[1], n) / (2 * h)
-    return np.asarray(J @ cov @ J.T, dtype=np.float64)
+            if rows:
+                outs.append(mixed_vector(ex, rows, nominal_rows))
+        J[:n_state, col] = state_difference(outs[0], outs[-2 if rows else 1], n) / (2 * h)
+        if rows:
+            diff = outs[1] - outs[3]
+            diff[wrap] = [wrap_angle(d) for d in diff[wrap]]
+            J[n_state:, col] = diff / (2 * h)
+    full = np.asarray(J @ cov @ J.T, dtype=np.float64)
+    return full[:n_state, :n_state], (full[n_state:, n_state:] if rows else None)
 
 
 def _axes_with(

@@ -15,10 +15,11 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import NDArray
 
-from dhlog.dh import JointType
+from dhlog.dh import HayatiDH, JointType, StandardDH
 from dhlog.errors import DhlogError
-from dhlog.extract import Extraction, hayati_parameters
+from dhlog.extract import Extraction, hayati_parameters, hayati_table
 from dhlog.geometry._checks import FloatArray, wrap_angle
 from dhlog.geometry.fitting import PlaneFit
 from dhlog.geometry.lines import Line, Plane
@@ -90,6 +91,24 @@ def hayati_vector(ex: Extraction, pairs: list[tuple[int, int]]) -> FloatArray:
     return np.asarray(out, dtype=np.float64)
 
 
+def mixed_vector(
+    ex: Extraction, rows: frozenset[int], nominal: StandardDH | None = None
+) -> FloatArray:
+    """The extraction with ``rows`` in the Hayati–Mirmirani form (:func:`hayati_table`) as one
+    vector: per row ``θ_offset``, ``d_offset`` or (Hayati rows) ``β``, ``a``, ``α`` (4n)."""
+    t = hayati_table(ex, rows, nominal)
+    second = np.where(t.hayati, t.beta, t.d_offset) if isinstance(t, HayatiDH) else t.d_offset
+    return np.column_stack([t.theta_offset, second, t.a, t.alpha]).ravel()
+
+
+def mixed_angles(n: int, rows: frozenset[int]) -> NDArray[np.bool_]:
+    """True for the angular entries of :func:`mixed_vector` (θ, α, and β of Hayati rows)."""
+    mask = np.tile([True, False, False, True], n)
+    for i in rows:
+        mask[4 * i + 1] = True
+    return mask
+
+
 @dataclass(frozen=True, eq=False)
 class Propagation:
     """Covariance of :func:`state_vector` and of the Hayati rows, and the fixed entries."""
@@ -101,6 +120,8 @@ class Propagation:
     extra_tool_covariance: FloatArray
     tool_orientation: FloatArray | None = None
     tool_orientation_std: FloatArray | None = None
+    mixed_covariance: FloatArray | None = None
+    mixed_fixed: NDArray[np.bool_] | None = None
 
 
 def propagate(
@@ -109,8 +130,12 @@ def propagate(
     extract: Extractor,
     center: Extraction,
     hayati_pairs: list[tuple[int, int]],
+    rows: frozenset[int] = frozenset(),
+    nominal_rows: StandardDH | None = None,
 ) -> Propagation:
-    """First-order covariance of the DH model extracted from ``fit`` (and the base plane)."""
+    """First-order covariance of the DH model extracted from ``fit`` (and the base plane); with
+    ``rows``, also of the table with those rows in the Hayati–Mirmirani form
+    (:func:`mixed_vector`, θ kept near ``nominal_rows``)."""
     model: AxisModel = fit.model
     layout, bases = fit.layout, fit.bases
     n = model.n
@@ -134,6 +159,8 @@ def propagate(
         parts = [state_vector(ex, R0)]
         if hayati_pairs:
             parts.append(hayati_vector(ex, hayati_pairs))
+        if rows:
+            parts.append(mixed_vector(ex, rows, nominal_rows))
         if len(moved.extra_targets):  # further targets in the last frame (tool points)
             T = np.linalg.inv(ex.frames[-1])
             parts.append((moved.extra_targets @ T[:3, :3].T + T[:3, 3]).ravel())
@@ -149,11 +176,13 @@ def propagate(
     zero_fit, zero_plane = np.zeros(n_fit), np.zeros(3)
     h = 1e-7
     n_extra = 3 * len(model.extra_targets) + (3 if model.tool_rotation is not None else 0)
-    size = 4 * n + 9 + 4 * len(hayati_pairs) + n_extra
+    n_mixed = 4 * n if rows else 0
+    size = 4 * n + 9 + 4 * len(hayati_pairs) + n_mixed + n_extra
     wrap = np.concatenate(
         [
             angle_mask(n),
             np.tile([True, False, True, True], len(hayati_pairs)),
+            mixed_angles(n, rows) if rows else np.zeros(0, dtype=bool),
             np.zeros(n_extra, dtype=bool),
         ]
     )
@@ -189,8 +218,20 @@ def propagate(
     cov_state[fixed, :] = 0.0
     cov_state[:, fixed] = 0.0
     n_h = n_state + 4 * len(hayati_pairs)
-    n_e = n_h + 3 * len(model.extra_targets)
-    extra_points = evaluate(zero_fit, zero_plane)[n_h:n_e].reshape(-1, 3)
+    n_m = n_h + n_mixed
+    n_e = n_m + 3 * len(model.extra_targets)
+    mixed_cov = mixed_fixed = None
+    if rows:
+        mixed_fixed = np.max(np.abs(J[n_h:n_m]), axis=1) < FIXED_BELOW
+        mixed_fixed |= np.sqrt(np.clip(np.diag(cov)[n_h:n_m], 0.0, None)) < 1e-10
+        affected = set(rows) | {i + 1 for i in rows}
+        for i in range(n):  # rows the Hayati form leaves as they were: as the standard table
+            if i not in affected:
+                mixed_fixed[4 * i : 4 * i + 4] = fixed[4 * i : 4 * i + 4]
+        mixed_cov = cov[n_h:n_m, n_h:n_m].copy()
+        mixed_cov[mixed_fixed, :] = 0.0
+        mixed_cov[:, mixed_fixed] = 0.0
+    extra_points = evaluate(zero_fit, zero_plane)[n_m:n_e].reshape(-1, 3)
     rot_std = None
     if R_center is not None:
         rot_std = np.sqrt(np.clip(np.diag(cov[n_e:, n_e:]), 0.0, None))
@@ -199,9 +240,11 @@ def propagate(
         fixed=fixed,
         hayati_covariance=np.asarray(cov[n_state:n_h, n_state:n_h], dtype=np.float64),
         extra_tool_points=np.asarray(extra_points, dtype=np.float64),
-        extra_tool_covariance=np.asarray(cov[n_h:n_e, n_h:n_e], dtype=np.float64),
+        extra_tool_covariance=np.asarray(cov[n_m:n_e, n_m:n_e], dtype=np.float64),
         tool_orientation=R_center,
         tool_orientation_std=rot_std,
+        mixed_covariance=mixed_cov,
+        mixed_fixed=mixed_fixed,
     )
 
 
