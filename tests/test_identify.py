@@ -49,12 +49,14 @@ def test_the_jacobian_is_the_derivative_of_the_prediction(robot: str, fit_scales
     rob = load_robot(robot)
     session = simulate_session(rob, SimulationConfig(seed=1))
     model = truth_model(session, session.reference_pose)
-    layout = ParameterLayout.of(model.types, fit_scales=fit_scales)
+    layout = ParameterLayout.of(model.types, fit_scales=fit_scales, clock=True)
+    model = dataclasses.replace(model, clock=0.01)
     bases = model.bases()
     Q = np.random.default_rng(0).uniform(rob.limits[:, 0], rob.limits[:, 1], (40, rob.n))
+    rates = np.random.default_rng(2).normal(scale=0.5, size=Q.shape)
     step = np.random.default_rng(1).normal(size=layout.size) * 1e-6
-    p0, J = predict(model, Q, layout, bases)
-    p1, _ = predict(model.moved(step, layout, bases), Q)
+    p0, J = predict(model, Q, layout, bases, rates=rates)
+    p1, _ = predict(model.moved(step, layout, bases), Q, rates=rates)
     assert J is not None
     assert np.abs(p1 - p0 - J @ step).max() < 1e-10 < np.abs(J @ step).max()
 
@@ -66,8 +68,8 @@ def test_the_adjoint_gradient_equals_the_jacobian_transpose_times_the_residual(
     robot: str, fit_scales: bool, noise: str
 ) -> None:
     """The full pass's gradient by the adjoint of the chain (no J formed) against ``JᵀWr`` of
-    the explicit columns, with two targets, a tracker's 3x3 whitening, held-out samples and
-    samples beyond the truncation: equal to rounding (1e-9 relative)."""
+    the explicit columns, with two targets, a clock offset, a tracker's 3x3 whitening, held-out
+    samples and samples beyond the truncation: equal to rounding (1e-9 relative)."""
     from dhlog.identify.whole import _accumulate, _gradient, _Samples
 
     rob = load_robot(robot)
@@ -92,7 +94,12 @@ def test_the_adjoint_gradient_equals_the_jacobian_transpose_times_the_residual(
         if noise == "isotropic"
         else NoiseModel(model="tracker", radial=1e-4, transverse=2e-4, transverse_per_m=5e-5)
     )
-    data = _Samples(Q, P, rng.random(m) > 0.1, None, lambda x, W: nm.whiten(x, 1e-4), which)
+    rates = rng.normal(scale=0.5, size=Q.shape)
+    model = dataclasses.replace(model, clock=0.003)
+    layout = ParameterLayout.of(model.types, fit_scales=fit_scales, extra_targets=1, clock=True)
+    data = _Samples(
+        Q, P, rng.random(m) > 0.1, None, lambda x, W: nm.whiten(x, 1e-4), which, Qd=rates
+    )
     n1, n2 = np.zeros(m), np.zeros(m)
     _, g, cost, count, chi2 = _accumulate(model, layout, bases, data, 5.0, n1)
     g2, cost2, count2, chi22 = _gradient(model, layout, bases, data, 5.0, n2)

@@ -118,6 +118,13 @@ def simulate(
             help="Joints (1-based, comma-separated) never swept, to make a partial session."
         ),
     ] = "",
+    clock_offset_ms: Annotated[
+        float,
+        typer.Option(
+            help="Joint-state stamps written this many ms early (the tracker's clock is right): "
+            "the clock offset a pipeline would need."
+        ),
+    ] = 0.0,
     seed: Annotated[int, typer.Option(help="Random seed.")] = 0,
     force: Annotated[bool, typer.Option("--force", help="Overwrite existing outputs.")] = False,
 ) -> None:
@@ -162,6 +169,7 @@ def simulate(
             perturb_length=perturb_mm * 1e-3,
             perturb_angle=math.radians(perturb_deg),
             skip_joints=tuple(int(v) for v in _floats(skip_joints, "--skip-joints")),
+            clock_offset=clock_offset_ms * 1e-3,
             seed=seed,
         )
         session = simulate_session(rob, cfg)

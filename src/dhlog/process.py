@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -61,6 +61,7 @@ from dhlog.identify.sweeps import (
     samples_with_encoders,
     target_labels,
 )
+from dhlog.identify.timing import Timing, joint_rates, phase_lag, rejoin
 from dhlog.identify.whole import (
     AxisModel,
     WholeFit,
@@ -130,6 +131,7 @@ class ProcessResult:
     tool_orientation: FloatArray | None = None
     tool_orientation_std: FloatArray | None = None
     conditioned: Conditioned | None = None
+    timing: Timing | None = None
     #: what a reader should know but need not act on (the method chosen, forms shown); the
     #: ``warnings`` are for what may need action
     info: list[str] = field(default_factory=list)
@@ -220,6 +222,8 @@ def process_data(
     seg = segment_log(log, joint_types=types_hint, reference_pose=reference_pose)
     n = seg.n_joints
     notes = list(seg.warnings)
+    info: list[str] = []
+    seg, timing = _clock_start(seg, log, info)
     if nominal is not None and nominal.table.n != n:
         raise InputError(
             f"{nominal.source}: the nominal table has {nominal.table.n} joints but {name} "
@@ -235,7 +239,6 @@ def process_data(
         if reference_pose is not None
         else (seg.reference_pose if seg.reference_pose is not None else np.zeros(n))
     )
-    info: list[str] = []
     if not seg.has_encoders:
         info.append(
             "no encoders: the reference pose is the pose every sweep starts from (all zeros), "
@@ -275,6 +278,7 @@ def process_data(
         nominal=nominal,
         warnings=notes,
         info=info,
+        timing=timing,
         noise=log.pipeline.noise,
     )
     kwargs: dict[str, Any] = {
@@ -494,19 +498,45 @@ def _identify_whole(
     fit_sigmas = [j.fit.sigma**2 for j in joints if j.fit is not None]
     sigma = math.sqrt(np.mean(fit_sigmas)) if fit_sigmas else 1e-5
     stage("identifying", 0.1)
-    whole = fit_whole_model(
-        start,
-        Q,
-        P,
-        noise=result.noise,
-        sigma=sigma,
-        fit_scales=fit_scales,
-        sample_cov=sample_cov,
-        which=which,
-        rotations=rotations,
-        sigma_rotation=result.noise.orientation,
-        progress=lambda f: stage("identifying", 0.1 + 0.9 * f),
-    )
+    timing = result.timing
+    clocked = timing is not None and timing.source == "estimated"
+    for attempt in range(MAX_REJOINS + 1):
+        rates = None
+        if clocked:
+            t_ns = seg.table["t_ns"].to_numpy()[rows]
+            rates = joint_rates(result.log, t_ns, seg.n_joints)
+        whole = fit_whole_model(
+            start,
+            Q,
+            P,
+            noise=result.noise,
+            sigma=sigma,
+            fit_scales=fit_scales,
+            sample_cov=sample_cov,
+            which=which,
+            rotations=rotations,
+            sigma_rotation=result.noise.orientation,
+            rates=rates,
+            progress=lambda f: stage("identifying", 0.1 + 0.9 * f),
+        )
+        if not clocked or timing is None:
+            break
+        at = whole.layout.clock_at
+        assert at is not None
+        delta, sd = whole.model.clock, math.sqrt(max(float(whole.covariance[at, at]), 0.0))
+        offset = timing.offset + delta
+        timing = replace(timing, offset=offset, std=sd)
+        if abs(delta) <= max(REJOIN_BELOW * sd, REJOIN_FIT) or attempt == MAX_REJOINS:
+            break  # below REJOIN_FIT the fit's first-order move Q − δ q̇ is exact enough
+        # join the encoders again at the fitted offset and fit once more from there
+        seg = rejoin(seg, result.log, offset - timing.pipeline)
+        rows, Q, P = samples_with_encoders(seg)
+        which = target_labels(seg, rows)
+        rotations = _measured_rotations(seg, rows)
+        sample_cov = _sample_covariance(seg, rows)
+        start = replace(whole.model, clock=0.0)
+        result.segmentation = seg
+    result.timing = timing
     nominal_table = nominal.table if nominal is not None else None
     covs = axis_covariances(whole)
     kw = dict(kwargs)
@@ -666,6 +696,50 @@ def _with_fixed_relations(
         elif kind.is_parallel:
             parallel.append(i)
     return constrain_pairs(whole, parallel, collinear)
+
+
+#: The whole-model fit joins the encoders again when its clock offset moved by more than this
+#: many of its σ from the offset they were joined at (at most MAX_REJOINS times).
+REJOIN_BELOW = 0.25
+MAX_REJOINS = 2
+#: ... and by more than this (s): below it, the fit's own first-order move of the encoders
+#: (``Q − δ q̇``) errs by ``δ² q̈ / 2``, under 10⁻⁸ rad at 1 rad/s².
+REJOIN_FIT = 1e-4
+#: The start estimate joins the encoders again only for a move beyond this (s).
+REJOIN_START = 1e-5
+#: The start estimate of the clock offset joins the encoders again at most this many times.
+START_REJOINS = 4
+
+
+def _clock_start(
+    seg: Segmentation, log: LogData, info: list[str]
+) -> tuple[Segmentation, Timing | None]:
+    """The clock offset's start estimate from the sweeps' phases (:func:`phase_lag`), the
+    encoders joined again at it; the pipeline's offset where it is fixed or cannot be told."""
+    pipe = log.pipeline.segmentation
+    if not seg.has_encoders or log.joints is None:
+        return seg, None
+    if pipe.clock_offset_fixed:
+        return seg, Timing(pipe.clock_offset, None, "pipeline", pipe.clock_offset, "fixed")
+    total, std = 0.0, None
+    for _ in range(START_REJOINS):
+        lag = phase_lag(seg, log)
+        if lag is None:
+            break
+        delta, std = lag
+        if abs(delta) <= max(REJOIN_BELOW * std, REJOIN_START):
+            break
+        total += delta
+        seg = rejoin(seg, log, total)
+    if std is None:
+        info.append(
+            "no sweep moves while the tracker samples it (step-and-measure): a clock offset "
+            "between tracker and joint states has no effect and is not estimated."
+        )
+        return seg, Timing(
+            pipe.clock_offset, None, "pipeline", pipe.clock_offset, "step-and-measure"
+        )
+    return seg, Timing(pipe.clock_offset + total, std, "estimated", pipe.clock_offset)
 
 
 def _nominal_rows(

@@ -110,6 +110,9 @@ def print_result(console: Console, result: ProcessResult, *, units: str = "mm") 
     _print_fits(console, result, units)
     _print_tool_and_base(console, result, units)
     lines = [("Method", _method_line(result, length, lu))]
+    clock = _clock_line(result)
+    if clock:
+        lines.append(("Clock", clock))
     val = result.validation
     if val is not None:
         lines.append(
@@ -280,6 +283,24 @@ def _held_lines(result: ProcessResult) -> list[str]:
     return [f"{', '.join(names)}: {why}" for why, names in by_reason.items()]
 
 
+def _clock_line(result: ProcessResult) -> str:
+    """The clock offset of the joint states against the tracker, and where it comes from."""
+    t = result.timing
+    if t is None:
+        return ""
+    ms = f"{t.offset * 1e3:+.4f} ms"
+    if t.source == "estimated" and t.std is not None:
+        return (
+            f"joint-state stamps {ms} ± {t.std * 1e3:.4f} ms onto the tracker's clock "
+            f"(estimated from the data; the pipeline's clock_offset: {t.pipeline * 1e3:+.4f} ms)"
+        )
+    why = {
+        "fixed": "clock_offset_fixed in the pipeline",
+        "step-and-measure": "not estimated: samples taken while still (step-and-measure)",
+    }.get(t.reason, t.reason)
+    return f"joint-state stamps {ms} (the pipeline's clock_offset; {why})"
+
+
 def _method_line(result: ProcessResult, length: float, lu: str) -> str:
     """How the table was found: the whole-model fit (samples, noise model, χ²/dof) or the seed
     method."""
@@ -359,6 +380,8 @@ def result_markdown(result: ProcessResult, *, units: str = "mm") -> str:
             f"{'ok' if j.ok else 'not identified: ' + str(j.reason)} |"
         )
     lines += ["", f"Method: {_method_line(result, length, lu)}."]
+    if _clock_line(result):
+        lines += ["", f"Clock: {_clock_line(result)}."]
     if result.validation is not None:
         v = result.validation
         lines += [

@@ -158,6 +158,15 @@ def result_document(result: ProcessResult) -> dict[str, Any]:
             doc["hayati"].append(row)
     if result.conditioned is not None and ex is not None:
         doc["hayati_dh"] = _conditioned_document(result, n_rows)
+    if result.timing is not None:
+        t = result.timing
+        doc["timing"] = {
+            "clock_offset": t.offset,
+            "std": t.std,
+            "source": t.source,
+            "pipeline_clock_offset": t.pipeline,
+            **({"reason": t.reason} if t.reason else {}),
+        }
     if result.base is not None:
         doc["base"]["plane"] = {
             "point": result.base.plane.point.tolist(),

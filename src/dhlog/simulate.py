@@ -53,6 +53,9 @@ class SimulationConfig:
     perturb_length: float = 0.0
     perturb_angle: float = 0.0
     clock_jitter: float = 2e-4
+    #: seconds the joint-state clock runs behind the tracker's: the stamps are written that much
+    #: early, so a pipeline needs ``clock_offset`` = this value to put them right
+    clock_offset: float = 0.0
     skip_joints: tuple[int, ...] = ()
     coupled: tuple[tuple[int, int, float], ...] = ()
     extra_tools: tuple[tuple[float, float, float], ...] = ()
@@ -294,7 +297,7 @@ def simulate_session(
         joint_types=table.joint_types,
         point_t_ns=t_trk_ns[keep],
         point_xyz=np.asarray(xyz[keep], dtype=np.float64),
-        joint_t_ns=START_NS + ((t_enc + base_time) * 1e9).astype(np.int64)
+        joint_t_ns=START_NS + ((t_enc + base_time - cfg.clock_offset) * 1e9).astype(np.int64)
         if cfg.encoders
         else np.zeros(0, dtype=np.int64),
         joint_q=q_enc if cfg.encoders else np.zeros((0, robot.n)),
@@ -368,5 +371,8 @@ def truth_document(
             "encoders": cfg.encoders,
             "phase": cfg.phase,
             "seed": cfg.seed,
+            "clock_offset_s": cfg.clock_offset,
+            "perturb_length_m": cfg.perturb_length,
+            "perturb_angle_rad": cfg.perturb_angle,
         },
     }

@@ -59,6 +59,9 @@ class AxisModel:
     scales: FloatArray
     extra_targets: FloatArray = field(default_factory=lambda: np.zeros((0, 3)))
     tool_rotation: FloatArray | None = None
+    #: residual clock offset δ (s): the encoders are read at ``Q − δ q̇`` (see
+    #: :mod:`dhlog.identify.timing`); 0 unless the fit carries it
+    clock: float = 0.0
 
     def targets(self) -> FloatArray:
         """Every target at the reference pose, (k, 3): the primary one first."""
@@ -98,9 +101,16 @@ class AxisModel:
         if layout.rotation_at is not None and rotation is not None:
             w = delta[layout.rotation_at : layout.rotation_at + 3]
             rotation = rotation_from_vector(w) @ rotation
+        clock = self.clock + (float(delta[layout.clock_at]) if layout.clock_at is not None else 0.0)
         return AxisModel(
-            tuple(axes), self.types, target, self.reference_pose, scales, extra, rotation
+            tuple(axes), self.types, target, self.reference_pose, scales, extra, rotation, clock
         )
+
+    def moves(self, Q: FloatArray, rates: FloatArray | None) -> FloatArray:
+        """The encoder moves from the reference pose ``(Q − δ q̇) − q_ref`` (m, n), unscaled."""
+        if rates is None or self.clock == 0.0:
+            return Q - self.reference_pose
+        return Q - self.clock * rates - self.reference_pose
 
 
 @dataclass(frozen=True)
@@ -113,6 +123,7 @@ class ParameterLayout:
     size: int
     names: tuple[str, ...]
     rotation_at: int | None = None
+    clock_at: int | None = None
 
     @classmethod
     def of(
@@ -122,11 +133,12 @@ class ParameterLayout:
         fit_scales: bool = False,
         extra_targets: int = 0,
         rotation: bool = False,
+        clock: bool = False,
     ) -> ParameterLayout:
         """Revolute axis: tilt u, tilt v, shift u, shift v; prismatic: tilt u, tilt v; then the
         target (x, y, z), each further target (x, y, z), with ``rotation`` the target frame's
-        orientation (a rotation in M at the reference pose, 3) and, with ``fit_scales``, one
-        encoder scale per joint."""
+        orientation (a rotation in M at the reference pose, 3), with ``fit_scales`` one encoder
+        scale per joint, and with ``clock`` the residual clock offset (s)."""
         at, names, k = [], [], 0
         for i, jt in enumerate(types):
             at.append(k)
@@ -151,7 +163,12 @@ class ParameterLayout:
             scale_at = k
             names += [f"encoder_scale_{i + 1}" for i in range(len(types))]
             k += len(types)
-        return cls(tuple(at), target_at, scale_at, k, tuple(names), rotation_at)
+        clock_at = None
+        if clock:
+            clock_at = k
+            names.append("clock_offset")
+            k += 1
+        return cls(tuple(at), target_at, scale_at, k, tuple(names), rotation_at, clock_at)
 
 
 def _rotate(R: FloatArray, X: FloatArray) -> FloatArray:
@@ -173,11 +190,11 @@ Prefix = tuple[
 ]
 
 
-def _prefix_motions(model: AxisModel, Q: FloatArray) -> Prefix:
+def _prefix_motions(model: AxisModel, Q: FloatArray, rates: FloatArray | None = None) -> Prefix:
     """The scaled joint moves ``dq`` (n, m) and the prefix motions ``g_<i`` for i = 1 … n+1:
     rotation rows (3, 3, m) (None for the identity) and translations (3, m), with each revolute
-    joint's ``sin δ`` and ``1 − cos δ``."""
-    dq = ((Q - model.reference_pose) * model.scales).T
+    joint's ``sin δ`` and ``1 − cos δ``; ``rates`` (m, n) the joints' speeds (clock offset)."""
+    dq = (model.moves(Q, rates) * model.scales).T
     # prefix motions g_<i (rotation rows (3, 3, m) or None for the identity; translation (3, m))
     pre_R: list[FloatArray | None] = [None]
     pre_t: list[FloatArray] = [np.zeros((3, 1))]
@@ -227,6 +244,7 @@ def predict_orientation(
     layout: ParameterLayout,
     bases: list[tuple[FloatArray, FloatArray]],
     prefix: Prefix | None = None,
+    rates: FloatArray | None = None,
 ) -> tuple[FloatArray, FloatArray]:
     """The target frame's predicted orientation (3, 3, m) and the Jacobian (``layout.size``,
     3, m) of a small rotation of it, in M, with respect to the local parameters: a tilt of a
@@ -235,12 +253,13 @@ def predict_orientation(
     the prefix motions at ``Q`` when already computed."""
     assert model.tool_rotation is not None and layout.rotation_at is not None
     m = Q.shape[0]
-    _, pre_R, _, sins, coss = _prefix_motions(model, Q) if prefix is None else prefix
+    _, pre_R, _, sins, coss = _prefix_motions(model, Q, rates) if prefix is None else prefix
     R_all = pre_R[-1]
     eye = np.broadcast_to(np.eye(3)[:, :, None], (3, 3, m))
     R_tool = np.broadcast_to(model.tool_rotation[:, :, None], (3, 3, m))
     R_pred = np.ascontiguousarray(R_tool if R_all is None else _compose(R_all, R_tool))
     J = np.zeros((layout.size, 3, m))
+    moved = model.moves(Q, rates)
     for i, (axis, jt) in enumerate(zip(model.axes, model.types, strict=True)):
         if jt is JointType.PRISMATIC:
             continue
@@ -251,9 +270,12 @@ def predict_orientation(
         k = layout.axis_at[i]
         for col, w in enumerate((u, v)):
             J[k + col] = _tilt_move(axis, w, s, c1, R0)
-        if layout.scale_at is not None:
+        if layout.scale_at is not None or layout.clock_at is not None:
             omega = axis.direction[:, None] if R0 is None else _rotate(R0, _col(axis.direction, m))
-            J[layout.scale_at + i] = omega * (Q[:, i] - model.reference_pose[i])
+            if layout.scale_at is not None:
+                J[layout.scale_at + i] = omega * moved[:, i]
+            if layout.clock_at is not None and rates is not None:
+                J[layout.clock_at] -= omega * (model.scales[i] * rates[:, i])
     r = layout.rotation_at
     J[r : r + 3] = np.moveaxis(eye if R_all is None else R_all, 1, 0)
     return R_pred, J
@@ -273,6 +295,7 @@ def predict_columns(
     bases: list[tuple[FloatArray, FloatArray]] | None = None,
     which: NDArray[np.int64] | None = None,
     prefix: Prefix | None = None,
+    rates: FloatArray | None = None,
 ) -> tuple[FloatArray, FloatArray | None]:
     """Predicted target positions (3, m) at the joint vectors ``Q`` (m, n) and, with ``layout``,
     the Jacobian (``layout.size``, 3, m) with respect to the local parameters. Samples run along
@@ -286,7 +309,7 @@ def predict_columns(
     ``b_w`` itself (:func:`_tilt_move`). ``prefix``: the prefix motions at ``Q`` when already
     computed."""
     m = Q.shape[0]
-    dq, pre_R, pre_t, sins, coss = _prefix_motions(model, Q) if prefix is None else prefix
+    dq, pre_R, pre_t, sins, coss = _prefix_motions(model, Q, rates) if prefix is None else prefix
     R_all, t_all = pre_R[-1], pre_t[-1]
     if which is None or not len(model.extra_targets):
         tgt = np.broadcast_to(model.target[:, None], (3, m))
@@ -298,6 +321,10 @@ def predict_columns(
         return p, None
     assert bases is not None
     J = np.empty((layout.size, 3, m))
+    moved = model.moves(Q, rates)
+    clock = layout.clock_at if rates is not None else None
+    if layout.clock_at is not None:
+        J[layout.clock_at] = 0.0
     for i, (axis, jt) in enumerate(zip(model.axes, model.types, strict=True)):
         u, v = bases[i]
         R0, t0 = pre_R[i], pre_t[i]
@@ -308,9 +335,10 @@ def predict_columns(
                 w_world = w[:, None] if R0 is None else _rotate(R0, _col(w, m))
                 J[k + col] = _cross_rows(w_world, omega) * dq[i]
             if layout.scale_at is not None:
-                J[layout.scale_at + i] = np.broadcast_to(omega, (3, m)) * (
-                    Q[:, i] - model.reference_pose[i]
-                )
+                J[layout.scale_at + i] = np.broadcast_to(omega, (3, m)) * moved[:, i]
+            if clock is not None:
+                assert rates is not None
+                J[clock] -= np.broadcast_to(omega, (3, m)) * (model.scales[i] * rates[:, i])
             continue
         s, c1 = sins[i], coss[i]
         assert s is not None and c1 is not None
@@ -320,10 +348,13 @@ def predict_columns(
             b = _tilt_move(axis, w, s, c1, R0)
             J[k + col] = _cross_rows(b, D)
             J[k + 2 + col] = b
-        if layout.scale_at is not None:
-            J[layout.scale_at + i] = _cross_rows(np.broadcast_to(omega, (3, m)), D) * (
-                Q[:, i] - model.reference_pose[i]
-            )
+        if layout.scale_at is not None or clock is not None:
+            turn = _cross_rows(np.broadcast_to(omega, (3, m)), D)
+            if layout.scale_at is not None:
+                J[layout.scale_at + i] = turn * moved[:, i]
+            if clock is not None:
+                assert rates is not None
+                J[clock] -= turn * (model.scales[i] * rates[:, i])
     t = layout.target_at
     rot = np.broadcast_to(np.eye(3)[:, :, None], (3, 3, m)) if R_all is None else R_all
     J[t : t + 3] = np.moveaxis(rot, 1, 0)
@@ -371,10 +402,12 @@ def predict(
     layout: ParameterLayout | None = None,
     bases: list[tuple[FloatArray, FloatArray]] | None = None,
     which: NDArray[np.int64] | None = None,
+    rates: FloatArray | None = None,
 ) -> tuple[FloatArray, FloatArray | None]:
     """Predicted target positions (m, 3) at the joint vectors ``Q`` (m, n) and, with ``layout``,
-    the Jacobian (m, 3, ``layout.size``) with respect to the local parameters."""
-    p, J = predict_columns(model, Q, layout, bases, which)
+    the Jacobian (m, 3, ``layout.size``) with respect to the local parameters; ``rates`` (m, n)
+    the joints' speeds when the model carries a clock offset."""
+    p, J = predict_columns(model, Q, layout, bases, which, rates=rates)
     return p.T.copy(), None if J is None else np.transpose(J, (2, 1, 0)).copy()
 
 
@@ -418,9 +451,10 @@ def _accumulate(
 
     def chunk(start: int) -> tuple[FloatArray, FloatArray, float, int, float]:
         sl = slice(start, min(start + CHUNK, m))
-        prefix = _prefix_motions(model, data.Q[sl])
+        rates = None if data.Qd is None else data.Qd[sl]
+        prefix = _prefix_motions(model, data.Q[sl], rates)
         which = None if data.which is None else data.which[sl]
-        pred, J = predict_columns(model, data.Q[sl], layout, bases, which, prefix)
+        pred, J = predict_columns(model, data.Q[sl], layout, bases, which, prefix, rates)
         assert J is not None
         r = pred - data.P[sl].T  # (3, c)
         W = data.whiten(data.P[sl], None if data.W is None else data.W[sl])
@@ -441,7 +475,7 @@ def _accumulate(
         use = keep & (nrm <= limit)
         cost = float(np.sum(np.minimum(nrm[keep], limit) ** 2))
         if data.R is not None:  # the target frame's orientation, weighted by 1/σ_rot
-            R_pred, Jr = predict_orientation(model, data.Q[sl], layout, bases, prefix)
+            R_pred, Jr = predict_orientation(model, data.Q[sl], layout, bases, prefix, rates)
             ro = orientation_residual(R_pred, np.moveaxis(data.R[sl], 0, 2)) / data.sigma_rot
             nrm_o = np.sqrt(ro[0] ** 2 + ro[1] ** 2 + ro[2] ** 2)
             use &= nrm_o <= limit
@@ -509,8 +543,12 @@ def _gradient(
     for k_chunk, start in enumerate(starts):
         sl = slice(start, min(start + CHUNK, m))
         c = sl.stop - sl.start
-        moves = (data.Q[sl] - model.reference_pose).T  # (n, c)
+        rates = None if data.Qd is None else data.Qd[sl]
+        moves = model.moves(data.Q[sl], rates).T  # (n, c)
         dq = moves * model.scales[:, None]
+        speeds = None
+        if rates is not None and layout.clock_at is not None:
+            speeds = rates.T * model.scales[:, None]
         sins = np.sin(dq)
         coss = 1.0 - np.cos(dq)
         which = None if data.which is None else data.which[sl]
@@ -556,6 +594,8 @@ def _gradient(
                     g[k + col] += np.cross(w, axis.direction) @ t
                 if layout.scale_at is not None:
                     g[layout.scale_at + i] += axis.direction @ (rho @ q_i)
+                if speeds is not None:
+                    g[layout.clock_at] -= axis.direction @ (rho @ speeds[i])
                 continue
             rel_i = rel[i]
             assert rel_i is not None
@@ -568,6 +608,8 @@ def _gradient(
                 g[k + 2 + col] -= Kw @ rs + KKw @ rc
             if layout.scale_at is not None:
                 g[layout.scale_at + i] += axis.direction @ (z @ q_i)
+            if speeds is not None:
+                g[layout.clock_at] -= axis.direction @ (z @ speeds[i])
             rho = _turn(K, rho, sins[i], coss[i], -1.0)
         t0 = layout.target_at
         if which is None or not len(model.extra_targets):
@@ -590,6 +632,7 @@ class _Samples:
     which: NDArray[np.int64] | None = None
     R: FloatArray | None = None
     sigma_rot: float = 1.0
+    Qd: FloatArray | None = None
 
     @property
     def per_sample(self) -> int:
@@ -606,6 +649,7 @@ class _Samples:
             None if self.which is None else self.which[::stride],
             None if self.R is None else self.R[::stride],
             self.sigma_rot,
+            None if self.Qd is None else self.Qd[::stride],
         )
 
 
@@ -740,6 +784,7 @@ def fit_whole_model(
     rotations: FloatArray | None = None,
     sigma_rotation: float | None = None,
     fit_scales: bool = False,
+    rates: FloatArray | None = None,
     threshold: float = 5.0,
     max_iterations: int = 30,
     subsample: int = 40000,
@@ -751,7 +796,8 @@ def fit_whole_model(
     per sample; ``which`` (m,) each sample's target (0 primary, j the j-th extra target of
     ``start``); ``rotations`` (m, 3, 3) the measured orientation of a 6-DoF target, weighted by
     ``sigma_rotation`` (rad; default: its scale in the data). ``keep`` marks the samples that may
-    enter (default: all).
+    enter (default: all). With ``rates`` (m, n: the joints' speeds at the samples) the residual
+    clock offset is fitted too (``model.clock``).
 
     With more than ``subsample`` samples the fit first converges on an evenly strided subset and
     then finishes on every sample (usually one pass: the step left is far below σ)."""
@@ -763,6 +809,7 @@ def fit_whole_model(
         fit_scales=fit_scales,
         extra_targets=len(start.extra_targets),
         rotation=rotations is not None,
+        clock=rates is not None,
     )
 
     def whiten(points: FloatArray, W: FloatArray | None) -> FloatArray | float:
@@ -777,6 +824,7 @@ def fit_whole_model(
         which,
         rotations,
         1.0 if sigma_rotation is None else sigma_rotation,
+        rates,
     )
     stride = -(-m // subsample) if m > subsample else 1
     if rotations is not None and sigma_rotation is None:

@@ -49,7 +49,8 @@ class SegmentationSettings:
     ``join_tolerance``: largest gap (s) between a target sample and the encoder samples around it.
     ``min_samples``: fewest target samples a sweep needs. ``min_sweep``: smallest sweep (rad)
     and ``min_travel`` (m) a segment needs to count as a sweep. ``clock_offset``: seconds added
-    to the joint-state stamps to bring them onto the tracker's clock.
+    to the joint-state stamps to bring them onto the tracker's clock — the start of the
+    estimate from the data, or, with ``clock_offset_fixed``, the offset used as it is.
     """
 
     lock_tolerance: float = 2e-5
@@ -59,6 +60,7 @@ class SegmentationSettings:
     min_sweep: float = math.radians(5.0)
     min_travel: float = 1e-3
     clock_offset: float = 0.0
+    clock_offset_fixed: bool = False
 
 
 @dataclass(frozen=True)

@@ -1,0 +1,172 @@
+"""The clock offset between the tracker and the joint states, estimated from the data.
+
+The pipeline's ``clock_offset`` (seconds added to the joint-state stamps) puts both streams on
+the tracker's clock; a residual offset ``δ`` makes the encoder value joined to a target sample at
+time t the one of ``t + δ``: ``Q(t) = q(t + δ) ≈ q(t) + δ q̇(t)``. While the joints move, that
+is an error proportional to their speed — a lag the geometry of the sweeps exposes:
+
+1. **Start** (:func:`phase_lag`): per sweep, a circle (line) fitted to the points alone gives
+   each sample's angle (position) ``φ``, independent of any clock; ``φ = a + b Q − b δ q̇``
+   is linear in ``a, b, e = −b δ`` and gives ``δ`` with its σ; the sweeps' estimates are
+   combined by their weights. The encoders are joined again at the corrected offset
+   (:func:`rejoin`) before anything is fitted.
+2. **Maximum likelihood**: the whole-model fit carries ``δ`` as one more parameter (the
+   prediction at ``Q − δ q̇``, :mod:`dhlog.identify.whole`), so its σ and its correlations
+   enter every DH parameter's uncertainty; should it move by more than a fraction of its σ,
+   the encoders are joined once more and the fit repeated.
+
+Step-and-measure logs (samples only while the robot stands still) carry no lag: the offset is
+then the pipeline's, and the result says why.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+
+import numpy as np
+import polars as pl
+from numpy.typing import NDArray
+
+from dhlog.errors import DhlogError
+from dhlog.geometry._checks import FloatArray
+from dhlog.geometry.fitting import fit_circle_geometric, fit_line
+from dhlog.io.reader import LogData
+from dhlog.segment import Segmentation, _interpolate_encoders
+
+#: Fewest moving samples a sweep needs to estimate the lag from.
+MIN_MOVING = 20
+#: Points per sweep used for the start estimate (evenly strided).
+START_POINTS = 3000
+#: A joint moves at a sample when its speed exceeds this (rad/s or m/s).
+MOVING_SPEED = 1e-3
+#: Below this fraction of sweep samples taken while moving, a log is step-and-measure.
+STEP_FRACTION = 0.5
+
+
+@dataclass(frozen=True)
+class Timing:
+    """The clock offset (s, added to the joint-state stamps; the pipeline's sign), its σ (None
+    when not estimated), where it comes from (``estimated``, ``pipeline``), the pipeline's own
+    value, and why it was not estimated (empty when it was)."""
+
+    offset: float
+    std: float | None
+    source: str
+    pipeline: float
+    reason: str = ""
+
+
+def joint_rates(log: LogData, t_ns: NDArray[np.int64], n: int) -> FloatArray:
+    """Each joint's speed (m, n) at the times ``t_ns``: the encoder stream's finite differences
+    at their midpoints, interpolated (0 outside the stream)."""
+    assert log.joints is not None
+    joints = log.joints.sort("t_ns")
+    t = joints["t_ns"].to_numpy().astype(np.float64)
+    Q = joints.select([f"q_{i + 1}" for i in range(n)]).to_numpy()
+    dt = np.diff(t) * 1e-9
+    ok = dt > 0
+    mid = (t[1:] + t[:-1])[ok] / 2.0
+    out = np.zeros((t_ns.size, n))
+    if mid.size < 2:
+        return out
+    x = t_ns.astype(np.float64)
+    for i in range(n):
+        speed = np.diff(Q[:, i])[ok] / dt[ok]
+        out[:, i] = np.interp(x, mid, speed, left=0.0, right=0.0)
+    return out
+
+
+def rejoin(seg: Segmentation, log: LogData, extra: float) -> Segmentation:
+    """``seg`` with its encoder columns joined again with the joint-state stamps moved by
+    ``extra`` seconds more (labels and sweeps kept; samples left without encoder values by the
+    move get nulls)."""
+    assert log.joints is not None
+    n = seg.n_joints
+    shift = round(extra * 1e9)
+    joints = log.joints.sort("t_ns").with_columns(pl.col("t_ns") + shift)
+    tol_ns = int(log.pipeline.segmentation.join_tolerance * 1e9)
+    points = seg.table.select("t_ns")
+    joined, _, _ = _interpolate_encoders(points, joints, n, tol_ns)
+    cols = [f"q_{i + 1}" for i in range(n)]
+    table = seg.table.with_columns(joined.select(cols))
+    lost = table.select(pl.any_horizontal(pl.col(cols).is_null()) & pl.col("joint").is_not_null())
+    if lost.to_series().any():  # moved off the joint stream's ends: out of their sweeps
+        mask = lost.to_series()
+        table = table.with_columns(
+            pl.when(mask).then(None).otherwise(pl.col(c)).alias(c) for c in ("joint", "segment")
+        )
+        aside = dict(seg.set_aside)
+        aside["no_encoder"] = aside.get("no_encoder", 0) + int(mask.sum())
+        return replace(seg, table=table, set_aside=aside)
+    return replace(seg, table=table)
+
+
+def phase_lag(seg: Segmentation, log: LogData) -> tuple[float, float] | None:
+    """The residual offset ``δ`` (s) and its σ from the sweeps' phases (see the module), or
+    None when no sweep moves enough samples to tell (step-and-measure)."""
+    table = seg.table
+    if log.joints is None or "segment" not in table.columns:
+        return None
+    n = seg.n_joints
+    labels = table["segment"].fill_null(-1).to_numpy()
+    joints = table["joint"].fill_null(0).to_numpy()
+    t_ns = table["t_ns"].to_numpy()
+    P = table.select(["x", "y", "z"]).to_numpy()
+    Q = table.select([f"q_{i + 1}" for i in range(n)]).to_numpy()
+    estimates: list[tuple[float, float]] = []
+    moving = total = 0
+    for sid in np.unique(labels[labels > 0]):
+        rows = np.flatnonzero(labels == sid)
+        rows = rows[np.isfinite(Q[rows]).all(axis=1)]
+        if rows.size > START_POINTS:
+            rows = rows[:: -(-rows.size // START_POINTS)]
+        j = int(joints[rows[0]]) - 1
+        rate = joint_rates(log, t_ns[rows], n)[:, j]
+        here = int(np.count_nonzero(np.abs(rate) > MOVING_SPEED))
+        moving, total = moving + here, total + rows.size
+        if here < MIN_MOVING:
+            continue
+        one = _sweep_lag(P[rows], Q[rows, j], rate)
+        if one is not None:
+            estimates.append(one)
+    # step-and-measure: the samples were taken at the stops; the few that the offset joins to
+    # the start of the next move are not a timing signal to trust
+    if not estimates or moving < STEP_FRACTION * total:
+        return None
+    values = np.array([e[0] for e in estimates])
+    weights = 1.0 / np.array([e[1] for e in estimates]) ** 2
+    delta = float(np.sum(weights * values) / np.sum(weights))
+    std = float(1.0 / math.sqrt(np.sum(weights)))
+    if len(estimates) > 2:  # the sweeps disagree beyond their σ: widen by their scatter
+        chi2 = float(np.sum(weights * (values - delta) ** 2)) / (len(estimates) - 1)
+        std *= math.sqrt(max(chi2, 1.0))
+    return delta, std
+
+
+def _sweep_lag(points: FloatArray, q: FloatArray, rate: FloatArray) -> tuple[float, float] | None:
+    """``δ`` and σ of one sweep: its points' angle (position) regressed on ``1, Q, q̇``."""
+    try:
+        fit = fit_circle_geometric(points, min_sweep=0.0)
+        phi = np.unwrap(fit.positions)
+    except DhlogError:
+        try:
+            phi = fit_line(points, min_travel=0.0).positions
+        except DhlogError:
+            return None
+    A = np.column_stack([np.ones(q.size), q - q.mean(), rate])
+    coef, *_ = np.linalg.lstsq(A, phi, rcond=None)
+    resid = phi - A @ coef
+    dof = max(q.size - 3, 1)
+    try:
+        cov = np.linalg.inv(A.T @ A) * float(resid @ resid) / dof
+    except np.linalg.LinAlgError:
+        return None
+    b, e = float(coef[1]), float(coef[2])
+    if abs(b) < 0.5 or not np.all(np.isfinite(cov)):  # not this joint's motion
+        return None
+    delta = -e / b
+    std = math.sqrt(max(float(cov[2, 2]), 0.0)) / abs(b)
+    if not (math.isfinite(delta) and std > 0.0):
+        return None
+    return delta, std
