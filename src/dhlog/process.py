@@ -705,8 +705,9 @@ MAX_REJOINS = 2
 #: ... and by more than this (s): below it, the fit's own first-order move of the encoders
 #: (``Q − δ q̇``) errs by ``δ² q̈ / 2``, under 10⁻⁸ rad at 1 rad/s².
 REJOIN_FIT = 1e-4
-#: The start estimate joins the encoders again only for a move beyond this (s).
-REJOIN_START = 1e-5
+#: The start estimate joins the encoders again only for a move beyond this (s): the fit
+#: carries the rest.
+REJOIN_START = REJOIN_FIT
 #: The start estimate of the clock offset joins the encoders again at most this many times.
 START_REJOINS = 4
 

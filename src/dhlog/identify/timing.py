@@ -5,7 +5,8 @@ the tracker's clock; a residual offset ``δ`` makes the encoder value joined to 
 time t the one of ``t + δ``: ``Q(t) = q(t + δ) ≈ q(t) + δ q̇(t)``. While the joints move, that
 is an error proportional to their speed — a lag the geometry of the sweeps exposes:
 
-1. **Start** (:func:`phase_lag`): per sweep, a circle (line) fitted to the points alone gives
+1. **Start** (:func:`phase_lag`): per sweep, a circle (seed 002's algebraic fit) or line fitted
+   to the points alone gives
    each sample's angle (position) ``φ``, independent of any clock; ``φ = a + b Q − b δ q̇``
    is linear in ``a, b, e = −b δ`` and gives ``δ`` with its σ; the sweeps' estimates are
    combined by their weights. The encoders are joined again at the corrected offset
@@ -30,7 +31,7 @@ from numpy.typing import NDArray
 
 from dhlog.errors import DhlogError
 from dhlog.geometry._checks import FloatArray
-from dhlog.geometry.fitting import fit_circle_geometric, fit_line
+from dhlog.geometry.fitting import fit_circle_algebraic, fit_line
 from dhlog.io.reader import LogData
 from dhlog.segment import Segmentation, _interpolate_encoders
 
@@ -147,7 +148,7 @@ def phase_lag(seg: Segmentation, log: LogData) -> tuple[float, float] | None:
 def _sweep_lag(points: FloatArray, q: FloatArray, rate: FloatArray) -> tuple[float, float] | None:
     """``δ`` and σ of one sweep: its points' angle (position) regressed on ``1, Q, q̇``."""
     try:
-        fit = fit_circle_geometric(points, min_sweep=0.0)
+        fit = fit_circle_algebraic(points, min_sweep=0.0)  # phases only: no scipy needed
         phi = np.unwrap(fit.positions)
     except DhlogError:
         try:
