@@ -3,6 +3,7 @@ general paths, pipeline choice, and every bad-input case."""
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from pathlib import Path
 
@@ -255,7 +256,13 @@ def test_a_sweep_with_too_few_samples_is_named(tmp_path: Path) -> None:
         ('encoding = "ros1"\n[streams.point]\n', "encoding"),
         ('length_unit = "inch"\n[streams.point]\n', "length_unit"),
         ("[streams.joints]\n", "no \\[streams.point\\]"),
-        ("[streams.point]\n[segmentation]\nlock = 1\n", "keys \\['lock'\\] unknown"),
+        ("[streams.point]\n[segmentation]\nlock = 1\n", "unknown key 'lock'"),
+        ('length_units = "mm"\n[streams.point]\n', "did you mean 'length_unit'"),
+        ('[streams.point]\nfields = { px = "a.x" }\n', "fields: unknown key 'px'"),
+        ('[streams.point]\ntopik = "/x"\n', "did you mean 'topic'"),
+        ('[streams.point]\n[joints]\nname = ["a"]\n', "did you mean 'names'"),
+        ('[streams.point]\n[segmentation]\nmin_samples = "3"\n', "must be a finite number"),
+        ('angle_unit = "grad"\n[streams.point]\n', "angle_unit 'grad' unknown"),
     ],
 )
 def test_malformed_pipelines(text: str, message: str) -> None:
@@ -292,3 +299,47 @@ def test_segmented_table_has_the_contract_columns(session: Session, tmp_path: Pa
     # every target sample is either in a sweep or counted
     unassigned = t.filter(pl.col("segment").is_null()).height
     assert unassigned == sum(v for k, v in seg.set_aside.items() if not k.startswith("non_finite"))
+
+
+def test_a_pipeline_is_checked_against_the_log(session: Session, tmp_path: Path) -> None:
+    """Declared encodings, the number of joint types and JSON field paths are checked against
+    the log, each with a one-line error naming the topic or key."""
+    from dhlog.errors import InputError
+
+    cdr = written(session, tmp_path, "ros2")
+    as_json = parse_pipeline('encoding = "json"\n[streams.point]\n[streams.joints]\n', "j.toml")
+    with pytest.raises(PipelineError, match="/tracker/point is encoded as 'cdr'"):
+        read_log(cdr, as_json)
+    two = parse_pipeline(
+        '[streams.point]\n[streams.joints]\n[joints]\ntypes = ["revolute", "revolute"]\n', "t.toml"
+    )
+    with pytest.raises(PipelineError, match=r"types lists 2 joint\(s\) but .* has 4"):
+        read_log(cdr, two)
+    json_log = written(session, tmp_path, "json")
+    paths = parse_pipeline(
+        'encoding = "json"\n[streams.point]\nfields = { x = "pos.x", y = "pos.y", z = "pos.z" }\n'
+        "[streams.joints]\n",
+        "f.toml",
+    )
+    with pytest.raises(InputError, match=r"\[streams.point\] fields \(x = 'pos.x'"):
+        read_log(json_log, paths)
+
+
+def test_encoders_in_degrees_with_angle_unit_deg(tmp_path: Path) -> None:
+    """``angle_unit = "deg"``: revolute encoders recorded in degrees read as the same log in
+    radians (prismatic joints stay in the length unit)."""
+    sess = simulate_session(load_robot("scara"), SimulationConfig(seed=4))
+    plain = read_log(written(sess, tmp_path, "ros2"))
+    deg = dataclasses.replace(sess, joint_q=sess.joint_q.copy())
+    revolute = [t.value == "revolute" for t in sess.joint_types]
+    deg.joint_q[:, revolute] = np.degrees(deg.joint_q[:, revolute])
+    path = tmp_path / "deg.mcap"
+    write_session(deg, path, "ros2")
+    pipe = parse_pipeline(
+        'angle_unit = "deg"\n[streams.point]\n[streams.joints]\n[joints]\n'
+        'types = ["revolute", "revolute", "revolute", "prismatic"]\n',
+        "deg.toml",
+    )
+    log = read_log(path, pipe)
+    assert log.joints is not None and plain.joints is not None
+    assert np.allclose(log.joints.drop("t_ns").to_numpy(), plain.joints.drop("t_ns").to_numpy())

@@ -9,6 +9,7 @@ from __future__ import annotations
 import io
 import json
 from importlib import resources
+from pathlib import Path
 
 import jsonschema
 import numpy as np
@@ -204,3 +205,78 @@ def test_a_fixed_clock_offset_is_used_as_given() -> None:
     result = process_data(log)
     t = result.timing
     assert t is not None and (t.offset, t.std, t.source) == (0.01, None, "pipeline")
+
+
+def _written(session: Session, path: Path) -> Path:
+    from dhlog.io.writer import write_session
+
+    write_session(session, path, "ros2")
+    return path
+
+
+@pytest.mark.parametrize(
+    ("change", "pipeline", "message"),
+    [
+        ("mm", "", 'set length_unit = "mm"'),
+        ("m_as_mm", 'length_unit = "mm"\n', 'set length_unit = "m"'),
+        ("deg", "", 'set angle_unit = "deg"'),
+        ("none", 'length_units = "mm"\n', "did you mean 'length_unit'"),
+    ],
+)
+def test_a_unit_slip_stops_with_the_remedy_named(
+    change: str, pipeline: str, message: str, tmp_path: Path
+) -> None:
+    """Millimetres under a metre pipeline (and the reverse), degree encoders declared as radians,
+    a misspelt key: exit 2 with one line naming the pipeline key and the value that fits —
+    never a 610 m link with exit 0."""
+    import dataclasses
+
+    from typer.testing import CliRunner
+
+    from dhlog.cli import app
+
+    session = simulate_session(load_robot("kr5"), SimulationConfig(seed=12))
+    if change == "mm":
+        session = dataclasses.replace(
+            session, point_xyz=session.point_xyz * 1e3, base_xyz=session.base_xyz * 1e3
+        )
+    elif change == "m_as_mm":
+        pass  # metres, declared mm
+    elif change == "deg":
+        session = dataclasses.replace(session, joint_q=np.degrees(session.joint_q))
+    log = _written(session, tmp_path / "run.mcap")
+    pipe = tmp_path / "p.toml"
+    pipe.write_text(pipeline + "[streams.point]\n[streams.joints]\nrequired = true\n")
+    result = CliRunner().invoke(
+        app, ["process", str(log), "--pipeline", str(pipe), "--no-rrd", "--out", str(tmp_path)]
+    )
+    assert result.exit_code == 2, result.output
+    assert message in result.output
+    assert "Traceback" not in result.output
+    assert not (tmp_path / "run.dh.json").exists()
+
+
+def test_a_joint_whose_fit_is_far_above_the_noise_is_named_with_its_likely_causes() -> None:
+    """The samples of joint 3's sweep scatter 10x more than the others (a joint that gives under
+    load): a warning names the joint, the ratio and the likely causes."""
+    import dataclasses
+
+    import polars as pl
+
+    session = simulate_session(load_robot("kr5"), SimulationConfig(seed=14))
+    log = log_data_from_session(session)
+    first = process_data(log)
+    table = first.segmentation.table
+    moved = table.filter(pl.col("joint") == 3)["t_ns"]
+    rng = np.random.default_rng(1)
+    shaken = log.points.with_columns(
+        pl.when(pl.col("t_ns").is_in(moved.implode()))
+        .then(pl.col(c) + pl.Series(rng.normal(scale=1e-4, size=log.points.height)))
+        .otherwise(pl.col(c))
+        .alias(c)
+        for c in ("x", "y", "z")
+    )
+    result = process_data(dataclasses.replace(log, points=shaken))
+    named = [w for w in result.warnings if w.startswith("joint 3 (joint_3): its fit RMS")]
+    assert len(named) == 1 and "compliance" in named[0] and "clock offset" in named[0]
+    assert not any("its fit RMS" in w for w in first.warnings)

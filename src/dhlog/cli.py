@@ -9,6 +9,7 @@ from __future__ import annotations
 import json
 import math
 import sys
+from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Literal
 
@@ -235,8 +236,14 @@ def process(
     reference_pose: Annotated[
         str | None,
         typer.Option(
-            help="Joint values of the reference pose, comma-separated (rad, m for prismatic); "
-            "default: the locked pose most sweeps share."
+            help="Joint values of the reference pose, comma-separated (in --angle-unit, m for "
+            "prismatic); default: the locked pose most sweeps share."
+        ),
+    ] = None,
+    angle_unit: Annotated[
+        str | None,
+        typer.Option(
+            help="rad or deg: the unit of --reference-pose (default: the pipeline's angle_unit)."
         ),
     ] = None,
     out: Annotated[
@@ -287,6 +294,9 @@ def process(
     if units not in ("mm", "m"):
         stderr.print(f"error: --units must be mm or m, not '{units}'.")
         raise typer.Exit(EXIT_USAGE)
+    if angle_unit not in (None, "rad", "deg"):
+        stderr.print(f"error: --angle-unit must be rad or deg, not '{angle_unit}'.")
+        raise typer.Exit(EXIT_USAGE)
     folder = out if out is not None else log.parent
     stem = log.name.removesuffix(".mcap")
     outputs = [folder / f"{stem}.dh.json", folder / f"{stem}.dh.csv"]
@@ -299,6 +309,10 @@ def process(
     ref = None if reference_pose is None else np.array(_floats(reference_pose, "--reference-pose"))
     try:
         pipe = load_pipeline(pipeline) if pipeline is not None else None
+        if ref is not None:
+            unit = angle_unit or (pipe.angle_unit if pipe is not None else "rad")
+            types = pipe.joint_types if pipe is not None and pipe.joint_types else None
+            ref = _angles(ref, unit, types)
         nom = _model(nominal) if nominal is not None else None
         with Progress(
             TextColumn("{task.description}"),
@@ -353,13 +367,27 @@ def process(
         raise typer.Exit(EXIT_PARTIAL)
 
 
+def _angles(values: np.ndarray, unit: str, types: Sequence[object] | None) -> np.ndarray:
+    """``values`` in radians: revolute entries (all but declared prismatic ones) from degrees
+    when ``unit`` is deg."""
+    if unit != "deg":
+        return values
+    prismatic = [str(getattr(t, "value", t)) == "prismatic" for t in (types or [])]
+    prismatic += [False] * (values.size - len(prismatic))
+    return np.where(prismatic[: values.size], values, np.radians(values))
+
+
 @app.command()
 def fk(
     dh: Annotated[str, typer.Argument(help="A DH file, a result JSON, or a library robot name.")],
     q: Annotated[
-        str, typer.Option("--q", help="Joint values, comma-separated (rad, m for prismatic).")
+        str,
+        typer.Option(
+            "--q", help="Joint values, comma-separated (in --angle-unit, m for prismatic)."
+        ),
     ],
     units: Annotated[str, typer.Option(help="mm or m for the printed translation.")] = "m",
+    angle_unit: Annotated[str, typer.Option(help="rad or deg: the unit of --q.")] = "rad",
 ) -> None:
     """Pose of the last frame and the spatial manipulator Jacobian at q (seed 004)."""
     from dhlog.kinematics import fk_frames, fk_point, spatial_jacobian
@@ -368,7 +396,16 @@ def fk(
         model = _model(dh)
     except DhlogError as exc:
         _fail(exc)
+    for option, value, allowed in (
+        ("units", units, ("mm", "m")),
+        ("angle-unit", angle_unit, ("rad", "deg")),
+    ):
+        if value not in allowed:
+            stderr.print(f"error: --{option} must be {' or '.join(allowed)}, not '{value}'.")
+            raise typer.Exit(EXIT_USAGE)
     values = np.array(_floats(q, "--q"))
+    if values.size == model.table.n:
+        values = _angles(values, angle_unit, model.table.joint_types)
     if values.size != model.table.n:
         stderr.print(f"error: --q has {values.size} values but {dh} has {model.table.n} joints.")
         raise typer.Exit(EXIT_USAGE)

@@ -61,7 +61,7 @@ from dhlog.identify.sweeps import (
     samples_with_encoders,
     target_labels,
 )
-from dhlog.identify.timing import Timing, joint_rates, phase_lag, rejoin
+from dhlog.identify.timing import SweepPhase, Timing, joint_rates, phase_lag, rejoin, sweep_phases
 from dhlog.identify.whole import (
     AxisModel,
     WholeFit,
@@ -223,7 +223,9 @@ def process_data(
     n = seg.n_joints
     notes = list(seg.warnings)
     info: list[str] = []
-    seg, timing = _clock_start(seg, log, info)
+    phases = sweep_phases(seg, log) if seg.has_encoders else []
+    _check_units(seg, log, phases, notes)
+    seg, timing = _clock_start(seg, log, info, phases)
     if nominal is not None and nominal.table.n != n:
         raise InputError(
             f"{nominal.source}: the nominal table has {nominal.table.n} joints but {name} "
@@ -255,6 +257,7 @@ def process_data(
             notes.append(
                 f"joint {report.index} ({report.name}) was not identified: {report.reason}."
             )
+    _check_fit_noise(joints, notes)
     base = None
     if log.base is not None and log.base.height >= 3:
         try:
@@ -595,10 +598,12 @@ def _identify_whole(
         np.clip(np.diag(prop.extra_tool_covariance), 0.0, None)
     ).reshape(-1, 3)
     result.info.extend(_correlation_notes(prop.covariance, prop.fixed, len(joints)))
-    if result.noise.model != "isotropic" and not 0.5 < whole.chi2_dof < 2.0:
+    declared = result.noise.model != "isotropic" or result.noise.sigma is not None
+    if declared and not 0.5 < whole.chi2_dof < 2.0:
+        causes = f" ({LIKELY_CAUSES})" if whole.chi2_dof >= 2.0 else " (the model's σ is too large)"
         notes.append(
             f"χ²/dof = {whole.chi2_dof:.2f} under the {result.noise.described} noise model: the "
-            "residuals contradict it; the uncertainty is scaled by the residuals."
+            f"residuals contradict it{causes}; the uncertainty is scaled by the residuals."
         )
     stage("validating", 0.0)
     tools = np.vstack([ex.tool_point[None], result.extra_tool_points])
@@ -698,6 +703,10 @@ def _with_fixed_relations(
     return constrain_pairs(whole, parallel, collinear)
 
 
+#: Target samples spanning more (m) than this are not of a robot: a length unit slipped.
+LARGEST_ROBOT = 100.0
+#: ... nor less than this (m), with sweeps found.
+SMALLEST_ROBOT = 0.005
 #: The whole-model fit joins the encoders again when its clock offset moved by more than this
 #: many of its σ from the offset they were joined at (at most MAX_REJOINS times).
 REJOIN_BELOW = 0.25
@@ -712,8 +721,81 @@ REJOIN_START = REJOIN_FIT
 START_REJOINS = 4
 
 
+#: What makes residuals exceed the noise, in the order a metrologist checks them.
+LIKELY_CAUSES = (
+    "likely causes: a clock offset between tracker and joint states (set clock_offset, or let "
+    "dhlog estimate it), a joint of the wrong type, a joint that gives under load (compliance), "
+    "or a target that slipped on the flange"
+)
+#: A joint's fit RMS this many times the median of all joints' is worth a warning.
+RMS_OUTLIER = 3.0
+
+
+def _check_fit_noise(joints: list[JointReport], notes: list[str]) -> None:
+    """Warn for a joint whose fit RMS is far above the other joints' (the same tracker measured
+    them all), naming the likely causes."""
+    rms = {j.index: j.fit.rms for j in joints if j.fit is not None and j.ok}
+    if len(rms) < 3:
+        return
+    typical = float(np.median(list(rms.values())))
+    for j in joints:
+        r = rms.get(j.index)
+        if r is not None and typical > 0 and r > RMS_OUTLIER * typical:
+            notes.append(
+                f"joint {j.index} ({j.name}): its fit RMS {r * 1e3:.4f} mm is "
+                f"{r / typical:.1f}x the joints' median ({typical * 1e3:.4f} mm); {LIKELY_CAUSES}."
+            )
+
+
+def _check_units(
+    seg: Segmentation, log: LogData, phases: list[SweepPhase], notes: list[str]
+) -> None:
+    """Stop on a unit slip the geometry shows, naming the pipeline key and the value that
+    fits: target samples spanning more than :data:`LARGEST_ROBOT` or less than
+    :data:`SMALLEST_ROBOT`, or a joint whose samples turn (move) by 1/57.3, 57.3, 10⁻³ or 10³
+    per encoder unit; warn on any other encoder slope far from 1."""
+    pipe = log.pipeline
+    P = seg.table.select(["x", "y", "z"]).to_numpy()
+    extent = float(np.linalg.norm(np.nanmax(P, axis=0) - np.nanmin(P, axis=0))) if len(P) else 0
+    where = f"{log.path}: the target's samples span {extent:.4g} m"
+    if extent > LARGEST_ROBOT:
+        fits = "mm" if pipe.length_unit == "m" else "a unit 1000x smaller than mm"
+        raise InputError(
+            f"{where}, far more than any robot: the log's lengths look like {fits} read as "
+            f"'{pipe.length_unit}'; set length_unit = \"mm\" in the pipeline ({pipe.source})."
+        )
+    if 0 < extent < SMALLEST_ROBOT and seg.segments.height:
+        raise InputError(
+            f"{where}, less than any robot's sweeps: the lengths look like metres read as "
+            f"'{pipe.length_unit}'; set length_unit = \"m\" in the pipeline ({pipe.source})."
+        )
+    slips = {
+        math.pi / 180.0: ("look like degrees", 'set angle_unit = "deg" in the pipeline'),
+        180.0 / math.pi: ("look like radians", 'set angle_unit = "rad" in the pipeline'),
+        1e-3: ("look like millimetres", 'set length_unit = "mm" and declare the type prismatic'),
+        1e3: ("look like metres", 'set length_unit = "m" and declare the type prismatic'),
+    }
+    by_joint: dict[int, list[float]] = {}
+    for p in phases:
+        by_joint.setdefault(p.joint, []).append(abs(p.slope))
+    for joint, slopes in sorted(by_joint.items()):
+        r = float(np.median(slopes))
+        name = seg.joint_names[joint - 1]
+        for ratio, (looks, fix) in slips.items():
+            if abs(r / ratio - 1.0) < 0.1:
+                raise InputError(
+                    f"{log.path}: joint {joint} ({name}): the target turns (moves) {r:.4g} per "
+                    f"encoder unit: its encoder values {looks}; {fix} ({pipe.source})."
+                )
+        if not 0.8 < r < 1.25:
+            notes.append(
+                f"joint {joint} ({name}): the target turns (moves) {r:.4g} per encoder unit, "
+                "not 1: check the joint's unit, type and name order in the pipeline."
+            )
+
+
 def _clock_start(
-    seg: Segmentation, log: LogData, info: list[str]
+    seg: Segmentation, log: LogData, info: list[str], phases: list[SweepPhase] | None = None
 ) -> tuple[Segmentation, Timing | None]:
     """The clock offset's start estimate from the sweeps' phases (:func:`phase_lag`), the
     encoders joined again at it; the pipeline's offset where it is fixed or cannot be told."""
@@ -723,8 +805,8 @@ def _clock_start(
     if pipe.clock_offset_fixed:
         return seg, Timing(pipe.clock_offset, None, "pipeline", pipe.clock_offset, "fixed")
     total, std = 0.0, None
-    for _ in range(START_REJOINS):
-        lag = phase_lag(seg, log)
+    for attempt in range(START_REJOINS):
+        lag = phase_lag(seg, log, phases if attempt == 0 else None)
         if lag is None:
             break
         delta, std = lag

@@ -103,34 +103,63 @@ def rejoin(seg: Segmentation, log: LogData, extra: float) -> Segmentation:
     return replace(seg, table=table)
 
 
-def phase_lag(seg: Segmentation, log: LogData) -> tuple[float, float] | None:
-    """The residual offset ``δ`` (s) and its σ from the sweeps' phases (see the module), or
-    None when no sweep moves enough samples to tell (step-and-measure)."""
+@dataclass(frozen=True)
+class SweepPhase:
+    """What one sweep's points say of its encoder: the joint (1-based), the slope of the
+    points' angle (position) over the encoder value (1 when both are in the same unit), and the
+    lag ``δ`` with its σ (None when the sweep barely moves while sampled)."""
+
+    joint: int
+    slope: float
+    delta: float | None
+    std: float | None
+    moving: int
+    samples: int
+
+
+def sweep_phases(seg: Segmentation, log: LogData) -> list[SweepPhase]:
+    """Per sweep: the points-only fit's angle (position) regressed on ``1, Q, q̇`` (see the
+    module); at most :data:`START_POINTS` evenly strided samples per sweep."""
     table = seg.table
     if log.joints is None or "segment" not in table.columns:
-        return None
+        return []
     n = seg.n_joints
     labels = table["segment"].fill_null(-1).to_numpy()
     joints = table["joint"].fill_null(0).to_numpy()
     t_ns = table["t_ns"].to_numpy()
     P = table.select(["x", "y", "z"]).to_numpy()
     Q = table.select([f"q_{i + 1}" for i in range(n)]).to_numpy()
-    estimates: list[tuple[float, float]] = []
-    moving = total = 0
+    out = []
     for sid in np.unique(labels[labels > 0]):
         rows = np.flatnonzero(labels == sid)
         rows = rows[np.isfinite(Q[rows]).all(axis=1)]
+        if rows.size < 4:
+            continue
         if rows.size > START_POINTS:
             rows = rows[:: -(-rows.size // START_POINTS)]
         j = int(joints[rows[0]]) - 1
         rate = joint_rates(log, t_ns[rows], n)[:, j]
-        here = int(np.count_nonzero(np.abs(rate) > MOVING_SPEED))
-        moving, total = moving + here, total + rows.size
-        if here < MIN_MOVING:
-            continue
-        one = _sweep_lag(P[rows], Q[rows, j], rate)
+        moving = int(np.count_nonzero(np.abs(rate) > MOVING_SPEED))
+        one = _sweep_lag(P[rows], Q[rows, j], rate, moving >= MIN_MOVING)
         if one is not None:
-            estimates.append(one)
+            slope, delta, std = one
+            out.append(SweepPhase(j + 1, slope, delta, std, moving, int(rows.size)))
+    return out
+
+
+def phase_lag(
+    seg: Segmentation, log: LogData, phases: list[SweepPhase] | None = None
+) -> tuple[float, float] | None:
+    """The residual offset ``δ`` (s) and its σ from the sweeps' phases (see the module), or
+    None when no sweep moves enough samples to tell (step-and-measure)."""
+    phases = sweep_phases(seg, log) if phases is None else phases
+    estimates = [
+        (p.delta, p.std)
+        for p in phases
+        if p.delta is not None and p.std is not None and 0.5 < abs(p.slope) < 2.0
+    ]
+    moving = sum(p.moving for p in phases)
+    total = sum(p.samples for p in phases)
     # step-and-measure: the samples were taken at the stops; the few that the offset joins to
     # the start of the next move are not a timing signal to trust
     if not estimates or moving < STEP_FRACTION * total:
@@ -145,8 +174,11 @@ def phase_lag(seg: Segmentation, log: LogData) -> tuple[float, float] | None:
     return delta, std
 
 
-def _sweep_lag(points: FloatArray, q: FloatArray, rate: FloatArray) -> tuple[float, float] | None:
-    """``δ`` and σ of one sweep: its points' angle (position) regressed on ``1, Q, q̇``."""
+def _sweep_lag(
+    points: FloatArray, q: FloatArray, rate: FloatArray, timed: bool
+) -> tuple[float, float | None, float | None] | None:
+    """Slope, ``δ`` and σ of one sweep: its points' angle (position) regressed on ``1, Q, q̇``
+    (on ``1, Q`` alone when it barely moves while sampled: ``timed`` False)."""
     try:
         fit = fit_circle_algebraic(points, min_sweep=0.0)  # phases only: no scipy needed
         phi = np.unwrap(fit.positions)
@@ -155,19 +187,23 @@ def _sweep_lag(points: FloatArray, q: FloatArray, rate: FloatArray) -> tuple[flo
             phi = fit_line(points, min_travel=0.0).positions
         except DhlogError:
             return None
-    A = np.column_stack([np.ones(q.size), q - q.mean(), rate])
+    columns = [np.ones(q.size), q - q.mean()] + ([rate] if timed else [])
+    A = np.column_stack(columns)
     coef, *_ = np.linalg.lstsq(A, phi, rcond=None)
+    b = float(coef[1])
+    if not timed:
+        return (b, None, None) if math.isfinite(b) else None
     resid = phi - A @ coef
     dof = max(q.size - 3, 1)
     try:
         cov = np.linalg.inv(A.T @ A) * float(resid @ resid) / dof
     except np.linalg.LinAlgError:
-        return None
-    b, e = float(coef[1]), float(coef[2])
-    if abs(b) < 0.5 or not np.all(np.isfinite(cov)):  # not this joint's motion
+        return (b, None, None) if math.isfinite(b) else None
+    e = float(coef[2])
+    if abs(b) < 1e-12 or not np.all(np.isfinite(cov)):
         return None
     delta = -e / b
     std = math.sqrt(max(float(cov[2, 2]), 0.0)) / abs(b)
     if not (math.isfinite(delta) and std > 0.0):
-        return None
-    return delta, std
+        return (b, None, None)
+    return b, delta, std

@@ -27,6 +27,48 @@ DEFAULT_TOPICS = {
     "phase": "/calibration/phase",
 }
 ENCODINGS = ("cdr", "json", "protobuf")
+#: Every key a pipeline may hold, per table (unknown keys are errors, with the nearest known).
+TOP_KEYS = (
+    "name",
+    "description",
+    "encoding",
+    "length_unit",
+    "angle_unit",
+    "streams",
+    "joints",
+    "segmentation",
+    "noise",
+)
+STREAM_KEYS = ("topic", "required", "fields", "extra_topics", "orientation")
+FIELD_KEYS = {
+    "point": ("x", "y", "z", "stamp_ns"),
+    "base": ("x", "y", "z", "stamp_ns"),
+    "joints": ("joints", "names", "positions"),
+    "phase": ("joint",),
+}
+JOINT_KEYS = ("names", "types")
+NOISE_KEYS = (
+    "model",
+    "sigma",
+    "radial",
+    "transverse",
+    "transverse_per_m",
+    "station",
+    "orientation",
+)
+
+
+def _check_keys(source: str, where: str, given: dict[str, Any], known: tuple[str, ...]) -> None:
+    """A one-line error for the first key of ``given`` not in ``known``, with the nearest."""
+    import difflib
+
+    for key in given:
+        if key not in known:
+            near = difflib.get_close_matches(key, known, n=1, cutoff=0.5)
+            hint = f"did you mean '{near[0]}'? " if near else ""
+            raise PipelineError(
+                source, f"{where}: unknown key '{key}'; {hint}known keys: {', '.join(known)}."
+            )
 
 
 @dataclass(frozen=True)
@@ -77,11 +119,17 @@ class Pipeline:
     joint_types: tuple[JointType | None, ...] | None
     segmentation: SegmentationSettings
     noise: NoiseModel = field(default_factory=NoiseModel)
+    angle_unit: str = "rad"
 
     @property
     def length_scale(self) -> float:
         """Factor from the log's length unit to metres."""
         return 1e-3 if self.length_unit == "mm" else 1.0
+
+    @property
+    def angle_scale(self) -> float:
+        """Factor from the log's angle unit (revolute encoders) to radians."""
+        return math.pi / 180.0 if self.angle_unit == "deg" else 1.0
 
 
 def _table(where: str, data: dict[str, Any], key: str) -> dict[str, Any]:
@@ -97,6 +145,7 @@ def parse_pipeline(text: str, source: str) -> Pipeline:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise PipelineError(source, f"not valid TOML ({exc}).") from None
+    _check_keys(source, "top level", data, TOP_KEYS)
     name = str(data.get("name", Path(source).stem))
     raw_enc = data.get("encoding", list(ENCODINGS))
     encodings = tuple([raw_enc] if isinstance(raw_enc, str) else raw_enc)
@@ -106,6 +155,9 @@ def parse_pipeline(text: str, source: str) -> Pipeline:
     unit = str(data.get("length_unit", "m"))
     if unit not in ("m", "mm"):
         raise PipelineError(source, f"length_unit '{unit}' unknown; use 'm' or 'mm'.")
+    angle_unit = str(data.get("angle_unit", "rad"))
+    if angle_unit not in ("rad", "deg"):
+        raise PipelineError(source, f"angle_unit '{angle_unit}' unknown; use 'rad' or 'deg'.")
     streams_table = _table(source, data, "streams")
     unknown = sorted(set(streams_table) - set(STREAMS))
     if unknown:
@@ -117,8 +169,10 @@ def parse_pipeline(text: str, source: str) -> Pipeline:
             continue
         if not isinstance(spec, dict):
             raise PipelineError(source, f"[streams.{stream}] must be a table.")
+        _check_keys(source, f"[streams.{stream}]", spec, STREAM_KEYS)
         required = bool(spec.get("required", stream == "point"))
         fields = {str(k): str(v) for k, v in _table(source, spec, "fields").items()}
+        _check_keys(source, f"[streams.{stream}] fields", fields, FIELD_KEYS[stream])
         extra = spec.get("extra_topics", [])
         if stream != "point" and extra:
             raise PipelineError(source, f"[streams.{stream}] extra_topics is for the point stream.")
@@ -139,6 +193,7 @@ def parse_pipeline(text: str, source: str) -> Pipeline:
     if "point" not in streams:
         raise PipelineError(source, "it has no [streams.point]; the target stream is required.")
     joints = _table(source, data, "joints")
+    _check_keys(source, "[joints]", joints, JOINT_KEYS)
     names = joints.get("names")
     types_raw = joints.get("types")
     types: tuple[JointType | None, ...] | None = None
@@ -150,12 +205,19 @@ def parse_pipeline(text: str, source: str) -> Pipeline:
         if names is not None and len(types) != len(names):
             raise PipelineError(source, "[joints] names and types differ in length.")
     seg_table = _table(source, data, "segmentation")
-    known = set(SegmentationSettings.__dataclass_fields__)
-    unknown = sorted(set(seg_table) - known)
-    if unknown:
-        raise PipelineError(
-            source, f"[segmentation] keys {unknown} unknown; known: {sorted(known)}."
+    _check_keys(
+        source, "[segmentation]", seg_table, tuple(SegmentationSettings.__dataclass_fields__)
+    )
+    for k, v in seg_table.items():
+        want = type(getattr(SegmentationSettings, k))
+        ok = (
+            isinstance(v, bool)
+            if want is bool
+            else isinstance(v, int | float) and not isinstance(v, bool)
         )
+        if not ok or (want is not bool and not math.isfinite(float(v))):
+            kind = "true or false" if want is bool else "a finite number"
+            raise PipelineError(source, f"[segmentation] {k} must be {kind}, not {v!r}.")
     try:
         seg = SegmentationSettings(
             **{k: type(getattr(SegmentationSettings, k))(v) for k, v in seg_table.items()}
@@ -163,18 +225,7 @@ def parse_pipeline(text: str, source: str) -> Pipeline:
     except (TypeError, ValueError) as exc:
         raise PipelineError(source, f"[segmentation]: {exc}") from None
     noise_table = _table(source, data, "noise")
-    noise_keys = {
-        "model",
-        "sigma",
-        "radial",
-        "transverse",
-        "transverse_per_m",
-        "station",
-        "orientation",
-    }
-    unknown = sorted(set(noise_table) - noise_keys)
-    if unknown:
-        raise PipelineError(source, f"[noise] keys {unknown} unknown; known: {sorted(noise_keys)}.")
+    _check_keys(source, "[noise]", noise_table, NOISE_KEYS)
     try:
         kwargs: dict[str, Any] = {
             k: (
@@ -197,6 +248,7 @@ def parse_pipeline(text: str, source: str) -> Pipeline:
         source=source,
         encodings=encodings,
         length_unit=unit,
+        angle_unit=angle_unit,
         streams=streams,
         joint_names=tuple(str(n) for n in names) if names is not None else None,
         joint_types=types,

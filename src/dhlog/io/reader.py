@@ -20,6 +20,7 @@ import numpy as np
 import polars as pl
 from numpy.typing import NDArray
 
+from dhlog.dh import JointType
 from dhlog.errors import (
     InputError,
     JointNamesError,
@@ -372,6 +373,12 @@ def _decode_stream(
             try:
                 stamp, value = extract(msg)
             except (KeyError, AttributeError, TypeError, ValueError) as exc:
+                if fields:
+                    raise InputError(
+                        f"{path}: {info.topic}: the pipeline's [streams.{stream}] fields "
+                        f"({', '.join(f'{k} = {v!r}' for k, v in fields.items())}) do not fit "
+                        f"its messages ({type(exc).__name__}: {exc}); fix the field paths."
+                    ) from None
                 raise UnknownSchemaError(
                     path,
                     info.topic,
@@ -463,6 +470,19 @@ def read_log(
             if spec.required:
                 raise MissingTopicError(name, stream, spec.topic, present)
             continue
+        wrong = [
+            c
+            for c in found
+            if stream in ("point", "joints") and c.message_encoding not in pipeline.encodings
+        ]
+        if wrong:
+            c = wrong[0]
+            raise PipelineError(
+                pipeline.source,
+                f"{name}: {c.topic} is encoded as '{c.message_encoding}' but the pipeline "
+                f"declares encoding = {list(pipeline.encodings)}; use a pipeline for "
+                f"'{c.message_encoding}' (dhlog chooses one when --pipeline is left out).",
+            )
         infos[stream] = found
     # further targets (extra_topics): their channels, one list per target, labelled 1, 2, …
     targets = []
@@ -560,10 +580,15 @@ def _joints_frame(
         dst = [column[names[k]] for k in src]
         q[row : row + times.size, dst] = values[:, src]
         row += times.size
-    if pipeline.joint_types is not None:
-        for j, jt in enumerate(pipeline.joint_types):
-            if jt is not None and jt.value == "prismatic":
-                q[:, j] *= pipeline.length_scale
+    types = pipeline.joint_types or (None,) * len(expected)
+    if len(types) != len(expected):
+        raise PipelineError(
+            pipeline.source,
+            f"[joints] types lists {len(types)} joint(s) but {path} has {len(expected)} on "
+            f"{topic} ({', '.join(expected)}); give one type per joint.",
+        )
+    for j, jt in enumerate(types):  # prismatic in the length unit, the rest in the angle unit
+        q[:, j] *= pipeline.length_scale if jt is JointType.PRISMATIC else pipeline.angle_scale
     offset_ns = round(pipeline.segmentation.clock_offset * 1e9)
     data: dict[str, Any] = {"t_ns": t + offset_ns}
     data.update({f"q_{j + 1}": q[:, j] for j in range(len(expected))})
