@@ -48,9 +48,10 @@ def rrd_verify(path: Path) -> None:
 def assert_within_3_sigma(result: ProcessResult) -> np.ndarray:
     """Every parameter with an uncertainty is within 3 reported σ of the nominal; the others
     (fixed by a convention or by the nominal) equal it. Returns the mask of free parameters."""
-    diff = nominal_difference(result)
-    assert diff is not None and result.std is not None
-    sigma = result.std[: diff.size].reshape(diff.shape)
+    diff = nominal_difference(result, shown=True)  # the well-conditioned form, when there is one
+    std = result.conditioned.std if result.conditioned is not None else result.std
+    assert diff is not None and std is not None
+    sigma = std[: diff.size].reshape(diff.shape)
     free = sigma > 0
     ratio = np.abs(diff) / np.where(free, sigma, 1)
     assert np.all(ratio[free] <= 3.0), ratio.max()

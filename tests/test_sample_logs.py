@@ -15,13 +15,14 @@ from dhlog.segment import segment_log
 LOGS = sorted((Path(__file__).parents[1] / "sample_logs").glob("*.mcap"))
 
 
-def test_the_five_sample_logs_exist() -> None:
+def test_the_six_sample_logs_exist() -> None:
     assert {p.stem for p in LOGS} == {
         "kr5_0.01mm",
         "kr5_0.1mm",
         "puma560_step",
         "scara",
         "kr5_phase",
+        "kr5_real",
     }
 
 

@@ -19,8 +19,17 @@ from rich.table import Table
 
 from dhlog.geometry._checks import FloatArray
 from dhlog.process import ProcessResult
-from dhlog.result import DisplayRow, display_rows, display_scales, nominal_difference
+from dhlog.result import (
+    DisplayRow,
+    display_rows,
+    display_scales,
+    frame_1_origin,
+    nominal_difference,
+)
 
+#: A σ beyond these (m, rad) is not a measurement's: such a value is labelled undetermined.
+UNDETERMINED_LENGTH = 1.0
+UNDETERMINED_ANGLE = math.radians(30.0)
 #: Widest joint name shown in full in the console (longer ones end in "…"; the JSON has them).
 NAME_WIDTH = 18
 
@@ -43,24 +52,33 @@ def _places(sigma: float | None, base: int) -> int:
     return max(base, min(base + 3, 1 - math.floor(math.log10(sigma))))
 
 
-def _value_sigma(value: float, sigma: float | None, held: bool, base: int) -> tuple[str, str]:
-    """The value and its σ line (``± σ``, ``fixed``, or empty when unknown)."""
+def _value_sigma(
+    value: float, sigma: float | None, held: bool, base: int, undetermined: float = math.inf
+) -> tuple[str, str]:
+    """The value and its σ line (``± σ``, ``fixed``, or empty when unknown); a σ beyond
+    ``undetermined`` (the quantity's physical scale) is labelled so."""
     places = _places(None if held else sigma, base)
     shown = f"{value:.{places}f}"
     if held:
         return shown, "fixed"
     if sigma is None or not math.isfinite(sigma):
         return shown, ""
+    if sigma > undetermined:
+        return shown, f"undetermined ±{sigma:.3g}"
     return shown, f"± {sigma:.{places}f}"
 
 
 def _cells(row: DisplayRow, units: str) -> list[tuple[str, str]]:
     """Per parameter (θ, d or β, a, α): the value and its σ line, in display units."""
     lb, ab = _decimals(units)
+    length, angle, _, _ = _scales(units)
     out = []
     for k in range(4):
         angular = k in (0, 3) or (k == 1 and row.form == "hayati")
-        value, sigma = _value_sigma(row.values[k], row.stds[k], row.held[k], ab if angular else lb)
+        scale = UNDETERMINED_ANGLE * angle if angular else UNDETERMINED_LENGTH * length
+        value, sigma = _value_sigma(
+            row.values[k], row.stds[k], row.held[k], ab if angular else lb, scale
+        )
         if k == 1 and row.form == "hayati":
             value = f"β {value}"
         out.append((value, sigma))
@@ -110,6 +128,8 @@ def print_result(console: Console, result: ProcessResult, *, units: str = "mm") 
     _print_fits(console, result, units)
     _print_tool_and_base(console, result, units)
     lines = [("Method", _method_line(result, length, lu))]
+    if result.extraction is not None:
+        lines.append(("Frame 1", f"origin at {frame_1_origin(result)}"))
     clock = _clock_line(result)
     if clock:
         lines.append(("Clock", clock))
@@ -389,6 +409,8 @@ def result_markdown(result: ProcessResult, *, units: str = "mm") -> str:
             f"FK check: RMS {v.rms * length:.4f} {lu}, max {v.max * length:.4f} {lu} "
             f"over {v.n_points} samples (3-D).",
         ]
+    if result.extraction is not None:
+        lines += ["", f"Frame 1: origin at {frame_1_origin(result)}."]
     held = _held_lines(result)
     if held:
         lines += ["", "## Held by convention or gauge (not measured)", ""]

@@ -13,6 +13,7 @@ from numpy.typing import NDArray
 from dhlog import __version__
 from dhlog.contract import RESULT_FORMAT, dh_documents, relation_documents
 from dhlog.dh import JointType
+from dhlog.extract import NEAR_PARALLEL
 from dhlog.geometry._checks import FloatArray, wrap_angle
 from dhlog.identify.propagate import state_difference, state_names, state_vector
 from dhlog.identify.sweeps import JointReport
@@ -158,6 +159,8 @@ def result_document(result: ProcessResult) -> dict[str, Any]:
             doc["hayati"].append(row)
     if result.conditioned is not None and ex is not None:
         doc["hayati_dh"] = _conditioned_document(result, n_rows)
+    if ex is not None:
+        doc["base"]["frame_1_origin"] = frame_1_origin(result)
     if result.timing is not None:
         t = result.timing
         doc["timing"] = {
@@ -225,6 +228,26 @@ def _conditioned_document(result: ProcessResult, n_rows: int) -> dict[str, Any]:
             )
         out.append(row)
     return {"description": HAYATI_DESCRIPTION, "rows": out}
+
+
+def frame_1_origin(result: ProcessResult) -> str:
+    """How frame 1's origin (on axis 1) was placed: by the base plane when the log has base
+    points, else by a convention, which the sentence names."""
+    if result.base is not None:
+        n = int(result.base.residuals.size)
+        return f"axis 1 ∩ the base plane fitted to {n} probed points"
+    ex = result.extraction
+    parallel = False
+    if ex is not None and ex.relations:
+        rel = ex.relations[0].relation
+        parallel = min(rel.angle, math.pi - rel.angle) < NEAR_PARALLEL
+    if result.nominal is not None and not parallel:
+        where = "the nominal's d₁ from the foot of the common normal to axis 2"
+    elif parallel:
+        where = "the point of axis 1 nearest the measurement origin (axes 1 and 2 parallel)"
+    else:
+        where = "foot of the common normal to axis 2"
+    return f"{where} — no base points in the log, so d₁ is a convention"
 
 
 def _num_or_none(value: float) -> float | None:

@@ -65,8 +65,18 @@ def model_from_state(
 
 
 def fk_prediction_std(result: ProcessResult, Q: FloatArray) -> FloatArray:
-    """Predicted RMS position error (m) of the result's FK at each joint vector in ``Q``, from
-    the propagated covariance of the model (first order)."""
+    """Predicted RMS position error (m, 3-D) of the result's FK at each joint vector in ``Q``,
+    to first order: from the whole-model fit's own covariance and its analytic Jacobian when the
+    result is that fit's (the DH table reproduces it exactly, and its DH parameters may be
+    ill-conditioned where the fit's are not), else from the DH model's propagated covariance."""
+    whole = result.whole
+    if whole is not None:
+        from dhlog.identify.whole import predict
+
+        _, Jw = predict(whole.model, Q, whole.layout, whole.bases)
+        assert Jw is not None
+        var_w = np.einsum("mij,jk,mik->m", Jw, whole.covariance, Jw)
+        return np.asarray(np.sqrt(np.clip(var_w, 0.0, None)), dtype=np.float64)
     ex, cov = result.extraction, result.covariance
     assert ex is not None and cov is not None
     R0 = ex.T_measurement_base[:3, :3]

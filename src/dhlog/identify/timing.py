@@ -99,7 +99,13 @@ def rejoin(seg: Segmentation, log: LogData, extra: float) -> Segmentation:
         )
         aside = dict(seg.set_aside)
         aside["no_encoder"] = aside.get("no_encoder", 0) + int(mask.sum())
-        return replace(seg, table=table, set_aside=aside)
+        counts = table.group_by("segment").len().rename({"len": "n_now"})
+        segments = (
+            seg.segments.join(counts, on="segment", how="left")
+            .with_columns(pl.col("n_now").fill_null(0).cast(seg.segments["n"].dtype).alias("n"))
+            .drop("n_now")
+        )
+        return replace(seg, table=table, segments=segments, set_aside=aside)
     return replace(seg, table=table)
 
 
