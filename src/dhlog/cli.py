@@ -356,7 +356,7 @@ def process(
     except DhlogError as exc:
         _fail(exc)
     if result.log.pipeline_reason:
-        stdout.print(f"{log.name}: {result.log.pipeline_reason}", soft_wrap=True)
+        stdout.print(escape(f"{log.name}: {result.log.pipeline_reason}"))
     print_result(stdout, result, units=units)
     stdout.print("wrote " + ", ".join(str(p) for p in outputs))
     if not no_rrd:
