@@ -36,9 +36,21 @@ stdout = Console(highlight=False)
 EXIT_USAGE, EXIT_INPUT, EXIT_PARTIAL = 1, 2, 3
 
 
-def _fail(exc: DhlogError) -> None:
-    stderr.print(f"[bold red]error:[/] {exc}", soft_wrap=True)
-    raise typer.Exit(EXIT_INPUT)
+def _fail(exc: DhlogError, code: int = EXIT_INPUT) -> None:
+    """One line on stderr (the message is the log's text, never markup) and the exit code."""
+    from rich.markup import escape
+
+    stderr.print(f"[bold red]error:[/] {escape(str(exc))}", soft_wrap=True)
+    raise typer.Exit(code)
+
+
+def _quiet_numerics() -> None:
+    """Floating-point warnings of numpy on damaged data are not for the user: every result is
+    checked for finiteness where it matters, and what is set aside is counted."""
+    import warnings
+
+    warnings.filterwarnings("ignore", category=RuntimeWarning)
+    np.seterr(all="ignore")
 
 
 def _version(value: bool) -> None:
@@ -282,6 +294,7 @@ def process(
     force: Annotated[bool, typer.Option("--force", help="Overwrite existing results.")] = False,
 ) -> None:
     """Identify the DH parameters from a calibration log and write <stem>.dh.json, .dh.csv, .rrd."""
+    _quiet_numerics()
     from rich.markup import escape
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
@@ -464,6 +477,7 @@ def show(
 
 def run() -> None:
     """Entry point: exit codes 0 success, 1 usage error, 2 unusable input, 3 partial result."""
+    _quiet_numerics()
     try:
         code = app(standalone_mode=False)
     except typer.Abort:

@@ -22,7 +22,7 @@ import polars as pl
 from numpy.typing import NDArray
 
 from dhlog.dh import JointType
-from dhlog.errors import TooFewSamplesError
+from dhlog.errors import InputError, TooFewSamplesError
 from dhlog.io.pipeline import SegmentationSettings
 from dhlog.io.reader import LogData
 
@@ -192,6 +192,11 @@ def segment_log(
     else:
         raise TooFewSamplesError(f"{log.path}: joint-state and phase streams", 0, 1)
     table, segments, n, names = seg
+    if n == 0:
+        raise InputError(
+            f"{log.path}: no joint is named by the log (no joint states, and no phase marker "
+            "names a joint); check the joints and phase topics in the pipeline."
+        )
     ref = reference_pose
     if ref is None and log.joints is not None and segments.height:
         ref = shared_locked_pose(segments, n, settings.lock_tolerance)

@@ -75,14 +75,28 @@ class McapScan:
     truncated_at: int | None = None
     recovered: int = 0
     warnings: list[str] = field(default_factory=list)
+    damaged_records: int = 0
 
     def topics(self) -> list[str]:
         """Topics present, sorted."""
         return sorted({c.topic for c in self.channels.values()})
 
 
+class _DamagedError(Exception):
+    """A record whose fields lie about its own layout."""
+
+
+#: A chunk may claim at most this many times its compressed size uncompressed (zstd and lz4
+#: reach about 250x on runs of zeros), and at most this many bytes: a size that lies must not
+#: make the reader allocate it.
+MAX_RATIO = 1000
+MAX_CHUNK = 2**31
+
+
 def _string(buf: bytes | memoryview, pos: int) -> tuple[str, int]:
     (n,) = struct.unpack_from("<I", buf, pos)
+    if pos + 4 + n > len(buf):
+        raise _DamagedError(f"a string of {n} bytes runs past its record")
     return bytes(buf[pos + 4 : pos + 4 + n]).decode("utf-8", "replace"), pos + 4 + n
 
 
@@ -110,6 +124,23 @@ def gather_rows(buf: U8, positions: NDArray[np.int64], width: int) -> U8:
     return np.asarray(rows[positions])
 
 
+def _located(chunk: U8, pairs: NDArray[np.uint64]) -> tuple[I64, I64] | None:
+    """Offsets and lengths of the message records a MessageIndex names, or None when any of
+    them lies (outside the chunk, too short, or not a message record)."""
+    size = chunk.shape[0]
+    if pairs.shape[0] and (size < _MESSAGE_HEADER or int(pairs[:, 1].max()) > size - 31):
+        return None
+    offsets = pairs[:, 1].astype(np.int64)
+    lengths = np.asarray(gather(chunk, offsets + 1, 8, "<u8"), dtype=np.uint64)
+    if np.any(lengths < 22) or np.any(lengths > size):
+        return None
+    lengths_i = lengths.astype(np.int64)
+    kinds = np.asarray(gather(chunk, offsets, 1, "u1"), dtype=np.int64)
+    if np.any(offsets + 9 + lengths_i > size) or np.any(kinds != OP_MESSAGE):
+        return None
+    return offsets, lengths_i
+
+
 class _Walker:
     def __init__(self, path: str, wanted: set[str] | None) -> None:
         self.path = path
@@ -122,9 +153,20 @@ class _Walker:
         self.loose: dict[int, list[tuple[int, bytes]]] = {}
         self.metadata: list[str] = []
         self.count = 0
+        self.damaged: list[str] = []
+
+    def damage(self, where: str, why: object) -> None:
+        """Note a damaged record or chunk (skipped; the scan goes on)."""
+        self.damaged.append(f"{where}: {why}")
 
     # records that can appear at top level or inside chunks
-    def record(self, op: int, body: bytes | memoryview) -> None:
+    def record(self, op: int, body: bytes | memoryview, where: str = "") -> None:
+        try:
+            self._record(op, body)
+        except (struct.error, _DamagedError, ValueError) as exc:
+            self.damage(where or f"a record (opcode {op})", exc)
+
+    def _record(self, op: int, body: bytes | memoryview) -> None:
         if op == OP_SCHEMA:
             (sid,) = struct.unpack_from("<H", body, 0)
             name, pos = _string(body, 2)
@@ -164,11 +206,15 @@ class _Walker:
         covered = 0
         found: list[tuple[int, I64, I64, I64]] = []
         for cid, pairs in index.items():
-            offsets = pairs[:, 1].astype(np.int64)
-            lengths = gather(chunk, offsets + 1, 8, "<u8").astype(np.int64)
+            located = _located(chunk, pairs)
+            if located is None:  # the index lies: walk the chunk record by record instead
+                self.chunks.pop()
+                self.chunk(chunk, None)
+                return
+            offsets, lengths = located
             covered += int(lengths.sum()) + 9 * offsets.size
             found.append((cid, offsets, lengths, pairs[:, 0].astype(np.int64)))
-            self.count += int(offsets.size)
+        self.count += sum(int(f[1].size) for f in found)
         if covered < chunk.shape[0]:
             # records between the indexed messages (schemas, channels) are read one by one
             offsets = np.sort(np.concatenate([f[1] for f in found]))
@@ -197,14 +243,24 @@ class _Walker:
             if body_end > len(buf):
                 break
             if op == OP_MESSAGE:
+                if length < 22:
+                    self.damage(f"a message record at byte {base + pos} of a chunk", "too short")
+                    pos = body_end
+                    continue
                 cid, _, log_time = struct.unpack_from("<HIQ", buf, pos + 9)
                 self.count += 1
+                if log_time >= 2**63:
+                    self.damage(f"a message at byte {base + pos} of a chunk", "log time too large")
+                    pos = body_end
+                    continue
                 if self.keep(cid):
                     starts.setdefault(cid, []).append(base + pos + _MESSAGE_HEADER)
                     lens.setdefault(cid, []).append(length - 22)
                     times.setdefault(cid, []).append(log_time)
             else:
-                self.record(op, buf[pos + 9 : body_end])
+                self.record(
+                    op, buf[pos + 9 : body_end], f"a record in a chunk at byte {base + pos}"
+                )
             pos = body_end
         for cid in starts:
             self.parts.setdefault(cid, []).append(
@@ -237,17 +293,31 @@ class _Walker:
 
 
 def _decompress(compression: str, payload: bytes | memoryview, size: int, path: str) -> bytes:
+    """The chunk's records, checked against the size it claims (``_DamagedError`` when they differ
+    or the data is not what the compression says)."""
     if compression == "":
-        return bytes(payload)
-    if compression == "zstd":
+        out = bytes(payload)
+    elif compression == "zstd":
         import zstandard
 
-        return zstandard.ZstdDecompressor().decompress(payload, max_output_size=size)
-    if compression == "lz4":
+        try:
+            # a frame that claims more content than the chunk does is refused by max_output_size
+            out = zstandard.ZstdDecompressor().decompress(payload, max_output_size=size)
+        except zstandard.ZstdError as exc:
+            raise _DamagedError(f"zstd: {exc}") from None
+    elif compression == "lz4":
         import lz4.frame  # type: ignore[import-untyped]
 
-        return bytes(lz4.frame.decompress(payload))
-    raise InputError(f"{path}: chunk compression '{compression}' is not supported (zstd, lz4).")
+        try:
+            with lz4.frame.LZ4FrameDecompressor() as d:
+                out = bytes(d.decompress(payload, max_length=size + 1))
+        except RuntimeError as exc:
+            raise _DamagedError(f"lz4: {exc}") from None
+    else:
+        raise _DamagedError(f"compression '{compression[:40]}' is not supported (zstd, lz4)")
+    if len(out) != size:
+        raise _DamagedError(f"{len(out)} bytes where the chunk claims {size}")
+    return out
 
 
 def scan_mcap(
@@ -270,8 +340,8 @@ def scan_mcap(
     pos, end = len(MAGIC), len(blob)
     profile = ""
     truncated_at: int | None = None
-    pending: tuple[Future[bytes], dict[int, NDArray[np.uint64]]] | None = None
-    chunks: list[tuple[Future[bytes], dict[int, NDArray[np.uint64]]]] = []
+    pending: tuple[Future[bytes], dict[int, NDArray[np.uint64]], int] | None = None
+    chunks: list[tuple[Future[bytes], dict[int, NDArray[np.uint64]], int]] = []
     decompressed = ThreadPoolExecutor(max_workers=os.cpu_count() or 1)
 
     def flush() -> None:
@@ -291,41 +361,76 @@ def scan_mcap(
             truncated_at = pos
             break
         if op == OP_MESSAGE_INDEX and pending is not None:
-            (cid,) = struct.unpack_from("<H", blob, body)
-            (n,) = struct.unpack_from("<I", blob, body + 2)
-            pairs = np.frombuffer(blob, dtype="<u8", count=n // 8, offset=body + 6).reshape(-1, 2)
-            pending[1][cid] = pairs
+            if length < 6:
+                walker.damage(f"the message index at byte {pos}", "too short")
+            else:
+                (cid,) = struct.unpack_from("<H", blob, body)
+                (n,) = struct.unpack_from("<I", blob, body + 2)
+                if 6 + n > length:
+                    walker.damage(f"the message index at byte {pos}", "runs past its record")
+                    pending[1][-1] = np.zeros((0, 2), dtype=np.uint64)  # distrust the index
+                else:
+                    count = n // 16 * 2
+                    pairs = np.frombuffer(blob, dtype="<u8", count=count, offset=body + 6)
+                    pending[1][cid] = pairs.reshape(-1, 2)
         else:
             flush()
             if op == OP_HEADER:
-                profile = _string(view, body)[0]
+                try:
+                    profile = _string(view[: body + length], body)[0]
+                except (struct.error, _DamagedError) as exc:
+                    walker.damage(f"the header at byte {pos}", exc)
             elif op == OP_CHUNK:
-                _, _, size, _ = struct.unpack_from("<QQQI", blob, body)
-                compression, p = _string(view, body + 28)
-                (n,) = struct.unpack_from("<Q", blob, p)
-                pending = (
-                    decompressed.submit(
-                        _decompress, compression, view[p + 8 : p + 8 + n], size, name
-                    ),
-                    {},
-                )
+                try:
+                    record = view[: body + length]
+                    _, _, size, _ = struct.unpack_from("<QQQI", record, body)
+                    compression, p = _string(record, body + 28)
+                    (n,) = struct.unpack_from("<Q", record, p)
+                    if p + 8 + n > body + length:
+                        raise _DamagedError(f"its records ({n} bytes) run past the chunk")
+                    if size > min(MAX_CHUNK, MAX_RATIO * max(n, 1024)):
+                        raise _DamagedError(f"it claims {size} bytes uncompressed from {n}")
+                except (struct.error, _DamagedError) as exc:
+                    walker.damage(f"the chunk at byte {pos}", exc)
+                else:
+                    pending = (
+                        decompressed.submit(
+                            _decompress, compression, view[p + 8 : p + 8 + n], size, name
+                        ),
+                        {},
+                        pos,
+                    )
             elif op == OP_MESSAGE:
+                if length < 22:
+                    walker.damage(f"the message at byte {pos}", "too short")
+                    pos = body + length
+                    continue
                 cid, _, log_time = struct.unpack_from("<HIQ", blob, body)
                 walker.count += 1
+                if log_time >= 2**63:
+                    walker.damage(f"the message at byte {pos}", "log time too large")
+                    pos = body + length
+                    continue
                 if walker.keep(cid):
                     data = blob[body + 22 : body + length]
                     walker.loose.setdefault(cid, []).append((log_time, data))
             elif op in (OP_DATA_END, OP_FOOTER):
                 break
             else:
-                walker.record(op, view[body : body + length])
+                walker.record(op, view[body : body + length], f"a record at byte {pos}")
         pos = body + length
         if progress is not None and op == OP_CHUNK:
             progress(0.5 * pos / end)
     flush()
     with decompressed:
-        for done, (future, index) in enumerate(chunks, start=1):
-            walker.chunk(np.frombuffer(future.result(), dtype=np.uint8), index or None)
+        for done, (future, index, at) in enumerate(chunks, start=1):
+            try:
+                records = future.result()
+            except _DamagedError as exc:
+                walker.damage(f"the chunk at byte {at}", exc)
+                continue
+            trusted = None if not index or -1 in index else index
+            walker.chunk(np.frombuffer(records, dtype=np.uint8), trusted)
             if progress is not None and done % 16 == 0:
                 progress(0.5 + 0.5 * done / len(chunks))
     scan = McapScan(
@@ -339,7 +444,13 @@ def scan_mcap(
     )
     if truncated_at is not None:
         scan.warnings.append(
-            f"{name}: the file is cut short at byte {truncated_at} of {end}; recovered the "
-            f"{walker.count} message(s) before the damage."
+            f"{name}: the file is cut short (or a record's length lies) at byte {truncated_at} "
+            f"of {end}; recovered the {walker.count} message(s) before the damage."
         )
+    if walker.damaged:
+        more = f" and {len(walker.damaged) - 1} more" if len(walker.damaged) > 1 else ""
+        scan.warnings.append(
+            f"{name}: {len(walker.damaged)} damaged record(s) skipped: {walker.damaged[0]}{more}."
+        )
+    scan.damaged_records = len(walker.damaged)
     return scan

@@ -10,7 +10,9 @@ by the same field extractors. Time is the message's own stamp where it has one, 
 from __future__ import annotations
 
 import json
+import math
 import re
+import struct
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -302,6 +304,11 @@ def _bulk_ok(
     )
 
 
+#: What a damaged payload can make a decoder raise (struct, UTF-8, JSON, protobuf, CDR parsers,
+#: recursion on nesting): caught per message, where it is understood, and counted.
+_DAMAGED = (Exception,)
+
+
 def _decode_stream(
     stream: str,
     infos: list[ChannelInfo],
@@ -310,12 +317,15 @@ def _decode_stream(
     fields: dict[str, str],
     path: str,
     orientation: bool = False,
+    damaged: list[tuple[str, int, int, str]] | None = None,
 ) -> list[Block]:
     """Blocks of (times, values) of one stream over all its channels.
 
     Values are an (m, 3) array for point streams, ``(names, (m, k) array)`` for joints and a
     list for phase markers. ``raw_by_channel`` is the fast path's input (bulk CDR where the
     layout allows, per-message decoding otherwise); ``general`` the mcap library's messages.
+    Messages that cannot be decoded are skipped and reported in ``damaged`` as (topic, count,
+    total, first reason); when none of a channel's messages can be read, that is an error.
     """
     blocks: list[Block] = []
     for info in infos:
@@ -330,78 +340,139 @@ def _decode_stream(
             raise UnknownSchemaError(
                 path, info.topic, info.schema_name, info.message_encoding, accepted
             )
+        bad, first_bad = 0, ""
         if raw_by_channel is not None:
             raw = raw_by_channel.get(info.id)
             if raw is None or len(raw) == 0:
                 continue
-            with_rot = orientation and stream == "point"
-            if with_rot and _bulk_ok(raw, info, (ros2.POSE_STAMPED,), fields):
-                stamps, xyz = ros2.decode_point_bulk(raw, orientation=True)
-                blocks.append((np.where(stamps != 0, stamps, raw.log_time), xyz))
+            bulk = _bulk_blocks(stream, info, raw, fields, orientation)
+            if bulk is not None:
+                blocks.extend(bulk)
                 continue
-            if (
-                not with_rot
-                and stream in ("point", "base")
-                and _bulk_ok(raw, info, (ros2.POINT_STAMPED, ros2.POSE_STAMPED), fields)
-            ):
-                stamps, xyz = ros2.decode_point_bulk(raw)
-                blocks.append((np.where(stamps != 0, stamps, raw.log_time), xyz))
-                continue
-            if (
-                not with_rot
-                and stream in ("point", "base")
-                and _bulk_ok(raw, info, (ros2.POSE_WITH_COVARIANCE,), fields)
-            ):
-                stamps, xyz = ros2.decode_point_bulk(raw, covariance=True)
-                blocks.append((np.where(stamps != 0, stamps, raw.log_time), xyz))
-                continue
-            if stream == "joints" and _bulk_ok(raw, info, (ros2.JOINT_STATE,), fields):
-                for stamps, names, q in ros2.decode_joint_state_bulk(raw):
-                    blocks.append((stamps, (names, q)))
-                continue
-            decode = _message_decoder(info)
-            if decode is None:
-                raise UnknownSchemaError(
-                    path, info.topic, info.schema_name, info.message_encoding, ACCEPTED[stream]
-                )
-            msgs = [(int(raw.log_time[i]), decode(raw.payload(i))) for i in range(len(raw))]
-        else:
-            assert general is not None
-            msgs = general.get(info.id, [])
-        t_list, values = [], []
-        for log_time, msg in msgs:
             try:
-                stamp, value = extract(msg)
-            except (KeyError, AttributeError, TypeError, ValueError) as exc:
-                if fields:
-                    raise InputError(
-                        f"{path}: {info.topic}: the pipeline's [streams.{stream}] fields "
-                        f"({', '.join(f'{k} = {v!r}' for k, v in fields.items())}) do not fit "
-                        f"its messages ({type(exc).__name__}: {exc}); fix the field paths."
-                    ) from None
+                decode = _message_decoder(info)
+            except _DAMAGED as exc:  # the schema itself is damaged
                 raise UnknownSchemaError(
                     path,
                     info.topic,
                     info.schema_name,
                     info.message_encoding,
-                    f"{ACCEPTED[stream]} (missing field {exc})",
+                    f"{ACCEPTED[stream]} (its schema cannot be parsed: {_reason(exc)})",
                 ) from None
+            if decode is None:
+                raise UnknownSchemaError(
+                    path, info.topic, info.schema_name, info.message_encoding, ACCEPTED[stream]
+                )
+            msgs = []
+            for i in range(len(raw)):
+                try:
+                    msgs.append((int(raw.log_time[i]), decode(raw.payload(i))))
+                except _DAMAGED as exc:
+                    bad += 1
+                    first_bad = first_bad or f"log time {int(raw.log_time[i])}: {_reason(exc)}"
+        else:
+            assert general is not None
+            msgs = general.get(info.id, [])
+        total = len(msgs) + bad
+        t_list, values = [], []
+        for log_time, msg in msgs:
+            try:
+                stamp, value = extract(msg)
+                value = _checked(stream, value)
+                if stamp is not None and not 0 <= stamp < 2**63:
+                    raise ValueError(f"stamp {stamp} ns out of range")
+            except _DAMAGED as exc:
+                bad += 1
+                first_bad = first_bad or f"log time {log_time}: {_reason(exc)}"
+                continue
             t_list.append(stamp if stamp is not None else log_time)
             values.append(value)
+        if bad and not values:
+            if fields:
+                raise InputError(
+                    f"{path}: {info.topic}: the pipeline's [streams.{stream}] fields "
+                    f"({', '.join(f'{k} = {v!r}' for k, v in fields.items())}) do not fit its "
+                    f"messages ({first_bad}); fix the field paths."
+                )
+            raise UnknownSchemaError(
+                path,
+                info.topic,
+                info.schema_name,
+                info.message_encoding,
+                f"{ACCEPTED[stream]} (none of its {total} message(s) could be read; first: "
+                f"{first_bad})",
+            )
+        if bad and damaged is not None:
+            damaged.append((info.topic, bad, total, first_bad))
         t = np.asarray(t_list, dtype=np.int64)
         if stream in ("point", "base"):
-            width = len(values[0]) if values else 3
-            blocks.append((t, np.asarray(values, dtype=np.float64).reshape(-1, width)))
+            width = max((len(v) for v in values), default=3)
+            rows = [v + [math.nan] * (width - len(v)) for v in values]
+            blocks.append((t, np.asarray(rows, dtype=np.float64).reshape(-1, width)))
         elif stream == "joints":
             layouts: dict[tuple[str, ...], list[int]] = {}
             for i, (names, _) in enumerate(values):
                 layouts.setdefault(tuple(names), []).append(i)
-            for names_key, rows in layouts.items():
-                q = np.asarray([values[r][1] for r in rows], dtype=np.float64)
-                blocks.append((t[rows], (list(names_key), q.reshape(len(rows), -1))))
+            for names_key, rows_of in layouts.items():
+                q = np.asarray([values[r][1] for r in rows_of], dtype=np.float64)
+                blocks.append((t[rows_of], (list(names_key), q.reshape(len(rows_of), -1))))
         else:
             blocks.append((t, values))
     return blocks
+
+
+def _reason(exc: BaseException) -> str:
+    """One line on why a message or schema could not be read."""
+    text = " ".join(str(exc).split())
+    return f"{type(exc).__name__}: {text[:120]}" if text else type(exc).__name__
+
+
+def _checked(stream: str, value: Any) -> Any:
+    """``value`` as the stream needs it, or ValueError: numbers for points; names and as many
+    positions for joint states (a message with fewer positions than names keeps the names that
+    have one)."""
+    if stream in ("point", "base"):
+        return [float(v) for v in value]
+    if stream == "joints":
+        names, positions = value
+        positions = [float(v) for v in positions]
+        names = [str(n) for n in names][: len(positions)]
+        if not names:
+            raise ValueError("a joint state without positions")
+        return names, positions[: len(names)]
+    return value
+
+
+def _bulk_blocks(
+    stream: str, info: ChannelInfo, raw: RawMessages, fields: dict[str, str], orientation: bool
+) -> list[Block] | None:
+    """The bulk CDR decode of a channel where its type and layout allow, else None (also when
+    the bulk decode meets a payload that lies about its layout: the per-message path then reads
+    what can be read and counts the rest)."""
+    with_rot = orientation and stream == "point"
+    try:
+        if with_rot and _bulk_ok(raw, info, (ros2.POSE_STAMPED,), fields):
+            stamps, xyz = ros2.decode_point_bulk(raw, orientation=True)
+            return [(np.where(stamps != 0, stamps, raw.log_time), xyz)]
+        if (
+            not with_rot
+            and stream in ("point", "base")
+            and _bulk_ok(raw, info, (ros2.POINT_STAMPED, ros2.POSE_STAMPED), fields)
+        ):
+            stamps, xyz = ros2.decode_point_bulk(raw)
+            return [(np.where(stamps != 0, stamps, raw.log_time), xyz)]
+        if (
+            not with_rot
+            and stream in ("point", "base")
+            and _bulk_ok(raw, info, (ros2.POSE_WITH_COVARIANCE,), fields)
+        ):
+            stamps, xyz = ros2.decode_point_bulk(raw, covariance=True)
+            return [(np.where(stamps != 0, stamps, raw.log_time), xyz)]
+        if stream == "joints" and _bulk_ok(raw, info, (ros2.JOINT_STATE,), fields):
+            return [(stamps, (names, q)) for stamps, names, q in ros2.decode_joint_state_bulk(raw)]
+    except (ValueError, IndexError, struct.error, UnicodeDecodeError, OverflowError):
+        return None
+    return None
 
 
 def _points_frame(blocks: list[Block], scale: float, orientation: bool = False) -> pl.DataFrame:
@@ -496,6 +567,7 @@ def read_log(
         wanted = [c for cs in infos.values() for c in cs] + [c for cs in targets for c in cs]
         general = _read_general(name, wanted)
     set_aside: dict[str, int] = {}
+    damaged: list[tuple[str, int, int, str]] = []
 
     with_rot = pipeline.streams["point"].orientation
 
@@ -508,6 +580,7 @@ def read_log(
             pipeline.streams[stream].fields,
             name,
             with_rot,
+            damaged,
         )
 
     def points_of(channels: list[ChannelInfo] | None = None) -> pl.DataFrame:
@@ -535,10 +608,31 @@ def read_log(
         marks_blocks = blocks_of("phase")
         t = np.concatenate([b[0] for b in marks_blocks]) if marks_blocks else np.zeros(0, np.int64)
         marks = [_phase_value(v, joint_names) for b in marks_blocks for v in b[1]]
+        limit = len(joint_names) if joint_names else MAX_JOINTS
+        absurd = sum(1 for m in marks if m is not None and m > limit)
+        if absurd:  # a marker naming joint 999999999 is damage, not a joint to allocate
+            set_aside["phase_beyond_joints"] = absurd
+            warnings.append(
+                f"{name}: {absurd} phase marker(s) name a joint beyond {limit}; they were "
+                "set aside (check the phase topic)."
+            )
+            marks = [None if m is not None and m > limit else m for m in marks]
         phase = pl.DataFrame({"t_ns": t, "joint": pl.Series(marks, dtype=pl.Int32)}).sort("t_ns")
+    for topic, bad, total, first in damaged:
+        set_aside["damaged_message"] = set_aside.get("damaged_message", 0) + bad
+        warnings.append(
+            f"{name}: {bad} of {total} message(s) on {topic} could not be decoded and were "
+            f"skipped (first at {first})."
+        )
     return LogData(
         name, pipeline, points, joints, joint_names, base, phase, set_aside, warnings, reason
     )
+
+
+#: No robot dhlog identifies has more joints than this (phase markers beyond it are damage).
+MAX_JOINTS = 64
+#: Larger coordinates (m) or encoder values (rad, m) are not measurements.
+MAX_VALUE = 1e5
 
 
 def _clean(frame: pl.DataFrame, stream: str, set_aside: dict[str, int]) -> pl.DataFrame:
@@ -557,6 +651,14 @@ def _clean(frame: pl.DataFrame, stream: str, set_aside: dict[str, int]) -> pl.Da
     dropped = frame.height - kept.height
     if dropped:
         set_aside[f"non_finite_{stream}"] = dropped
+    # values no measurement has (beyond 100 km, or 10⁶ rad of encoder travel) and stamps
+    # outside 1970-2262 are damage, not data: set aside before any arithmetic overflows
+    ranged = [c for c in value_cols if c in ("x", "y", "z") or c.startswith("q_")]
+    sane = pl.all_horizontal([pl.col(c).abs() < MAX_VALUE for c in ranged]) if ranged else True
+    before = kept.height
+    kept = kept.filter(sane & (pl.col("t_ns") >= 0))
+    if kept.height < before:
+        set_aside[f"out_of_range_{stream}"] = before - kept.height
     return kept.sort("t_ns", maintain_order=True)
 
 
