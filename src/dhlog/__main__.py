@@ -1,5 +1,5 @@
 """``python -m dhlog``: the command line."""
 
-from dhlog.cli import run
+from dhlog.entry import run
 
 run()

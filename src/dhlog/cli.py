@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import sys
 from collections.abc import Sequence
 from pathlib import Path
@@ -18,7 +19,7 @@ import typer
 from rich.console import Console
 
 from dhlog import __version__
-from dhlog.errors import DhlogError
+from dhlog.errors import DhlogError, OutputError
 
 if TYPE_CHECKING:
     from dhlog.dhfile import DHModel
@@ -34,6 +35,7 @@ stderr = Console(stderr=True, highlight=False, soft_wrap=True)
 stdout = Console(highlight=False)
 
 EXIT_USAGE, EXIT_INPUT, EXIT_PARTIAL = 1, 2, 3
+EXIT_INTERRUPTED, EXIT_TERMINATED = 130, 143
 
 
 def _fail(exc: DhlogError, code: int = EXIT_INPUT) -> None:
@@ -42,6 +44,26 @@ def _fail(exc: DhlogError, code: int = EXIT_INPUT) -> None:
 
     stderr.print(f"[bold red]error:[/] {escape(str(exc))}", soft_wrap=True)
     raise typer.Exit(code)
+
+
+def _check_folder(folder: Path) -> None:
+    """A command's output folder must exist (only ``process --out`` creates one)."""
+    if not folder.is_dir():
+        from rich.markup import escape
+
+        stderr.print(f"error: the folder {escape(str(folder))} does not exist; create it first.")
+        raise typer.Exit(EXIT_USAGE)
+    _check_writable(folder)
+
+
+def _check_writable(folder: Path) -> None:
+    """Stop before any work when the output folder (or, if missing, the nearest existing folder
+    above it) cannot be written."""
+    probe = folder
+    while not probe.exists() and probe != probe.parent:
+        probe = probe.parent
+    if not os.access(probe, os.W_OK | os.X_OK):
+        _fail(OutputError(folder, PermissionError(13, "Permission denied")))
 
 
 def _quiet_numerics() -> None:
@@ -142,9 +164,11 @@ def simulate(
     force: Annotated[bool, typer.Option("--force", help="Overwrite existing outputs.")] = False,
 ) -> None:
     """Write a simulated calibration session and its ground truth."""
+    from rich.markup import escape
+
     from dhlog.dhfile import robot_or_dh_file
     from dhlog.io.writer import sha256_of, write_session, write_truth
-    from dhlog.simulate import SimulationConfig, simulate_session, truth_document
+    from dhlog.simulate import SimulationConfig, config_problems, simulate_session, truth_document
 
     choices = {
         "encoding": (encoding, ("ros2", "json", "protobuf")),
@@ -158,6 +182,7 @@ def simulate(
             stderr.print(f"error: --{option} must be one of {', '.join(allowed)}, not '{value}'.")
             raise typer.Exit(EXIT_USAGE)
     truth_path = output.with_name(output.stem + ".truth.json")
+    _check_folder(output.parent)
     for path in (output, truth_path):
         if path.exists() and not force:
             stderr.print(f"error: {path} exists; pass --force to overwrite it.")
@@ -185,7 +210,20 @@ def simulate(
             clock_offset=clock_offset_ms * 1e-3,
             seed=seed,
         )
+        problems = config_problems(rob, cfg)
+        if problems:
+            stderr.print(f"error: {escape(problems[0])}.")
+            raise typer.Exit(EXIT_USAGE)
         session = simulate_session(rob, cfg)
+        for k, (got, jt) in enumerate(zip(session.sweeps, rob.table.joint_types, strict=True)):
+            asked = cfg.sweep if jt.value == "revolute" else cfg.travel
+            if got < asked - 1e-9:
+                shown = (
+                    f"sweep {math.degrees(got):.1f}° (asked {math.degrees(asked):g}°)"
+                    if jt.value == "revolute"
+                    else f"travel {got * 1e3:.1f} mm (asked {asked * 1e3:g} mm)"
+                )
+                stdout.print(f"note: joint {k + 1}: {shown}, as its limits allow.")
         kind: Literal["point", "pose"] = "pose" if point_type == "pose" else "point"
         write_session(session, output, encoding, point_type=kind)  # type: ignore[arg-type]
         pipeline = (
@@ -299,7 +337,7 @@ def process(
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
     from dhlog.io.pipeline import load_pipeline
-    from dhlog.io.writer import atomic_output
+    from dhlog.io.writer import staged_outputs
     from dhlog.process import process_log
     from dhlog.report import print_result
     from dhlog.result import result_csv, result_document
@@ -319,6 +357,7 @@ def process(
     if existing and not force:
         stderr.print(f"error: {', '.join(existing)} exist(s); pass --force to overwrite.")
         raise typer.Exit(EXIT_USAGE)
+    _check_writable(folder)
     ref = None if reference_pose is None else np.array(_floats(reference_pose, "--reference-pose"))
     try:
         pipe = load_pipeline(pipeline) if pipeline is not None else None
@@ -355,17 +394,19 @@ def process(
                     "default (--analytic-only gives the seed method alone)."
                 )
             advance("writing", 0.0)
-            folder.mkdir(parents=True, exist_ok=True)
             document = result_document(result)
-            with atomic_output(outputs[0]) as f:
-                f.write((json.dumps(document, indent=2) + "\n").encode())
-            with atomic_output(outputs[1]) as f:
-                f.write(result_csv(result, units=units).encode())
-            if not no_rrd:
-                from dhlog.recording import write_process_recording
+            try:
+                folder.mkdir(parents=True, exist_ok=True)  # --out is created when missing
+                with staged_outputs(outputs, hold_signals=True) as temps:  # moved in together
+                    temps[0].write_bytes((json.dumps(document, indent=2) + "\n").encode())
+                    temps[1].write_bytes(result_csv(result, units=units).encode())
+                    if not no_rrd:
+                        from dhlog.recording import write_process_recording
 
-                advance("recording", 0.5)
-                write_process_recording(result, outputs[2])
+                        advance("recording", 0.5)
+                        write_process_recording(result, temps[2])
+            except OSError as exc:
+                raise OutputError(folder, exc) from None
     except DhlogError as exc:
         _fail(exc)
     if result.log.pipeline_reason:
@@ -475,13 +516,36 @@ def show(
     stdout.print(f"wrote {path}; open it with: rerun {path}")
 
 
+class _Terminated(BaseException):
+    """SIGTERM, raised where the program is (temporary files are removed on the way out)."""
+
+
+def _on_sigterm(signum: int, frame: object) -> None:
+    raise _Terminated()
+
+
 def run() -> None:
-    """Entry point: exit codes 0 success, 1 usage error, 2 unusable input, 3 partial result."""
+    """Entry point: exit codes 0 success, 1 usage error, 2 unusable input, 3 partial result,
+    130 interrupted (SIGINT), 143 terminated (SIGTERM)."""
+    import signal
+
     _quiet_numerics()
+    signal.signal(signal.SIGTERM, _on_sigterm)
+    if len(sys.argv) <= 1:  # no arguments: the help, and success
+        sys.argv.append("--help")
     try:
         code = app(standalone_mode=False)
-    except typer.Abort:
+    except typer.Abort as exc:
+        if isinstance(exc.__cause__ or exc.__context__, KeyboardInterrupt):
+            stderr.print("interrupted: no output was written (finished files stay as they were).")
+            sys.exit(EXIT_INTERRUPTED)
         sys.exit(EXIT_USAGE)
+    except KeyboardInterrupt:
+        stderr.print("interrupted: no output was written (finished files stay as they were).")
+        sys.exit(EXIT_INTERRUPTED)
+    except _Terminated:
+        stderr.print("terminated: no output was written (finished files stay as they were).")
+        sys.exit(EXIT_TERMINATED)
     except DhlogError as exc:  # pragma: no cover - commands catch their own
         stderr.print(f"error: {exc}")
         sys.exit(EXIT_INPUT)
@@ -491,4 +555,9 @@ def run() -> None:
             stderr.print(f"error: {exc.format_message()} (see dhlog --help)")
             sys.exit(EXIT_USAGE)
         raise
+    if code == EXIT_INTERRUPTED:  # typer's own ending of a KeyboardInterrupt
+        stderr.print("interrupted: no output was written (finished files stay as they were).")
+    # the work is done: a signal now (while the recording library shuts down) changes nothing
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_IGN)
     sys.exit(code if isinstance(code, int) else 0)

@@ -159,3 +159,14 @@ class PipelineError(InputError):
 
     def __init__(self, where: str, problem: str) -> None:
         super().__init__(f"{where}: {problem}")
+
+
+class OutputError(DhlogError):
+    """The results cannot be written (a full disk, a read-only or unwritable folder)."""
+
+    def __init__(self, folder: object, exc: OSError) -> None:
+        why = exc.strerror or str(exc)
+        super().__init__(
+            f"cannot write the results in {folder} ({why}); nothing was written there — free "
+            "space or choose another folder with --out."
+        )

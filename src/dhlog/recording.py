@@ -62,14 +62,21 @@ def _recording_file(
     target = Path(path)
     fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".part", dir=target.parent)
     os.close(fd)
-    rec = rr.RecordingStream(application_id, recording_id=recording_id)
     try:
+        # a signal while the stream is being built would leave a half-made object whose
+        # finaliser prints a traceback: defer signals until it exists
+        from dhlog.io.writer import signals_deferred
+
+        with signals_deferred():
+            rec = rr.RecordingStream(application_id, recording_id=recording_id)
         rec.save(tmp, default_blueprint=blueprint)
         rec.log("world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
         yield rec
         rec.flush()
         rec.disconnect()
-        os.replace(tmp, target)
+        from dhlog.io.writer import publish
+
+        publish(tmp, target)
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise

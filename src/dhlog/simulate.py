@@ -65,6 +65,56 @@ class SimulationConfig:
     seed: int = 0
 
 
+def config_problems(robot: Robot, cfg: SimulationConfig) -> list[str]:
+    """What is wrong with ``cfg`` for ``robot`` (empty when it can be simulated): every rate,
+    count, fraction, sweep and travel in its range, joints that exist."""
+    out = []
+    finite = [cfg.noise, cfg.tracker_rate, cfg.joint_rate, cfg.sweep, cfg.travel, cfg.clock_offset]
+    if not all(math.isfinite(v) for v in finite):
+        out.append("every number must be finite")
+    checks = [
+        (cfg.noise >= 0, f"the noise must be ≥ 0 (got {cfg.noise * 1e3:g} mm)"),
+        (
+            0 < cfg.tracker_rate <= 1e5,
+            f"the tracker rate must be in (0, 100 000] Hz (got {cfg.tracker_rate:g})",
+        ),
+        (
+            0 < cfg.joint_rate <= 1e5,
+            f"the joint rate must be in (0, 100 000] Hz (got {cfg.joint_rate:g})",
+        ),
+        (0 <= cfg.outliers < 1, f"the outlier fraction must be in [0, 1) (got {cfg.outliers:g})"),
+        (0 <= cfg.dropouts < 1, f"the dropout fraction must be in [0, 1) (got {cfg.dropouts:g})"),
+        (cfg.steps >= 2, f"a step sweep needs at least 2 stops (got {cfg.steps})"),
+        (cfg.base_points >= 0, f"the base points must be ≥ 0 (got {cfg.base_points})"),
+        (cfg.perturb_length >= 0 and cfg.perturb_angle >= 0, "the perturbations must be ≥ 0"),
+        (
+            abs(cfg.clock_offset) <= 10.0,
+            f"the clock offset must be within ±10 s (got {cfg.clock_offset:g} s)",
+        ),
+    ]
+    out += [why for ok, why in checks if not ok]
+    bad = [j for j in cfg.skip_joints if not 1 <= j <= robot.n]
+    if bad:
+        out.append(f"--skip-joints names joint(s) {bad}; {robot.name} has joints 1-{robot.n}")
+    if not 0 < cfg.sweep <= 2 * math.pi:
+        out.append(f"the sweep must be in (0, 360]°, not {math.degrees(cfg.sweep):g}°")
+    if not 0 < cfg.travel <= 10.0:
+        out.append(f"the travel must be in (0, 10 000] mm, not {cfg.travel * 1e3:g} mm")
+    return out
+
+
+def joint_sweeps(robot: Robot, cfg: SimulationConfig) -> FloatArray:
+    """Each joint's sweep (rad) or travel (m) as simulated from the home pose: the asked one,
+    or less where the joint's limits clip it."""
+    home = np.clip(np.zeros(robot.n), robot.limits[:, 0], robot.limits[:, 1])
+    out = np.zeros(robot.n)
+    for k, jt in enumerate(robot.table.joint_types):
+        half = (cfg.sweep if jt is JointType.REVOLUTE else cfg.travel) / 2.0
+        lo, hi = robot.limits[k]
+        out[k] = min(home[k] + half, hi) - max(home[k] - half, lo)
+    return out
+
+
 @dataclass
 class Session:
     """A simulated session and its ground truth.
@@ -97,6 +147,8 @@ class Session:
     extra_point_xyz: list[FloatArray] = field(default_factory=list)
     tool_rotation: FloatArray | None = None
     point_rotation: FloatArray | None = None
+    #: each joint's sweep (rad) or travel (m) as simulated (the limits may clip the asked one)
+    sweeps: FloatArray = field(default_factory=lambda: np.zeros(0))
 
 
 def default_measurement_pose() -> FloatArray:
@@ -315,6 +367,7 @@ def simulate_session(
         extra_point_xyz=[np.asarray(e[keep], dtype=np.float64) for e in extra_xyz],
         tool_rotation=R_tool,
         point_rotation=None if point_rot is None else np.asarray(point_rot[keep]),
+        sweeps=joint_sweeps(robot, cfg),
     )
 
 
@@ -372,6 +425,7 @@ def truth_document(
             "phase": cfg.phase,
             "seed": cfg.seed,
             "clock_offset_s": cfg.clock_offset,
+            "joint_sweeps": [float(v) for v in session.sweeps],
             "perturb_length_m": cfg.perturb_length,
             "perturb_angle_rad": cfg.perturb_angle,
         },

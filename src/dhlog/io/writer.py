@@ -63,21 +63,80 @@ JSON_SCHEMAS: dict[str, dict[str, Any]] = {
 
 
 @contextmanager
+def signals_deferred() -> Iterator[None]:
+    """SIGINT and SIGTERM noted during the block and raised again right after it (in the main
+    thread; elsewhere the block runs as it is): for work that must not be cut in half."""
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    noted: list[int] = []
+
+    def note(signum: int, frame: object) -> None:
+        noted.append(signum)
+
+    previous = {s: signal.signal(s, note) for s in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        yield
+    finally:
+        for s, handler in previous.items():
+            signal.signal(s, handler)
+        if noted:
+            signal.raise_signal(noted[0])
+
+
+def publish(tmp: str | Path, target: str | Path) -> None:
+    """Move a finished temporary file into place, with the permissions of the user's umask (a
+    temporary file is created 0600)."""
+    umask = os.umask(0)
+    os.umask(umask)
+    os.chmod(tmp, 0o666 & ~umask)
+    os.replace(tmp, target)
+
+
+@contextmanager
 def atomic_output(path: str | Path) -> Iterator[IO[bytes]]:
-    """A binary file that replaces ``path`` only when the block finishes without error."""
+    """A binary file that replaces ``path`` only when the block finishes without error (its
+    folder must exist)."""
     target = Path(path)
-    target.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".part", dir=target.parent)
     try:
         with os.fdopen(fd, "wb") as f:
             yield f
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(tmp, 0o666 & ~umask)
-        os.replace(tmp, target)
+        publish(tmp, target)
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
+
+
+@contextmanager
+def staged_outputs(paths: list[Path], *, hold_signals: bool = False) -> Iterator[list[Path]]:
+    """Temporary files beside ``paths``, moved into place together when the block finishes
+    without error (none of them otherwise: an interrupted run leaves no partial set). With
+    ``hold_signals`` (the command line), SIGINT and SIGTERM are held from the moment the files
+    are moved into place on: the run is complete then, and ends as such."""
+    temps: list[Path] = []
+    try:
+        for target in paths:
+            fd, name = tempfile.mkstemp(
+                prefix=f".{target.name}.", suffix=".part", dir=target.parent
+            )
+            os.close(fd)
+            temps.append(Path(name))
+        yield temps
+        if hold_signals:  # ignored process-wide (a mask would hold only this thread)
+            import signal
+
+            signal.signal(signal.SIGINT, signal.SIG_IGN)
+            signal.signal(signal.SIGTERM, signal.SIG_IGN)
+        for staged, target in zip(temps, paths, strict=True):
+            if staged.exists() and staged.stat().st_size:
+                publish(staged, target)
+    finally:
+        for staged in temps:
+            staged.unlink(missing_ok=True)
 
 
 def _stamp(t_ns: int) -> dict[str, int]:
