@@ -66,6 +66,7 @@ def main() -> None:
     results: list[tuple[Outcome, float, float]] = []
     begun = time.time()
     exhausted = False
+    reported = 0
     while running or not exhausted:
         while free and not exhausted:
             case = next(generator, None)
@@ -99,7 +100,6 @@ def main() -> None:
                 os.close(fd)
             rss = usage.ru_maxrss / 1024.0  # MiB (ru_maxrss is in KiB on Linux)
             if rss > 1024:
-                outcome = Outcome(*outcome.__dict__.values())  # copy
                 outcome = Outcome(
                     outcome.case,
                     outcome.family,
@@ -121,7 +121,8 @@ def main() -> None:
                     )
             del running[pid]
             free.append(slot)
-        if len(results) % 500 == 0 and results:
+        if len(results) >= reported + 500:
+            reported = len(results) // 500 * 500
             print(f"... {len(results)} cases, {time.time() - begun:.0f} s", flush=True)
     total = time.time() - begun
     print(f"\n{len(results)} cases in {total:.0f} s ({args.workers} workers, seed {args.seed})\n")

@@ -297,7 +297,7 @@ def process(
         ),
     ] = None,
     out: Annotated[
-        Path | None, typer.Option(help="Folder for the results (default: beside the log).")
+        Path | None, typer.Option(help="Folder for the results (default: beside the log; created when missing).")
     ] = None,
     units: Annotated[
         str,
