@@ -190,3 +190,18 @@ def test_a_signal_at_any_point_leaves_no_partial_output(
             assert written == [], written
         assert log.read_bytes() == before
     assert interrupted >= 1
+
+
+def test_a_shipped_pipeline_by_name_and_the_list_of_them(tmp_path: Path) -> None:
+    """``--pipeline ros2_tracker`` (the name dhlog prints) works; ``dhlog pipelines`` lists
+    every shipped one; the viewer hint is a command that exists here."""
+    listed = _dhlog("pipelines")
+    assert listed.returncode == 0
+    for name in ("ros2_tracker", "foxglove_json", "foxglove_protobuf", "phase_markers"):
+        assert name in listed.stdout
+    log = Path(__file__).parents[1] / "sample_logs" / "kr5_0.01mm.mcap"
+    result = _dhlog("process", str(log), "--pipeline", "ros2_tracker", "--out", str(tmp_path))
+    assert result.returncode == 0, result.stderr
+    hint = next(line for line in result.stdout.splitlines() if "open the recording" in line)
+    viewer = hint.split(": ", 1)[1].rsplit(" ", 1)[0]
+    assert viewer == "rerun" or Path(viewer.split()[0]).exists()

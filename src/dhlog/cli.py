@@ -23,6 +23,7 @@ from dhlog.errors import DhlogError, OutputError
 
 if TYPE_CHECKING:
     from dhlog.dhfile import DHModel
+    from dhlog.io.pipeline import Pipeline
 
 app = typer.Typer(
     name="dhlog",
@@ -257,6 +258,28 @@ def _floats(text: str, what: str) -> list[float]:
         raise typer.Exit(EXIT_USAGE) from None
 
 
+def _pipeline(spec: str) -> Pipeline:
+    """A pipeline file, or a shipped pipeline by name (``dhlog pipelines`` lists them)."""
+    from dhlog.io.pipeline import load_pipeline, pipeline_by_name
+
+    if not Path(spec).exists():
+        shipped = pipeline_by_name(spec)
+        if shipped is not None:
+            return shipped
+    return load_pipeline(spec)
+
+
+def _viewer() -> str:
+    """How to open a recording from here: ``rerun`` when it is on the PATH, else the viewer
+    installed beside this Python (the README's venv flow)."""
+    import shutil
+
+    beside = Path(sys.executable).with_name("rerun")
+    if shutil.which("rerun") == str(beside) or (shutil.which("rerun") and not beside.exists()):
+        return "rerun"
+    return str(beside) if beside.exists() else f"{sys.executable} -m rerun"
+
+
 def _model(spec: str) -> DHModel:
     """A DH model from a DH file or a library robot name."""
     from dhlog.dhfile import DHModel, load_dh
@@ -297,7 +320,10 @@ def process(
         ),
     ] = None,
     out: Annotated[
-        Path | None, typer.Option(help="Folder for the results (default: beside the log; created when missing).")
+        Path | None,
+        typer.Option(
+            help="Folder for the results (default: beside the log; created when missing)."
+        ),
     ] = None,
     units: Annotated[
         str,
@@ -336,7 +362,6 @@ def process(
     from rich.markup import escape
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
-    from dhlog.io.pipeline import load_pipeline
     from dhlog.io.writer import staged_outputs
     from dhlog.process import process_log
     from dhlog.report import print_result
@@ -360,7 +385,7 @@ def process(
     _check_writable(folder)
     ref = None if reference_pose is None else np.array(_floats(reference_pose, "--reference-pose"))
     try:
-        pipe = load_pipeline(pipeline) if pipeline is not None else None
+        pipe = _pipeline(str(pipeline)) if pipeline is not None else None
         if ref is not None:
             unit = angle_unit or (pipe.angle_unit if pipe is not None else "rad")
             types = pipe.joint_types if pipe is not None and pipe.joint_types else None
@@ -414,7 +439,7 @@ def process(
     print_result(stdout, result, units=units)
     stdout.print("wrote " + ", ".join(str(p) for p in outputs))
     if not no_rrd:
-        stdout.print(f"open the recording with: rerun {outputs[2]}")
+        stdout.print(f"open the recording with: {_viewer()} {outputs[2]}")
     if not result.complete:
         names = ", ".join(f"joint {j.index} ({j.name})" for j in result.failed)
         stderr.print(f"partial result: {names} not identified; the rest was written.")
@@ -475,6 +500,56 @@ def fk(
     stdout.print(f"tool point ({units}): {tool}")
     stdout.print("spatial Jacobian [v; w] (rows vx vy vz wx wy wz, one column per joint):")
     stdout.print(str(J))
+
+
+@app.command()
+def pipelines() -> None:
+    """List the shipped pipelines (give a name to --pipeline)."""
+    from rich.markup import escape
+
+    from dhlog.io.pipeline import shipped_pipelines
+
+    stdout.print("Shipped pipelines (dhlog process LOG --pipeline NAME):")
+    for p in shipped_pipelines():
+        stdout.print(
+            f"  {escape(p.name)} ({', '.join(p.encodings)}; point topic "
+            f"{escape(p.streams['point'].topic)}): {escape(p.description)}"
+        )
+
+
+@app.command()
+def export(
+    result: Annotated[Path, typer.Argument(help="A result <stem>.dh.json (or a DH JSON file).")],
+    output: Annotated[Path, typer.Option("-o", "--output", help="The file to write.")],
+    format: Annotated[str, typer.Option("--format", help="urdf.")] = "urdf",
+    limits_from: Annotated[
+        str | None,
+        typer.Option(help="A library robot (or DH file) whose joint limits the URDF gets."),
+    ] = None,
+    force: Annotated[bool, typer.Option("--force", help="Overwrite the output.")] = False,
+) -> None:
+    """Write the identified model in a form a robot stack loads (URDF)."""
+    from dhlog.dhfile import robot_or_dh_file
+    from dhlog.export import urdf_document
+    from dhlog.io.writer import atomic_output
+
+    if format != "urdf":
+        stderr.print(f"error: --format must be urdf, not '{format}'.")
+        raise typer.Exit(EXIT_USAGE)
+    _check_folder(output.parent)
+    if output.exists() and not force:
+        stderr.print(f"error: {output} exists; pass --force to overwrite it.")
+        raise typer.Exit(EXIT_USAGE)
+    try:
+        limits = robot_or_dh_file(limits_from).limits if limits_from else None
+        text = urdf_document(result, limits=limits)
+        with atomic_output(output) as f:
+            f.write(text.encode())
+    except DhlogError as exc:
+        _fail(exc)
+    except OSError as exc:
+        _fail(OutputError(output.parent, exc))
+    stdout.print(f"wrote {output}")
 
 
 @app.command()
