@@ -383,10 +383,15 @@ def _odd_case(rng: random.Random, encoding: str, folder: Path) -> tuple[str, byt
         s = dataclasses.replace(
             s, point_t_ns=np.where(t > mid, t + gap, t), joint_t_ns=np.where(tj > mid, tj + gap, tj)
         )
-    elif kind == "no_points":
-        s = dataclasses.replace(
-            s, point_t_ns=s.point_t_ns[:0], point_xyz=s.point_xyz[:0], base_xyz=s.base_xyz[:0]
-        )
+    elif kind == "no_points":  # every chunk (and its indexes) dropped: channels, no messages
+        path = folder / f"odd_{kind}_{encoding}_{seed}.mcap"
+        data = _write(s, encoding, path)
+        kept = [
+            data[p : p + 9 + n]
+            for p, op, n in records(data)
+            if op not in (OP_CHUNK, OP_MESSAGE_INDEX, OP_MESSAGE)
+        ]
+        return kind, MAGIC + b"".join(kept) + MAGIC
     elif kind == "phase_999999999":
         s = dataclasses.replace(
             s,
