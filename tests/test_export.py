@@ -64,3 +64,44 @@ def test_a_result_with_encoder_scales_is_not_exported(tmp_path: Path) -> None:
     path.write_text(json.dumps(data))
     made = runner.invoke(app, ["export", str(path), "-o", str(tmp_path / "x.urdf")])
     assert made.exit_code == 2 and "encoder scales" in made.output
+
+
+def test_compare_finds_the_changed_parameter_and_nothing_else(tmp_path: Path) -> None:
+    """Two sessions of one robot (a KR5 off its nominal, its truth as a DH file) differ by
+    noise only: no parameter beyond 4 combined σ, FK within 50 µm RMS. A third session of the
+    same robot with a2 0.5 mm longer: a2 changed by 0.5 mm far beyond its σ, the FK difference
+    of that size."""
+    base = tmp_path / "robot.mcap"
+    assert (
+        runner.invoke(
+            app,
+            ["simulate", "kr5", "-o", str(base), "--perturb-mm", "0.3", "--perturb-deg", "0.02"],
+        ).exit_code
+        == 0
+    )
+    robot = tmp_path / "robot.truth.json"
+    longer = json.loads(robot.read_text())
+    longer["standard_dh"][1]["a"] += 5e-4
+    changed = tmp_path / "longer.json"
+    changed.write_text(json.dumps(longer))
+    results = []
+    for k, source in enumerate((robot, robot, changed)):
+        log = tmp_path / f"s{k}.mcap"
+        made = runner.invoke(app, ["simulate", str(source), "-o", str(log), "--seed", str(k + 1)])
+        assert made.exit_code == 0, made.output
+        done = runner.invoke(app, ["process", str(log), "--no-rrd", "--out", str(tmp_path)])
+        assert done.exit_code == 0, done.output
+        results.append(tmp_path / f"s{k}.dh.json")
+    from dhlog.compare import compare
+
+    same = compare(results[0], results[1])
+    z = [c.significance for c in same.changes if c.significance is not None]
+    assert max(z) < 4.0 and same.fk_rms < 50e-6
+    moved = compare(results[0], results[2])
+    a2 = next(c for c in moved.changes if c.name == "a_2")
+    assert a2.diff == pytest.approx(5e-4, abs=4 * (a2.sigma or 0)) and (a2.significance or 0) > 10
+    others = [c for c in moved.changes if c.name != "a_2" and c.significance is not None]
+    assert 2e-4 < moved.fk_rms < 1e-3 and moved.fk_max < 1.5e-3
+    shown = runner.invoke(app, ["compare", str(results[0]), str(results[2])])
+    assert shown.exit_code == 0 and "a_2" in shown.output and "changed beyond 3σ" in shown.output
+    assert len(others) > 10 and max(c.significance or 0 for c in others) < 4.0

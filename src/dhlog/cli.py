@@ -552,6 +552,61 @@ def export(
     stdout.print(f"wrote {output}")
 
 
+@app.command(name="compare")
+def compare_results(
+    first: Annotated[Path, typer.Argument(help="The earlier result <stem>.dh.json.")],
+    second: Annotated[Path, typer.Argument(help="The later result of the same robot.")],
+    limits_from: Annotated[
+        str | None,
+        typer.Option(help="A library robot (or DH file) whose joint range the FK check covers."),
+    ] = None,
+    threshold: Annotated[
+        float, typer.Option(help="A change beyond this many combined σ is significant.")
+    ] = 3.0,
+) -> None:
+    """Has the robot changed? Each parameter's change over its combined σ, and the FK
+    difference over the joint range (in the robot's base frame)."""
+    from rich.markup import escape
+    from rich.table import Table
+
+    from dhlog.compare import compare
+    from dhlog.dhfile import robot_or_dh_file
+
+    try:
+        limits = robot_or_dh_file(limits_from).limits if limits_from else None
+        result = compare(first, second, limits=limits)
+    except DhlogError as exc:
+        _fail(exc)
+    table = Table(title="Changes (B − A; σ: both sessions combined)", title_justify="left")
+    for col in ("parameter", "A", "B", "B − A", "σ", "|B − A| / σ"):
+        table.add_column(col, justify="left" if col == "parameter" else "right", no_wrap=True)
+    significant = []
+    for c in result.changes:
+        f, unit = (180 / math.pi, "°") if c.angular else (1e3, "mm")
+        z = c.significance
+        mark = "" if z is None else f"{z:.1f}" + (" *" if z > threshold else "")
+        if z is not None and z > threshold:
+            significant.append(c.name)
+        table.add_row(
+            escape(c.name),
+            f"{c.a * f:.4f}",
+            f"{c.b * f:.4f}",
+            f"{c.diff * f:+.4f} {unit}",
+            "fixed" if c.sigma is None else f"{c.sigma * f:.4f}",
+            mark,
+        )
+    stdout.print(table)
+    at = ", ".join(f"{v:.3f}" for v in result.fk_max_at)
+    stdout.print(
+        f"FK difference over {result.samples} joint vectors in the joint range: RMS "
+        f"{result.fk_rms * 1e3:.4f} mm, max {result.fk_max * 1e3:.4f} mm at q = ({at})."
+    )
+    if significant:
+        stdout.print(f"changed beyond {threshold:g}σ: {', '.join(significant)} (marked *).")
+    else:
+        stdout.print(f"no parameter changed beyond {threshold:g}σ.")
+
+
 @app.command()
 def show(
     dh: Annotated[
