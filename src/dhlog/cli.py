@@ -374,7 +374,7 @@ def process(
         stderr.print(f"error: --angle-unit must be rad or deg, not '{angle_unit}'.")
         raise typer.Exit(EXIT_USAGE)
     folder = out if out is not None else log.parent
-    stem = log.name.removesuffix(".mcap")
+    stem = log.name.removesuffix(".zstd").removesuffix(".mcap")
     outputs = [folder / f"{stem}.dh.json", folder / f"{stem}.dh.csv"]
     if not no_rrd:
         outputs.append(folder / f"{stem}.rrd")

@@ -320,6 +320,23 @@ def _decompress(compression: str, payload: bytes | memoryview, size: int, path: 
     return out
 
 
+ZSTD_MAGIC = b"\x28\xb5\x2f\xfd"
+
+
+def _unzstd_file(blob: bytes, name: str) -> bytes:
+    """A whole zstd-compressed log, decompressed (at most MAX_RATIO times its size)."""
+    import zstandard
+
+    try:
+        reader = zstandard.ZstdDecompressor().stream_reader(blob)
+        out = reader.read(MAX_RATIO * len(blob) + 1)
+    except zstandard.ZstdError as exc:
+        raise InputError(f"{name}: a zstd file that cannot be decompressed ({exc}).") from None
+    if len(out) > MAX_RATIO * len(blob):
+        raise InputError(f"{name}: decompresses to more than {MAX_RATIO}x its size; damaged?")
+    return out
+
+
 def scan_mcap(
     path: str | Path,
     topics: Iterable[str] | None = None,
@@ -333,6 +350,8 @@ def scan_mcap(
         blob = Path(path).read_bytes()
     except OSError as exc:
         raise InputError(f"{name}: cannot be read ({exc.strerror}); check the path.") from None
+    if blob.startswith(ZSTD_MAGIC):  # a file-compressed log (rosbag2 --compression-mode file)
+        blob = _unzstd_file(blob, name)
     if not blob.startswith(MAGIC):
         raise NotMcapError(name)
     walker = _Walker(name, set(topics) if topics is not None else None)

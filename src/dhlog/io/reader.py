@@ -31,7 +31,7 @@ from dhlog.errors import (
     UnknownSchemaError,
 )
 from dhlog.io import ros2
-from dhlog.io.mcapscan import ChannelInfo, RawMessages, scan_mcap
+from dhlog.io.mcapscan import ZSTD_MAGIC, ChannelInfo, RawMessages, scan_mcap
 from dhlog.io.pipeline import Pipeline, shipped_pipelines
 
 POINT_SCHEMAS = {
@@ -512,8 +512,12 @@ def read_log(
     *,
     fast: bool = True,
     progress: Callable[[float], None] | None = None,
+    unzstd: bool = False,
 ) -> LogData:
     """Decode the streams of the log at ``path`` with ``pipeline`` (chosen from the log if None).
+
+    ``path`` may be a rosbag2 bag folder (its splits read as one log) or a zstd-compressed
+    ``.mcap.zstd``; ``unzstd``: the payloads are compressed one by one.
 
     ``progress`` is called with the fraction of the file read so far.
 
@@ -521,6 +525,8 @@ def read_log(
     Non-finite samples are set aside and counted; a truncated file keeps what precedes the damage.
     """
     name = str(path)
+    if Path(path).is_dir():
+        return _read_bag(Path(path), pipeline, fast=fast, progress=progress)
     scan = scan_mcap(
         path,
         topics=None
@@ -529,6 +535,16 @@ def read_log(
         progress=progress,
     )
     warnings = list(scan.warnings)
+    # payloads compressed one by one (rosbag2 --compression-mode message): said by the bag's
+    # metadata, or seen in the payloads themselves (no CDR, JSON or protobuf message starts
+    # with zstd's magic number)
+    squeezed = {
+        cid: raw
+        for cid, raw in scan.messages.items()
+        if unzstd or (len(raw) and raw.payload(0)[:4] == ZSTD_MAGIC)
+    }
+    if squeezed:
+        scan.messages.update(_unzstd_messages(squeezed, name))
     reason = None
     if pipeline is None:
         pipeline, why = choose_pipeline(name, scan.channels)
@@ -633,6 +649,91 @@ def read_log(
 MAX_JOINTS = 64
 #: Larger coordinates (m) or encoder values (rad, m) are not measurements.
 MAX_VALUE = 1e5
+
+
+def _read_bag(
+    folder: Path,
+    pipeline: Pipeline | None,
+    *,
+    fast: bool,
+    progress: Callable[[float], None] | None,
+) -> LogData:
+    """A rosbag2 folder as rosbag2 writes it: its ``metadata.yaml`` read by the rosbags library
+    (which also decompresses a file-compressed bag), every split file read in order as one log;
+    per-message compressed payloads decompressed before decoding."""
+    from rosbags.rosbag2 import Reader, ReaderError
+
+    try:
+        with Reader(folder) as bag:
+            paths = [Path(s.path) for s in bag.storage.storages]  # type: ignore[attr-defined]
+            per_message = bag.compression_mode == "message"
+            parts = []
+            for k, part in enumerate(paths):
+
+                def step(f: float, k: int = k) -> None:
+                    if progress is not None:
+                        progress((k + f) / len(paths))
+
+                log = read_log(part, pipeline, fast=fast, progress=step, unzstd=per_message)
+                pipeline = log.pipeline
+                parts.append(log)
+    except (ReaderError, FileNotFoundError, KeyError, ValueError) as exc:
+        raise InputError(
+            f"{folder}: a folder, but not a rosbag2 bag dhlog can read ({exc}); give the "
+            "bag folder (with metadata.yaml) or one .mcap file."
+        ) from None
+    if not parts:
+        raise InputError(f"{folder}: the bag lists no storage files.")
+    first = parts[0]
+
+    def joined(frames: list[pl.DataFrame | None]) -> pl.DataFrame | None:
+        present = [f for f in frames if f is not None]
+        return pl.concat(present, how="diagonal").sort("t_ns") if present else None
+
+    set_aside: dict[str, int] = {}
+    for log in parts:
+        for key, value in log.set_aside.items():
+            set_aside[key] = set_aside.get(key, 0) + value
+    points = joined([log.points for log in parts])
+    assert points is not None
+    return LogData(
+        str(folder),
+        first.pipeline,
+        points,
+        joined([log.joints for log in parts]),
+        first.joint_names,
+        joined([log.base for log in parts]),
+        joined([log.phase for log in parts]),
+        set_aside,
+        [w for log in parts for w in log.warnings],
+        None
+        if first.pipeline_reason is None
+        else f"{first.pipeline_reason}; a rosbag2 bag of {len(parts)} file(s)"
+        + (", messages zstd-compressed" if per_message else ""),
+    )
+
+
+def _unzstd_messages(messages: dict[int, RawMessages], path: str) -> dict[int, RawMessages]:
+    """Payloads compressed one by one (rosbag2 ``--compression-mode message``), decompressed
+    into one buffer per channel; a payload that is not zstd is damage (left out, counted by
+    the decoders as an empty message)."""
+    import zstandard
+
+    out = {}
+    for cid, raw in messages.items():
+        d = zstandard.ZstdDecompressor()
+        parts = []
+        for i in range(len(raw)):
+            payload = raw.payload(i)
+            try:
+                parts.append(d.decompress(payload, max_output_size=64 * len(payload) + 4096))
+            except zstandard.ZstdError:
+                parts.append(b"")
+        lengths = np.array([len(p) for p in parts], dtype=np.int64)
+        starts = np.concatenate([[0], np.cumsum(lengths)[:-1]]).astype(np.int64)
+        data = np.frombuffer(b"".join(parts), dtype=np.uint8)
+        out[cid] = RawMessages(data, starts, lengths, raw.log_time)
+    return out
 
 
 def _clean(frame: pl.DataFrame, stream: str, set_aside: dict[str, int]) -> pl.DataFrame:

@@ -338,11 +338,15 @@ def write_truth(document: dict[str, object], path: str | Path) -> None:
 
 
 def sha256_of(path: str | Path) -> str:
-    """Hex SHA-256 of a file."""
+    """Hex SHA-256 of a file, or of a folder's files (a rosbag2 bag) in name order."""
     import hashlib
 
     digest = hashlib.sha256()
-    with open(path, "rb") as f:
-        for block in iter(lambda: f.read(1 << 20), b""):
-            digest.update(block)
+    files = (
+        sorted(p for p in Path(path).iterdir() if p.is_file()) if Path(path).is_dir() else [path]
+    )
+    for name in files:
+        with open(name, "rb") as f:
+            for block in iter(lambda: f.read(1 << 20), b""):
+                digest.update(block)
     return digest.hexdigest()
