@@ -397,3 +397,105 @@ def test_a_rosbag2_folder_is_read_as_rosbag2_writes_it(mode: str, tmp_path: Path
     if mode != "none":  # the file alone reads too (payloads compressed one by one: seen)
         alone = read_log(next(bag.glob("*.mcap*")))
         np.testing.assert_array_equal(alone.points.select(["x", "y", "z"]).to_numpy(), xyz)
+
+
+def test_transforms_as_the_point_stream_selected_by_child_frame(tmp_path: Path) -> None:
+    """``tf2_msgs/msg/TFMessage`` on /tf carrying two frames (a bag from rosbags): the pipeline's
+    ``child_frame`` picks the target; without it the first frame is used and a warning names
+    the others; a ``TransformStamped`` topic reads as well; a frame that is not there is one
+    line."""
+    from rosbags.rosbag2 import StoragePlugin, Writer
+    from rosbags.typesys import Stores, get_typestore
+
+    from dhlog.errors import InputError
+
+    store = get_typestore(Stores.ROS2_HUMBLE)
+    T = store.types
+    rng = np.random.default_rng(2)
+    xyz = rng.normal(size=(30, 3))
+    t_pt = 1_700_000_000_000_000_000 + np.arange(30) * 10_000_000
+    bag = tmp_path / "bag"
+
+    def transform(t: int, child: str, p: np.ndarray):  # type: ignore[no-untyped-def]
+        stamp = T["builtin_interfaces/msg/Time"](sec=t // 10**9, nanosec=t % 10**9)
+        return T["geometry_msgs/msg/TransformStamped"](
+            header=T["std_msgs/msg/Header"](stamp=stamp, frame_id="tracker"),
+            child_frame_id=child,
+            transform=T["geometry_msgs/msg/Transform"](
+                translation=T["geometry_msgs/msg/Vector3"](x=p[0], y=p[1], z=p[2]),
+                rotation=T["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=0.0, w=1.0),
+            ),
+        )
+
+    with Writer(bag, version=9, storage_plugin=StoragePlugin.MCAP) as writer:
+        tf = writer.add_connection("/tf", "tf2_msgs/msg/TFMessage", typestore=store)
+        single = writer.add_connection(
+            "/smr", "geometry_msgs/msg/TransformStamped", typestore=store
+        )
+        for t, p in zip(t_pt.tolist(), xyz, strict=True):
+            msg = T["tf2_msgs/msg/TFMessage"](
+                transforms=[transform(t, "flange", p + 1.0), transform(t, "smr", p)]
+            )
+            writer.write(tf, t, store.serialize_cdr(msg, "tf2_msgs/msg/TFMessage"))
+            one = transform(t, "smr", p)
+            writer.write(single, t, store.serialize_cdr(one, "geometry_msgs/msg/TransformStamped"))
+
+    def pipeline(topic: str, child: str) -> object:
+        extra = f'child_frame = "{child}"\n' if child else ""
+        return parse_pipeline(f'[streams.point]\ntopic = "{topic}"\n{extra}', "tf.toml")
+
+    log = read_log(bag, pipeline("/tf", "smr"))  # type: ignore[arg-type]
+    np.testing.assert_array_equal(log.points.select(["x", "y", "z"]).to_numpy(), xyz)
+    np.testing.assert_array_equal(log.points["t_ns"].to_numpy(), t_pt)
+    first = read_log(bag, pipeline("/tf", ""))  # type: ignore[arg-type]
+    np.testing.assert_array_equal(first.points.select(["x", "y", "z"]).to_numpy(), xyz + 1.0)
+    assert any("carries the frames flange, smr" in w for w in first.warnings)
+    alone = read_log(bag, pipeline("/smr", ""))  # type: ignore[arg-type]
+    np.testing.assert_array_equal(alone.points.select(["x", "y", "z"]).to_numpy(), xyz)
+    with pytest.raises(InputError, match="no transform to the frame 'tcp'"):
+        read_log(bag, pipeline("/tf", "tcp"))  # type: ignore[arg-type]
+
+
+def test_foxglove_frame_transforms_as_the_point_stream(tmp_path: Path) -> None:
+    """``foxglove.FrameTransforms`` (protobuf, written with the mcap library and the Foxglove
+    schemas) with two child frames: ``child_frame`` picks the target."""
+    from foxglove_schemas_protobuf.FrameTransform_pb2 import FrameTransform
+    from foxglove_schemas_protobuf.FrameTransforms_pb2 import FrameTransforms
+    from foxglove_schemas_protobuf.Quaternion_pb2 import Quaternion
+    from foxglove_schemas_protobuf.Vector3_pb2 import Vector3
+    from google.protobuf.timestamp_pb2 import Timestamp
+    from mcap.writer import CompressionType, Writer
+    from mcap_protobuf.schema import register_schema
+
+    rng = np.random.default_rng(3)
+    xyz = rng.normal(size=(20, 3))
+    t_pt = 1_700_000_000_000_000_000 + np.arange(20) * 10_000_000
+    path = tmp_path / "fox.mcap"
+    with path.open("wb") as f:
+        writer = Writer(f, compression=CompressionType.ZSTD)
+        writer.start(profile="protobuf", library="test")
+        channel = writer.register_channel(
+            "/tf", "protobuf", register_schema(writer, FrameTransforms)
+        )
+        for t, p in zip(t_pt.tolist(), xyz, strict=True):
+            ts = Timestamp(seconds=t // 10**9, nanos=t % 10**9)
+            frames = [
+                FrameTransform(
+                    timestamp=ts,
+                    parent_frame_id="tracker",
+                    child_frame_id=child,
+                    translation=Vector3(x=v[0], y=v[1], z=v[2]),
+                    rotation=Quaternion(w=1.0),
+                )
+                for child, v in (("flange", p - 1.0), ("smr", p))
+            ]
+            writer.add_message(
+                channel, t, FrameTransforms(transforms=frames).SerializeToString(), t
+            )
+        writer.finish()
+    pipe = parse_pipeline(
+        'encoding = "protobuf"\n[streams.point]\ntopic = "/tf"\nchild_frame = "smr"\n', "f.toml"
+    )
+    log = read_log(path, pipe)
+    np.testing.assert_allclose(log.points.select(["x", "y", "z"]).to_numpy(), xyz)
+    np.testing.assert_array_equal(log.points["t_ns"].to_numpy(), t_pt)

@@ -39,7 +39,7 @@ TOP_KEYS = (
     "segmentation",
     "noise",
 )
-STREAM_KEYS = ("topic", "required", "fields", "extra_topics", "orientation")
+STREAM_KEYS = ("topic", "required", "fields", "extra_topics", "orientation", "child_frame")
 FIELD_KEYS = {
     "point": ("x", "y", "z", "stamp_ns"),
     "base": ("x", "y", "z", "stamp_ns"),
@@ -80,6 +80,7 @@ class StreamSpec:
     fields: dict[str, str] = field(default_factory=dict)
     extra_topics: tuple[str, ...] = ()
     orientation: bool = False
+    child_frame: str = ""
 
 
 @dataclass(frozen=True)
@@ -189,6 +190,7 @@ def parse_pipeline(text: str, source: str) -> Pipeline:
             fields,
             tuple(extra),
             orientation,
+            str(spec.get("child_frame", "")),
         )
     if "point" not in streams:
         raise PipelineError(source, "it has no [streams.point]; the target stream is required.")

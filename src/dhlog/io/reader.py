@@ -52,6 +52,10 @@ ORIENTATION_SCHEMAS = {
 }
 #: Columns of the target frame's orientation (unit quaternion) with ``orientation = true``.
 ORIENTATION_COLUMNS = ("rot_x", "rot_y", "rot_z", "rot_w")
+#: Point schemas that are transforms (the target is a frame's origin): single, and lists of
+#: them, selected by ``[streams.point] child_frame``.
+TRANSFORM_SCHEMAS = ("geometry_msgs/msg/TransformStamped", "foxglove.FrameTransform")
+TRANSFORM_LISTS = ("tf2_msgs/msg/TFMessage", "foxglove.FrameTransforms")
 JOINT_SCHEMAS = (ros2.JOINT_STATE, "foxglove.JointStates")
 PHASE_SCHEMAS = (ros2.STRING,)
 
@@ -108,9 +112,49 @@ def _stamp_ns(obj: Any) -> int | None:
 Extracted = tuple[int | None, Any]
 
 
+class _OtherFrameError(Exception):
+    """A transform message without the frame the pipeline selects: not this stream's sample."""
+
+
+def _transform_extractor(
+    schema: str, child_frame: str, orientation: bool
+) -> Callable[[Any], Extracted]:
+    """Translation (and rotation) of the transform to ``child_frame`` in a TransformStamped,
+    FrameTransform or a list of them (TFMessage, FrameTransforms); without ``child_frame``, the
+    first child frame met (the reader warns when the topic carries others)."""
+    chosen = [child_frame or None]
+    seen: set[str] = set()
+
+    def extract(msg: Any) -> Extracted:
+        items = list(_get(msg, "transforms")) if schema in TRANSFORM_LISTS else [msg]
+        for item in items:
+            seen.add(str(_get(item, "child_frame_id")))
+        if chosen[0] is None and items:
+            chosen[0] = str(_get(items[0], "child_frame_id"))
+        match = [i for i in items if str(_get(i, "child_frame_id")) == chosen[0]]
+        if not match:
+            raise _OtherFrameError
+        item = match[0]
+        if schema.startswith("foxglove"):
+            stamp, t, r = _stamp_ns(item), _get(item, "translation"), _get(item, "rotation")
+        else:
+            stamp = _stamp_ns(item)
+            t, r = _get(item, "transform.translation"), _get(item, "transform.rotation")
+        xyz = [float(_get(t, "x")), float(_get(t, "y")), float(_get(t, "z"))]
+        if orientation:
+            xyz += [float(_get(r, c)) for c in ("x", "y", "z", "w")]
+        return stamp, xyz
+
+    extract.frames = seen  # type: ignore[attr-defined]
+    extract.chosen = chosen  # type: ignore[attr-defined]
+    return extract
+
+
 def _point_extractor(
-    schema: str, fields: dict[str, str], orientation: bool = False
+    schema: str, fields: dict[str, str], orientation: bool = False, child_frame: str = ""
 ) -> Callable[[Any], Extracted] | None:
+    if schema in TRANSFORM_SCHEMAS or schema in TRANSFORM_LISTS:
+        return _transform_extractor(schema, child_frame, orientation)
     if fields:
         paths = [fields.get(k, k) for k in ("x", "y", "z")]
         stamp_path = fields.get("stamp_ns")
@@ -231,8 +275,9 @@ def _schema_record(info: ChannelInfo) -> Any:
 
 ACCEPTED = {
     "point": "geometry_msgs/msg/PointStamped, geometry_msgs/msg/PoseStamped, "
-    "geometry_msgs/msg/PoseWithCovarianceStamped, foxglove.Point3InFrame, "
-    "foxglove.PoseInFrame, or JSON with field paths",
+    "geometry_msgs/msg/PoseWithCovarianceStamped, geometry_msgs/msg/TransformStamped, "
+    "tf2_msgs/msg/TFMessage, foxglove.Point3InFrame, foxglove.PoseInFrame, "
+    "foxglove.FrameTransform(s), or JSON with field paths",
     "base": "the same types as the point stream",
     "joints": "sensor_msgs/msg/JointState, foxglove.JointStates, or JSON with field paths",
     "phase": 'std_msgs/msg/String or JSON {"joint": k}',
@@ -240,10 +285,16 @@ ACCEPTED = {
 
 
 def _extractor(
-    stream: str, info: ChannelInfo, fields: dict[str, str], orientation: bool = False
+    stream: str,
+    info: ChannelInfo,
+    fields: dict[str, str],
+    orientation: bool = False,
+    child_frame: str = "",
 ) -> Callable[[Any], Extracted] | None:
     if stream in ("point", "base"):
-        return _point_extractor(info.schema_name, fields, orientation and stream == "point")
+        return _point_extractor(
+            info.schema_name, fields, orientation and stream == "point", child_frame
+        )
     if stream == "joints":
         return _joint_extractor(info.schema_name, fields)
     if info.schema_name in PHASE_SCHEMAS or info.message_encoding == "json" or fields:
@@ -318,6 +369,8 @@ def _decode_stream(
     path: str,
     orientation: bool = False,
     damaged: list[tuple[str, int, int, str]] | None = None,
+    child_frame: str = "",
+    notes: list[str] | None = None,
 ) -> list[Block]:
     """Blocks of (times, values) of one stream over all its channels.
 
@@ -329,7 +382,7 @@ def _decode_stream(
     """
     blocks: list[Block] = []
     for info in infos:
-        extract = _extractor(stream, info, fields, orientation)
+        extract = _extractor(stream, info, fields, orientation, child_frame)
         if extract is None:
             accepted = ACCEPTED[stream]
             if orientation and stream == "point":
@@ -381,6 +434,9 @@ def _decode_stream(
                 value = _checked(stream, value)
                 if stamp is not None and not 0 <= stamp < 2**63:
                     raise ValueError(f"stamp {stamp} ns out of range")
+            except _OtherFrameError:  # a transform of another frame: not a sample
+                total -= 1
+                continue
             except _DAMAGED as exc:
                 bad += 1
                 first_bad = first_bad or f"log time {log_time}: {_reason(exc)}"
@@ -404,6 +460,19 @@ def _decode_stream(
             )
         if bad and damaged is not None:
             damaged.append((info.topic, bad, total, first_bad))
+        frames = getattr(extract, "frames", None)
+        if frames and len(frames) > 1 and not child_frame and notes is not None:
+            used = extract.chosen[0]  # type: ignore[attr-defined]
+            notes.append(
+                f"{path}: {info.topic} carries the frames {', '.join(sorted(frames))}; the "
+                f"target is '{used}' (set child_frame in [streams.{stream}] to choose)."
+            )
+        if not values and frames is not None and not bad:
+            raise InputError(
+                f"{path}: {info.topic} has no transform to the frame '{child_frame}' "
+                f"(frames: {', '.join(sorted(frames)) or 'none'}); set child_frame in "
+                f"[streams.{stream}]."
+            )
         t = np.asarray(t_list, dtype=np.int64)
         if stream in ("point", "base"):
             width = max((len(v) for v in values), default=3)
@@ -597,6 +666,8 @@ def read_log(
             name,
             with_rot,
             damaged,
+            pipeline.streams[stream].child_frame,
+            warnings,
         )
 
     def points_of(channels: list[ChannelInfo] | None = None) -> pl.DataFrame:
