@@ -94,20 +94,26 @@ def test_pose_stamped_targets_are_read(session: Session, tmp_path: Path) -> None
         )
 
 
-def test_rosbag2_written_by_rosbags_is_read(tmp_path: Path) -> None:
-    """A ROS 2 bag from an independent writer (rosbags' rosbag2 MCAP storage)."""
-    from rosbags.rosbag2 import StoragePlugin, Writer
+def rosbags_bag(
+    bag: Path, seed: int, compression: str = "none", lag: tuple[int, int] = (0, 0)
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """A ROS 2 bag written by an independent writer (rosbags' rosbag2 MCAP storage, with
+    ``compression`` none, message or file): PointStamped targets and two-joint JointStates;
+    returns their stamps and values. ``lag``: log time minus header stamp, per topic."""
+    from rosbags.rosbag2 import CompressionFormat, CompressionMode, StoragePlugin, Writer
     from rosbags.typesys import Stores, get_typestore
 
     store = get_typestore(Stores.ROS2_HUMBLE)
     T = store.types
-    rng = np.random.default_rng(0)
+    rng = np.random.default_rng(seed)
     xyz = rng.normal(size=(50, 3))
     q = rng.normal(size=(60, 2))
     t_pt = 1_700_000_000_000_000_000 + np.arange(50) * 10_000_000
     t_q = 1_700_000_000_000_000_000 + np.arange(60) * 8_000_000 + 1234
-    bag = tmp_path / "bag"
-    with Writer(bag, version=9, storage_plugin=StoragePlugin.MCAP) as writer:
+    writer = Writer(bag, version=9, storage_plugin=StoragePlugin.MCAP)
+    if compression != "none":
+        writer.set_compression(CompressionMode[compression.upper()], CompressionFormat.ZSTD)
+    with writer:
         pc = writer.add_connection(
             "/tracker/point", "geometry_msgs/msg/PointStamped", typestore=store
         )
@@ -118,7 +124,8 @@ def test_rosbag2_written_by_rosbags_is_read(tmp_path: Path) -> None:
                 header=T["std_msgs/msg/Header"](stamp=stamp, frame_id="laser_tracker"),
                 point=T["geometry_msgs/msg/Point"](x=p[0], y=p[1], z=p[2]),
             )
-            writer.write(pc, t + 5, store.serialize_cdr(msg, "geometry_msgs/msg/PointStamped"))
+            data = store.serialize_cdr(msg, "geometry_msgs/msg/PointStamped")
+            writer.write(pc, t + lag[0], data)
         for t, row in zip(t_q.tolist(), q, strict=True):
             stamp = T["builtin_interfaces/msg/Time"](sec=t // 10**9, nanosec=t % 10**9)
             msg = T["sensor_msgs/msg/JointState"](
@@ -128,7 +135,15 @@ def test_rosbag2_written_by_rosbags_is_read(tmp_path: Path) -> None:
                 velocity=np.zeros(2),
                 effort=np.zeros(0),
             )
-            writer.write(jc, t + 7, store.serialize_cdr(msg, "sensor_msgs/msg/JointState"))
+            data = store.serialize_cdr(msg, "sensor_msgs/msg/JointState")
+            writer.write(jc, t + lag[1], data)
+    return t_pt, xyz, t_q, q
+
+
+def test_rosbag2_written_by_rosbags_is_read(tmp_path: Path) -> None:
+    """A ROS 2 bag from an independent writer (rosbags' rosbag2 MCAP storage)."""
+    bag = tmp_path / "bag"
+    t_pt, xyz, _, q = rosbags_bag(bag, 0, lag=(5, 7))
     mcap_file = next(bag.glob("*.mcap"))
     for fast in (True, False):
         log = read_log(mcap_file, fast=fast)
@@ -350,42 +365,8 @@ def test_a_rosbag2_folder_is_read_as_rosbag2_writes_it(mode: str, tmp_path: Path
     """The bag folder as the argument (metadata.yaml read by rosbags), written by rosbags with
     no compression, per-message zstd and per-file zstd (``.mcap.zstd``): the same streams as
     the uncompressed bag."""
-    from rosbags.rosbag2 import CompressionFormat, CompressionMode, StoragePlugin, Writer
-    from rosbags.typesys import Stores, get_typestore
-
-    store = get_typestore(Stores.ROS2_HUMBLE)
-    T = store.types
-    rng = np.random.default_rng(1)
-    xyz = rng.normal(size=(40, 3))
-    q = rng.normal(size=(50, 2))
-    t_pt = 1_700_000_000_000_000_000 + np.arange(40) * 10_000_000
-    t_q = 1_700_000_000_000_000_000 + np.arange(50) * 8_000_000 + 99
     bag = tmp_path / "bag"
-    writer = Writer(bag, version=9, storage_plugin=StoragePlugin.MCAP)
-    if mode != "none":
-        writer.set_compression(CompressionMode[mode.upper()], CompressionFormat.ZSTD)
-    with writer:
-        pc = writer.add_connection(
-            "/tracker/point", "geometry_msgs/msg/PointStamped", typestore=store
-        )
-        jc = writer.add_connection("/joint_states", "sensor_msgs/msg/JointState", typestore=store)
-        for t, p in zip(t_pt.tolist(), xyz, strict=True):
-            stamp = T["builtin_interfaces/msg/Time"](sec=t // 10**9, nanosec=t % 10**9)
-            msg = T["geometry_msgs/msg/PointStamped"](
-                header=T["std_msgs/msg/Header"](stamp=stamp, frame_id="tracker"),
-                point=T["geometry_msgs/msg/Point"](x=p[0], y=p[1], z=p[2]),
-            )
-            writer.write(pc, t, store.serialize_cdr(msg, "geometry_msgs/msg/PointStamped"))
-        for t, row in zip(t_q.tolist(), q, strict=True):
-            stamp = T["builtin_interfaces/msg/Time"](sec=t // 10**9, nanosec=t % 10**9)
-            msg = T["sensor_msgs/msg/JointState"](
-                header=T["std_msgs/msg/Header"](stamp=stamp, frame_id=""),
-                name=["shoulder", "elbow"],
-                position=row,
-                velocity=np.zeros(0),
-                effort=np.zeros(0),
-            )
-            writer.write(jc, t, store.serialize_cdr(msg, "sensor_msgs/msg/JointState"))
+    t_pt, xyz, _, q = rosbags_bag(bag, 1, mode)
     if mode == "file":
         assert list(bag.glob("*.mcap.zstd"))
     log = read_log(bag)
