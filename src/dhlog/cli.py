@@ -218,7 +218,7 @@ def simulate(
         session = simulate_session(rob, cfg)
         for k, (got, jt) in enumerate(zip(session.sweeps, rob.table.joint_types, strict=True)):
             asked = cfg.sweep if jt.value == "revolute" else cfg.travel
-            if got < asked - 1e-9:
+            if k + 1 not in cfg.skip_joints and got < asked - 1e-9:
                 shown = (
                     f"sweep {math.degrees(got):.1f}° (asked {math.degrees(asked):g}°)"
                     if jt.value == "revolute"

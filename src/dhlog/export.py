@@ -25,7 +25,7 @@ import numpy as np
 
 from dhlog.dh import HayatiDH, JointType, StandardDH
 from dhlog.dhfile import DHFileError, parse_dh
-from dhlog.geometry._checks import FloatArray
+from dhlog.geometry._checks import FloatArray, roll_pitch_yaw
 
 
 def _table_of(data: dict[str, Any], source: str) -> tuple[StandardDH, Any]:
@@ -56,20 +56,9 @@ def _table_of(data: dict[str, Any], source: str) -> tuple[StandardDH, Any]:
     return table, model
 
 
-def _rpy(R: FloatArray) -> tuple[float, float, float]:
-    """URDF roll, pitch, yaw (fixed axes x, y, z: ``R = Rz(y) Ry(p) Rx(r)``)."""
-    pitch = math.asin(max(-1.0, min(1.0, -float(R[2, 0]))))
-    if abs(math.cos(pitch)) > 1e-9:
-        roll = math.atan2(float(R[2, 1]), float(R[2, 2]))
-        yaw = math.atan2(float(R[1, 0]), float(R[0, 0]))
-    else:  # gimbal lock: put it all in yaw
-        roll, yaw = 0.0, math.atan2(-float(R[0, 1]), float(R[1, 1]))
-    return roll, pitch, yaw
-
-
 def _origin(parent: ET.Element, T: FloatArray) -> None:
     xyz = " ".join(f"{v:.17g}" for v in T[:3, 3])
-    rpy = " ".join(f"{v:.17g}" for v in _rpy(T[:3, :3]))
+    rpy = " ".join(f"{v:.17g}" for v in roll_pitch_yaw(T[:3, :3]))
     ET.SubElement(parent, "origin", xyz=xyz, rpy=rpy)
 
 

@@ -61,7 +61,14 @@ from dhlog.identify.sweeps import (
     samples_with_encoders,
     target_labels,
 )
-from dhlog.identify.timing import SweepPhase, Timing, joint_rates, phase_lag, rejoin, sweep_phases
+from dhlog.identify.timing import (
+    JointRates,
+    SweepPhase,
+    Timing,
+    phase_lag,
+    rejoin,
+    sweep_phases,
+)
 from dhlog.identify.whole import (
     AxisModel,
     WholeFit,
@@ -503,11 +510,12 @@ def _identify_whole(
     stage("identifying", 0.1)
     timing = result.timing
     clocked = timing is not None and timing.source == "estimated"
+    speeds = JointRates(result.log, seg.n_joints) if clocked else None
     for attempt in range(MAX_REJOINS + 1):
         rates = None
-        if clocked:
+        if speeds is not None:
             t_ns = seg.table["t_ns"].to_numpy()[rows]
-            rates = joint_rates(result.log, t_ns, seg.n_joints)
+            rates = speeds.at(t_ns)
         whole = fit_whole_model(
             start,
             Q,

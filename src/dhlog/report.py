@@ -17,7 +17,7 @@ from rich.console import Console
 from rich.markup import escape
 from rich.table import Table
 
-from dhlog.geometry._checks import FloatArray
+from dhlog.geometry._checks import FloatArray, roll_pitch_yaw
 from dhlog.process import ProcessResult
 from dhlog.result import (
     DisplayRow,
@@ -145,7 +145,7 @@ def print_result(console: Console, result: ProcessResult, *, units: str = "mm") 
     aside = result.segmentation.set_aside
     if aside:
         lines.append(("Set aside", ", ".join(f"{k} {v}" for k, v in sorted(aside.items()))))
-    lines += [("Fixed", line) for line in _held_lines(result)]
+    lines += [("Fixed", line) for line in _held_lines(result, rows)]
     lines += [("Note", note) for note in result.info]
     _prose(console, lines)
     _prose(console, [("[yellow]Warning[/]", w) for w in result.warnings], markup=True)
@@ -267,8 +267,8 @@ def _print_tool_and_base(console: Console, result: ProcessResult, units: str) ->
     T = ex.T_measurement_base
     row(f"frame 1 origin in M [{lu}]", T[:3, 3], s[3:6], length, lb)
     row(
-        f"frame 1 rotation in M [{au}]\n(Z-Y-X angles; σ of a small\nrotation about x, y, z)",
-        np.array(_zyx(T[:3, :3])[::-1]),
+        f"frame 1 rotation in M [{au}]\n(roll, pitch, yaw; σ of a small\nrotation about x, y, z)",
+        np.array(roll_pitch_yaw(T[:3, :3])),
         s[6:9],
         angle,
         ab,
@@ -276,21 +276,12 @@ def _print_tool_and_base(console: Console, result: ProcessResult, units: str) ->
     console.print(t)
 
 
-def _zyx(R: FloatArray) -> tuple[float, float, float]:
-    """Z-Y-X Euler angles (rz, ry, rx) of the rotation ``R`` (R = Rz Ry Rx)."""
-    ry = math.asin(max(-1.0, min(1.0, -float(R[2, 0]))))
-    rz = math.atan2(float(R[1, 0]), float(R[0, 0]))
-    rx = math.atan2(float(R[2, 1]), float(R[2, 2]))
-    return rz, ry, rx
-
-
-def _held_lines(result: ProcessResult) -> list[str]:
-    """One line per reason: the parameters held by it (the displayed table's names)."""
+def _held_lines(result: ProcessResult, rows: list[DisplayRow]) -> list[str]:
+    """One line per reason: the parameters held by it (the names of the shown ``rows``)."""
     fixed = result.conditioned.fixed if result.conditioned is not None else result.fixed
     if not fixed or result.extraction is None:
         return []
     n = result.extraction.standard.n
-    rows = display_rows(result)
     by_reason: dict[str, list[str]] = {}
     for idx in sorted(fixed):
         if idx < 4 * n:
@@ -411,7 +402,7 @@ def result_markdown(result: ProcessResult, *, units: str = "mm") -> str:
         ]
     if result.extraction is not None:
         lines += ["", f"Frame 1: origin at {frame_1_origin(result)}."]
-    held = _held_lines(result)
+    held = _held_lines(result, rows)
     if held:
         lines += ["", "## Held by convention or gauge (not measured)", ""]
         lines += [f"- {line}" for line in held]

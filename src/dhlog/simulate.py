@@ -103,18 +103,6 @@ def config_problems(robot: Robot, cfg: SimulationConfig) -> list[str]:
     return out
 
 
-def joint_sweeps(robot: Robot, cfg: SimulationConfig) -> FloatArray:
-    """Each joint's sweep (rad) or travel (m) as simulated from the home pose: the asked one,
-    or less where the joint's limits clip it."""
-    home = np.clip(np.zeros(robot.n), robot.limits[:, 0], robot.limits[:, 1])
-    out = np.zeros(robot.n)
-    for k, jt in enumerate(robot.table.joint_types):
-        half = (cfg.sweep if jt is JointType.REVOLUTE else cfg.travel) / 2.0
-        lo, hi = robot.limits[k]
-        out[k] = min(home[k] + half, hi) - max(home[k] - half, lo)
-    return out
-
-
 @dataclass
 class Session:
     """A simulated session and its ground truth.
@@ -147,7 +135,8 @@ class Session:
     extra_point_xyz: list[FloatArray] = field(default_factory=list)
     tool_rotation: FloatArray | None = None
     point_rotation: FloatArray | None = None
-    #: each joint's sweep (rad) or travel (m) as simulated (the limits may clip the asked one)
+    #: each joint's sweep (rad) or travel (m) as simulated (the limits may clip the asked one;
+    #: 0 for joints not swept)
     sweeps: FloatArray = field(default_factory=lambda: np.zeros(0))
 
 
@@ -174,13 +163,15 @@ def _perturbed(table: StandardDH, rng: np.random.Generator, cfg: SimulationConfi
 
 def _keyframes(
     robot: Robot, home: FloatArray, cfg: SimulationConfig, rng: np.random.Generator
-) -> tuple[list[tuple[float, FloatArray]], list[tuple[float, int | None]]]:
-    """Piecewise-linear trajectory (time s, q) and phase markers (time s, joint or None)."""
+) -> tuple[list[tuple[float, FloatArray]], list[tuple[float, int | None]], FloatArray]:
+    """Piecewise-linear trajectory (time s, q), phase markers (time s, joint or None), and each
+    joint's sweep (rad) or travel (m) as the limits let it be (0 for joints not swept)."""
     n = robot.n
     lo, hi = robot.limits[:, 0], robot.limits[:, 1]
     frames: list[tuple[float, FloatArray]] = [(0.0, home.copy())]
     marks: list[tuple[float, int | None]] = [(0.0, None)]
     t, q = 0.0, home.copy()
+    sweeps = np.zeros(n)
     revolute = [jt is JointType.REVOLUTE for jt in robot.table.joint_types]
 
     def go(target: FloatArray, speed_scale: float = 1.0) -> None:
@@ -207,6 +198,7 @@ def _keyframes(
         half = (cfg.sweep if revolute[k] else cfg.travel) / 2.0
         start = float(np.clip(lock[k] - half, lo[k], hi[k]))
         end = float(np.clip(lock[k] + half, lo[k], hi[k]))
+        sweeps[k] = end - start
         target = lock.copy()
         target[k] = start
         go(target, 1.5)  # transition: several joints at once
@@ -235,7 +227,7 @@ def _keyframes(
         hold(cfg.dwell)
     go(home, 1.5)
     hold(cfg.dwell)
-    return frames, marks
+    return frames, marks, sweeps
 
 
 def _interp(frames: list[tuple[float, FloatArray]], times: FloatArray) -> FloatArray:
@@ -279,7 +271,7 @@ def simulate_session(
     q_home = (
         np.clip(np.zeros(robot.n), robot.limits[:, 0], robot.limits[:, 1]) if home is None else home
     )
-    frames, marks = _keyframes(robot, q_home, cfg, rng)
+    frames, marks, sweeps = _keyframes(robot, q_home, cfg, rng)
     duration = frames[-1][0]
     base_time = 2.0 if cfg.base_points else 0.0
     # tracker: its own clock; step-and-measure triggers it only while the robot is still
@@ -367,7 +359,7 @@ def simulate_session(
         extra_point_xyz=[np.asarray(e[keep], dtype=np.float64) for e in extra_xyz],
         tool_rotation=R_tool,
         point_rotation=None if point_rot is None else np.asarray(point_rot[keep]),
-        sweeps=joint_sweeps(robot, cfg),
+        sweeps=sweeps,
     )
 
 

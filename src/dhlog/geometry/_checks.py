@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
@@ -89,6 +91,18 @@ def rotation_from_vector(w: FloatArray) -> FloatArray:
     """Rotation matrix of the rotation vector ``w`` (axis × angle, rad); identity for zero."""
     angle = float(np.linalg.norm(w))
     return rotation_about(w, angle) if angle > 0 else np.eye(3)
+
+
+def roll_pitch_yaw(R: FloatArray) -> tuple[float, float, float]:
+    """Roll, pitch, yaw of the rotation ``R = Rz(yaw) Ry(pitch) Rx(roll)`` (URDF's fixed-axis
+    x, y, z; the same as Z-Y-X Euler angles); at pitch ±90° all of the turn is put in yaw."""
+    pitch = math.asin(max(-1.0, min(1.0, -float(R[2, 0]))))
+    if abs(math.cos(pitch)) > 1e-9:
+        roll = math.atan2(float(R[2, 1]), float(R[2, 2]))
+        yaw = math.atan2(float(R[1, 0]), float(R[0, 0]))
+    else:
+        roll, yaw = 0.0, math.atan2(-float(R[0, 1]), float(R[1, 1]))
+    return roll, pitch, yaw
 
 
 def wrap_angle(angle: float) -> float:

@@ -58,24 +58,30 @@ class Timing:
     reason: str = ""
 
 
-def joint_rates(log: LogData, t_ns: NDArray[np.int64], n: int) -> FloatArray:
-    """Each joint's speed (m, n) at the times ``t_ns``: the encoder stream's finite differences
-    at their midpoints, interpolated (0 outside the stream)."""
-    assert log.joints is not None
-    joints = log.joints.sort("t_ns")
-    t = joints["t_ns"].to_numpy().astype(np.float64)
-    Q = joints.select([f"q_{i + 1}" for i in range(n)]).to_numpy()
-    dt = np.diff(t) * 1e-9
-    ok = dt > 0
-    mid = (t[1:] + t[:-1])[ok] / 2.0
-    out = np.zeros((t_ns.size, n))
-    if mid.size < 2:
+class JointRates:
+    """Each joint's speed from the encoder stream (its finite differences at their midpoints),
+    prepared once per log and interpolated at any times (0 outside the stream)."""
+
+    def __init__(self, log: LogData, n: int) -> None:
+        assert log.joints is not None
+        joints = log.joints.sort("t_ns")
+        t = joints["t_ns"].to_numpy().astype(np.float64)
+        Q = joints.select([f"q_{i + 1}" for i in range(n)]).to_numpy()
+        dt = np.diff(t) * 1e-9
+        ok = dt > 0
+        self.mid = (t[1:] + t[:-1])[ok] / 2.0
+        self.speeds = np.diff(Q, axis=0)[ok] / dt[ok, None]  # (k, n)
+
+    def at(self, t_ns: NDArray[np.int64], joints: list[int] | None = None) -> FloatArray:
+        """Speeds (m, len(joints)) at ``t_ns`` of ``joints`` (0-based; default all)."""
+        cols = range(self.speeds.shape[1]) if joints is None else joints
+        out = np.zeros((t_ns.size, len(cols)))
+        if self.mid.size < 2:
+            return out
+        x = t_ns.astype(np.float64)
+        for k, i in enumerate(cols):
+            out[:, k] = np.interp(x, self.mid, self.speeds[:, i], left=0.0, right=0.0)
         return out
-    x = t_ns.astype(np.float64)
-    for i in range(n):
-        speed = np.diff(Q[:, i])[ok] / dt[ok]
-        out[:, i] = np.interp(x, mid, speed, left=0.0, right=0.0)
-    return out
 
 
 def rejoin(seg: Segmentation, log: LogData, extra: float) -> Segmentation:
@@ -135,6 +141,7 @@ def sweep_phases(seg: Segmentation, log: LogData) -> list[SweepPhase]:
     t_ns = table["t_ns"].to_numpy()
     P = table.select(["x", "y", "z"]).to_numpy()
     Q = table.select([f"q_{i + 1}" for i in range(n)]).to_numpy()
+    rates = JointRates(log, n)
     out = []
     for sid in np.unique(labels[labels > 0]):
         rows = np.flatnonzero(labels == sid)
@@ -144,7 +151,7 @@ def sweep_phases(seg: Segmentation, log: LogData) -> list[SweepPhase]:
         if rows.size > START_POINTS:
             rows = rows[:: -(-rows.size // START_POINTS)]
         j = int(joints[rows[0]]) - 1
-        rate = joint_rates(log, t_ns[rows], n)[:, j]
+        rate = rates.at(t_ns[rows], [j])[:, 0]
         moving = int(np.count_nonzero(np.abs(rate) > MOVING_SPEED))
         one = _sweep_lag(P[rows], Q[rows, j], rate, moving >= MIN_MOVING)
         if one is not None:

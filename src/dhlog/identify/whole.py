@@ -434,6 +434,16 @@ class WholeFit:
 Whitening = Callable[[FloatArray, FloatArray | None], FloatArray | float]
 
 
+def _truncated(
+    rw: FloatArray, keep: NDArray[np.bool_], limit: float
+) -> tuple[FloatArray, NDArray[np.bool_], float]:
+    """Per sample of whitened residuals ``rw`` (3, c): the norm, whether it enters (allowed and
+    within ``limit``), and the truncated quadratic cost of the allowed ones."""
+    nrm = np.sqrt(rw[0] ** 2 + rw[1] ** 2 + rw[2] ** 2)
+    use = keep & (nrm <= limit)
+    return nrm, use, float(np.sum(np.minimum(nrm[keep], limit) ** 2))
+
+
 def _accumulate(
     model: AxisModel,
     layout: ParameterLayout,
@@ -469,17 +479,15 @@ def _accumulate(
             Wt = np.transpose(W, (1, 2, 0))  # (3, 3, c)
             rw = _rotate(Wt, r)
             Jw = np.moveaxis(_rotate(Wt, np.moveaxis(J, 0, 1)), 1, 0)
-        nrm = np.sqrt(rw[0] ** 2 + rw[1] ** 2 + rw[2] ** 2)
-        norms[sl] = nrm
         keep = data.keep[sl]
-        use = keep & (nrm <= limit)
-        cost = float(np.sum(np.minimum(nrm[keep], limit) ** 2))
+        nrm, use, cost = _truncated(rw, keep, limit)
+        norms[sl] = nrm
         if data.R is not None:  # the target frame's orientation, weighted by 1/σ_rot
             R_pred, Jr = predict_orientation(model, data.Q[sl], layout, bases, prefix, rates)
             ro = orientation_residual(R_pred, np.moveaxis(data.R[sl], 0, 2)) / data.sigma_rot
-            nrm_o = np.sqrt(ro[0] ** 2 + ro[1] ** 2 + ro[2] ** 2)
-            use &= nrm_o <= limit
-            cost += float(np.sum(np.minimum(nrm_o[keep], limit) ** 2))
+            _, use_o, part = _truncated(ro, keep, limit)
+            use &= use_o
+            cost += part
             rw = np.concatenate([rw, ro])
             Jw = np.concatenate([Jw, Jr / data.sigma_rot], axis=1)
         if not np.all(use):
@@ -576,11 +584,9 @@ def _gradient(
             Wt = np.transpose(W, (1, 2, 0))  # (3, 3, c)
             rw = _rotate(Wt, r)
             rho = _rotate(np.transpose(Wt, (1, 0, 2)), rw)
-        nrm = np.sqrt(rw[0] ** 2 + rw[1] ** 2 + rw[2] ** 2)
+        nrm, use, part = _truncated(rw, data.keep[sl], limit)
         norms[sl] = nrm
-        keep = data.keep[sl]
-        use = keep & (nrm <= limit)
-        cost += float(np.sum(np.minimum(nrm[keep], limit) ** 2))
+        cost += part
         count += int(np.count_nonzero(use))
         chi2 += float(np.sum(nrm[use] ** 2))
         rho = np.where(use, rho, 0.0)

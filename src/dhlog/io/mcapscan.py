@@ -75,7 +75,6 @@ class McapScan:
     truncated_at: int | None = None
     recovered: int = 0
     warnings: list[str] = field(default_factory=list)
-    damaged_records: int = 0
 
     def topics(self) -> list[str]:
         """Topics present, sorted."""
@@ -471,5 +470,4 @@ def scan_mcap(
         scan.warnings.append(
             f"{name}: {len(walker.damaged)} damaged record(s) skipped: {walker.damaged[0]}{more}."
         )
-    scan.damaged_records = len(walker.damaged)
     return scan

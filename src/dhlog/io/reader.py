@@ -116,45 +116,40 @@ class _OtherFrameError(Exception):
     """A transform message without the frame the pipeline selects: not this stream's sample."""
 
 
-def _transform_extractor(
-    schema: str, child_frame: str, orientation: bool
-) -> Callable[[Any], Extracted]:
+class _TransformExtractor:
     """Translation (and rotation) of the transform to ``child_frame`` in a TransformStamped,
     FrameTransform or a list of them (TFMessage, FrameTransforms); without ``child_frame``, the
-    first child frame met (the reader warns when the topic carries others)."""
-    chosen = [child_frame or None]
-    seen: set[str] = set()
+    first child frame met (``frames``: every child frame seen, for the reader's warning)."""
 
-    def extract(msg: Any) -> Extracted:
-        items = list(_get(msg, "transforms")) if schema in TRANSFORM_LISTS else [msg]
-        for item in items:
-            seen.add(str(_get(item, "child_frame_id")))
-        if chosen[0] is None and items:
-            chosen[0] = str(_get(items[0], "child_frame_id"))
-        match = [i for i in items if str(_get(i, "child_frame_id")) == chosen[0]]
-        if not match:
+    def __init__(self, schema: str, child_frame: str, orientation: bool) -> None:
+        self.schema, self.orientation = schema, orientation
+        self.chosen: str | None = child_frame or None
+        self.frames: set[str] = set()
+
+    def __call__(self, msg: Any) -> Extracted:
+        items = list(_get(msg, "transforms")) if self.schema in TRANSFORM_LISTS else [msg]
+        children = [str(_get(item, "child_frame_id")) for item in items]
+        self.frames.update(children)
+        if self.chosen is None and children:
+            self.chosen = children[0]
+        if self.chosen not in children:
             raise _OtherFrameError
-        item = match[0]
-        if schema.startswith("foxglove"):
-            stamp, t, r = _stamp_ns(item), _get(item, "translation"), _get(item, "rotation")
+        item = items[children.index(self.chosen)]
+        if self.schema.startswith("foxglove"):
+            t, r = _get(item, "translation"), _get(item, "rotation")
         else:
-            stamp = _stamp_ns(item)
             t, r = _get(item, "transform.translation"), _get(item, "transform.rotation")
         xyz = [float(_get(t, "x")), float(_get(t, "y")), float(_get(t, "z"))]
-        if orientation:
+        if self.orientation:
             xyz += [float(_get(r, c)) for c in ("x", "y", "z", "w")]
-        return stamp, xyz
-
-    extract.frames = seen  # type: ignore[attr-defined]
-    extract.chosen = chosen  # type: ignore[attr-defined]
-    return extract
+        return _stamp_ns(item), xyz
 
 
 def _point_extractor(
     schema: str, fields: dict[str, str], orientation: bool = False, child_frame: str = ""
 ) -> Callable[[Any], Extracted] | None:
     if schema in TRANSFORM_SCHEMAS or schema in TRANSFORM_LISTS:
-        return _transform_extractor(schema, child_frame, orientation)
+        return _TransformExtractor(schema, child_frame, orientation)
     if fields:
         paths = [fields.get(k, k) for k in ("x", "y", "z")]
         stamp_path = fields.get("stamp_ns")
@@ -460,19 +455,19 @@ def _decode_stream(
             )
         if bad and damaged is not None:
             damaged.append((info.topic, bad, total, first_bad))
-        frames = getattr(extract, "frames", None)
-        if frames and len(frames) > 1 and not child_frame and notes is not None:
-            used = extract.chosen[0]  # type: ignore[attr-defined]
-            notes.append(
-                f"{path}: {info.topic} carries the frames {', '.join(sorted(frames))}; the "
-                f"target is '{used}' (set child_frame in [streams.{stream}] to choose)."
-            )
-        if not values and frames is not None and not bad:
-            raise InputError(
-                f"{path}: {info.topic} has no transform to the frame '{child_frame}' "
-                f"(frames: {', '.join(sorted(frames)) or 'none'}); set child_frame in "
-                f"[streams.{stream}]."
-            )
+        if isinstance(extract, _TransformExtractor):
+            frames = ", ".join(sorted(extract.frames)) or "none"
+            if len(extract.frames) > 1 and not child_frame and notes is not None:
+                notes.append(
+                    f"{path}: {info.topic} carries the frames {frames}; the target is "
+                    f"'{extract.chosen}' (set child_frame in [streams.{stream}] to choose)."
+                )
+            if not values and not bad:
+                raise InputError(
+                    f"{path}: {info.topic} has no transform to the frame '{child_frame}' "
+                    f"(frames: {frames}); set child_frame in "
+                    f"[streams.{stream}]."
+                )
         t = np.asarray(t_list, dtype=np.int64)
         if stream in ("point", "base"):
             width = max((len(v) for v in values), default=3)

@@ -132,8 +132,7 @@ def staged_outputs(paths: list[Path], *, hold_signals: bool = False) -> Iterator
             signal.signal(signal.SIGINT, signal.SIG_IGN)
             signal.signal(signal.SIGTERM, signal.SIG_IGN)
         for staged, target in zip(temps, paths, strict=True):
-            if staged.exists() and staged.stat().st_size:
-                publish(staged, target)
+            publish(staged, target)
     finally:
         for staged in temps:
             staged.unlink(missing_ok=True)
