@@ -480,3 +480,133 @@ def test_foxglove_frame_transforms_as_the_point_stream(tmp_path: Path) -> None:
     log = read_log(path, pipe)
     np.testing.assert_allclose(log.points.select(["x", "y", "z"]).to_numpy(), xyz)
     np.testing.assert_array_equal(log.points["t_ns"].to_numpy(), t_pt)
+
+
+def test_foxglove_poses_in_frame_as_the_point_stream(tmp_path: Path) -> None:
+    """``foxglove.PosesInFrame`` (protobuf, from the mcap writer) with three poses per message:
+    ``pose_index`` picks the target (default the first); an index beyond the list is one line."""
+    from foxglove_schemas_protobuf.Pose_pb2 import Pose
+    from foxglove_schemas_protobuf.PosesInFrame_pb2 import PosesInFrame
+    from foxglove_schemas_protobuf.Quaternion_pb2 import Quaternion
+    from foxglove_schemas_protobuf.Vector3_pb2 import Vector3
+    from google.protobuf.timestamp_pb2 import Timestamp
+    from mcap.writer import Writer
+    from mcap_protobuf.schema import register_schema
+
+    from dhlog.errors import InputError
+
+    rng = np.random.default_rng(4)
+    xyz = rng.normal(size=(20, 3))
+    t_pt = 1_700_000_000_000_000_000 + np.arange(20) * 10_000_000
+    path = tmp_path / "poses.mcap"
+    with path.open("wb") as f:
+        writer = Writer(f)
+        writer.start(profile="protobuf", library="test")
+        channel = writer.register_channel(
+            "/smr", "protobuf", register_schema(writer, PosesInFrame)
+        )
+        for t, p in zip(t_pt.tolist(), xyz, strict=True):
+            poses = [
+                Pose(position=Vector3(x=v[0], y=v[1], z=v[2]), orientation=Quaternion(w=1.0))
+                for v in (p, p + 1.0, p + 2.0)
+            ]
+            msg = PosesInFrame(
+                timestamp=Timestamp(seconds=t // 10**9, nanos=t % 10**9),
+                frame_id="tracker",
+                poses=poses,
+            )
+            writer.add_message(channel, t, msg.SerializeToString(), t)
+        writer.finish()
+
+    def pipeline(extra: str) -> object:
+        return parse_pipeline(
+            f'encoding = "protobuf"\n[streams.point]\ntopic = "/smr"\n{extra}', "p.toml"
+        )
+
+    first = read_log(path, pipeline(""))  # type: ignore[arg-type]
+    np.testing.assert_allclose(first.points.select(["x", "y", "z"]).to_numpy(), xyz)
+    np.testing.assert_array_equal(first.points["t_ns"].to_numpy(), t_pt)
+    third = read_log(path, pipeline("pose_index = 2\n"))  # type: ignore[arg-type]
+    np.testing.assert_allclose(third.points.select(["x", "y", "z"]).to_numpy(), xyz + 2.0)
+    with pytest.raises(InputError, match="none of its 20 message"):
+        read_log(path, pipeline("pose_index = 5\n"))  # type: ignore[arg-type]
+
+
+@pytest.mark.parametrize(("unit", "vertical"), [("deg", "zenith"), ("gon", "elevation")])
+def test_spherical_tracker_angles_as_the_point_stream(
+    session: Session, tmp_path: Path, unit: str, vertical: str
+) -> None:
+    """Raw tracker angles (horizontal, vertical, distance in mm) in JSON from the mcap writer,
+    ``coordinates = "spherical"``: the same positions (to rounding) as the Cartesian log, and
+    the same identified model."""
+    import json
+
+    from mcap.writer import Writer
+
+    from dhlog.dh import JointType
+    from dhlog.kinematics import fk_point
+    from dhlog.process import process_data
+
+    cart = read_log(written(session, tmp_path, "ros2"))
+    xyz = cart.points.select(["x", "y", "z"]).to_numpy()
+    d = np.linalg.norm(xyz, axis=1)
+    hz = np.arctan2(xyz[:, 1], xyz[:, 0])
+    v = np.arccos(xyz[:, 2] / d)
+    if vertical == "elevation":
+        v = math.pi / 2 - v
+    per_rad = 180 / math.pi if unit == "deg" else 200 / math.pi
+    path = tmp_path / "angles.mcap"
+    with path.open("wb") as f:
+        w = Writer(f)
+        w.start(profile="", library="tracker export")
+        pc = w.register_channel("/angles", "json", 0)
+        jc = w.register_channel("/joints", "json", 0)
+        for t, h_, v_, d_ in zip(cart.points["t_ns"].to_list(), hz, v, d, strict=True):
+            msg = {"t": t, "hz": h_ * per_rad, "v": v_ * per_rad, "dist": d_ * 1e3}
+            w.add_message(pc, t, json.dumps(msg).encode(), t)
+        assert cart.joints is not None
+        turn = [per_rad if k is JointType.REVOLUTE else 1e3 for k in session.table.joint_types]
+        for row in cart.joints.iter_rows():
+            t, q = row[0], row[1:]
+            scaled = [x * s for x, s in zip(q, turn, strict=True)]
+            msg2 = {"t": t, "name": cart.joint_names, "position": scaled}
+            w.add_message(jc, t, json.dumps(msg2).encode(), t)
+        w.finish()
+    pipe = parse_pipeline(
+        f"""encoding = "json"
+length_unit = "mm"
+angle_unit = "{unit}"
+[streams.point]
+topic = "/angles"
+coordinates = "spherical"
+vertical = "{vertical}"
+fields = {{ horizontal = "hz", vertical = "v", distance = "dist", stamp_ns = "t" }}
+[streams.joints]
+topic = "/joints"
+fields = {{ names = "name", positions = "position" }}
+[joints]
+types = ["revolute", "revolute", "revolute", "prismatic"]  # the units differ by type
+""",
+        "angles.toml",
+    )
+    log = read_log(path, pipe)
+    np.testing.assert_allclose(log.points.select(["x", "y", "z"]).to_numpy(), xyz, atol=1e-12)
+    a, b = process_data(cart).extraction, process_data(log).extraction
+    assert a is not None and b is not None
+    q = np.random.default_rng(0).uniform(-0.5, 0.5, size=(50, b.standard.n))
+    np.testing.assert_allclose(
+        fk_point(b.standard, q, b.tool_point, T_base=b.T_measurement_base),
+        fk_point(a.standard, q, a.tool_point, T_base=a.T_measurement_base),
+        atol=1e-9,
+    )
+
+
+def test_spherical_pipeline_rules() -> None:
+    with pytest.raises(PipelineError, match="station is its origin"):
+        parse_pipeline(
+            '[streams.point]\ncoordinates = "spherical"\n[noise]\nmodel = "tracker"\n'
+            "station = [1.0, 0.0, 0.0]\n",
+            "s.toml",
+        )
+    with pytest.raises(PipelineError, match="coordinates must be one of"):
+        parse_pipeline('[streams.point]\ncoordinates = "polar"\n', "s.toml")

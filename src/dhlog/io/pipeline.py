@@ -39,9 +39,25 @@ TOP_KEYS = (
     "segmentation",
     "noise",
 )
-STREAM_KEYS = ("topic", "required", "fields", "extra_topics", "orientation", "child_frame")
+STREAM_KEYS = (
+    "topic",
+    "required",
+    "fields",
+    "extra_topics",
+    "orientation",
+    "child_frame",
+    "pose_index",
+    "coordinates",
+    "vertical",
+)
+#: How a point stream gives the target: ``cartesian`` (x, y, z) or ``spherical`` (a tracker's
+#: own horizontal angle, vertical angle and distance, in that order where x, y, z would be).
+COORDINATES = ("cartesian", "spherical")
+#: What a spherical stream's vertical angle is measured from: the zenith (+z, a tracker's usual
+#: "V", 90° at the horizon) or the horizon (elevation, 0° at the horizon).
+VERTICAL = ("zenith", "elevation")
 FIELD_KEYS = {
-    "point": ("x", "y", "z", "stamp_ns"),
+    "point": ("x", "y", "z", "stamp_ns", "horizontal", "vertical", "distance"),
     "base": ("x", "y", "z", "stamp_ns"),
     "joints": ("joints", "names", "positions"),
     "phase": ("joint",),
@@ -81,6 +97,9 @@ class StreamSpec:
     extra_topics: tuple[str, ...] = ()
     orientation: bool = False
     child_frame: str = ""
+    pose_index: int = 0
+    coordinates: str = "cartesian"
+    vertical: str = "zenith"
 
 
 @dataclass(frozen=True)
@@ -130,7 +149,7 @@ class Pipeline:
     @property
     def angle_scale(self) -> float:
         """Factor from the log's angle unit (revolute encoders) to radians."""
-        return math.pi / 180.0 if self.angle_unit == "deg" else 1.0
+        return {"deg": math.pi / 180.0, "gon": math.pi / 200.0}.get(self.angle_unit, 1.0)
 
 
 def _table(where: str, data: dict[str, Any], key: str) -> dict[str, Any]:
@@ -157,8 +176,10 @@ def parse_pipeline(text: str, source: str) -> Pipeline:
     if unit not in ("m", "mm"):
         raise PipelineError(source, f"length_unit '{unit}' unknown; use 'm' or 'mm'.")
     angle_unit = str(data.get("angle_unit", "rad"))
-    if angle_unit not in ("rad", "deg"):
-        raise PipelineError(source, f"angle_unit '{angle_unit}' unknown; use 'rad' or 'deg'.")
+    if angle_unit not in ("rad", "deg", "gon"):
+        raise PipelineError(
+            source, f"angle_unit '{angle_unit}' unknown; use 'rad', 'deg' or 'gon'."
+        )
     streams_table = _table(source, data, "streams")
     unknown = sorted(set(streams_table) - set(STREAMS))
     if unknown:
@@ -184,6 +205,27 @@ def parse_pipeline(text: str, source: str) -> Pipeline:
             raise PipelineError(
                 source, "[streams.point] orientation must be true or false (point stream only)."
             )
+        coordinates = spec.get("coordinates", "cartesian")
+        vertical = spec.get("vertical", "zenith")
+        pose_index = spec.get("pose_index", 0)
+        if coordinates not in COORDINATES or (coordinates != "cartesian" and stream != "point"):
+            raise PipelineError(
+                source,
+                f"[streams.{stream}] coordinates must be one of {list(COORDINATES)} "
+                "('spherical' for the point stream only).",
+            )
+        if vertical not in VERTICAL:
+            raise PipelineError(
+                source, f"[streams.{stream}] vertical must be one of {list(VERTICAL)}."
+            )
+        if not isinstance(pose_index, int) or isinstance(pose_index, bool) or pose_index < 0:
+            raise PipelineError(
+                source, f"[streams.{stream}] pose_index must be a whole number >= 0."
+            )
+        if coordinates == "spherical" and orientation:
+            raise PipelineError(
+                source, "[streams.point] a spherical point stream has no orientation."
+            )
         streams[stream] = StreamSpec(
             str(spec.get("topic", DEFAULT_TOPICS[stream])),
             required,
@@ -191,6 +233,9 @@ def parse_pipeline(text: str, source: str) -> Pipeline:
             tuple(extra),
             orientation,
             str(spec.get("child_frame", "")),
+            pose_index,
+            str(coordinates),
+            str(vertical),
         )
     if "point" not in streams:
         raise PipelineError(source, "it has no [streams.point]; the target stream is required.")
@@ -244,6 +289,12 @@ def parse_pipeline(text: str, source: str) -> Pipeline:
         noise = NoiseModel(**kwargs)
     except (TypeError, ValueError, DhlogError) as exc:
         raise PipelineError(source, f"[noise]: {exc}") from None
+    if streams["point"].coordinates == "spherical" and any(noise.station):
+        raise PipelineError(
+            source,
+            "[noise] station: a spherical point stream is in the tracker's own frame, so the "
+            "station is its origin; leave station out.",
+        )
     return Pipeline(
         name=name,
         description=str(data.get("description", "")),

@@ -56,6 +56,10 @@ ORIENTATION_COLUMNS = ("rot_x", "rot_y", "rot_z", "rot_w")
 #: them, selected by ``[streams.point] child_frame``.
 TRANSFORM_SCHEMAS = ("geometry_msgs/msg/TransformStamped", "foxglove.FrameTransform")
 TRANSFORM_LISTS = ("tf2_msgs/msg/TFMessage", "foxglove.FrameTransforms")
+#: Foxglove's list of poses in one frame: the target is ``poses[pose_index]``.
+POSES_IN_FRAME = "foxglove.PosesInFrame"
+#: JSON field keys of a spherical point stream (horizontal angle, vertical angle, distance).
+SPHERICAL_FIELDS = ("horizontal", "vertical", "distance")
 JOINT_SCHEMAS = (ros2.JOINT_STATE, "foxglove.JointStates")
 PHASE_SCHEMAS = (ros2.STRING,)
 
@@ -83,7 +87,12 @@ class LogData:
 
 def _get(obj: Any, path: str) -> Any:
     for part in path.split("."):
-        obj = obj[part] if isinstance(obj, dict) else getattr(obj, part)
+        if isinstance(obj, dict):
+            obj = obj[part]
+        elif isinstance(obj, list | tuple) or (part.isdigit() and not hasattr(obj, part)):
+            obj = obj[int(part)]  # a list item by index (ValueError on a name: unreadable)
+        else:
+            obj = getattr(obj, part)
     return obj
 
 
@@ -146,12 +155,30 @@ class _TransformExtractor:
 
 
 def _point_extractor(
-    schema: str, fields: dict[str, str], orientation: bool = False, child_frame: str = ""
+    schema: str,
+    fields: dict[str, str],
+    orientation: bool = False,
+    child_frame: str = "",
+    pose_index: int = 0,
 ) -> Callable[[Any], Extracted] | None:
     if schema in TRANSFORM_SCHEMAS or schema in TRANSFORM_LISTS:
         return _TransformExtractor(schema, child_frame, orientation)
+    if schema == POSES_IN_FRAME and not fields:
+
+        def pose_of_many(msg: Any) -> Extracted:
+            pose = _get(msg, "poses")[pose_index]  # IndexError: counted as unreadable
+            p = _get(pose, "position")
+            xyz = [float(_get(p, "x")), float(_get(p, "y")), float(_get(p, "z"))]
+            if orientation:
+                r = _get(pose, "orientation")
+                xyz += [float(_get(r, c)) for c in ("x", "y", "z", "w")]
+            return _stamp_ns(msg), xyz
+
+        return pose_of_many
     if fields:
-        paths = [fields.get(k, k) for k in ("x", "y", "z")]
+        spherical = any(k in fields for k in SPHERICAL_FIELDS)
+        keys = SPHERICAL_FIELDS if spherical else ("x", "y", "z")
+        paths = [fields.get(k, k) for k in keys]
         stamp_path = fields.get("stamp_ns")
 
         def custom(msg: Any) -> Extracted:
@@ -272,7 +299,7 @@ ACCEPTED = {
     "point": "geometry_msgs/msg/PointStamped, geometry_msgs/msg/PoseStamped, "
     "geometry_msgs/msg/PoseWithCovarianceStamped, geometry_msgs/msg/TransformStamped, "
     "tf2_msgs/msg/TFMessage, foxglove.Point3InFrame, foxglove.PoseInFrame, "
-    "foxglove.FrameTransform(s), or JSON with field paths",
+    "foxglove.PosesInFrame, foxglove.FrameTransform(s), or JSON with field paths",
     "base": "the same types as the point stream",
     "joints": "sensor_msgs/msg/JointState, foxglove.JointStates, or JSON with field paths",
     "phase": 'std_msgs/msg/String or JSON {"joint": k}',
@@ -285,10 +312,11 @@ def _extractor(
     fields: dict[str, str],
     orientation: bool = False,
     child_frame: str = "",
+    pose_index: int = 0,
 ) -> Callable[[Any], Extracted] | None:
     if stream in ("point", "base"):
         return _point_extractor(
-            info.schema_name, fields, orientation and stream == "point", child_frame
+            info.schema_name, fields, orientation and stream == "point", child_frame, pose_index
         )
     if stream == "joints":
         return _joint_extractor(info.schema_name, fields)
@@ -366,6 +394,7 @@ def _decode_stream(
     damaged: list[tuple[str, int, int, str]] | None = None,
     child_frame: str = "",
     notes: list[str] | None = None,
+    pose_index: int = 0,
 ) -> list[Block]:
     """Blocks of (times, values) of one stream over all its channels.
 
@@ -377,12 +406,13 @@ def _decode_stream(
     """
     blocks: list[Block] = []
     for info in infos:
-        extract = _extractor(stream, info, fields, orientation, child_frame)
+        extract = _extractor(stream, info, fields, orientation, child_frame, pose_index)
         if extract is None:
             accepted = ACCEPTED[stream]
             if orientation and stream == "point":
                 accepted = (
-                    "geometry_msgs/msg/PoseStamped or foxglove.PoseInFrame (the pipeline asks "
+                    "geometry_msgs/msg/PoseStamped, foxglove.PoseInFrame, foxglove.PosesInFrame "
+                    "or transforms (the pipeline asks "
                     "for the target's orientation: orientation = true)"
                 )
             raise UnknownSchemaError(
@@ -570,6 +600,22 @@ def _points_frame(blocks: list[Block], scale: float, orientation: bool = False) 
     return pl.DataFrame(cols)
 
 
+def _cartesian(values: NDArray[np.float64], pipeline: Pipeline) -> NDArray[np.float64]:
+    """A spherical stream's (horizontal angle, vertical angle, distance) as x, y, z in the
+    tracker's own frame (length unit unchanged): the horizontal angle turns from +x towards +y
+    about +z, the vertical angle is from the zenith (+z) or, with ``vertical = "elevation"``,
+    from the horizon; angles in the pipeline's ``angle_unit``."""
+    scale = pipeline.angle_scale
+    hz, v, d = values[:, 0] * scale, values[:, 1] * scale, values[:, 2]
+    if pipeline.streams["point"].vertical == "elevation":
+        v = math.pi / 2 - v
+    out = values.copy()
+    out[:, 0] = d * np.sin(v) * np.cos(hz)
+    out[:, 1] = d * np.sin(v) * np.sin(hz)
+    out[:, 2] = d * np.cos(v)
+    return out
+
+
 def read_log(
     path: str | Path,
     pipeline: Pipeline | None = None,
@@ -663,10 +709,14 @@ def read_log(
             damaged,
             pipeline.streams[stream].child_frame,
             warnings,
+            pipeline.streams[stream].pose_index,
         )
 
     def points_of(channels: list[ChannelInfo] | None = None) -> pl.DataFrame:
-        frame = _points_frame(blocks_of("point", channels), pipeline.length_scale, with_rot)
+        blocks = blocks_of("point", channels)
+        if pipeline.streams["point"].coordinates == "spherical":
+            blocks = [(t, _cartesian(v, pipeline)) for t, v in blocks]
+        frame = _points_frame(blocks, pipeline.length_scale, with_rot)
         return _clean(frame, "point", set_aside)
 
     points = points_of()
