@@ -502,9 +502,7 @@ def test_foxglove_poses_in_frame_as_the_point_stream(tmp_path: Path) -> None:
     with path.open("wb") as f:
         writer = Writer(f)
         writer.start(profile="protobuf", library="test")
-        channel = writer.register_channel(
-            "/smr", "protobuf", register_schema(writer, PosesInFrame)
-        )
+        channel = writer.register_channel("/smr", "protobuf", register_schema(writer, PosesInFrame))
         for t, p in zip(t_pt.tolist(), xyz, strict=True):
             poses = [
                 Pose(position=Vector3(x=v[0], y=v[1], z=v[2]), orientation=Quaternion(w=1.0))
