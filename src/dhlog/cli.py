@@ -552,6 +552,105 @@ def export(
     stdout.print(f"wrote {output}")
 
 
+def _listed(text: str | None) -> list[str]:
+    return [t.strip() for t in text.split(",") if t.strip()] if text else []
+
+
+@app.command(name="import")
+def import_(
+    source: Annotated[
+        Path, typer.Argument(help="The export: a CSV, a SpatialAnalyzer ASCII file, a Leica CSV.")
+    ],
+    output: Annotated[
+        Path | None,
+        typer.Option("-o", "--output", help="The MCAP log to write (default: <source>.mcap)."),
+    ] = None,
+    format: Annotated[str, typer.Option("--format", help="csv, spatialanalyzer or leica.")] = "csv",
+    joints_file: Annotated[
+        Path | None,
+        typer.Option(help="A CSV of joint values per point name (first column, or --name-column)."),
+    ] = None,
+    x: Annotated[str, typer.Option(help="The column of the target's x.")] = "x",
+    y: Annotated[str, typer.Option(help="The column of the target's y.")] = "y",
+    z: Annotated[str, typer.Option(help="The column of the target's z.")] = "z",
+    joint_columns: Annotated[
+        str | None,
+        typer.Option(
+            help="Joint columns in chain order, comma-separated (default: q1…, j1…, "
+            "a1…, joint_1…, axis1…)."
+        ),
+    ] = None,
+    joint_names: Annotated[
+        str | None, typer.Option(help="Joint names, comma-separated (default: the columns').")
+    ] = None,
+    joint_types: Annotated[
+        str | None,
+        typer.Option(help="revolute/prismatic per joint, comma-separated (default: revolute)."),
+    ] = None,
+    time: Annotated[
+        str | None,
+        typer.Option(help="The time column (default: none — one stop per row, step and measure)."),
+    ] = None,
+    time_unit: Annotated[str, typer.Option(help="s, ms, us or ns.")] = "s",
+    name_column: Annotated[
+        str | None, typer.Option(help="The point-name column (joints file, Leica CSV).")
+    ] = None,
+    length_unit: Annotated[
+        str,
+        typer.Option(
+            help="m or mm: positions and prismatic joints (a unit in the header "
+            "of a Leica CSV wins)."
+        ),
+    ] = "mm",
+    angle_unit: Annotated[str, typer.Option(help="rad, deg or gon: revolute joints.")] = "deg",
+    force: Annotated[bool, typer.Option("--force", help="Overwrite the output.")] = False,
+) -> None:
+    """Convert a measurement export (CSV, SpatialAnalyzer, Leica) into an MCAP log that
+    `dhlog process` reads (ROS 2 layout, pipeline ros2_tracker)."""
+    from rich.markup import escape
+
+    from dhlog.io.importer import ImportOptions, import_source, write_imported
+
+    out = output if output is not None else source.with_suffix(".mcap")
+    if out.resolve() == source.resolve():
+        stderr.print("error: the output would replace the source; name another with -o.")
+        raise typer.Exit(EXIT_USAGE)
+    _check_folder(out.parent)
+    if out.exists() and not force:
+        stderr.print(f"error: {escape(str(out))} exists; pass --force to overwrite it.")
+        raise typer.Exit(EXIT_USAGE)
+    opts = ImportOptions(
+        format=format,
+        joints_file=joints_file,
+        x=x,
+        y=y,
+        z=z,
+        joint_columns=_listed(joint_columns),
+        joint_names=_listed(joint_names),
+        joint_types=_listed(joint_types),
+        time=time,
+        time_unit=time_unit,
+        name_column=name_column,
+        length_unit=length_unit,
+        angle_unit=angle_unit,
+    )
+    try:
+        imported = import_source(source, opts)
+        write_imported(imported, out)
+    except DhlogError as exc:
+        _fail(exc)
+    except OSError as exc:
+        _fail(OutputError(out.parent, exc))
+    for w in imported.warnings:
+        stderr.print(f"warning: {escape(w)}")
+    kind = "stops (step and measure)" if imported.stepped else "timed samples"
+    u95 = ", with per-point U95 as covariance" if imported.covariance is not None else ""
+    stdout.print(
+        f"wrote {escape(str(out))}: {len(imported.xyz)} {kind}{u95}, joints "
+        f"{', '.join(imported.joint_names)}; next: dhlog process {escape(str(out))}"
+    )
+
+
 @app.command(name="compare")
 def compare_results(
     first: Annotated[Path, typer.Argument(help="The earlier result <stem>.dh.json.")],

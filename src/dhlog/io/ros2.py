@@ -199,6 +199,26 @@ def encode_pose_stamped(
     return [p + q.tobytes() for p, q in zip(points, np.asarray(quaternions, "<f8"), strict=True)]
 
 
+def encode_pose_with_covariance(
+    t_ns: Sequence[int] | NDArray[np.int64],
+    xyz: NDArray[np.float64],
+    frame_id: str,
+    position_covariance: NDArray[np.float64],
+) -> list[bytes]:
+    """CDR payloads of PoseWithCovarianceStamped messages: identity orientation, the position
+    block of the 6×6 covariance from ``position_covariance`` (m, 6: ``cxx, cxy, cxz, cyy, cyz,
+    czz``, m²) and the orientation block 1e6 rad² on its diagonal (not measured)."""
+    out = []
+    full = np.zeros((len(xyz), 6, 6), dtype="<f8")
+    rows, cols = [0, 0, 0, 1, 1, 2], [0, 1, 2, 1, 2, 2]
+    full[:, rows, cols] = position_covariance
+    full[:, cols, rows] = position_covariance
+    full[:, [3, 4, 5], [3, 4, 5]] = 1e6
+    for pose, cov in zip(encode_pose_stamped(t_ns, xyz, frame_id), full, strict=True):
+        out.append(pose + cov.tobytes())
+    return out
+
+
 def encode_joint_state(
     t_ns: Sequence[int] | NDArray[np.int64], names: Sequence[str], positions: NDArray[np.float64]
 ) -> list[bytes]:
