@@ -105,3 +105,158 @@ def test_compare_finds_the_changed_parameter_and_nothing_else(tmp_path: Path) ->
     shown = runner.invoke(app, ["compare", str(results[0]), str(results[2])])
     assert shown.exit_code == 0 and "a_2" in shown.output and "changed beyond 3σ" in shown.output
     assert len(others) > 10 and max(c.significance or 0 for c in others) < 4.0
+
+
+@pytest.fixture(scope="module")
+def ur5_result(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A UR5 off its nominal (0.2 mm, 0.02°), simulated, processed by the command line."""
+    folder = tmp_path_factory.mktemp("ur5")
+    log = folder / "ur5.mcap"
+    made = runner.invoke(
+        app,
+        [
+            "simulate",
+            "ur5",
+            "-o",
+            str(log),
+            "--perturb-mm",
+            "0.2",
+            "--perturb-deg",
+            "0.02",
+            "--noise-mm",
+            "0.01",
+            "--seed",
+            "3",
+        ],
+    )
+    assert made.exit_code == 0, made.output
+    done = runner.invoke(app, ["process", str(log), "--no-rrd", "--out", str(folder)])
+    assert done.exit_code == 0, done.output
+    return folder / "ur5.dh.json"
+
+
+def _export(result: Path, fmt: str, out: Path) -> str:
+    made = runner.invoke(app, ["export", str(result), "-o", str(out), "--format", fmt])
+    assert made.exit_code == 0, made.output
+    return made.output
+
+
+def _joint_vectors(robot: str, n: int = 200) -> np.ndarray:
+    rob = load_robot(robot)
+    return np.random.default_rng(4).uniform(rob.limits[:, 0], rob.limits[:, 1], (n, rob.n))
+
+
+def test_the_ur_calibration_composed_as_the_ur_description_does(
+    ur5_result: Path, tmp_path: Path
+) -> None:
+    """The UR calibration YAML, composed as the UR description's ur_macro.xacro composes it
+    (base_link → base_link_inertia rpy (0, 0, π) → shoulder … wrist_3 origins, each joint about
+    z → flange rpy (0, −π/2, −π/2) → tool0 rpy (π/2, 0, π/2)), with the TCP printed by the
+    command: the target in base_link equals dhlog's FK to 1e-9 m at 200 joint vectors."""
+    import yaml
+    from scipy.spatial.transform import Rotation
+
+    out = tmp_path / "ur5_calibration.yaml"
+    said = _export(ur5_result, "ur", out)
+    doc = yaml.safe_load(out.read_text())["kinematics"]
+    assert doc["hash"].startswith("dhlog_")
+    tcp = np.array([float(v) for v in out.read_text().split("tcp: [")[1].split("]")[0].split(",")])
+    assert f"{tcp[0] * 1e3:.4f}" in said
+
+    def origin(xyz: list[float], rpy: list[float]) -> np.ndarray:
+        T = np.eye(4)
+        T[:3, :3] = Rotation.from_euler("xyz", rpy).as_matrix()  # URDF: fixed axes x, y, z
+        T[:3, 3] = xyz
+        return T
+
+    def about_z(q: float) -> np.ndarray:
+        return origin([0, 0, 0], [0, 0, q])
+
+    dh = load_dh(ur5_result)
+    Q = _joint_vectors("ur5")
+    want = fk_point(dh.table, Q, dh.tool_point, T_base=np.eye(4))  # in DH frame 1 = base_link
+    for q, p in zip(Q, want, strict=True):
+        T = origin([0, 0, 0], [0, 0, np.pi])
+        for k, entry in enumerate(
+            ("shoulder", "upper_arm", "forearm", "wrist_1", "wrist_2", "wrist_3")
+        ):
+            e = doc[entry]
+            T = T @ origin([e["x"], e["y"], e["z"]], [e["roll"], e["pitch"], e["yaw"]])
+            T = T @ about_z(q[k])
+        T = T @ origin([0, 0, 0], [0, -np.pi / 2, -np.pi / 2])
+        T = T @ origin([0, 0, 0], [np.pi / 2, 0, np.pi / 2])
+        assert np.abs((T @ np.r_[tcp, 1.0])[:3] - p).max() < 1e-9
+
+
+def test_a_ur_calibration_needs_six_revolute_joints(tmp_path: Path) -> None:
+    out = tmp_path / "out"
+    done = runner.invoke(
+        app, ["process", str(SAMPLES / "scara.mcap"), "--no-rrd", "--out", str(out)]
+    )
+    assert done.exit_code == 0, done.output
+    made = runner.invoke(
+        app,
+        ["export", str(out / "scara.dh.json"), "-o", str(tmp_path / "u.yaml"), "--format", "ur"],
+    )
+    assert made.exit_code == 2 and "six revolute joints" in made.output
+
+
+@pytest.mark.parametrize(
+    ("log", "robot"), [("ur5", "ur5"), ("kr5_real", "kr5"), ("scara", "scara")]
+)
+def test_the_roboticstoolbox_robot_reproduces_the_result(
+    log: str, robot: str, ur5_result: Path, tmp_path: Path
+) -> None:
+    """The rtb snippet run by roboticstoolbox-python: ``robot.fkine(q).t`` equals dhlog's FK of
+    the target in the measurement frame to 1e-9 m at 200 joint vectors (a Hayati row's result
+    and a prismatic joint included)."""
+    import runpy
+
+    if log == "ur5":
+        result = ur5_result
+    else:
+        out = tmp_path / "out"
+        done = runner.invoke(
+            app, ["process", str(SAMPLES / f"{log}.mcap"), "--no-rrd", "--out", str(out)]
+        )
+        assert done.exit_code == 0, done.output
+        result = out / f"{log}.dh.json"
+    snippet = tmp_path / "robot.py"
+    _export(result, "rtb", snippet)
+    rtb_robot = runpy.run_path(str(snippet))["robot"]
+    dh = load_dh(result)
+    Q = _joint_vectors(robot, 200)
+    want = fk_point(dh.table, Q, dh.tool_point, T_base=dh.T_base)
+    for q, p in zip(Q, want, strict=True):
+        assert np.abs(rtb_robot.fkine(q).t - p).max() < 1e-9
+
+
+def test_the_plain_dh_tables_reproduce_the_result(ur5_result: Path, tmp_path: Path) -> None:
+    """dh-json's modified table (Craig's ``Rx(α) Tx(a) Rz(θ) Tz(d)`` rows and its tool-end
+    transform) and dh-csv's standard rows read back by polars give dhlog's FK to 1e-9 m."""
+    import polars as pl
+
+    from dhlog.dh import modified_dh_transform, standard_dh_transform
+
+    _export(ur5_result, "dh-json", tmp_path / "dh.json")
+    _export(ur5_result, "dh-csv", tmp_path / "dh.csv")
+    doc = json.loads((tmp_path / "dh.json").read_text())
+    csv = pl.read_csv(tmp_path / "dh.csv").filter(pl.col("convention") == "standard")
+    dh = load_dh(ur5_result)
+    Q = _joint_vectors("ur5", 50)
+    want = fk_point(dh.table, Q, dh.tool_point, T_base=dh.T_base)
+    for q, p in zip(Q, want, strict=True):
+        T_mod = np.asarray(doc["T_base"])
+        T_std = np.asarray(doc["T_base"])
+        for k, (m, s) in enumerate(zip(doc["modified"], csv.iter_rows(named=True), strict=True)):
+            T_mod = T_mod @ modified_dh_transform(
+                m["alpha_prev"], m["a_prev"], m["theta_offset"] + q[k], m["d"]
+            )
+            T_std = T_std @ standard_dh_transform(
+                s["theta_offset"] + q[k], s["d"], s["a"], s["alpha"]
+            )
+        T_mod = T_mod @ np.asarray(doc["modified_T_tool_end"])
+        tool = np.r_[doc["tool_point"], 1.0]
+        assert np.abs((T_mod @ tool)[:3] - p).max() < 1e-9
+        assert np.abs((T_std @ tool)[:3] - p).max() < 1e-9
+    assert csv["std_a"].is_not_null().all()

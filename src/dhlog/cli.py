@@ -517,39 +517,63 @@ def pipelines() -> None:
         )
 
 
+EXPORT_FORMATS = ("urdf", "ur", "rtb", "dh-csv", "dh-json")
+
+
 @app.command()
 def export(
     result: Annotated[Path, typer.Argument(help="A result <stem>.dh.json (or a DH JSON file).")],
     output: Annotated[Path, typer.Option("-o", "--output", help="The file to write.")],
-    format: Annotated[str, typer.Option("--format", help="urdf.")] = "urdf",
+    format: Annotated[
+        str,
+        typer.Option(
+            "--format",
+            help="urdf; ur (Universal Robots calibration YAML); rtb (a roboticstoolbox "
+            "DHRobot in Python); dh-csv or dh-json (standard and modified DH tables).",
+        ),
+    ] = "urdf",
     limits_from: Annotated[
         str | None,
         typer.Option(help="A library robot (or DH file) whose joint limits the URDF gets."),
     ] = None,
     force: Annotated[bool, typer.Option("--force", help="Overwrite the output.")] = False,
 ) -> None:
-    """Write the identified model in a form a robot stack loads (URDF)."""
+    """Write the identified model in a form a robot stack loads."""
+    from rich.markup import escape
+
+    from dhlog import export as exports
     from dhlog.dhfile import robot_or_dh_file
-    from dhlog.export import urdf_document
     from dhlog.io.writer import atomic_output
 
-    if format != "urdf":
-        stderr.print(f"error: --format must be urdf, not '{format}'.")
+    if format not in EXPORT_FORMATS:
+        stderr.print(f"error: --format must be one of {', '.join(EXPORT_FORMATS)}, not '{format}'.")
         raise typer.Exit(EXIT_USAGE)
     _check_folder(output.parent)
     if output.exists() and not force:
-        stderr.print(f"error: {output} exists; pass --force to overwrite it.")
+        stderr.print(f"error: {escape(str(output))} exists; pass --force to overwrite it.")
         raise typer.Exit(EXIT_USAGE)
+    extra = ""
     try:
-        limits = robot_or_dh_file(limits_from).limits if limits_from else None
-        text = urdf_document(result, limits=limits)
+        if format == "urdf":
+            limits = robot_or_dh_file(limits_from).limits if limits_from else None
+            text = exports.urdf_document(result, limits=limits)
+        elif format == "ur":
+            text, tcp = exports.ur_calibration(result)
+            extra = (
+                "; set the TCP on the controller to "
+                f"({tcp[0] * 1e3:.4f}, {tcp[1] * 1e3:.4f}, {tcp[2] * 1e3:.4f}) mm in tool0"
+            )
+        elif format == "rtb":
+            text = exports.rtb_document(result)
+        else:
+            text = exports.dh_table_document(result, format)
         with atomic_output(output) as f:
             f.write(text.encode())
     except DhlogError as exc:
         _fail(exc)
     except OSError as exc:
         _fail(OutputError(output.parent, exc))
-    stdout.print(f"wrote {output}")
+    stdout.print(f"wrote {escape(str(output))}{extra}")
 
 
 def _listed(text: str | None) -> list[str]:
