@@ -260,3 +260,146 @@ def test_the_plain_dh_tables_reproduce_the_result(ur5_result: Path, tmp_path: Pa
         assert np.abs((T_mod @ tool)[:3] - p).max() < 1e-9
         assert np.abs((T_std @ tool)[:3] - p).max() < 1e-9
     assert csv["std_a"].is_not_null().all()
+
+
+UR5_TEMPLATE = """<?xml version="1.0"?>
+<robot name="ur5">
+  <!-- as the UR description lays it out: base_link turned by pi into base_link_inertia -->
+  <link name="world"/>
+  <link name="base_link"/>
+  <link name="base_link_inertia">
+    <visual><geometry><mesh filename="package://ur_description/meshes/ur5/visual/base.dae"/></geometry></visual>
+    <inertial><mass value="4.0"/><origin xyz="0 0 0" rpy="0 0 0"/>
+      <inertia ixx="0.0044" ixy="0" ixz="0" iyy="0.0044" iyz="0" izz="0.0072"/></inertial>
+  </link>
+{links}
+  <link name="flange"/>
+  <link name="tool0"/>
+  <joint name="world_joint" type="fixed"><parent link="world"/><child link="base_link"/>
+    <origin xyz="0.5 -0.2 0.8" rpy="0 0 0.3"/></joint>
+  <joint name="base_link-base_link_inertia" type="fixed"><parent link="base_link"/>
+    <child link="base_link_inertia"/><origin xyz="0 0 0" rpy="0 0 3.141592653589793"/></joint>
+{joints}
+  <joint name="wrist_3-flange" type="fixed"><parent link="wrist_3_link"/><child link="flange"/>
+    <origin xyz="0 0 0" rpy="0 -1.5707963267948966 -1.5707963267948966"/></joint>
+  <joint name="flange-tool0" type="fixed"><parent link="flange"/><child link="tool0"/>
+    <origin xyz="0 0 0" rpy="1.5707963267948966 0 1.5707963267948966"/></joint>
+  <transmission name="shoulder_trans"><type>transmission_interface/SimpleTransmission</type>
+    <joint name="joint_1"><hardwareInterface>PositionJointInterface</hardwareInterface></joint>
+  </transmission>
+</robot>
+"""
+#: UR5 default_kinematics.yaml (x y z roll pitch yaw) per joint, as the UR description ships it.
+UR5_KINEMATICS = [
+    ("shoulder_link", "base_link_inertia", "0 0 0.089159", "0 0 0"),
+    ("upper_arm_link", "shoulder_link", "0 0 0", "1.570796327 0 0"),
+    ("forearm_link", "upper_arm_link", "-0.425 0 0", "0 0 0"),
+    ("wrist_1_link", "forearm_link", "-0.39225 0 0.10915", "0 0 0"),
+    ("wrist_2_link", "wrist_1_link", "0 -0.09465 -1.941e-11", "1.570796327 0 0"),
+    (
+        "wrist_3_link",
+        "wrist_2_link",
+        "0 0.0823 -1.688e-11",
+        "1.570796326 3.141592653589793 3.141592653589793",
+    ),
+]
+
+
+def ur5_template(path: Path) -> None:
+    links, joints = [], []
+    for k, (child, parent, xyz, rpy) in enumerate(UR5_KINEMATICS):
+        links.append(
+            f'  <link name="{child}">\n    <visual><geometry><mesh filename="package://'
+            f'ur_description/meshes/ur5/visual/{child}.dae"/></geometry></visual>\n'
+            f'    <inertial><mass value="{k + 1.5}"/><origin xyz="0 0 0.1" rpy="0 0 0"/>\n'
+            '      <inertia ixx="0.01" ixy="0" ixz="0" iyy="0.01" iyz="0" izz="0.005"/>'
+            "</inertial>\n  </link>"
+        )
+        joints.append(
+            f'  <joint name="joint_{k + 1}" type="revolute"><parent link="{parent}"/>'
+            f'<child link="{child}"/>\n    <origin xyz="{xyz}" rpy="{rpy}"/><axis xyz="0 0 1"/>'
+            f'<limit lower="-{6.2 - k / 10}" upper="{6.2 - k / 10}" effort="150" velocity="3.15"/>'
+            "</joint>"
+        )
+    path.write_text(UR5_TEMPLATE.format(links="\n".join(links), joints="\n".join(joints)))
+
+
+def test_a_urdf_template_gets_the_calibrated_origins_and_keeps_the_rest(
+    ur5_result: Path, tmp_path: Path
+) -> None:
+    """A UR5 URDF laid out as the UR description (base_link_inertia turned by π, the link frames
+    of default_kinematics.yaml, flange and tool0, meshes, inertials, a transmission): after
+    ``--template``, yourdfpy's FK of ``dhlog_target`` in ``dhlog_measurement`` equals the result's
+    to 1e-9 m at 200 joint vectors; every link element, limit and the transmission is unchanged;
+    each link frame at zero stays within 2 mm and 0.1° of the template's (the robot is 0.2 mm,
+    0.02° off its nominal)."""
+    import xml.etree.ElementTree as ET
+
+    template = tmp_path / "ur5.urdf"
+    ur5_template(template)
+    out = tmp_path / "ur5_calibrated.urdf"
+    made = runner.invoke(
+        app, ["export", str(ur5_result), "-o", str(out), "--template", str(template)]
+    )
+    assert made.exit_code == 0, made.output
+    before = yourdfpy.URDF.load(str(template), load_meshes=False)
+    after = yourdfpy.URDF.load(str(out), load_meshes=False)
+    dh = load_dh(ur5_result)
+    Q = _joint_vectors("ur5")
+    want = fk_point(dh.table, Q, dh.tool_point, T_base=dh.T_base)
+    for q, p in zip(Q, want, strict=True):
+        after.update_cfg(q)
+        T = after.get_transform("dhlog_target", "dhlog_measurement")
+        assert np.abs(T[:3, 3] - p).max() < 1e-9
+    src, got = ET.parse(template).getroot(), ET.parse(out).getroot()
+
+    def text(e: ET.Element | None) -> bytes:
+        assert e is not None
+        e.tail = None
+        return ET.tostring(e)
+
+    for a, b in zip(src.findall("link"), got.findall("link"), strict=False):
+        assert text(a) == text(b)
+    assert text(src.find("transmission")) == text(got.find("transmission"))
+    for name in [f"joint_{k}" for k in range(1, 7)]:
+        assert after.joint_map[name].limit.upper == before.joint_map[name].limit.upper
+    after.update_cfg(np.zeros(6))
+    before.update_cfg(np.zeros(6))
+    for link, *_ in UR5_KINEMATICS:
+        T0, T1 = before.get_transform(link, "world"), after.get_transform(link, "world")
+        assert np.linalg.norm(T1[:3, 3] - T0[:3, 3]) < 2e-3, link
+        turn = np.degrees(np.arccos(np.clip((np.trace(T0[:3, :3].T @ T1[:3, :3]) - 1) / 2, -1, 1)))
+        assert turn < 0.1, link
+
+
+def test_a_template_without_the_results_joints_is_one_line(
+    ur5_result: Path, tmp_path: Path
+) -> None:
+    template = tmp_path / "other.urdf"
+    ur5_template(template)
+    template.write_text(template.read_text().replace('"joint_3"', '"elbow_joint"'))
+    made = runner.invoke(
+        app,
+        ["export", str(ur5_result), "-o", str(tmp_path / "x.urdf"), "--template", str(template)],
+    )
+    assert made.exit_code == 2 and "has no joint joint_3 of the result" in made.output
+    assert len(made.output.strip().splitlines()) == 1
+
+
+def test_zero_offsets_in_the_calibration_tags(ur5_result: Path, tmp_path: Path) -> None:
+    """``--zero-offsets calibration``: each joint's ``<calibration rising>`` is its zero offset;
+    yourdfpy at joint positions encoder + rising gives the result's FK to 1e-9 m."""
+    out = tmp_path / "cal.urdf"
+    made = runner.invoke(
+        app, ["export", str(ur5_result), "-o", str(out), "--zero-offsets", "calibration"]
+    )
+    assert made.exit_code == 0, made.output
+    model = yourdfpy.URDF.load(str(out), load_meshes=False)
+    rising = np.array([model.joint_map[n].calibration.rising for n in model.actuated_joint_names])
+    dh = load_dh(ur5_result)
+    assert np.abs(rising).max() > 1e-5  # the robot is off its nominal: offsets are not zero
+    Q = _joint_vectors("ur5", 100)
+    want = fk_point(dh.table, Q, dh.tool_point, T_base=dh.T_base)
+    for q, p in zip(Q, want, strict=True):
+        model.update_cfg(q + rising)
+        assert np.abs(model.get_transform("tool0", "measurement")[:3, 3] - p).max() < 1e-9

@@ -536,6 +536,20 @@ def export(
         str | None,
         typer.Option(help="A library robot (or DH file) whose joint limits the URDF gets."),
     ] = None,
+    template: Annotated[
+        Path | None,
+        typer.Option(
+            help="A URDF whose joints (matched by name) get the calibrated origins; its links, "
+            "meshes, inertials and limits stay."
+        ),
+    ] = None,
+    zero_offsets: Annotated[
+        str,
+        typer.Option(
+            help="origins (joint zero = encoder zero) or calibration (offsets in each joint's "
+            "<calibration rising>; URDF without --template)."
+        ),
+    ] = "origins",
     force: Annotated[bool, typer.Option("--force", help="Overwrite the output.")] = False,
 ) -> None:
     """Write the identified model in a form a robot stack loads."""
@@ -545,6 +559,17 @@ def export(
     from dhlog.dhfile import robot_or_dh_file
     from dhlog.io.writer import atomic_output
 
+    if zero_offsets not in ("origins", "calibration") or (
+        zero_offsets == "calibration" and (template is not None or format != "urdf")
+    ):
+        stderr.print(
+            "error: --zero-offsets must be origins or calibration (calibration: a URDF "
+            "without --template)."
+        )
+        raise typer.Exit(EXIT_USAGE)
+    if template is not None and format != "urdf":
+        stderr.print("error: --template is for --format urdf.")
+        raise typer.Exit(EXIT_USAGE)
     if format not in EXPORT_FORMATS:
         stderr.print(f"error: --format must be one of {', '.join(EXPORT_FORMATS)}, not '{format}'.")
         raise typer.Exit(EXIT_USAGE)
@@ -554,9 +579,11 @@ def export(
         raise typer.Exit(EXIT_USAGE)
     extra = ""
     try:
-        if format == "urdf":
+        if format == "urdf" and template is not None:
+            text = exports.urdf_from_template(result, template)
+        elif format == "urdf":
             limits = robot_or_dh_file(limits_from).limits if limits_from else None
-            text = exports.urdf_document(result, limits=limits)
+            text = exports.urdf_document(result, limits=limits, zero_offsets=zero_offsets)
         elif format == "ur":
             text, tcp = exports.ur_calibration(result)
             extra = (

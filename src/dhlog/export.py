@@ -75,13 +75,36 @@ def _load(result_path: str | Path) -> tuple[dict[str, Any], StandardDH, DHModel]
     return data, table, model
 
 
+def _without_offsets(table: StandardDH) -> StandardDH:
+    """The table with its zero offsets (θ of revolute, d of prismatic rows) set to zero."""
+    revolute = np.array([t is JointType.REVOLUTE for t in table.joint_types])
+    theta = np.where(revolute, 0.0, table.theta_offset)
+    d = np.where(revolute, table.d_offset, 0.0)
+    if isinstance(table, HayatiDH):
+        return HayatiDH(table.joint_types, theta, d, table.a, table.alpha, table.beta, table.hayati)
+    return StandardDH(table.joint_types, theta, d, table.a, table.alpha)
+
+
 def urdf_document(
-    result_path: str | Path, *, name: str | None = None, limits: FloatArray | None = None
+    result_path: str | Path,
+    *,
+    name: str | None = None,
+    limits: FloatArray | None = None,
+    zero_offsets: str = "origins",
 ) -> str:
     """The URDF text of a result (or DH) JSON; ``limits`` (n, 2) the joint limits (rad, m;
-    default ±π and ±1 m)."""
+    default ±π and ±1 m). ``zero_offsets``: ``origins`` (joint zero = encoder zero, the
+    offsets in the joint origins) or ``calibration`` (the origins without them; each joint's
+    ``<calibration rising="…"/>`` holds its offset: joint position = encoder value + rising)."""
     source = str(result_path)
     _, table, model = _load(result_path)
+    if zero_offsets not in ("origins", "calibration"):
+        raise ValueError(f"zero_offsets must be origins or calibration, not {zero_offsets!r}")
+    offsets = np.where(
+        [t is JointType.REVOLUTE for t in table.joint_types], table.theta_offset, table.d_offset
+    )
+    if zero_offsets == "calibration":
+        table = _without_offsets(table)
     n = table.n
     if limits is None:
         limits = np.array(
@@ -115,6 +138,8 @@ def urdf_document(
         ET.SubElement(
             joint, "limit", lower=f"{lo:.17g}", upper=f"{hi:.17g}", effort="0", velocity="0"
         )
+        if zero_offsets == "calibration":
+            ET.SubElement(joint, "calibration", rising=f"{offsets[i]:.17g}")
         parent = child
     for link, origin in (("flange", rows[n - 1]), ("tool0", None)):
         ET.SubElement(robot, "link", name=link)
@@ -129,8 +154,13 @@ def urdf_document(
     comment = ET.Comment(
         " written by dhlog export from "
         + Path(source).name
-        + ": joint zero = encoder zero (the zero offsets are in the joint origins); "
-        "frame base_link = DH frame 1, flange = frame n+1, tool0 = the measured target "
+        + (
+            ": joint zero = encoder zero (the zero offsets are in the joint origins); "
+            if zero_offsets == "origins"
+            else ": the zero offsets are in each joint's <calibration rising>: joint position "
+            "= encoder value + rising; "
+        )
+        + "frame base_link = DH frame 1, flange = frame n+1, tool0 = the measured target "
     )
     robot.insert(0, comment)
     ET.indent(robot)
@@ -342,3 +372,188 @@ def dh_table_document(result_path: str | Path, fmt: str) -> str:
     for row in out:
         writer.writerow({k: ("" if row.get(k) is None else row.get(k)) for k in columns})
     return buf.getvalue()
+
+
+# ---------------------------------------------------------------------------------------------
+# a URDF template with calibrated joint origins
+
+
+def _align(axis: FloatArray) -> FloatArray:
+    """The smallest rotation (3×3) taking the unit vector ``axis`` onto +z."""
+    a = axis / np.linalg.norm(axis)
+    z = np.array([0.0, 0.0, 1.0])
+    v, c = np.cross(a, z), float(a @ z)
+    if c < -1.0 + 1e-12:  # opposite: half a turn about x
+        return np.diag([1.0, -1.0, -1.0])
+    K = np.array([[0, -v[2], v[1]], [v[2], 0, -v[0]], [-v[1], v[0], 0]])
+    return np.asarray(np.eye(3) + K + K @ K / (1.0 + c), dtype=np.float64)
+
+
+def _h(R: FloatArray | None = None, p: FloatArray | None = None) -> FloatArray:
+    T = np.eye(4)
+    if R is not None:
+        T[:3, :3] = R
+    if p is not None:
+        T[:3, 3] = p
+    return T
+
+
+def _rz(phi: float) -> FloatArray:
+    c, s = math.cos(phi), math.sin(phi)
+    return _h(np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]))
+
+
+def _tz(t: float) -> FloatArray:
+    return _h(p=np.array([0.0, 0.0, t]))
+
+
+class TemplateError(DHFileError):
+    """A URDF template that cannot take the result (unreadable, joints missing or not a chain)."""
+
+
+def urdf_from_template(result_path: str | Path, template_path: str | Path) -> str:
+    """The template URDF with the result's kinematics: the template's joints matched by name get
+    calibrated origins; links, meshes, inertials, limits and every other element stay.
+
+    Each link keeps the template's frame as closely as the calibration allows: its joint axis
+    becomes the measured axis, its origin the nearest point on it, its turn about the axis the
+    template's; fixed joints stay as they are (rigid in their link). The measured robot is
+    placed by joint 1's link, turned about and moved along axis 1 to fit the other links to the
+    template's (the base is a gauge the data does not fix). The measurement frame and the target
+    are added as the links ``dhlog_measurement`` and ``dhlog_target``. Joint zero = encoder zero.
+    """
+    import xml.etree.ElementTree as ElementTree
+
+    import yourdfpy  # type: ignore[import-untyped]
+    from scipy.optimize import least_squares
+
+    src = str(template_path)
+    _, table, model = _load(result_path)
+    try:
+        tree = ElementTree.parse(
+            src, parser=ElementTree.XMLParser(target=ElementTree.TreeBuilder(insert_comments=True))
+        )
+        urdf = yourdfpy.URDF.load(src, load_meshes=False, build_scene_graph=True)
+    except (OSError, ElementTree.ParseError, ValueError, KeyError, AttributeError) as exc:
+        raise TemplateError(
+            src,
+            f"cannot be read as a URDF ({type(exc).__name__}: {exc}); a xacro file must "
+            "be expanded first (xacro robot.urdf.xacro > robot.urdf).",
+        ) from None
+    names = list(model.joint_names)
+    moving = {
+        name: j
+        for name, j in urdf.joint_map.items()
+        if j.type in ("revolute", "continuous", "prismatic")
+    }
+    missing = [n for n in names if n not in moving]
+    if missing:
+        raise TemplateError(
+            src,
+            f"has no joint {', '.join(missing)} of the result; its moving joints are "
+            f"{', '.join(moving) or 'none'} (the result's joints are named by the log's joint "
+            "states).",
+        )
+    joints = [moving[n] for n in names]
+    for name, j, kind in zip(names, joints, table.joint_types, strict=True):
+        if (j.type == "prismatic") != (kind is JointType.PRISMATIC):
+            raise TemplateError(src, f"joint {name} is {j.type} there but {kind} in the result.")
+    parent_of = {j.child: j for j in urdf.joint_map.values()}
+    for k in range(1, len(joints)):
+        link = joints[k].parent
+        while link != joints[k - 1].child:
+            j = parent_of.get(link)
+            if j is None or j.type != "fixed":
+                raise TemplateError(
+                    src,
+                    f"joint {names[k]} does not follow joint {names[k - 1]} through fixed joints "
+                    "only; give a template whose joints form the result's chain.",
+                )
+            link = j.parent
+    urdf.update_cfg(np.zeros(urdf.num_actuated_joints))
+    root = urdf.base_link
+    L = [np.asarray(urdf.get_transform(j.child, root)) for j in joints]
+    Lp = [np.asarray(urdf.get_transform(j.parent, root)) for j in joints]
+    axes = [np.asarray(j.axis if j.axis is not None else [1.0, 0.0, 0.0], float) for j in joints]
+    align = [_h(_align(a)) for a in axes]
+    n = table.n
+    rows = table.link_transforms(np.zeros(n))
+    F = [model.T_base]
+    for i in range(n):
+        F.append(F[-1] @ rows[i])  # F[i]: DH frame i+1 at encoder zero, in M
+
+    def placed(x: FloatArray) -> FloatArray:
+        """B: M → the template's root, for a turn x[0] about and a shift x[1] along axis 1."""
+        return np.asarray(
+            L[0]
+            @ np.linalg.inv(align[0])
+            @ _rz(float(x[0]))
+            @ _tz(float(x[1]))
+            @ np.linalg.inv(F[0])
+        )
+
+    def link_frames(B: FloatArray) -> list[FloatArray]:
+        W = [L[0]]
+        for i in range(1, n):
+            P = B @ F[i]
+            local = np.linalg.inv(P) @ L[i]
+            D = P[:3, :3].T @ L[i][:3, :3] @ align[i][:3, :3].T
+            phi = math.atan2(D[1, 0] - D[0, 1], D[0, 0] + D[1, 1])
+            W.append(P @ _tz(float(local[2, 3])) @ _rz(phi) @ align[i])
+        return W
+
+    def misfit(x: FloatArray) -> FloatArray:
+        B = placed(x)
+        out = []
+        for i in range(1, n):
+            P = B @ F[i]
+            local = np.linalg.inv(P) @ L[i]
+            out.extend(local[:2, 3])  # the template's link origin off the measured axis
+            out.extend(P[:3, 2] - L[i][:3, :3] @ axes[i] / np.linalg.norm(axes[i]))
+        return np.asarray(out if out else [0.0])
+
+    x = least_squares(misfit, np.zeros(2), x_scale=[0.1, 0.1]).x if n > 1 else np.zeros(2)
+    B = placed(x)
+    W = link_frames(B)
+    by_name = {j.get("name"): j for j in tree.getroot().iter("joint")}
+    for i in range(1, n):
+        parent = W[i - 1] @ np.linalg.inv(L[i - 1]) @ Lp[i]  # rigid in link i-1
+        element = by_name[names[i]]
+        for old in element.findall("origin"):
+            element.remove(old)
+        origin_at = _origin_element(np.linalg.inv(parent) @ W[i])
+        element.insert(0, origin_at)
+    robot = tree.getroot()
+    target = B @ F[n] @ np.r_[model.tool_point, 1.0]
+    last = np.linalg.inv(W[n - 1]) @ target
+    if len(robot):
+        robot[-1].tail = "\n  "
+    for link, parent_link, T in (
+        ("dhlog_measurement", root, B),
+        ("dhlog_target", joints[-1].child, _h(p=last[:3])),
+    ):
+        if link in {e.get("name") for e in robot.iter("link")}:
+            raise TemplateError(src, f"already has a link {link}; remove it first.")
+        ElementTree.SubElement(robot, "link", name=link).tail = "\n  "
+        joint = ElementTree.SubElement(robot, "joint", name=f"{link}_fixed", type="fixed")
+        ElementTree.SubElement(joint, "parent", link=parent_link)
+        ElementTree.SubElement(joint, "child", link=link)
+        joint.append(_origin_element(T))
+        ElementTree.indent(joint, level=1)
+        joint.tail = "\n  "
+    joint.tail = "\n"
+    note = ElementTree.Comment(
+        f" joint origins of {', '.join(names[1:])} calibrated by dhlog export from "
+        f"{Path(str(result_path)).name}: joint zero = encoder zero; dhlog_measurement = the "
+        "tracker's frame, dhlog_target = the measured target "
+    )
+    note.tail = "\n  "
+    robot.insert(0, note)
+    return '<?xml version="1.0"?>\n' + ElementTree.tostring(robot, encoding="unicode") + "\n"
+
+
+def _origin_element(T: FloatArray) -> ET.Element:
+    element = ET.Element("origin")
+    element.set("xyz", " ".join(f"{v:.17g}" for v in T[:3, 3]))
+    element.set("rpy", " ".join(f"{v:.17g}" for v in roll_pitch_yaw(T[:3, :3])))
+    return element
