@@ -161,6 +161,10 @@ def simulate(
             "the clock offset a pipeline would need."
         ),
     ] = 0.0,
+    start_day: Annotated[
+        float,
+        typer.Option(help="Days after 2025-11-21 04:40 UTC the session starts (a series)."),
+    ] = 0.0,
     seed: Annotated[int, typer.Option(help="Random seed.")] = 0,
     force: Annotated[bool, typer.Option("--force", help="Overwrite existing outputs.")] = False,
 ) -> None:
@@ -209,6 +213,7 @@ def simulate(
             perturb_angle=math.radians(perturb_deg),
             skip_joints=tuple(int(v) for v in _floats(skip_joints, "--skip-joints")),
             clock_offset=clock_offset_ms * 1e-3,
+            start_day=start_day,
             seed=seed,
         )
         problems = config_problems(rob, cfg)
@@ -260,13 +265,9 @@ def _floats(text: str, what: str) -> list[float]:
 
 def _pipeline(spec: str) -> Pipeline:
     """A pipeline file, or a shipped pipeline by name (``dhlog pipelines`` lists them)."""
-    from dhlog.io.pipeline import load_pipeline, pipeline_by_name
+    from dhlog.io.pipeline import pipeline_from
 
-    if not Path(spec).exists():
-        shipped = pipeline_by_name(spec)
-        if shipped is not None:
-            return shipped
-    return load_pipeline(spec)
+    return pipeline_from(spec)
 
 
 def _viewer() -> str:
@@ -282,14 +283,9 @@ def _viewer() -> str:
 
 def _model(spec: str) -> DHModel:
     """A DH model from a DH file or a library robot name."""
-    from dhlog.dhfile import DHModel, load_dh
-    from dhlog.robots import load_robot
+    from dhlog.dhfile import dh_model_from
 
-    if Path(spec).suffix in (".json", ".toml") or Path(spec).exists():
-        return load_dh(spec)
-    robot = load_robot(spec)
-    names = tuple(f"joint_{i + 1}" for i in range(robot.n))
-    return DHModel(robot.table, robot.T_base, robot.tool_point, names, robot.name)
+    return dh_model_from(spec)
 
 
 @app.command()
@@ -603,6 +599,114 @@ def export(
     stdout.print(f"wrote {escape(str(output))}{extra}")
 
 
+@app.command()
+def batch(
+    logs: Annotated[list[Path], typer.Argument(help="Session logs (.mcap, bag folders).")],
+    out: Annotated[Path, typer.Option(help="Folder for every log's results and the summary.")],
+    jobs: Annotated[
+        int, typer.Option("--jobs", "-j", help="Logs processed at once (worker processes).")
+    ] = 1,
+    pipeline: Annotated[
+        str | None, typer.Option(help="A pipeline file or shipped name, for every log.")
+    ] = None,
+    nominal: Annotated[
+        str | None, typer.Option(help="A nominal DH file (or library robot), for every log.")
+    ] = None,
+    no_rrd: Annotated[
+        bool, typer.Option("--no-rrd", help="Do not write the Rerun recordings.")
+    ] = False,
+    analytic_only: Annotated[
+        bool, typer.Option("--analytic-only", help="The seed method alone, for every log.")
+    ] = False,
+    units: Annotated[str, typer.Option(help="Units of each log's CSV: mm or m.")] = "mm",
+    force: Annotated[bool, typer.Option("--force", help="Overwrite existing results.")] = False,
+) -> None:
+    """Process many logs (a pool of --jobs workers): each log's results as `dhlog process`
+    writes them, and one summary table (summary.csv, summary.parquet). A failing log is a row
+    with its reason; the batch goes on."""
+    import time
+
+    from rich.markup import escape
+    from rich.progress import (
+        BarColumn,
+        MofNCompleteColumn,
+        Progress,
+        TextColumn,
+        TimeElapsedColumn,
+        TimeRemainingColumn,
+    )
+
+    from dhlog.batch import SUMMARY_STEM, BatchJob, run_batch, stem_of, summary_frame, write_summary
+
+    if jobs < 1 or jobs > 256:
+        stderr.print(f"error: --jobs must be between 1 and 256, not {jobs}.")
+        raise typer.Exit(EXIT_USAGE)
+    if units not in ("mm", "m"):
+        stderr.print(f"error: --units must be mm or m, not '{units}'.")
+        raise typer.Exit(EXIT_USAGE)
+    stems: dict[str, Path] = {}
+    for log in logs:
+        other = stems.setdefault(stem_of(log), log)
+        if other != log:
+            stderr.print(
+                f"error: {escape(str(other))} and {escape(str(log))} would write the same "
+                "results; rename one, or process them into different folders."
+            )
+            raise typer.Exit(EXIT_USAGE)
+    suffixes = [".dh.json", ".dh.csv", *([] if no_rrd else [".rrd"])]
+    clash = [str(out / f"{s}{x}") for s in stems for x in suffixes if (out / f"{s}{x}").exists()]
+    clash += [str(p) for p in (out / f"{SUMMARY_STEM}.csv",) if p.exists()]
+    if clash and not force:
+        stderr.print(f"error: {escape(clash[0])} (and {len(clash) - 1} more) exist; pass --force.")
+        raise typer.Exit(EXIT_USAGE)
+    _check_writable(out)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        _fail(OutputError(out, exc))
+    work = [
+        BatchJob(str(log), str(out), pipeline, nominal, no_rrd, analytic_only, units)
+        for log in logs
+    ]
+    with Progress(
+        TextColumn("{task.description}"),
+        BarColumn(),
+        MofNCompleteColumn(),
+        TimeElapsedColumn(),
+        TimeRemainingColumn(),
+        console=stderr,
+        disable=not stderr.is_terminal,
+    ) as bar:
+        task = bar.add_task("logs", total=len(work))
+
+        def done(row: dict[str, object]) -> None:
+            bar.advance(task)
+            if row["status"] != "ok":
+                bar.console.print(
+                    f"{escape(str(row['log']))}: {row['status']}: {escape(str(row['reason']))}"
+                )
+
+        start = time.perf_counter()
+        try:
+            rows = run_batch(work, jobs, done)
+        except DhlogError as exc:
+            _fail(exc)
+        seconds = time.perf_counter() - start
+    frame = summary_frame(rows)
+    try:
+        paths = write_summary(frame, out)
+    except OSError as exc:
+        _fail(OutputError(out, exc))
+    counts = {s: sum(1 for r in rows if r["status"] == s) for s in ("ok", "partial", "failed")}
+    stdout.print(
+        f"{len(rows)} log(s) in {seconds:.1f} s with {jobs} worker(s): {counts['ok']} ok, "
+        f"{counts['partial']} partial, {counts['failed']} failed; wrote "
+        + ", ".join(escape(str(p)) for p in paths)
+    )
+    if counts["partial"] or counts["failed"]:
+        raise typer.Exit(EXIT_PARTIAL)
+
+
 def _listed(text: str | None) -> list[str]:
     return [t.strip() for t in text.split(",") if t.strip()] if text else []
 
@@ -704,8 +808,15 @@ def import_(
 
 @app.command(name="compare")
 def compare_results(
-    first: Annotated[Path, typer.Argument(help="The earlier result <stem>.dh.json.")],
-    second: Annotated[Path, typer.Argument(help="The later result of the same robot.")],
+    first: Annotated[
+        Path,
+        typer.Argument(
+            help="The earlier result <stem>.dh.json, or a batch summary (.csv, .parquet)."
+        ),
+    ],
+    second: Annotated[
+        Path | None, typer.Argument(help="The later result of the same robot.")
+    ] = None,
     limits_from: Annotated[
         str | None,
         typer.Option(help="A library robot (or DH file) whose joint range the FK check covers."),
@@ -713,15 +824,26 @@ def compare_results(
     threshold: Annotated[
         float, typer.Option(help="A change beyond this many combined σ is significant.")
     ] = 3.0,
+    rrd: Annotated[
+        Path | None,
+        typer.Option(help="With a batch summary: write the trends as a Rerun recording here."),
+    ] = None,
 ) -> None:
     """Has the robot changed? Each parameter's change over its combined σ, and the FK
-    difference over the joint range (in the robot's base frame)."""
+    difference over the joint range (in the robot's base frame). Given a batch summary: every
+    parameter's trend over the sessions."""
     from rich.markup import escape
     from rich.table import Table
 
     from dhlog.compare import compare
     from dhlog.dhfile import robot_or_dh_file
 
+    if second is None:
+        if first.suffix not in (".csv", ".parquet"):
+            stderr.print("error: give two results, or one batch summary (.csv or .parquet).")
+            raise typer.Exit(EXIT_USAGE)
+        _compare_trends(first, threshold, rrd)
+        return
     try:
         limits = robot_or_dh_file(limits_from).limits if limits_from else None
         result = compare(first, second, limits=limits)
@@ -755,6 +877,50 @@ def compare_results(
         stdout.print(f"changed beyond {threshold:g}σ: {', '.join(significant)} (marked *).")
     else:
         stdout.print(f"no parameter changed beyond {threshold:g}σ.")
+
+
+def _compare_trends(summary: Path, threshold: float, rrd: Path | None) -> None:
+    """The console table (and optionally the recording) of a batch summary's trends."""
+    from rich.markup import escape
+    from rich.table import Table
+
+    from dhlog.compare import read_summary, trends, write_trend_recording
+
+    try:
+        logs, times, found = trends(read_summary(summary))
+        if rrd is not None:
+            _check_folder(rrd.parent)
+            write_trend_recording(logs, times, found, rrd)
+    except DhlogError as exc:
+        _fail(exc)
+    except OSError as exc:
+        _fail(OutputError(rrd.parent if rrd else summary.parent, exc))
+    table = Table(
+        title=f"Trends over {len(logs)} sessions (first → last; σ combined)", title_justify="left"
+    )
+    for col in ("parameter", "first", "last", "change", "|change| / σ", "largest step / σ"):
+        table.add_column(col, justify="left" if col == "parameter" else "right", no_wrap=True)
+    moved = []
+    for t in found:
+        f, unit = (180 / math.pi, "°") if t.angular else (1e3, "mm")
+        z, step = t.significance, t.largest_step
+        if (z is not None and z > threshold) or (step is not None and step > threshold):
+            moved.append(t.name)
+        table.add_row(
+            escape(t.name),
+            f"{t.values[0] * f:.4f}",
+            f"{t.values[-1] * f:.4f}",
+            f"{t.change * f:+.4f} {unit}",
+            "fixed" if z is None else f"{z:.1f}" + (" *" if z > threshold else ""),
+            "fixed" if step is None else f"{step:.1f}" + (" *" if step > threshold else ""),
+        )
+    stdout.print(table)
+    if moved:
+        stdout.print(f"moved beyond {threshold:g}σ: {', '.join(moved)} (marked *).")
+    else:
+        stdout.print(f"no parameter moved beyond {threshold:g}σ over the sessions.")
+    if rrd is not None:
+        stdout.print(f"wrote {escape(str(rrd))}; open it with: {_viewer()} {escape(str(rrd))}")
 
 
 @app.command()

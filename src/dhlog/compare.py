@@ -13,6 +13,7 @@ from __future__ import annotations
 import json
 import math
 from dataclasses import dataclass
+from datetime import datetime
 from pathlib import Path
 from typing import Any
 
@@ -77,6 +78,32 @@ def _std(row: dict[str, Any], key: str) -> float | None:
     return None if value is None or held else float(value)
 
 
+Parameter = tuple[str, float, float | None, bool]
+
+
+def parameters(data: dict[str, Any], hayati: bool | None = None) -> list[Parameter]:
+    """(name, value, σ or None where held, angular) of every parameter of a result: per row
+    θ, d (β in a Hayati–Mirmirani row), a, α, in the form the result shows them (``hayati``:
+    the Hayati rows; default: where the result has them), then the tool point."""
+    if hayati is None:
+        hayati = bool(data.get("hayati_dh"))
+    out: list[Parameter] = []
+    for i, row in enumerate(_rows(data, hayati)):
+        for key in NAMES:
+            if key == "d_offset" and row.get("form") == "hayati":
+                key = "beta"
+            angular = key in ("theta_offset", "alpha", "beta")
+            out.append(
+                (f"{key.removesuffix('_offset')}_{i + 1}", float(row[key]), _std(row, key), angular)
+            )
+    tool = data.get("tool") or {}
+    if tool.get("point") is not None:
+        for k, axis in enumerate("xyz"):
+            sd = (tool.get("std") or [None] * 3)[k]
+            out.append((f"tool_{axis}", float(tool["point"][k]), sd, False))
+    return out
+
+
 def compare(
     a_path: str | Path, b_path: str | Path, *, limits: FloatArray | None = None, points: int = 2000
 ) -> Comparison:
@@ -92,26 +119,14 @@ def compare(
     ]
     hayati = forms[0] is not None and forms[0] == forms[1]
     changes = []
-    for i, (ra, rb) in enumerate(zip(_rows(A, hayati), _rows(B, hayati), strict=True)):
-        for key in NAMES:
-            if key == "d_offset" and ra.get("form") == "hayati":
-                key = "beta"
-            angular = key in ("theta_offset", "alpha", "beta")
-            va, vb = float(ra[key]), float(rb[key])
-            diff = wrap_angle(vb - va) if angular else vb - va
-            sa, sb = _std(ra, key), _std(rb, key)
-            sigma = None if sa is None or sb is None else math.hypot(sa, sb)
-            name = key.removesuffix("_offset")
-            changes.append(Change(f"{name}_{i + 1}", va, vb, diff, sigma, angular))
-    tool_a, tool_b = A.get("tool") or {}, B.get("tool") or {}
-    for k, axis in enumerate("xyz"):
-        if tool_a.get("point") is None or tool_b.get("point") is None:
-            break
-        va, vb = float(tool_a["point"][k]), float(tool_b["point"][k])
-        sa = (tool_a.get("std") or [None] * 3)[k]
-        sb = (tool_b.get("std") or [None] * 3)[k]
+    in_b = {p[0]: p for p in parameters(B, hayati)}
+    for name, va, sa, angular in parameters(A, hayati):
+        if name not in in_b:  # a tool point in one of them only
+            continue
+        _, vb, sb, _ = in_b[name]
+        diff = wrap_angle(vb - va) if angular else vb - va
         sigma = None if sa is None or sb is None else math.hypot(sa, sb)
-        changes.append(Change(f"tool_{axis}", va, vb, vb - va, sigma, False))
+        changes.append(Change(name, va, vb, diff, sigma, angular))
     ma, mb = parse_dh(A, str(a_path)), parse_dh(B, str(b_path))
     n = ma.table.n
     if limits is None:
@@ -125,3 +140,124 @@ def compare(
     return Comparison(
         changes, float(np.sqrt(np.mean(diff**2))), float(diff[worst]), Q[worst], points
     )
+
+
+@dataclass(frozen=True)
+class Trend:
+    """One parameter over a batch's sessions (in session order): its values and σ, the change
+    from the first to the last session with its significance, and the largest step between
+    consecutive sessions over their combined σ."""
+
+    name: str
+    angular: bool
+    values: FloatArray
+    sigmas: FloatArray
+    change: float
+    significance: float | None
+    largest_step: float | None
+
+
+def read_summary(path: str | Path) -> Any:
+    """A batch summary (``summary.csv`` or ``.parquet``) as a polars frame."""
+    import polars as pl
+
+    source = str(path)
+    try:
+        frame = pl.read_parquet(path) if source.endswith(".parquet") else pl.read_csv(path)
+    except (OSError, pl.exceptions.PolarsError) as exc:
+        raise DHFileError(source, f"cannot be read as a batch summary ({exc}).") from None
+    needed = {"log", "session_start", "status"}
+    if not needed <= set(frame.columns):
+        raise DHFileError(source, "is not a dhlog batch summary (no log, session_start, status).")
+    return frame
+
+
+#: Summary columns that are parameters, by their name's start.
+_PARAMETER = ("theta_", "d_", "beta_", "a_", "alpha_", "tool_")
+
+
+def trends(frame: Any) -> tuple[list[str], list[float], list[Trend]]:
+    """Every parameter's trend over the identified sessions of a batch summary, in session
+    order: (the logs, their start times in s since the epoch, the trends)."""
+    import polars as pl
+
+    rows = frame.filter(pl.col("status").is_in(["ok", "partial"])).sort(
+        "session_start", maintain_order=True
+    )  # sessions that start together: in the order given
+    if rows.height < 2:
+        raise DHFileError("summary", "needs two identified sessions or more for a trend.")
+    robots = rows.select(["robot", "joints"]).unique()
+    if robots.height > 1:
+        listed = "; ".join(f"{r} ({j})" for r, j in robots.iter_rows())
+        raise DHFileError(
+            "summary",
+            f"holds sessions of different robots ({listed}); a trend is of one robot — "
+            "filter the summary to one.",
+        )
+    times = [
+        datetime.fromisoformat(str(t)).timestamp() if t is not None else float("nan")
+        for t in rows["session_start"].to_list()
+    ]
+    out = []
+    for name in rows.columns:
+        if not name.startswith(_PARAMETER):
+            continue
+        values = rows[name].cast(pl.Float64).to_numpy()
+        std_col = f"std_{name}"
+        sigmas = (
+            rows[std_col].cast(pl.Float64).fill_null(float("nan")).to_numpy()
+            if std_col in rows.columns
+            else np.full(values.size, np.nan)
+        )
+        if np.all(np.isnan(values)):
+            continue
+        angular = name.startswith(("theta_", "alpha_", "beta_"))
+        steps = np.diff(values)
+        if angular:
+            steps = np.array([wrap_angle(s) for s in steps])
+        step_sigma = np.hypot(sigmas[1:], sigmas[:-1])
+        z = np.abs(steps) / step_sigma
+        change = float(steps.sum())  # NaN where a session lacks the parameter
+        total_sigma = math.hypot(sigmas[0], sigmas[-1])
+        out.append(
+            Trend(
+                name,
+                angular,
+                values,
+                sigmas,
+                change,
+                abs(change) / total_sigma if total_sigma > 0 else None,
+                float(np.nanmax(z)) if np.any(np.isfinite(z)) else None,
+            )
+        )
+    return [str(v) for v in rows["log"].to_list()], times, out
+
+
+def write_trend_recording(
+    logs: list[str], times: list[float], found: list[Trend], path: str | Path
+) -> None:
+    """A Rerun recording of every parameter over the sessions (mm and degrees), with ±σ."""
+    import rerun as rr
+    import rerun.blueprint as rrb
+
+    from dhlog.recording import _recording_file
+
+    groups = sorted({t.name.rsplit("_", 1)[0] for t in found})
+    blueprint = rrb.Blueprint(
+        rrb.Grid(*[rrb.TimeSeriesView(origin=f"trend/{g}", name=g) for g in groups]),
+        collapse_panels=True,
+    )
+    stamps = np.asarray([t * 1e9 for t in times], dtype=np.int64).astype("datetime64[ns]")
+    with _recording_file(path, "dhlog trend", blueprint) as rec:
+        index = [rr.TimeColumn("session", timestamp=stamps)]
+        rec.send_columns("trend/log", indexes=index, columns=rr.TextLog.columns(text=logs))
+        for t in found:
+            f = 180.0 / math.pi if t.angular else 1e3
+            group = t.name.rsplit("_", 1)[0]
+            base = f"trend/{group}/{t.name}"
+            rec.send_columns(base, indexes=index, columns=rr.Scalars.columns(scalars=t.values * f))
+            for sign, label in ((1.0, "plus_sigma"), (-1.0, "minus_sigma")):
+                band = (t.values + sign * np.nan_to_num(t.sigmas)) * f
+                rec.send_columns(
+                    f"{base}/{label}", indexes=index, columns=rr.Scalars.columns(scalars=band)
+                )

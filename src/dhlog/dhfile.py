@@ -119,3 +119,14 @@ def robot_or_dh_file(spec: str) -> Robot:
         return load_robot(spec)
     except UnknownRobotError:
         raise
+
+
+def dh_model_from(spec: str) -> DHModel:
+    """A DH model from a DH file or a library robot name."""
+    from dhlog.robots import load_robot
+
+    if Path(spec).suffix in (".json", ".toml") or Path(spec).exists():
+        return load_dh(spec)
+    robot = load_robot(spec)
+    names = tuple(f"joint_{i + 1}" for i in range(robot.n))
+    return DHModel(robot.table, robot.T_base, robot.tool_point, names, robot.name)

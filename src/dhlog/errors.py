@@ -108,7 +108,7 @@ class NotMcapError(InputError):
     def __init__(self, path: str) -> None:
         super().__init__(
             f"{path}: not an MCAP file (no MCAP magic bytes at the start); give the .mcap file "
-            "the recorder wrote (rosbag2 writes a folder: pass the .mcap inside it)."
+            "the recorder wrote, or the rosbag2 bag folder."
         )
 
 

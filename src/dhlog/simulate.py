@@ -62,6 +62,8 @@ class SimulationConfig:
     tool_rotation: tuple[float, float, float] | None = None
     orientation_noise: float = 0.0
     encoder_scales: tuple[float, ...] | None = None
+    #: days after START_NS at which the session starts (a series of sessions)
+    start_day: float = 0.0
     seed: int = 0
 
 
@@ -69,7 +71,15 @@ def config_problems(robot: Robot, cfg: SimulationConfig) -> list[str]:
     """What is wrong with ``cfg`` for ``robot`` (empty when it can be simulated): every rate,
     count, fraction, sweep and travel in its range, joints that exist."""
     out = []
-    finite = [cfg.noise, cfg.tracker_rate, cfg.joint_rate, cfg.sweep, cfg.travel, cfg.clock_offset]
+    finite = [
+        cfg.noise,
+        cfg.tracker_rate,
+        cfg.joint_rate,
+        cfg.sweep,
+        cfg.travel,
+        cfg.clock_offset,
+        cfg.start_day,
+    ]
     if not all(math.isfinite(v) for v in finite):
         out.append("every number must be finite")
     checks = [
@@ -90,6 +100,10 @@ def config_problems(robot: Robot, cfg: SimulationConfig) -> list[str]:
         (
             abs(cfg.clock_offset) <= 10.0,
             f"the clock offset must be within ±10 s (got {cfg.clock_offset:g} s)",
+        ),
+        (
+            0 <= cfg.start_day <= 36_500,
+            f"the start day must be within 0 and 36 500 (got {cfg.start_day:g})",
         ),
     ]
     out += [why for ok, why in checks if not ok]
@@ -315,7 +329,8 @@ def simulate_session(
         else:
             e = e + rng.normal(scale=cfg.noise, size=e.shape)
         extra_xyz.append(e)
-    t_trk_ns = START_NS + ((t_trk + base_time) * 1e9).astype(np.int64)
+    start_ns = START_NS + round(cfg.start_day * 86_400e9)
+    t_trk_ns = start_ns + ((t_trk + base_time) * 1e9).astype(np.int64)
     # encoders: another clock phase, rate and jitter
     t_enc = np.arange(0.0, duration, 1.0 / cfg.joint_rate) + rng.uniform(0, 1.0 / cfg.joint_rate)
     t_enc = np.sort(t_enc + rng.uniform(-cfg.clock_jitter, cfg.clock_jitter, t_enc.size))
@@ -333,15 +348,15 @@ def simulate_session(
         base = base + rng.uniform(-cfg.noise, cfg.noise, base.shape)
     else:
         base = base + rng.normal(scale=cfg.noise, size=base.shape)
-    base_t = START_NS + (np.linspace(0.1, base_time - 0.2, cfg.base_points) * 1e9).astype(np.int64)
-    phase = [(START_NS + int((t + base_time) * 1e9), j) for t, j in marks] if cfg.phase else []
+    base_t = start_ns + (np.linspace(0.1, base_time - 0.2, cfg.base_points) * 1e9).astype(np.int64)
+    phase = [(start_ns + int((t + base_time) * 1e9), j) for t, j in marks] if cfg.phase else []
     return Session(
         robot_name=robot.name,
         joint_names=[f"joint_{j + 1}" for j in range(robot.n)],
         joint_types=table.joint_types,
         point_t_ns=t_trk_ns[keep],
         point_xyz=np.asarray(xyz[keep], dtype=np.float64),
-        joint_t_ns=START_NS + ((t_enc + base_time - cfg.clock_offset) * 1e9).astype(np.int64)
+        joint_t_ns=start_ns + ((t_enc + base_time - cfg.clock_offset) * 1e9).astype(np.int64)
         if cfg.encoders
         else np.zeros(0, dtype=np.int64),
         joint_q=q_enc if cfg.encoders else np.zeros((0, robot.n)),

@@ -339,3 +339,12 @@ def shipped_pipelines() -> list[Pipeline]:
 def pipeline_by_name(name: str) -> Pipeline | None:
     """The shipped pipeline called ``name``, or None."""
     return next((p for p in shipped_pipelines() if p.name == name), None)
+
+
+def pipeline_from(spec: str) -> Pipeline:
+    """A pipeline file, or a shipped pipeline by name (``dhlog pipelines`` lists them)."""
+    if not Path(spec).exists():
+        shipped = pipeline_by_name(spec)
+        if shipped is not None:
+            return shipped
+    return load_pipeline(spec)
