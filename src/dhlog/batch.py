@@ -48,9 +48,6 @@ def process_job(job: BatchJob) -> dict[str, Any]:
     log's own faults: they are its status and reason)."""
     import numpy as np
 
-    from dhlog.io.writer import staged_outputs
-    from dhlog.result import result_csv, result_document
-
     np.seterr(all="ignore")
     start = time.perf_counter()
     log = Path(job.log)
@@ -67,14 +64,7 @@ def process_job(job: BatchJob) -> dict[str, Any]:
         pipe = pipeline_from(job.pipeline) if job.pipeline is not None else None
         nom = dh_model_from(job.nominal) if job.nominal is not None else None
         result = process_log(log, pipeline=pipe, nominal=nom, analytic_only=job.analytic_only)
-        document = result_document(result)
-        with staged_outputs(outputs) as temps:
-            temps[0].write_bytes((json.dumps(document, indent=2) + "\n").encode())
-            temps[1].write_bytes(result_csv(result, units=job.units).encode())
-            if not job.no_rrd:
-                from dhlog.recording import write_process_recording
-
-                write_process_recording(result, temps[2])
+        document = write_results(result, outputs, job.units)
         t0 = result.log.points["t_ns"].min() if result.log.points.height else None
         status = "ok" if result.complete else "partial"
         reason = "; ".join(f"joint {j.index} ({j.name}): {j.reason}" for j in result.failed)
@@ -87,6 +77,25 @@ def process_job(job: BatchJob) -> dict[str, Any]:
         return _failed(log, f"cannot write the results into {folder} ({exc.strerror}).", 0.0)
     except Exception as exc:  # a fault of dhlog itself: recorded, the batch goes on
         return _failed(log, f"internal error {type(exc).__name__}: {exc}", 0.0)
+
+
+def write_results(
+    result: Any, outputs: list[Path], units: str, *, hold_signals: bool = False
+) -> dict[str, Any]:
+    """Write a result's JSON, CSV and (when a third path is given) recording, moved into place
+    together; returns the JSON document."""
+    from dhlog.io.writer import staged_outputs
+    from dhlog.result import result_csv, result_document
+
+    document = result_document(result)
+    with staged_outputs(outputs, hold_signals=hold_signals) as temps:
+        temps[0].write_bytes((json.dumps(document, indent=2) + "\n").encode())
+        temps[1].write_bytes(result_csv(result, units=units).encode())
+        if len(outputs) > 2:
+            from dhlog.recording import write_process_recording
+
+            write_process_recording(result, temps[2])
+    return document
 
 
 def _failed(log: Path, reason: str, seconds: float) -> dict[str, Any]:

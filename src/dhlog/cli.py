@@ -6,7 +6,6 @@ exiting with 2 (unreadable or unusable input); usage errors exit with 1.
 
 from __future__ import annotations
 
-import json
 import math
 import os
 import sys
@@ -358,10 +357,9 @@ def process(
     from rich.markup import escape
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
-    from dhlog.io.writer import staged_outputs
+    from dhlog.batch import write_results
     from dhlog.process import process_log
     from dhlog.report import print_result
-    from dhlog.result import result_csv, result_document
 
     if units not in ("mm", "m"):
         stderr.print(f"error: --units must be mm or m, not '{units}'.")
@@ -415,17 +413,9 @@ def process(
                     "default (--analytic-only gives the seed method alone)."
                 )
             advance("writing", 0.0)
-            document = result_document(result)
             try:
                 folder.mkdir(parents=True, exist_ok=True)  # --out is created when missing
-                with staged_outputs(outputs, hold_signals=True) as temps:  # moved in together
-                    temps[0].write_bytes((json.dumps(document, indent=2) + "\n").encode())
-                    temps[1].write_bytes(result_csv(result, units=units).encode())
-                    if not no_rrd:
-                        from dhlog.recording import write_process_recording
-
-                        advance("recording", 0.5)
-                        write_process_recording(result, temps[2])
+                write_results(result, outputs, units, hold_signals=True)  # moved in together
             except OSError as exc:
                 raise OutputError(folder, exc) from None
     except DhlogError as exc:
