@@ -170,3 +170,52 @@ def test_bad_sources_are_one_line_naming_the_line(
     assert message in result.output and "Traceback" not in result.output
     assert len(result.output.strip().splitlines()) == 1
     assert not (tmp_path / "bad.mcap").exists()
+
+
+def test_the_readme_walkthrough_from_the_bundled_csv(tmp_path: Path) -> None:
+    """README "Your own data": sample_logs/kr5_stops.csv (a KR5 off its nominal, 8 stops per
+    joint, one tracker point per stop) imported, processed with --nominal kr5, exported as a
+    URDF: the result's FK within 4σ of the truth beside the CSV at 200 joint vectors."""
+    from dhlog.dhfile import dh_model_from, load_dh
+
+    samples = Path(__file__).parents[1] / "sample_logs"
+    imported(str(samples / "kr5_stops.csv"), "-o", str(tmp_path / "run.mcap"))
+    done = runner.invoke(
+        app,
+        [
+            "process",
+            str(tmp_path / "run.mcap"),
+            "--out",
+            str(tmp_path / "results"),
+            "--nominal",
+            "kr5",
+            "--no-rrd",
+        ],
+    )
+    assert done.exit_code == 0, done.output
+    made = runner.invoke(
+        app,
+        [
+            "export",
+            str(tmp_path / "results" / "run.dh.json"),
+            "--format",
+            "urdf",
+            "-o",
+            str(tmp_path / "robot.urdf"),
+            "--limits-from",
+            "kr5",
+        ],
+    )
+    assert made.exit_code == 0, made.output
+    truth = load_dh(samples / "kr5_stops.truth.json")
+    result = process_log(tmp_path / "run.mcap", nominal=dh_model_from("kr5"))
+    rob = load_robot("kr5")
+    Q = np.random.default_rng(2).uniform(rob.limits[:, 0], rob.limits[:, 1], (200, 6))
+    ex = result.extraction
+    assert ex is not None and result.complete
+    got = fk_point(ex.standard, Q, ex.tool_point, T_base=ex.T_measurement_base)
+    want = fk_point(truth.table, Q, truth.tool_point, T_base=truth.T_base)
+    err = np.linalg.norm(got - want, axis=1)
+    assert np.all(err <= 4.0 * fk_prediction_std(result, Q)), (
+        err / fk_prediction_std(result, Q)
+    ).max()
