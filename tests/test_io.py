@@ -100,43 +100,12 @@ def rosbags_bag(
     """A ROS 2 bag written by an independent writer (rosbags' rosbag2 MCAP storage, with
     ``compression`` none, message or file): PointStamped targets and two-joint JointStates;
     returns their stamps and values. ``lag``: log time minus header stamp, per topic."""
-    from rosbags.rosbag2 import CompressionFormat, CompressionMode, StoragePlugin, Writer
-    from rosbags.typesys import Stores, get_typestore
-
-    store = get_typestore(Stores.ROS2_HUMBLE)
-    T = store.types
     rng = np.random.default_rng(seed)
     xyz = rng.normal(size=(50, 3))
     q = rng.normal(size=(60, 2))
     t_pt = 1_700_000_000_000_000_000 + np.arange(50) * 10_000_000
     t_q = 1_700_000_000_000_000_000 + np.arange(60) * 8_000_000 + 1234
-    writer = Writer(bag, version=9, storage_plugin=StoragePlugin.MCAP)
-    if compression != "none":
-        writer.set_compression(CompressionMode[compression.upper()], CompressionFormat.ZSTD)
-    with writer:
-        pc = writer.add_connection(
-            "/tracker/point", "geometry_msgs/msg/PointStamped", typestore=store
-        )
-        jc = writer.add_connection("/joint_states", "sensor_msgs/msg/JointState", typestore=store)
-        for t, p in zip(t_pt.tolist(), xyz, strict=True):
-            stamp = T["builtin_interfaces/msg/Time"](sec=t // 10**9, nanosec=t % 10**9)
-            msg = T["geometry_msgs/msg/PointStamped"](
-                header=T["std_msgs/msg/Header"](stamp=stamp, frame_id="laser_tracker"),
-                point=T["geometry_msgs/msg/Point"](x=p[0], y=p[1], z=p[2]),
-            )
-            data = store.serialize_cdr(msg, "geometry_msgs/msg/PointStamped")
-            writer.write(pc, t + lag[0], data)
-        for t, row in zip(t_q.tolist(), q, strict=True):
-            stamp = T["builtin_interfaces/msg/Time"](sec=t // 10**9, nanosec=t % 10**9)
-            msg = T["sensor_msgs/msg/JointState"](
-                header=T["std_msgs/msg/Header"](stamp=stamp, frame_id=""),
-                name=["shoulder", "elbow"],
-                position=row,
-                velocity=np.zeros(2),
-                effort=np.zeros(0),
-            )
-            data = store.serialize_cdr(msg, "sensor_msgs/msg/JointState")
-            writer.write(jc, t + lag[1], data)
+    _write_points_and_joints(bag, t_pt, xyz, t_q, q, compression, lag)
     return t_pt, xyz, t_q, q
 
 
@@ -608,3 +577,94 @@ def test_spherical_pipeline_rules() -> None:
         )
     with pytest.raises(PipelineError, match="coordinates must be one of"):
         parse_pipeline('[streams.point]\ncoordinates = "polar"\n', "s.toml")
+
+
+def test_a_split_rosbag2_bag_is_read_as_one_log(tmp_path: Path) -> None:
+    """A bag split in two files as ``ros2 bag record --max-bag-size`` leaves it: each file written
+    by rosbags' writer (which does not split itself), the folder's metadata.yaml listing both
+    files as rosbag2 does (relative_file_paths, files, summed counts). Read in order as one log,
+    the streams are the whole session's."""
+    import shutil
+
+    import yaml
+
+    t_pt, xyz, t_q, q = rosbags_bag(tmp_path / "whole", 5)
+    # the same session, cut at its middle into two bags by time
+    halves = []
+    for k in range(2):
+        bag = tmp_path / f"half_{k}"
+        part_pt = slice(0, 25) if k == 0 else slice(25, None)
+        cut = t_pt[25]
+        part_q = (t_q < cut) if k == 0 else (t_q >= cut)
+        _write_points_and_joints(bag, t_pt[part_pt], xyz[part_pt], t_q[part_q], q[part_q])
+        halves.append(bag)
+    split = tmp_path / "split"
+    split.mkdir()
+    metas = [yaml.safe_load((h / "metadata.yaml").read_text()) for h in halves]
+    info = metas[0]["rosbag2_bagfile_information"]
+    files, paths = [], []
+    for k, (h, m) in enumerate(zip(halves, metas, strict=True)):
+        name = f"split_{k}.mcap"
+        shutil.copy(next(h.glob("*.mcap")), split / name)
+        entry = m["rosbag2_bagfile_information"]["files"][0]
+        files.append({**entry, "path": name})
+        paths.append(name)
+    info["relative_file_paths"] = paths
+    info["files"] = files
+    info["message_count"] = sum(m["rosbag2_bagfile_information"]["message_count"] for m in metas)
+    for topic, other in zip(
+        info["topics_with_message_count"],
+        metas[1]["rosbag2_bagfile_information"]["topics_with_message_count"],
+        strict=True,
+    ):
+        topic["message_count"] += other["message_count"]
+    (split / "metadata.yaml").write_text(yaml.safe_dump(metas[0]))
+    log = read_log(split)
+    assert "a rosbag2 bag of 2 file(s)" in (log.pipeline_reason or "")
+    np.testing.assert_array_equal(log.points["t_ns"].to_numpy(), t_pt)
+    np.testing.assert_array_equal(log.points.select(["x", "y", "z"]).to_numpy(), xyz)
+    assert log.joints is not None
+    np.testing.assert_array_equal(log.joints.drop("t_ns").to_numpy(), q)
+
+
+def _write_points_and_joints(
+    bag: Path,
+    t_pt: np.ndarray,
+    xyz: np.ndarray,
+    t_q: np.ndarray,
+    q: np.ndarray,
+    compression: str = "none",
+    lag: tuple[int, int] = (0, 0),
+) -> None:
+    """PointStamped targets and two-joint JointStates written by rosbags' rosbag2 writer (MCAP
+    storage, ``compression`` none, message or file; ``lag``: log time minus stamp per topic)."""
+    from rosbags.rosbag2 import CompressionFormat, CompressionMode, StoragePlugin, Writer
+    from rosbags.typesys import Stores, get_typestore
+
+    store = get_typestore(Stores.ROS2_HUMBLE)
+    T = store.types
+    writer = Writer(bag, version=9, storage_plugin=StoragePlugin.MCAP)
+    if compression != "none":
+        writer.set_compression(CompressionMode[compression.upper()], CompressionFormat.ZSTD)
+    with writer:
+        pc = writer.add_connection(
+            "/tracker/point", "geometry_msgs/msg/PointStamped", typestore=store
+        )
+        jc = writer.add_connection("/joint_states", "sensor_msgs/msg/JointState", typestore=store)
+        for t, p in zip(t_pt.tolist(), xyz, strict=True):
+            stamp = T["builtin_interfaces/msg/Time"](sec=t // 10**9, nanosec=t % 10**9)
+            msg = T["geometry_msgs/msg/PointStamped"](
+                header=T["std_msgs/msg/Header"](stamp=stamp, frame_id="laser_tracker"),
+                point=T["geometry_msgs/msg/Point"](x=p[0], y=p[1], z=p[2]),
+            )
+            writer.write(pc, t + lag[0], store.serialize_cdr(msg, "geometry_msgs/msg/PointStamped"))
+        for t, row in zip(t_q.tolist(), q, strict=True):
+            stamp = T["builtin_interfaces/msg/Time"](sec=t // 10**9, nanosec=t % 10**9)
+            msg = T["sensor_msgs/msg/JointState"](
+                header=T["std_msgs/msg/Header"](stamp=stamp, frame_id=""),
+                name=["shoulder", "elbow"],
+                position=row,
+                velocity=np.zeros(2),
+                effort=np.zeros(0),
+            )
+            writer.write(jc, t + lag[1], store.serialize_cdr(msg, "sensor_msgs/msg/JointState"))
