@@ -2,9 +2,10 @@
 processed one ``dhlog process`` after another (the shell loop a site runs without ``batch``).
 
     .venv/bin/python benchmarks/batch.py [--logs 16] [--jobs 1 2] [--runs 3] [--no-rrd]
+                                         [--tracker-rate 100]
 
-The logs are simulated KR5 sessions off their nominal (0.2 mm, 0.02°; tracker 100 Hz, σ 10 µm,
-about 7 500 target samples each), written once by ``dhlog simulate`` into
+The logs are simulated KR5 sessions off their nominal (0.2 mm, 0.02°; tracker 100 Hz — about
+7 500 target samples each — or ``--tracker-rate``, σ 10 µm), written once by ``dhlog simulate`` into
 ``$TMPDIR/dhlog-bench-batch``. Each ``--jobs`` value is timed as a whole command by
 ``farm-bench``, paired run by run against the loop (``--vs``), recordings included unless
 ``--no-rrd``. Prints farm-bench's report for each.
@@ -22,12 +23,12 @@ from pathlib import Path
 DHLOG = str(Path(sys.executable).with_name("dhlog"))
 
 
-def make_logs(count: int) -> list[Path]:
+def make_logs(count: int, rate: float) -> list[Path]:
     folder = Path(tempfile.gettempdir()) / "dhlog-bench-batch"
     folder.mkdir(exist_ok=True)
     logs = []
     for k in range(count):
-        log = folder / f"kr5_{k:03d}.mcap"
+        log = folder / f"kr5_{rate:g}Hz_{k:03d}.mcap"
         if not log.exists():
             subprocess.run(
                 [
@@ -44,6 +45,8 @@ def make_logs(count: int) -> list[Path]:
                     str(k),
                     "--start-day",
                     str(k),
+                    "--tracker-rate",
+                    str(rate),
                 ],
                 check=True,
                 capture_output=True,
@@ -58,8 +61,9 @@ def main() -> None:
     parser.add_argument("--jobs", type=int, nargs="+", default=[1, 2])
     parser.add_argument("--runs", type=int, default=3)
     parser.add_argument("--no-rrd", action="store_true")
+    parser.add_argument("--tracker-rate", type=float, default=100.0, help="Hz")
     args = parser.parse_args()
-    logs = make_logs(args.logs)
+    logs = make_logs(args.logs, args.tracker_rate)
     out = Path(tempfile.mkdtemp(prefix="dhlog-batch-out-"))
     rrd = ["--no-rrd"] if args.no_rrd else []
     names = " ".join(str(p) for p in logs)
