@@ -66,6 +66,15 @@ def _check_writable(folder: Path) -> None:
         _fail(OutputError(folder, PermissionError(13, "Permission denied")))
 
 
+def _refuse_existing(path: Path, force: bool) -> None:
+    """Exit 1 when an output exists and --force was not given."""
+    if path.exists() and not force:
+        from rich.markup import escape
+
+        stderr.print(f"error: {escape(str(path))} exists; pass --force to overwrite it.")
+        raise typer.Exit(EXIT_USAGE)
+
+
 def _quiet_numerics() -> None:
     """Floating-point warnings of numpy on damaged data are not for the user: every result is
     checked for finiteness where it matters, and what is set aside is counted."""
@@ -188,9 +197,7 @@ def simulate(
     truth_path = output.with_name(output.stem + ".truth.json")
     _check_folder(output.parent)
     for path in (output, truth_path):
-        if path.exists() and not force:
-            stderr.print(f"error: {path} exists; pass --force to overwrite it.")
-            raise typer.Exit(EXIT_USAGE)
+        _refuse_existing(path, force)
     try:
         rob = robot_or_dh_file(robot)
         cfg = SimulationConfig(
@@ -560,9 +567,7 @@ def export(
         stderr.print(f"error: --format must be one of {', '.join(EXPORT_FORMATS)}, not '{format}'.")
         raise typer.Exit(EXIT_USAGE)
     _check_folder(output.parent)
-    if output.exists() and not force:
-        stderr.print(f"error: {escape(str(output))} exists; pass --force to overwrite it.")
-        raise typer.Exit(EXIT_USAGE)
+    _refuse_existing(output, force)
     extra = ""
     try:
         if format == "urdf" and template is not None:
@@ -761,9 +766,7 @@ def import_(
         stderr.print("error: the output would replace the source; name another with -o.")
         raise typer.Exit(EXIT_USAGE)
     _check_folder(out.parent)
-    if out.exists() and not force:
-        stderr.print(f"error: {escape(str(out))} exists; pass --force to overwrite it.")
-        raise typer.Exit(EXIT_USAGE)
+    _refuse_existing(out, force)
     opts = ImportOptions(
         format=format,
         joints_file=joints_file,
@@ -941,9 +944,7 @@ def show(
         if not (Path(dh).suffix in (".json", ".toml") or Path(dh).exists()):
             limits = load_robot(dh).limits
         path = output if output is not None else Path(f"{Path(dh).stem}.rrd")
-        if path.exists() and not force:
-            stderr.print(f"error: {path} exists; pass --force to overwrite it.")
-            raise typer.Exit(EXIT_USAGE)
+        _refuse_existing(path, force)
         write_robot_recording(
             model.table, path, T_base=model.T_base, limits=limits, title=Path(dh).stem, steps=steps
         )
