@@ -228,7 +228,7 @@ def ur_calibration(result_path: str | Path) -> tuple[str, FloatArray]:
         f"# written by dhlog export from {Path(source).name}: the kinematics of the measured",
         "# robot in the Universal Robots ROS 2 description's layout (default_kinematics.yaml).",
         "# base_link = DH frame 1; joint zero = encoder zero. The target (TCP) in tool0, in m:",
-        f"#   tcp: [{tcp[0]:.9f}, {tcp[1]:.9f}, {tcp[2]:.9f}]",
+        f"#   tcp: [{tcp[0]:.17g}, {tcp[1]:.17g}, {tcp[2]:.17g}]",
         "kinematics:",
     ]
     for entry, T in zip(UR_ENTRIES, origins, strict=True):
