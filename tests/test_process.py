@@ -150,13 +150,52 @@ def test_the_recording_verifies_and_holds_the_entities(processed, tmp_path: Path
         outliers = sum(
             int(np.count_nonzero(~j.inliers)) for j in result.joints if sid in j.segments
         )
-        assert rows[f"/world/samples/segment_{sid}"] == count - outliers + 1  # + static style row
+        assert rows[f"/world/m/samples/segment_{sid}"] == count - outliers + 1  # + style row
     for k in range(1, n + 1):
-        assert f"/world/joints/j{k}/axis" in rows and f"/world/joints/j{k}/fit" in rows
-        assert f"/residuals/fit/j{k}" in rows
-    assert all(f"/world/dh/frame_{i}" in rows for i in range(1, n + 2))
-    assert "/world/robot/links" in rows and "/report/dh_table" in rows
-    assert ("/residuals/fk/j1" in rows) == seg.has_encoders
+        assert f"/world/m/joints/j{k}/axis" in rows and f"/world/m/joints/j{k}/fit" in rows
+        assert f"/residuals/fit/j{k}/radial" in rows  # and axial (circle) or tangential (line)
+        assert f"/residuals/fit/j{k}/axial" in rows or f"/residuals/fit/j{k}/tangential" in rows
+    assert all(f"/world/m/dh/frame_{i}" in rows for i in range(1, n + 2))
+    assert "/world/m/robot/links" in rows and "/report/dh_table" in rows
+    assert ("/residuals/fk/j1/tangential" in rows) == seg.has_encoders
+    assert ("/world/m/magnified/j1" in rows) == seg.has_encoders
+
+
+def test_each_run_is_its_own_recording(processed, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
+    """Two recordings of the same result have different recording ids (they no longer merge
+    when opened together); the log's hash is a property, the name says the log."""
+    from rerun.chunk import RrdReader
+
+    _, result, _ = processed
+    ids = set()
+    for k in range(2):
+        path = tmp_path / f"run_{k}.rrd"
+        write_process_recording(result, path)
+        (entry,) = RrdReader(path).recordings()
+        assert entry.application_id == "dhlog process"
+        ids.add(entry.recording_id)
+        text = path.read_bytes()
+        assert result.sha256.encode() in text and Path(result.path).name.encode() in text
+    assert len(ids) == 2
+
+
+def test_the_residual_components_match_the_validation(processed) -> None:  # type: ignore[no-untyped-def]
+    """The FK residual components plotted per joint (radial, axial, tangential) are the FK
+    residual the result reports: their norm equals the validation's residual at each sample."""
+    from dhlog.recording import residual_parts
+
+    _, result, _ = processed
+    found = [r for r in residual_parts(result) if r.kind == "fk"]
+    assert bool(found) == result.segmentation.has_encoders  # no encoders: no FK per sample
+    for res in found:
+        assert result.validation is not None
+        norm = np.sqrt(sum(v**2 for v in res.parts.values()))
+        want = result.validation.residuals[res.rows]
+        checked = np.isfinite(want)  # samples the validation left out (its own inliers)
+        assert checked.mean() > 0.9
+        # 2 µm: the plots use the segmentation's encoder values; the fit's last clock
+        # correction (below its rejoin threshold) moves them by δ·q̇
+        np.testing.assert_allclose(norm[checked], want[checked], atol=2e-6)
 
 
 def test_gross_outliers_are_rejected(tmp_path: Path) -> None:

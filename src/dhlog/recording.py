@@ -24,6 +24,7 @@ import os
 import tempfile
 from collections.abc import Iterator
 from contextlib import contextmanager
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -92,6 +93,42 @@ def _time_column(t_ns: np.ndarray) -> rr.TimeColumn:
     )
 
 
+#: Residual components, in the joint's own directions, and their colours in every plot.
+COMPONENTS = {
+    "radial": [230, 60, 60],
+    "axial": [60, 170, 60],
+    "tangential": [60, 120, 230],
+}
+#: The time line of the residual plots: the moved joint's encoder value (revolute in
+#: millidegrees, prismatic in micrometres), so bias and periodic errors show against the angle.
+JOINT_TIMELINE = "joint_position"
+BASE_COLOR = np.array([255, 150, 30], dtype=np.uint8)
+
+
+@dataclass(frozen=True)
+class Scene:
+    """Sizes chosen from the robot's extent ``E`` (m) so that the picture reads at any size:
+    samples, lines, arrows and frame axes are fixed fractions of it."""
+
+    extent: float
+
+    @property
+    def sample(self) -> float:
+        return 0.004 * self.extent
+
+    @property
+    def line(self) -> float:
+        return 0.0012 * self.extent
+
+    @property
+    def arrow(self) -> float:
+        return 0.18 * self.extent
+
+    @property
+    def frame(self) -> float:
+        return 0.07 * self.extent
+
+
 def log_frames(
     rec: rr.RecordingStream,
     frames: FloatArray,
@@ -99,14 +136,26 @@ def log_frames(
     prefix: str = "world/dh",
     axis_length: float = 0.08,
 ) -> None:
-    """Each DH frame as a transform with its axes and a label (static)."""
+    """Each DH frame as a transform with its axes (static); one label per place: frames that
+    share an origin (a spherical wrist) are labelled together, ``F4 F5 F6``."""
+    groups: list[list[int]] = []
+    for i, T in enumerate(frames, start=1):
+        for g in groups:
+            if np.linalg.norm(frames[g[0] - 1][:3, 3] - T[:3, 3]) < 0.3 * axis_length:
+                g.append(i)
+                break
+        else:
+            groups.append([i])
     for i, T in enumerate(frames, start=1):
         path = f"{prefix}/frame_{i}"
         rec.log(path, rr.Transform3D(translation=T[:3, 3], mat3x3=T[:3, :3]), static=True)
         rec.log(path, rr.TransformAxes3D(axis_length), static=True)
+    for g in groups:
+        T = frames[g[0] - 1]
+        at = T[:3, 3] + 0.6 * axis_length * (T[:3, 0] + T[:3, 2])  # off the origin, between x, z
         rec.log(
-            f"{path}/label",
-            rr.Points3D([[0.0, 0.0, 0.0]], labels=[f"F{i}"], radii=0.003),
+            f"{prefix}/labels/frame_{g[0]}",
+            rr.Points3D([at], labels=[" ".join(f"F{i}" for i in g)], radii=0.05 * axis_length),
             static=True,
         )
 
@@ -117,6 +166,7 @@ def log_links(
     tool_world: FloatArray | None,
     *,
     path: str = "world/robot/links",
+    radius: float = 0.004,
 ) -> None:
     """The robot as a chain of segments between frame origins (and the target)."""
     points = [T[:3, 3] for T in frames]
@@ -124,50 +174,151 @@ def log_links(
         points.append(tool_world)
     rec.log(
         path,
-        rr.LineStrips3D([np.asarray(points)], colors=[[200, 200, 200]], radii=0.004),
+        rr.LineStrips3D([np.asarray(points)], colors=[[200, 200, 200]], radii=radius),
         static=True,
     )
 
 
-def _circle_points(
-    center: FloatArray, normal: FloatArray, radius: float, n: int = 128
+def _arc_points(
+    center: FloatArray, normal: FloatArray, radius: float, start: float, stop: float, n: int = 96
 ) -> FloatArray:
     u, v = perpendicular_basis(normal)
-    a = np.linspace(0.0, 2.0 * np.pi, n)
+    a = np.linspace(start, stop, n)
     return np.asarray(center + radius * (np.outer(np.cos(a), u) + np.outer(np.sin(a), v)))
 
 
-def write_process_recording(result: object, path: str | Path) -> None:
-    """Write the recording of a :class:`~dhlog.process.ProcessResult` to ``path`` atomically."""
+def _display_transform(result: object) -> FloatArray:
+    """M → the robot's base frame (DH frame 1, z along axis 1), turned upside down when the
+    samples lie below it (a robot whose axis 1 points down), so the robot stands on the grid."""
+    from dhlog.process import ProcessResult
+
+    assert isinstance(result, ProcessResult)
+    ex = result.extraction
+    if ex is None:
+        return np.eye(4)
+    T = np.linalg.inv(ex.T_measurement_base)
+    xyz = result.segmentation.table.select(["x", "y", "z"]).to_numpy()
+    if xyz.size and float(np.median(xyz @ T[2, :3] + T[2, 3])) < 0.0:
+        T = np.diag([1.0, -1.0, -1.0, 1.0]) @ T
+    return np.asarray(T, dtype=np.float64)
+
+
+def _scene(result: object) -> Scene:
+    from dhlog.process import ProcessResult
+
+    assert isinstance(result, ProcessResult)
+    xyz = result.segmentation.table.select(["x", "y", "z"]).to_numpy()
+    if xyz.size == 0:
+        return Scene(1.0)
+    ex = result.extraction
+    centre = ex.T_measurement_base[:3, 3] if ex is not None else np.median(xyz, axis=0)
+    reach = float(np.max(np.linalg.norm(xyz - centre, axis=1)))
+    return Scene(max(reach, 0.05))
+
+
+def _eye(result: object, scene: Scene) -> rrb.EyeControls3D:
+    """A camera on the robot (not on the probed base area, which may be much wider): looking
+    at the samples' centre from the front-right, above, at 2.5 times the robot's extent."""
+    from dhlog.process import ProcessResult
+
+    assert isinstance(result, ProcessResult)
+    xyz = result.segmentation.table.select(["x", "y", "z"]).to_numpy()
+    T = _display_transform(result)
+    centre = np.median(xyz @ T[:3, :3].T + T[:3, 3], axis=0) if xyz.size else np.zeros(3)
+    centre[2] *= 0.6  # a little towards the floor: the base stays in the picture
+    towards = np.array([1.0, -1.3, 0.9])
+    eye = centre + 2.5 * scene.extent * towards / np.linalg.norm(towards)
+    return rrb.EyeControls3D(
+        kind=rrb.Eye3DKind.Orbital, position=eye, look_target=centre, eye_up=[0.0, 0.0, 1.0]
+    )
+
+
+def write_process_recording(
+    result: object, path: str | Path, *, with_log: bool = False, nominal: str | None = None
+) -> None:
+    """Write the recording of a :class:`~dhlog.process.ProcessResult` to ``path`` atomically.
+
+    Each run is its own recording (a new recording id), named by the log, the time of the run
+    and the nominal; the log's hash is a property. ``with_log``: the MCAP's own channels are
+    imported under ``/log`` by Rerun's MCAP loader, for context."""
+    import uuid
+    from datetime import UTC, datetime
+
+    from dhlog import __version__
     from dhlog.process import ProcessResult
     from dhlog.report import result_markdown
 
     assert isinstance(result, ProcessResult)
+    scene = _scene(result)
+    k = _magnification(result, scene)
+    name = Path(result.path).name
+    when = datetime.now(UTC).strftime("%Y-%m-%d %H:%M:%S UTC")
+    nominal_name = nominal or (result.nominal.source if result.nominal is not None else None)
+    title = f"{name} — {when}" + (f" — nominal {nominal_name}" if nominal_name else "")
+    found = residual_parts(result)
     with _recording_file(
-        path, "dhlog", _process_blueprint(result), result.sha256[:32] or None
+        path, "dhlog process", _process_blueprint(result, k, found), str(uuid.uuid4())
     ) as rec:
-        log_samples(rec, result)
-        log_fits(rec, result)
-        log_base(rec, result)
+        rec.send_recording_name(title)
+        rec.send_property(
+            "dhlog",
+            rr.AnyValues(
+                log=str(result.path),
+                log_sha256=result.sha256,
+                nominal=nominal_name or "none",
+                dhlog_version=__version__,
+                pipeline=result.log.pipeline.name,
+            ),
+        )
+        T = _display_transform(result)
+        rec.log("world/m", rr.Transform3D(translation=T[:3, 3], mat3x3=T[:3, :3]), static=True)
+        log_samples(rec, result, scene)
+        log_fits(rec, result, scene)
+        log_base(rec, result, scene)
         if result.extraction is not None:
             frames = result.extraction.frames
             if not result.complete:
                 frames = frames[:-1]
-            log_frames(rec, frames)
-            log_links(rec, frames, result.target if result.complete else None)
-        log_residuals(rec, result)
+            log_frames(rec, frames, prefix="world/m/dh", axis_length=scene.frame)
+            log_links(
+                rec,
+                frames,
+                result.target if result.complete else None,
+                path="world/m/robot/links",
+                radius=2 * scene.line,
+            )
+        log_residuals(rec, result, found, scene, k)
         rec.log(
             "report/dh_table",
             rr.TextDocument(result_markdown(result), media_type=rr.MediaType.MARKDOWN),
             static=True,
         )
+        if with_log and Path(result.path).is_file():
+            rec.log_file_from_path(result.path, entity_path_prefix="log")
 
 
-def log_samples(rec: rr.RecordingStream, result: object) -> None:
-    """Target samples on the sensor time line: per sweep, set aside (dimmed), outliers."""
+def _moved_position(result: object, rows: np.ndarray, joint: int) -> np.ndarray:
+    """The moved joint's encoder value at ``rows`` on the joint time line (m°, or µm)."""
     from dhlog.process import ProcessResult
 
     assert isinstance(result, ProcessResult)
+    table = result.segmentation.table
+    column = f"q_{joint}"
+    if column not in table.columns:
+        return np.zeros(rows.size, dtype=np.int64)
+    q = table[column].to_numpy()[rows]
+    prismatic = result.joints[joint - 1].type is JointType.PRISMATIC
+    scale = 1e6 if prismatic else 180e3 / math.pi
+    return np.asarray(np.round(np.nan_to_num(q) * scale), dtype=np.int64)
+
+
+def log_samples(rec: rr.RecordingStream, result: object, scene: Scene | None = None) -> None:
+    """Target samples: per sweep on the sensor and joint time lines (coloured per joint), the
+    set-aside ones (dimmed) and rejected outliers (red) always shown."""
+    from dhlog.process import ProcessResult
+
+    assert isinstance(result, ProcessResult)
+    scene = scene or _scene(result)
     table = result.segmentation.table
     t = table["t_ns"].to_numpy()
     xyz = table.select(["x", "y", "z"]).to_numpy()
@@ -177,86 +328,109 @@ def log_samples(rec: rr.RecordingStream, result: object) -> None:
     for j in result.joints:
         outlier[j.rows[~j.inliers]] = True
     for sid in np.unique(segment[segment > 0]):
-        sel = (segment == sid) & ~outlier
-        k = int(joint[sel][0]) if np.any(sel) else 1
-        _send_points(rec, f"world/samples/segment_{int(sid)}", t[sel], xyz[sel], _color(k), 0.0015)
+        sel = np.flatnonzero((segment == sid) & ~outlier)
+        if sel.size == 0:
+            continue
+        k = int(joint[sel[0]])
+        path = f"world/m/samples/segment_{int(sid)}"
+        rec.log(
+            path, rr.Points3D.from_fields(colors=[_color(k)], radii=[scene.sample]), static=True
+        )
+        rec.send_columns(
+            path,
+            indexes=[
+                _time_column(t[sel]),
+                rr.TimeColumn(JOINT_TIMELINE, sequence=_moved_position(result, sel, k)),
+            ],
+            columns=rr.Points3D.columns(positions=xyz[sel]),
+        )
     aside = segment == 0
-    _send_points(rec, "world/samples/set_aside", t[aside], xyz[aside], DIM, 0.001)
+    if np.any(aside):
+        rec.log(
+            "world/m/samples/set_aside",
+            rr.Points3D(xyz[aside], colors=[DIM], radii=0.5 * scene.sample),
+            static=True,
+        )
     if np.any(outlier):
-        _send_points(
-            rec,
-            "world/samples/outliers",
-            t[outlier],
-            xyz[outlier],
-            np.array([255, 0, 0], dtype=np.uint8),
-            0.003,
+        rec.log(
+            "world/m/samples/outliers",
+            rr.Points3D(xyz[outlier], colors=[[255, 0, 0]], radii=1.5 * scene.sample),
+            static=True,
         )
 
 
-def _send_points(
-    rec: rr.RecordingStream,
-    path: str,
-    t: np.ndarray,
-    xyz: FloatArray,
-    color: np.ndarray,
-    radius: float,
-) -> None:
-    if t.size == 0:
-        return
-    rec.log(path, rr.Points3D.from_fields(colors=[color], radii=[radius]), static=True)
-    rec.send_columns(path, indexes=[_time_column(t)], columns=rr.Points3D.columns(positions=xyz))
+def _lighter(color: np.ndarray, amount: float = 0.55) -> np.ndarray:
+    return np.asarray(color + amount * (255 - color.astype(float)), dtype=np.uint8)
 
 
-def log_fits(rec: rr.RecordingStream, result: object) -> None:
-    """Per joint: the fitted circle (or line) and the oriented axis as a labelled arrow."""
+def log_fits(rec: rr.RecordingStream, result: object, scene: Scene | None = None) -> None:
+    """Per joint: the fitted arc over the swept range (or the line over the travel), thin and
+    lighter than its samples, and the oriented axis as an arrow of a common length labelled
+    ``Jk``; arrows of axes that coincide are staggered along them so both show."""
     from dhlog.process import ProcessResult
 
     assert isinstance(result, ProcessResult)
+    scene = scene or _scene(result)
+    xyz = result.segmentation.table.select(["x", "y", "z"]).to_numpy()
+    drawn: list[tuple[FloatArray, FloatArray]] = []
     for j in result.joints:
         if j.fit is None:
             continue
         f = j.fit
         color = _color(j.index)
+        axis = j.axis if j.axis is not None else f.axis
+        n = axis.direction
+        pts = xyz[j.rows[j.inliers]] if j.rows.size else np.zeros((0, 3))
         if f.kind == "circle":
-            strip = _circle_points(f.center, f.axis.direction, f.radius)
-            length = max(0.1, 0.5 * f.radius)
+            u, v = perpendicular_basis(n)
+            w = pts - f.center
+            angles = np.unwrap(np.arctan2(w @ v, w @ u)) if pts.size else np.zeros(2)
+            strip = _arc_points(f.center, n, f.radius, float(angles.min()), float(angles.max()))
+            foot = f.center
         else:
-            half = 0.5 * f.sweep + 0.02
-            strip = np.stack(
-                [f.center - half * f.axis.direction, f.center + half * f.axis.direction]
-            )
-            length = 0.1
+            s = (pts - f.center) @ n if pts.size else np.array([-0.5 * f.sweep, 0.5 * f.sweep])
+            strip = np.stack([f.center + s.min() * n, f.center + s.max() * n])
+            foot = f.center
         rec.log(
-            f"world/joints/j{j.index}/fit",
-            rr.LineStrips3D([strip], colors=[color], radii=0.001),
+            f"world/m/joints/j{j.index}/fit",
+            rr.LineStrips3D([strip], colors=[_lighter(color)], radii=scene.line),
             static=True,
         )
-        axis = j.axis if j.axis is not None else f.axis
+        shared = sum(
+            1
+            for p, d in drawn
+            if abs(float(d @ n)) > math.cos(math.radians(2.0))
+            and np.linalg.norm(np.cross(foot - p, d)) < 0.03 * scene.extent
+        )
+        drawn.append((axis.point, n))
+        origin = foot + (shared * 0.6 * scene.arrow) * n
         rec.log(
-            f"world/joints/j{j.index}/axis",
+            f"world/m/joints/j{j.index}/axis",
             rr.Arrows3D(
-                origins=[axis.point - 0.25 * length * axis.direction],
-                vectors=[length * axis.direction],
+                origins=[origin],
+                vectors=[scene.arrow * n],
                 colors=[color],
-                radii=0.003,
-                labels=[f"J{j.index} {j.name}"],
+                radii=1.5 * scene.line,
+                labels=[f"J{j.index}"],
+                show_labels=True,
             ),
             static=True,
         )
 
 
-def log_base(rec: rr.RecordingStream, result: object) -> None:
-    """The probed base points and the fitted base plane (a square patch)."""
+def log_base(rec: rr.RecordingStream, result: object, scene: Scene | None = None) -> None:
+    """The probed base points (orange, visible) and the fitted base plane as a thin outline."""
     from dhlog.process import ProcessResult
 
     assert isinstance(result, ProcessResult)
+    scene = scene or _scene(result)
     base = result.log.base
     if base is None or base.height == 0:
         return
     pts = base.select(["x", "y", "z"]).to_numpy()
     rec.log(
-        "world/base_plane/points",
-        rr.Points3D(pts, colors=[[255, 255, 0]], radii=0.003),
+        "world/m/base_plane/points",
+        rr.Points3D(pts, colors=[BASE_COLOR], radii=1.5 * scene.sample),
         static=True,
     )
     if result.base is None:
@@ -265,67 +439,261 @@ def log_base(rec: rr.RecordingStream, result: object) -> None:
     u, v = result.base.basis
     half = 1.2 * float(np.max(np.abs((pts - plane.point) @ np.stack([u, v]).T))) + 0.05
     corners = [
-        plane.point + half * (a * u + b * v) for a, b in ((-1, -1), (1, -1), (1, 1), (-1, 1))
+        plane.point + half * (a * u + b * v)
+        for a, b in ((-1, -1), (1, -1), (1, 1), (-1, 1), (-1, -1))
     ]
     rec.log(
-        "world/base_plane/plane",
-        rr.Mesh3D(
-            vertex_positions=corners,
-            triangle_indices=[[0, 1, 2], [0, 2, 3]],
-            vertex_colors=[[255, 255, 0, 60]] * 4,
-        ),
+        "world/m/base_plane/outline",
+        rr.LineStrips3D([np.asarray(corners)], colors=[[150, 150, 150]], radii=scene.line),
         static=True,
     )
 
 
-def log_residuals(rec: rr.RecordingStream, result: object) -> None:
-    """FK residual and fit residual of every sample (mm) as time series per joint."""
+def _nice(value: float) -> float:
+    """The 1-2-5 number nearest below ``value`` (≥ 1)."""
+    if not math.isfinite(value) or value <= 1.0:
+        return 1.0
+    exp = 10 ** math.floor(math.log10(value))
+    return float(max(m * exp for m in (1, 2, 5) if m * exp <= value))
+
+
+def _fk_residuals(result: object) -> dict[int, tuple[np.ndarray, FloatArray, FloatArray]]:
+    """Per identified joint: its inlier rows, the samples and the FK of the table there."""
+    from dhlog.kinematics import fk_points_chunked
     from dhlog.process import ProcessResult
 
     assert isinstance(result, ProcessResult)
-    t_all = result.segmentation.table["t_ns"].to_numpy()
+    ex = result.extraction
+    table = result.segmentation.table
+    qcols = [f"q_{i + 1}" for i in range(len(result.joints))]
+    if ex is None or not result.complete or not all(c in table.columns for c in qcols):
+        return {}
+    out = {}
     for j in result.joints:
         if j.fit is None:
             continue
         rows = j.rows[j.inliers]
-        color = _color(j.index)
-        fit_path = f"residuals/fit/j{j.index}"
-        rec.log(fit_path, rr.SeriesLines(colors=[color], names=[f"fit J{j.index}"]), static=True)
-        rec.send_columns(
-            fit_path,
-            indexes=[_time_column(t_all[rows])],
-            columns=rr.Scalars.columns(scalars=np.linalg.norm(j.fit.residuals, axis=1) * 1e3),
-        )
-        val = result.validation
-        if val is not None:
-            r = val.residuals[rows]
-            fk_path = f"residuals/fk/j{j.index}"
-            rec.log(fk_path, rr.SeriesLines(colors=[color], names=[f"FK J{j.index}"]), static=True)
-            rec.send_columns(
-                fk_path,
-                indexes=[_time_column(t_all[rows])],
-                columns=rr.Scalars.columns(scalars=r * 1e3),
+        if "target" in table.columns:
+            rows = rows[table["target"].fill_null(0).to_numpy()[rows] == 0]
+        Q = table.select(qcols).to_numpy()[rows]
+        ok = np.all(np.isfinite(Q), axis=1)
+        rows, Q = rows[ok], Q[ok]
+        P = table.select(["x", "y", "z"]).to_numpy()[rows]
+        pred = fk_points_chunked(ex.standard, Q, ex.tool_point, T_base=ex.T_measurement_base)
+        out[j.index] = (rows, P, pred)
+    return out
+
+
+def _magnification(result: object, scene: Scene) -> float:
+    """The factor that makes the FK residuals about 2 % of the robot's extent in 3D."""
+    from dhlog.process import ProcessResult
+
+    assert isinstance(result, ProcessResult)
+    v = result.validation
+    if v is None or not math.isfinite(v.rms) or v.rms <= 0:
+        return 1.0
+    return _nice(0.02 * scene.extent / v.rms)
+
+
+def _directions(joint: object, P: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray] | None:
+    """Per sample, the joint's radial, axial and tangential unit vectors (prismatic: two
+    directions across the motion and the motion)."""
+    from dhlog.identify.sweeps import JointReport
+
+    assert isinstance(joint, JointReport)
+    axis = joint.axis if joint.axis is not None else (joint.fit.axis if joint.fit else None)
+    if axis is None:
+        return None
+    n = axis.direction
+    if joint.type is JointType.PRISMATIC:
+        u, v = perpendicular_basis(n)
+        ones = np.ones((P.shape[0], 1))
+        return ones * u, ones * n, ones * v
+    w = P - axis.point
+    w = w - np.outer(w @ n, n)
+    radial = w / np.maximum(np.linalg.norm(w, axis=1, keepdims=True), 1e-12)
+    tangential = np.cross(n, radial)
+    return radial, np.ones((P.shape[0], 1)) * n, tangential
+
+
+@dataclass(frozen=True)
+class Residuals:
+    """One joint's residual components (m) at its samples: ``kind`` ``fit`` or ``fk``, the
+    table rows, the joint time line's values and, for ``fk``, the FK prediction."""
+
+    kind: str
+    joint: int
+    rows: np.ndarray
+    position: np.ndarray
+    parts: dict[str, FloatArray]
+    pred: FloatArray | None = None
+
+    def ranges(self) -> tuple[tuple[int, int], tuple[float, float]]:
+        """The plot's x range (joint time line, 3 % margin) and a symmetric y range (mm) that
+        holds every value."""
+        lo, hi = int(self.position.min()), int(self.position.max())
+        pad = max(1, int(0.03 * (hi - lo)))
+        top = max(float(np.max(np.abs(v))) for v in self.parts.values()) * 1e3 * 1.15
+        top = top if top > 0 else 1e-3
+        return (lo - pad, hi + pad), (-top, 2.2 * top)  # room above the data for the legend
+
+
+def residual_parts(result: object) -> list[Residuals]:
+    """Per joint, signed residual components against the moved joint's encoder value: the fit
+    residual (radial and axial across the fitted circle; across a fitted line in two
+    directions) and the FK residual of the final table (radial, axial, tangential)."""
+    from dhlog.process import ProcessResult
+
+    assert isinstance(result, ProcessResult)
+    xyz = result.segmentation.table.select(["x", "y", "z"]).to_numpy()
+    out = []
+    for j in result.joints:
+        if j.fit is None or j.rows.size == 0:
+            continue
+        rows = j.rows[j.inliers]
+        P = xyz[rows]
+        dirs = _directions(j, P)
+        if dirs is None or rows.size == 0:
+            continue
+        f = j.fit
+        n = dirs[1][0]
+        w = P - f.center
+        axial = w @ n
+        if f.kind == "circle":
+            across = np.linalg.norm(w - np.outer(axial, n), axis=1) - f.radius
+            parts = {"radial": across, "axial": axial}
+        else:
+            u, v = perpendicular_basis(n)
+            parts = {"radial": w @ u, "tangential": w @ v}
+        out.append(Residuals("fit", j.index, rows, _moved_position(result, rows, j.index), parts))
+    for joint, (rows, P, pred) in _fk_residuals(result).items():
+        dirs = _directions(result.joints[joint - 1], P)
+        if dirs is None or rows.size == 0:
+            continue
+        r = P - pred
+        parts = {
+            name: np.sum(r * d, axis=1)
+            for name, d in zip(("radial", "axial", "tangential"), dirs, strict=True)
+        }
+        position = _moved_position(result, rows, joint)
+        out.append(Residuals("fk", joint, rows, position, parts, pred))
+    return out
+
+
+def log_residuals(
+    rec: rr.RecordingStream,
+    result: object,
+    found: list[Residuals],
+    scene: Scene | None = None,
+    k: float = 1.0,
+) -> None:
+    """The residual components as plots on both time lines (mm), and the FK residuals magnified
+    ``k`` times in 3D (``world/m/magnified``: each sample drawn at FK + k × residual)."""
+    from dhlog.process import ProcessResult
+
+    assert isinstance(result, ProcessResult)
+    scene = scene or _scene(result)
+    xyz = result.segmentation.table.select(["x", "y", "z"]).to_numpy()
+    t_all = result.segmentation.table["t_ns"].to_numpy()
+    for res in found:
+        index = [
+            _time_column(t_all[res.rows]),
+            rr.TimeColumn(JOINT_TIMELINE, sequence=res.position),
+        ]
+        _send_components(rec, f"residuals/{res.kind}/j{res.joint}", index, res.parts)
+        if res.pred is not None:
+            r = xyz[res.rows] - res.pred
+            rec.log(
+                f"world/m/magnified/j{res.joint}",
+                rr.Points3D(res.pred + k * r, colors=[_color(res.joint)], radii=scene.sample),
+                static=True,
             )
 
 
-def _process_blueprint(result: object) -> rrb.Blueprint:
-    del result
-    everything = rrb.VisibleTimeRange(
-        TIMELINE,
-        start=rrb.TimeRangeBoundary.infinite(),
-        end=rrb.TimeRangeBoundary.cursor_relative(),
-    )
+def _send_components(
+    rec: rr.RecordingStream, path: str, index: list[rr.TimeColumn], parts: dict[str, FloatArray]
+) -> None:
+    for name, values in parts.items():
+        entity = f"{path}/{name}"
+        rec.log(
+            entity,
+            rr.SeriesPoints(colors=[COMPONENTS[name]], names=[name], marker_sizes=[1.5]),
+            static=True,
+        )
+        rec.send_columns(
+            entity, indexes=index, columns=rr.Scalars.columns(scalars=np.asarray(values) * 1e3)
+        )
+
+
+def _process_blueprint(result: object, k: float, found: list[Residuals]) -> rrb.Blueprint:
+    """The default layout: the 3D evidence (samples and fits; FK residuals magnified) on the
+    left, the DH table above the per-joint residual plots on the right, side panels closed."""
+    from dhlog.process import ProcessResult
+
+    assert isinstance(result, ProcessResult)
+    eye = _eye(result, _scene(result))
+    everything = [
+        rrb.VisibleTimeRange(
+            timeline,
+            start=rrb.TimeRangeBoundary.infinite(),
+            end=rrb.TimeRangeBoundary.infinite(),
+        )
+        for timeline in (TIMELINE, JOINT_TIMELINE)
+    ]
+
+    def view(res: Residuals, title: str) -> rrb.TimeSeriesView:
+        (x0, x1), (y0, y1) = res.ranges()
+        prismatic = result.joints[res.joint - 1].type is JointType.PRISMATIC
+        return rrb.TimeSeriesView(
+            name=f"J{res.joint} {title[:-1].lower().replace('fk', 'FK')} [mm] vs "
+            f"q{res.joint} [{'µm' if prismatic else 'm°'}]",
+            origin=f"residuals/{res.kind}/j{res.joint}",
+            plot_legend=rrb.PlotLegend(corner=rrb.Corner2D.RightTop, visible=True),
+            time_ranges=everything,
+            axis_x=rrb.TimeAxis(
+                link=rrb.components.LinkAxis.Independent,
+                view_range=rrb.TimeRange(
+                    start=rrb.TimeRangeBoundary.absolute(seq=x0),
+                    end=rrb.TimeRangeBoundary.absolute(seq=x1),
+                ),
+            ),
+            axis_y=rrb.ScalarAxis(range=(y0, y1)),
+        )
+
+    def plots(kind: str, title: str) -> rrb.Grid:
+        return rrb.Grid(*[view(res, title) for res in found if res.kind == kind], name=title)
+
     return rrb.Blueprint(
         rrb.Horizontal(
-            rrb.Spatial3DView(name="Calibration", origin="world", time_ranges=[everything]),
+            rrb.Tabs(
+                rrb.Spatial3DView(
+                    name="Samples and fits [m, robot base frame]",
+                    origin="world",
+                    contents=["+ $origin/**", "- $origin/m/magnified/**"],
+                    time_ranges=everything,
+                    eye_controls=eye,
+                ),
+                rrb.Spatial3DView(
+                    name=f"FK residuals ×{k:g} [m, robot base frame]",
+                    origin="world",
+                    contents=[
+                        "+ $origin/m/magnified/**",
+                        "+ $origin/m/joints/**",
+                        "+ $origin/m/robot/**",
+                    ],
+                    eye_controls=eye,
+                ),
+            ),
             rrb.Vertical(
                 rrb.TextDocumentView(name="DH parameters", origin="report/dh_table"),
-                rrb.TimeSeriesView(name="Residuals (mm)", origin="residuals"),
-                row_shares=[3, 2],
+                rrb.Tabs(plots("fk", "FK residuals"), plots("fit", "Fit residuals")),
+                row_shares=[1, 1],
             ),
-            column_shares=[3, 2],
+            column_shares=[1, 1],
         ),
-        collapse_panels=False,
+        rrb.BlueprintPanel(state="collapsed"),
+        rrb.SelectionPanel(state="collapsed"),
+        rrb.TimePanel(state="collapsed", timeline=JOINT_TIMELINE),
     )
 
 

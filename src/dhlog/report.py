@@ -358,6 +358,50 @@ def result_markdown(result: ProcessResult, *, units: str = "mm") -> str:
                 f"| {i + 1} | {d[0] * angle:+.{ab}f} | {second} | {d[2] * length:+.{lb}f} | "
                 f"{d[3] * angle:+.{ab}f} |"
             )
+    per_joint = result.validation.per_joint if result.validation is not None else {}
+    lines += [
+        "",
+        "## Fits",
+        "",
+        "| joint | method | samples | outliers | sweep | "
+        f"fit RMS [{lu}] | FK RMS [{lu}] | status |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+    for j in result.joints:
+        f = j.fit
+        sweep = ""
+        if f is not None:
+            prismatic = j.type is not None and j.type.value == "prismatic"
+            sweep = f"{f.sweep * length:.1f} {lu}" if prismatic else f"{math.degrees(f.sweep):.1f}°"
+        fk = f"{per_joint[j.index][0] * length:.4f}" if j.index in per_joint else ""
+        lines.append(
+            f"| {j.index} {j.name} | {f.method if f else ''} | {j.rows.size if f else 0} | "
+            f"{j.n_outliers if f else ''} | {sweep} | {f'{f.rms * length:.4f}' if f else ''} | "
+            f"{fk} | {'ok' if j.ok else 'not identified: ' + str(j.reason)} |"
+        )
+    aside = result.segmentation.set_aside
+    lines += [
+        "",
+        "Set aside: "
+        + (", ".join(f"{k} {v}" for k, v in sorted(aside.items())) if aside else "none")
+        + ".",
+        "",
+        "Nominal: "
+        + (result.nominal.source if result.nominal is not None else "none (conventions)")
+        + ".",
+    ]
+    lines += ["", f"Method: {_method_line(result, length, lu)}."]
+    if _clock_line(result):
+        lines += ["", f"Clock: {_clock_line(result)}."]
+    if result.validation is not None:
+        v = result.validation
+        lines += [
+            "",
+            f"FK check: RMS {v.rms * length:.4f} {lu}, max {v.max * length:.4f} {lu} "
+            f"over {v.n_points} samples (3-D).",
+        ]
+    if result.extraction is not None:
+        lines += ["", f"Frame 1: origin at {frame_1_origin(result)}."]
     ex = result.extraction
     if ex is not None and result.complete:
         m, q = ex.modified, ex.reference_pose
@@ -376,32 +420,6 @@ def result_markdown(result: ProcessResult, *, units: str = "mm") -> str:
         tool = ex.tool_point * length
         shown = ", ".join(f"{v:.4f}" for v in tool)
         lines += ["", f"Tool point (frame {m.n + 1}): ({shown}) {lu}"]
-    lines += [
-        "",
-        "## Fits",
-        "",
-        f"| joint | method | samples | outliers | RMS (3-D) [{lu}] | status |",
-        "|---|---|---|---|---|---|",
-    ]
-    for j in result.joints:
-        f = j.fit
-        lines.append(
-            f"| {j.index} {j.name} | {f.method if f else ''} | {j.rows.size if f else 0} | "
-            f"{j.n_outliers if f else ''} | {f'{f.rms * length:.4f}' if f else ''} | "
-            f"{'ok' if j.ok else 'not identified: ' + str(j.reason)} |"
-        )
-    lines += ["", f"Method: {_method_line(result, length, lu)}."]
-    if _clock_line(result):
-        lines += ["", f"Clock: {_clock_line(result)}."]
-    if result.validation is not None:
-        v = result.validation
-        lines += [
-            "",
-            f"FK check: RMS {v.rms * length:.4f} {lu}, max {v.max * length:.4f} {lu} "
-            f"over {v.n_points} samples (3-D).",
-        ]
-    if result.extraction is not None:
-        lines += ["", f"Frame 1: origin at {frame_1_origin(result)}."]
     held = _held_lines(result, rows)
     if held:
         lines += ["", "## Held by convention or gauge (not measured)", ""]
