@@ -412,3 +412,18 @@ def test_the_whole_model_fit_is_closer_to_the_truth_than_the_seed_method() -> No
 
     assert np.sqrt(np.mean(err(whole) ** 2)) < 0.5 * np.sqrt(np.mean(err(analytic) ** 2))
     assert np.all(err(whole) <= 4.0 * fk_prediction_std(whole, Q))
+
+
+def test_with_log_imports_the_logs_own_channels(tmp_path: Path) -> None:
+    """``--with-log``: the MCAP's own topics are in the recording beside dhlog's entities."""
+    from rerun.chunk import RrdReader
+
+    done = runner.invoke(
+        app,
+        ["process", str(SAMPLES / "scara.mcap"), "--out", str(tmp_path), "--with-log"],
+    )
+    assert done.exit_code == 0, done.output
+    rrd_verify(tmp_path / "scara.rrd")
+    entities = {chunk.entity_path for chunk in RrdReader(tmp_path / "scara.rrd").stream()}
+    assert "/world/m/robot/links" in entities
+    assert any(e.startswith("/tracker/point") for e in entities), sorted(entities)[:20]

@@ -80,10 +80,15 @@ def process_job(job: BatchJob) -> dict[str, Any]:
 
 
 def write_results(
-    result: Any, outputs: list[Path], units: str, *, hold_signals: bool = False
+    result: Any,
+    outputs: list[Path],
+    units: str,
+    *,
+    hold_signals: bool = False,
+    with_log: bool = False,
 ) -> dict[str, Any]:
     """Write a result's JSON, CSV and (when a third path is given) recording, moved into place
-    together; returns the JSON document."""
+    together; returns the JSON document. ``with_log``: the log's own channels in the recording."""
     from dhlog.io.writer import staged_outputs
     from dhlog.result import result_csv, result_document
 
@@ -94,7 +99,7 @@ def write_results(
         if len(outputs) > 2:
             from dhlog.recording import write_process_recording
 
-            write_process_recording(result, temps[2])
+            write_process_recording(result, temps[2], with_log=with_log)
     return document
 
 

@@ -334,6 +334,13 @@ def process(
     no_rrd: Annotated[
         bool, typer.Option("--no-rrd", help="Do not write the Rerun recording.")
     ] = False,
+    with_log: Annotated[
+        bool,
+        typer.Option(
+            "--with-log",
+            help="Also import the log's own channels into the recording, for context.",
+        ),
+    ] = False,
     analytic_only: Annotated[
         bool,
         typer.Option(
@@ -422,7 +429,7 @@ def process(
             advance("writing", 0.0)
             try:
                 folder.mkdir(parents=True, exist_ok=True)  # --out is created when missing
-                write_results(result, outputs, units, hold_signals=True)  # moved in together
+                write_results(result, outputs, units, hold_signals=True, with_log=with_log)
             except OSError as exc:
                 raise OutputError(folder, exc) from None
     except DhlogError as exc:

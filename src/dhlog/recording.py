@@ -1,20 +1,25 @@
 """The Rerun recording of a processed log (``<stem>.rrd``) and of a robot (``dhlog show``).
 
 One ``log_*`` function per thing shown. Fitted geometry is static; samples and residuals are on
-the sensor time line (``sensor_time``, the samples' own stamps), sent as columns. The default
-blueprint opens on the 3D view with the DH table and the residual plots beside it.
+two time lines: ``sensor_time`` (the samples' own stamps) and ``joint_position`` (the moved
+joint's encoder value, m° or µm: the residual plots' x axis), sent as columns. Each run is its
+own recording (a new recording id; the log's hash is a property). The default blueprint opens
+on the 3D view and the DH table, the per-joint residual plots below the table, side panels
+closed; ``dhlog.render`` draws it headless to check it.
 
-Entities:
+Entities (``world`` is the robot's base frame, DH frame 1, z up; ``world/m`` carries the
+measurement frame M into it, so everything below is logged in M):
 
-* ``world/samples/segment_<k>`` target samples of each sweep (coloured per segment),
-  ``world/samples/set_aside`` the others (dimmed), ``world/samples/outliers`` rejected samples;
-* ``world/joints/j<k>/fit`` the fitted circle or line, ``world/joints/j<k>/axis`` the oriented
-  axis as a labelled arrow;
-* ``world/dh/frame_<i>`` DH frame i (transform + axes + label), ``world/robot/links`` link
-  segments between frame origins at the reference pose;
-* ``world/base_plane`` probed base points and the fitted plane patch;
-* ``residuals/fk/j<k>`` FK residual (mm) of each sample, ``residuals/fit/j<k>`` fit residual;
-* ``report/dh_table`` the DH tables and fit summary as Markdown.
+* ``world/m/samples/segment_<k>`` target samples of each sweep (joint colours, sized from the
+  robot's extent), ``world/m/samples/set_aside`` the others (dimmed), ``.../outliers`` (red);
+* ``world/m/joints/j<k>/fit`` the fitted arc over the swept range (or the line over the travel),
+  thin and lighter than its samples; ``world/m/joints/j<k>/axis`` the axis, an arrow ``Jk``;
+* ``world/m/dh/frame_<i>`` DH frame i of the shown table (Hayati rows included), labelled once
+  per place (``world/m/dh/labels``); ``world/m/robot/links`` segments between frame origins;
+* ``world/m/base_plane`` probed base points and the fitted plane's outline;
+* ``world/m/magnified/j<k>`` each sample at FK + k × FK residual (k in the view's name);
+* ``residuals/{fk,fit}/j<k>/{radial,axial,tangential}`` signed residual components (mm);
+* ``report/dh_table`` the DH tables, fits, set-aside counts and nominal as Markdown.
 """
 
 from __future__ import annotations
@@ -189,7 +194,7 @@ def _arc_points(
 
 def _display_transform(result: object) -> FloatArray:
     """M → the robot's base frame (DH frame 1, z along axis 1), turned upside down when the
-    samples lie below it (a robot whose axis 1 points down), so the robot stands on the grid."""
+    robot's frames lie below it (a robot whose axis 1 points down), so it stands on the grid."""
     from dhlog.process import ProcessResult
 
     assert isinstance(result, ProcessResult)
@@ -197,8 +202,8 @@ def _display_transform(result: object) -> FloatArray:
     if ex is None:
         return np.eye(4)
     T = np.linalg.inv(ex.T_measurement_base)
-    xyz = result.segmentation.table.select(["x", "y", "z"]).to_numpy()
-    if xyz.size and float(np.median(xyz @ T[2, :3] + T[2, 3])) < 0.0:
+    origins = _shown_frames(result)[:, :3, 3]  # the robot's structure, not where it reaches
+    if float(np.median(origins @ T[2, :3] + T[2, 3])) < 0.0:
         T = np.diag([1.0, -1.0, -1.0, 1.0]) @ T
     return np.asarray(T, dtype=np.float64)
 
@@ -218,7 +223,7 @@ def _scene(result: object) -> Scene:
 
 def _eye(result: object, scene: Scene) -> rrb.EyeControls3D:
     """A camera on the robot (not on the probed base area, which may be much wider): looking
-    at the samples' centre from the front-right, above, at 2.5 times the robot's extent."""
+    at the samples' centre from the front-right, above, at 1.9 times the robot's extent."""
     from dhlog.process import ProcessResult
 
     assert isinstance(result, ProcessResult)
@@ -226,8 +231,8 @@ def _eye(result: object, scene: Scene) -> rrb.EyeControls3D:
     T = _display_transform(result)
     centre = np.median(xyz @ T[:3, :3].T + T[:3, 3], axis=0) if xyz.size else np.zeros(3)
     centre[2] *= 0.6  # a little towards the floor: the base stays in the picture
-    towards = np.array([1.0, -1.3, 0.9])
-    eye = centre + 2.5 * scene.extent * towards / np.linalg.norm(towards)
+    towards = np.array([1.0, -1.3, 0.8])
+    eye = centre + 1.9 * scene.extent * towards / np.linalg.norm(towards)
     return rrb.EyeControls3D(
         kind=rrb.Eye3DKind.Orbital, position=eye, look_target=centre, eye_up=[0.0, 0.0, 1.0]
     )
@@ -276,9 +281,7 @@ def write_process_recording(
         log_fits(rec, result, scene)
         log_base(rec, result, scene)
         if result.extraction is not None:
-            frames = result.extraction.frames
-            if not result.complete:
-                frames = frames[:-1]
+            frames = _shown_frames(result)
             log_frames(rec, frames, prefix="world/m/dh", axis_length=scene.frame)
             log_links(
                 rec,
@@ -295,6 +298,22 @@ def write_process_recording(
         )
         if with_log and Path(result.path).is_file():
             rec.log_file_from_path(result.path, entity_path_prefix="log")
+
+
+def _shown_frames(result: object) -> FloatArray:
+    """The DH frames at the reference pose as the shown table places them: with Hayati rows
+    (nearly parallel axes) the frames of that table, not the standard table's, whose origins
+    run off along the near-parallel axes (d of metres)."""
+    from dhlog.process import ProcessResult
+
+    assert isinstance(result, ProcessResult)
+    ex = result.extraction
+    assert ex is not None
+    frames = ex.frames
+    if result.conditioned is not None:
+        T1 = ex.T_measurement_base
+        frames = fk_frames(result.conditioned.table, ex.reference_pose, T_base=T1)
+    return frames if result.complete else frames[:-1]
 
 
 def _moved_position(result: object, rows: np.ndarray, joint: int) -> np.ndarray:
@@ -719,41 +738,65 @@ def write_robot_recording(
                 for t in table.joint_types
             ]
         )
-    everything = rrb.VisibleTimeRange(
-        "step", start=rrb.TimeRangeBoundary.infinite(), end=rrb.TimeRangeBoundary.cursor_relative()
-    )
     bp = rrb.Blueprint(
         rrb.Horizontal(
-            rrb.Spatial3DView(name=title, origin="world"),
-            rrb.Spatial3DView(name="tool path", origin="world/tool_path", time_ranges=[everything]),
-            column_shares=[3, 1],
-        )
+            rrb.Spatial3DView(name=f"{title} [m]", origin="world"),
+            rrb.Spatial3DView(name="tool path [m]", origin="world/tool_path"),
+            column_shares=[3, 2],
+        ),
+        rrb.BlueprintPanel(state="collapsed"),
+        rrb.SelectionPanel(state="collapsed"),
     )
-    with _recording_file(path, "dhlog_show", bp) as rec:
-        home = np.clip(np.zeros(n), limits[:, 0], limits[:, 1])
-        step = 0
-        scale = max(0.05, float(np.sum(np.abs(table.a)) + np.sum(np.abs(table.d_offset))) / (3 * n))
-        for k in range(n):
-            for value in np.linspace(limits[k, 0], limits[k, 1], steps):
-                q = home.copy()
-                q[k] = value
-                frames = fk_frames(table, q, T_base=T_base)
-                rec.set_time("step", sequence=step)
-                for i, T in enumerate(frames, start=1):
-                    rec.log(
-                        f"world/frames/frame_{i}",
-                        rr.Transform3D(translation=T[:3, 3], mat3x3=T[:3, :3]),
-                    )
-                rec.log(
-                    "world/links",
-                    rr.LineStrips3D(
-                        [frames[:, :3, 3]], radii=0.01 * scale, colors=[[200, 200, 200]]
-                    ),
-                )
-                rec.log(
-                    "world/tool_path",
-                    rr.Points3D([frames[-1][:3, 3]], colors=[_color(k + 1)], radii=0.01 * scale),
-                )
-                step += 1
-        for i in range(1, n + 2):
-            rec.log(f"world/frames/frame_{i}", rr.TransformAxes3D(scale), static=True)
+    home = np.clip(np.zeros(n), limits[:, 0], limits[:, 1])
+    Q = []
+    sweep_of = []
+    for k in range(n):
+        for value in np.linspace(limits[k, 0], limits[k, 1], steps):
+            q = home.copy()
+            q[k] = value
+            Q.append(q)
+            sweep_of.append(k)
+    frames = fk_frames(table, np.asarray(Q), T_base=T_base)  # (S, n + 1, 4, 4)
+    S = frames.shape[0]
+    scale = max(0.05, float(np.sum(np.abs(table.a)) + np.sum(np.abs(table.d_offset))) / (3 * n))
+    index = [rr.TimeColumn("step", sequence=np.arange(S))]
+    tool = frames[:, -1, :3, 3]
+    with _recording_file(path, "dhlog show", bp) as rec:
+        for i in range(n + 1):
+            entity = f"world/frames/frame_{i + 1}"
+            rec.log(entity, rr.TransformAxes3D(scale), static=True)
+            rec.send_columns(
+                entity,
+                indexes=index,
+                columns=rr.Transform3D.columns(
+                    translation=frames[:, i, :3, 3], mat3x3=frames[:, i, :3, :3]
+                ),
+            )
+        rec.log(
+            "world/links",
+            rr.LineStrips3D.from_fields(radii=[0.01 * scale], colors=[[200, 200, 200]]),
+            static=True,
+        )
+        rec.send_columns(
+            "world/links",
+            indexes=index,
+            columns=rr.LineStrips3D.columns(strips=list(frames[:, :, :3, 3])).partition([1] * S),
+        )
+        sweep = np.asarray(sweep_of)
+        rec.log(
+            "world/tool_path/whole",
+            rr.LineStrips3D(
+                [tool[sweep == k] for k in range(n)],
+                colors=[_color(k + 1) for k in range(n)],
+                radii=0.006 * scale,
+            ),
+            static=True,
+        )
+        rec.log(
+            "world/tool_path/now",
+            rr.Points3D.from_fields(colors=[[255, 255, 255]], radii=[0.03 * scale]),
+            static=True,
+        )
+        rec.send_columns(
+            "world/tool_path/now", indexes=index, columns=rr.Points3D.columns(positions=tool)
+        )
