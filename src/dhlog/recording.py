@@ -363,6 +363,18 @@ def log_samples(rec: rr.RecordingStream, result: object, scene: Scene | None = N
             ],
             columns=rr.Points3D.columns(positions=xyz[sel]),
         )
+    seg = result.segmentation.segments
+    if seg.height:  # the sweeps named on the sensor time line
+        names = [j.name for j in result.joints]
+        texts = [
+            f"sweep {int(s)}: joint {int(k)} ({names[int(k) - 1] if 0 < k <= len(names) else '?'})"
+            for s, k in zip(seg["segment"], seg["joint"], strict=True)
+        ]
+        rec.send_columns(
+            "sweeps",
+            indexes=[_time_column(seg["t_start_ns"].to_numpy())],
+            columns=rr.TextLog.columns(text=texts),
+        )
     aside = segment == 0
     if np.any(aside):
         rec.log(
