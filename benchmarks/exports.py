@@ -23,7 +23,6 @@ from pathlib import Path
 import numpy as np
 import yaml
 import yourdfpy
-from scipy.spatial.transform import Rotation
 
 from dhlog.dh import modified_dh_transform
 from dhlog.dhfile import load_dh
@@ -36,13 +35,6 @@ ROOT = Path(__file__).resolve().parents[1]
 
 def run(*args: str) -> None:
     subprocess.run([DHLOG, *args], check=True, capture_output=True)
-
-
-def origin(xyz: list[float], rpy: list[float]) -> np.ndarray:
-    T = np.eye(4)
-    T[:3, :3] = Rotation.from_euler("xyz", rpy).as_matrix()
-    T[:3, 3] = xyz
-    return T
 
 
 def main() -> None:
@@ -65,7 +57,7 @@ def main() -> None:
     run("process", str(work / "ur5.mcap"), "--no-rrd", "--out", str(work))
     run("process", str(ROOT / "sample_logs" / "kr5_real.mcap"), "--no-rrd", "--out", str(work))
     sys.path.insert(0, str(ROOT / "tests"))
-    from test_export import ur5_template  # the UR5 template of the tests
+    from test_export import ur5_template, ur_target  # the tests' UR5 template, UR composition
 
     ur5_template(work / "template.urdf")
     for stem, robot in (("ur5", "ur5"), ("kr5_real", "kr5")):
@@ -147,18 +139,9 @@ def main() -> None:
             kin = yaml.safe_load(text)["kinematics"]
             tcp = np.array([float(v) for v in text.split("tcp: [")[1].split("]")[0].split(",")])
             local = fk_point(dh.table, Q, dh.tool_point, T_base=np.eye(4))
-            err = 0.0
-            for q, p in zip(Q, local, strict=True):
-                T = origin([0, 0, 0], [0, 0, np.pi])
-                for k, e in enumerate(
-                    ("shoulder", "upper_arm", "forearm", "wrist_1", "wrist_2", "wrist_3")
-                ):
-                    v = kin[e]
-                    T = T @ origin([v["x"], v["y"], v["z"]], [v["roll"], v["pitch"], v["yaw"]])
-                    T = T @ origin([0, 0, 0], [0, 0, q[k]])
-                T = T @ origin([0, 0, 0], [0, -np.pi / 2, -np.pi / 2])
-                T = T @ origin([0, 0, 0], [np.pi / 2, 0, np.pi / 2])
-                err = max(err, np.abs((T @ np.r_[tcp, 1.0])[:3] - p).max())
+            err = max(
+                np.abs(ur_target(kin, tcp, q) - p).max() for q, p in zip(Q, local, strict=True)
+            )
             errors["ur (as ur_macro.xacro composes it)"] = err
         for name, value in errors.items():
             print(f"{stem:9s} {name:45s} max |Δ| {value:.2e} m over {args.vectors} joint vectors")

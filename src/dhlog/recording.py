@@ -717,7 +717,13 @@ def _process_blueprint(result: object, k: float, found: list[Residuals]) -> rrb.
             ),
             rrb.Vertical(
                 rrb.TextDocumentView(name="DH parameters", origin="report/dh_table"),
-                rrb.Tabs(plots("fk", "FK residuals"), plots("fit", "Fit residuals")),
+                rrb.Tabs(
+                    *[
+                        plots(kind, title)
+                        for kind, title in (("fk", "FK residuals"), ("fit", "Fit residuals"))
+                        if any(res.kind == kind for res in found)  # no encoders: no FK plots
+                    ]
+                ),
                 row_shares=[1, 1],
             ),
             column_shares=[1, 1],
