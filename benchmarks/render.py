@@ -1,6 +1,6 @@
 """Render the sample logs' recordings as a reviewer first sees them, and check the pictures.
 
-    .venv/bin/python benchmarks/render.py [--logs kr5_0.01mm scara kr5_real] [--out docs/images]
+    .venv/bin/python benchmarks/render.py [--logs kr5_0.01mm scara …] [--out docs/images]
 
 Each log is processed by ``dhlog process`` (its recording written to a temporary folder), the
 recording drawn by the Rerun viewer at 1600×1000 under Xvfb with Mesa's software Vulkan
@@ -26,7 +26,11 @@ DHLOG = str(Path(sys.executable).with_name("dhlog"))
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--logs", nargs="+", default=["kr5_0.01mm", "scara", "kr5_real"])
+    parser.add_argument(
+        "--logs",
+        nargs="+",
+        default=["kr5_0.01mm", "scara", "kr5_real", "kr5_phase", "puma560_step", "kr5_0.1mm"],
+    )
     parser.add_argument("--out", type=Path, default=ROOT / "docs" / "images")
     args = parser.parse_args()
     why = missing()
