@@ -623,9 +623,7 @@ def batch(
     units: Annotated[str, typer.Option(help="Units of each log's CSV: mm or m.")] = "mm",
     force: Annotated[bool, typer.Option("--force", help="Overwrite existing results.")] = False,
 ) -> None:
-    """Process many logs (a pool of --jobs workers): each log's results as `dhlog process`
-    writes them, and one summary table (summary.csv, summary.parquet). A failing log is a row
-    with its reason; the batch goes on."""
+    """Process many logs in --jobs workers into one summary table (a failing log is a row)."""
     import time
 
     from rich.markup import escape
@@ -762,8 +760,7 @@ def import_(
     angle_unit: Annotated[str, typer.Option(help="rad, deg or gon: revolute joints.")] = "deg",
     force: Annotated[bool, typer.Option("--force", help="Overwrite the output.")] = False,
 ) -> None:
-    """Convert a measurement export (CSV, SpatialAnalyzer, Leica) into an MCAP log that
-    `dhlog process` reads (ROS 2 layout, pipeline ros2_tracker)."""
+    """Convert a tracker export (CSV, SpatialAnalyzer, Leica) into a log dhlog process reads."""
     from rich.markup import escape
 
     from dhlog.io.importer import ImportOptions, import_source, write_imported
@@ -829,9 +826,7 @@ def compare_results(
         typer.Option(help="With a batch summary: write the trends as a Rerun recording here."),
     ] = None,
 ) -> None:
-    """Has the robot changed? Each parameter's change over its combined σ, and the FK
-    difference over the joint range (in the robot's base frame). Given a batch summary: every
-    parameter's trend over the sessions."""
+    """Has the robot changed? Two results, or every parameter's trend over a batch summary."""
     from rich.markup import escape
     from rich.table import Table
 
