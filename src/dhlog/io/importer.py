@@ -257,14 +257,15 @@ def _from_csv(path: Path, opts: ImportOptions) -> dict[str, Any]:
     out: dict[str, Any] = {"xyz": _points(table, opts), "names": names, "q": q}
     if opts.time:
         k = table.column(opts.time, "the time")
-        t = table.numbers(k, "time") * TIME_UNITS[opts.time_unit]
+        with np.errstate(over="ignore"):  # an absurd value becomes inf, refused below
+            t = table.numbers(k, "time") * TIME_UNITS[opts.time_unit]
         step = np.diff(t)
         bad = np.flatnonzero(step <= 0)
         if bad.size:
             raise ConversionError(
                 path, "time does not increase; sort the export by time.", table.lines[bad[0] + 1]
             )
-        if t[-1] - t[0] > 1e15:  # longer than 11 days: not one session (or the wrong unit)
+        if not t[-1] - t[0] <= 1e15:  # longer than 11 days (or infinite): not one session (or the wrong unit)
             raise ConversionError(
                 path,
                 f"the time column spans {(t[-1] - t[0]) / 86.4e12:.3g} days; check --time-unit.",
