@@ -265,7 +265,7 @@ def _from_csv(path: Path, opts: ImportOptions) -> dict[str, Any]:
             raise ConversionError(
                 path, "time does not increase; sort the export by time.", table.lines[bad[0] + 1]
             )
-        if not t[-1] - t[0] <= 1e15:  # longer than 11 days (or infinite): not one session (or the wrong unit)
+        if not t[-1] - t[0] <= 1e15:  # over 11 days (or infinite): the wrong unit
             raise ConversionError(
                 path,
                 f"the time column spans {(t[-1] - t[0]) / 86.4e12:.3g} days; check --time-unit.",
