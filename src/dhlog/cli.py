@@ -654,8 +654,8 @@ def batch(
             )
             raise typer.Exit(EXIT_USAGE)
     suffixes = [".dh.json", ".dh.csv", *([] if no_rrd else [".rrd"])]
-    clash = [str(out / f"{s}{x}") for s in stems for x in suffixes if (out / f"{s}{x}").exists()]
-    clash += [str(p) for p in (out / f"{SUMMARY_STEM}.csv",) if p.exists()]
+    wanted = [out / f"{s}{x}" for s in stems for x in suffixes] + [out / f"{SUMMARY_STEM}.csv"]
+    clash = [str(p) for p in wanted if p.exists()]
     if clash and not force:
         stderr.print(f"error: {escape(clash[0])} (and {len(clash) - 1} more) exist; pass --force.")
         raise typer.Exit(EXIT_USAGE)

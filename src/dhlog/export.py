@@ -212,7 +212,7 @@ def ur_calibration(result_path: str | Path) -> tuple[str, FloatArray]:
     import hashlib
 
     source = str(result_path)
-    data, table, model = _load(result_path)
+    _, table, model = _load(result_path)
     if table.n != 6 or any(t is not JointType.REVOLUTE for t in table.joint_types):
         raise DHFileError(
             source, f"a UR calibration needs six revolute joints; this result has {table.n}."
@@ -239,7 +239,6 @@ def ur_calibration(result_path: str | Path) -> tuple[str, FloatArray]:
         ):
             lines.append(f"    {key}: {float(value):.17g}")
     lines.append(f"  hash: dhlog_{digest}")
-    del data
     return "\n".join(lines) + "\n", tcp[:3]
 
 

@@ -31,6 +31,7 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 import rerun as rr
@@ -39,6 +40,10 @@ import rerun.blueprint as rrb
 from dhlog.dh import JointType, StandardDH
 from dhlog.geometry._checks import FloatArray, perpendicular_basis
 from dhlog.kinematics import fk_frames
+
+if TYPE_CHECKING:
+    from dhlog.identify.sweeps import JointReport
+    from dhlog.process import ProcessResult
 
 PALETTE = np.array(
     [
@@ -192,77 +197,99 @@ def _arc_points(
     return np.asarray(center + radius * (np.outer(np.cos(a), u) + np.outer(np.sin(a), v)))
 
 
-def _display_transform(result: object) -> FloatArray:
-    """M → the robot's base frame (DH frame 1, z along axis 1), turned upside down when the
-    robot's frames lie below it (a robot whose axis 1 points down), so it stands on the grid."""
-    from dhlog.process import ProcessResult
+@dataclass(frozen=True)
+class Shown:
+    """What a result's recording draws, read from the result once: the samples (``xyz`` in M,
+    ``t`` stamps, ``q`` encoder values or None), the DH frames of the shown table, the
+    transform from M to the displayed base frame and the scene's sizes."""
 
-    assert isinstance(result, ProcessResult)
-    ex = result.extraction
-    if ex is None:
-        return np.eye(4)
-    T = np.linalg.inv(ex.T_measurement_base)
-    origins = _shown_frames(result)[:, :3, 3]  # the robot's structure, not where it reaches
-    if float(np.median(origins @ T[2, :3] + T[2, 3])) < 0.0:
-        T = np.diag([1.0, -1.0, -1.0, 1.0]) @ T
-    return np.asarray(T, dtype=np.float64)
+    result: ProcessResult
+    xyz: FloatArray
+    t: np.ndarray
+    q: FloatArray | None
+    frames: FloatArray | None
+    T: FloatArray
+    scene: Scene
 
+    @classmethod
+    def of(cls, result: ProcessResult) -> Shown:
+        table = result.segmentation.table
+        xyz = table.select(["x", "y", "z"]).to_numpy()
+        qcols = [f"q_{i + 1}" for i in range(len(result.joints))]
+        q = table.select(qcols).to_numpy() if all(c in table.columns for c in qcols) else None
+        frames: FloatArray | None = None
+        T: FloatArray = np.eye(4)
+        ex = result.extraction
+        if ex is not None:
+            frames = ex.frames
+            if result.conditioned is not None:  # the Hayati table's frames: the standard
+                # table's origins run off along near-parallel axes (d of metres)
+                frames = fk_frames(
+                    result.conditioned.table, ex.reference_pose, T_base=ex.T_measurement_base
+                )
+            frames = frames if result.complete else frames[:-1]
+            # M → the base frame (DH frame 1, z along axis 1), turned over when the robot's
+            # frames (its structure, not where it reaches) lie below it: it stands on the grid
+            T = np.asarray(np.linalg.inv(ex.T_measurement_base), dtype=np.float64)
+            if float(np.median(frames[:, :3, 3] @ T[2, :3] + T[2, 3])) < 0.0:
+                T = np.diag([1.0, -1.0, -1.0, 1.0]) @ T
+        centre = ex.T_measurement_base[:3, 3] if ex is not None else np.median(xyz, axis=0)
+        reach = float(np.max(np.linalg.norm(xyz - centre, axis=1))) if xyz.size else 1.0
+        return cls(result, xyz, table["t_ns"].to_numpy(), q, frames, T, Scene(max(reach, 0.05)))
 
-def _scene(result: object) -> Scene:
-    from dhlog.process import ProcessResult
+    def position(self, rows: np.ndarray, joint: int) -> np.ndarray:
+        """The moved joint's encoder value at ``rows`` on the joint time line (m°, or µm)."""
+        if self.q is None:
+            return np.zeros(rows.size, dtype=np.int64)
+        prismatic = self.result.joints[joint - 1].type is JointType.PRISMATIC
+        scale = 1e6 if prismatic else 180e3 / math.pi
+        return np.asarray(np.round(np.nan_to_num(self.q[rows, joint - 1]) * scale), np.int64)
 
-    assert isinstance(result, ProcessResult)
-    xyz = result.segmentation.table.select(["x", "y", "z"]).to_numpy()
-    if xyz.size == 0:
-        return Scene(1.0)
-    ex = result.extraction
-    centre = ex.T_measurement_base[:3, 3] if ex is not None else np.median(xyz, axis=0)
-    reach = float(np.max(np.linalg.norm(xyz - centre, axis=1)))
-    return Scene(max(reach, 0.05))
+    def eye(self) -> rrb.EyeControls3D:
+        """A camera on the robot (not on the probed base area, which may be much wider):
+        looking at the samples' centre from the front-right, above, at 1.9 times the robot's
+        extent."""
+        T = self.T
+        xyz = self.xyz
+        centre = np.median(xyz @ T[:3, :3].T + T[:3, 3], axis=0) if xyz.size else np.zeros(3)
+        centre[2] *= 0.6  # a little towards the floor: the base stays in the picture
+        towards = np.array([1.0, -1.3, 0.8])
+        eye = centre + 1.9 * self.scene.extent * towards / np.linalg.norm(towards)
+        return rrb.EyeControls3D(
+            kind=rrb.Eye3DKind.Orbital, position=eye, look_target=centre, eye_up=[0.0, 0.0, 1.0]
+        )
 
-
-def _eye(result: object, scene: Scene) -> rrb.EyeControls3D:
-    """A camera on the robot (not on the probed base area, which may be much wider): looking
-    at the samples' centre from the front-right, above, at 1.9 times the robot's extent."""
-    from dhlog.process import ProcessResult
-
-    assert isinstance(result, ProcessResult)
-    xyz = result.segmentation.table.select(["x", "y", "z"]).to_numpy()
-    T = _display_transform(result)
-    centre = np.median(xyz @ T[:3, :3].T + T[:3, 3], axis=0) if xyz.size else np.zeros(3)
-    centre[2] *= 0.6  # a little towards the floor: the base stays in the picture
-    towards = np.array([1.0, -1.3, 0.8])
-    eye = centre + 1.9 * scene.extent * towards / np.linalg.norm(towards)
-    return rrb.EyeControls3D(
-        kind=rrb.Eye3DKind.Orbital, position=eye, look_target=centre, eye_up=[0.0, 0.0, 1.0]
-    )
+    def magnification(self) -> float:
+        """The factor that makes the FK residuals about 2 % of the robot's extent in 3D."""
+        v = self.result.validation
+        if v is None or not math.isfinite(v.rms) or v.rms <= 0:
+            return 1.0
+        return _nice(0.02 * self.scene.extent / v.rms)
 
 
 def write_process_recording(
-    result: object, path: str | Path, *, with_log: bool = False, nominal: str | None = None
+    result: ProcessResult, path: str | Path, *, with_log: bool = False
 ) -> None:
     """Write the recording of a :class:`~dhlog.process.ProcessResult` to ``path`` atomically.
 
     Each run is its own recording (a new recording id), named by the log, the time of the run
     and the nominal; the log's hash is a property. ``with_log``: the MCAP's own channels are
-    imported under ``/log`` by Rerun's MCAP loader, for context."""
+    imported by Rerun's MCAP loader, for context (under their topic names: Rerun 0.41's loader
+    takes no entity prefix)."""
     import uuid
     from datetime import UTC, datetime
 
     from dhlog import __version__
-    from dhlog.process import ProcessResult
     from dhlog.report import result_markdown
 
-    assert isinstance(result, ProcessResult)
-    scene = _scene(result)
-    k = _magnification(result, scene)
-    name = Path(result.path).name
+    shown = Shown.of(result)
+    k = shown.magnification()
     when = datetime.now(UTC).strftime("%Y-%m-%d %H:%M:%S UTC")
-    nominal_name = nominal or (result.nominal.source if result.nominal is not None else None)
-    title = f"{name} — {when}" + (f" — nominal {nominal_name}" if nominal_name else "")
-    found = residual_parts(result)
+    nominal = result.nominal.source if result.nominal is not None else None
+    title = f"{Path(result.path).name} — {when}" + (f" — nominal {nominal}" if nominal else "")
+    found = residual_parts(result, shown)
     with _recording_file(
-        path, "dhlog process", _process_blueprint(result, k, found), str(uuid.uuid4())
+        path, "dhlog process", _process_blueprint(shown, k, found), str(uuid.uuid4())
     ) as rec:
         rec.send_recording_name(title)
         rec.send_property(
@@ -270,77 +297,41 @@ def write_process_recording(
             rr.AnyValues(
                 log=str(result.path),
                 log_sha256=result.sha256,
-                nominal=nominal_name or "none",
+                nominal=nominal or "none",
                 dhlog_version=__version__,
                 pipeline=result.log.pipeline.name,
             ),
         )
-        T = _display_transform(result)
+        T = shown.T
         rec.log("world/m", rr.Transform3D(translation=T[:3, 3], mat3x3=T[:3, :3]), static=True)
-        log_samples(rec, result, scene)
-        log_fits(rec, result, scene)
-        log_base(rec, result, scene)
-        if result.extraction is not None:
-            frames = _shown_frames(result)
-            log_frames(rec, frames, prefix="world/m/dh", axis_length=scene.frame)
+        log_samples(rec, shown)
+        log_fits(rec, shown)
+        log_base(rec, shown)
+        if shown.frames is not None:
+            log_frames(rec, shown.frames, prefix="world/m/dh", axis_length=shown.scene.frame)
             log_links(
                 rec,
-                frames,
+                shown.frames,
                 result.target if result.complete else None,
                 path="world/m/robot/links",
-                radius=2 * scene.line,
+                radius=2 * shown.scene.line,
             )
-        log_residuals(rec, result, found, scene, k)
+        log_residuals(rec, shown, found, k)
         rec.log(
             "report/dh_table",
             rr.TextDocument(result_markdown(result), media_type=rr.MediaType.MARKDOWN),
             static=True,
         )
         if with_log and Path(result.path).is_file():
-            rec.log_file_from_path(result.path, entity_path_prefix="log")
+            rec.log_file_from_path(result.path)
 
 
-def _shown_frames(result: object) -> FloatArray:
-    """The DH frames at the reference pose as the shown table places them: with Hayati rows
-    (nearly parallel axes) the frames of that table, not the standard table's, whose origins
-    run off along the near-parallel axes (d of metres)."""
-    from dhlog.process import ProcessResult
-
-    assert isinstance(result, ProcessResult)
-    ex = result.extraction
-    assert ex is not None
-    frames = ex.frames
-    if result.conditioned is not None:
-        T1 = ex.T_measurement_base
-        frames = fk_frames(result.conditioned.table, ex.reference_pose, T_base=T1)
-    return frames if result.complete else frames[:-1]
-
-
-def _moved_position(result: object, rows: np.ndarray, joint: int) -> np.ndarray:
-    """The moved joint's encoder value at ``rows`` on the joint time line (m°, or µm)."""
-    from dhlog.process import ProcessResult
-
-    assert isinstance(result, ProcessResult)
-    table = result.segmentation.table
-    column = f"q_{joint}"
-    if column not in table.columns:
-        return np.zeros(rows.size, dtype=np.int64)
-    q = table[column].to_numpy()[rows]
-    prismatic = result.joints[joint - 1].type is JointType.PRISMATIC
-    scale = 1e6 if prismatic else 180e3 / math.pi
-    return np.asarray(np.round(np.nan_to_num(q) * scale), dtype=np.int64)
-
-
-def log_samples(rec: rr.RecordingStream, result: object, scene: Scene | None = None) -> None:
+def log_samples(rec: rr.RecordingStream, shown: Shown) -> None:
     """Target samples: per sweep on the sensor and joint time lines (coloured per joint), the
-    set-aside ones (dimmed) and rejected outliers (red) always shown."""
-    from dhlog.process import ProcessResult
-
-    assert isinstance(result, ProcessResult)
-    scene = scene or _scene(result)
+    sweeps named on the sensor time line, the set-aside ones (dimmed) and rejected outliers
+    (red) always shown."""
+    result, xyz, t, scene = shown.result, shown.xyz, shown.t, shown.scene
     table = result.segmentation.table
-    t = table["t_ns"].to_numpy()
-    xyz = table.select(["x", "y", "z"]).to_numpy()
     segment = table["segment"].fill_null(0).to_numpy()
     joint = table["joint"].fill_null(0).to_numpy()
     outlier = np.zeros(table.height, dtype=bool)
@@ -359,12 +350,12 @@ def log_samples(rec: rr.RecordingStream, result: object, scene: Scene | None = N
             path,
             indexes=[
                 _time_column(t[sel]),
-                rr.TimeColumn(JOINT_TIMELINE, sequence=_moved_position(result, sel, k)),
+                rr.TimeColumn(JOINT_TIMELINE, sequence=shown.position(sel, k)),
             ],
             columns=rr.Points3D.columns(positions=xyz[sel]),
         )
     seg = result.segmentation.segments
-    if seg.height:  # the sweeps named on the sensor time line
+    if seg.height:
         names = [j.name for j in result.joints]
         texts = [
             f"sweep {int(s)}: joint {int(k)} ({names[int(k) - 1] if 0 < k <= len(names) else '?'})"
@@ -394,34 +385,28 @@ def _lighter(color: np.ndarray, amount: float = 0.55) -> np.ndarray:
     return np.asarray(color + amount * (255 - color.astype(float)), dtype=np.uint8)
 
 
-def log_fits(rec: rr.RecordingStream, result: object, scene: Scene | None = None) -> None:
+def log_fits(rec: rr.RecordingStream, shown: Shown) -> None:
     """Per joint: the fitted arc over the swept range (or the line over the travel), thin and
     lighter than its samples, and the oriented axis as an arrow of a common length labelled
     ``Jk``; arrows of axes that coincide are staggered along them so both show."""
-    from dhlog.process import ProcessResult
-
-    assert isinstance(result, ProcessResult)
-    scene = scene or _scene(result)
-    xyz = result.segmentation.table.select(["x", "y", "z"]).to_numpy()
+    scene = shown.scene
     drawn: list[tuple[FloatArray, FloatArray]] = []
-    for j in result.joints:
+    for j in shown.result.joints:
         if j.fit is None:
             continue
         f = j.fit
         color = _color(j.index)
         axis = j.axis if j.axis is not None else f.axis
         n = axis.direction
-        pts = xyz[j.rows[j.inliers]] if j.rows.size else np.zeros((0, 3))
+        pts = shown.xyz[j.rows[j.inliers]]
         if f.kind == "circle":
             u, v = perpendicular_basis(n)
             w = pts - f.center
             angles = np.unwrap(np.arctan2(w @ v, w @ u)) if pts.size else np.zeros(2)
             strip = _arc_points(f.center, n, f.radius, float(angles.min()), float(angles.max()))
-            foot = f.center
         else:
             s = (pts - f.center) @ n if pts.size else np.array([-0.5 * f.sweep, 0.5 * f.sweep])
             strip = np.stack([f.center + s.min() * n, f.center + s.max() * n])
-            foot = f.center
         rec.log(
             f"world/m/joints/j{j.index}/fit",
             rr.LineStrips3D([strip], colors=[_lighter(color)], radii=scene.line),
@@ -431,14 +416,13 @@ def log_fits(rec: rr.RecordingStream, result: object, scene: Scene | None = None
             1
             for p, d in drawn
             if abs(float(d @ n)) > math.cos(math.radians(2.0))
-            and np.linalg.norm(np.cross(foot - p, d)) < 0.03 * scene.extent
+            and np.linalg.norm(np.cross(f.center - p, d)) < 0.03 * scene.extent
         )
         drawn.append((axis.point, n))
-        origin = foot + (shared * 0.6 * scene.arrow) * n
         rec.log(
             f"world/m/joints/j{j.index}/axis",
             rr.Arrows3D(
-                origins=[origin],
+                origins=[f.center + (shared * 0.6 * scene.arrow) * n],
                 vectors=[scene.arrow * n],
                 colors=[color],
                 radii=1.5 * scene.line,
@@ -449,12 +433,9 @@ def log_fits(rec: rr.RecordingStream, result: object, scene: Scene | None = None
         )
 
 
-def log_base(rec: rr.RecordingStream, result: object, scene: Scene | None = None) -> None:
+def log_base(rec: rr.RecordingStream, shown: Shown) -> None:
     """The probed base points (orange, visible) and the fitted base plane as a thin outline."""
-    from dhlog.process import ProcessResult
-
-    assert isinstance(result, ProcessResult)
-    scene = scene or _scene(result)
+    result, scene = shown.result, shown.scene
     base = result.log.base
     if base is None or base.height == 0:
         return
@@ -488,101 +469,59 @@ def _nice(value: float) -> float:
     return float(max(m * exp for m in (1, 2, 5) if m * exp <= value))
 
 
-def _fk_residuals(result: object) -> dict[int, tuple[np.ndarray, FloatArray, FloatArray]]:
-    """Per identified joint: its inlier rows, the samples and the FK of the table there."""
-    from dhlog.kinematics import fk_points_chunked
-    from dhlog.process import ProcessResult
-
-    assert isinstance(result, ProcessResult)
-    ex = result.extraction
-    table = result.segmentation.table
-    qcols = [f"q_{i + 1}" for i in range(len(result.joints))]
-    if ex is None or not result.complete or not all(c in table.columns for c in qcols):
-        return {}
-    out = {}
-    for j in result.joints:
-        if j.fit is None:
-            continue
-        rows = j.rows[j.inliers]
-        if "target" in table.columns:
-            rows = rows[table["target"].fill_null(0).to_numpy()[rows] == 0]
-        Q = table.select(qcols).to_numpy()[rows]
-        ok = np.all(np.isfinite(Q), axis=1)
-        rows, Q = rows[ok], Q[ok]
-        P = table.select(["x", "y", "z"]).to_numpy()[rows]
-        pred = fk_points_chunked(ex.standard, Q, ex.tool_point, T_base=ex.T_measurement_base)
-        out[j.index] = (rows, P, pred)
-    return out
-
-
-def _magnification(result: object, scene: Scene) -> float:
-    """The factor that makes the FK residuals about 2 % of the robot's extent in 3D."""
-    from dhlog.process import ProcessResult
-
-    assert isinstance(result, ProcessResult)
-    v = result.validation
-    if v is None or not math.isfinite(v.rms) or v.rms <= 0:
-        return 1.0
-    return _nice(0.02 * scene.extent / v.rms)
-
-
-def _directions(joint: object, P: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray] | None:
+def _directions(
+    joint: JointReport, P: FloatArray
+) -> tuple[FloatArray, FloatArray, FloatArray] | None:
     """Per sample, the joint's radial, axial and tangential unit vectors (prismatic: two
     directions across the motion and the motion)."""
-    from dhlog.identify.sweeps import JointReport
-
-    assert isinstance(joint, JointReport)
     axis = joint.axis if joint.axis is not None else (joint.fit.axis if joint.fit else None)
     if axis is None:
         return None
     n = axis.direction
+    ones = np.ones((P.shape[0], 1))
     if joint.type is JointType.PRISMATIC:
         u, v = perpendicular_basis(n)
-        ones = np.ones((P.shape[0], 1))
         return ones * u, ones * n, ones * v
     w = P - axis.point
     w = w - np.outer(w @ n, n)
     radial = w / np.maximum(np.linalg.norm(w, axis=1, keepdims=True), 1e-12)
-    tangential = np.cross(n, radial)
-    return radial, np.ones((P.shape[0], 1)) * n, tangential
+    return radial, ones * n, np.cross(n, radial)
 
 
 @dataclass(frozen=True)
 class Residuals:
     """One joint's residual components (m) at its samples: ``kind`` ``fit`` or ``fk``, the
-    table rows, the joint time line's values and, for ``fk``, the FK prediction."""
+    table rows, the joint time line's values and, for ``fk``, the residual vectors."""
 
     kind: str
     joint: int
     rows: np.ndarray
     position: np.ndarray
     parts: dict[str, FloatArray]
-    pred: FloatArray | None = None
+    vectors: FloatArray | None = None
 
     def ranges(self) -> tuple[tuple[int, int], tuple[float, float]]:
-        """The plot's x range (joint time line, 3 % margin) and a symmetric y range (mm) that
-        holds every value."""
+        """The plot's x range (joint time line, 3 % margin) and a y range (mm) that holds every
+        value, with room above the data for the legend."""
         lo, hi = int(self.position.min()), int(self.position.max())
         pad = max(1, int(0.03 * (hi - lo)))
         top = max(float(np.max(np.abs(v))) for v in self.parts.values()) * 1e3 * 1.15
         top = top if top > 0 else 1e-3
-        return (lo - pad, hi + pad), (-top, 2.2 * top)  # room above the data for the legend
+        return (lo - pad, hi + pad), (-top, 2.2 * top)
 
 
-def residual_parts(result: object) -> list[Residuals]:
+def residual_parts(result: ProcessResult, shown: Shown | None = None) -> list[Residuals]:
     """Per joint, signed residual components against the moved joint's encoder value: the fit
     residual (radial and axial across the fitted circle; across a fitted line in two
-    directions) and the FK residual of the final table (radial, axial, tangential)."""
-    from dhlog.process import ProcessResult
-
-    assert isinstance(result, ProcessResult)
-    xyz = result.segmentation.table.select(["x", "y", "z"]).to_numpy()
+    directions) and the FK residual the validation reports (radial, axial, tangential)."""
+    shown = shown or Shown.of(result)
     out = []
+    checked = result.validation.vectors if result.validation is not None else None
     for j in result.joints:
-        if j.fit is None or j.rows.size == 0:
+        if j.fit is None:
             continue
         rows = j.rows[j.inliers]
-        P = xyz[rows]
+        P = shown.xyz[rows]
         dirs = _directions(j, P)
         if dirs is None or rows.size == 0:
             continue
@@ -596,47 +535,41 @@ def residual_parts(result: object) -> list[Residuals]:
         else:
             u, v = perpendicular_basis(n)
             parts = {"radial": w @ u, "tangential": w @ v}
-        out.append(Residuals("fit", j.index, rows, _moved_position(result, rows, j.index), parts))
-    for joint, (rows, P, pred) in _fk_residuals(result).items():
-        dirs = _directions(result.joints[joint - 1], P)
-        if dirs is None or rows.size == 0:
+        out.append(Residuals("fit", j.index, rows, shown.position(rows, j.index), parts))
+        if checked is None:
             continue
-        r = P - pred
-        parts = {
-            name: np.sum(r * d, axis=1)
+        ok = np.all(np.isfinite(checked[rows]), axis=1)  # rows the validation checked
+        if not np.any(ok):
+            continue
+        r = checked[rows[ok]]
+        fk_parts = {
+            name: np.sum(r * d[ok], axis=1)
             for name, d in zip(("radial", "axial", "tangential"), dirs, strict=True)
         }
-        position = _moved_position(result, rows, joint)
-        out.append(Residuals("fk", joint, rows, position, parts, pred))
+        out.append(
+            Residuals("fk", j.index, rows[ok], shown.position(rows[ok], j.index), fk_parts, r)
+        )
     return out
 
 
 def log_residuals(
-    rec: rr.RecordingStream,
-    result: object,
-    found: list[Residuals],
-    scene: Scene | None = None,
-    k: float = 1.0,
+    rec: rr.RecordingStream, shown: Shown, found: list[Residuals], k: float = 1.0
 ) -> None:
     """The residual components as plots on both time lines (mm), and the FK residuals magnified
     ``k`` times in 3D (``world/m/magnified``: each sample drawn at FK + k × residual)."""
-    from dhlog.process import ProcessResult
-
-    assert isinstance(result, ProcessResult)
-    scene = scene or _scene(result)
-    xyz = result.segmentation.table.select(["x", "y", "z"]).to_numpy()
-    t_all = result.segmentation.table["t_ns"].to_numpy()
     for res in found:
         index = [
-            _time_column(t_all[res.rows]),
+            _time_column(shown.t[res.rows]),
             rr.TimeColumn(JOINT_TIMELINE, sequence=res.position),
         ]
         _send_components(rec, f"residuals/{res.kind}/j{res.joint}", index, res.parts)
-        if res.pred is not None:
-            r = xyz[res.rows] - res.pred
+        if res.vectors is not None:
+            pred = shown.xyz[res.rows] - res.vectors
             rec.log(
                 f"world/m/magnified/j{res.joint}",
-                rr.Points3D(res.pred + k * r, colors=[_color(res.joint)], radii=scene.sample),
+                rr.Points3D(
+                    pred + k * res.vectors, colors=[_color(res.joint)], radii=shown.scene.sample
+                ),
                 static=True,
             )
 
@@ -656,13 +589,11 @@ def _send_components(
         )
 
 
-def _process_blueprint(result: object, k: float, found: list[Residuals]) -> rrb.Blueprint:
+def _process_blueprint(shown: Shown, k: float, found: list[Residuals]) -> rrb.Blueprint:
     """The default layout: the 3D evidence (samples and fits; FK residuals magnified) on the
     left, the DH table above the per-joint residual plots on the right, side panels closed."""
-    from dhlog.process import ProcessResult
-
-    assert isinstance(result, ProcessResult)
-    eye = _eye(result, _scene(result))
+    result = shown.result
+    eye = shown.eye()
     everything = [
         rrb.VisibleTimeRange(
             timeline,

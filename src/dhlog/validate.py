@@ -25,8 +25,11 @@ if TYPE_CHECKING:
 
 @dataclass
 class Validation:
-    """FK of the result against each assigned sample with encoder values (m), and summaries."""
+    """FK of the result against each assigned sample with encoder values (m), and summaries:
+    ``vectors`` (table rows, 3) sample − FK, NaN at rows not checked; ``residuals`` their
+    lengths."""
 
+    vectors: FloatArray
     residuals: FloatArray
     per_joint: dict[int, tuple[float, float, int]]
     rms: float
@@ -36,13 +39,15 @@ class Validation:
     @classmethod
     def of(
         cls,
-        residuals: FloatArray,
+        vectors: FloatArray,
         per_joint: dict[int, tuple[float, float, int]],
         used: FloatArray,
     ) -> Validation:
-        """The validation with RMS, max and count over the residuals ``used`` (m)."""
+        """The validation of the residual ``vectors``, with RMS, max and count over the
+        residual lengths ``used`` (m)."""
         return cls(
-            residuals=residuals,
+            vectors=vectors,
+            residuals=np.sqrt(np.sum(vectors**2, axis=1)),
             per_joint=per_joint,
             rms=float(np.sqrt(np.mean(used**2))) if used.size else float("nan"),
             max=float(used.max()) if used.size else float("nan"),
@@ -107,7 +112,7 @@ def validate_sweeps(
     cols = [f"q_{i + 1}" for i in range(seg.n_joints)]
     Q = table.select(cols).to_numpy()
     P = table.select(["x", "y", "z"]).to_numpy()
-    residuals = np.full(table.height, np.nan)
+    vectors = np.full((table.height, 3), np.nan)
     per_joint: dict[int, tuple[float, float, int]] = {}
     used: list[FloatArray] = []
     for j in joints:
@@ -115,11 +120,11 @@ def validate_sweeps(
         if rows.size == 0:
             continue
         pred = fk_points_chunked(ex.standard, Q[rows], ex.tool_point, T_base=ex.T_measurement_base)
-        r = np.linalg.norm(pred - P[rows], axis=1)
-        residuals[rows] = r
+        vectors[rows] = P[rows] - pred
+        r = np.linalg.norm(vectors[rows], axis=1)
         per_joint[j.index] = (float(np.sqrt(np.mean(r**2))), float(r.max()), int(r.size))
         used.append(r)
-    return Validation.of(residuals, per_joint, np.concatenate(used) if used else np.zeros(0))
+    return Validation.of(vectors, per_joint, np.concatenate(used) if used else np.zeros(0))
 
 
 def validate_samples(
@@ -143,14 +148,14 @@ def validate_samples(
             mask = which == k
             pred[mask] = fk_points_chunked(ex.standard, Q[mask], tool, T_base=ex.T_measurement_base)
     r = np.sqrt(np.sum((pred - P) ** 2, axis=1))
-    residuals = np.full(seg.table.height, np.nan)
-    residuals[rows[inliers]] = r[inliers]
+    vectors = np.full((seg.table.height, 3), np.nan)
+    vectors[rows[inliers]] = (P - pred)[inliers]
     labels = seg.table["joint"].fill_null(0).to_numpy()[rows]
     per_joint: dict[int, tuple[float, float, int]] = {}
     for k in np.unique(labels[inliers]):
         rk = r[inliers & (labels == k)]
         per_joint[int(k)] = (float(np.sqrt(np.mean(rk**2))), float(rk.max()), int(rk.size))
-    return Validation.of(residuals, per_joint, r[inliers])
+    return Validation.of(vectors, per_joint, r[inliers])
 
 
 def check_residual(validation: Validation, sigma: float, notes: list[str]) -> None:

@@ -129,11 +129,21 @@ class _Table:
         )
 
     def numbers(self, k: int, what: str) -> NDArray[np.float64]:
-        out = np.empty(len(self.rows))
-        for i, row in enumerate(self.rows):
-            text = row[k].strip() if k < len(row) else ""
+        """Column ``k`` as numbers (converted in one numpy call; only when that fails or meets
+        a non-finite value are the rows walked, to name the first bad one's line)."""
+        texts = self.texts(k)
+        if self.sep == ";":  # decimal commas
+            texts = [t.replace(",", ".") for t in texts]
+        try:
+            out = np.asarray(texts, dtype=np.float64)
+            if np.all(np.isfinite(out)):
+                return out
+        except ValueError:
+            pass
+        out = np.empty(len(texts))
+        for i, text in enumerate(texts):
             try:
-                out[i] = float(text.replace(",", ".") if self.sep == ";" else text)
+                out[i] = float(text)
             except ValueError:
                 raise ConversionError(
                     self.path, f"{what} '{text}' is not a number.", self.lines[i]
