@@ -54,6 +54,7 @@ from dhlog.identify.propagate import (
     propagate,
     state_names,
 )
+from dhlog.identify.register import Registration, register_nominal
 from dhlog.identify.sweeps import (
     JointReport,
     TargetAtReference,
@@ -139,6 +140,8 @@ class ProcessResult:
     tool_orientation_std: FloatArray | None = None
     conditioned: Conditioned | None = None
     timing: Timing | None = None
+    #: the nominal placed on the points (sessions without sweeps: the fit's start)
+    registration: Registration | None = None
     #: what a reader should know but need not act on (the method chosen, forms shown); the
     #: ``warnings`` are for what may need action
     info: list[str] = field(default_factory=list)
@@ -259,11 +262,11 @@ def process_data(
     for report in joints:
         stage("fitting", (report.index - 1) / n)
         fit_joint(report, seg, log, ref, joints, nominal, fit_method, notes, max_points)
-    for report in joints:
-        if report.reason:
-            notes.append(
-                f"joint {report.index} ({report.name}) was not identified: {report.reason}."
-            )
+    unidentified = [
+        f"joint {report.index} ({report.name}) was not identified: {report.reason}."
+        for report in joints
+        if report.reason
+    ]
     _check_fit_noise(joints, notes)
     base = None
     if log.base is not None and log.base.height >= 3:
@@ -307,6 +310,7 @@ def process_data(
     if not all(j.ok for j in joints):
         if whole_wanted and nominal is not None and _from_the_nominal(result, kwargs, stage):
             return result
+        notes.extend(unidentified)
         result.extraction = partial_extraction(joints, ref, base, nominal_table, kwargs)
         return result
     stage("identifying", 0.0)
@@ -386,36 +390,63 @@ def process_data(
 
 def _from_the_nominal(result: ProcessResult, kwargs: dict[str, Any], stage: Stage) -> bool:
     """Joints never moved alone, identified by the whole-model fit from every other sample
-    (coupled moves, still poses), started from the nominal placed on the identified axes.
-    Returns False (and changes nothing) when the data do not determine them."""
-    from dhlog.kinematics import joint_axes
+    (coupled moves, random static poses, stops), started from the nominal: laid onto the
+    identified axes when at least two were swept alone and fix a rotation, else registered onto
+    the points (``identify.register``: no sweep at all, random static poses). Returns False (and
+    changes nothing) when the data do not determine them."""
+    from dhlog.kinematics import fk_point, joint_axes
 
     nominal = result.nominal
     joints, ref, seg = result.joints, result.reference_pose, result.segmentation
     assert nominal is not None
-    known = [j for j in joints if j.ok and j.axis is not None]
-    points, dirs = joint_axes(nominal.table, ref, T_base=nominal.T_base)
-    if len(known) < 2:
-        return False
-    T = _align_lines(
-        [(points[j.index - 1], dirs[j.index - 1]) for j in known],
-        [(j.axis.point, j.axis.direction) for j in known if j.axis is not None],
-    )
-    if T is None:
-        return False
-    axes = [
-        j.axis
-        if j.ok and j.axis is not None
-        else Line(T[:3, :3] @ points[j.index - 1] + T[:3, 3], T[:3, :3] @ dirs[j.index - 1])
-        for j in joints
-    ]
-    types = tuple(nominal.table.joint_types)
     rows, Q, P = samples_with_encoders(seg)
     if rows.size == 0:
         return False
-    nearest = int(np.argmin(np.sum((Q - ref) ** 2, axis=1)))
-    M = chain_motion(axes, types, Q[nearest], ref)
-    target = np.asarray(np.linalg.solve(M, np.r_[P[nearest], 1.0])[:3], dtype=np.float64)
+    known = [j for j in joints if j.ok and j.axis is not None]
+    points, dirs = joint_axes(nominal.table, ref, T_base=nominal.T_base)
+    T = (
+        _align_lines(
+            [(points[j.index - 1], dirs[j.index - 1]) for j in known],
+            [(j.axis.point, j.axis.direction) for j in known if j.axis is not None],
+        )
+        if len(known) >= 2
+        else None
+    )
+    types = tuple(nominal.table.joint_types)
+    if T is not None:
+        axes = [
+            j.axis
+            if j.ok and j.axis is not None
+            else Line(T[:3, :3] @ points[j.index - 1] + T[:3, 3], T[:3, :3] @ dirs[j.index - 1])
+            for j in joints
+        ]
+        nearest = int(np.argmin(np.sum((Q - ref) ** 2, axis=1)))
+        M = chain_motion(axes, types, Q[nearest], ref)
+        target = np.asarray(np.linalg.solve(M, np.r_[P[nearest], 1.0])[:3], dtype=np.float64)
+    else:
+        which = target_labels(seg, rows)
+        primary = slice(None) if which is None else which == 0
+        try:
+            reg = register_nominal(
+                nominal.table,
+                Q[primary],
+                P[primary],
+                tool_point=nominal.tool_point,
+                T_base=nominal.T_base,
+            )
+        except GeometryError as exc:
+            result.warnings.append(f"the nominal could not be placed on the points: {exc}")
+            return False
+        result.registration = reg
+        points, dirs = joint_axes(nominal.table, ref, T_base=reg.T_measurement_base)
+        axes = [Line(p, d) for p, d in zip(points, dirs, strict=True)]
+        target = fk_point(nominal.table, ref, reg.tool_point, T_base=reg.T_measurement_base)
+        result.info.append(
+            f"no joint was swept alone: the nominal was placed on the points (tracker → base "
+            f"by a robust registration; the nominal's RMS there {reg.rms * 1e3:.4f} mm over "
+            f"{int(np.count_nonzero(reg.inliers))} samples) and every joint identified by the "
+            "whole-model fit from there."
+        )
     missing = [j for j in joints if not j.ok]
     saved = [(j.type, j.axis, j.reason, j.type_source) for j in missing]
     for j in missing:
@@ -428,20 +459,22 @@ def _from_the_nominal(result: ProcessResult, kwargs: dict[str, Any], stage: Stag
     result.target = target
     try:
         _identify_whole(result, None, kwargs, False, stage)
-    except (GeometryError, np.linalg.LinAlgError):
+    except (GeometryError, np.linalg.LinAlgError) as exc:
         result.whole, result.method = None, "analytic"
         for j, (jt, axis, reason, source) in zip(missing, saved, strict=True):
             j.type, j.axis, j.reason, j.type_source = jt, axis, reason, source
         result.target = None
+        result.warnings.append(f"the whole-model fit from the nominal failed: {exc}")
         return False
     assert result.whole is not None
     for j in missing:
         j.axis = result.whole.model.axes[j.index - 1]
-    names = ", ".join(f"joint {j.index} ({j.name})" for j in missing)
-    result.warnings.append(
-        f"{names}: never moved alone; identified by the whole-model fit from the other samples "
-        "(coupled moves, still poses), started from the nominal."
-    )
+    if known:
+        names = ", ".join(f"joint {j.index} ({j.name})" for j in missing)
+        result.warnings.append(
+            f"{names}: never moved alone; identified by the whole-model fit from the other "
+            "samples (coupled moves, still poses), started from the nominal."
+        )
     return True
 
 
@@ -530,6 +563,23 @@ def _identify_whole(
             rates=rates,
             progress=lambda f: stage("identifying", 0.1 + 0.9 * f),
         )
+        if not fit_sigmas:
+            # no per-joint fit told the noise, and outliers were judged on the start's (the
+            # nominal's) residuals: judge them again at the first optimum, on its own scale
+            sigma *= math.sqrt(whole.chi2_dof)
+            whole = fit_whole_model(
+                whole.model,
+                Q,
+                P,
+                noise=result.noise,
+                sigma=sigma,
+                fit_scales=fit_scales,
+                sample_cov=sample_cov,
+                which=which,
+                rotations=rotations,
+                sigma_rotation=result.noise.orientation,
+                rates=rates,
+            )
         if not clocked or timing is None:
             break
         at = whole.layout.clock_at
