@@ -79,6 +79,10 @@ def process_job(job: BatchJob) -> dict[str, Any]:
         return _failed(log, f"internal error {type(exc).__name__}: {exc}", 0.0)
 
 
+#: The file name ending of the held-out poses' CSV (``--holdout``, ``--validate``).
+HOLDOUT_SUFFIX = ".holdout.csv"
+
+
 def write_results(
     result: Any,
     outputs: list[Path],
@@ -87,19 +91,23 @@ def write_results(
     hold_signals: bool = False,
     with_log: bool = False,
 ) -> dict[str, Any]:
-    """Write a result's JSON, CSV and (when a third path is given) recording, moved into place
-    together; returns the JSON document. ``with_log``: the log's own channels in the recording."""
+    """Write a result's JSON, CSV and the further outputs named (a recording, or the held-out
+    poses' CSV for a name ending in ``HOLDOUT_SUFFIX``), moved into place together; returns the
+    JSON document. ``with_log``: the log's own channels in the recording."""
     from dhlog.io.writer import staged_outputs
-    from dhlog.result import result_csv, result_document
+    from dhlog.result import holdout_csv, result_csv, result_document
 
     document = result_document(result)
     with staged_outputs(outputs, hold_signals=hold_signals) as temps:
         temps[0].write_bytes((json.dumps(document, indent=2) + "\n").encode())
         temps[1].write_bytes(result_csv(result, units=units).encode())
-        if len(outputs) > 2:
-            from dhlog.recording import write_process_recording
+        for path, temp in zip(outputs[2:], temps[2:], strict=True):
+            if path.name.endswith(HOLDOUT_SUFFIX):
+                temp.write_bytes(holdout_csv(result, units=units).encode())
+            else:
+                from dhlog.recording import write_process_recording
 
-            write_process_recording(result, temps[2], with_log=with_log)
+                write_process_recording(result, temp, with_log=with_log)
     return document
 
 

@@ -356,6 +356,20 @@ def process(
             help="Also fit one scale per encoder (gear ratio errors), reported with σ.",
         ),
     ] = False,
+    holdout: Annotated[
+        int,
+        typer.Option(
+            help="K-fold cross-validation (K ≥ 2): the error at poses not used to fit, of the "
+            "nominal and of the calibrated model (0: none).",
+        ),
+    ] = 0,
+    validate: Annotated[
+        list[Path] | None,
+        typer.Option(
+            help="A log of other poses of the same robot (repeat for several) scoring the "
+            "result; placed on a third of its poses when the tracker moved.",
+        ),
+    ] = None,
     refine: Annotated[
         bool,
         typer.Option(
@@ -371,7 +385,7 @@ def process(
     from rich.markup import escape
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
-    from dhlog.batch import write_results
+    from dhlog.batch import HOLDOUT_SUFFIX, write_results
     from dhlog.process import process_log
     from dhlog.report import print_result
 
@@ -381,11 +395,23 @@ def process(
     if angle_unit not in (None, "rad", "deg"):
         stderr.print(f"error: --angle-unit must be rad or deg, not '{angle_unit}'.")
         raise typer.Exit(EXIT_USAGE)
+    if holdout == 1 or not 0 <= holdout <= 1000:
+        stderr.print(
+            f"error: --holdout must be 0 (none) or a fold count of 2 to 1000, not {holdout}."
+        )
+        raise typer.Exit(EXIT_USAGE)
     folder = out if out is not None else log.parent
     stem = log.name.removesuffix(".zstd").removesuffix(".mcap")
     outputs = [folder / f"{stem}.dh.json", folder / f"{stem}.dh.csv"]
     if not no_rrd:
         outputs.append(folder / f"{stem}.rrd")
+    if holdout or validate:
+        outputs.append(folder / f"{stem}{HOLDOUT_SUFFIX}")
+    inputs = {p.resolve() for p in [log, *(validate or [])]}
+    clash = [str(p) for p in outputs if p.resolve() in inputs]
+    if clash:
+        stderr.print(f"error: {', '.join(clash)} is an input; choose another --out.")
+        raise typer.Exit(EXIT_USAGE)
     existing = [str(p) for p in outputs if p.exists()]
     if existing and not force:
         stderr.print(f"error: {', '.join(existing)} exist(s); pass --force to overwrite.")
@@ -419,6 +445,8 @@ def process(
                 reference_pose=ref,
                 analytic_only=analytic_only,
                 fit_scales=fit_encoder_scales,
+                holdout=holdout,
+                validate=list(validate or []),
                 progress=advance,
             )
             if refine:
@@ -440,6 +468,10 @@ def process(
     stdout.print("wrote " + ", ".join(str(p) for p in outputs))
     if not no_rrd:
         stdout.print(f"open the recording with: {_viewer()} {outputs[2]}")
+    if (holdout or validate) and not result.holdout:
+        stderr.print(
+            "held-out error: not computed (it needs the whole-model fit of a complete result)."
+        )
     if not result.complete:
         names = ", ".join(f"joint {j.index} ({j.name})" for j in result.failed)
         stderr.print(f"partial result: {names} not identified; the rest was written.")

@@ -10,6 +10,7 @@ the nominal are a table of their own. Values are printed to 0.1 µm and 0.0001°
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 from rich import box
@@ -127,6 +128,7 @@ def print_result(console: Console, result: ProcessResult, *, units: str = "mm") 
         _print_nominal(console, result, rows, units)
     _print_fits(console, result, units)
     _print_tool_and_base(console, result, units)
+    _print_holdout(console, result, units)
     lines = [("Method", _method_line(result, length, lu))]
     if result.extraction is not None:
         lines.append(("Frame 1", f"origin at {frame_1_origin(result)}"))
@@ -149,6 +151,50 @@ def print_result(console: Console, result: ProcessResult, *, units: str = "mm") 
     lines += [("Note", note) for note in result.info]
     _prose(console, lines)
     _prose(console, [("[yellow]Warning[/]", w) for w in result.warnings], markup=True)
+
+
+def _print_holdout(console: Console, result: ProcessResult, units: str) -> None:
+    """Per held-out check, the position error of the nominal and of the calibrated model at
+    poses not used to fit: mean, RMS, 95th percentile, max."""
+    if not result.holdout:
+        return
+    length, _, lu, _ = _scales(units)
+    digits = 4 if units == "mm" else 7
+    t = Table(
+        title=escape(f"Held-out error: 3-D distance at poses not used to fit [{lu}]"),
+        title_justify="left",
+        box=box.SIMPLE_HEAD,
+        pad_edge=False,
+    )
+    for head in ("check", "model", "poses", "mean", "RMS", "95 %", "max"):
+        t.add_column(head, justify="left" if head in ("check", "model") else "right")
+    for h in result.holdout:
+        what = f"{h.folds}-fold" if h.kind == "cross-validation" else Path(h.path or "").name
+        if h.registered:
+            what += " (placed)"
+        for label, stats in (("nominal", h.nominal), ("calibrated", h.calibrated)):
+            if stats is None:
+                continue
+            t.add_row(
+                escape(what) if label == "nominal" or h.nominal is None else "",
+                label,
+                str(stats.n_poses),
+                *(
+                    f"{v * length:.{digits}f}"
+                    for v in (stats.mean, stats.rms, stats.p95, stats.max)
+                ),
+            )
+    console.print(t)
+    in_sample = result.validation
+    notes = [note for h in result.holdout for note in h.notes]
+    if in_sample is not None:
+        notes.insert(
+            0,
+            f"in-sample FK RMS {in_sample.rms * length:.{digits}f} {lu} over "
+            f"{in_sample.n_points} samples (the fitted ones); a held-out error far above it "
+            "means the model fits the session better than it predicts the robot.",
+        )
+    _prose(console, [("Held out", n) for n in dict.fromkeys(notes)])
 
 
 def _prose(console: Console, lines: list[tuple[str, str]], *, markup: bool = False) -> None:
@@ -194,6 +240,8 @@ def _print_nominal(
 
 
 def _print_fits(console: Console, result: ProcessResult, units: str) -> None:
+    if all(j.fit is None for j in result.joints) and all(j.ok for j in result.joints):
+        return  # no sweep (random static poses): nothing but the whole-model fit to show
     length, angle, lu, au = _scales(units)
     fits = Table(
         title="Per-joint fits (RMS: 3-D distance of each sample from its circle or line; "

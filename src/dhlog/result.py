@@ -97,6 +97,7 @@ def result_document(result: ProcessResult) -> dict[str, Any]:
             "fk_rms": None if val is None else val.rms,
             "fk_max": None if val is None else val.max,
             "n_points": 0 if val is None else val.n_points,
+            **({"holdout": [h.document() for h in result.holdout]} if result.holdout else {}),
         },
         "warnings": list(result.warnings),
         "notes": list(result.info),
@@ -431,6 +432,38 @@ def result_csv(result: ProcessResult, *, units: str = "mm") -> str:
         cells = [str(i + 1), _csv_cell(result.joints[i].name), row.type, *values, *stds]
         cells += [row.form, beta, std_beta]
         lines.append(",".join(cells))
+    return "\n".join(lines) + "\n"
+
+
+def holdout_csv(result: ProcessResult, *, units: str = "mm") -> str:
+    """Every held-out pose as CSV: the check (``cross-validation`` or the log's name), the
+    pose's measured position in M, the error vector (measured − predicted) and its length for
+    the nominal (empty without one) and the calibrated model."""
+    _, _, lu, _ = display_scales(units)
+    f = 1e3 if units == "mm" else 1.0
+    axes = ("x", "y", "z")
+    lines = [
+        ",".join(
+            ["check", "pose", *(f"{a}_{lu}" for a in axes)]
+            + [f"nominal_d{a}_{lu}" for a in axes]
+            + [f"nominal_error_{lu}"]
+            + [f"calibrated_d{a}_{lu}" for a in axes]
+            + [f"calibrated_error_{lu}"]
+        )
+    ]
+    for h in result.holdout:
+        check = "cross-validation" if h.kind == "cross-validation" else Path(h.path or "").name
+        for k, pos in enumerate(h.positions):
+            nom = (
+                ["", "", "", ""]
+                if h.nominal_vectors is None
+                else [f"{v * f:.9g}" for v in h.nominal_vectors[k]]
+                + [f"{np.linalg.norm(h.nominal_vectors[k]) * f:.9g}"]
+            )
+            cal = [f"{v * f:.9g}" for v in h.calibrated_vectors[k]]
+            cal.append(f"{np.linalg.norm(h.calibrated_vectors[k]) * f:.9g}")
+            cells = [_csv_cell(check), str(k + 1), *(f"{v * f:.9g}" for v in pos), *nom, *cal]
+            lines.append(",".join(cells))
     return "\n".join(lines) + "\n"
 
 

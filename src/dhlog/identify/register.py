@@ -64,11 +64,14 @@ def register_nominal(
     tool_point: FloatArray | None = None,
     T_base: FloatArray | None = None,
     alternations: int = 5,
+    fit_tool: bool = True,
 ) -> Registration:
     """Place the nominal ``table`` on the points ``P`` (m, 3) measured at joint vectors ``Q``
     (m, n): see the module docstring. ``tool_point`` and ``T_base`` (the nominal's, if it has
-    them) only start the search. Raises :class:`DegenerateGeometryError` when the poses do not
-    fix a rigid transform (fewer than three distinct, non-collinear target positions)."""
+    them) only start the search; without ``fit_tool`` the tool point is kept (a calibrated
+    model placed again after the tracker moved). Raises :class:`DegenerateGeometryError` when
+    the poses do not fix a rigid transform (fewer than three distinct, non-collinear target
+    positions)."""
     from scipy.optimize import least_squares
 
     if Q.shape[0] < 3:
@@ -89,20 +92,23 @@ def register_nominal(
     for _ in range(alternations):
         local = np.einsum("mij,j->mi", R_last, tool) + p_last
         T = _kabsch(local, P)
+        if not fit_tool:
+            continue
         # the tool point: R (R_last t + p_last) + c = P  →  (R R_last) t = P − c − R p_last
         A = np.einsum("ij,mjk->mik", T[:3, :3], R_last).reshape(-1, 3)
         b = (P - T[:3, 3] - p_last @ T[:3, :3].T).reshape(-1)
         tool, *_ = np.linalg.lstsq(A, b, rcond=None)
 
     def unpack(x: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
-        return rotation_from_vector(x[:3]) @ T[:3, :3], x[3:6] + T[:3, 3], x[6:9]
+        t = x[6:9] if fit_tool else tool
+        return rotation_from_vector(x[:3]) @ T[:3, :3], x[3:6] + T[:3, 3], t
 
     def residual(x: FloatArray) -> FloatArray:
         R, c, t = unpack(x)
         pred = (np.einsum("mij,j->mi", R_last, t) + p_last) @ R.T + c
         return np.asarray((pred - P).reshape(-1), dtype=np.float64)
 
-    x0 = np.r_[np.zeros(6), tool]
+    x0 = np.r_[np.zeros(6), tool] if fit_tool else np.zeros(6)
     sol = least_squares(residual, x0, loss="soft_l1", f_scale=ROBUST_SCALE, x_scale="jac")
     R, c, t = unpack(sol.x)
     T = np.eye(4)

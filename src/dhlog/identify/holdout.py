@@ -1,0 +1,265 @@
+"""The error of a calibration at poses not used to fit it, before (the nominal) and after.
+
+Poses, not samples, are held out: consecutive samples whose joint vectors differ by less than
+:data:`SAME_POSE` form one pose (a tracker's dwell at a static pose), so no held-out pose has a
+sample among the fitted ones. A pose's error is the length of the mean of its samples' residual
+vectors (measured − predicted).
+
+* :func:`cross_validate` (``--holdout K``): the poses split into K folds (seeded); for each fold
+  the whole model is fitted again to the other folds (from the full fit, which the fold's
+  optimum lies close to), and the nominal placed on the same poses (its base and tool point
+  registered, :func:`dhlog.identify.register.register_nominal`); both predict the fold.
+* :func:`score_poses` (``--validate LOG``): a calibrated model and the nominal at the poses of
+  another session, as they are (the tracker stayed) or each placed on a third of them first
+  (the tracker moved: the base re-registered, the remaining poses scored).
+
+Pure numpy/scipy.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+
+from dhlog.dh import StandardDH
+from dhlog.geometry._checks import FloatArray
+from dhlog.identify.register import register_nominal
+from dhlog.identify.whole import WholeFit, fit_whole_model, predict
+from dhlog.kinematics import fk_point
+
+#: Consecutive samples whose joint values all differ by less than this (rad or m) are one pose.
+SAME_POSE = 1e-3
+#: Fewest poses a held-out statistic is given for.
+MIN_POSES = 5
+
+
+@dataclass(frozen=True)
+class ErrorStats:
+    """Position errors (m) at held-out poses: mean, RMS, 95th percentile, max, count."""
+
+    mean: float
+    rms: float
+    p95: float
+    max: float
+    n_poses: int
+
+    @classmethod
+    def of(cls, errors: FloatArray) -> ErrorStats:
+        e = np.asarray(errors, dtype=np.float64)
+        return cls(
+            float(e.mean()),
+            float(np.sqrt(np.mean(e**2))),
+            float(np.percentile(e, 95)),
+            float(e.max()),
+            int(e.size),
+        )
+
+    def document(self) -> dict[str, float | int]:
+        return {
+            "mean": self.mean,
+            "rms": self.rms,
+            "p95": self.p95,
+            "max": self.max,
+            "n_poses": self.n_poses,
+        }
+
+
+@dataclass
+class Holdout:
+    """One held-out check: ``kind`` ``"cross-validation"`` (``folds``) or ``"log"`` (``path``;
+    ``registered``: the base was placed again on ``n_registration_poses`` of its poses because
+    the tracker moved); the statistics of the nominal and of the calibrated model, and per
+    scored pose its measured position and both error vectors (measured − predicted, m)."""
+
+    kind: str
+    nominal: ErrorStats | None
+    calibrated: ErrorStats
+    positions: FloatArray
+    nominal_vectors: FloatArray | None
+    calibrated_vectors: FloatArray
+    folds: int | None = None
+    path: str | None = None
+    registered: bool = False
+    n_registration_poses: int = 0
+    notes: list[str] = field(default_factory=list)
+
+    def document(self) -> dict[str, object]:
+        doc: dict[str, object] = {"kind": self.kind}
+        if self.folds is not None:
+            doc["folds"] = self.folds
+        if self.path is not None:
+            doc["path"] = self.path
+            doc["registered"] = self.registered
+            doc["n_registration_poses"] = self.n_registration_poses
+        doc["n_poses"] = self.calibrated.n_poses
+        doc["nominal"] = None if self.nominal is None else self.nominal.document()
+        doc["calibrated"] = self.calibrated.document()
+        doc["notes"] = list(self.notes)
+        return doc
+
+
+def pose_groups(Q: FloatArray) -> NDArray[np.int64]:
+    """A pose index (0, 1, …) per sample of ``Q`` (m, n) in time order: a new pose wherever a
+    joint value moves by :data:`SAME_POSE` or more from the previous sample."""
+    if Q.shape[0] == 0:
+        return np.zeros(0, dtype=np.int64)
+    step = np.max(np.abs(np.diff(Q, axis=0)), axis=1) >= SAME_POSE
+    return np.concatenate([[0], np.cumsum(step)]).astype(np.int64)
+
+
+def _pose_errors(
+    groups: NDArray[np.int64], mask: NDArray[np.bool_], P: FloatArray, pred: FloatArray
+) -> tuple[FloatArray, FloatArray]:
+    """Per pose with samples in ``mask``: the mean measured position and the mean residual
+    (``pred``: the prediction at every sample, or at the samples in ``mask``)."""
+    g = groups[mask]
+    ids, inverse = np.unique(g, return_inverse=True)
+    count = np.bincount(inverse, minlength=ids.size)[:, None]
+    pos = np.zeros((ids.size, 3))
+    vec = np.zeros((ids.size, 3))
+    np.add.at(pos, inverse, P[mask])
+    np.add.at(vec, inverse, P[mask] - (pred[mask] if pred.shape[0] == mask.size else pred))
+    return pos / count, vec / count
+
+
+def cross_validate(
+    whole: WholeFit,
+    Q: FloatArray,
+    P: FloatArray,
+    folds: int,
+    *,
+    fit_options: dict[str, object],
+    nominal: tuple[StandardDH, FloatArray, FloatArray] | None = None,
+    which: NDArray[np.int64] | None = None,
+    seed: int = 0,
+) -> Holdout:
+    """K-fold cross-validation over poses (see the module docstring). ``fit_options`` are the
+    keyword arguments of the full fit (noise, σ, per-sample covariance, orientations, …);
+    ``nominal`` = (table, T_base, tool point) to place on each fold's fitted poses. Only the
+    full fit's inliers are used; with several targets only the primary one is scored."""
+    from dhlog.errors import InputError
+
+    groups = pose_groups(Q)
+    usable = whole.inliers.copy()
+    if which is not None:
+        usable &= which == 0
+    poses = np.unique(groups[usable])
+    if poses.size < max(folds, MIN_POSES):
+        raise InputError(
+            f"--holdout {folds}: the session has {poses.size} distinct poses; hold out fewer "
+            "folds or measure more poses."
+        )
+    rng = np.random.default_rng(seed)
+    fold_of_pose = np.empty(poses.size, dtype=np.int64)
+    fold_of_pose[rng.permutation(poses.size)] = np.arange(poses.size) % folds
+    fold = np.full(Q.shape[0], -1, dtype=np.int64)
+    fold[np.isin(groups, poses)] = fold_of_pose[
+        np.searchsorted(poses, groups[np.isin(groups, poses)])
+    ]
+    positions, cal_vecs, nom_vecs = [], [], []
+    notes: list[str] = []
+    for k in range(folds):
+        test = usable & (fold == k)
+        train = whole.inliers & (fold != k)
+        fit = fit_whole_model(whole.model, Q, P, keep=train, which=which, **fit_options)  # type: ignore[arg-type]
+        pred, _ = predict(fit.model, Q[test])
+        pos, vec = _pose_errors(groups, test, P, pred)
+        positions.append(pos)
+        cal_vecs.append(vec)
+        if nominal is not None:
+            table, T_base, tool = nominal
+            primary = train if which is None else train & (which == 0)
+            reg = register_nominal(table, Q[primary], P[primary], tool_point=tool, T_base=T_base)
+            pn = fk_point(table, Q[test], reg.tool_point, T_base=reg.T_measurement_base)
+            nom_vecs.append(_pose_errors(groups, test, P, pn)[1])
+    cal = np.vstack(cal_vecs)
+    nom = np.vstack(nom_vecs) if nom_vecs else None
+    if nominal is not None:
+        notes.append(
+            "the nominal's base and tool point were placed on each fold's fitted poses "
+            "(a robust registration), as a calibration would be judged without one."
+        )
+    return Holdout(
+        kind="cross-validation",
+        nominal=None if nom is None else ErrorStats.of(np.linalg.norm(nom, axis=1)),
+        calibrated=ErrorStats.of(np.linalg.norm(cal, axis=1)),
+        positions=np.vstack(positions),
+        nominal_vectors=nom,
+        calibrated_vectors=cal,
+        folds=folds,
+        notes=notes,
+    )
+
+
+#: The tracker counts as moved when the model's error at a session's poses as they are exceeds
+#: this many times its error after placing the base again on a third of them.
+MOVED_RATIO = 2.0
+
+
+def score_poses(
+    calibrated: tuple[StandardDH, FloatArray, FloatArray],
+    Q: FloatArray,
+    P: FloatArray,
+    *,
+    path: str,
+    nominal: tuple[StandardDH, FloatArray, FloatArray] | None = None,
+) -> Holdout:
+    """The calibrated model (table, T_measurement_base, tool point) and the nominal at the poses
+    of another session (``Q``, ``P``: its samples of the primary target). When the model misses
+    the poses by more than :data:`MOVED_RATIO` times what it does once its base is placed on a
+    third of them (every third pose), the tracker moved: the base is placed on that third (for
+    the nominal: base and tool point) and the other poses are scored; else every pose is scored
+    as it is (the nominal's base and tool point are then placed on every pose: the error the
+    nominal leaves at best)."""
+    from dhlog.errors import InputError
+
+    groups = pose_groups(Q)
+    poses = np.unique(groups)
+    if poses.size < MIN_POSES:
+        raise InputError(
+            f"{path}: has {poses.size} distinct poses with encoder values; a held-out check needs "
+            f"at least {MIN_POSES}."
+        )
+    table, T, tool = calibrated
+    subset = np.isin(groups, poses[::3])
+    rest = ~subset
+    as_is = fk_point(table, Q, tool, T_base=T)
+    moved_reg = register_nominal(
+        table, Q[subset], P[subset], tool_point=tool, T_base=T, fit_tool=False
+    )
+    placed = fk_point(table, Q, tool, T_base=moved_reg.T_measurement_base)
+    err_as_is = float(np.sqrt(np.mean(np.sum((P[rest] - as_is[rest]) ** 2, axis=1))))
+    err_placed = float(np.sqrt(np.mean(np.sum((P[rest] - placed[rest]) ** 2, axis=1))))
+    moved = err_as_is > MOVED_RATIO * err_placed
+    scored = rest if moved else np.ones(Q.shape[0], dtype=bool)
+    pred = placed if moved else as_is
+    pos, cal = _pose_errors(groups, scored, P, pred)
+    nom = None
+    notes = []
+    if moved:
+        notes.append(
+            f"the tracker moved (the model misses these poses by {err_as_is * 1e3:.4f} mm RMS as "
+            f"they are, {err_placed * 1e3:.4f} mm with its base placed on a third of them): the "
+            f"base was placed on {int(np.unique(groups[subset]).size)} poses and the other "
+            f"{int(np.unique(groups[rest]).size)} scored."
+        )
+    if nominal is not None:
+        ntable, nT, ntool = nominal
+        fit_on = subset if moved else np.ones(Q.shape[0], dtype=bool)
+        reg = register_nominal(ntable, Q[fit_on], P[fit_on], tool_point=ntool, T_base=nT)
+        pn = fk_point(ntable, Q, reg.tool_point, T_base=reg.T_measurement_base)
+        nom = _pose_errors(groups, scored, P, pn)[1]
+    return Holdout(
+        kind="log",
+        nominal=None if nom is None else ErrorStats.of(np.linalg.norm(nom, axis=1)),
+        calibrated=ErrorStats.of(np.linalg.norm(cal, axis=1)),
+        positions=pos,
+        nominal_vectors=nom,
+        calibrated_vectors=cal,
+        path=path,
+        registered=bool(moved),
+        n_registration_poses=int(np.unique(groups[subset]).size) if moved else 0,
+        notes=notes,
+    )
