@@ -49,7 +49,7 @@ from dhlog.identify.analytic import (
     propagate_analytic,
 )
 from dhlog.identify.holdout import Holdout, cross_validate, score_poses
-from dhlog.identify.noise import NoiseModel
+from dhlog.identify.noise import MODEL_ERROR_CHI2, NoiseModel, model_error_sigma
 from dhlog.identify.propagate import (
     fixed_reasons,
     propagate,
@@ -77,6 +77,7 @@ from dhlog.identify.whole import (
     axis_covariances,
     constrain_pairs,
     fit_whole_model,
+    predict,
 )
 from dhlog.io.pipeline import Pipeline
 from dhlog.io.reader import LogData, read_log
@@ -647,6 +648,7 @@ def _identify_whole(
         start = replace(whole.model, clock=0.0)
         result.segmentation = seg
     result.timing = timing
+    whole, sample_cov = _with_model_error(result, whole, Q, P, sample_cov, which, rates, rotations)
     nominal_table = nominal.table if nominal is not None else None
     covs = axis_covariances(whole)
     kw = dict(kwargs)
@@ -752,6 +754,58 @@ def _identify_whole(
                 which=which,
             )
         )
+
+
+def _with_model_error(
+    result: ProcessResult,
+    whole: WholeFit,
+    Q: FloatArray,
+    P: FloatArray,
+    sample_cov: FloatArray | None,
+    which: NDArray[np.int64] | None,
+    rates: FloatArray | None,
+    rotations: FloatArray | None,
+) -> tuple[WholeFit, FloatArray | None]:
+    """Where the declared uncertainties (per-sample covariances, the tracker model) are far
+    below the residuals (χ²/dof above ``MODEL_ERROR_CHI2``), the model, not the tracker, limits
+    the fit: an isotropic model-error variance is estimated (χ²/dof = 1) and added to every
+    sample's covariance, and the fit done again — so that weighting by U95 of a few µm never
+    makes a result worse than no weighting when the robot leaves tens of µm. Returns the fit
+    and the covariances it used."""
+    declared = sample_cov
+    if declared is None and result.noise.model == "tracker":
+        declared = result.noise.covariance(P)
+    if declared is None or whole.chi2_dof <= MODEL_ERROR_CHI2:
+        return whole, sample_cov
+    before = whole.chi2_dof
+    s = 0.0
+    for _ in range(2):  # the residuals barely move with the weights: twice is converged
+        pred, _ = predict(whole.model, Q, which=which, rates=rates)
+        inl = whole.inliers
+        dof = max(3 * int(np.count_nonzero(inl)) - whole.layout.size, 1)
+        s = model_error_sigma((P - pred)[inl], declared[inl], dof)
+        sample_cov = declared + (s * s) * np.eye(3)[None]
+        whole = fit_whole_model(
+            whole.model,
+            Q,
+            P,
+            noise=result.noise,
+            sigma=s,
+            fit_scales=whole.layout.scale_at is not None,
+            sample_cov=sample_cov,
+            which=which,
+            rotations=rotations,
+            sigma_rotation=result.noise.orientation,
+            rates=rates,
+        )
+    result.noise = replace(result.noise, model_error=s)
+    result.warnings.append(
+        f"the residuals are {math.sqrt(before):.1f}x what the declared uncertainties "
+        f"({result.noise.declared}) explain (χ²/dof {before:.1f}): the model, not the "
+        f"tracker, limits the fit; a model-error σ of {s * 1e3:.4f} mm per coordinate was "
+        f"estimated and added to every sample's ({LIKELY_CAUSES})."
+    )
+    return whole, sample_cov
 
 
 def _measured_rotations(seg: Segmentation, rows: NDArray[np.int64]) -> FloatArray | None:

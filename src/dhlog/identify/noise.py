@@ -32,6 +32,9 @@ class NoiseModel:
     transverse_per_m: float = 6e-6
     station: tuple[float, float, float] = (0.0, 0.0, 0.0)
     orientation: float | None = None
+    #: the isotropic σ (m) of what the model leaves beyond the declared uncertainties (gravity,
+    #: gears), estimated and added to every sample's covariance; None when not needed
+    model_error: float | None = None
 
     def __post_init__(self) -> None:
         if self.model not in ("isotropic", "tracker", "per-sample"):
@@ -54,6 +57,14 @@ class NoiseModel:
     @property
     def described(self) -> str:
         """One line for the console and the result."""
+        base = self.declared
+        if self.model_error is None:
+            return base
+        return f"{base} + model error σ {self.model_error * 1e3:.4f} mm per coordinate"
+
+    @property
+    def declared(self) -> str:
+        """The declared model alone, without the estimated model error."""
         if self.model == "per-sample":
             return "per-sample covariance from the log"
         if self.model == "tracker":
@@ -77,16 +88,31 @@ class NoiseModel:
         eye = np.eye(3)[None]
         return np.asarray(uu / self.radial + (eye - uu) / s_t[:, None, None], dtype=np.float64)
 
+    def covariance(self, points: FloatArray) -> FloatArray:
+        """The tracker model's covariance (m, 3, 3) of samples at ``points`` (m, 3)."""
+        rel = points - np.asarray(self.station)
+        dist = np.linalg.norm(rel, axis=1)
+        u = rel / np.maximum(dist, 1e-9)[:, None]
+        s_t = self.transverse + self.transverse_per_m * dist
+        uu = u[:, :, None] * u[:, None, :]
+        eye = np.eye(3)[None]
+        return np.asarray(
+            uu * self.radial**2 + (eye - uu) * (s_t**2)[:, None, None], dtype=np.float64
+        )
+
     def document(self) -> dict[str, object]:
         """The noise model's parameters for the result JSON."""
+        doc: dict[str, object] = {}
         if self.model == "tracker":
-            return {
+            doc = {
                 "radial": self.radial,
                 "transverse": self.transverse,
                 "transverse_per_m": self.transverse_per_m,
                 "station": list(self.station),
             }
-        return {}
+        if self.model_error is not None:
+            doc["model_error_sigma"] = self.model_error
+        return doc
 
 
 def whitening_from_std(std: FloatArray) -> FloatArray:
@@ -99,3 +125,29 @@ def whitening_from_std(std: FloatArray) -> FloatArray:
         return W
     L = np.linalg.cholesky(std)  # C = L Lᵀ → W = L⁻¹
     return np.asarray(np.linalg.inv(L), dtype=np.float64)
+
+
+#: Per-sample uncertainties this far below the residuals (χ²/dof above it) call for a
+#: model-error variance component: the model, not the tracker, limits the fit.
+MODEL_ERROR_CHI2 = 2.0
+
+
+def model_error_sigma(residuals: FloatArray, cov: FloatArray, dof: int) -> float:
+    """The isotropic model-error σ (m) that, added to every sample's covariance
+    (``C_i + σ² I``), makes the weighted residuals' χ² equal ``dof`` (the method of moments of a
+    variance component): ``residuals`` (m, 3), ``cov`` (m, 3, 3). 0 when χ² is already at most
+    ``dof``."""
+    from scipy.optimize import brentq
+
+    e, U = np.linalg.eigh(cov)
+    z2 = np.einsum("mij,mi->mj", U, residuals) ** 2  # the residual along each eigenvector
+
+    def excess(s2: float) -> float:
+        return float(np.sum(z2 / (e + s2))) - dof
+
+    if excess(0.0) <= 0:
+        return 0.0
+    hi = float(np.max(np.sum(residuals**2, axis=1))) + float(np.max(e))
+    while excess(hi) > 0:
+        hi *= 4.0
+    return float(np.sqrt(brentq(excess, 0.0, hi, xtol=1e-30, rtol=1e-10)))
