@@ -1,9 +1,18 @@
 """Simulated calibration sessions: what a tracker and the robot's encoders would have recorded.
 
-A session moves the robot through piecewise-linear joint trajectories: for each joint, a move
-that drives several joints at once to that joint's locked pose (a transition), a dwell, the sweep
-(continuous at constant speed, or step-and-measure), a dwell. The tracker samples the target
-(FK of the true robot, plus noise, gross outliers and dropouts) at its own rate; the encoders are
+A session moves the robot through piecewise-linear joint trajectories, by protocol:
+
+* ``sweeps``: for each joint, a move that drives several joints at once to that joint's locked
+  pose (a transition), a dwell, the sweep (continuous at constant speed, or step-and-measure), a
+  dwell; then the coupled moves asked for (joints moved together, ``q_b = ratio · q_a``).
+* ``random-poses``: ``poses`` random still poses within the joint limits (every joint changes
+  from one to the next), each held for a dwell; no sweep.
+* ``coupled``: each joint swept alone in ``steps`` stops, except joints 2 and 3, which only move
+  together (q3 = −q2), also in ``steps`` stops.
+
+The last two are step-and-measure protocols: the tracker records only while the robot is still.
+The tracker samples the target (FK of the true robot, plus an unmodelled smooth error of the
+robot's position if asked, noise, gross outliers and dropouts) at its own rate; the encoders are
 sampled at another rate with another clock phase and jitter. Base-plane points are probed first.
 Everything is pure numpy; :mod:`dhlog.io.writer` turns a :class:`Session` into an MCAP file.
 """
@@ -11,7 +20,7 @@ Everything is pure numpy; :mod:`dhlog.io.writer` turns a :class:`Session` into a
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Literal
 
 import numpy as np
@@ -26,6 +35,14 @@ from dhlog.kinematics import fk_frames, fk_point, joint_axes
 from dhlog.robots import Robot
 
 START_NS = 1_763_700_000_000_000_000
+PROTOCOLS = ("sweeps", "random-poses", "coupled")
+#: the ``coupled`` protocol's pair: joint 3 follows joint 2 as q3 = −q2 (the level forearm move)
+COUPLED_PAIR = (2, 3, -1.0)
+#: the target frame's fixed rotation in the flange frame (rotation vector, rad) of the command
+#: line's ``--six-dof``
+SIX_DOF_TOOL_ROTATION = (0.3, -0.2, 0.5)
+#: smallest change of every joint from one random pose to the next, as a fraction of its range
+MIN_POSE_CHANGE = 0.05
 
 
 @dataclass(frozen=True)
@@ -44,6 +61,11 @@ class SimulationConfig:
     steps: int = 12
     dwell: float = 0.3
     lock_poses: Literal["home", "random"] = "home"
+    #: what the robot does (see the module docstring); ``random-poses`` and ``coupled`` are
+    #: step-and-measure whatever ``motion`` says
+    protocol: Literal["sweeps", "random-poses", "coupled"] = "sweeps"
+    #: random still poses of the ``random-poses`` protocol
+    poses: int = 40
     base_points: int = 12
     outliers: float = 0.0
     outlier_size: float = 3e-3
@@ -52,6 +74,9 @@ class SimulationConfig:
     phase: bool = False
     perturb_length: float = 0.0
     perturb_angle: float = 0.0
+    #: σ (m, per coordinate, RMS over the joint limits) of an unmodelled smooth error of the
+    #: robot's position (what gravity and gears leave after a geometric model)
+    model_error: float = 0.0
     clock_jitter: float = 2e-4
     #: seconds the joint-state clock runs behind the tracker's: the stamps are written that much
     #: early, so a pipeline needs ``clock_offset`` = this value to put them right
@@ -79,6 +104,9 @@ def config_problems(robot: Robot, cfg: SimulationConfig) -> list[str]:
         cfg.travel,
         cfg.clock_offset,
         cfg.start_day,
+        cfg.model_error,
+        cfg.orientation_noise,
+        *(v for extra in cfg.extra_tools for v in extra),
     ]
     if not all(math.isfinite(v) for v in finite):
         out.append("every number must be finite")
@@ -107,6 +135,7 @@ def config_problems(robot: Robot, cfg: SimulationConfig) -> list[str]:
         ),
     ]
     out += [why for ok, why in checks if not ok]
+    out += _protocol_problems(robot, cfg)
     bad = [j for j in cfg.skip_joints if not 1 <= j <= robot.n]
     if bad:
         out.append(f"--skip-joints names joint(s) {bad}; {robot.name} has joints 1-{robot.n}")
@@ -115,6 +144,82 @@ def config_problems(robot: Robot, cfg: SimulationConfig) -> list[str]:
     if not 0 < cfg.travel <= 10.0:
         out.append(f"the travel must be in (0, 10 000] mm, not {cfg.travel * 1e3:g} mm")
     return out
+
+
+def _protocol_problems(robot: Robot, cfg: SimulationConfig) -> list[str]:
+    """What is wrong with the protocol, the model error and the targets of ``cfg``."""
+    out = []
+    checks = [
+        (
+            0 <= cfg.model_error <= 0.1,
+            f"the model error must be in [0, 100] mm (got {cfg.model_error * 1e3:g} mm)",
+        ),
+        (
+            0 <= cfg.orientation_noise <= math.pi / 2,
+            f"the orientation noise must be in [0, 90]° "
+            f"(got {math.degrees(cfg.orientation_noise):g}°)",
+        ),
+        (
+            cfg.orientation_noise == 0 or cfg.tool_rotation is not None,
+            "an orientation noise needs a 6-DoF target (a tool rotation: --six-dof)",
+        ),
+        (
+            all(max(abs(v) for v in extra) <= 10.0 for extra in cfg.extra_tools),
+            "the further targets must lie within 10 000 mm of the flange",
+        ),
+    ]
+    out += [why for ok, why in checks if not ok]
+    if cfg.protocol not in PROTOCOLS:
+        out.append(f"the protocol must be one of {', '.join(PROTOCOLS)}, not '{cfg.protocol}'")
+        return out
+    bad = sorted({j for a, b, _ in cfg.coupled for j in (a, b) if not 1 <= j <= robot.n})
+    if bad:
+        out.append(f"the coupled moves name joint(s) {bad}; {robot.name} has joints 1-{robot.n}")
+    if cfg.protocol == "random-poses":
+        if not 1 <= cfg.poses <= 100_000:
+            out.append(f"the poses must be in [1, 100 000] (got {cfg.poses})")
+        if cfg.skip_joints:
+            out.append("--skip-joints is for sweeps; the random-poses protocol sweeps no joint")
+    if cfg.protocol == "coupled":
+        types = robot.table.joint_types
+        if robot.n < 3:
+            out.append(f"the coupled protocol moves joints 2 and 3; {robot.name} has {robot.n}")
+        elif not all(types[j - 1] is JointType.REVOLUTE for j in COUPLED_PAIR[:2]):
+            out.append(
+                f"the coupled protocol moves joints 2 and 3 together (q3 = −q2): both must be "
+                f"revolute, and {robot.name}'s are {types[1].value} and {types[2].value}"
+            )
+    if cfg.protocol != "sweeps" and cfg.dwell * cfg.tracker_rate < 1.0 - 1e-9:
+        out.append(
+            f"the dwell ({cfg.dwell:g} s) at a tracker rate of {cfg.tracker_rate:g} Hz leaves "
+            f"some stops without a sample; raise the tracker rate to ≥ {1.0 / cfg.dwell:g} Hz"
+            if cfg.dwell > 0
+            else "the dwell must be > 0 for a step-and-measure protocol"
+        )
+    return out
+
+
+def protocol_config(cfg: SimulationConfig) -> SimulationConfig:
+    """``cfg`` with what its protocol implies spelled out: step-and-measure for ``random-poses``
+    and ``coupled``; for ``coupled`` joints 2 and 3 never swept alone and moved together."""
+    if cfg.protocol == "random-poses":
+        return replace(cfg, motion="step")
+    if cfg.protocol == "coupled":
+        a, b, _ = COUPLED_PAIR
+        pairs = cfg.coupled
+        if not any((p, q) == (a, b) for p, q, _ in pairs):
+            pairs = (*pairs, COUPLED_PAIR)
+        skip = tuple(sorted({*cfg.skip_joints, a, b}))
+        return replace(cfg, motion="step", skip_joints=skip, coupled=pairs)
+    return cfg
+
+
+def swept_joints(robot: Robot, cfg: SimulationConfig) -> list[int]:
+    """The joints (1-based) a session of ``cfg`` sweeps alone."""
+    if cfg.protocol == "random-poses":
+        return []
+    skip = protocol_config(cfg).skip_joints
+    return [j for j in range(1, robot.n + 1) if j not in skip]
 
 
 @dataclass
@@ -152,6 +257,10 @@ class Session:
     #: each joint's sweep (rad) or travel (m) as simulated (the limits may clip the asked one;
     #: 0 for joints not swept)
     sweeps: FloatArray = field(default_factory=lambda: np.zeros(0))
+    #: the unmodelled error added to each target sample (m, 3) in M (zeros when not asked)
+    model_error_xyz: FloatArray = field(default_factory=lambda: np.zeros((0, 3)))
+    #: the still poses (k, n) of the ``random-poses`` protocol (none for the others)
+    poses: FloatArray = field(default_factory=lambda: np.zeros((0, 0)))
 
 
 def default_measurement_pose() -> FloatArray:
@@ -175,11 +284,55 @@ def _perturbed(table: StandardDH, rng: np.random.Generator, cfg: SimulationConfi
     )
 
 
+def random_poses(robot: Robot, cfg: SimulationConfig, home: FloatArray) -> FloatArray:
+    """The ``random-poses`` protocol's still poses (``cfg.poses``, n): drawn uniformly within the
+    robot's joint limits from their own generator (the session's other draws stay as they are),
+    every joint changing by at least ``MIN_POSE_CHANGE`` of its range from one pose to the next
+    (the first from ``home``)."""
+    rng = np.random.default_rng([cfg.seed, 18])
+    lo, hi = robot.limits[:, 0], robot.limits[:, 1]
+    least = MIN_POSE_CHANGE * (hi - lo)
+    poses = np.empty((cfg.poses, robot.n))
+    previous = home
+    for i in range(cfg.poses):
+        pose = rng.uniform(lo, hi)
+        for _ in range(100):  # a joint too close to its previous value is drawn again
+            close = np.abs(pose - previous) < least
+            if not np.any(close):
+                break
+            pose[close] = rng.uniform(lo[close], hi[close])
+        poses[i] = previous = pose
+    return poses
+
+
+def coupled_range(
+    robot: Robot, home: FloatArray, pair: tuple[int, int, float], extent: float
+) -> tuple[float, float]:
+    """The range ``(s_start, s_end)`` of a coupled move ``q_a = home_a + s``,
+    ``q_b = home_b + ratio · s``: ``extent`` wide about home where the limits of both joints
+    allow it, else shifted (and if need be shortened) to fit them, so the ratio always holds."""
+    a, b, ratio = pair
+    lo, hi = robot.limits[:, 0] - home, robot.limits[:, 1] - home
+    s_lo, s_hi = float(lo[a - 1]), float(hi[a - 1])
+    if ratio != 0:
+        ends = sorted((float(lo[b - 1]) / ratio, float(hi[b - 1]) / ratio))
+        s_lo, s_hi = max(s_lo, ends[0]), min(s_hi, ends[1])
+    width = max(0.0, min(extent, s_hi - s_lo))
+    centre = min(max(0.0, s_lo + width / 2.0), s_hi - width / 2.0)
+    return centre - width / 2.0, centre + width / 2.0
+
+
 def _keyframes(
-    robot: Robot, home: FloatArray, cfg: SimulationConfig, rng: np.random.Generator
+    robot: Robot,
+    home: FloatArray,
+    cfg: SimulationConfig,
+    rng: np.random.Generator,
+    poses: FloatArray,
 ) -> tuple[list[tuple[float, FloatArray]], list[tuple[float, int | None]], FloatArray]:
     """Piecewise-linear trajectory (time s, q), phase markers (time s, joint or None), and each
-    joint's sweep (rad) or travel (m) as the limits let it be (0 for joints not swept)."""
+    joint's sweep (rad) or travel (m) as the limits let it be (0 for joints not swept). ``cfg``
+    with its protocol spelled out (:func:`protocol_config`); ``poses`` (k, n): the random still
+    poses, visited first."""
     n = robot.n
     lo, hi = robot.limits[:, 0], robot.limits[:, 1]
     frames: list[tuple[float, FloatArray]] = [(0.0, home.copy())]
@@ -202,13 +355,20 @@ def _keyframes(
         t += seconds
         frames.append((t, q.copy()))
 
+    for pose in poses:  # point-to-point moves of every joint, at the transitions' speed
+        go(pose, 1.5)
+        hold(cfg.dwell)
+    # joints held at home in the lock poses: the coupled protocol's pair moves only together
+    held = [j - 1 for a, b, _ in cfg.coupled for j in (a, b)] if cfg.protocol == "coupled" else []
     for k in range(n):
-        if k + 1 in cfg.skip_joints:
+        if k + 1 in cfg.skip_joints or cfg.protocol == "random-poses":
             continue
         lock = home.copy()
         if cfg.lock_poses == "random":
             span = hi - lo
             lock = np.clip(home + rng.uniform(-0.15, 0.15, n) * span, lo, hi)
+            if held:
+                lock[held] = home[held]
         half = (cfg.sweep if revolute[k] else cfg.travel) / 2.0
         start = float(np.clip(lock[k] - half, lo[k], hi[k]))
         end = float(np.clip(lock[k] + half, lo[k], hi[k]))
@@ -229,19 +389,72 @@ def _keyframes(
         hold(cfg.dwell)
         marks.append((t - cfg.dwell * 0.1, None))
     for a, b, ratio in cfg.coupled:  # coupled moves: q_b follows ratio · q_a (e.g. q3 = −q2)
-        q_from, q_to = home.copy(), home.copy()
-        half = cfg.sweep / 2.0
-        q_from[a - 1] -= half
-        q_from[b - 1] -= ratio * half
-        q_to[a - 1] += half
-        q_to[b - 1] += ratio * half
-        go(np.clip(q_from, lo, hi), 1.5)
+        extent = cfg.sweep if revolute[a - 1] else cfg.travel
+        s_start, s_end = coupled_range(robot, home, (a, b, ratio), extent)
+
+        def coupled_at(s: float, a: int = a, b: int = b, ratio: float = ratio) -> FloatArray:
+            pose = home.copy()
+            pose[a - 1] += s
+            pose[b - 1] += ratio * s
+            return pose
+
+        go(coupled_at(s_start), 1.5)
         hold(cfg.dwell)
-        go(np.clip(q_to, lo, hi))
+        if cfg.motion == "continuous":
+            go(coupled_at(s_end))
+        else:
+            for s in np.linspace(s_start, s_end, cfg.steps)[1:-1]:
+                go(coupled_at(float(s)))
+                hold(cfg.dwell)
+            go(coupled_at(s_end))
         hold(cfg.dwell)
     go(home, 1.5)
-    hold(cfg.dwell)
+    if cfg.protocol != "random-poses":  # the random poses end on the last of them
+        hold(cfg.dwell)
     return frames, marks, sweeps
+
+
+@dataclass(frozen=True)
+class SmoothError:
+    """An unmodelled error of the robot's position, a fixed smooth function of the joint vector:
+    ``e_c(q) = Σ_k A_ck sin(w_ck · (q / unit) + φ_ck)`` for each coordinate c of the base frame
+    (m). ``frequency`` (3, K, n), ``phase`` and ``amplitude`` (3, K); ``unit`` (n,): 1 rad for a
+    revolute joint, 0.1 m for a prismatic one."""
+
+    frequency: FloatArray
+    phase: FloatArray
+    amplitude: FloatArray
+    unit: FloatArray
+
+    def __call__(self, q: FloatArray) -> FloatArray:
+        """The error (m, 3) at joint vectors ``q`` (m, n), in chunks."""
+        q = np.atleast_2d(q) / self.unit
+        out = np.empty((q.shape[0], 3))
+        for i in range(0, q.shape[0], 20_000):
+            arg = np.einsum("mn,ckn->mck", q[i : i + 20_000], self.frequency) + self.phase
+            out[i : i + 20_000] = np.einsum("mck,ck->mc", np.sin(arg), self.amplitude)
+        return out
+
+
+def smooth_model_error(
+    robot: Robot, cfg: SimulationConfig, *, terms: int = 20, probes: int = 4096
+) -> SmoothError:
+    """The session's :class:`SmoothError`: ``terms`` sines per coordinate with frequency vectors
+    of random direction and magnitude 1–2 per rad, scaled so that the RMS of each coordinate over
+    ``probes`` joint vectors drawn uniformly within the limits is ``cfg.model_error``. Drawn from
+    its own generator: the session's other draws stay as they are."""
+    rng = np.random.default_rng([cfg.seed, 17])
+    n = robot.n
+    direction = rng.normal(size=(3, terms, n))
+    direction /= np.linalg.norm(direction, axis=2, keepdims=True)
+    frequency = direction * rng.uniform(1.0, 2.0, (3, terms, 1))
+    phase = rng.uniform(0.0, 2 * np.pi, (3, terms))
+    revolute = [jt is JointType.REVOLUTE for jt in robot.table.joint_types]
+    unit = np.where(revolute, 1.0, 0.1)
+    raw = SmoothError(frequency, phase, rng.normal(size=(3, terms)), unit)
+    probe = rng.uniform(robot.limits[:, 0], robot.limits[:, 1], (probes, n))
+    rms = np.sqrt(np.mean(raw(probe) ** 2, axis=0))
+    return replace(raw, amplitude=raw.amplitude * (cfg.model_error / rms)[:, None])
 
 
 def _interp(frames: list[tuple[float, FloatArray]], times: FloatArray) -> FloatArray:
@@ -285,17 +498,25 @@ def simulate_session(
     q_home = (
         np.clip(np.zeros(robot.n), robot.limits[:, 0], robot.limits[:, 1]) if home is None else home
     )
-    frames, marks, sweeps = _keyframes(robot, q_home, cfg, rng)
+    plan = protocol_config(cfg)
+    poses = np.zeros((0, robot.n))
+    if cfg.protocol == "random-poses":
+        poses = random_poses(robot, cfg, q_home)
+    frames, marks, sweeps = _keyframes(robot, q_home, plan, rng, poses)
     duration = frames[-1][0]
     base_time = 2.0 if cfg.base_points else 0.0
     # tracker: its own clock; step-and-measure triggers it only while the robot is still
     t_trk = np.arange(0.0, duration, 1.0 / cfg.tracker_rate) + rng.uniform(
         0, 1.0 / cfg.tracker_rate
     )
-    if cfg.motion == "step":
+    if plan.motion == "step":
         t_trk = t_trk[_static(frames, t_trk)]
     q_trk = _interp(frames, t_trk)
     xyz = fk_point(table, q_trk, tool, T_base=T_mb)
+    error = np.zeros_like(xyz)
+    if cfg.model_error > 0:  # the robot's unmodelled error, in M, the same for every target
+        error = smooth_model_error(robot, cfg)(q_trk) @ T_mb[:3, :3].T
+        xyz = xyz + error
     R_tool = point_rot = None
     if cfg.tool_rotation is not None:  # a 6-DoF target: its frame's orientation is measured too
         from scipy.spatial.transform import Rotation
@@ -323,7 +544,7 @@ def simulate_session(
             keep[start : start + int(rng.integers(3, 20))] = False
     extra_xyz = []
     for extra in cfg.extra_tools:  # further targets, measured at the same instants
-        e = fk_point(table, q_trk, np.asarray(extra, dtype=np.float64), T_base=T_mb)
+        e = fk_point(table, q_trk, np.asarray(extra, dtype=np.float64), T_base=T_mb) + error
         if cfg.noise_kind == "uniform":
             e = e + rng.uniform(-cfg.noise, cfg.noise, e.shape)
         else:
@@ -375,6 +596,8 @@ def simulate_session(
         tool_rotation=R_tool,
         point_rotation=None if point_rot is None else np.asarray(point_rot[keep]),
         sweeps=sweeps,
+        model_error_xyz=np.asarray(error[keep], dtype=np.float64),
+        poses=poses,
     )
 
 
@@ -393,6 +616,7 @@ def truth_document(
     ).relations
     standard, modified = dh_documents(table, q, np.zeros(4 * table.n))
     cfg = session.config
+    plan = protocol_config(cfg)
     return {
         "format": RESULT_FORMAT,
         "dhlog_version": version,
@@ -421,7 +645,7 @@ def truth_document(
             "noise_kind": cfg.noise_kind,
             "tracker_rate_hz": cfg.tracker_rate,
             "joint_rate_hz": cfg.joint_rate,
-            "motion": cfg.motion,
+            "motion": plan.motion,
             "sweep_rad": cfg.sweep,
             "travel_m": cfg.travel,
             "lock_poses": cfg.lock_poses,
@@ -435,5 +659,13 @@ def truth_document(
             "joint_sweeps": [float(v) for v in session.sweeps],
             "perturb_length_m": cfg.perturb_length,
             "perturb_angle_rad": cfg.perturb_angle,
+            "protocol": cfg.protocol,
+            "poses": int(session.poses.shape[0]),
+            "model_error_m": cfg.model_error,
+            "steps": cfg.steps if plan.motion == "step" else None,
+            "coupled": [[a, b, ratio] for a, b, ratio in plan.coupled],
+            "tool_rotation_rotvec": None if cfg.tool_rotation is None else list(cfg.tool_rotation),
+            "orientation_noise_rad": cfg.orientation_noise,
+            "extra_targets_m": [list(extra) for extra in cfg.extra_tools],
         },
     }
