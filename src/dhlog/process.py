@@ -51,6 +51,7 @@ from dhlog.identify.analytic import (
 from dhlog.identify.holdout import Holdout, cross_validate, score_poses
 from dhlog.identify.noise import MODEL_ERROR_CHI2, NoiseModel, model_error_sigma
 from dhlog.identify.propagate import (
+    NOT_DETERMINED,
     fixed_reasons,
     propagate,
     state_names,
@@ -72,6 +73,7 @@ from dhlog.identify.timing import (
     sweep_phases,
 )
 from dhlog.identify.whole import (
+    CHI3_MEDIAN,
     AxisModel,
     WholeFit,
     axis_covariances,
@@ -360,7 +362,15 @@ def process_data(
     if not all(j.ok for j in joints):
         if whole_wanted and nominal is not None and _from_the_nominal(result, kwargs, stage):
             return result
+        if whole_wanted and nominal is None and _from_the_neighbours(result, kwargs, stage):
+            return result
         notes.extend(unidentified)
+        if whole_wanted and nominal is None:
+            notes.append(
+                "the joints not swept alone need a start: pass --nominal (a library robot or "
+                "the robot's DH file) and the whole-model fit identifies them from the other "
+                "samples (random static poses, coupled moves)."
+            )
         result.extraction = partial_extraction(joints, ref, base, nominal_table, kwargs)
         return result
     stage("identifying", 0.0)
@@ -452,6 +462,14 @@ def _from_the_nominal(result: ProcessResult, kwargs: dict[str, Any], stage: Stag
     rows, Q, P = samples_with_encoders(seg)
     if rows.size == 0:
         return False
+    still = [j for j in joints if not j.ok and np.ptp(Q[:, j.index - 1]) < NEVER_MOVED]
+    if still:
+        names = ", ".join(f"joint {j.index} ({j.name})" for j in still)
+        result.warnings.append(
+            f"{names}: never moved in this log (its encoder values span less than "
+            f"{NEVER_MOVED:g}): nothing in the samples measures it."
+        )
+        return False
     known = [j for j in joints if j.ok and j.axis is not None]
     points, dirs = joint_axes(nominal.table, ref, T_base=nominal.T_base)
     T = (
@@ -526,6 +544,123 @@ def _from_the_nominal(result: ProcessResult, kwargs: dict[str, Any], stage: Stag
             "samples (coupled moves, still poses), started from the nominal."
         )
     return True
+
+
+#: A joint whose encoder values span less than this (rad or m) never moved in the log.
+NEVER_MOVED = 1e-3
+#: A coupled move's joint values follow q_k − ref_k = −(q_j − ref_j) within this fraction.
+COUPLED_RATIO_TOL = 0.05
+#: ... and its circle's axis is within this (rad) of the known neighbour's: the pair parallel.
+COUPLED_PARALLEL_TOL = math.radians(5.0)
+
+
+def _from_the_neighbours(result: ProcessResult, kwargs: dict[str, Any], stage: Stage) -> bool:
+    """Without a nominal: a revolute joint j moved only together with an identified neighbour k
+    (``q_k − ref_k = −(q_j − ref_j)``: the forearm kept level) and the joints before them at
+    the reference pose. With the two axes parallel, ``Rot_j(Δ) Rot_k(−Δ)`` is a translation
+    ``(R(Δ) − I)(c_k − c_j)``: the target runs on a circle of radius |c_k − c_j| about an axis
+    parallel to both, whose centre gives ``c_j = c_k − (p₀ − centre)`` (p₀ the target at
+    Δ = 0). That line starts joint j; the whole-model fit identifies it (also when the pair is
+    not exactly parallel). Returns False (and changes nothing) when no joint qualifies or the
+    fit fails."""
+    from dhlog.geometry._checks import rotation_about
+    from dhlog.geometry.fitting import fit_circle_encoder
+
+    joints, ref, seg = result.joints, result.reference_pose, result.segmentation
+    missing = [j for j in joints if not j.ok]
+    rows, Q, P = samples_with_encoders(seg)
+    which = target_labels(seg, rows)
+    if which is not None:
+        Q, P = Q[which == 0], P[which == 0]
+    saved = [(j.type, j.axis, j.reason, j.type_source) for j in missing]
+    for j in missing:
+        jj = j.index - 1
+        moving, kk = _coupled_samples(Q, ref, jj, joints)
+        if kk is None:
+            return _restore(missing, saved)
+        k_axis = joints[kk].axis
+        assert k_axis is not None
+        upstream = slice(0, min(jj, kk))
+        if np.any(np.abs(Q[moving][:, upstream] - ref[upstream]) > 1e-3):
+            return _restore(missing, saved)
+        try:
+            circle = fit_circle_encoder(P[moving], Q[moving, jj], what=f"joint {j.index}")
+        except GeometryError:
+            return _restore(missing, saved)
+        w = circle.axis.direction
+        if math.acos(min(1.0, abs(float(w @ k_axis.direction)))) > COUPLED_PARALLEL_TOL:
+            return _restore(missing, saved)
+        turns = [rotation_about(w, float(a)) for a in ref[jj] - Q[moving, jj]]
+        p0 = np.mean(
+            [
+                R @ (p - circle.center) + circle.center
+                for R, p in zip(turns, P[moving], strict=True)
+            ],
+            axis=0,
+        )
+        offset = p0 - circle.center
+        offset -= (offset @ w) * w
+        j.type, j.axis, j.reason, j.type_source = (
+            JointType.REVOLUTE,
+            Line(k_axis.point - offset, w),
+            None,
+            f"coupled with joint {kk + 1}",
+        )
+    axes = [j.axis for j in joints]
+    types = tuple(j.type for j in joints)
+    nearest = int(np.argmin(np.sum((Q - ref) ** 2, axis=1)))
+    M = chain_motion(axes, types, Q[nearest], ref)  # type: ignore[arg-type]
+    result.target = np.asarray(np.linalg.solve(M, np.r_[P[nearest], 1.0])[:3], dtype=np.float64)
+    try:
+        _identify_whole(result, None, kwargs, False, stage)
+    except (GeometryError, np.linalg.LinAlgError) as exc:
+        result.whole, result.method, result.target = None, "analytic", None
+        result.warnings.append(f"the whole-model fit from the coupled moves failed: {exc}")
+        return _restore(missing, saved)
+    assert result.whole is not None
+    for j in missing:
+        j.axis = result.whole.model.axes[j.index - 1]
+    names = ", ".join(f"joint {j.index} ({j.name})" for j in missing)
+    result.warnings.append(
+        f"{names}: never moved alone; started from the circle its coupled move with a parallel "
+        "neighbour traces, and identified by the whole-model fit from every sample."
+    )
+    return True
+
+
+def _coupled_samples(
+    Q: FloatArray, ref: FloatArray, jj: int, joints: list[JointReport]
+) -> tuple[NDArray[np.bool_], int | None]:
+    """The samples of joint ``jj``'s (0-based) coupled move with an identified revolute
+    neighbour ``kk`` (``q_k − ref_k = −(q_j − ref_j)`` within :data:`COUPLED_RATIO_TOL`, every
+    other joint locked), and ``kk``; the neighbour with the most such samples (at least 5), or
+    None."""
+    dq = Q[:, jj] - ref[jj]
+    best: tuple[NDArray[np.bool_], int | None] = (np.zeros(Q.shape[0], dtype=bool), None)
+    for kk in (jj - 1, jj + 1):
+        if not 0 <= kk < len(joints):
+            continue
+        k = joints[kk]
+        if not k.ok or k.axis is None or k.type is not JointType.REVOLUTE:
+            continue
+        dk = Q[:, kk] - ref[kk]
+        pair = (np.abs(dq) > 1e-3) & (np.abs(dk + dq) <= COUPLED_RATIO_TOL * np.abs(dq) + 1e-4)
+        if np.count_nonzero(pair) < 5:
+            continue
+        rest = np.ones(Q.shape[1], dtype=bool)
+        rest[[jj, kk]] = False
+        lock = np.median(Q[pair][:, rest], axis=0)
+        pair &= np.all(np.abs(Q[:, rest] - lock) <= 1e-3, axis=1)
+        if int(np.count_nonzero(pair)) >= max(5, int(np.count_nonzero(best[0])) + 1):
+            best = (pair, kk)
+    return best
+
+
+def _restore(missing: list[JointReport], saved: list[tuple[Any, Any, Any, Any]]) -> bool:
+    """Undo a start: every joint in ``missing`` back to what ``saved`` holds. Returns False."""
+    for j, (jt, axis, reason, source) in zip(missing, saved, strict=True):
+        j.type, j.axis, j.reason, j.type_source = jt, axis, reason, source
+    return False
 
 
 def _align_lines(
@@ -611,12 +746,17 @@ def _identify_whole(
             rotations=rotations,
             sigma_rotation=result.noise.orientation,
             rates=rates,
+            threshold=math.inf if analytic is None else 5.0,
             progress=lambda f: stage("identifying", 0.1 + 0.9 * f),
         )
-        if not fit_sigmas:
-            # no per-joint fit told the noise, and outliers were judged on the start's (the
-            # nominal's) residuals: judge them again at the first optimum, on its own scale
-            sigma *= math.sqrt(whole.chi2_dof)
+        if analytic is None:
+            # started from the nominal (or a coupled move's circle): the start misses the
+            # samples it did not see by far more than the noise, so the first fit judged no
+            # sample an outlier; judge them at its optimum, on the noise's own scale
+            if not fit_sigmas:
+                pred = predict(whole.model, Q, which=which, rates=rates)[0]
+                norms = np.linalg.norm(P - pred, axis=1)
+                sigma = max(float(np.median(norms)) / CHI3_MEDIAN, 1e-9)
             whole = fit_whole_model(
                 whole.model,
                 Q,
@@ -693,6 +833,7 @@ def _identify_whole(
         base_plane=base is not None,
         nominal=nominal is not None,
         constrained=whole.constrained,
+        undetermined=prop.undetermined,
     )
     result.hayati = near_parallel(list(ex.axes), ex, result.std, result.info)
     result.hayati_std = [
@@ -702,7 +843,7 @@ def _identify_whole(
     if prop.mixed_covariance is not None and prop.mixed_fixed is not None:
         mixed_std = np.sqrt(np.clip(np.diag(prop.mixed_covariance), 0.0, None))
         result.conditioned = _conditioned(
-            result, ex, h_rows, nominal_rows, mixed_std, prop.mixed_fixed
+            result, ex, h_rows, nominal_rows, mixed_std, prop.mixed_fixed, prop.mixed_undetermined
         )
     result.tool_orientation = prop.tool_orientation
     result.tool_orientation_std = prop.tool_orientation_std
@@ -711,6 +852,7 @@ def _identify_whole(
         np.clip(np.diag(prop.extra_tool_covariance), 0.0, None)
     ).reshape(-1, 3)
     result.info.extend(_correlation_notes(prop.covariance, prop.fixed, len(joints)))
+    _identifiability_notes(result, whole)
     declared = result.noise.model != "isotropic" or result.noise.sigma is not None
     if declared and not 0.5 < whole.chi2_dof < 2.0:
         causes = f" ({LIKELY_CAUSES})" if whole.chi2_dof >= 2.0 else " (the model's σ is too large)"
@@ -753,6 +895,34 @@ def _identify_whole(
                 else (nominal.table, nominal.T_base, nominal.tool_point),
                 which=which,
             )
+        )
+
+
+#: A condition number of the scaled Jacobian above this is worth a note naming the weakest
+#: direction.
+CONDITION_NOTE = 1e3
+
+
+def _identifiability_notes(result: ProcessResult, whole: WholeFit) -> None:
+    """What the poses determine: undetermined directions (a warning: held at the start, the
+    parameters they move fixed), and the condition number with the weakest direction."""
+    d = whole.determined
+    if d is None:
+        return
+    names = whole.layout.names
+    weakest = ", ".join(f"{c:+.2f} {k}" for k, c in d.weakest_terms(names))
+    k = d.null.shape[1]
+    if k:
+        held = "the nominal" if result.nominal is not None else "the start"
+        result.warnings.append(
+            f"these poses do not determine {k} direction(s) of the model's {d.scale.size} "
+            f"parameters: held at {held}, and the parameters they move are fixed (reason "
+            f"'{NOT_DETERMINED}'); move every joint over more of its range, or alone."
+        )
+    if k or d.condition > CONDITION_NOTE:
+        result.info.append(
+            f"identifiability: the scaled Jacobian's condition number is {d.condition:.3g}; "
+            f"its weakest determined direction is {weakest}."
         )
 
 
@@ -801,9 +971,10 @@ def _with_model_error(
     result.noise = replace(result.noise, model_error=s)
     result.warnings.append(
         f"the residuals are {math.sqrt(before):.1f}x what the declared uncertainties "
-        f"({result.noise.declared}) explain (χ²/dof {before:.1f}): the model, not the "
-        f"tracker, limits the fit; a model-error σ of {s * 1e3:.4f} mm per coordinate was "
-        f"estimated and added to every sample's ({LIKELY_CAUSES})."
+        f"({result.noise.declared}) explain (χ²/dof {before:.1f}): the model (or an "
+        f"optimistic noise model), not the tracker, limits the fit; a model-error σ of "
+        f"{s * 1e3:.4f} mm per coordinate was estimated and added to every sample's "
+        f"({LIKELY_CAUSES})."
     )
     return whole, sample_cov
 
@@ -1033,12 +1204,16 @@ def _conditioned(
     nominal_rows: StandardDH | None,
     std: FloatArray,
     fixed: NDArray[np.bool_],
+    undetermined: NDArray[np.bool_] | None = None,
 ) -> Conditioned:
     """The table in the Hayati form with its σ; fixed entries keep the standard table's reason
-    where the row is the standard one, and are held by a convention elsewhere."""
+    where the row is the standard one, are not determined by the poses where ``undetermined``
+    says so, and are held by a convention elsewhere."""
     table = hayati_table(ex, rows, nominal_rows)
     reasons = {
-        int(k): result.fixed.get(int(k), "held by a convention of the extraction")
+        int(k): NOT_DETERMINED
+        if undetermined is not None and undetermined[k]
+        else result.fixed.get(int(k), "held by a convention of the extraction")
         for k in np.flatnonzero(fixed)
     }
     return Conditioned(table, np.where(fixed, np.nan, std), reasons, nominal_rows)

@@ -337,7 +337,11 @@ def _held_lines(result: ProcessResult, rows: list[DisplayRow]) -> list[str]:
             hayati = row < len(rows) and rows[row].form == "hayati"
             name = ("θ", "β" if hayati else "d", "a", "α")[p] + str(row + 1)
         else:
-            name = "tool " + "xyz"[(idx - 4 * n) % 3] if idx < 4 * n + 3 else f"base {idx}"
+            name = (
+                "tool " + "xyz"[idx - 4 * n]
+                if idx < 4 * n + 3
+                else "base " + ("x", "y", "z", "rx", "ry", "rz")[min(idx - 4 * n - 3, 5)]
+            )
         by_reason.setdefault(fixed[idx], []).append(name)
     return [f"{', '.join(names)}: {why}" for why, names in by_reason.items()]
 

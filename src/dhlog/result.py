@@ -346,6 +346,8 @@ def _whole_fit_document(result: ProcessResult) -> dict[str, Any]:
     }
     if w.sigma_rotation is not None:
         doc["sigma_rotation"] = w.sigma_rotation
+    if w.determined is not None:
+        doc["identifiability"] = w.determined.document(w.layout.names)
     if w.layout.scale_at is not None:
         k = w.layout.scale_at
         n = w.model.n

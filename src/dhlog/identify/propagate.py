@@ -122,6 +122,27 @@ class Propagation:
     tool_orientation_std: FloatArray | None = None
     mixed_covariance: FloatArray | None = None
     mixed_fixed: NDArray[np.bool_] | None = None
+    #: entries of the state (and of the Hayati table) that move along directions the samples
+    #: do not determine: held at the start (the nominal), fixed
+    undetermined: NDArray[np.bool_] | None = None
+    mixed_undetermined: NDArray[np.bool_] | None = None
+
+
+#: A parameter whose change along the undetermined directions exceeds this fraction of its
+#: change along the determined ones (both per unit step of the scaled parameters) is not
+#: determined by the samples.
+UNDETERMINED_SHARE = 1e-3
+
+
+def undetermined_rows(J: FloatArray, fit: WholeFit) -> NDArray[np.bool_]:
+    """Per row of ``J`` (outputs × the fit's parameters): whether the output moves along a
+    direction the samples do not determine (``fit.determined.null``)."""
+    d = fit.determined
+    if d is None or d.null.shape[1] == 0:
+        return np.zeros(J.shape[0], dtype=bool)
+    on_null = np.linalg.norm(J @ (d.null / d.scale[:, None]), axis=1)
+    on_kept = np.linalg.norm(J @ (d.basis / d.scale[:, None]), axis=1)
+    return np.asarray(on_null > UNDETERMINED_SHARE * np.maximum(on_kept, 1e-300), dtype=bool)
 
 
 def propagate(
@@ -208,6 +229,9 @@ def propagate(
     cov = J @ cov_in @ J.T
     n_state = 4 * n + 9
     fixed = np.max(np.abs(J[:n_state]), axis=1) < FIXED_BELOW
+    loose = undetermined_rows(J[:, :n_fit], fit)
+    undetermined = loose[:n_state] & ~fixed
+    fixed |= undetermined
     # nor is anything measured to 0.1 nm or 0.1 nrad: such a σ is a convention's rounding
     fixed |= np.sqrt(np.clip(np.diag(cov)[:n_state], 0.0, None)) < 1e-10
     for i, kind in fit.constrained.items():  # held by the constraint: α (and a, collinear)
@@ -220,9 +244,11 @@ def propagate(
     n_h = n_state + 4 * len(hayati_pairs)
     n_m = n_h + n_mixed
     n_e = n_m + 3 * len(model.extra_targets)
-    mixed_cov = mixed_fixed = None
+    mixed_cov = mixed_fixed = mixed_undetermined = None
     if rows:
         mixed_fixed = np.max(np.abs(J[n_h:n_m]), axis=1) < FIXED_BELOW
+        mixed_undetermined = loose[n_h:n_m] & ~mixed_fixed
+        mixed_fixed |= mixed_undetermined
         mixed_fixed |= np.sqrt(np.clip(np.diag(cov)[n_h:n_m], 0.0, None)) < 1e-10
         affected = set(rows) | {i + 1 for i in rows}
         for i in range(n):  # rows the Hayati form leaves as they were: as the standard table
@@ -245,7 +271,13 @@ def propagate(
         tool_orientation_std=rot_std,
         mixed_covariance=mixed_cov,
         mixed_fixed=mixed_fixed,
+        undetermined=undetermined,
+        mixed_undetermined=mixed_undetermined,
     )
+
+
+#: The reason given for a parameter the samples do not determine.
+NOT_DETERMINED = "not determined by these poses"
 
 
 def fixed_reasons(
@@ -255,15 +287,20 @@ def fixed_reasons(
     base_plane: bool,
     nominal: bool,
     constrained: dict[int, str] | None = None,
+    undetermined: NDArray[np.bool_] | None = None,
 ) -> dict[int, str]:
     """Why each fixed entry of :func:`state_vector` is held (index → one sentence);
-    ``constrained`` maps the 0-based first joint of a pair held parallel / collinear."""
+    ``constrained`` maps the 0-based first joint of a pair held parallel / collinear;
+    ``undetermined`` marks the entries the samples do not determine."""
     held = constrained or {}
     n = ex.standard.n
     types = ex.standard.joint_types
     kinds = {r.joints[0]: r.relation.kind for r in ex.relations}
     out: dict[int, str] = {}
     for idx in (int(k) for k in np.flatnonzero(fixed)):
+        if undetermined is not None and undetermined[idx]:
+            out[idx] = NOT_DETERMINED + (" (held at the nominal)" if nominal else "")
+            continue
         if idx >= 4 * n:
             out[idx] = (
                 "the target defines the last frame (z_{n+1} ∥ z_n through the target)"

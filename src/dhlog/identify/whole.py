@@ -48,6 +48,83 @@ CHI3_MEDIAN = 1.5382
 CONVERGED = 1e-3
 
 
+#: A direction of the column-scaled normal matrix ``JᵀWJ`` whose eigenvalue is below this
+#: fraction of the largest (a singular value of the scaled Jacobian below 10⁻⁶ of the largest)
+#: is not determined by the samples: held at the start (the nominal) and reported.
+UNDETERMINED = 1e-12
+
+
+@dataclass(frozen=True)
+class Determined:
+    """What the samples determine of the model (as in base-parameter identification: the
+    eigen-decomposition of the column-scaled ``JᵀWJ``, i.e. the SVD of the scaled Jacobian).
+
+    ``scale`` (size,): the column scales (√ of the diagonal); ``basis`` (size, r): the
+    determined directions in scaled coordinates (orthonormal); ``values`` (r,) their
+    eigenvalues; ``null`` (size, k): the undetermined directions (scaled, orthonormal);
+    ``condition``: √(largest / smallest determined eigenvalue), the scaled Jacobian's
+    condition number; ``weakest`` (size,): the least determined of the determined directions."""
+
+    scale: FloatArray
+    basis: FloatArray
+    values: FloatArray
+    null: FloatArray
+    condition: float
+    weakest: FloatArray
+
+    @classmethod
+    def of(cls, H: FloatArray) -> Determined:
+        diag = np.diag(H)
+        scale = np.where(diag > 0, np.sqrt(np.abs(diag)), 1.0)
+        Hs = H / np.outer(scale, scale)
+        lam, V = np.linalg.eigh((Hs + Hs.T) / 2)
+        top = max(float(lam[-1]), 1e-300)
+        keep = lam > UNDETERMINED * top
+        kept = lam[keep]
+        return cls(
+            scale,
+            V[:, keep],
+            kept,
+            V[:, ~keep],
+            float(np.sqrt(top / kept[0])) if kept.size else math.inf,
+            V[:, keep][:, 0] if kept.size else V[:, 0],
+        )
+
+    def weakest_terms(self, names: Sequence[str], count: int = 4) -> list[tuple[str, float]]:
+        """The weakest determined direction's largest components (name, coefficient), in the
+        scaled parameters (unit length), largest first."""
+        w = self.weakest / np.linalg.norm(self.weakest)
+        order = np.argsort(-np.abs(w))[:count]
+        return [(names[int(k)], float(w[k])) for k in order if abs(w[k]) >= 0.05]
+
+    def document(self, names: Sequence[str]) -> dict[str, object]:
+        """For the result JSON: the parameter counts, the condition number and the weakest
+        direction (the fit's own parameters: axis tilts and shifts, target, …)."""
+        return {
+            "parameters": int(self.scale.size),
+            "determined": int(self.basis.shape[1]),
+            "condition_number": self.condition,
+            "weakest_direction": {k: v for k, v in self.weakest_terms(names, 6)},
+            "undetermined_directions": [
+                {names[int(k)]: float(c) for k, c in enumerate(col) if abs(c) >= 0.05}
+                for col in self.null.T
+            ],
+        }
+
+    def solve(self, H: FloatArray, g: FloatArray, damping: float = 0.0) -> FloatArray:
+        """The step ``δ`` minimising ``½ δᵀ(H + damping·diag H)δ + gᵀδ`` within the determined
+        directions (none along the undetermined ones)."""
+        B = self.basis / self.scale[:, None]  # back to parameter units
+        A = B.T @ H @ B
+        A = A + damping * np.diag(np.maximum(np.diag(A), 1e-30))
+        return np.asarray(B @ np.linalg.solve(A, -(B.T @ g)), dtype=np.float64)
+
+    def inverse(self, H: FloatArray) -> FloatArray:
+        """``H``'s inverse within the determined directions (zero along the others)."""
+        B = self.basis / self.scale[:, None]
+        return np.asarray(B @ np.linalg.solve(B.T @ H @ B, B.T), dtype=np.float64)
+
+
 @dataclass(frozen=True, eq=False)
 class AxisModel:
     """The whole model: joint axes and target at the reference pose (M), encoder scales."""
@@ -429,6 +506,8 @@ class WholeFit:
     bases: list[tuple[FloatArray, FloatArray]] = field(default_factory=list)
     constrained: dict[int, str] = field(default_factory=dict)
     sigma_rotation: float | None = None
+    #: what the samples determine (None: not computed)
+    determined: Determined | None = None
 
 
 Whitening = Callable[[FloatArray, FloatArray | None], FloatArray | float]
@@ -692,13 +771,13 @@ def _levenberg_marquardt(
             f"{layout.size} parameters."
         )
     lam = 1e-6
+    determined = Determined.of(st.H)  # the samples' symmetries: the same along the way
     for it in range(1, max_iterations + 1):
         st.iterations = it
         if progress is not None:
             progress(min(it / 3.0, 0.95))
-        D = np.diag(np.maximum(np.diag(st.H), 1e-30))
         try:
-            delta = np.asarray(np.linalg.solve(st.H + lam * D, -st.g), dtype=np.float64)
+            delta = determined.solve(st.H, st.g, lam)
         except np.linalg.LinAlgError:
             lam *= 10.0
             continue
@@ -765,7 +844,7 @@ def _finish_on_all(
             sub.model, layout, sub.bases, data, limit, norms, progress
         )
     try:
-        delta = np.asarray(np.linalg.solve(H, -g), dtype=np.float64)
+        delta = Determined.of(H).solve(H, g)
     except np.linalg.LinAlgError:
         delta = None
     if delta is not None and float(delta @ sub.H @ delta) <= 100.0 * layout.size:
@@ -856,21 +935,16 @@ def fit_whole_model(
         on_all = None if progress is None else (lambda f: progress(0.3 + 0.7 * f))
         st, chi2 = _finish_on_all(st, layout, data, limit, max_iterations, on_all)
         iterations += st.iterations
-    d = np.sqrt(np.maximum(np.diag(st.H), 1e-300))
-    eig = np.linalg.eigvalsh(st.H / np.outer(d, d))
-    if eig[0] < 1e-12 * eig[-1]:
-        weak = int(np.count_nonzero(eig < 1e-12 * eig[-1]))
+    determined = Determined.of(st.H)
+    if determined.basis.shape[1] == 0:
         raise DegenerateGeometryError(
-            f"the samples do not determine the whole model ({weak} direction(s) of its "
-            f"{layout.size} parameters are unconstrained): sweep every joint over more stops."
+            f"the samples determine none of the whole model's {layout.size} parameters: "
+            "measure more poses, moving every joint."
         )
     inliers = data.keep & (st.norms <= limit)
-    dof = max(data.per_sample * st.count - layout.size, 1)
+    dof = max(data.per_sample * st.count - determined.basis.shape[1], 1)
     chi2_dof = chi2 / dof
-    try:
-        covariance = np.linalg.inv(st.H) * chi2_dof
-    except np.linalg.LinAlgError:
-        covariance = np.linalg.pinv(st.H) * chi2_dof
+    covariance = determined.inverse(st.H) * chi2_dof
     return WholeFit(
         model=st.model,
         layout=layout,
@@ -881,6 +955,7 @@ def fit_whole_model(
         iterations=iterations,
         bases=st.bases,
         sigma_rotation=None if data.R is None else data.sigma_rot * math.sqrt(chi2_dof),
+        determined=determined,
     )
 
 
