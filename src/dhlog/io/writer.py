@@ -2,9 +2,12 @@
 
 * ``ros2``: as rosbag2 writes it: profile ``ros2``, schemas ``ros2msg``, CDR messages, a
   ``rosbag2`` metadata record, no chunk CRCs.
-* ``json``: ``jsonschema`` schemas ``foxglove.Point3InFrame`` and ``foxglove.JointStates``,
-  phase markers as ``{"joint": k}``.
+* ``json``: ``jsonschema`` schemas ``foxglove.Point3InFrame`` (``foxglove.PoseInFrame`` for a
+  6-DoF target) and ``foxglove.JointStates``, phase markers as ``{"joint": k}``.
 * ``protobuf``: the Foxglove protobuf schemas; phase markers as JSON on their own channel.
+
+Further targets go on ``/tracker/point_2``, ``/tracker/point_3``, … in every encoding, as points
+(SMRs measure no orientation) beside a 6-DoF target.
 
 Files are written to a temporary name beside the target and renamed into place.
 """
@@ -19,7 +22,9 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import IO, Any, Literal
 
+import numpy as np
 from mcap.writer import CompressionType, Writer
+from numpy.typing import NDArray
 
 from dhlog.io import ros2
 from dhlog.simulate import Session
@@ -39,6 +44,24 @@ JSON_SCHEMAS: dict[str, dict[str, Any]] = {
         "title": "foxglove.Point3InFrame",
         "type": "object",
         "properties": {"timestamp": _TIME, "frame_id": {"type": "string"}, "point": _VEC3},
+    },
+    "foxglove.PoseInFrame": {
+        "title": "foxglove.PoseInFrame",
+        "type": "object",
+        "properties": {
+            "timestamp": _TIME,
+            "frame_id": {"type": "string"},
+            "pose": {
+                "type": "object",
+                "properties": {
+                    "position": _VEC3,
+                    "orientation": {
+                        "type": "object",
+                        "properties": {k: {"type": "number"} for k in "xyzw"},
+                    },
+                },
+            },
+        },
     },
     "foxglove.JointStates": {
         "title": "foxglove.JointStates",
@@ -162,6 +185,26 @@ def _events(session: Session, *, extras: bool = False) -> list[tuple[int, str, i
     return ev
 
 
+def _quaternions(session: Session) -> NDArray[np.float64] | None:
+    """The 6-DoF target's orientation per sample as unit quaternions (x, y, z, w), or None."""
+    if session.point_rotation is None:
+        return None
+    from scipy.spatial.transform import Rotation
+
+    return np.asarray(Rotation.from_matrix(session.point_rotation).as_quat(canonical=True))
+
+
+def _target_xyz(session: Session, stream: str, i: int) -> NDArray[np.float64]:
+    """Sample ``i`` of a point stream: ``point``, ``base`` or a further target ``point_k``."""
+    if stream == "point":
+        xyz = session.point_xyz
+    elif stream == "base":
+        xyz = session.base_xyz
+    else:
+        xyz = session.extra_point_xyz[int(stream.removeprefix("point_")) - 2]
+    return np.asarray(xyz[i], dtype=np.float64)
+
+
 def _phase_text(joint: int | None) -> str:
     return "none" if joint is None else f"joint_{joint}"
 
@@ -197,10 +240,8 @@ def _write_ros2(session: Session, f: IO[bytes], point_type: str, chunk_size: int
     }
     encode = ros2.encode_pose_stamped if point_type == "pose" else ros2.encode_point_stamped
     points = encode(session.point_t_ns, session.point_xyz, "tracker")
-    if session.point_rotation is not None:
-        from scipy.spatial.transform import Rotation
-
-        quats = Rotation.from_matrix(session.point_rotation).as_quat(canonical=True)
+    quats = _quaternions(session)
+    if quats is not None:
         points = ros2.encode_pose_stamped(session.point_t_ns, session.point_xyz, "tracker", quats)
     payloads: dict[str, list[bytes]] = {
         "point": points,
@@ -214,9 +255,13 @@ def _write_ros2(session: Session, f: IO[bytes], point_type: str, chunk_size: int
         "joints": ros2.JOINT_STATE,
         "phase": ros2.STRING,
     }
+    # further targets are SMRs: no orientation of their own (a pose message only when asked)
+    extra_schema, encode_extra = point_schema, encode
+    if quats is not None:
+        extra_schema, encode_extra = ros2.POINT_STAMPED, ros2.encode_point_stamped
     for stream, extra in zip(_extra_streams(session), session.extra_point_xyz, strict=True):
-        payloads[stream] = encode(session.point_t_ns, extra, "tracker")
-        stream_schema[stream] = point_schema
+        payloads[stream] = encode_extra(session.point_t_ns, extra, "tracker")
+        stream_schema[stream] = extra_schema
     channels = {
         s: writer.register_channel(
             TOPICS.get(s, f"/tracker/{s}"),
@@ -244,28 +289,37 @@ def _write_ros2(session: Session, f: IO[bytes], point_type: str, chunk_size: int
 def _write_json(session: Session, f: IO[bytes], chunk_size: int) -> None:
     writer = Writer(f, chunk_size=chunk_size, compression=CompressionType.ZSTD)
     writer.start(profile="", library="dhlog simulate")
+    quats = _quaternions(session)
+    point_schema = "foxglove.Point3InFrame" if quats is None else "foxglove.PoseInFrame"
     ids = {
         name: writer.register_schema(name, "jsonschema", json.dumps(s).encode())
         for name, s in JSON_SCHEMAS.items()
+        if name != "foxglove.PoseInFrame" or quats is not None
     }
     channels = {
-        "point": writer.register_channel(TOPICS["point"], "json", ids["foxglove.Point3InFrame"]),
+        "point": writer.register_channel(TOPICS["point"], "json", ids[point_schema]),
         "base": writer.register_channel(TOPICS["base"], "json", ids["foxglove.Point3InFrame"]),
     }
+    for stream in _extra_streams(session):
+        channels[stream] = writer.register_channel(
+            f"/tracker/{stream}", "json", ids["foxglove.Point3InFrame"]
+        )
     if session.joint_t_ns.size:
         channels["joints"] = writer.register_channel(
             TOPICS["joints"], "json", ids["foxglove.JointStates"]
         )
     if session.phase:
         channels["phase"] = writer.register_channel(TOPICS["phase"], "json", ids["dhlog.Phase"])
-    for t, stream, i in _events(session):
-        if stream in ("point", "base"):
-            xyz = (session.point_xyz if stream == "point" else session.base_xyz)[i]
-            msg: dict[str, Any] = {
-                "timestamp": _stamp(t),
-                "frame_id": "tracker",
-                "point": {"x": float(xyz[0]), "y": float(xyz[1]), "z": float(xyz[2])},
-            }
+    for t, stream, i in _events(session, extras=True):
+        if stream.startswith("point") or stream == "base":
+            xyz = _target_xyz(session, stream, i)
+            position = {"x": float(xyz[0]), "y": float(xyz[1]), "z": float(xyz[2])}
+            msg: dict[str, Any] = {"timestamp": _stamp(t), "frame_id": "tracker"}
+            if stream == "point" and quats is not None:
+                orientation = dict(zip("xyzw", (float(v) for v in quats[i]), strict=True))
+                msg["pose"] = {"position": position, "orientation": orientation}
+            else:
+                msg["point"] = position
         elif stream == "joints":
             msg = {
                 "timestamp": _stamp(t),
@@ -285,16 +339,24 @@ def _write_protobuf(session: Session, f: IO[bytes], chunk_size: int) -> None:
     from foxglove_schemas_protobuf.JointStates_pb2 import JointStates
     from foxglove_schemas_protobuf.Point3_pb2 import Point3
     from foxglove_schemas_protobuf.Point3InFrame_pb2 import Point3InFrame
+    from foxglove_schemas_protobuf.Pose_pb2 import Pose
+    from foxglove_schemas_protobuf.PoseInFrame_pb2 import PoseInFrame
+    from foxglove_schemas_protobuf.Quaternion_pb2 import Quaternion
+    from foxglove_schemas_protobuf.Vector3_pb2 import Vector3
     from google.protobuf.timestamp_pb2 import Timestamp
     from mcap_protobuf.schema import register_schema
 
     writer = Writer(f, chunk_size=chunk_size, compression=CompressionType.ZSTD)
     writer.start(profile="protobuf", library="dhlog simulate")
     point_schema = register_schema(writer, Point3InFrame)
+    quats = _quaternions(session)
+    target_schema = point_schema if quats is None else register_schema(writer, PoseInFrame)
     channels = {
-        "point": writer.register_channel(TOPICS["point"], "protobuf", point_schema),
+        "point": writer.register_channel(TOPICS["point"], "protobuf", target_schema),
         "base": writer.register_channel(TOPICS["base"], "protobuf", point_schema),
     }
+    for stream in _extra_streams(session):
+        channels[stream] = writer.register_channel(f"/tracker/{stream}", "protobuf", point_schema)
     if session.joint_t_ns.size:
         channels["joints"] = writer.register_channel(
             TOPICS["joints"], "protobuf", register_schema(writer, JointStates)
@@ -309,9 +371,20 @@ def _write_protobuf(session: Session, f: IO[bytes], chunk_size: int) -> None:
         sec, nsec = divmod(t, 1_000_000_000)
         return Timestamp(seconds=sec, nanos=nsec)
 
-    for t, stream, i in _events(session):
-        if stream in ("point", "base"):
-            xyz = (session.point_xyz if stream == "point" else session.base_xyz)[i]
+    for t, stream, i in _events(session, extras=True):
+        if stream == "point" and quats is not None:
+            xyz, quat = session.point_xyz[i], quats[i]
+            pose = Pose(
+                position=Vector3(x=float(xyz[0]), y=float(xyz[1]), z=float(xyz[2])),
+                orientation=Quaternion(
+                    x=float(quat[0]), y=float(quat[1]), z=float(quat[2]), w=float(quat[3])
+                ),
+            )
+            payload = PoseInFrame(
+                timestamp=stamp(t), frame_id="tracker", pose=pose
+            ).SerializeToString()
+        elif stream.startswith("point") or stream == "base":
+            xyz = _target_xyz(session, stream, i)
             data = Point3InFrame(
                 timestamp=stamp(t),
                 frame_id="tracker",
