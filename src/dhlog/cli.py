@@ -138,6 +138,40 @@ def simulate(
     lock_poses: Annotated[
         str, typer.Option(help="home (all sweeps from one pose) or random.")
     ] = "home",
+    protocol: Annotated[
+        str,
+        typer.Option(
+            help="sweeps (each joint alone), random-poses (--poses still poses within the "
+            "limits, every joint changing) or coupled (each joint alone in --steps stops, "
+            "joints 2 and 3 only together as q3 = -q2); the last two measure only at stops."
+        ),
+    ] = "sweeps",
+    poses: Annotated[int, typer.Option(help="Still poses of --protocol random-poses.")] = 40,
+    model_error_mm: Annotated[
+        float,
+        typer.Option(
+            help="σ per coordinate of an unmodelled smooth error of the robot's position "
+            "(what gravity and gears leave after a geometric model), mm."
+        ),
+    ] = 0.0,
+    six_dof: Annotated[
+        bool,
+        typer.Option(
+            "--six-dof",
+            help="A 6-DoF target: its frame, turned on the flange, written with its "
+            "orientation (PoseStamped / PoseInFrame).",
+        ),
+    ] = False,
+    orientation_noise_deg: Annotated[
+        float, typer.Option(help="σ of the 6-DoF target's orientation noise, degrees.")
+    ] = 0.0,
+    extra_targets: Annotated[
+        str,
+        typer.Option(
+            help="Further targets (SMRs) as 'x,y,z;x,y,z', mm in the flange frame, measured at "
+            "the same instants on /tracker/point_2, /tracker/point_3, …"
+        ),
+    ] = "",
     base_points: Annotated[int, typer.Option(help="Points probed on the mounting plane.")] = 12,
     outliers: Annotated[float, typer.Option(help="Fraction of gross outliers (mm-sized).")] = 0.0,
     dropouts: Annotated[
@@ -181,7 +215,15 @@ def simulate(
 
     from dhlog.dhfile import robot_or_dh_file
     from dhlog.io.writer import sha256_of, write_session, write_truth
-    from dhlog.simulate import SimulationConfig, config_problems, simulate_session, truth_document
+    from dhlog.simulate import (
+        PROTOCOLS,
+        SIX_DOF_TOOL_ROTATION,
+        SimulationConfig,
+        config_problems,
+        simulate_session,
+        swept_joints,
+        truth_document,
+    )
 
     choices = {
         "encoding": (encoding, ("ros2", "json", "protobuf")),
@@ -189,11 +231,13 @@ def simulate(
         "motion": (motion, ("continuous", "step")),
         "lock-poses": (lock_poses, ("home", "random")),
         "point-type": (point_type, ("point", "pose")),
+        "protocol": (protocol, PROTOCOLS),
     }
     for option, (value, allowed) in choices.items():
         if value not in allowed:
             stderr.print(f"error: --{option} must be one of {', '.join(allowed)}, not '{value}'.")
             raise typer.Exit(EXIT_USAGE)
+    extra_tools = _triples(extra_targets, "--extra-targets")
     truth_path = output.with_name(output.stem + ".truth.json")
     _check_folder(output.parent)
     for path in (output, truth_path):
@@ -210,6 +254,12 @@ def simulate(
             travel=travel_mm * 1e-3,
             steps=steps,
             lock_poses=lock_poses,  # type: ignore[arg-type]
+            protocol=protocol,  # type: ignore[arg-type]
+            poses=poses,
+            model_error=model_error_mm * 1e-3,
+            tool_rotation=SIX_DOF_TOOL_ROTATION if six_dof else None,
+            orientation_noise=math.radians(orientation_noise_deg),
+            extra_tools=tuple((x * 1e-3, y * 1e-3, z * 1e-3) for x, y, z in extra_tools),
             base_points=base_points,
             outliers=outliers,
             dropouts=dropouts,
@@ -227,9 +277,10 @@ def simulate(
             stderr.print(f"error: {escape(problems[0])}.")
             raise typer.Exit(EXIT_USAGE)
         session = simulate_session(rob, cfg)
+        swept = swept_joints(rob, cfg)
         for k, (got, jt) in enumerate(zip(session.sweeps, rob.table.joint_types, strict=True)):
             asked = cfg.sweep if jt.value == "revolute" else cfg.travel
-            if k + 1 not in cfg.skip_joints and got < asked - 1e-9:
+            if k + 1 in swept and got < asked - 1e-9:
                 shown = (
                     f"sweep {math.degrees(got):.1f}° (asked {math.degrees(asked):g}°)"
                     if jt.value == "revolute"
@@ -259,6 +310,34 @@ def simulate(
         f"wrote {output} ({session.point_xyz.shape[0]} target samples, "
         f"{session.joint_t_ns.size} joint states, {encoding}) and {truth_path}"
     )
+    if six_dof:
+        stdout.print(
+            "note: the target's orientation is in /tracker/point: read it with "
+            "orientation = true in the pipeline's [streams.point].",
+            markup=False,
+        )
+    if extra_tools:
+        topics = ", ".join(f'"/tracker/point_{k + 2}"' for k in range(len(extra_tools)))
+        stdout.print(
+            f"note: read the further targets with extra_topics = [{topics}] in the pipeline's "
+            "[streams.point].",
+            markup=False,
+        )
+
+
+def _triples(text: str, what: str) -> list[tuple[float, float, float]]:
+    """``'x,y,z;x,y,z'`` as number triples (exit 1 naming the option otherwise)."""
+    out = []
+    for group in (g for g in text.split(";") if g.strip()):
+        values = _floats(group, what)
+        if len(values) != 3:
+            stderr.print(
+                f"error: {what} takes x,y,z triples separated by ';', not '{group.strip()}'.",
+                markup=False,
+            )
+            raise typer.Exit(EXIT_USAGE)
+        out.append((values[0], values[1], values[2]))
+    return out
 
 
 def _floats(text: str, what: str) -> list[float]:

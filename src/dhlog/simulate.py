@@ -177,7 +177,7 @@ def _protocol_problems(robot: Robot, cfg: SimulationConfig) -> list[str]:
         out.append(f"the coupled moves name joint(s) {bad}; {robot.name} has joints 1-{robot.n}")
     if cfg.protocol == "random-poses":
         if not 1 <= cfg.poses <= 100_000:
-            out.append(f"the poses must be in [1, 100 000] (got {cfg.poses})")
+            out.append(f"the number of poses must be in [1, 100 000] (got {cfg.poses})")
         if cfg.skip_joints:
             out.append("--skip-joints is for sweeps; the random-poses protocol sweeps no joint")
     if cfg.protocol == "coupled":
@@ -662,7 +662,7 @@ def truth_document(
             "protocol": cfg.protocol,
             "poses": int(session.poses.shape[0]),
             "model_error_m": cfg.model_error,
-            "steps": cfg.steps if plan.motion == "step" else None,
+            "steps": cfg.steps if plan.motion == "step" and not session.poses.size else None,
             "coupled": [[a, b, ratio] for a, b, ratio in plan.coupled],
             "tool_rotation_rotvec": None if cfg.tool_rotation is None else list(cfg.tool_rotation),
             "orientation_noise_rad": cfg.orientation_noise,
