@@ -4,13 +4,15 @@ A session moves the robot through piecewise-linear joint trajectories, by protoc
 
 * ``sweeps``: for each joint, a move that drives several joints at once to that joint's locked
   pose (a transition), a dwell, the sweep (continuous at constant speed, or step-and-measure), a
-  dwell; then the coupled moves asked for (joints moved together, ``q_b = ratio · q_a``).
+  dwell.
 * ``random-poses``: ``poses`` random still poses within the joint limits (every joint changes
   from one to the next), each held for a dwell; no sweep.
 * ``coupled``: each joint swept alone in ``steps`` stops, except joints 2 and 3, which only move
   together (q3 = −q2), also in ``steps`` stops.
 
-The last two are step-and-measure protocols: the tracker records only while the robot is still.
+Then come the coupled moves asked for (``coupled``: joints moved together, ``q_b = ratio · q_a``,
+the ratio held within the limits). ``random-poses`` and ``coupled`` are step-and-measure
+protocols: the tracker records only while the robot is still.
 The tracker samples the target (FK of the true robot, plus an unmodelled smooth error of the
 robot's position if asked, noise, gross outliers and dropouts) at its own rate; the encoders are
 sampled at another rate with another clock phase and jitter. Base-plane points are probed first.
