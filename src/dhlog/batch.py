@@ -36,6 +36,8 @@ class BatchJob:
     no_rrd: bool = False
     analytic_only: bool = False
     units: str = "mm"
+    #: K-fold cross-validation of each log (0: none), as ``dhlog process --holdout``
+    holdout: int = 0
 
 
 def stem_of(log: Path) -> str:
@@ -56,6 +58,8 @@ def process_job(job: BatchJob) -> dict[str, Any]:
     outputs = [folder / f"{stem}.dh.json", folder / f"{stem}.dh.csv"]
     if not job.no_rrd:
         outputs.append(folder / f"{stem}.rrd")
+    if job.holdout:
+        outputs.append(folder / f"{stem}{HOLDOUT_SUFFIX}")
     try:
         from dhlog.dhfile import dh_model_from
         from dhlog.io.pipeline import pipeline_from
@@ -63,7 +67,13 @@ def process_job(job: BatchJob) -> dict[str, Any]:
 
         pipe = pipeline_from(job.pipeline) if job.pipeline is not None else None
         nom = dh_model_from(job.nominal) if job.nominal is not None else None
-        result = process_log(log, pipeline=pipe, nominal=nom, analytic_only=job.analytic_only)
+        result = process_log(
+            log,
+            pipeline=pipe,
+            nominal=nom,
+            analytic_only=job.analytic_only,
+            holdout=job.holdout,
+        )
         document = write_results(result, outputs, job.units)
         t0 = result.log.points["t_ns"].min() if result.log.points.height else None
         status = "ok" if result.complete else "partial"
@@ -156,6 +166,13 @@ def summary_row(
         "clock_offset": timing.get("clock_offset"),
         "std_clock_offset": timing.get("std"),
     }
+    for check in val.get("holdout") or []:  # the first cross-validation's statistics
+        if isinstance(check, dict) and check.get("kind") == "cross-validation":
+            for model in ("nominal", "calibrated"):
+                stats = check.get(model) or {}
+                for key in ("mean", "rms", "p95", "max"):
+                    row[f"holdout_{model}_{key}"] = stats.get(key)
+            break
     if doc.get("standard_dh"):
         for name, value, sigma, _ in parameters(doc):
             row[name] = value

@@ -143,7 +143,7 @@ def simulate(
         typer.Option(
             help="sweeps (each joint alone), random-poses (--poses still poses within the "
             "limits, every joint changing) or coupled (each joint alone in --steps stops, "
-            "joints 2 and 3 only together as q3 = -q2); the last two measure only at stops."
+            "except joint 2: only with joint 3 as q3 = -q2); the last two measure only at stops."
         ),
     ] = "sweeps",
     poses: Annotated[int, typer.Option(help="Still poses of --protocol random-poses.")] = 40,
@@ -732,6 +732,13 @@ def batch(
         bool, typer.Option("--analytic-only", help="The seed method alone, for every log.")
     ] = False,
     units: Annotated[str, typer.Option(help="Units of each log's CSV: mm or m.")] = "mm",
+    holdout: Annotated[
+        int,
+        typer.Option(
+            help="K-fold cross-validation of every log (K ≥ 2; 0: none): held-out errors "
+            "before and after in each result and in the summary.",
+        ),
+    ] = 0,
     force: Annotated[bool, typer.Option("--force", help="Overwrite existing results.")] = False,
 ) -> None:
     """Process many logs in --jobs workers into one summary table (a failing log is a row)."""
@@ -747,13 +754,24 @@ def batch(
         TimeRemainingColumn,
     )
 
-    from dhlog.batch import SUMMARY_STEM, BatchJob, run_batch, stem_of, summary_frame, write_summary
+    from dhlog.batch import (
+        HOLDOUT_SUFFIX,
+        SUMMARY_STEM,
+        BatchJob,
+        run_batch,
+        stem_of,
+        summary_frame,
+        write_summary,
+    )
 
     if jobs < 1 or jobs > 256:
         stderr.print(f"error: --jobs must be between 1 and 256, not {jobs}.")
         raise typer.Exit(EXIT_USAGE)
     if units not in ("mm", "m"):
         stderr.print(f"error: --units must be mm or m, not '{units}'.")
+        raise typer.Exit(EXIT_USAGE)
+    if holdout == 1 or not 0 <= holdout <= 1000:
+        stderr.print(f"error: --holdout must be 0 (none) or a fold count of 2-1000, not {holdout}.")
         raise typer.Exit(EXIT_USAGE)
     stems: dict[str, Path] = {}
     for log in logs:
@@ -765,6 +783,7 @@ def batch(
             )
             raise typer.Exit(EXIT_USAGE)
     suffixes = [".dh.json", ".dh.csv", *([] if no_rrd else [".rrd"])]
+    suffixes += [HOLDOUT_SUFFIX] if holdout else []
     wanted = [out / f"{s}{x}" for s in stems for x in suffixes] + [out / f"{SUMMARY_STEM}.csv"]
     clash = [str(p) for p in wanted if p.exists()]
     if clash and not force:
@@ -776,7 +795,7 @@ def batch(
     except OSError as exc:
         _fail(OutputError(out, exc))
     work = [
-        BatchJob(str(log), str(out), pipeline, nominal, no_rrd, analytic_only, units)
+        BatchJob(str(log), str(out), pipeline, nominal, no_rrd, analytic_only, units, holdout)
         for log in logs
     ]
     with Progress(

@@ -317,6 +317,7 @@ def write_process_recording(
                 radius=2 * shown.scene.line,
             )
         log_residuals(rec, shown, found, k)
+        log_holdout(rec, shown)
         rec.log(
             "report/dh_table",
             rr.TextDocument(result_markdown(result), media_type=rr.MediaType.MARKDOWN),
@@ -574,6 +575,64 @@ def log_residuals(
             )
 
 
+#: Colours of the held-out error arrows: the nominal's, the calibrated model's.
+HOLDOUT_COLORS = {"nominal": [230, 120, 30], "calibrated": [40, 170, 90]}
+
+
+def holdout_magnification(shown: Shown) -> float:
+    """The factor that makes the largest held-out RMS error about 4 % of the robot's extent."""
+    worst = max(
+        (
+            s.rms
+            for h in shown.result.holdout
+            for s in (h.nominal, h.calibrated)
+            if s is not None and s.rms > 0
+        ),
+        default=0.0,
+    )
+    return _nice(0.04 * shown.scene.extent / worst) if worst > 0 else 1.0
+
+
+def log_holdout(rec: rr.RecordingStream, shown: Shown) -> None:
+    """Every held-out pose (``world/m/holdout/<check>``): its measured position and, magnified
+    :func:`holdout_magnification` times, the error vector (measured − predicted) of the nominal
+    and of the calibrated model. A log measured after the tracker moved is drawn in this
+    session's frame M through the base both were placed on."""
+    result = shown.result
+    ex = result.extraction
+    if not result.holdout or ex is None:
+        return
+    k = holdout_magnification(shown)
+    for i, h in enumerate(result.holdout):
+        name = "cross_validation" if h.kind == "cross-validation" else f"log_{i}"
+        M = np.eye(4)
+        if h.T_measurement_base is not None:  # its M → the base → this session's M
+            M = ex.T_measurement_base @ np.linalg.inv(h.T_measurement_base)
+        pos = h.positions @ M[:3, :3].T + M[:3, 3]
+        path = f"world/m/holdout/{name}"
+        rec.log(
+            f"{path}/poses",
+            rr.Points3D(pos, colors=[[90, 90, 90]], radii=shown.scene.sample * 1.5),
+            static=True,
+        )
+        for model, vectors in (
+            ("nominal", h.nominal_vectors),
+            ("calibrated", h.calibrated_vectors),
+        ):
+            if vectors is None:
+                continue
+            rec.log(
+                f"{path}/{model}",
+                rr.Arrows3D(
+                    origins=pos,
+                    vectors=k * (vectors @ M[:3, :3].T),
+                    colors=[HOLDOUT_COLORS[model]],
+                    radii=shown.scene.line,
+                ),
+                static=True,
+            )
+
+
 def _send_components(
     rec: rr.RecordingStream, path: str, index: list[rr.TimeColumn], parts: dict[str, FloatArray]
 ) -> None:
@@ -631,9 +690,30 @@ def _process_blueprint(shown: Shown, k: float, found: list[Residuals]) -> rrb.Bl
                 rrb.Spatial3DView(
                     name="Samples and fits [m, robot base frame]",
                     origin="world",
-                    contents=["+ $origin/**", "- $origin/m/magnified/**"],
+                    contents=[
+                        "+ $origin/**",
+                        "- $origin/m/magnified/**",
+                        "- $origin/m/holdout/**",
+                    ],
                     time_ranges=everything,
                     eye_controls=eye,
+                ),
+                *(
+                    [
+                        rrb.Spatial3DView(
+                            name=f"Held-out errors ×{holdout_magnification(shown):g}: nominal "
+                            "orange, calibrated green [m, robot base frame]",
+                            origin="world",
+                            contents=[
+                                "+ $origin/m/holdout/**",
+                                "+ $origin/m/joints/**",
+                                "+ $origin/m/robot/**",
+                            ],
+                            eye_controls=eye,
+                        )
+                    ]
+                    if result.holdout
+                    else []
                 ),
                 rrb.Spatial3DView(
                     name=f"FK residuals ×{k:g} [m, robot base frame]",

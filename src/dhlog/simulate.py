@@ -7,8 +7,10 @@ A session moves the robot through piecewise-linear joint trajectories, by protoc
   dwell.
 * ``random-poses``: ``poses`` random still poses within the joint limits (every joint changes
   from one to the next), each held for a dwell; no sweep.
-* ``coupled``: each joint swept alone in ``steps`` stops, except joints 2 and 3, which only move
-  together (q3 = −q2), also in ``steps`` stops.
+* ``coupled``: each joint swept alone in ``steps`` stops, except joint 2, which only moves
+  together with joint 3 (q3 = −q2: the level forearm move), also in ``steps`` stops — the
+  industrial session of issue 17, where joints 1 and 3–6 had sweeps and joint 2 never moved
+  alone.
 
 Then come the coupled moves asked for (``coupled``: joints moved together, ``q_b = ratio · q_a``,
 the ratio held within the limits). ``random-poses`` and ``coupled`` are step-and-measure
@@ -203,7 +205,7 @@ def _protocol_problems(robot: Robot, cfg: SimulationConfig) -> list[str]:
 
 def protocol_config(cfg: SimulationConfig) -> SimulationConfig:
     """``cfg`` with what its protocol implies spelled out: step-and-measure for ``random-poses``
-    and ``coupled``; for ``coupled`` joints 2 and 3 never swept alone and moved together."""
+    and ``coupled``; for ``coupled`` joint 2 never swept alone and moved together with 3."""
     if cfg.protocol == "random-poses":
         return replace(cfg, motion="step")
     if cfg.protocol == "coupled":
@@ -211,7 +213,7 @@ def protocol_config(cfg: SimulationConfig) -> SimulationConfig:
         pairs = cfg.coupled
         if not any((p, q) == (a, b) for p, q, _ in pairs):
             pairs = (*pairs, COUPLED_PAIR)
-        skip = tuple(sorted({*cfg.skip_joints, a, b}))
+        skip = tuple(sorted({*cfg.skip_joints, a}))
         return replace(cfg, motion="step", skip_joints=skip, coupled=pairs)
     return cfg
 

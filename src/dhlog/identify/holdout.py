@@ -84,6 +84,9 @@ class Holdout:
     registered: bool = False
     n_registration_poses: int = 0
     notes: list[str] = field(default_factory=list)
+    #: where the positions' frame M stands (its ``T_measurement_base``) when it is not the
+    #: result's own: another log measured after the tracker moved
+    T_measurement_base: FloatArray | None = None
 
     def document(self) -> dict[str, object]:
         doc: dict[str, object] = {"kind": self.kind}
@@ -262,4 +265,5 @@ def score_poses(
         registered=bool(moved),
         n_registration_poses=int(np.unique(groups[subset]).size) if moved else 0,
         notes=notes,
+        T_measurement_base=moved_reg.T_measurement_base if moved else None,
     )

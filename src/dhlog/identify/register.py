@@ -6,8 +6,9 @@ the robot's base frame and the points in the tracker's frame M; :func:`register_
 the rigid transform ``T_measurement_base`` and the target's position on the flange (the tool
 point in the last frame) that best carry the nominal's prediction onto the points: Kabsch on the
 points (tool point taken as the nominal's), the tool point again by linear least squares, a few
-alternations, then a robust (soft-L1) nonlinear least squares over all nine numbers. Samples
-farther than :data:`OUTLIER_SCALE` robust scales from the result are reported as outliers.
+alternations, then a robust (soft-L1) nonlinear least squares over all nine numbers, and plain
+least squares again over the samples within :data:`OUTLIER_SCALE` robust scales of it (the
+others are reported as outliers).
 
 Pure numpy/scipy.
 """
@@ -30,6 +31,8 @@ OUTLIER_SCALE = 5.0
 #: The soft-L1 loss switches from quadratic to linear at this 3-D residual (m): the nominal's own
 #: error at a pose is typically a millimetre, a gross outlier (a beam break) centimetres.
 ROBUST_SCALE = 2e-3
+#: The robust scale is never taken below this (m): no tracker measures better.
+SCALE_FLOOR = 1e-6
 
 
 @dataclass(frozen=True)
@@ -109,12 +112,23 @@ def register_nominal(
         return np.asarray((pred - P).reshape(-1), dtype=np.float64)
 
     x0 = np.r_[np.zeros(6), tool] if fit_tool else np.zeros(6)
-    sol = least_squares(residual, x0, loss="soft_l1", f_scale=ROBUST_SCALE, x_scale="jac")
-    R, c, t = unpack(sol.x)
-    T = np.eye(4)
-    T[:3, :3], T[:3, 3] = R, c
-    dist = np.linalg.norm(residual(sol.x).reshape(-1, 3), axis=1)
-    scale = max(float(np.median(dist)) * 1.5, 1e-9)
-    inliers = dist <= OUTLIER_SCALE * scale
+    x = least_squares(residual, x0, loss="soft_l1", f_scale=ROBUST_SCALE, x_scale="jac").x
+    inliers = np.ones(Q.shape[0], dtype=bool)
+    for _ in range(3):  # the robust loss still leans towards gross outliers: refit without them
+        dist = np.linalg.norm(residual(x).reshape(-1, 3), axis=1)
+        scale = max(float(np.median(dist)) * 1.5, SCALE_FLOOR)
+        keep = dist <= OUTLIER_SCALE * scale
+        if np.array_equal(keep, inliers) and _ > 0:
+            break
+        inliers = keep
+
+        def on_inliers(x: FloatArray, keep: NDArray[np.bool_] = keep) -> FloatArray:
+            return residual(x).reshape(-1, 3)[keep].reshape(-1)
+
+        x = least_squares(on_inliers, x, x_scale="jac").x
+    dist = np.linalg.norm(residual(x).reshape(-1, 3), axis=1)
+    R, c, t = unpack(x)
+    placed = np.eye(4)
+    placed[:3, :3], placed[:3, 3] = R, c
     rms = float(np.sqrt(np.mean(dist[inliers] ** 2))) if np.any(inliers) else float("nan")
-    return Registration(T, np.asarray(t, dtype=np.float64), dist, inliers, rms)
+    return Registration(placed, np.asarray(t, dtype=np.float64), dist, inliers, rms)
