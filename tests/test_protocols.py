@@ -259,3 +259,19 @@ def test_a_coupled_joint_is_identified_without_a_nominal(seed: int) -> None:
     assert any("coupled move" in w for w in result.warnings)
     Q = np.random.default_rng(7).uniform(robot.limits[:, 0], robot.limits[:, 1], (200, 6))
     assert np.all(fk_error(result, session, Q) <= 4.0 * fk_prediction_std(result, Q))
+
+
+def test_samples_of_one_pose_share_its_error_and_the_uncertainty_says_so() -> None:
+    """Five tracker samples at each of 40 still poses of a robot leaving 60 µm of unmodelled
+    error: the samples of a pose are not independent, so the σ is scaled by the design effect
+    (about √5 here: the pose's error dominates the 10 µm noise) and covers the FK error at
+    random joint vectors (4σ); with one sample a pose nothing is scaled."""
+    robot, session = random_poses(7, model_error=6e-5, tracker_rate=10.0)
+    result = process_data(log_data_from_session(session), nominal=nominal_of(robot))
+    notes = [n for n in result.info if "design effect" in n]
+    assert len(notes) == 1 and "5.0 a pose" in notes[0]
+    Q = np.random.default_rng(8).uniform(robot.limits[:, 0], robot.limits[:, 1], (200, 6))
+    assert np.all(fk_error(result, session, Q) <= 4.0 * fk_prediction_std(result, Q))
+    robot, single = random_poses(7, model_error=6e-5)
+    once = process_data(log_data_from_session(single), nominal=nominal_of(robot))
+    assert not any("design effect" in n for n in once.info)

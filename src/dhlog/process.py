@@ -789,6 +789,8 @@ def _identify_whole(
         result.segmentation = seg
     result.timing = timing
     whole, sample_cov = _with_model_error(result, whole, Q, P, sample_cov, which, rates, rotations)
+    if rotations is None:
+        whole = _pose_clustered(result, whole, Q, P, sample_cov, which, rates, sigma)
     nominal_table = nominal.table if nominal is not None else None
     covs = axis_covariances(whole)
     kw = dict(kwargs)
@@ -977,6 +979,62 @@ def _with_model_error(
         f"({LIKELY_CAUSES})."
     )
     return whole, sample_cov
+
+
+def _pose_clustered(
+    result: ProcessResult,
+    whole: WholeFit,
+    Q: FloatArray,
+    P: FloatArray,
+    sample_cov: FloatArray | None,
+    which: NDArray[np.int64] | None,
+    rates: FloatArray | None,
+    sigma: float,
+) -> WholeFit:
+    """Static poses measured with several samples each share their pose's error (what the
+    model leaves there: gravity, gears), so the samples are not independent and ``(JᵀWJ)⁻¹ χ²``
+    is too small by up to √(samples per pose). Where poses hold two or more samples on average,
+    the covariance is scaled by the design effect ``1 + (k̄ − 1) ρ`` (k̄ samples per pose, ρ the
+    share of the residual variance common to a pose's samples: the whitened residuals' variance
+    about their pose's mean against their whole variance), said in a note."""
+    from dhlog.identify.holdout import pose_groups
+    from dhlog.identify.noise import whitening_from_std
+
+    inl = whole.inliers
+    groups = pose_groups(Q)[inl]
+    ids, inverse = np.unique(groups, return_inverse=True)
+    m, g = int(inl.sum()), int(ids.size)
+    if g == 0 or m < 2 * g or m - g < 3:
+        return whole
+    pred, _ = predict(
+        whole.model,
+        Q[inl],
+        which=None if which is None else which[inl],
+        rates=None if rates is None else rates[inl],
+    )
+    r = P[inl] - pred
+    if sample_cov is not None:
+        W: FloatArray | float = whitening_from_std(sample_cov[inl])
+    else:
+        W = result.noise.whiten(P[inl], sigma)
+    rw = r * W if isinstance(W, float) else np.einsum("mij,mj->mi", W, r)
+    count = np.bincount(inverse, minlength=g)[:, None]
+    mean = np.zeros((g, 3))
+    np.add.at(mean, inverse, rw)
+    mean /= count
+    within = float(np.sum((rw - mean[inverse]) ** 2)) / (3 * (m - g))
+    total = float(np.sum(rw**2)) / max(3 * m - whole.layout.size, 1)
+    rho = min(max(1.0 - within / total, 0.0), 1.0) if total > 0 else 0.0
+    k = m / g
+    effect = 1.0 + (k - 1.0) * rho
+    if effect < 1.1:
+        return whole
+    result.info.append(
+        f"{m} samples at {g} poses ({k:.1f} a pose) share their pose's error ({rho:.0%} of the "
+        f"residual variance): the uncertainty is scaled by the design effect, "
+        f"σ x{math.sqrt(effect):.2f}."
+    )
+    return replace(whole, covariance=whole.covariance * effect)
 
 
 def _measured_rotations(seg: Segmentation, rows: NDArray[np.int64]) -> FloatArray | None:
