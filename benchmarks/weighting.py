@@ -25,7 +25,8 @@ import math
 import numpy as np
 import polars as pl
 
-import dhlog.process as process
+import dhlog.identify.variance as variance
+from dhlog import process
 from dhlog.dhfile import DHModel
 from dhlog.io.memory import log_data_from_session
 from dhlog.io.reader import COVARIANCE_COLUMNS
@@ -45,7 +46,7 @@ def main() -> None:
     nominal = DHModel(robot.table, robot.T_base, robot.tool_point, names, "kr5")
     squared: dict[str, list[np.ndarray]] = {"plain": [], "U95 only": [], "U95 + model error": []}
     estimated = []
-    default_threshold = process.MODEL_ERROR_CHI2
+    default_threshold = variance.MODEL_ERROR_CHI2
     for seed in range(args.sessions):
         cfg = SimulationConfig(
             seed=3000 + seed,
@@ -74,7 +75,7 @@ def main() -> None:
             ("U95 only", weighted, math.inf),
             ("U95 + model error", weighted, default_threshold),
         ):
-            process.MODEL_ERROR_CHI2 = threshold
+            variance.MODEL_ERROR_CHI2 = threshold
             result = process.process_data(data, nominal=nominal)
             ex = result.extraction
             assert ex is not None
@@ -82,7 +83,7 @@ def main() -> None:
             squared[label].append(np.sum((got - want) ** 2, axis=1))
             if label == "U95 + model error" and result.noise.model_error is not None:
                 estimated.append(result.noise.model_error)
-        process.MODEL_ERROR_CHI2 = default_threshold
+        variance.MODEL_ERROR_CHI2 = default_threshold
     rms = {k: math.sqrt(float(np.mean(np.concatenate(v)))) for k, v in squared.items()}
     print(
         f"KR5, {args.sessions} sessions × {args.poses} random poses, σ 5 µm, U95 1–10 µm, "

@@ -39,7 +39,7 @@ from dhlog.extract import (
 from dhlog.geometry._checks import FloatArray
 from dhlog.geometry.fitting import PlaneFit, fit_plane
 from dhlog.geometry.lines import ANGLE_TOL, DISTANCE_TOL, Line, Plane, RelationKind, classify_lines
-from dhlog.geometry.screws import chain_motion, motions_back, points_at_reference
+from dhlog.geometry.screws import motions_back, points_at_reference
 from dhlog.identify.analytic import (
     AIC_SIGMA_2D,
     hayati_rows,
@@ -49,14 +49,22 @@ from dhlog.identify.analytic import (
     propagate_analytic,
 )
 from dhlog.identify.holdout import Holdout, cross_validate, score_poses
-from dhlog.identify.noise import MODEL_ERROR_CHI2, NoiseModel, model_error_sigma
+from dhlog.identify.noise import NoiseModel
 from dhlog.identify.propagate import (
     NOT_DETERMINED,
     fixed_reasons,
     propagate,
     state_names,
 )
-from dhlog.identify.register import Registration, register_nominal
+from dhlog.identify.register import Registration
+from dhlog.identify.start import (
+    NEVER_MOVED,
+    Known,
+    Start,
+    never_moved,
+    start_from_neighbours,
+    start_from_nominal,
+)
 from dhlog.identify.sweeps import (
     JointReport,
     TargetAtReference,
@@ -72,6 +80,7 @@ from dhlog.identify.timing import (
     rejoin,
     sweep_phases,
 )
+from dhlog.identify.variance import design_effect, refit_with_model_error
 from dhlog.identify.whole import (
     CHI3_MEDIAN,
     AxisModel,
@@ -448,96 +457,49 @@ def process_data(
     return result
 
 
+def _known(result: ProcessResult) -> list[Known]:
+    return [Known(j.index - 1, j.type, j.axis if j.ok else None) for j in result.joints]
+
+
 def _from_the_nominal(result: ProcessResult, kwargs: dict[str, Any], stage: Stage) -> bool:
     """Joints never moved alone, identified by the whole-model fit from every other sample
-    (coupled moves, random static poses, stops), started from the nominal: laid onto the
-    identified axes when at least two were swept alone and fix a rotation, else registered onto
-    the points (``identify.register``: no sweep at all, random static poses). Returns False (and
-    changes nothing) when the data do not determine them."""
-    from dhlog.kinematics import fk_point, joint_axes
-
+    (coupled moves, random static poses, stops), started from the nominal
+    (:func:`~dhlog.identify.start.start_from_nominal`). Returns False (and changes nothing)
+    when a joint never moved, or the data do not determine them."""
     nominal = result.nominal
-    joints, ref, seg = result.joints, result.reference_pose, result.segmentation
     assert nominal is not None
-    rows, Q, P = samples_with_encoders(seg)
-    if rows.size == 0:
+    rows, Q, P = samples_with_encoders(result.segmentation)
+    if rows.size == 0 or _any_never_moved(result, Q):
         return False
-    still = [j for j in joints if not j.ok and np.ptp(Q[:, j.index - 1]) < NEVER_MOVED]
-    if still:
-        names = ", ".join(f"joint {j.index} ({j.name})" for j in still)
-        result.warnings.append(
-            f"{names}: never moved in this log (its encoder values span less than "
-            f"{NEVER_MOVED:g}): nothing in the samples measures it."
+    which = target_labels(result.segmentation, rows)
+    primary = slice(None) if which is None else which == 0
+    try:
+        start = start_from_nominal(
+            _known(result),
+            Q[primary],
+            P[primary],
+            result.reference_pose,
+            nominal.table,
+            T_base=nominal.T_base,
+            tool_point=nominal.tool_point,
         )
+    except GeometryError as exc:
+        result.warnings.append(f"the nominal could not be placed on the points: {exc}")
         return False
-    known = [j for j in joints if j.ok and j.axis is not None]
-    points, dirs = joint_axes(nominal.table, ref, T_base=nominal.T_base)
-    T = (
-        _align_lines(
-            [(points[j.index - 1], dirs[j.index - 1]) for j in known],
-            [(j.axis.point, j.axis.direction) for j in known if j.axis is not None],
-        )
-        if len(known) >= 2
-        else None
-    )
-    types = tuple(nominal.table.joint_types)
-    if T is not None:
-        axes = [
-            j.axis
-            if j.ok and j.axis is not None
-            else Line(T[:3, :3] @ points[j.index - 1] + T[:3, 3], T[:3, :3] @ dirs[j.index - 1])
-            for j in joints
-        ]
-        nearest = int(np.argmin(np.sum((Q - ref) ** 2, axis=1)))
-        M = chain_motion(axes, types, Q[nearest], ref)
-        target = np.asarray(np.linalg.solve(M, np.r_[P[nearest], 1.0])[:3], dtype=np.float64)
-    else:
-        which = target_labels(seg, rows)
-        primary = slice(None) if which is None else which == 0
-        try:
-            reg = register_nominal(
-                nominal.table,
-                Q[primary],
-                P[primary],
-                tool_point=nominal.tool_point,
-                T_base=nominal.T_base,
-            )
-        except GeometryError as exc:
-            result.warnings.append(f"the nominal could not be placed on the points: {exc}")
-            return False
+    reg = start.registration
+    if reg is not None:
         result.registration = reg
-        points, dirs = joint_axes(nominal.table, ref, T_base=reg.T_measurement_base)
-        axes = [Line(p, d) for p, d in zip(points, dirs, strict=True)]
-        target = fk_point(nominal.table, ref, reg.tool_point, T_base=reg.T_measurement_base)
         result.info.append(
             f"no joint was swept alone: the nominal was placed on the points (tracker → base "
             f"by a robust registration; the nominal's RMS there {reg.rms * 1e3:.4f} mm over "
             f"{int(np.count_nonzero(reg.inliers))} samples) and every joint identified by the "
             "whole-model fit from there."
         )
-    missing = [j for j in joints if not j.ok]
-    saved = [(j.type, j.axis, j.reason, j.type_source) for j in missing]
-    for j in missing:
-        j.type, j.axis, j.reason, j.type_source = (
-            types[j.index - 1],
-            axes[j.index - 1],
-            None,
-            "nominal",
-        )
-    result.target = target
-    try:
-        _identify_whole(result, None, kwargs, False, stage)
-    except (GeometryError, np.linalg.LinAlgError) as exc:
-        result.whole, result.method = None, "analytic"
-        for j, (jt, axis, reason, source) in zip(missing, saved, strict=True):
-            j.type, j.axis, j.reason, j.type_source = jt, axis, reason, source
-        result.target = None
-        result.warnings.append(f"the whole-model fit from the nominal failed: {exc}")
+    missing = [j for j in result.joints if not j.ok]
+    if not _fit_from(result, start, kwargs, stage, "the nominal"):
+        result.registration = None
         return False
-    assert result.whole is not None
-    for j in missing:
-        j.axis = result.whole.model.axes[j.index - 1]
-    if known:
+    if reg is None:
         names = ", ".join(f"joint {j.index} ({j.name})" for j in missing)
         result.warnings.append(
             f"{names}: never moved alone; identified by the whole-model fit from the other "
@@ -546,80 +508,22 @@ def _from_the_nominal(result: ProcessResult, kwargs: dict[str, Any], stage: Stag
     return True
 
 
-#: A joint whose encoder values span less than this (rad or m) never moved in the log.
-NEVER_MOVED = 1e-3
-#: A coupled move's joint values follow q_k − ref_k = −(q_j − ref_j) within this fraction.
-COUPLED_RATIO_TOL = 0.05
-#: ... and its circle's axis is within this (rad) of the known neighbour's: the pair parallel.
-COUPLED_PARALLEL_TOL = math.radians(5.0)
-
-
 def _from_the_neighbours(result: ProcessResult, kwargs: dict[str, Any], stage: Stage) -> bool:
-    """Without a nominal: a revolute joint j moved only together with an identified neighbour k
-    (``q_k − ref_k = −(q_j − ref_j)``: the forearm kept level) and the joints before them at
-    the reference pose. With the two axes parallel, ``Rot_j(Δ) Rot_k(−Δ)`` is a translation
-    ``(R(Δ) − I)(c_k − c_j)``: the target runs on a circle of radius |c_k − c_j| about an axis
-    parallel to both, whose centre gives ``c_j = c_k − (p₀ − centre)`` (p₀ the target at
-    Δ = 0). That line starts joint j; the whole-model fit identifies it (also when the pair is
-    not exactly parallel). Returns False (and changes nothing) when no joint qualifies or the
-    fit fails."""
-    from dhlog.geometry._checks import rotation_about
-    from dhlog.geometry.fitting import fit_circle_encoder
-
-    joints, ref, seg = result.joints, result.reference_pose, result.segmentation
-    missing = [j for j in joints if not j.ok]
-    rows, Q, P = samples_with_encoders(seg)
-    which = target_labels(seg, rows)
-    if which is not None:
-        Q, P = Q[which == 0], P[which == 0]
-    saved = [(j.type, j.axis, j.reason, j.type_source) for j in missing]
-    for j in missing:
-        jj = j.index - 1
-        moving, kk = _coupled_samples(Q, ref, jj, joints)
-        if kk is None:
-            return _restore(missing, saved)
-        k_axis = joints[kk].axis
-        assert k_axis is not None
-        upstream = slice(0, min(jj, kk))
-        if np.any(np.abs(Q[moving][:, upstream] - ref[upstream]) > 1e-3):
-            return _restore(missing, saved)
-        try:
-            circle = fit_circle_encoder(P[moving], Q[moving, jj], what=f"joint {j.index}")
-        except GeometryError:
-            return _restore(missing, saved)
-        w = circle.axis.direction
-        if math.acos(min(1.0, abs(float(w @ k_axis.direction)))) > COUPLED_PARALLEL_TOL:
-            return _restore(missing, saved)
-        turns = [rotation_about(w, float(a)) for a in ref[jj] - Q[moving, jj]]
-        p0 = np.mean(
-            [
-                R @ (p - circle.center) + circle.center
-                for R, p in zip(turns, P[moving], strict=True)
-            ],
-            axis=0,
-        )
-        offset = p0 - circle.center
-        offset -= (offset @ w) * w
-        j.type, j.axis, j.reason, j.type_source = (
-            JointType.REVOLUTE,
-            Line(k_axis.point - offset, w),
-            None,
-            f"coupled with joint {kk + 1}",
-        )
-    axes = [j.axis for j in joints]
-    types = tuple(j.type for j in joints)
-    nearest = int(np.argmin(np.sum((Q - ref) ** 2, axis=1)))
-    M = chain_motion(axes, types, Q[nearest], ref)  # type: ignore[arg-type]
-    result.target = np.asarray(np.linalg.solve(M, np.r_[P[nearest], 1.0])[:3], dtype=np.float64)
-    try:
-        _identify_whole(result, None, kwargs, False, stage)
-    except (GeometryError, np.linalg.LinAlgError) as exc:
-        result.whole, result.method, result.target = None, "analytic", None
-        result.warnings.append(f"the whole-model fit from the coupled moves failed: {exc}")
-        return _restore(missing, saved)
-    assert result.whole is not None
-    for j in missing:
-        j.axis = result.whole.model.axes[j.index - 1]
+    """Without a nominal: joints moved only together with a parallel neighbour, started from
+    the circle that move traces (:func:`~dhlog.identify.start.start_from_neighbours`) and
+    identified by the whole-model fit. Returns False (and changes nothing) when one of them
+    has no such start or the fit fails."""
+    rows, Q, P = samples_with_encoders(result.segmentation)
+    if rows.size == 0 or _any_never_moved(result, Q):
+        return False
+    which = target_labels(result.segmentation, rows)
+    primary = slice(None) if which is None else which == 0
+    start = start_from_neighbours(_known(result), Q[primary], P[primary], result.reference_pose)
+    if start is None:
+        return False
+    missing = [j for j in result.joints if not j.ok]
+    if not _fit_from(result, start, kwargs, stage, "the coupled moves"):
+        return False
     names = ", ".join(f"joint {j.index} ({j.name})" for j in missing)
     result.warnings.append(
         f"{names}: never moved alone; started from the circle its coupled move with a parallel "
@@ -628,62 +532,46 @@ def _from_the_neighbours(result: ProcessResult, kwargs: dict[str, Any], stage: S
     return True
 
 
-def _coupled_samples(
-    Q: FloatArray, ref: FloatArray, jj: int, joints: list[JointReport]
-) -> tuple[NDArray[np.bool_], int | None]:
-    """The samples of joint ``jj``'s (0-based) coupled move with an identified revolute
-    neighbour ``kk`` (``q_k − ref_k = −(q_j − ref_j)`` within :data:`COUPLED_RATIO_TOL`, every
-    other joint locked), and ``kk``; the neighbour with the most such samples (at least 5), or
-    None."""
-    dq = Q[:, jj] - ref[jj]
-    best: tuple[NDArray[np.bool_], int | None] = (np.zeros(Q.shape[0], dtype=bool), None)
-    for kk in (jj - 1, jj + 1):
-        if not 0 <= kk < len(joints):
-            continue
-        k = joints[kk]
-        if not k.ok or k.axis is None or k.type is not JointType.REVOLUTE:
-            continue
-        dk = Q[:, kk] - ref[kk]
-        pair = (np.abs(dq) > 1e-3) & (np.abs(dk + dq) <= COUPLED_RATIO_TOL * np.abs(dq) + 1e-4)
-        if np.count_nonzero(pair) < 5:
-            continue
-        rest = np.ones(Q.shape[1], dtype=bool)
-        rest[[jj, kk]] = False
-        lock = np.median(Q[pair][:, rest], axis=0)
-        pair &= np.all(np.abs(Q[:, rest] - lock) <= 1e-3, axis=1)
-        if int(np.count_nonzero(pair)) >= max(5, int(np.count_nonzero(best[0])) + 1):
-            best = (pair, kk)
-    return best
+def _any_never_moved(result: ProcessResult, Q: FloatArray) -> bool:
+    """Warn about (and return True for) a joint not identified whose encoder never moved."""
+    still = never_moved(Q, [j.index - 1 for j in result.joints if not j.ok])
+    if still:
+        names = ", ".join(f"joint {k + 1} ({result.joints[k].name})" for k in still)
+        result.warnings.append(
+            f"{names}: never moved in this log (its encoder values span less than "
+            f"{NEVER_MOVED:g}): nothing in the samples measures it."
+        )
+    return bool(still)
 
 
-def _restore(missing: list[JointReport], saved: list[tuple[Any, Any, Any, Any]]) -> bool:
-    """Undo a start: every joint in ``missing`` back to what ``saved`` holds. Returns False."""
-    for j, (jt, axis, reason, source) in zip(missing, saved, strict=True):
-        j.type, j.axis, j.reason, j.type_source = jt, axis, reason, source
-    return False
-
-
-def _align_lines(
-    nominal: list[tuple[FloatArray, FloatArray]], measured: list[tuple[FloatArray, FloatArray]]
-) -> FloatArray | None:
-    """The rigid transform (4×4) that best carries the nominal lines onto the measured ones:
-    the rotation from the directions (Kabsch), the translation putting each nominal point on
-    its measured line (least squares). None when the directions do not fix the rotation."""
-    A = np.array([d for _, d in nominal])
-    B = np.array([d for _, d in measured])
-    S = np.linalg.svd(B.T @ A, compute_uv=False)
-    if S[1] < 1e-3 * S[0]:
-        return None
-    R = _nearest_rotation(B.T @ A)
-    rows, rhs = [], []
-    for (p, _), (c, e) in zip(nominal, measured, strict=True):
-        perp = np.eye(3) - np.outer(e, e)
-        rows.append(perp)
-        rhs.append(perp @ (c - R @ p))
-    t, *_ = np.linalg.lstsq(np.vstack(rows), np.concatenate(rhs), rcond=None)
-    T = np.eye(4)
-    T[:3, :3], T[:3, 3] = R, t
-    return T
+def _fit_from(
+    result: ProcessResult, start: Start, kwargs: dict[str, Any], stage: Stage, what: str
+) -> bool:
+    """The whole-model fit from ``start``: the joints it starts take its axes and types; on
+    failure they are put back as they were, the failure is a warning, and False returned."""
+    started = [result.joints[k] for k in start.sources]
+    saved = [(j.type, j.axis, j.reason, j.type_source) for j in started]
+    for j in started:
+        k = j.index - 1
+        j.type, j.axis, j.reason, j.type_source = (
+            start.types[k],
+            start.axes[k],
+            None,
+            start.sources[k],
+        )
+    result.target = start.target
+    try:
+        _identify_whole(result, None, kwargs, False, stage)
+    except (GeometryError, np.linalg.LinAlgError) as exc:
+        result.whole, result.method, result.target = None, "analytic", None
+        for j, (jt, axis, reason, source) in zip(started, saved, strict=True):
+            j.type, j.axis, j.reason, j.type_source = jt, axis, reason, source
+        result.warnings.append(f"the whole-model fit from {what} failed: {exc}")
+        return False
+    assert result.whole is not None
+    for j in started:
+        j.axis = result.whole.model.axes[j.index - 1]
+    return True
 
 
 def _identify_whole(
@@ -938,47 +826,32 @@ def _with_model_error(
     rates: FloatArray | None,
     rotations: FloatArray | None,
 ) -> tuple[WholeFit, FloatArray | None]:
-    """Where the declared uncertainties (per-sample covariances, the tracker model) are far
-    below the residuals (χ²/dof above ``MODEL_ERROR_CHI2``), the model, not the tracker, limits
-    the fit: an isotropic model-error variance is estimated (χ²/dof = 1) and added to every
-    sample's covariance, and the fit done again — so that weighting by U95 of a few µm never
-    makes a result worse than no weighting when the robot leaves tens of µm. Returns the fit
-    and the covariances it used."""
+    """The model-error component (:mod:`dhlog.identify.variance`) where the declared
+    uncertainties (per-sample covariances, the tracker model) are far below the residuals,
+    said in a warning. Returns the fit and the covariances it used."""
     declared = sample_cov
     if declared is None and result.noise.model == "tracker":
         declared = result.noise.covariance(P)
-    if declared is None or whole.chi2_dof <= MODEL_ERROR_CHI2:
+    if declared is None:
         return whole, sample_cov
-    before = whole.chi2_dof
-    s = 0.0
-    for _ in range(2):  # the residuals barely move with the weights: twice is converged
-        pred, _ = predict(whole.model, Q, which=which, rates=rates)
-        inl = whole.inliers
-        dof = max(3 * int(np.count_nonzero(inl)) - whole.layout.size, 1)
-        s = model_error_sigma((P - pred)[inl], declared[inl], dof)
-        sample_cov = declared + (s * s) * np.eye(3)[None]
-        whole = fit_whole_model(
-            whole.model,
-            Q,
-            P,
-            noise=result.noise,
-            sigma=s,
-            fit_scales=whole.layout.scale_at is not None,
-            sample_cov=sample_cov,
-            which=which,
-            rotations=rotations,
-            sigma_rotation=result.noise.orientation,
-            rates=rates,
-        )
-    result.noise = replace(result.noise, model_error=s)
+    options = {
+        "noise": result.noise,
+        "fit_scales": whole.layout.scale_at is not None,
+        "rotations": rotations,
+        "sigma_rotation": result.noise.orientation,
+    }
+    found = refit_with_model_error(whole, Q, P, declared, options, which=which, rates=rates)
+    if found is None:
+        return whole, sample_cov
+    result.noise = replace(result.noise, model_error=found.sigma)
     result.warnings.append(
-        f"the residuals are {math.sqrt(before):.1f}x what the declared uncertainties "
-        f"({result.noise.declared}) explain (χ²/dof {before:.1f}): the model (or an "
-        f"optimistic noise model), not the tracker, limits the fit; a model-error σ of "
-        f"{s * 1e3:.4f} mm per coordinate was estimated and added to every sample's "
-        f"({LIKELY_CAUSES})."
+        f"the residuals are {math.sqrt(found.chi2_before):.1f}x what the declared "
+        f"uncertainties ({result.noise.declared}) explain (χ²/dof {found.chi2_before:.1f}): "
+        f"the model (or an optimistic noise model), not the tracker, limits the fit; a "
+        f"model-error σ of {found.sigma * 1e3:.4f} mm per coordinate was estimated and added "
+        f"to every sample's ({LIKELY_CAUSES})."
     )
-    return whole, sample_cov
+    return found.fit, found.sample_cov
 
 
 def _pose_clustered(
@@ -991,50 +864,24 @@ def _pose_clustered(
     rates: FloatArray | None,
     sigma: float,
 ) -> WholeFit:
-    """Static poses measured with several samples each share their pose's error (what the
-    model leaves there: gravity, gears), so the samples are not independent and ``(JᵀWJ)⁻¹ χ²``
-    is too small by up to √(samples per pose). Where poses hold two or more samples on average,
-    the covariance is scaled by the design effect ``1 + (k̄ − 1) ρ`` (k̄ samples per pose, ρ the
-    share of the residual variance common to a pose's samples: the whitened residuals' variance
-    about their pose's mean against their whole variance), said in a note."""
-    from dhlog.identify.holdout import pose_groups
+    """The covariance times the design effect of several samples a pose
+    (:mod:`dhlog.identify.variance`), said in a note."""
     from dhlog.identify.noise import whitening_from_std
 
-    inl = whole.inliers
-    groups = pose_groups(Q)[inl]
-    ids, inverse = np.unique(groups, return_inverse=True)
-    m, g = int(inl.sum()), int(ids.size)
-    if g == 0 or m < 2 * g or m - g < 3:
-        return whole
-    pred, _ = predict(
-        whole.model,
-        Q[inl],
-        which=None if which is None else which[inl],
-        rates=None if rates is None else rates[inl],
-    )
-    r = P[inl] - pred
-    if sample_cov is not None:
-        W: FloatArray | float = whitening_from_std(sample_cov[inl])
-    else:
-        W = result.noise.whiten(P[inl], sigma)
-    rw = r * W if isinstance(W, float) else np.einsum("mij,mj->mi", W, r)
-    count = np.bincount(inverse, minlength=g)[:, None]
-    mean = np.zeros((g, 3))
-    np.add.at(mean, inverse, rw)
-    mean /= count
-    within = float(np.sum((rw - mean[inverse]) ** 2)) / (3 * (m - g))
-    total = float(np.sum(rw**2)) / max(3 * m - whole.layout.size, 1)
-    rho = min(max(1.0 - within / total, 0.0), 1.0) if total > 0 else 0.0
-    k = m / g
-    effect = 1.0 + (k - 1.0) * rho
-    if effect < 1.1:
+    def whiten(points: FloatArray, rows: NDArray[np.bool_]) -> FloatArray | float:
+        if sample_cov is not None:
+            return whitening_from_std(sample_cov[rows])
+        return result.noise.whiten(points, sigma)
+
+    d = design_effect(whole, Q, P, whiten, which=which, rates=rates)
+    if d is None:
         return whole
     result.info.append(
-        f"{m} samples at {g} poses ({k:.1f} a pose) share their pose's error ({rho:.0%} of the "
-        f"residual variance): the uncertainty is scaled by the design effect, "
-        f"σ x{math.sqrt(effect):.2f}."
+        f"{d.samples} samples at {d.poses} poses ({d.per_pose:.1f} a pose) share their pose's "
+        f"error ({d.rho:.0%} of the residual variance): the uncertainty is scaled by the "
+        f"design effect, σ x{math.sqrt(d.effect):.2f}."
     )
-    return replace(whole, covariance=whole.covariance * effect)
+    return replace(whole, covariance=whole.covariance * d.effect)
 
 
 def _measured_rotations(seg: Segmentation, rows: NDArray[np.int64]) -> FloatArray | None:

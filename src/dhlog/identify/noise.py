@@ -127,11 +127,6 @@ def whitening_from_std(std: FloatArray) -> FloatArray:
     return np.asarray(np.linalg.inv(L), dtype=np.float64)
 
 
-#: Per-sample uncertainties this far below the residuals (χ²/dof above it) call for a
-#: model-error variance component: the model, not the tracker, limits the fit.
-MODEL_ERROR_CHI2 = 2.0
-
-
 def model_error_sigma(residuals: FloatArray, cov: FloatArray, dof: int) -> float:
     """The isotropic model-error σ (m) that, added to every sample's covariance
     (``C_i + σ² I``), makes the weighted residuals' χ² equal ``dof`` (the method of moments of a

@@ -1,0 +1,127 @@
+"""What the residuals say beyond the declared noise: a model-error variance component, and the
+design effect of several samples a pose.
+
+* :func:`refit_with_model_error`: where the declared uncertainties (per-sample covariances, a
+  tracker model) are far below the residuals, the model, not the tracker, limits the fit; an
+  isotropic model-error variance is estimated (χ²/dof = 1, the method of moments) and added to
+  every sample's covariance (``σᵢ² = σ_meas,ᵢ² + σ_model²``), and the fit done again — so that
+  weighting by an export's U95 of a few µm never makes a result worse than no weighting when the
+  robot leaves tens of µm.
+* :func:`design_effect`: static poses measured with several samples each share their pose's
+  error (gravity, gears), so the samples are not independent and ``(JᵀWJ)⁻¹ χ²`` is too small by
+  up to √(samples a pose); the factor ``1 + (k̄ − 1) ρ`` (k̄ samples a pose, ρ the share of the
+  whitened residual variance common to a pose) restores it.
+
+Pure numpy/scipy.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from dhlog.geometry._checks import FloatArray
+from dhlog.identify.holdout import pose_groups
+from dhlog.identify.noise import model_error_sigma
+from dhlog.identify.whole import WholeFit, fit_whole_model, predict
+
+#: Per-sample uncertainties this far below the residuals (χ²/dof above it) call for a
+#: model-error variance component.
+MODEL_ERROR_CHI2 = 2.0
+#: A design effect below this is not applied (nor said).
+SMALL_EFFECT = 1.1
+
+
+@dataclass(frozen=True)
+class ModelError:
+    """The fit again with the model error: ``sigma`` (m, per coordinate), the covariances it
+    used, and the χ²/dof before."""
+
+    fit: WholeFit
+    sigma: float
+    sample_cov: FloatArray
+    chi2_before: float
+
+
+def refit_with_model_error(
+    whole: WholeFit,
+    Q: FloatArray,
+    P: FloatArray,
+    declared: FloatArray,
+    fit_options: dict[str, Any],
+    *,
+    which: NDArray[np.int64] | None = None,
+    rates: FloatArray | None = None,
+) -> ModelError | None:
+    """The model-error component (module docstring) of ``whole``, fitted with the declared
+    covariances ``declared`` (m, 3, 3); None when χ²/dof is at most :data:`MODEL_ERROR_CHI2`.
+    ``fit_options`` are the fit's other keyword arguments (noise, orientations, …)."""
+    if whole.chi2_dof <= MODEL_ERROR_CHI2:
+        return None
+    before = whole.chi2_dof
+    s, cov = 0.0, declared
+    for _ in range(2):  # the residuals barely move with the weights: twice is converged
+        pred, _ = predict(whole.model, Q, which=which, rates=rates)
+        inl = whole.inliers
+        dof = max(3 * int(np.count_nonzero(inl)) - whole.layout.size, 1)
+        s = model_error_sigma((P - pred)[inl], declared[inl], dof)
+        cov = declared + (s * s) * np.eye(3)[None]
+        options = {**fit_options, "sigma": s, "sample_cov": cov, "which": which, "rates": rates}
+        whole = fit_whole_model(whole.model, Q, P, **options)
+    return ModelError(whole, s, cov, before)
+
+
+@dataclass(frozen=True)
+class DesignEffect:
+    """``effect`` = 1 + (k̄ − 1) ρ of ``samples`` at ``poses`` (``per_pose`` = k̄), ``rho``."""
+
+    effect: float
+    rho: float
+    samples: int
+    poses: int
+
+    @property
+    def per_pose(self) -> float:
+        return self.samples / self.poses
+
+
+def design_effect(
+    whole: WholeFit,
+    Q: FloatArray,
+    P: FloatArray,
+    whiten: Callable[[FloatArray, NDArray[np.bool_]], FloatArray | float],
+    *,
+    which: NDArray[np.int64] | None = None,
+    rates: FloatArray | None = None,
+) -> DesignEffect | None:
+    """The design effect of the fit's inliers grouped by pose (module docstring); None where
+    poses hold fewer than two samples on average or the effect is below :data:`SMALL_EFFECT`.
+    ``whiten(points, rows)``: the whitening of the samples ``rows`` (a scalar or (m, 3, 3))."""
+    inl = whole.inliers
+    groups = pose_groups(Q)[inl]
+    ids, inverse = np.unique(groups, return_inverse=True)
+    m, g = int(inl.sum()), int(ids.size)
+    if g == 0 or m < 2 * g or m - g < 3:
+        return None
+    pred, _ = predict(
+        whole.model,
+        Q[inl],
+        which=None if which is None else which[inl],
+        rates=None if rates is None else rates[inl],
+    )
+    r = P[inl] - pred
+    W = whiten(P[inl], inl)
+    rw = r * W if isinstance(W, float) else np.einsum("mij,mj->mi", W, r)
+    count = np.bincount(inverse, minlength=g)[:, None]
+    mean = np.zeros((g, 3))
+    np.add.at(mean, inverse, rw)
+    mean /= count
+    within = float(np.sum((rw - mean[inverse]) ** 2)) / (3 * (m - g))
+    total = float(np.sum(rw**2)) / max(3 * m - whole.layout.size, 1)
+    rho = min(max(1.0 - within / total, 0.0), 1.0) if total > 0 else 0.0
+    effect = 1.0 + (m / g - 1.0) * rho
+    return DesignEffect(effect, rho, m, g) if effect >= SMALL_EFFECT else None
