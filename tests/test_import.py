@@ -156,7 +156,7 @@ def test_a_leica_csv_keeps_its_u95_as_each_samples_covariance(stops, tmp_path: P
         ),
         ("x,y,z,speed\n1,2,3,0\n", [], "has no joint columns"),
         ("t,x,y,z,q1\n1,1,2,3,0\n0.5,1,2,3,1\n", ["--time", "t"], "line 3: time does not"),
-        ("x,y,z,q1\n1,2,3,0\n", ["--length-unit", "inch"], "--length-unit must be one of"),
+        ("x,y,z,q1\n1,2,3,0\n", ["--length-unit", "ft"], "--length-unit must be one of"),
         ("t,x,y,z,q1\n0,1,2,3,0\n1e300,1,2,3,1\n", ["--time", "t"], "check --time-unit"),
         ("", [], "holds no rows"),
     ],

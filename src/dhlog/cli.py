@@ -844,7 +844,10 @@ def _listed(text: str | None) -> list[str]:
 @app.command(name="import")
 def import_(
     source: Annotated[
-        Path, typer.Argument(help="The export: a CSV, a SpatialAnalyzer ASCII file, a Leica CSV.")
+        Path,
+        typer.Argument(
+            help="The export: a CSV, a SpatialAnalyzer point list or table, a Leica CSV."
+        ),
     ],
     output: Annotated[
         Path | None,
@@ -853,7 +856,10 @@ def import_(
     format: Annotated[str, typer.Option("--format", help="csv, spatialanalyzer or leica.")] = "csv",
     joints_file: Annotated[
         Path | None,
-        typer.Option(help="A CSV of joint values per point name (first column, or --name-column)."),
+        typer.Option(
+            help="A CSV of joint values, matched to the points by name (a name column, or "
+            "--name-column) or else by row."
+        ),
     ] = None,
     x: Annotated[str, typer.Option(help="The column of the target's x.")] = "x",
     y: Annotated[str, typer.Option(help="The column of the target's y.")] = "y",
@@ -861,8 +867,8 @@ def import_(
     joint_columns: Annotated[
         str | None,
         typer.Option(
-            help="Joint columns in chain order, comma-separated (default: q1…, j1…, "
-            "a1…, joint_1…, axis1…)."
+            help="Joint columns in chain order, comma-separated, of the joints file if given "
+            "(default: q1…, j1…, a1…, joint_1…, axis1…)."
         ),
     ] = None,
     joint_names: Annotated[
@@ -878,16 +884,45 @@ def import_(
     ] = None,
     time_unit: Annotated[str, typer.Option(help="s, ms, us or ns.")] = "s",
     name_column: Annotated[
-        str | None, typer.Option(help="The point-name column (joints file, Leica CSV).")
+        str | None,
+        typer.Option(
+            help="The point-name column, of the source and of the joints file (default: "
+            "Point Name, Name, Point ID, Point, …)."
+        ),
     ] = None,
     length_unit: Annotated[
+        str | None,
+        typer.Option(
+            help="m, mm, um or in: positions, U95, prismatic joints, where the header states "
+            "no unit (default mm; a header that states another is an error)."
+        ),
+    ] = None,
+    angle_unit: Annotated[
+        str | None,
+        typer.Option(
+            help="rad, deg or gon: revolute joints and rotation angles, where the header "
+            "states no unit (default deg)."
+        ),
+    ] = None,
+    orientation_columns: Annotated[
+        str | None,
+        typer.Option(
+            help="The 6-DoF target's orientation: four columns (a quaternion, scalar first) or "
+            "three (rotation angles, see --euler), or none (default: Q0…Q3, Qw…Qz, Rx Ry Rz "
+            "from the header)."
+        ),
+    ] = None,
+    euler: Annotated[
         str,
         typer.Option(
-            help="m or mm: positions and prismatic joints (a unit in the header "
-            "of a Leica CSV wins)."
+            help="The rotation angles' sequence: lower case about fixed axes (xyz: X, then Y, "
+            "then Z), upper case about moving ones (ZYX)."
         ),
-    ] = "mm",
-    angle_unit: Annotated[str, typer.Option(help="rad, deg or gon: revolute joints.")] = "deg",
+    ] = "xyz",
+    no_u95: Annotated[
+        bool,
+        typer.Option("--no-u95", help="Leave the U95 columns out (the noise model applies)."),
+    ] = False,
     force: Annotated[bool, typer.Option("--force", help="Overwrite the output.")] = False,
 ) -> None:
     """Convert a tracker export (CSV, SpatialAnalyzer, Leica) into a log dhlog process reads."""
@@ -915,6 +950,9 @@ def import_(
         name_column=name_column,
         length_unit=length_unit,
         angle_unit=angle_unit,
+        orientation_columns=_listed(orientation_columns),
+        euler=euler,
+        no_u95=no_u95,
     )
     try:
         imported = import_source(source, opts)
@@ -925,10 +963,17 @@ def import_(
         _fail(OutputError(out.parent, exc))
     for w in imported.warnings:
         stderr.print(f"warning: {escape(w)}")
+    for note in imported.notes:
+        stdout.print(f"note: {escape(note)}")
     kind = "stops (step and measure)" if imported.stepped else "timed samples"
     u95 = ", with per-point U95 as covariance" if imported.covariance is not None else ""
+    rot = (
+        f", with the target's orientation ({imported.provenance['orientation_columns']})"
+        if imported.orientation is not None
+        else ""
+    )
     stdout.print(
-        f"wrote {escape(str(out))}: {len(imported.xyz)} {kind}{u95}, joints "
+        f"wrote {escape(str(out))}: {len(imported.xyz)} {kind}{u95}{rot}, joints "
         f"{', '.join(imported.joint_names)}; next: dhlog process {escape(str(out))}"
     )
 

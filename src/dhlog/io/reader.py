@@ -14,7 +14,7 @@ import math
 import re
 import struct
 from collections.abc import Callable, Iterable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -49,7 +49,11 @@ COVARIANCE_COLUMNS = ("cxx", "cxy", "cxz", "cyy", "cyz", "czz")
 ORIENTATION_SCHEMAS = {
     ros2.POSE_STAMPED: "pose.orientation",
     "foxglove.PoseInFrame": "pose.orientation",
+    ros2.POSE_WITH_COVARIANCE: "pose.pose.orientation",
 }
+#: The metadata record ``dhlog import`` writes; ``orientation = "true"`` in it turns the point
+#: stream's orientation on when no pipeline is named (the export carried a 6-DoF target's).
+IMPORT_METADATA = "dhlog.import"
 #: Columns of the target frame's orientation (unit quaternion) with ``orientation = true``.
 ORIENTATION_COLUMNS = ("rot_x", "rot_y", "rot_z", "rot_w")
 #: Point schemas that are transforms (the target is a frame's origin): single, and lists of
@@ -200,7 +204,7 @@ def _point_extractor(
         xyz = [float(_get(p, "x")), float(_get(p, "y")), float(_get(p, "z"))]
         if rot_path is not None:
             r = _get(msg, rot_path)
-            return _stamp_ns(msg), xyz + [float(_get(r, c)) for c in ("x", "y", "z", "w")]
+            xyz += [float(_get(r, c)) for c in ("x", "y", "z", "w")]
         if cov_path is not None:
             c = [float(v) for v in _get(msg, cov_path)]
             if len(c) != 36:
@@ -548,6 +552,12 @@ def _bulk_blocks(
         if with_rot and _bulk_ok(raw, info, (ros2.POSE_STAMPED,), fields):
             stamps, xyz = ros2.decode_point_bulk(raw, orientation=True)
             return [(np.where(stamps != 0, stamps, raw.log_time), xyz)]
+        if with_rot and _bulk_ok(raw, info, (ros2.POSE_WITH_COVARIANCE,), fields):
+            # the pose's orientation sits where PoseStamped's does: x, y, z, q (4), cov (6)
+            stamps, rot = ros2.decode_point_bulk(raw, orientation=True)
+            _, cov = ros2.decode_point_bulk(raw, covariance=True)
+            xyz = np.hstack([rot, cov[:, 3:]])
+            return [(np.where(stamps != 0, stamps, raw.log_time), xyz)]
         if (
             not with_rot
             and stream in ("point", "base")
@@ -570,12 +580,15 @@ def _bulk_blocks(
 
 
 def _points_frame(blocks: list[Block], scale: float, orientation: bool = False) -> pl.DataFrame:
-    """``t_ns, x, y, z`` (m), and the position covariance (m², ``COVARIANCE_COLUMNS``) when any
-    channel carries one (null for samples of channels that do not), or with ``orientation`` the
-    target frame's orientation (``ORIENTATION_COLUMNS``, a unit quaternion)."""
+    """``t_ns, x, y, z`` (m), with ``orientation`` the target frame's orientation
+    (``ORIENTATION_COLUMNS``, a unit quaternion), and the position covariance (m²,
+    ``COVARIANCE_COLUMNS``) when any channel carries one (null for samples of channels that do
+    not). Block values: ``x, y, z``, then with ``orientation`` the quaternion (4), then the
+    covariance (6) where the channel has one."""
     t = np.concatenate([b[0] for b in blocks]) if blocks else np.zeros(0, dtype=np.int64)
-    with_cov = not orientation and any(b[1].shape[1] == 9 for b in blocks)
-    width = 7 if orientation else 9 if with_cov else 3
+    first_cov = 7 if orientation else 3
+    with_cov = any(b[1].shape[1] == first_cov + 6 for b in blocks)
+    width = first_cov + 6 if with_cov else first_cov
     parts = []
     for b in blocks:
         v = b[1]
@@ -591,7 +604,7 @@ def _points_frame(blocks: list[Block], scale: float, orientation: bool = False) 
     }
     if with_cov:
         for k, name in enumerate(COVARIANCE_COLUMNS):
-            cols[name] = pl.Series(name, arr[:, 3 + k] * scale**2, nan_to_null=True)
+            cols[name] = pl.Series(name, arr[:, first_cov + k] * scale**2, nan_to_null=True)
     if orientation:
         quat = arr[:, 3:7]
         quat = quat / np.linalg.norm(quat, axis=1, keepdims=True)
@@ -659,6 +672,13 @@ def read_log(
     if pipeline is None:
         pipeline, why = choose_pipeline(name, scan.channels)
         reason = f"using pipeline '{pipeline.name}' ({why})"
+        if IMPORT_METADATA in scan.metadata_names and _imported_orientation(path):
+            point = replace(pipeline.streams["point"], orientation=True)
+            pipeline = replace(pipeline, streams={**pipeline.streams, "point": point})
+            reason += (
+                ", with the target's orientation (dhlog import wrote it from the export: "
+                "its dhlog.import record says orientation = true)"
+            )
     present = scan.topics()
     infos: dict[str, list[ChannelInfo]] = {}
     for stream, spec in pipeline.streams.items():
@@ -765,6 +785,21 @@ def read_log(
 MAX_JOINTS = 64
 #: Larger coordinates (m) or encoder values (rad, m) are not measurements.
 MAX_VALUE = 1e5
+
+
+def _imported_orientation(path: str | Path) -> bool:
+    """True when the ``dhlog.import`` metadata record of the MCAP file at ``path`` says the
+    export carried the target's orientation (``orientation = "true"``)."""
+    from mcap.reader import make_reader
+
+    try:
+        with open(path, "rb") as f:
+            for record in make_reader(f).iter_metadata():
+                if record.name == IMPORT_METADATA:
+                    return record.metadata.get("orientation") == "true"
+    except Exception:  # a record that cannot be read turns nothing on
+        return False
+    return False
 
 
 def _read_bag(
