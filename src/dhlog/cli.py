@@ -964,11 +964,11 @@ def import_(
     for w in imported.warnings:
         stderr.print(f"warning: {escape(w)}")
     for note in imported.notes:
-        stdout.print(f"note: {escape(note)}")
+        stdout.print(f"note: {escape(note)}", soft_wrap=True)
     kind = "stops (step and measure)" if imported.stepped else "timed samples"
     u95 = ", with per-point U95 as covariance" if imported.covariance is not None else ""
     rot = (
-        f", with the target's orientation ({imported.provenance['orientation_columns']})"
+        f", with the target's orientation from {imported.provenance['orientation_columns']}"
         if imported.orientation is not None
         else ""
     )

@@ -408,10 +408,11 @@ def _orientation_columns(
             hits = [table.key(key) for key in keys]
             if all(c is not None for c in hits):
                 found.append((kind, [c for c in hits if c is not None]))
-    named = {parse_header(c).key for c in opts.joint_columns}
+    # --joint-columns naming all of Q0…Q3: joints counted from 0, not a quaternion
+    zero_based = set(QUATERNION_HEADERS[1]) <= {parse_header(c).key for c in opts.joint_columns}
     # Q0…Q3 beside Q4…: joints counted from 0, or a quaternion and more joints?
     leica = [f for f in found if [table.heads[c].key for c in f[1]] == list(QUATERNION_HEADERS[1])]
-    if leica and not named & set(QUATERNION_HEADERS[1]):
+    if leica and not zero_based:
         more = [
             h.text
             for h in table.heads
@@ -425,7 +426,7 @@ def _orientation_columns(
                 "with --joint-columns, or the orientation with --orientation-columns "
                 "(none to leave it out).",
             )
-    if named & set(QUATERNION_HEADERS[1]):  # the user says Q0… are joints
+    if zero_based:
         found = [f for f in found if f not in leica]
     for _, used in found:
         for c in used:
