@@ -439,3 +439,24 @@ def test_joints_from_a_file_in_every_format(tmp_path: Path) -> None:
     imported(str(named), "--joints-file", str(jf))
     data = read_log(tmp_path / "n.mcap")
     np.testing.assert_allclose(data.points["x"].to_numpy(), [1e-3, 4e-3])
+
+
+def test_what_the_options_leave_out(measured: Measured, tmp_path: Path) -> None:
+    """--no-u95 and --orientation-columns none leave those out (a plain PointStamped log, the
+    Q columns still no joints); a joints file wins over the export's own joint columns, said."""
+    src, _ = write_export(tmp_path, measured, Layout())
+    printed = imported(
+        str(src), "--no-u95", "--orientation-columns", "none", "-o", str(tmp_path / "a.mcap")
+    )
+    assert "U95" not in printed and "orientation" not in printed
+    assert "joints j1, j2, j3, j4, j5, j6;" in printed
+    data = read_log(tmp_path / "a.mcap")
+    assert not data.pipeline.streams["point"].orientation
+    assert "cxx" not in data.points.columns
+    joints = tmp_path / "joints.csv"
+    joints.write_text(
+        "Point Name,A1,A2,A3,A4,A5,A6\n" + "".join(f"{n},1,2,3,4,5,6\n" for n in measured.names)
+    )
+    printed = imported(str(src), "--joints-file", str(joints), "-o", str(tmp_path / "b.mcap"))
+    assert "its joint columns (j1, j2, j3, j4, j5, j6) were left out" in printed
+    assert "joints A1, A2, A3, A4, A5, A6;" in printed

@@ -723,6 +723,17 @@ def _from_table(table: _Table, opts: ImportOptions) -> _Source:
                 "joint values in a file with --joints-file.",
             )
         src.joint_names, src.q = _joint_values(table, layout.joints, opts)
+    else:
+        own = [
+            h.text
+            for k, h in enumerate(table.heads)
+            if k not in layout.recognised and _JOINT_HEADER.match(h.key)
+        ]
+        if own:
+            src.notes.append(
+                f"{table.path}: its joint columns ({', '.join(own)}) were left out: the joints "
+                "come from --joints-file."
+            )
     return src
 
 
@@ -823,16 +834,14 @@ def _with_joints_file(src: _Source, opts: ImportOptions) -> _Source:
         if len(joints.rows) != len(src.xyz):
             raise ConversionError(
                 joints.path,
-                f"has {len(joints.rows)} row(s), {src.path} {len(src.xyz)} point(s); with "
-                "point names in neither to match, rows are matched in order and must be as "
-                "many (name the point column of both with --name-column).",
+                f"has {len(joints.rows)} row(s), {src.path} {len(src.xyz)} point(s); without "
+                "point names in both files to match them by, rows are matched in order and "
+                "must be as many (name the point column with --name-column).",
             )
         p_idx = r_idx = np.arange(len(src.xyz))
         src.notes.append(
-            f"{joints.path}: its rows were matched to the points of {src.path} in order (no "
-            "point names in "
-            + ("either" if nk is None and src.names is None else "both")
-            + " to match by)."
+            f"{joints.path}: its rows were matched to the points of {src.path} in order (the "
+            "points are not named in both files; --name-column names the column)."
         )
     if src.t_ns is not None:  # timed samples keep their time order
         order = np.argsort(p_idx, kind="stable")
