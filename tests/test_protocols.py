@@ -275,3 +275,40 @@ def test_samples_of_one_pose_share_its_error_and_the_uncertainty_says_so() -> No
     robot, single = random_poses(7, model_error=6e-5)
     once = process_data(log_data_from_session(single), nominal=nominal_of(robot))
     assert not any("design effect" in n for n in once.info)
+
+
+def test_the_readme_random_poses_walkthrough(tmp_path: Path) -> None:
+    """README "Random poses": the bundled tracker export (6-DoF probe, U95 rounded, one read
+    0.000) imported unchanged and processed with --nominal kr5 --holdout 5: exit 0, the
+    probe's orientation used, a model-error σ estimated, the held-out table as the README
+    shows it, and the FK within 4σ of the truth beside the export at 200 joint vectors."""
+    from dhlog.dhfile import dh_model_from, load_dh
+    from dhlog.process import process_log
+
+    samples = Path(__file__).parents[1] / "sample_logs"
+    runner = CliRunner()
+    made = runner.invoke(
+        app, ["import", str(samples / "kr5_random_poses.csv"), "-o", str(tmp_path / "poses.mcap")]
+    )
+    assert made.exit_code == 0, made.output
+    assert "floored" in made.output and "Q0, Q1, Q2, Q3" in made.output
+    args = ["process", str(tmp_path / "poses.mcap"), "--nominal", "kr5", "--holdout", "5"]
+    done = runner.invoke(app, [*args, "--out", str(tmp_path / "results"), "--no-rrd"])
+    assert done.exit_code == 0, done.output
+    readme = (Path(__file__).parents[1] / "README.md").read_text()
+    section = readme.split("### Random poses", 1)[1].split("\n### ", 1)[0]
+    (table,) = [b for b in section.split("```") if "Held-out error" in b]
+    printed = {line.rstrip() for line in done.output.splitlines()}
+    for line in table.strip("\n").splitlines():
+        assert line.rstrip() in printed, line
+    result = process_log(tmp_path / "poses.mcap", nominal=dh_model_from("kr5"))
+    assert result.tool_orientation is not None and result.noise.model_error is not None
+    truth = load_dh(samples / "kr5_random_poses.truth.json")
+    rob = load_robot("kr5")
+    Q = np.random.default_rng(2).uniform(rob.limits[:, 0], rob.limits[:, 1], (200, 6))
+    ex = result.extraction
+    assert ex is not None and result.complete
+    got = fk_point(ex.standard, Q, ex.tool_point, T_base=ex.T_measurement_base)
+    want = fk_point(truth.table, Q, truth.tool_point, T_base=truth.T_base)
+    err = np.linalg.norm(got - want, axis=1)
+    assert np.all(err <= 4.0 * fk_prediction_std(result, Q))

@@ -851,7 +851,7 @@ def _with_model_error(
         f"uncertainties ({result.noise.declared}) explain (χ²/dof {found.chi2_before:.1f}): "
         f"the model (or an optimistic noise model), not the tracker, limits the fit; a "
         f"model-error σ of {found.sigma * 1e3:.4f} mm per coordinate was estimated and added "
-        f"to every sample's ({LIKELY_CAUSES})."
+        f"to every sample's ({MODEL_ERROR_CAUSES})."
     )
     return found.fit, found.sample_cov
 
@@ -992,6 +992,12 @@ LIKELY_CAUSES = (
     "likely causes: a clock offset between tracker and joint states (set clock_offset, or let "
     "dhlog estimate it), a joint of the wrong type, a joint that gives under load (compliance), "
     "or a target that slipped on the flange"
+)
+#: What a geometric model leaves that a tracker's stated uncertainty does not explain.
+MODEL_ERROR_CAUSES = (
+    "likely causes: gravity bending the joints and links (compliance), gear and encoder errors "
+    "that vary with the angle, thermal drift during the session, a target that slipped on the "
+    "flange, or a declared noise model more optimistic than the tracker"
 )
 #: A joint's fit RMS this many times the median of all joints' is worth a warning.
 RMS_OUTLIER = 3.0

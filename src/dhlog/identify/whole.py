@@ -48,6 +48,8 @@ CHI3_MEDIAN = 1.5382
 CONVERGED = 1e-3
 
 
+#: Orientation residuals (in their own σ) beyond this are outliers, whatever the positions' limit.
+ROTATION_LIMIT = 5.0
 #: A direction of the column-scaled normal matrix ``JᵀWJ`` whose eigenvalue is below this
 #: fraction of the largest (a singular value of the scaled Jacobian below 10⁻⁶ of the largest)
 #: is not determined by the samples: held at the start (the nominal) and reported.
@@ -564,7 +566,9 @@ def _accumulate(
         if data.R is not None:  # the target frame's orientation, weighted by 1/σ_rot
             R_pred, Jr = predict_orientation(model, data.Q[sl], layout, bases, prefix, rates)
             ro = orientation_residual(R_pred, np.moveaxis(data.R[sl], 0, 2)) / data.sigma_rot
-            _, use_o, part = _truncated(ro, keep, limit)
+            # σ_rot is the orientations' own scale (or declared): judged on theirs, not on
+            # a position limit that declared covariances far above the residuals make tiny
+            _, use_o, part = _truncated(ro, keep, max(limit, ROTATION_LIMIT))
             use &= use_o
             cost += part
             rw = np.concatenate([rw, ro])
