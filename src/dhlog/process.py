@@ -219,11 +219,13 @@ def process_log(
         progress=progress,
     )
     for other in validate or []:
-        _validate_log(result, other, pipeline or log.pipeline, fast)
+        _validate_log(result, other, pipeline, fast)  # each log's own pipeline unless named
     return result
 
 
-def _validate_log(result: ProcessResult, path: str | Path, pipeline: Pipeline, fast: bool) -> None:
+def _validate_log(
+    result: ProcessResult, path: str | Path, pipeline: Pipeline | None, fast: bool
+) -> None:
     """Score ``result`` at the poses of the log at ``path`` (``--validate``)."""
     ex = result.extraction
     if ex is None or not result.complete:
