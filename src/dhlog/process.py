@@ -89,6 +89,7 @@ from dhlog.identify.whole import (
     constrain_pairs,
     fit_whole_model,
     predict,
+    relative_tilt_variances,
 )
 from dhlog.io.pipeline import Pipeline
 from dhlog.io.reader import LogData, read_log
@@ -696,8 +697,30 @@ def _identify_whole(
         # (0.05° apart) parallel at 1.5–1.9x the FK error; with per-joint sweeps (UR5 0.05° off,
         # 100 Hz tracker, σ 15–20 µm) it held axes 2–3 or 3–4 in 2 of 10 sessions at 1.2–3.1x
         k_parallel_over_nominal=True,
+        direction_variances=relative_tilt_variances(whole),
     )
-    whole = _with_fixed_relations(whole, tolerances)
+    from dhlog.identify.noise import whitening_from_std
+
+    def cost(fit: WholeFit) -> float:
+        """The whitened sum of squares of ``whole``'s inliers under ``fit`` (positions)."""
+        inl = whole.inliers
+        pred, _ = predict(
+            fit.model,
+            Q[inl],
+            which=None if which is None else which[inl],
+            rates=None if rates is None else rates[inl],
+        )
+        r = P[inl] - pred
+        W = (
+            whitening_from_std(sample_cov[inl])
+            if sample_cov is not None
+            else result.noise.whiten(P[inl], sigma)
+        )
+        rw = r * W if isinstance(W, float) else np.einsum("mij,mj->mi", W, r)
+        return float(np.sum(rw**2))
+
+    whole, tolerances = _with_fixed_relations(whole, tolerances, cost, result.info)
+    kw["pair_tolerances"] = tolerances
 
     def extract(axes: list[Line], target: FloatArray, plane: Plane | None) -> Extraction:
         return extract_dh(
@@ -950,13 +973,22 @@ def _sample_covariance(seg: Segmentation, rows: NDArray[np.int64]) -> FloatArray
 
 
 def _with_fixed_relations(
-    whole: WholeFit, tolerances: list[tuple[float, float]] | None
-) -> WholeFit:
+    whole: WholeFit,
+    tolerances: list[tuple[float, float]] | None,
+    cost: Callable[[WholeFit], float],
+    info: list[str],
+) -> tuple[WholeFit, list[tuple[float, float]] | None]:
     """The fit constrained to the pair relations the data cannot reject: consecutive revolute
     axes within their tolerance of parallel are made parallel (collinear: the same line), so
-    that the DH conventions of those pairs hold exactly and the table equals the model."""
+    that the DH conventions of those pairs hold exactly and the table equals the model.
+
+    The constraint is applied to first order (:func:`constrain_pairs`); where the samples'
+    cost then grows by more than the relations' own χ² allows (the first order does not hold:
+    parameters that only moved together, as in a coupled move, compensate far), the pairs are
+    left free and their tolerances narrowed so that the extraction does not call them parallel
+    either (said in a note). Returns the fit and the tolerances."""
     if tolerances is None:
-        return whole
+        return whole, tolerances
     axes, types = whole.model.axes, whole.model.types
     parallel, collinear = [], []
     for i, (a_tol, d_tol) in enumerate(tolerances):
@@ -968,7 +1000,25 @@ def _with_fixed_relations(
             collinear.append(i)
         elif kind.is_parallel:
             parallel.append(i)
-    return constrain_pairs(whole, parallel, collinear)
+    held = constrain_pairs(whole, parallel, collinear)
+    if held is whole:
+        return whole, tolerances
+    rows = 2 * len(parallel) + 4 * len(collinear)
+    allowed = whole.chi2_dof * (rows + 4.0 * math.sqrt(2.0 * rows))
+    grown = cost(held) - cost(whole)
+    if grown <= allowed:
+        return held, tolerances
+    pairs = sorted(set(parallel) | set(collinear))
+    narrowed = [
+        (min(a, 1e-7), min(d, 1e-7)) if i in pairs else (a, d)
+        for i, (a, d) in enumerate(tolerances)
+    ]
+    names = ", ".join(f"{i + 1}–{i + 2}" for i in pairs)
+    info.append(
+        f"axes {names}: within their tolerance of parallel, but holding them so costs the "
+        f"samples χ² {grown:.1f} (the relation alone allows {allowed:.1f}): left free."
+    )
+    return whole, narrowed
 
 
 #: Target samples spanning more (m) than this are not of a robot: a length unit slipped.

@@ -58,6 +58,7 @@ def pair_tolerances(
     k_nominal: float = NOMINAL_SIGMA_2D,
     k_parallel: float | None = None,
     k_parallel_over_nominal: bool = False,
+    direction_variances: list[float] | None = None,
 ) -> list[tuple[float, float]] | None:
     """Per consecutive pair, the angle (rad) and distance (m) below which the data cannot tell
     the axes from parallel / meeting: 3σ (2D: 3.44σ) of the difference of the two axes, from
@@ -65,14 +66,21 @@ def pair_tolerances(
     and the point ``c`` it refers to; 5σ when the nominal says parallel / meeting).
     ``k_parallel`` replaces the σ count of the parallel decision (without a nominal, or also
     against the nominal's with ``k_parallel_over_nominal``) where that decision constrains the
-    model (the whole-model fit: Akaike's 2σ). ``angle_floor`` and
+    model (the whole-model fit: Akaike's 2σ). ``direction_variances`` (per pair, rad² per
+    component): the variance of the angle between the two axes where it is known whole (the
+    whole-model fit's covariance, correlations included), in place of the sum of the two axes'
+    own. ``angle_floor`` and
     ``distance_floor`` apply only when an axis has no covariance (never below 1e-7)."""
     if axes is None:
         return None
     out = []
     for i in range(len(axes) - 1):
         (c1, p1), (c2, p2) = axes[i], axes[i + 1]
-        var_dir = (np.trace(c1[:2, :2]) + np.trace(c2[:2, :2])) / 2
+        var_dir = (
+            direction_variances[i]
+            if direction_variances is not None
+            else (np.trace(c1[:2, :2]) + np.trace(c2[:2, :2])) / 2
+        )
         lever = float(np.linalg.norm(p1 - p2))
         var_pos = (np.trace(c1[2:, 2:]) + np.trace(c2[2:, 2:])) / 2 + var_dir * lever**2
         k_angle = k_dist = k_data

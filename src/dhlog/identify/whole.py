@@ -981,6 +981,35 @@ def axis_covariances(fit: WholeFit) -> list[FloatArray]:
     return out
 
 
+def _relative_tilt_rows(fit: WholeFit, i: int) -> list[FloatArray]:
+    """The two rows (``layout.size``,) giving ``e · (δd_{i+1} − sign δd_i)`` for ``e`` in axis
+    i's perpendicular basis: the linearised change of the angle between axes i and i+1."""
+    model, layout, bases = fit.model, fit.layout, fit.bases
+    d1, d2 = model.axes[i].direction, model.axes[i + 1].direction
+    sign = 1.0 if d1 @ d2 >= 0 else -1.0
+    (u1, v1), (u2, v2) = bases[i], bases[i + 1]
+    k1, k2 = layout.axis_at[i], layout.axis_at[i + 1]
+    rows = []
+    for e in (u1, v1):  # δd = −a v + b u for tilts (a about u, b about v)
+        row = np.zeros(layout.size)
+        row[k2], row[k2 + 1] = -(e @ v2), e @ u2
+        row[k1], row[k1 + 1] = sign * (e @ v1), -sign * (e @ u1)
+        rows.append(row)
+    return rows
+
+
+def relative_tilt_variances(fit: WholeFit) -> list[float]:
+    """Per consecutive pair of axes, the variance (rad², per component) of the angle between
+    them, from the fit's whole covariance: the two axes' own variances less what they share —
+    axes that only ever moved together (a coupled move) are determined far better relative to
+    each other than each alone."""
+    out = []
+    for i in range(fit.model.n - 1):
+        rows = np.array(_relative_tilt_rows(fit, i))
+        out.append(float(np.trace(rows @ fit.covariance @ rows.T)) / 2.0)
+    return out
+
+
 def constrain_pairs(fit: WholeFit, parallel: list[int], collinear: list[int]) -> WholeFit:
     """The fit under the constraint that axes ``i, i+1`` (0-based ``i``) are exactly parallel
     (``parallel``) or the same line (``collinear``): the relations a classification fixes when
@@ -999,13 +1028,8 @@ def constrain_pairs(fit: WholeFit, parallel: list[int], collinear: list[int]) ->
         sign = 1.0 if d1 @ d2 >= 0 else -1.0
         (u1, v1), (u2, v2) = bases[i], bases[i + 1]
         k1, k2 = layout.axis_at[i], layout.axis_at[i + 1]
-        # δd = −a v + b u for tilts (a about u, b about v)
-        for e in (u1, v1):
-            row = np.zeros(layout.size)
-            row[k2], row[k2 + 1] = -(e @ v2), e @ u2
-            row[k1], row[k1 + 1] = sign * (e @ v1), -sign * (e @ u1)
-            rows.append(row)
-            c0.append(float(e @ (d2 - sign * d1)))
+        rows += _relative_tilt_rows(fit, i)
+        c0 += [float(e @ (d2 - sign * d1)) for e in (u1, v1)]
         if i in collinear:
             c1, c2 = model.axes[i].point, model.axes[i + 1].point
             for e in (u1, v1):
