@@ -8,6 +8,8 @@ axes) identified by ``dhlog process`` with the robot's library table as the nomi
 
 * random: a KR5 at 40 random static poses, one tracker point a pose (σ 10 µm), a 6-DoF probe
   (orientation σ 0.005°) and 60 µm of unmodelled smooth error;
+* random × 5: the same without the probe, five tracker samples a pose (they share the pose's
+  error: the design effect);
 * coupled: a KR5 with 8 stops per joint, joint 2 moved only together with joint 3 (q3 = −q2);
 * ur5: a UR5 swept joint by joint, 100 Hz tracker, σ 20 µm.
 
@@ -57,6 +59,18 @@ CASES: dict[str, tuple[str, dict[str, object]]] = {
             "tracker_rate": 2.0,
             "tool_rotation": SIX_DOF_TOOL_ROTATION,
             "orientation_noise": math.radians(0.005),
+            **OFF,
+        },
+    ),
+    "KR5, 40 random static poses × 5 samples, σ 10 µm + 60 µm unmodelled": (
+        "kr5",
+        {
+            "protocol": "random-poses",
+            "poses": 40,
+            "noise": 1e-5,
+            "model_error": 6e-5,
+            "dwell": 0.5,
+            "tracker_rate": 10.0,
             **OFF,
         },
     ),
