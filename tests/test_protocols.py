@@ -312,3 +312,44 @@ def test_the_readme_random_poses_walkthrough(tmp_path: Path) -> None:
     want = fk_point(truth.table, Q, truth.tool_point, T_base=truth.T_base)
     err = np.linalg.norm(got - want, axis=1)
     assert np.all(err <= 4.0 * fk_prediction_std(result, Q))
+
+
+def test_several_targets_at_random_poses_are_fitted_together() -> None:
+    """Three SMRs on the flange measured at each of 40 random poses (no sweep): the nominal is
+    placed on the primary target's points and the whole model fits all three; at 200 random
+    joint vectors each further target's FK is within 4σ of the truth (σ: the FK's predicted σ
+    and its tool point's, together)."""
+    extra = ((0.05, 0.0, 0.08), (-0.04, 0.03, 0.09))
+    robot, session = random_poses(8, extra_tools=extra)
+    result = process_data(log_data_from_session(session), nominal=nominal_of(robot))
+    assert result.complete and result.whole is not None and result.extraction is not None
+    assert result.extra_tool_points.shape == (2, 3)
+    ex = result.extraction
+    Q = np.random.default_rng(9).uniform(robot.limits[:, 0], robot.limits[:, 1], (200, 6))
+    sd = fk_prediction_std(result, Q)
+    T = session.T_measurement_base
+    for k, true_point in enumerate(extra):
+        got = fk_point(ex.standard, Q, result.extra_tool_points[k], T_base=ex.T_measurement_base)
+        want = fk_point(session.table, Q, np.array(true_point), T_base=T)
+        err = np.linalg.norm(got - want, axis=1)
+        bound = 4.0 * np.sqrt(sd**2 + float(np.sum(result.extra_tool_std[k] ** 2)))
+        assert np.all(err <= bound), (err / bound).max()
+
+
+def test_the_batch_summary_carries_the_cross_validation(tmp_path: Path) -> None:
+    """dhlog batch --holdout 5: one log's summary row has the held-out statistics of the nominal
+    and of the calibrated model (m), the calibrated far below the nominal. (The columns' unit
+    suffix comes with the CLI-edges work on the summary's names; either spelling is read.)"""
+    from dhlog.batch import BatchJob, process_job
+
+    _, session = random_poses(9)
+    write_session(session, tmp_path / "poses.mcap")
+    job = BatchJob(
+        str(tmp_path / "poses.mcap"), str(tmp_path), nominal="kr5", no_rrd=True, holdout=5
+    )
+    row = process_job(job)
+    assert row["status"] == "ok", row
+    assert (tmp_path / "poses.holdout.csv").exists()
+    unit = "_m" if "holdout_calibrated_rms_m" in row else ""
+    assert 0 < row[f"holdout_calibrated_rms{unit}"] < row[f"holdout_nominal_rms{unit}"] / 5
+    assert row[f"holdout_calibrated_max{unit}"] >= row[f"holdout_calibrated_p95{unit}"]
