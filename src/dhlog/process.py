@@ -80,7 +80,12 @@ from dhlog.identify.timing import (
     rejoin,
     sweep_phases,
 )
-from dhlog.identify.variance import design_effect, refit_with_model_error
+from dhlog.identify.variance import (
+    Whiten,
+    design_effect,
+    refit_with_model_error,
+    whitened_residuals,
+)
 from dhlog.identify.whole import (
     CHI3_MEDIAN,
     AxisModel,
@@ -625,20 +630,23 @@ def _identify_whole(
         if speeds is not None:
             t_ns = seg.table["t_ns"].to_numpy()[rows]
             rates = speeds.at(t_ns)
+        options: dict[str, Any] = {
+            "noise": result.noise,
+            "fit_scales": fit_scales,
+            "sample_cov": sample_cov,
+            "which": which,
+            "rotations": rotations,
+            "sigma_rotation": result.noise.orientation,
+            "rates": rates,
+        }
         whole = fit_whole_model(
             start,
             Q,
             P,
-            noise=result.noise,
             sigma=sigma,
-            fit_scales=fit_scales,
-            sample_cov=sample_cov,
-            which=which,
-            rotations=rotations,
-            sigma_rotation=result.noise.orientation,
-            rates=rates,
             threshold=math.inf if analytic is None else 5.0,
             progress=lambda f: stage("identifying", 0.1 + 0.9 * f),
+            **options,
         )
         if analytic is None:
             # started from the nominal (or a coupled move's circle): the start misses the
@@ -648,19 +656,7 @@ def _identify_whole(
                 pred = predict(whole.model, Q, which=which, rates=rates)[0]
                 norms = np.linalg.norm(P - pred, axis=1)
                 sigma = max(float(np.median(norms)) / CHI3_MEDIAN, 1e-9)
-            whole = fit_whole_model(
-                whole.model,
-                Q,
-                P,
-                noise=result.noise,
-                sigma=sigma,
-                fit_scales=fit_scales,
-                sample_cov=sample_cov,
-                which=which,
-                rotations=rotations,
-                sigma_rotation=result.noise.orientation,
-                rates=rates,
-            )
+            whole = fit_whole_model(whole.model, Q, P, sigma=sigma, **options)
         if not clocked or timing is None:
             break
         at = whole.layout.clock_at
@@ -699,24 +695,11 @@ def _identify_whole(
         k_parallel_over_nominal=True,
         direction_variances=relative_tilt_variances(whole),
     )
-    from dhlog.identify.noise import whitening_from_std
+    whiten = _whitening(result, sample_cov, sigma)
 
     def cost(fit: WholeFit) -> float:
         """The whitened sum of squares of ``whole``'s inliers under ``fit`` (positions)."""
-        inl = whole.inliers
-        pred, _ = predict(
-            fit.model,
-            Q[inl],
-            which=None if which is None else which[inl],
-            rates=None if rates is None else rates[inl],
-        )
-        r = P[inl] - pred
-        W = (
-            whitening_from_std(sample_cov[inl])
-            if sample_cov is not None
-            else result.noise.whiten(P[inl], sigma)
-        )
-        rw = r * W if isinstance(W, float) else np.einsum("mij,mj->mi", W, r)
+        rw = whitened_residuals(fit, whole.inliers, Q, P, whiten, which=which, rates=rates)
         return float(np.sum(rw**2))
 
     whole, tolerances = _with_fixed_relations(whole, tolerances, cost, result.info)
@@ -881,6 +864,19 @@ def _with_model_error(
     return found.fit, found.sample_cov
 
 
+def _whitening(result: ProcessResult, sample_cov: FloatArray | None, sigma: float) -> Whiten:
+    """The whitening of samples ``rows`` at ``points``: their own covariances when the log
+    carries them, else the noise model's."""
+    from dhlog.identify.noise import whitening_from_std
+
+    def whiten(points: FloatArray, rows: NDArray[np.bool_]) -> FloatArray | float:
+        if sample_cov is not None:
+            return whitening_from_std(sample_cov[rows])
+        return result.noise.whiten(points, sigma)
+
+    return whiten
+
+
 def _pose_clustered(
     result: ProcessResult,
     whole: WholeFit,
@@ -893,14 +889,7 @@ def _pose_clustered(
 ) -> WholeFit:
     """The covariance times the design effect of several samples a pose
     (:mod:`dhlog.identify.variance`), said in a note."""
-    from dhlog.identify.noise import whitening_from_std
-
-    def whiten(points: FloatArray, rows: NDArray[np.bool_]) -> FloatArray | float:
-        if sample_cov is not None:
-            return whitening_from_std(sample_cov[rows])
-        return result.noise.whiten(points, sigma)
-
-    d = design_effect(whole, Q, P, whiten, which=which, rates=rates)
+    d = design_effect(whole, Q, P, _whitening(result, sample_cov, sigma), which=which, rates=rates)
     if d is None:
         return whole
     result.info.append(

@@ -80,25 +80,25 @@ class NoiseModel:
         (``σ`` given), else ``W`` (m, 3, 3) with ``WᵀW = C⁻¹``."""
         if self.model == "isotropic":
             return 1.0 / (self.sigma if self.sigma is not None else sigma)
-        rel = points - np.asarray(self.station)
-        dist = np.linalg.norm(rel, axis=1)
-        u = rel / np.maximum(dist, 1e-9)[:, None]
-        s_t = self.transverse + self.transverse_per_m * dist
-        uu = u[:, :, None] * u[:, None, :]
+        uu, s_t = self._line_of_sight(points)
         eye = np.eye(3)[None]
         return np.asarray(uu / self.radial + (eye - uu) / s_t[:, None, None], dtype=np.float64)
 
     def covariance(self, points: FloatArray) -> FloatArray:
         """The tracker model's covariance (m, 3, 3) of samples at ``points`` (m, 3)."""
-        rel = points - np.asarray(self.station)
-        dist = np.linalg.norm(rel, axis=1)
-        u = rel / np.maximum(dist, 1e-9)[:, None]
-        s_t = self.transverse + self.transverse_per_m * dist
-        uu = u[:, :, None] * u[:, None, :]
+        uu, s_t = self._line_of_sight(points)
         eye = np.eye(3)[None]
         return np.asarray(
             uu * self.radial**2 + (eye - uu) * (s_t**2)[:, None, None], dtype=np.float64
         )
+
+    def _line_of_sight(self, points: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """Per sample, ``ûûᵀ`` (m, 3, 3) of the unit line of sight from the station and the
+        transverse σ at its distance (m,)."""
+        rel = points - np.asarray(self.station)
+        dist = np.linalg.norm(rel, axis=1)
+        u = rel / np.maximum(dist, 1e-9)[:, None]
+        return u[:, :, None] * u[:, None, :], self.transverse + self.transverse_per_m * dist
 
     def document(self) -> dict[str, object]:
         """The noise model's parameters for the result JSON."""

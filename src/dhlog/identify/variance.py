@@ -75,6 +75,32 @@ def refit_with_model_error(
     return ModelError(whole, s, cov, before)
 
 
+#: The whitening of the samples ``rows`` (a mask) at ``points``: a scalar or (m, 3, 3).
+Whiten = Callable[[FloatArray, NDArray[np.bool_]], FloatArray | float]
+
+
+def whitened_residuals(
+    fit: WholeFit,
+    rows: NDArray[np.bool_],
+    Q: FloatArray,
+    P: FloatArray,
+    whiten: Whiten,
+    *,
+    which: NDArray[np.int64] | None = None,
+    rates: FloatArray | None = None,
+) -> FloatArray:
+    """The whitened position residuals (k, 3) of the samples ``rows`` under ``fit``."""
+    pred, _ = predict(
+        fit.model,
+        Q[rows],
+        which=None if which is None else which[rows],
+        rates=None if rates is None else rates[rows],
+    )
+    r = P[rows] - pred
+    W = whiten(P[rows], rows)
+    return r * W if isinstance(W, float) else np.einsum("mij,mj->mi", W, r)
+
+
 @dataclass(frozen=True)
 class DesignEffect:
     """``effect`` = 1 + (k̄ − 1) ρ of ``samples`` at ``poses`` (``per_pose`` = k̄), ``rho``."""
@@ -93,7 +119,7 @@ def design_effect(
     whole: WholeFit,
     Q: FloatArray,
     P: FloatArray,
-    whiten: Callable[[FloatArray, NDArray[np.bool_]], FloatArray | float],
+    whiten: Whiten,
     *,
     which: NDArray[np.int64] | None = None,
     rates: FloatArray | None = None,
@@ -107,15 +133,7 @@ def design_effect(
     m, g = int(inl.sum()), int(ids.size)
     if g == 0 or m < 2 * g or m - g < 3:
         return None
-    pred, _ = predict(
-        whole.model,
-        Q[inl],
-        which=None if which is None else which[inl],
-        rates=None if rates is None else rates[inl],
-    )
-    r = P[inl] - pred
-    W = whiten(P[inl], inl)
-    rw = r * W if isinstance(W, float) else np.einsum("mij,mj->mi", W, r)
+    rw = whitened_residuals(whole, inl, Q, P, whiten, which=which, rates=rates)
     count = np.bincount(inverse, minlength=g)[:, None]
     mean = np.zeros((g, 3))
     np.add.at(mean, inverse, rw)
