@@ -66,10 +66,14 @@ def test_the_summary_has_a_row_per_log_in_order_with_every_parameter(batch: Path
     assert parquet["log"].str.contains("session_0").to_list() == [True, False, False, False]
     assert parquet["status"].to_list() == ["failed", "ok", "ok", "ok"]
     assert "session_0.mcap" in parquet["reason"][0]
-    for column in ("session_start", "fk_rms", "clock_offset", "a_2", "std_a_2", "tool_z"):
+    for column in ("session_start", "fk_rms_m", "clock_offset_s", "a_2", "std_a_2", "tool_z"):
         assert column in parquet.columns
+    for column in ("fk_max_m", "std_clock_offset_s"):
+        assert column in parquet.columns
+    assert not {"fk_rms", "fk_max", "clock_offset", "std_clock_offset"} & set(parquet.columns)
     ok = parquet.filter(pl.col("status") == "ok")
-    assert (ok["fk_rms"] < 5e-5).all()
+    assert (ok["fk_rms_m"] < 5e-5).all() and (ok["fk_rms_m"] > 1e-6).all()  # metres
+    assert (ok["clock_offset_s"].abs() < 1e-3).all()  # seconds
     for k in range(1, 4):
         assert (batch / f"session_{k}.dh.json").exists()
     assert not (batch / "session_0.dh.json").exists()
@@ -89,6 +93,51 @@ def test_the_trend_finds_the_changed_parameter(batch: Path, tmp_path: Path) -> N
     sigma = float(np.hypot(a2.sigmas[0], a2.sigmas[-1]))
     assert abs(a2.change - 0.5e-3) < 4 * sigma
     assert rrd.stat().st_size > 0
+
+
+def test_a_summary_written_before_the_units_were_named_still_compares(
+    batch: Path, tmp_path: Path
+) -> None:
+    """Summaries from before ``fk_rms`` became ``fk_rms_m`` (and the other renamed columns)
+    read as before: the trends need only the log, its start, status, robot and parameters."""
+    frame = pl.read_parquet(batch / "summary.parquet")
+    old = frame.rename(
+        {
+            c: c.removesuffix("_m").removesuffix("_s")
+            for c in frame.columns
+            if c.startswith(("fk_", "clock_offset", "std_clock_offset"))
+        }
+    )
+    assert "fk_rms" in old.columns and "clock_offset" in old.columns
+    old.write_parquet(tmp_path / "old.parquet")
+    done = runner.invoke(app, ["compare", str(tmp_path / "old.parquet")])
+    assert done.exit_code == 0, done.output
+    assert "moved beyond 3σ" in done.output and "a_2" in done.output.split("moved beyond")[1]
+
+
+def test_holdout_columns_carry_their_unit(tmp_path: Path) -> None:
+    from dhlog.batch import summary_row
+
+    doc = {
+        "joints": [{"name": "j1"}],
+        "validation": {
+            "fk_rms": 1e-5,
+            "fk_max": 2e-5,
+            "holdout": [
+                {
+                    "kind": "cross-validation",
+                    "nominal": {"mean": 1e-3, "rms": 1.1e-3, "p95": 1.7e-3, "max": 2e-3},
+                    "calibrated": {"mean": 5e-5, "rms": 6e-5, "p95": 9e-5, "max": 1e-4},
+                }
+            ],
+        },
+        "timing": {"clock_offset": 2e-4, "std": 1e-5},
+    }
+    row = summary_row(tmp_path / "a.mcap", doc, "ok", "", 1.0, None, None)
+    assert row["fk_rms_m"] == 1e-5 and row["fk_max_m"] == 2e-5
+    assert row["clock_offset_s"] == 2e-4 and row["std_clock_offset_s"] == 1e-5
+    assert row["holdout_nominal_rms_m"] == 1.1e-3 and row["holdout_calibrated_max_m"] == 1e-4
+    assert not [k for k in row if k.startswith(("fk_", "holdout_")) and not k.endswith("_m")]
 
 
 def test_a_summary_of_different_robots_has_no_trend(tmp_path: Path) -> None:

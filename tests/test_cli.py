@@ -129,7 +129,7 @@ def test_outputs_go_only_to_folders_that_exist_and_can_be_written(tmp_path: Path
     a_file = tmp_path / "a_file"
     a_file.write_text("not a folder")
     blocked = _dhlog("process", str(log), "--out", str(a_file / "sub"), "--no-rrd")
-    assert blocked.returncode == 2 and "cannot write the results" in blocked.stderr
+    assert blocked.returncode == 2 and f"{a_file} is a file, not a folder" in blocked.stderr
     assert len([line for line in blocked.stderr.splitlines() if line.strip()]) == 1
     locked = tmp_path / "locked"
     locked.mkdir(mode=0o500)

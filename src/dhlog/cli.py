@@ -1,7 +1,8 @@
 """The ``dhlog`` command line: a thin layer over the library.
 
 Only this module catches :class:`~dhlog.errors.DhlogError`, printing its one-line message and
-exiting with 2 (unreadable or unusable input); usage errors exit with 1.
+exiting with 2 (unreadable or unusable input); usage errors exit with 1 (``EXIT_CODES`` lists
+them all, as ``dhlog --help`` prints them).
 """
 
 from __future__ import annotations
@@ -11,11 +12,12 @@ import os
 import sys
 from collections.abc import Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING, Annotated, Literal
+from typing import TYPE_CHECKING, Annotated, Any, Literal, NoReturn, get_args, get_origin
 
 import numpy as np
 import typer
 from rich.console import Console
+from typer.core import TyperArgument, TyperCommand, TyperGroup
 
 from dhlog import __version__
 from dhlog.errors import DhlogError, OutputError
@@ -24,18 +26,117 @@ if TYPE_CHECKING:
     from dhlog.dhfile import DHModel
     from dhlog.io.pipeline import Pipeline
 
+EXIT_USAGE, EXIT_INPUT, EXIT_PARTIAL = 1, 2, 3
+EXIT_INTERRUPTED, EXIT_OUTPUT_CLOSED, EXIT_TERMINATED = 130, 141, 143
+
+#: The epilog of ``dhlog --help``, ``process --help`` and ``batch --help`` (no square brackets:
+#: the help is rich markup).
+EXIT_CODES = (
+    "Exit codes: 0 success; 1 usage error (a bad option or argument, an output that exists "
+    "without --force, an output folder that does not exist); 2 unreadable or unusable input, or "
+    "an output that cannot be written; 3 partial result (joints not identified; in a batch, "
+    "logs that failed: the rest is written); 130 interrupted (Ctrl-C); 141 the standard output "
+    "was closed (| head: the results were written first); 143 terminated (SIGTERM)."
+)
+
+
+class _Ended(BaseException):
+    """The run ends here with ``code``, its message (if any) printed: no command-line library
+    in between may turn it into another exit."""
+
+    def __init__(self, code: int) -> None:
+        super().__init__(code)
+        self.code = code
+
+
+class _Console(Console):
+    """A console whose closed output (``dhlog process … | head -1``) ends the run quietly with
+    ``EXIT_OUTPUT_CLOSED``; rich's own ending is exit 1 without a word, the code of a usage
+    error."""
+
+    def on_broken_pipe(self) -> None:
+        self.quiet = True
+        try:  # what Python still flushes at exit goes nowhere, without "Exception ignored"
+            devnull = os.open(os.devnull, os.O_WRONLY)
+            os.dup2(devnull, self.file.fileno())
+            os.close(devnull)
+        except (OSError, ValueError):  # a file without a descriptor (tests)
+            pass
+        raise _Ended(EXIT_OUTPUT_CLOSED)
+
+
+def _type_metavar(param: Any) -> str | None:
+    """click's name of a parameter's type (PATH, TEXT, INTEGER, FLOAT), from typer's own
+    description of it; None where typer has none (older typer: click names it itself)."""
+    desc = getattr(param, "type_descriptor", None)
+    if desc is None:
+        return None
+    annotation = getattr(desc, "annotation", None)
+    if get_origin(annotation) is list:
+        annotation = get_args(annotation)[0]
+    names: dict[Any, str] = {Path: "PATH", str: "TEXT", int: "INTEGER", float: "FLOAT"}
+    return names.get(annotation, "VALUE")
+
+
+class _Argument(TyperArgument):
+    """An argument as click shows it: its metavar alone (``LOG``) in the usage line, ``[LOG]``
+    when optional, ``LOG...`` when repeated, no type beside it in the help."""
+
+    def display_type_rich(self, ctx: Any) -> str | None:
+        return None
+
+    def get_usage_pieces(self, ctx: Any) -> list[str]:
+        name = self.metavar or (self.name or "").upper()
+        if self.nargs != 1:
+            name += "..."
+        return [name if self.required else f"[{name}]"]
+
+
+def _plain_help(params: list[Any]) -> list[Any]:
+    """Metavars as a user reads them. typer 0.2x's rich help gives every parameter its Python
+    type: flags show as ``--force <bool>`` (and ``--force true`` is then refused), arguments as
+    ``{log}`` in the usage line, a repeated option as ``<list[Path]>``. Here a flag shows
+    nothing after its name, an argument its name in capitals, an option its metavar or click's
+    name of its type."""
+    for p in params:
+        if isinstance(p, TyperArgument):
+            if type(p) is TyperArgument:
+                p.__class__ = _Argument
+            if p.metavar is None:
+                p.metavar = (p.name or "").upper()
+        elif getattr(p, "is_flag", False) or getattr(p, "count", False):
+            if p.metavar is None:
+                p.metavar = ""
+        elif p.metavar is None:
+            p.metavar = _type_metavar(p)
+    return params
+
+
+class _Command(TyperCommand):
+    """A command whose help and usage line read as click's (:func:`_plain_help`)."""
+
+    def get_params(self, ctx: Any) -> list[Any]:
+        return _plain_help(super().get_params(ctx))
+
+
+class _Group(TyperGroup):
+    """``dhlog`` itself, its help as :class:`_Command`'s."""
+
+    def get_params(self, ctx: Any) -> list[Any]:
+        return _plain_help(super().get_params(ctx))
+
+
 app = typer.Typer(
     name="dhlog",
     help="Exact Denavit-Hartenberg parameters from robot calibration logs (MCAP).",
+    epilog=EXIT_CODES,
+    cls=_Group,
     no_args_is_help=True,
     add_completion=False,
     pretty_exceptions_enable=False,
 )
-stderr = Console(stderr=True, highlight=False, soft_wrap=True)
-stdout = Console(highlight=False)
-
-EXIT_USAGE, EXIT_INPUT, EXIT_PARTIAL = 1, 2, 3
-EXIT_INTERRUPTED, EXIT_TERMINATED = 130, 143
+stderr = _Console(stderr=True, highlight=False, soft_wrap=True)
+stdout = _Console(highlight=False)
 
 
 def _fail(exc: DhlogError, code: int = EXIT_INPUT) -> None:
@@ -48,6 +149,7 @@ def _fail(exc: DhlogError, code: int = EXIT_INPUT) -> None:
 
 def _check_folder(folder: Path) -> None:
     """A command's output folder must exist (only ``process --out`` creates one)."""
+    _refuse_file(folder)
     if not folder.is_dir():
         from rich.markup import escape
 
@@ -56,12 +158,34 @@ def _check_folder(folder: Path) -> None:
     _check_writable(folder)
 
 
-def _check_writable(folder: Path) -> None:
-    """Stop before any work when the output folder (or, if missing, the nearest existing folder
-    above it) cannot be written."""
+def _existing_above(folder: Path) -> Path:
+    """``folder``, or the nearest of its parents that exists."""
     probe = folder
     while not probe.exists() and probe != probe.parent:
         probe = probe.parent
+    return probe
+
+
+def _refuse_file(folder: Path) -> None:
+    """Exit 2 (as every unwritable output) when an output folder, or the nearest existing path
+    above it, is a file."""
+    probe = _existing_above(folder)
+    if probe.exists() and not probe.is_dir():
+        from rich.markup import escape
+
+        stderr.print(
+            f"[bold red]error:[/] cannot write into {escape(str(folder))}: {escape(str(probe))} "
+            "is a file, not a folder; choose a folder, or move the file away. Nothing was "
+            "written."
+        )
+        raise typer.Exit(EXIT_INPUT)
+
+
+def _check_writable(folder: Path) -> None:
+    """Stop before any work when the output folder (or, if missing, the nearest existing folder
+    above it) cannot be written, or is a file."""
+    _refuse_file(folder)
+    probe = _existing_above(folder)
     if not os.access(probe, os.W_OK | os.X_OK):
         _fail(OutputError(folder, PermissionError(13, "Permission denied")))
 
@@ -102,7 +226,7 @@ def main(
     """Exact Denavit-Hartenberg parameters from robot calibration logs (MCAP)."""
 
 
-@app.command()
+@app.command(cls=_Command)
 def simulate(
     robot: Annotated[
         str,
@@ -348,6 +472,12 @@ def _floats(text: str, what: str) -> list[float]:
         raise typer.Exit(EXIT_USAGE) from None
 
 
+PIPELINE_HELP = (
+    "A shipped pipeline's name (dhlog pipelines lists them) or a pipeline file (default: "
+    "the shipped one whose topics the log holds)."
+)
+
+
 def _pipeline(spec: str) -> Pipeline:
     """A pipeline file, or a shipped pipeline by name (``dhlog pipelines`` lists them)."""
     from dhlog.io.pipeline import pipeline_from
@@ -373,42 +503,51 @@ def _model(spec: str) -> DHModel:
     return dh_model_from(spec)
 
 
-@app.command()
+@app.command(cls=_Command, epilog=EXIT_CODES)
 def process(
-    log: Annotated[Path, typer.Argument(help="The session log (.mcap).")],
+    log: Annotated[
+        Path, typer.Argument(metavar="LOG", help="The session log (.mcap, or a bag folder).")
+    ],
     pipeline: Annotated[
-        Path | None,
-        typer.Option(help="A pipeline file (default: chosen from the log's schemas)."),
+        str | None,
+        typer.Option(metavar="NAME|FILE", help=PIPELINE_HELP),
     ] = None,
     nominal: Annotated[
         str | None,
         typer.Option(
+            metavar="ROBOT|FILE",
             help="A nominal DH file (or library robot): ambiguous choices follow it, "
-            "and measured - nominal is shown."
+            "and measured - nominal is shown.",
         ),
     ] = None,
     reference_pose: Annotated[
         str | None,
         typer.Option(
+            metavar="Q1,Q2,…",
             help="Joint values of the reference pose, comma-separated (in --angle-unit, m for "
-            "prismatic); default: the locked pose most sweeps share."
+            "prismatic); default: the locked pose most sweeps share.",
         ),
     ] = None,
     angle_unit: Annotated[
         str | None,
         typer.Option(
-            help="rad or deg: the unit of --reference-pose (default: the pipeline's angle_unit)."
+            metavar="rad|deg",
+            help="The unit of --reference-pose (default: the pipeline's angle_unit).",
         ),
     ] = None,
     out: Annotated[
         Path | None,
         typer.Option(
-            help="Folder for the results (default: beside the log; created when missing)."
+            metavar="DIR",
+            help="Folder for the results (default: beside the log; created when missing).",
         ),
     ] = None,
     units: Annotated[
         str,
-        typer.Option(help="Units on the console and in the CSV: mm (mm, degrees) or m (m, rad)."),
+        typer.Option(
+            metavar="mm|m",
+            help="Units on the console and in the CSV: mm (mm, degrees) or m (m, rad).",
+        ),
     ] = "mm",
     no_rrd: Annotated[
         bool, typer.Option("--no-rrd", help="Do not write the Rerun recording.")
@@ -424,8 +563,8 @@ def process(
         bool,
         typer.Option(
             "--analytic-only",
-            help="The seed method alone (per-joint fits + line geometry), without the fit of "
-            "the whole model to every sample.",
+            help="Only the per-joint circle fits and the line geometry of their axes, without "
+            "the fit of the whole model to every sample.",
         ),
     ] = False,
     fit_encoder_scales: Annotated[
@@ -438,6 +577,7 @@ def process(
     holdout: Annotated[
         int,
         typer.Option(
+            metavar="K",
             help="K-fold cross-validation (K ≥ 2): the error at poses not used to fit, of the "
             "nominal and of the calibrated model (0: none).",
         ),
@@ -445,6 +585,7 @@ def process(
     validate: Annotated[
         list[Path] | None,
         typer.Option(
+            metavar="LOG",
             help="A log of other poses of the same robot (repeat for several) scoring the "
             "result; placed on a third of its poses when the tracker moved.",
         ),
@@ -498,7 +639,7 @@ def process(
     _check_writable(folder)
     ref = None if reference_pose is None else np.array(_floats(reference_pose, "--reference-pose"))
     try:
-        pipe = _pipeline(str(pipeline)) if pipeline is not None else None
+        pipe = _pipeline(pipeline) if pipeline is not None else None
         if ref is not None:
             unit = angle_unit or (pipe.angle_unit if pipe is not None else "rad")
             types = pipe.joint_types if pipe is not None and pipe.joint_types else None
@@ -531,7 +672,8 @@ def process(
             if refine:
                 result.info.append(
                     "--refine is a no-op: the fit of the whole model to every sample is the "
-                    "default (--analytic-only gives the seed method alone)."
+                    "default (--analytic-only gives the per-joint circle fits and line geometry "
+                    "alone)."
                 )
             advance("writing", 0.0)
             try:
@@ -567,7 +709,7 @@ def _angles(values: np.ndarray, unit: str, types: Sequence[object] | None) -> np
     return np.where(prismatic[: values.size], values, np.radians(values))
 
 
-@app.command()
+@app.command(cls=_Command)
 def fk(
     dh: Annotated[str, typer.Argument(help="A DH file, a result JSON, or a library robot name.")],
     q: Annotated[
@@ -579,7 +721,7 @@ def fk(
     units: Annotated[str, typer.Option(help="mm or m for the printed translation.")] = "m",
     angle_unit: Annotated[str, typer.Option(help="rad or deg: the unit of --q.")] = "rad",
 ) -> None:
-    """Pose of the last frame and the spatial manipulator Jacobian at q (seed 004)."""
+    """Pose of the last frame and the spatial manipulator Jacobian at q."""
     from dhlog.kinematics import fk_frames, fk_point, spatial_jacobian
 
     try:
@@ -613,14 +755,17 @@ def fk(
     stdout.print(str(J))
 
 
-@app.command()
+@app.command(cls=_Command)
 def pipelines() -> None:
-    """List the shipped pipelines (give a name to --pipeline)."""
+    """List the shipped pipelines (--pipeline takes their names, or a pipeline file)."""
     from rich.markup import escape
 
     from dhlog.io.pipeline import shipped_pipelines
 
-    stdout.print("Shipped pipelines (dhlog process LOG --pipeline NAME):")
+    stdout.print(
+        "Shipped pipelines (dhlog process LOG --pipeline NAME; or --pipeline FILE, a pipeline "
+        "file of your own):"
+    )
     for p in shipped_pipelines():
         stdout.print(
             f"  {escape(p.name)} ({', '.join(p.encodings)}; point topic "
@@ -631,7 +776,7 @@ def pipelines() -> None:
 EXPORT_FORMATS = ("urdf", "ur", "rtb", "dh-csv", "dh-json")
 
 
-@app.command()
+@app.command(cls=_Command)
 def export(
     result: Annotated[Path, typer.Argument(help="A result <stem>.dh.json (or a DH JSON file).")],
     output: Annotated[Path, typer.Option("-o", "--output", help="The file to write.")],
@@ -712,29 +857,52 @@ def export(
     stdout.print(f"wrote {escape(str(output))}{extra}")
 
 
-@app.command()
+@app.command(cls=_Command, epilog=EXIT_CODES)
 def batch(
-    logs: Annotated[list[Path], typer.Argument(help="Session logs (.mcap, bag folders).")],
-    out: Annotated[Path, typer.Option(help="Folder for every log's results and the summary.")],
+    logs: Annotated[
+        list[Path], typer.Argument(metavar="LOG", help="Session logs (.mcap, bag folders).")
+    ],
+    out: Annotated[
+        Path,
+        typer.Option(metavar="DIR", help="Folder for every log's results and the summary."),
+    ],
     jobs: Annotated[
-        int, typer.Option("--jobs", "-j", help="Logs processed at once (worker processes).")
+        int,
+        typer.Option(
+            "--jobs", "-j", metavar="N", help="Logs processed at once (worker processes)."
+        ),
     ] = 1,
     pipeline: Annotated[
-        str | None, typer.Option(help="A pipeline file or shipped name, for every log.")
+        str | None,
+        typer.Option(
+            metavar="NAME|FILE",
+            help="A shipped pipeline's name (dhlog pipelines lists them) or a pipeline file, for "
+            "every log (default: chosen per log from its topics).",
+        ),
     ] = None,
     nominal: Annotated[
-        str | None, typer.Option(help="A nominal DH file (or library robot), for every log.")
+        str | None,
+        typer.Option(
+            metavar="ROBOT|FILE", help="A nominal DH file (or library robot), for every log."
+        ),
     ] = None,
     no_rrd: Annotated[
         bool, typer.Option("--no-rrd", help="Do not write the Rerun recordings.")
     ] = False,
     analytic_only: Annotated[
-        bool, typer.Option("--analytic-only", help="The seed method alone, for every log.")
+        bool,
+        typer.Option(
+            "--analytic-only",
+            help="Only the per-joint circle fits and line geometry, for every log.",
+        ),
     ] = False,
-    units: Annotated[str, typer.Option(help="Units of each log's CSV: mm or m.")] = "mm",
+    units: Annotated[
+        str, typer.Option(metavar="mm|m", help="Units of each log's CSV: mm or m.")
+    ] = "mm",
     holdout: Annotated[
         int,
         typer.Option(
+            metavar="K",
             help="K-fold cross-validation of every log (K ≥ 2; 0: none): held-out errors "
             "before and after in each result and in the summary.",
         ),
@@ -758,10 +926,12 @@ def batch(
         HOLDOUT_SUFFIX,
         SUMMARY_STEM,
         BatchJob,
+        output_stamps,
         run_batch,
         stem_of,
         summary_frame,
         write_summary,
+        written_logs,
     )
 
     if jobs < 1 or jobs > 256:
@@ -794,39 +964,48 @@ def batch(
         out.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         _fail(OutputError(out, exc))
+    if pipeline is not None:  # a misspelt name fails here, not once per log
+        try:
+            _pipeline(pipeline)
+        except DhlogError as exc:
+            _fail(exc)
     work = [
         BatchJob(str(log), str(out), pipeline, nominal, no_rrd, analytic_only, units, holdout)
         for log in logs
     ]
-    with Progress(
-        TextColumn("{task.description}"),
-        BarColumn(),
-        MofNCompleteColumn(),
-        TimeElapsedColumn(),
-        TimeRemainingColumn(),
-        console=stderr,
-        disable=not stderr.is_terminal,
-    ) as bar:
-        task = bar.add_task("logs", total=len(work))
-
-        def done(row: dict[str, object]) -> None:
-            bar.advance(task)
-            if row["status"] != "ok":
-                bar.console.print(
-                    f"{escape(str(row['log']))}: {row['status']}: {escape(str(row['reason']))}"
-                )
-
-        start = time.perf_counter()
-        try:
-            rows = run_batch(work, jobs, done)
-        except DhlogError as exc:
-            _fail(exc)
-        seconds = time.perf_counter() - start
-    frame = summary_frame(rows)
+    before = output_stamps(work)
     try:
-        paths = write_summary(frame, out)
-    except OSError as exc:
-        _fail(OutputError(out, exc))
+        with Progress(
+            TextColumn("{task.description}"),
+            BarColumn(),
+            MofNCompleteColumn(),
+            TimeElapsedColumn(),
+            TimeRemainingColumn(),
+            console=stderr,
+            disable=not stderr.is_terminal,
+        ) as bar:
+            task = bar.add_task("logs", total=len(work))
+
+            def done(row: dict[str, object]) -> None:
+                bar.advance(task)
+                if row["status"] != "ok":
+                    bar.console.print(
+                        f"{escape(str(row['log']))}: {row['status']}: {escape(str(row['reason']))}"
+                    )
+
+            start = time.perf_counter()
+            try:
+                rows = run_batch(work, jobs, done)
+            except DhlogError as exc:
+                _fail(exc)
+            seconds = time.perf_counter() - start
+        frame = summary_frame(rows)
+        try:
+            paths = write_summary(frame, out, hold_signals=True)
+        except OSError as exc:
+            _fail(OutputError(out, exc))
+    except (KeyboardInterrupt, _Terminated) as exc:  # the workers are stopped already
+        _batch_stopped(exc, written_logs(work, before), len(work))
     counts = {s: sum(1 for r in rows if r["status"] == s) for s in ("ok", "partial", "failed")}
     stdout.print(
         f"{len(rows)} log(s) in {seconds:.1f} s with {jobs} worker(s): {counts['ok']} ok, "
@@ -837,11 +1016,37 @@ def batch(
         raise typer.Exit(EXIT_PARTIAL)
 
 
+def _batch_stopped(cause: BaseException, written: list[str], total: int) -> NoReturn:
+    """One line saying which logs' results an interrupted batch wrote (they are complete: each
+    log's results are moved into place together), then exit 130 / 143."""
+    from rich.markup import escape
+
+    code, what = (
+        (EXIT_INTERRUPTED, "interrupted")
+        if isinstance(cause, KeyboardInterrupt)
+        else (EXIT_TERMINATED, "terminated")
+    )
+    if not written:
+        stderr.print(
+            f"{what}: no log had finished: nothing was written (no results, no summary; files "
+            "of earlier runs stay as they were)."
+        )
+    else:
+        names = [Path(log).name for log in written]
+        shown = ", ".join(names[:6]) + (f" and {len(names) - 6} more" if len(names) > 6 else "")
+        rest = "the summary was not" if len(written) == total else "the others' and the summary not"
+        stderr.print(
+            f"{what}: the results of {len(written)} of {total} log(s) were written "
+            f"({escape(shown)}); {rest}."
+        )
+    raise _Ended(code)
+
+
 def _listed(text: str | None) -> list[str]:
     return [t.strip() for t in text.split(",") if t.strip()] if text else []
 
 
-@app.command(name="import")
+@app.command(name="import", cls=_Command)
 def import_(
     source: Annotated[
         Path,
@@ -978,7 +1183,7 @@ def import_(
     )
 
 
-@app.command(name="compare")
+@app.command(name="compare", cls=_Command)
 def compare_results(
     first: Annotated[
         Path,
@@ -1002,9 +1207,6 @@ def compare_results(
     ] = None,
 ) -> None:
     """Has the robot changed? Two results, or every parameter's trend over a batch summary."""
-    from rich.markup import escape
-    from rich.table import Table
-
     from dhlog.compare import compare
     from dhlog.dhfile import robot_or_dh_file
 
@@ -1019,9 +1221,7 @@ def compare_results(
         result = compare(first, second, limits=limits)
     except DhlogError as exc:
         _fail(exc)
-    table = Table(title="Changes (B − A; σ: both sessions combined)", title_justify="left")
-    for col in ("parameter", "A", "B", "B − A", "σ", "|B − A| / σ"):
-        table.add_column(col, justify="left" if col == "parameter" else "right", no_wrap=True)
+    rows = []
     significant = []
     for c in result.changes:
         f, unit = (180 / math.pi, "°") if c.angular else (1e3, "mm")
@@ -1029,15 +1229,22 @@ def compare_results(
         mark = "" if z is None else f"{z:.1f}" + (" *" if z > threshold else "")
         if z is not None and z > threshold:
             significant.append(c.name)
-        table.add_row(
-            escape(c.name),
-            f"{c.a * f:.4f}",
-            f"{c.b * f:.4f}",
-            f"{c.diff * f:+.4f} {unit}",
-            "fixed" if c.sigma is None else f"{c.sigma * f:.4f}",
-            mark,
+        rows.append(
+            (
+                c.name,
+                f"{c.a * f:.4f}",
+                f"{c.b * f:.4f}",
+                f"{c.diff * f:+.4f} {unit}",
+                "fixed" if c.sigma is None else f"{c.sigma * f:.4f}",
+                mark,
+            )
         )
-    stdout.print(table)
+    _print_values(
+        stdout,
+        "Changes (B − A; σ: both sessions combined)",
+        ("A", "B", "B − A", "σ", "|B − A|\n/ σ"),
+        rows,
+    )
     at = ", ".join(f"{v:.3f}" for v in result.fk_max_at)
     stdout.print(
         f"FK difference over {result.samples} joint vectors in the joint range: RMS "
@@ -1049,10 +1256,50 @@ def compare_results(
         stdout.print(f"no parameter changed beyond {threshold:g}σ.")
 
 
+#: The narrowest the parameter column of a value table may fold to (below it, a list).
+NAME_FOLD = 8
+
+
+def _print_values(
+    console: Console, title: str, heads: Sequence[str], rows: Sequence[Sequence[str]]
+) -> None:
+    """Parameters (each row's first cell) and their values, never cut on a narrow terminal:
+    a table when the values fit whole beside the parameter names (which fold, down to
+    ``NAME_FOLD`` characters, when the names do not fit on one line); otherwise one line per
+    parameter, ``name: head value, …``, wrapped between the values."""
+    from rich import box
+    from rich.cells import cell_len
+    from rich.markup import escape
+    from rich.table import Table
+
+    def width(texts: Sequence[str]) -> int:
+        return max(cell_len(line) for text in texts for line in text.split("\n"))
+
+    values = [width([head, *(r[k + 1] for r in rows)]) for k, head in enumerate(heads)]
+    names = width(["parameter", *(r[0] for r in rows)])
+    chrome = 2 + len(heads) + 2 * len(heads)  # edges, separators, padding (none at the edges)
+    if chrome + min(names, NAME_FOLD) + sum(values) <= console.width:
+        table = Table(title=title, title_justify="left", box=box.SIMPLE_HEAD, pad_edge=False)
+        table.add_column("parameter", overflow="fold")
+        for head in heads:
+            table.add_column(head, justify="right", no_wrap=True)
+        for row in rows:
+            table.add_row(escape(row[0]), *row[1:])
+        console.print(table)
+        return
+    console.print(title, markup=False)
+    for row in rows:
+        cells = ", ".join(
+            f"{' '.join(head.split())} {value}"
+            for head, value in zip(heads, row[1:], strict=True)
+            if value
+        )
+        console.print(f"  {row[0]}: {cells}", markup=False)
+
+
 def _compare_trends(summary: Path, threshold: float, rrd: Path | None) -> None:
     """The console table (and optionally the recording) of a batch summary's trends."""
     from rich.markup import escape
-    from rich.table import Table
 
     from dhlog.compare import read_summary, trends, write_trend_recording
 
@@ -1065,26 +1312,29 @@ def _compare_trends(summary: Path, threshold: float, rrd: Path | None) -> None:
         _fail(exc)
     except OSError as exc:
         _fail(OutputError(rrd.parent if rrd else summary.parent, exc))
-    table = Table(
-        title=f"Trends over {len(logs)} sessions (first → last; σ combined)", title_justify="left"
-    )
-    for col in ("parameter", "first", "last", "change", "|change| / σ", "largest step / σ"):
-        table.add_column(col, justify="left" if col == "parameter" else "right", no_wrap=True)
+    rows = []
     moved = []
     for t in found:
         f, unit = (180 / math.pi, "°") if t.angular else (1e3, "mm")
         z, step = t.significance, t.largest_step
         if (z is not None and z > threshold) or (step is not None and step > threshold):
             moved.append(t.name)
-        table.add_row(
-            escape(t.name),
-            f"{t.values[0] * f:.4f}",
-            f"{t.values[-1] * f:.4f}",
-            f"{t.change * f:+.4f} {unit}",
-            "fixed" if z is None else f"{z:.1f}" + (" *" if z > threshold else ""),
-            "fixed" if step is None else f"{step:.1f}" + (" *" if step > threshold else ""),
+        rows.append(
+            (
+                t.name,
+                f"{t.values[0] * f:.4f}",
+                f"{t.values[-1] * f:.4f}",
+                f"{t.change * f:+.4f} {unit}",
+                "fixed" if z is None else f"{z:.1f}" + (" *" if z > threshold else ""),
+                "fixed" if step is None else f"{step:.1f}" + (" *" if step > threshold else ""),
+            )
         )
-    stdout.print(table)
+    _print_values(
+        stdout,
+        f"Trends over {len(logs)} sessions (first → last; σ combined)",
+        ("first", "last", "change", "|change|\n/ σ", "largest\nstep / σ"),
+        rows,
+    )
     if moved:
         stdout.print(f"moved beyond {threshold:g}σ: {', '.join(moved)} (marked *).")
     else:
@@ -1093,7 +1343,7 @@ def _compare_trends(summary: Path, threshold: float, rrd: Path | None) -> None:
         stdout.print(f"wrote {escape(str(rrd))}; open it with: {_viewer()} {escape(str(rrd))}")
 
 
-@app.command()
+@app.command(cls=_Command)
 def show(
     dh: Annotated[
         str,
@@ -1111,7 +1361,7 @@ def show(
         bool, typer.Option("--force", help="Overwrite an existing recording.")
     ] = False,
 ) -> None:
-    """A Rerun recording of a robot from its DH table, each joint swept in turn (seed 004)."""
+    """A Rerun recording of a robot from its DH table, each joint swept in turn."""
     from dhlog.recording import write_robot_recording
     from dhlog.robots import load_robot
 
@@ -1130,6 +1380,18 @@ def show(
     stdout.print(f"wrote {path}; open it with: rerun {path}")
 
 
+def _stdout_replaced() -> bool:
+    """Whether the standard output was found closed and replaced (by /dev/null, or typer's
+    wrapper that swallows its errors), as rich and typer do on a broken pipe."""
+    if type(sys.stdout).__name__ == "PacifyFlushWrapper":
+        return True
+    try:
+        out, null = os.fstat(1), os.stat(os.devnull)
+    except OSError:
+        return False
+    return (out.st_dev, out.st_ino) == (null.st_dev, null.st_ino)
+
+
 class _Terminated(BaseException):
     """SIGTERM, raised where the program is (temporary files are removed on the way out)."""
 
@@ -1139,8 +1401,9 @@ def _on_sigterm(signum: int, frame: object) -> None:
 
 
 def run() -> None:
-    """Entry point: exit codes 0 success, 1 usage error, 2 unusable input, 3 partial result,
-    130 interrupted (SIGINT), 143 terminated (SIGTERM)."""
+    """Entry point: exit codes as ``EXIT_CODES`` lists them (0 success, 1 usage error,
+    2 unusable input or output, 3 partial result, 130 interrupted (SIGINT), 141 the standard
+    output closed, 143 terminated (SIGTERM))."""
     import signal
 
     _quiet_numerics()
@@ -1149,6 +1412,12 @@ def run() -> None:
         sys.argv.append("--help")
     try:
         code = app(standalone_mode=False)
+    except _Ended as end:  # its message is printed
+        sys.exit(end.code)
+    except SystemExit as exc:  # rich and typer end a closed output (their help) with exit 1
+        if exc.code == 1 and _stdout_replaced():
+            sys.exit(EXIT_OUTPUT_CLOSED)
+        raise
     except typer.Abort as exc:
         if isinstance(exc.__cause__ or exc.__context__, KeyboardInterrupt):
             stderr.print("interrupted: no output was written (finished files stay as they were).")

@@ -75,6 +75,10 @@ class McapScan:
     truncated_at: int | None = None
     recovered: int = 0
     warnings: list[str] = field(default_factory=list)
+    #: the file's length in bytes (decompressed, for a ``.mcap.zstd``)
+    size: int = 0
+    #: the damaged records and chunks skipped, each with its byte offset and what was wrong
+    damaged: list[str] = field(default_factory=list)
 
     def topics(self) -> list[str]:
         """Topics present, sorted."""
@@ -459,6 +463,8 @@ def scan_mcap(
         profile=profile,
         truncated_at=truncated_at,
         recovered=walker.count,
+        size=end,
+        damaged=list(walker.damaged),
     )
     if truncated_at is not None:
         scan.warnings.append(

@@ -342,9 +342,28 @@ def pipeline_by_name(name: str) -> Pipeline | None:
 
 
 def pipeline_from(spec: str) -> Pipeline:
-    """A pipeline file, or a shipped pipeline by name (``dhlog pipelines`` lists them)."""
+    """A pipeline file, or a shipped pipeline by name (``dhlog pipelines`` lists them).
+
+    A ``spec`` that is neither is an error listing the shipped names, with the nearest one
+    (``ros2_trackr`` → ``ros2_tracker``)."""
     if not Path(spec).exists():
         shipped = pipeline_by_name(spec)
         if shipped is not None:
             return shipped
+        import difflib
+
+        names = [p.name for p in shipped_pipelines()]
+        listed = ", ".join(names)
+        if Path(spec).suffix == ".toml" or "/" in spec or "\\" in spec:  # meant as a file
+            raise PipelineError(
+                spec,
+                f"no such pipeline file; check the path, or name a shipped pipeline ({listed}).",
+            )
+        near = difflib.get_close_matches(spec, names, n=1, cutoff=0.6)
+        hint = f" (did you mean '{near[0]}'?)" if near else ""
+        raise PipelineError(
+            spec,
+            f"is not a shipped pipeline{hint}; the shipped ones are {listed} (dhlog pipelines "
+            "describes them), and a pipeline file of your own is given by its path.",
+        )
     return load_pipeline(spec)

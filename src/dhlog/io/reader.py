@@ -31,7 +31,7 @@ from dhlog.errors import (
     UnknownSchemaError,
 )
 from dhlog.io import ros2
-from dhlog.io.mcapscan import ZSTD_MAGIC, ChannelInfo, RawMessages, scan_mcap
+from dhlog.io.mcapscan import ZSTD_MAGIC, ChannelInfo, McapScan, RawMessages, scan_mcap
 from dhlog.io.pipeline import Pipeline, shipped_pipelines
 
 POINT_SCHEMAS = {
@@ -371,6 +371,29 @@ def choose_pipeline(path: str, channels: dict[int, ChannelInfo]) -> tuple[Pipeli
 Block = tuple[NDArray[np.int64], Any]
 
 
+def _damage_error(scan: McapScan, lacking: str) -> InputError | None:
+    """The error for a file whose damage left too little to read (a pipeline or a required
+    topic missing), naming where the damage is and what was recovered before it; None for an
+    undamaged file (then the log itself lacks it). ``lacking`` ends the recovered part's
+    sentence: what it does not hold."""
+    if scan.truncated_at is not None:
+        where = f"is cut short (or damaged) at byte {scan.truncated_at} of {scan.size}"
+    elif scan.damaged:
+        more = f" and {len(scan.damaged) - 1} more" if len(scan.damaged) > 1 else ""
+        where = f"is damaged ({scan.damaged[0]}{more})"
+    else:
+        return None
+    topics = scan.topics()
+    if topics:
+        got = f"{scan.recovered} message(s) on {', '.join(topics)} were recovered, {lacking}"
+    else:
+        got = f"no channel could be recovered, {lacking}"
+    return InputError(
+        f"{scan.path}: the file {where}: {got}. Copy the log again from where it was recorded "
+        "(a recording or copy cut short?)."
+    )
+
+
 def _bulk_ok(
     raw: RawMessages, info: ChannelInfo, schemas: tuple[str, ...], fields: dict[str, str]
 ) -> bool:
@@ -670,7 +693,13 @@ def read_log(
         scan.messages.update(_unzstd_messages(squeezed, name))
     reason = None
     if pipeline is None:
-        pipeline, why = choose_pipeline(name, scan.channels)
+        try:
+            pipeline, why = choose_pipeline(name, scan.channels)
+        except PipelineError:
+            damage = _damage_error(scan, "so no pipeline can be chosen")
+            if damage is not None:  # what is missing is most likely lost to the damage
+                raise damage from None
+            raise
         reason = f"using pipeline '{pipeline.name}' ({why})"
         if IMPORT_METADATA in scan.metadata_names and _imported_orientation(path):
             point = replace(pipeline.streams["point"], orientation=True)
@@ -685,6 +714,11 @@ def read_log(
         found = _channels_for(scan.channels, spec.topic)
         if not found:
             if spec.required:
+                damage = _damage_error(
+                    scan, f"not {spec.topic}, which the pipeline {pipeline.name} needs"
+                )
+                if damage is not None:
+                    raise damage from None
                 raise MissingTopicError(name, stream, spec.topic, present)
             continue
         wrong = [
