@@ -40,7 +40,7 @@ from dhlog.identify.sweeps import samples_with_encoders
 from dhlog.identify.whole import AxisModel, fit_whole_model, predict
 from dhlog.io.memory import log_data_from_session
 from dhlog.kinematics import fk_frames, fk_point, joint_axes
-from dhlog.process import _measured_rotations, process_data
+from dhlog.process import measured_rotations, process_data
 from dhlog.robots import load_robot
 from dhlog.simulate import SIX_DOF_TOOL_ROTATION, SimulationConfig, simulate_session
 from dhlog.validate import fk_prediction_std
@@ -113,7 +113,7 @@ def one(job: tuple[str, int, int, int]) -> dict[str, float]:
     T = session.T_measurement_base
     pts, dirs = joint_axes(session.table, ref, T_base=T)
     rows, Qs, Ps = samples_with_encoders(result.segmentation)
-    rotations = _measured_rotations(result.segmentation, rows)
+    rotations = measured_rotations(result.segmentation, rows)
     tool_rotation = None
     if rotations is not None and session.tool_rotation is not None:
         tool_rotation = fk_frames(session.table, ref, T_base=T)[-1, :3, :3] @ session.tool_rotation

@@ -10,6 +10,8 @@ import numpy as np
 from dhlog.dh import JointType, StandardDH
 from dhlog.geometry.lines import Line, Plane
 from dhlog.kinematics import fk_point, joint_axes
+from dhlog.process import ProcessResult
+from dhlog.simulate import Session
 
 PI = np.pi
 
@@ -127,3 +129,13 @@ def arbitrary_chain(rng: np.random.Generator) -> Chain:
     tool = rng.uniform(-0.2, 0.2, 3)
     tool[:2] += np.sign(tool[:2]) * 0.02  # keep the target off the last axis
     return Chain(StandardDH(types, theta, d, a, alpha), random_pose(rng), tool, q_ref, kinds)
+
+
+def fk_error(result: ProcessResult, session: Session, Q: np.ndarray) -> np.ndarray:
+    """3-D distance (m) between the result's FK and the simulator's truth at joint vectors
+    ``Q`` (m, n): the FK round trip every accuracy test judges by."""
+    ex = result.extraction
+    assert ex is not None
+    got = fk_point(ex.standard, Q, ex.tool_point, T_base=ex.T_measurement_base)
+    want = fk_point(session.table, Q, session.tool_point, T_base=session.T_measurement_base)
+    return np.asarray(np.linalg.norm(got - want, axis=1))

@@ -21,6 +21,8 @@ from dhlog.robots import load_robot
 from dhlog.simulate import Session, SimulationConfig, simulate_session
 from dhlog.validate import fk_prediction_std
 
+from chains import fk_error
+
 
 def truth_model(session: Session, ref: np.ndarray) -> AxisModel:
     pts, dirs = joint_axes(session.table, ref, T_base=session.T_measurement_base)
@@ -31,14 +33,6 @@ def truth_model(session: Session, ref: np.ndarray) -> AxisModel:
         ref,
         np.ones(session.table.n),
     )
-
-
-def fk_error(result: ProcessResult, session: Session, Q: np.ndarray) -> np.ndarray:
-    ex = result.extraction
-    assert ex is not None
-    got = fk_point(ex.standard, Q, ex.tool_point, T_base=ex.T_measurement_base)
-    want = fk_point(session.table, Q, session.tool_point, T_base=session.T_measurement_base)
-    return np.asarray(np.linalg.norm(got - want, axis=1))
 
 
 @pytest.mark.parametrize("robot", ["kr5", "stanford", "scara"])

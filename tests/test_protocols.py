@@ -23,11 +23,13 @@ from dhlog.io.memory import log_data_from_session
 from dhlog.io.reader import COVARIANCE_COLUMNS
 from dhlog.io.writer import write_session
 from dhlog.kinematics import fk_point
-from dhlog.process import ProcessResult, process_data
+from dhlog.process import process_data
 from dhlog.result import result_document
 from dhlog.robots import Robot, load_robot
 from dhlog.simulate import Session, SimulationConfig, default_measurement_pose, simulate_session
 from dhlog.validate import fk_prediction_std
+
+from chains import fk_error
 
 OFF = {"perturb_length": 2e-4, "perturb_angle": math.radians(0.05)}
 
@@ -35,14 +37,6 @@ OFF = {"perturb_length": 2e-4, "perturb_angle": math.radians(0.05)}
 def nominal_of(robot: Robot) -> DHModel:
     names = tuple(f"joint_{i + 1}" for i in range(robot.n))
     return DHModel(robot.table, robot.T_base, robot.tool_point, names, robot.name)
-
-
-def fk_error(result: ProcessResult, session: Session, Q: np.ndarray) -> np.ndarray:
-    ex = result.extraction
-    assert ex is not None
-    got = fk_point(ex.standard, Q, ex.tool_point, T_base=ex.T_measurement_base)
-    want = fk_point(session.table, Q, session.tool_point, T_base=session.T_measurement_base)
-    return np.asarray(np.linalg.norm(got - want, axis=1))
 
 
 def random_poses(seed: int, **extra: object) -> tuple[Robot, Session]:

@@ -36,7 +36,7 @@ from dhlog.extract import (
     hayati_table,
     table_in_hayati_form,
 )
-from dhlog.geometry._checks import FloatArray
+from dhlog.geometry._checks import FloatArray, nearest_rotation
 from dhlog.geometry.fitting import PlaneFit, fit_plane
 from dhlog.geometry.lines import ANGLE_TOL, DISTANCE_TOL, Line, Plane, RelationKind, classify_lines
 from dhlog.geometry.screws import motions_back, points_at_reference
@@ -606,7 +606,7 @@ def _identify_whole(
                 for k in range(1, int(which.max()) + 1)
             ]
         ).reshape(-1, 3)
-    rotations = _measured_rotations(seg, rows)
+    rotations = measured_rotations(seg, rows)
     start = AxisModel(
         tuple(axes0),  # type: ignore[arg-type]
         types,  # type: ignore[arg-type]
@@ -670,7 +670,7 @@ def _identify_whole(
         seg = rejoin(seg, result.log, offset - timing.pipeline)
         rows, Q, P = samples_with_encoders(seg)
         which = target_labels(seg, rows)
-        rotations = _measured_rotations(seg, rows)
+        rotations = measured_rotations(seg, rows)
         sample_cov = _sample_covariance(seg, rows)
         start = replace(whole.model, clock=0.0)
         result.segmentation = seg
@@ -692,7 +692,6 @@ def _identify_whole(
         # in full. With random static poses and 60 µm unmodelled error, 5σ held KR5's axes 2–3
         # (0.05° apart) parallel at 1.5–1.9x the FK error; with per-joint sweeps (UR5 0.05° off,
         # 100 Hz tracker, σ 15–20 µm) it held axes 2–3 or 3–4 in 2 of 10 sessions at 1.2–3.1x
-        k_parallel_over_nominal=True,
         direction_variances=relative_tilt_variances(whole),
     )
     whiten = _whitening(result, sample_cov, sigma)
@@ -900,7 +899,7 @@ def _pose_clustered(
     return replace(whole, covariance=whole.covariance * d.effect)
 
 
-def _measured_rotations(seg: Segmentation, rows: NDArray[np.int64]) -> FloatArray | None:
+def measured_rotations(seg: Segmentation, rows: NDArray[np.int64]) -> FloatArray | None:
     """The target frame's measured orientation (m, 3, 3) at ``rows`` when the log carries it
     (``orientation = true`` in the pipeline), else None."""
     from dhlog.io.reader import ORIENTATION_COLUMNS
@@ -920,14 +919,7 @@ def _rotation_at_reference(
     back through the axes (at most 20 000, evenly strided), their chordal mean."""
     stride = max(1, Q.shape[0] // START_TARGET_POINTS)
     Rt, _ = motions_back(axes, types, Q[::stride], ref)
-    return _nearest_rotation(np.einsum("mij,mjk->ik", Rt, R[::stride]))
-
-
-def _nearest_rotation(A: FloatArray) -> FloatArray:
-    """The rotation nearest the 3×3 matrix ``A`` (polar factor by SVD, Kabsch)."""
-    U, _, Vt = np.linalg.svd(A)
-    D = np.diag([1.0, 1.0, float(np.sign(np.linalg.det(U @ Vt)))])
-    return np.asarray(U @ D @ Vt, dtype=np.float64)
+    return nearest_rotation(np.einsum("mij,mjk->ik", Rt, R[::stride]))
 
 
 def _mean_at_reference(

@@ -87,6 +87,15 @@ def rotation_about(axis: FloatArray, angle: float) -> FloatArray:
     return np.asarray(R, dtype=np.float64)
 
 
+def nearest_rotation(A: FloatArray) -> FloatArray:
+    """The rotation nearest the 3×3 matrix ``A`` (its polar factor by SVD, as in Kabsch's
+    algorithm): ``A = Bᵀ C`` of two sets of centred vectors gives the rotation carrying C's onto
+    B's."""
+    U, _, Vt = np.linalg.svd(A)
+    D = np.diag([1.0, 1.0, float(np.sign(np.linalg.det(U @ Vt)))])
+    return np.asarray(U @ D @ Vt, dtype=np.float64)
+
+
 def rotation_from_vector(w: FloatArray) -> FloatArray:
     """Rotation matrix of the rotation vector ``w`` (axis × angle, rad); identity for zero."""
     angle = float(np.linalg.norm(w))

@@ -57,19 +57,17 @@ def pair_tolerances(
     k_data: float = THREE_SIGMA_2D,
     k_nominal: float = NOMINAL_SIGMA_2D,
     k_parallel: float | None = None,
-    k_parallel_over_nominal: bool = False,
     direction_variances: list[float] | None = None,
 ) -> list[tuple[float, float]] | None:
     """Per consecutive pair, the angle (rad) and distance (m) below which the data cannot tell
     the axes from parallel / meeting: 3σ (2D: 3.44σ) of the difference of the two axes, from
     their covariances (``axes``: per axis the 4×4 covariance of ``[δe·u, δe·v, δc·u, δc·v]``
     and the point ``c`` it refers to; 5σ when the nominal says parallel / meeting).
-    ``k_parallel`` replaces the σ count of the parallel decision (without a nominal, or also
-    against the nominal's with ``k_parallel_over_nominal``) where that decision constrains the
-    model (the whole-model fit: Akaike's 2σ). ``direction_variances`` (per pair, rad² per
-    component): the variance of the angle between the two axes where it is known whole (the
-    whole-model fit's covariance, correlations included), in place of the sum of the two axes'
-    own. ``angle_floor`` and
+    ``k_parallel`` replaces the σ count of the parallel decision, also where the nominal says
+    parallel, where that decision constrains the model (the whole-model fit: Akaike's 2σ).
+    ``direction_variances`` (per pair, rad² per component): the variance of the angle between
+    the two axes where it is known whole (the whole-model fit's covariance, correlations
+    included), in place of the sum of the two axes' own. ``angle_floor`` and
     ``distance_floor`` apply only when an axis has no covariance (never below 1e-7)."""
     if axes is None:
         return None
@@ -87,9 +85,7 @@ def pair_tolerances(
         if k_parallel is not None:
             k_angle = k_parallel
         if nominal is not None:
-            if abs(math.sin(nominal.table.alpha[i])) < 1e-9 and not (
-                k_parallel is not None and k_parallel_over_nominal
-            ):
+            if abs(math.sin(nominal.table.alpha[i])) < 1e-9 and k_parallel is None:
                 k_angle = k_nominal
             if abs(nominal.table.a[i]) < 1e-12:
                 k_dist = k_nominal

@@ -116,14 +116,14 @@ def _pose_errors(
     groups: NDArray[np.int64], mask: NDArray[np.bool_], P: FloatArray, pred: FloatArray
 ) -> tuple[FloatArray, FloatArray]:
     """Per pose with samples in ``mask``: the mean measured position and the mean residual
-    (``pred``: the prediction at every sample, or at the samples in ``mask``)."""
+    (``pred``: the prediction at the samples in ``mask``)."""
     g = groups[mask]
     ids, inverse = np.unique(g, return_inverse=True)
     count = np.bincount(inverse, minlength=ids.size)[:, None]
     pos = np.zeros((ids.size, 3))
     vec = np.zeros((ids.size, 3))
     np.add.at(pos, inverse, P[mask])
-    np.add.at(vec, inverse, P[mask] - (pred[mask] if pred.shape[0] == mask.size else pred))
+    np.add.at(vec, inverse, P[mask] - pred)
     return pos / count, vec / count
 
 
@@ -175,7 +175,7 @@ def cross_validate(
             table, T_base, tool = nominal
             primary = train if which is None else train & (which == 0)
             reg = register_nominal(table, Q[primary], P[primary], tool_point=tool, T_base=T_base)
-            pn = fk_point(table, Q[test], reg.tool_point, T_base=reg.T_measurement_base)
+            pn = fk_point(table, Q[test], reg.tool_point, T_base=reg.T_measurement_base)  # at test
             nom_vecs.append(_pose_errors(groups, test, P, pn)[1])
     cal = np.vstack(cal_vecs)
     nom = np.vstack(nom_vecs) if nom_vecs else None
@@ -238,7 +238,7 @@ def score_poses(
     moved = err_as_is > MOVED_RATIO * err_placed
     scored = rest if moved else np.ones(Q.shape[0], dtype=bool)
     pred = placed if moved else as_is
-    pos, cal = _pose_errors(groups, scored, P, pred)
+    pos, cal = _pose_errors(groups, scored, P, pred[scored])
     nom = None
     notes = []
     if moved:
@@ -252,7 +252,7 @@ def score_poses(
         ntable, nT, ntool = nominal
         fit_on = subset if moved else np.ones(Q.shape[0], dtype=bool)
         reg = register_nominal(ntable, Q[fit_on], P[fit_on], tool_point=ntool, T_base=nT)
-        pn = fk_point(ntable, Q, reg.tool_point, T_base=reg.T_measurement_base)
+        pn = fk_point(ntable, Q[scored], reg.tool_point, T_base=reg.T_measurement_base)
         nom = _pose_errors(groups, scored, P, pn)[1]
     return Holdout(
         kind="log",

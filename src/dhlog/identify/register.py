@@ -22,7 +22,7 @@ from numpy.typing import NDArray
 
 from dhlog.dh import StandardDH
 from dhlog.errors import DegenerateGeometryError
-from dhlog.geometry._checks import FloatArray, rotation_from_vector
+from dhlog.geometry._checks import FloatArray, nearest_rotation, rotation_from_vector
 from dhlog.kinematics import fk_frames
 
 #: Samples beyond this many robust scales (median absolute 3-D residual / 0.6745·√3-ish) are
@@ -51,10 +51,8 @@ class Registration:
 def _kabsch(A: FloatArray, B: FloatArray) -> FloatArray:
     """The rigid transform (4×4) carrying the points ``A`` (m, 3) onto ``B`` (m, 3)."""
     ca, cb = A.mean(axis=0), B.mean(axis=0)
-    U, _, Vt = np.linalg.svd((B - cb).T @ (A - ca))
-    D = np.diag([1.0, 1.0, float(np.sign(np.linalg.det(U @ Vt)))])
     T = np.eye(4)
-    T[:3, :3] = U @ D @ Vt
+    T[:3, :3] = nearest_rotation((B - cb).T @ (A - ca))
     T[:3, 3] = cb - T[:3, :3] @ ca
     return T
 
@@ -113,12 +111,12 @@ def register_nominal(
 
     x0 = np.r_[np.zeros(6), tool] if fit_tool else np.zeros(6)
     x = least_squares(residual, x0, loss="soft_l1", f_scale=ROBUST_SCALE, x_scale="jac").x
-    inliers = np.ones(Q.shape[0], dtype=bool)
+    inliers: NDArray[np.bool_] | None = None
     for _ in range(3):  # the robust loss still leans towards gross outliers: refit without them
         dist = np.linalg.norm(residual(x).reshape(-1, 3), axis=1)
         scale = max(float(np.median(dist)) * 1.5, SCALE_FLOOR)
         keep = dist <= OUTLIER_SCALE * scale
-        if np.array_equal(keep, inliers) and _ > 0:
+        if inliers is not None and np.array_equal(keep, inliers):
             break
         inliers = keep
 
@@ -126,6 +124,7 @@ def register_nominal(
             return residual(x).reshape(-1, 3)[keep].reshape(-1)
 
         x = least_squares(on_inliers, x, x_scale="jac").x
+    assert inliers is not None
     dist = np.linalg.norm(residual(x).reshape(-1, 3), axis=1)
     R, c, t = unpack(x)
     placed = np.eye(4)

@@ -27,7 +27,7 @@ from numpy.typing import NDArray
 
 from dhlog.dh import JointType, StandardDH
 from dhlog.errors import GeometryError
-from dhlog.geometry._checks import FloatArray, rotation_about
+from dhlog.geometry._checks import FloatArray, nearest_rotation, rotation_about
 from dhlog.geometry.lines import Line
 from dhlog.geometry.screws import chain_motion
 from dhlog.identify.register import Registration, register_nominal
@@ -211,10 +211,10 @@ def align_lines(
     its measured line (least squares). None when the directions do not fix the rotation."""
     A = np.array([d for _, d in nominal])
     B = np.array([d for _, d in measured])
-    U, S, Vt = np.linalg.svd(B.T @ A)
+    S = np.linalg.svd(B.T @ A, compute_uv=False)
     if S[1] < 1e-3 * S[0]:
         return None
-    R = U @ np.diag([1.0, 1.0, float(np.sign(np.linalg.det(U @ Vt)))]) @ Vt
+    R = nearest_rotation(B.T @ A)
     rows, rhs = [], []
     for (p, _), (c, e) in zip(nominal, measured, strict=True):
         perp = np.eye(3) - np.outer(e, e)
