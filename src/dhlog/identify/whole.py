@@ -38,6 +38,7 @@ from dhlog.errors import DegenerateGeometryError
 from dhlog.geometry._checks import FloatArray, perpendicular_basis, rotation_from_vector
 from dhlog.geometry.lines import Line
 from dhlog.identify.noise import NoiseModel
+from dhlog.nongeometric import Terms
 
 #: Samples per chunk of the normal-equation accumulation.
 CHUNK = 16384
@@ -141,6 +142,9 @@ class AxisModel:
     #: residual clock offset δ (s): the encoders are read at ``Q − δ q̇`` (see
     #: :mod:`dhlog.identify.timing`); 0 unless the fit carries it
     clock: float = 0.0
+    #: joint-value terms beyond the geometry (compliance, harmonics; :mod:`dhlog.nongeometric`),
+    #: their lumps and gravity in M at the reference pose
+    terms: Terms | None = None
 
     def targets(self) -> FloatArray:
         """Every target at the reference pose, (k, 3): the primary one first."""
@@ -181,8 +185,20 @@ class AxisModel:
             w = delta[layout.rotation_at : layout.rotation_at + 3]
             rotation = rotation_from_vector(w) @ rotation
         clock = self.clock + (float(delta[layout.clock_at]) if layout.clock_at is not None else 0.0)
+        terms = self.terms
+        if layout.terms_at is not None and terms is not None:
+            k = layout.terms_at
+            terms = terms.with_coefficients(terms.coefficients + delta[k : k + terms.size])
         return AxisModel(
-            tuple(axes), self.types, target, self.reference_pose, scales, extra, rotation, clock
+            tuple(axes),
+            self.types,
+            target,
+            self.reference_pose,
+            scales,
+            extra,
+            rotation,
+            clock,
+            terms,
         )
 
     def moves(self, Q: FloatArray, rates: FloatArray | None) -> FloatArray:
@@ -203,6 +219,7 @@ class ParameterLayout:
     names: tuple[str, ...]
     rotation_at: int | None = None
     clock_at: int | None = None
+    terms_at: int | None = None
 
     @classmethod
     def of(
@@ -213,11 +230,13 @@ class ParameterLayout:
         extra_targets: int = 0,
         rotation: bool = False,
         clock: bool = False,
+        terms: Sequence[str] = (),
     ) -> ParameterLayout:
         """Revolute axis: tilt u, tilt v, shift u, shift v; prismatic: tilt u, tilt v; then the
         target (x, y, z), each further target (x, y, z), with ``rotation`` the target frame's
         orientation (a rotation in M at the reference pose, 3), with ``fit_scales`` one encoder
-        scale per joint, and with ``clock`` the residual clock offset (s)."""
+        scale per joint, with ``clock`` the residual clock offset (s), then the coefficients of
+        the joint-value ``terms`` (their names)."""
         at, names, k = [], [], 0
         for i, jt in enumerate(types):
             at.append(k)
@@ -247,7 +266,14 @@ class ParameterLayout:
             clock_at = k
             names.append("clock_offset")
             k += 1
-        return cls(tuple(at), target_at, scale_at, k, tuple(names), rotation_at, clock_at)
+        terms_at = None
+        if terms:
+            terms_at = k
+            names += list(terms)
+            k += len(terms)
+        return cls(
+            tuple(at), target_at, scale_at, k, tuple(names), rotation_at, clock_at, terms_at
+        )
 
 
 def _rotate(R: FloatArray, X: FloatArray) -> FloatArray:
@@ -266,14 +292,55 @@ Prefix = tuple[
     list[FloatArray],
     list[FloatArray | None],
     list[FloatArray | None],
+    FloatArray | None,
 ]
 
 
 def _prefix_motions(model: AxisModel, Q: FloatArray, rates: FloatArray | None = None) -> Prefix:
-    """The scaled joint moves ``dq`` (n, m) and the prefix motions ``g_<i`` for i = 1 … n+1:
+    """The joint moves ``dq`` (n, m) and the prefix motions ``g_<i`` for i = 1 … n+1:
     rotation rows (3, 3, m) (None for the identity) and translations (3, m), with each revolute
-    joint's ``sin δ`` and ``1 − cos δ``; ``rates`` (m, n) the joints' speeds (clock offset)."""
+    joint's ``sin δ`` and ``1 − cos δ``; ``rates`` (m, n) the joints' speeds (clock offset); and
+    the joint-value terms' functions (k, m) (None without terms). ``dq`` is the scaled encoder
+    move plus the terms' deflection, whose functions (gravity torques) are taken at the pose the
+    encoders give."""
     dq = (model.moves(Q, rates) * model.scales).T
+    if model.terms is None or not model.terms.size:
+        return (dq, *_chain(model, dq), None)
+    pre_R, pre_t, _, _ = _chain(model, dq)
+    m = Q.shape[0]
+    points, dirs = [], []
+    for i, axis in enumerate(model.axes):
+        R0, t0 = pre_R[i], pre_t[i]
+        points.append(
+            np.broadcast_to(axis.point[:, None], (3, m))
+            if R0 is None
+            else _rotate(R0, _col(axis.point, m)) + t0
+        )
+        dirs.append(
+            np.broadcast_to(axis.direction[:, None], (3, m))
+            if R0 is None
+            else _rotate(R0, _col(axis.direction, m))
+        )
+    lumps = []
+    for lump in model.terms.lumps:
+        k = model.n if lump.target else lump.axis
+        R0, t0 = pre_R[k], pre_t[k]
+        lumps.append(
+            np.broadcast_to(lump.point[:, None], (3, m))
+            if R0 is None
+            else _rotate(R0, _col(lump.point, m)) + t0
+        )
+    B = model.terms.basis(Q, points, dirs, lumps)
+    dq = dq + model.terms.deflection(B, model.n)
+    return (dq, *_chain(model, dq), B)
+
+
+def _chain(
+    model: AxisModel, dq: FloatArray
+) -> tuple[
+    list[FloatArray | None], list[FloatArray], list[FloatArray | None], list[FloatArray | None]
+]:
+    """The prefix motions of the joint moves ``dq`` (n, m) (see :func:`_prefix_motions`)."""
     # prefix motions g_<i (rotation rows (3, 3, m) or None for the identity; translation (3, m))
     pre_R: list[FloatArray | None] = [None]
     pre_t: list[FloatArray] = [np.zeros((3, 1))]
@@ -304,7 +371,7 @@ def _prefix_motions(model: AxisModel, Q: FloatArray, rates: FloatArray | None = 
         else:
             pre_R.append(_compose(R0, Ri))
             pre_t.append(t0 + _rotate(R0, ti))
-    return dq, pre_R, pre_t, sins, coss
+    return pre_R, pre_t, sins, coss
 
 
 def _tilt_move(
@@ -332,7 +399,7 @@ def predict_orientation(
     the prefix motions at ``Q`` when already computed."""
     assert model.tool_rotation is not None and layout.rotation_at is not None
     m = Q.shape[0]
-    _, pre_R, _, sins, coss = _prefix_motions(model, Q, rates) if prefix is None else prefix
+    _, pre_R, _, sins, coss, B = _prefix_motions(model, Q, rates) if prefix is None else prefix
     R_all = pre_R[-1]
     eye = np.broadcast_to(np.eye(3)[:, :, None], (3, 3, m))
     R_tool = np.broadcast_to(model.tool_rotation[:, :, None], (3, 3, m))
@@ -349,12 +416,13 @@ def predict_orientation(
         k = layout.axis_at[i]
         for col, w in enumerate((u, v)):
             J[k + col] = _tilt_move(axis, w, s, c1, R0)
-        if layout.scale_at is not None or layout.clock_at is not None:
+        if layout.scale_at is not None or layout.clock_at is not None or B is not None:
             omega = axis.direction[:, None] if R0 is None else _rotate(R0, _col(axis.direction, m))
             if layout.scale_at is not None:
                 J[layout.scale_at + i] = omega * moved[:, i]
             if layout.clock_at is not None and rates is not None:
                 J[layout.clock_at] -= omega * (model.scales[i] * rates[:, i])
+            _term_columns(J, layout, model, B, i, omega)
     r = layout.rotation_at
     J[r : r + 3] = np.moveaxis(eye if R_all is None else R_all, 1, 0)
     return R_pred, J
@@ -388,7 +456,7 @@ def predict_columns(
     ``b_w`` itself (:func:`_tilt_move`). ``prefix``: the prefix motions at ``Q`` when already
     computed."""
     m = Q.shape[0]
-    dq, pre_R, pre_t, sins, coss = _prefix_motions(model, Q, rates) if prefix is None else prefix
+    dq, pre_R, pre_t, sins, coss, B = _prefix_motions(model, Q, rates) if prefix is None else prefix
     R_all, t_all = pre_R[-1], pre_t[-1]
     if which is None or not len(model.extra_targets):
         tgt = np.broadcast_to(model.target[:, None], (3, m))
@@ -418,6 +486,7 @@ def predict_columns(
             if clock is not None:
                 assert rates is not None
                 J[clock] -= np.broadcast_to(omega, (3, m)) * (model.scales[i] * rates[:, i])
+            _term_columns(J, layout, model, B, i, np.broadcast_to(omega, (3, m)))
             continue
         s, c1 = sins[i], coss[i]
         assert s is not None and c1 is not None
@@ -427,13 +496,14 @@ def predict_columns(
             b = _tilt_move(axis, w, s, c1, R0)
             J[k + col] = _cross_rows(b, D)
             J[k + 2 + col] = b
-        if layout.scale_at is not None or clock is not None:
+        if layout.scale_at is not None or clock is not None or B is not None:
             turn = _cross_rows(np.broadcast_to(omega, (3, m)), D)
             if layout.scale_at is not None:
                 J[layout.scale_at + i] = turn * moved[:, i]
             if clock is not None:
                 assert rates is not None
                 J[clock] -= turn * (model.scales[i] * rates[:, i])
+            _term_columns(J, layout, model, B, i, turn)
     t = layout.target_at
     rot = np.broadcast_to(np.eye(3)[:, :, None], (3, 3, m)) if R_all is None else R_all
     J[t : t + 3] = np.moveaxis(rot, 1, 0)
@@ -448,6 +518,26 @@ def predict_columns(
                 J[t + 3 * j : t + 3 * j + 3, :, mask] = J[t : t + 3, :, mask]
             J[t : t + 3, :, which != 0] = 0.0
     return p, J
+
+
+def _term_columns(
+    J: FloatArray,
+    layout: ParameterLayout,
+    model: AxisModel,
+    B: FloatArray | None,
+    joint: int,
+    per_unit: FloatArray,
+) -> None:
+    """The columns of the terms on ``joint``: its move per unit angle (``per_unit``, (3, m))
+    times each term's function; zero for the terms of other joints (set once, at joint 0)."""
+    if B is None or layout.terms_at is None or model.terms is None:
+        return
+    k0 = layout.terms_at
+    for k, t in enumerate(model.terms.terms):
+        if joint == 0:
+            J[k0 + k] = 0.0
+        if t.joint == joint:
+            J[k0 + k] = per_unit * B[k]
 
 
 def _skew(k: FloatArray) -> FloatArray:
@@ -840,7 +930,7 @@ def _finish_on_all(
     Levenberg–Marquardt over every sample). Returns the state and the χ² at the optimum.
     """
     norms = np.zeros(data.Q.shape[0])
-    if data.R is None:
+    if data.R is None and layout.terms_at is None:
         g, cost, count, chi2 = _gradient(sub.model, layout, sub.bases, data, limit, norms, progress)
         H = sub.H * (count / max(sub.count, 1))
     else:
@@ -899,6 +989,7 @@ def fit_whole_model(
         extra_targets=len(start.extra_targets),
         rotation=rotations is not None,
         clock=rates is not None,
+        terms=() if start.terms is None else start.terms.names(),
     )
 
     def whiten(points: FloatArray, W: FloatArray | None) -> FloatArray | float:
