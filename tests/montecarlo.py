@@ -16,6 +16,7 @@ import numpy as np
 from dhlog.dhfile import DHModel
 from dhlog.geometry._checks import FloatArray
 from dhlog.identify.analytic import NOMINAL_SIGMA_2D
+from dhlog.identify.select import ModelRequest
 from dhlog.io.memory import log_data_from_session
 from dhlog.process import process_data
 from dhlog.result import nominal_difference
@@ -59,6 +60,7 @@ def one_session(job: dict[str, object]) -> tuple[FloatArray, FloatArray]:
         fit_method=str(job.get("fit_method", "auto")),
         analytic_only=bool(job.get("analytic_only", False)),
         parallel_sigma=float(job.get("parallel_sigma", NOMINAL_SIGMA_2D)),  # type: ignore[arg-type]
+        model=ModelRequest("geometric"),  # the geometric parameters' σ is what is judged
     )
     diff = nominal_difference(result)
     assert diff is not None and result.std is not None

@@ -178,7 +178,7 @@ def test_a_signal_at_any_point_leaves_no_partial_output(
         _, err = proc.communicate(timeout=120)
         written = sorted(p.name for p in out.iterdir()) if out.exists() else []
         if proc.returncode == 0:
-            assert written == ["run.dh.csv", "run.dh.json", "run.rrd"], written
+            assert written == ["run.dh.csv", "run.dh.json", "run.rrd", "run.terms.csv"], written
         else:
             interrupted += 1
             # before Python runs any code (its own start-up) the signal ends it the default way:

@@ -196,7 +196,11 @@ def test_process_into_a_closed_output_has_written_its_results(tmp_path: Path) ->
     finally:
         os.close(write)
     assert done.returncode == 141 and done.stderr == "", done.stderr
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["kr5_0.01mm.dh.csv", "kr5_0.01mm.dh.json"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == [
+        "kr5_0.01mm.dh.csv",
+        "kr5_0.01mm.dh.json",
+        "kr5_0.01mm.terms.csv",
+    ]
 
 
 def test_head_reads_its_line_and_the_pipeline_ends_cleanly(tmp_path: Path) -> None:
@@ -360,7 +364,9 @@ def _written(out: Path) -> dict[str, list[str]]:
 
 
 def _complete(stem: str) -> list[str]:
-    return sorted(f"{stem}{s}" for s in (".dh.csv", ".dh.json", ".holdout.csv", ".rrd"))
+    return sorted(
+        f"{stem}{s}" for s in (".dh.csv", ".dh.json", ".holdout.csv", ".rrd", ".terms.csv")
+    )
 
 
 def test_ctrl_c_while_the_workers_start_stops_them_without_a_traceback(

@@ -50,6 +50,8 @@ class BatchJob:
     units: str = "mm"
     #: K-fold cross-validation of each log (0: none), as ``dhlog process --holdout``
     holdout: int = 0
+    #: the terms beyond the geometry, as ``dhlog process --model``
+    model: str = "auto"
 
 
 def stem_of(log: Path) -> str:
@@ -59,7 +61,8 @@ def stem_of(log: Path) -> str:
 
 def job_outputs(job: BatchJob) -> list[Path]:
     """The files a job writes: ``<stem>.dh.json``, ``.dh.csv``, the recording unless
-    ``no_rrd``, the held-out poses' CSV with ``holdout``."""
+    ``no_rrd``, the held-out poses' CSV with ``holdout``, the terms' CSV unless the model is
+    geometric (or the result analytic)."""
     stem = stem_of(Path(job.log))
     folder = Path(job.folder)
     outputs = [folder / f"{stem}.dh.json", folder / f"{stem}.dh.csv"]
@@ -67,6 +70,8 @@ def job_outputs(job: BatchJob) -> list[Path]:
         outputs.append(folder / f"{stem}.rrd")
     if job.holdout:
         outputs.append(folder / f"{stem}{HOLDOUT_SUFFIX}")
+    if job.model != "geometric" and not job.analytic_only:
+        outputs.append(folder / f"{stem}{TERMS_SUFFIX}")
     return outputs
 
 
@@ -83,6 +88,7 @@ def process_job(job: BatchJob, *, hold_signals: bool = False) -> dict[str, Any]:
     outputs = job_outputs(job)
     try:
         from dhlog.dhfile import dh_model_from
+        from dhlog.identify.select import ModelRequest
         from dhlog.io.pipeline import pipeline_from
         from dhlog.process import process_log
 
@@ -94,6 +100,7 @@ def process_job(job: BatchJob, *, hold_signals: bool = False) -> dict[str, Any]:
             nominal=nom,
             analytic_only=job.analytic_only,
             holdout=job.holdout,
+            model=ModelRequest(job.model),
         )
         with _handlers_restored() if hold_signals else nullcontext():
             document = write_results(result, outputs, job.units, hold_signals=hold_signals)
@@ -113,6 +120,8 @@ def process_job(job: BatchJob, *, hold_signals: bool = False) -> dict[str, Any]:
 
 #: The file name ending of the held-out poses' CSV (``--holdout``, ``--validate``).
 HOLDOUT_SUFFIX = ".holdout.csv"
+#: The file name ending of the terms beyond the geometry (``--model``).
+TERMS_SUFFIX = ".terms.csv"
 
 
 def write_results(
@@ -123,11 +132,12 @@ def write_results(
     hold_signals: bool = False,
     with_log: bool = False,
 ) -> dict[str, Any]:
-    """Write a result's JSON, CSV and the further outputs named (a recording, or the held-out
-    poses' CSV for a name ending in ``HOLDOUT_SUFFIX``), moved into place together; returns the
-    JSON document. ``with_log``: the log's own channels in the recording."""
+    """Write a result's JSON, CSV and the further outputs named (a recording, the held-out
+    poses' CSV for a name ending in ``HOLDOUT_SUFFIX``, the terms' for ``TERMS_SUFFIX``), moved
+    into place together; returns the JSON document. ``with_log``: the log's own channels in the
+    recording."""
     from dhlog.io.writer import staged_outputs
-    from dhlog.result import holdout_csv, result_csv, result_document
+    from dhlog.result import holdout_csv, result_csv, result_document, terms_csv
 
     document = result_document(result)
     with staged_outputs(outputs, hold_signals=hold_signals) as temps:
@@ -136,6 +146,8 @@ def write_results(
         for path, temp in zip(outputs[2:], temps[2:], strict=True):
             if path.name.endswith(HOLDOUT_SUFFIX):
                 temp.write_bytes(holdout_csv(result, units=units).encode())
+            elif path.name.endswith(TERMS_SUFFIX):
+                temp.write_bytes(terms_csv(result).encode())
             else:
                 from dhlog.recording import write_process_recording
 
@@ -187,6 +199,7 @@ def summary_row(
         "fk_max_m": val.get("fk_max"),
         "clock_offset_s": timing.get("clock_offset"),
         "std_clock_offset_s": timing.get("std"),
+        "model": ((doc.get("nongeometric") or {}).get("selection") or {}).get("chosen"),
     }
     for check in val.get("holdout") or []:  # the first cross-validation's statistics
         if isinstance(check, dict) and check.get("kind") == "cross-validation":
@@ -207,7 +220,7 @@ def summary_frame(rows: list[dict[str, Any]]) -> pl.DataFrame:
     columns: dict[str, None] = {}
     for r in rows:
         columns.update(dict.fromkeys(r))
-    text = {"log", "session_start", "robot", "joints", "status", "reason"}
+    text = {"log", "session_start", "robot", "joints", "status", "reason", "model"}
     schema = {c: (pl.String if c in text else pl.Float64) for c in columns}
     return pl.DataFrame([{c: r.get(c) for c in columns} for r in rows], schema=schema, orient="row")
 

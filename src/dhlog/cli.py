@@ -278,6 +278,25 @@ def simulate(
             "(what gravity and gears leave after a geometric model), mm."
         ),
     ] = 0.0,
+    compliance: Annotated[
+        str,
+        typer.Option(
+            metavar="J:C,…",
+            help="Gravity compliance of the truth: joint J yields C rad per N·m of the gravity "
+            "torque of the robot's lumped masses and payload (kr5, kr210), e.g. '2:2e-8,3:3e-8'.",
+        ),
+    ] = "",
+    payload_kg: Annotated[
+        float | None, typer.Option(help="Payload at the tool point for --compliance, kg.")
+    ] = None,
+    harmonic: Annotated[
+        str,
+        typer.Option(
+            metavar="J:A:B,…",
+            help="Transmission error of the truth: Δq_J = A sin q_J + B cos q_J, rad, e.g. "
+            "'2:1e-4:5e-5'.",
+        ),
+    ] = "",
     six_dof: Annotated[
         bool,
         typer.Option(
@@ -362,6 +381,8 @@ def simulate(
             stderr.print(f"error: --{option} must be one of {', '.join(allowed)}, not '{value}'.")
             raise typer.Exit(EXIT_USAGE)
     extra_tools = _triples(extra_targets, "--extra-targets")
+    compliant = [(int(j), c) for j, c in _tuples(compliance, "--compliance", 2)]
+    harmonics = [(int(j), a, b) for j, a, b in _tuples(harmonic, "--harmonic", 3)]
     truth_path = output.with_name(output.stem + ".truth.json")
     _check_folder(output.parent)
     for path in (output, truth_path):
@@ -394,6 +415,9 @@ def simulate(
             skip_joints=tuple(int(v) for v in _floats(skip_joints, "--skip-joints")),
             clock_offset=clock_offset_ms * 1e-3,
             start_day=start_day,
+            compliance=tuple(compliant),
+            payload=payload_kg,
+            harmonic=tuple(harmonics),
             seed=seed,
         )
         problems = config_problems(rob, cfg)
@@ -461,6 +485,23 @@ def _triples(text: str, what: str) -> list[tuple[float, float, float]]:
             )
             raise typer.Exit(EXIT_USAGE)
         out.append((values[0], values[1], values[2]))
+    return out
+
+
+def _tuples(text: str, what: str, size: int) -> list[tuple[float, ...]]:
+    """``'j:v,j:v'`` as tuples of ``size`` numbers, the first a whole joint number (exit 1
+    naming the option otherwise)."""
+    out = []
+    for group in (g.strip() for g in text.split(",") if g.strip()):
+        try:
+            values = tuple(float(v) for v in group.split(":"))
+        except ValueError:
+            values = ()
+        if len(values) != size or values[0] != int(values[0]):
+            form = ":".join(["J", "C"] if size == 2 else ["J", "A", "B"])
+            stderr.print(f"error: {what} takes {form} groups separated by ',', not '{group}'.")
+            raise typer.Exit(EXIT_USAGE)
+        out.append(values)
     return out
 
 
@@ -590,6 +631,29 @@ def process(
             "result; placed on a third of its poses when the tracker moved.",
         ),
     ] = None,
+    model: Annotated[
+        str,
+        typer.Option(
+            metavar="auto|geometric|compliance|harmonic|full",
+            help="Terms beyond the geometry: auto adds gravity compliance, then transmission "
+            "harmonics, only where they lower both the K-fold held-out error and the BIC; the "
+            "others force a choice.",
+        ),
+    ] = "auto",
+    gravity: Annotated[
+        str | None,
+        typer.Option(
+            metavar="X,Y,Z",
+            help="The direction gravity pulls in the measurement frame, for compliance "
+            "(default: along joint 1's axis, against M's z).",
+        ),
+    ] = None,
+    harmonic_joints: Annotated[
+        str | None,
+        typer.Option(
+            metavar="J,…", help="Joints given harmonic terms (default: every revolute joint)."
+        ),
+    ] = None,
     refine: Annotated[
         bool,
         typer.Option(
@@ -605,7 +669,7 @@ def process(
     from rich.markup import escape
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
-    from dhlog.batch import HOLDOUT_SUFFIX, write_results
+    from dhlog.batch import HOLDOUT_SUFFIX, TERMS_SUFFIX, write_results
     from dhlog.process import process_log
     from dhlog.report import print_result
 
@@ -620,6 +684,7 @@ def process(
             f"error: --holdout must be 0 (none) or a fold count of 2 to 1000, not {holdout}."
         )
         raise typer.Exit(EXIT_USAGE)
+    request = _model_request(model, gravity, harmonic_joints)
     folder = out if out is not None else log.parent
     stem = log.name.removesuffix(".zstd").removesuffix(".mcap")
     outputs = [folder / f"{stem}.dh.json", folder / f"{stem}.dh.csv"]
@@ -627,6 +692,8 @@ def process(
         outputs.append(folder / f"{stem}.rrd")
     if holdout or validate:
         outputs.append(folder / f"{stem}{HOLDOUT_SUFFIX}")
+    if request.mode != "geometric" and not analytic_only:
+        outputs.append(folder / f"{stem}{TERMS_SUFFIX}")
     inputs = {p.resolve() for p in [log, *(validate or [])]}
     clash = [str(p) for p in outputs if p.resolve() in inputs]
     if clash:
@@ -667,6 +734,7 @@ def process(
                 fit_scales=fit_encoder_scales,
                 holdout=holdout,
                 validate=list(validate or []),
+                model=request,
                 progress=advance,
             )
             if refine:
@@ -697,6 +765,35 @@ def process(
         names = ", ".join(f"joint {j.index} ({j.name})" for j in result.failed)
         stderr.print(f"partial result: {names} not identified; the rest was written.")
         raise typer.Exit(EXIT_PARTIAL)
+
+
+def _model_request(model: str, gravity: str | None, harmonic_joints: str | None) -> Any:
+    """``--model``, ``--gravity`` and ``--harmonic-joints`` as a request (exit 1 naming the
+    option when one is wrong)."""
+    from dhlog.identify.select import MODELS, ModelRequest
+
+    if model not in MODELS:
+        stderr.print(f"error: --model must be one of {', '.join(MODELS)}, not '{model}'.")
+        raise typer.Exit(EXIT_USAGE)
+    g = None
+    if gravity is not None:
+        values = _floats(gravity, "--gravity")
+        if len(values) != 3 or not all(math.isfinite(v) for v in values) or not any(values):
+            stderr.print(
+                f"error: --gravity takes three numbers x,y,z, not all zero, not '{gravity}'."
+            )
+            raise typer.Exit(EXIT_USAGE)
+        g = (values[0], values[1], values[2])
+    joints = None
+    if harmonic_joints is not None:
+        values = _floats(harmonic_joints, "--harmonic-joints")
+        if not values or any(v != int(v) or not 1 <= v <= 64 for v in values):
+            stderr.print(
+                f"error: --harmonic-joints takes joint numbers (1, 2, …), not '{harmonic_joints}'."
+            )
+            raise typer.Exit(EXIT_USAGE)
+        joints = tuple(sorted({int(v) - 1 for v in values}))
+    return ModelRequest(model, g, joints)
 
 
 def _angles(values: np.ndarray, unit: str, types: Sequence[object] | None) -> np.ndarray:
@@ -742,6 +839,11 @@ def fk(
         stderr.print(f"error: --q has {values.size} values but {dh} has {model.table.n} joints.")
         raise typer.Exit(EXIT_USAGE)
     scale = 1e3 if units == "mm" else 1.0
+    if model.terms is not None:  # the joints as they stand: deflected by the result's terms
+        deflected = model.joint_values(values)
+        shown_dq = ", ".join(f"{v:+.3g}" for v in deflected - values)
+        stdout.print(f"joint deflection by the nongeometric terms (rad or m): {shown_dq}")
+        values = deflected
     T = fk_frames(model.table, values, T_base=model.T_base)[-1]
     J = spatial_jacobian(model.table, values, T_base=model.T_base)
     np.set_printoptions(precision=6, suppress=True, linewidth=120)
@@ -855,6 +957,26 @@ def export(
     except OSError as exc:
         _fail(OutputError(output.parent, exc))
     stdout.print(f"wrote {escape(str(output))}{extra}")
+    _terms_not_exported(result, format)
+
+
+def _terms_not_exported(result: Path, fmt: str) -> None:
+    """Say so when the result carries terms beyond the geometry that ``fmt`` cannot carry."""
+    from dhlog.dhfile import load_dh
+
+    try:
+        terms = load_dh(result).terms
+    except DhlogError:
+        return
+    if terms is None:
+        return
+    stdout.print(
+        f"note: {result.name} carries {terms.size} joint-value terms beyond the geometry "
+        f"({', '.join(terms.families())}); {fmt} cannot carry them, so the export is the "
+        "geometric part (the robot as it would stand without gravity and gear errors): apply "
+        "the JSON's nongeometric block for compensation (dhlog fk, DHModel.joint_values).",
+        markup=False,
+    )
 
 
 @app.command(cls=_Command, epilog=EXIT_CODES)
@@ -907,6 +1029,13 @@ def batch(
             "before and after in each result and in the summary.",
         ),
     ] = 0,
+    model: Annotated[
+        str,
+        typer.Option(
+            metavar="auto|geometric|compliance|harmonic|full",
+            help="Terms beyond the geometry, as dhlog process --model.",
+        ),
+    ] = "auto",
     force: Annotated[bool, typer.Option("--force", help="Overwrite existing results.")] = False,
 ) -> None:
     """Process many logs in --jobs workers into one summary table (a failing log is a row)."""
@@ -925,6 +1054,7 @@ def batch(
     from dhlog.batch import (
         HOLDOUT_SUFFIX,
         SUMMARY_STEM,
+        TERMS_SUFFIX,
         BatchJob,
         output_stamps,
         run_batch,
@@ -954,6 +1084,8 @@ def batch(
             raise typer.Exit(EXIT_USAGE)
     suffixes = [".dh.json", ".dh.csv", *([] if no_rrd else [".rrd"])]
     suffixes += [HOLDOUT_SUFFIX] if holdout else []
+    request = _model_request(model, None, None)
+    suffixes += [TERMS_SUFFIX] if request.mode != "geometric" and not analytic_only else []
     wanted = [out / f"{s}{x}" for s in stems for x in suffixes] + [out / f"{SUMMARY_STEM}.csv"]
     clash = [str(p) for p in wanted if p.exists()]
     if clash and not force:
@@ -970,7 +1102,9 @@ def batch(
         except DhlogError as exc:
             _fail(exc)
     work = [
-        BatchJob(str(log), str(out), pipeline, nominal, no_rrd, analytic_only, units, holdout)
+        BatchJob(
+            str(log), str(out), pipeline, nominal, no_rrd, analytic_only, units, holdout, model
+        )
         for log in logs
     ]
     before = output_stamps(work)

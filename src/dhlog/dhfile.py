@@ -3,7 +3,8 @@
 Each row has ``type`` (revolute/prismatic, default revolute), ``theta_offset`` (or ``theta``),
 ``d_offset`` (or ``d``), ``a`` and ``alpha`` in metres and radians, unless the file says
 ``units = {length = "mm", angle = "deg"}``. Optional: ``base.T_measurement_base`` (4×4),
-``tool.point``, ``joints[].name``.
+``tool.point``, ``joints[].name``, and a result's ``nongeometric`` block (its terms deflect the
+joint values: :meth:`DHModel.joint_values`).
 """
 
 from __future__ import annotations
@@ -16,10 +17,12 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from dhlog.dh import JointType, StandardDH
 from dhlog.errors import InputError
 from dhlog.geometry._checks import FloatArray
+from dhlog.nongeometric import Terms, from_document, table_deflection
 from dhlog.robots import Robot, UnknownRobotError, load_robot
 
 
@@ -39,6 +42,20 @@ class DHModel:
     tool_point: FloatArray
     joint_names: tuple[str, ...]
     source: str
+    #: a result's joint-value terms beyond the geometry (compliance, harmonics) in the table's
+    #: frames, from its ``nongeometric`` block (None: a geometric model)
+    terms: Terms | None = None
+
+    def joint_values(self, q: ArrayLike) -> FloatArray:
+        """The table's joint values at encoder values ``q`` (..., n): ``q`` deflected by the
+        terms when the model carries them (gravity compliance, transmission harmonics), so that
+        ``fk_point(model.table, model.joint_values(q), …)`` is the model's forward kinematics."""
+        values = np.asarray(q, dtype=np.float64)
+        if self.terms is None or not self.terms.size:
+            return values
+        flat = values.reshape(-1, self.table.n)
+        deflected = flat + table_deflection(self.table, self.terms, flat, flat)
+        return np.asarray(deflected.reshape(values.shape), dtype=np.float64)
 
 
 def _scales(data: dict[str, Any]) -> tuple[float, float]:
@@ -80,7 +97,14 @@ def parse_dh(data: dict[str, Any], source: str) -> DHModel:
         raise DHFileError(source, f"malformed DH data ({exc}).") from None
     if T_base.shape != (4, 4) or tool.shape != (3,):
         raise DHFileError(source, "base must be 4x4 and tool.point a 3-vector.")
-    return DHModel(table, T_base, tool, names, source)
+    terms = None
+    block = data.get("nongeometric")
+    if isinstance(block, dict) and block.get("terms"):
+        if length != 1.0 or angle != 1.0:
+            raise DHFileError(source, "a nongeometric block needs units m and rad.")
+        terms = from_document(block, table.n, source)
+        terms = terms if terms.size else None
+    return DHModel(table, T_base, tool, names, source, terms)
 
 
 def load_dh(path: str | Path) -> DHModel:

@@ -169,9 +169,10 @@ def design(
 ) -> Terms:
     """The terms of ``families`` (``compliance``, ``harmonic``) for a chain whose axes at the
     reference pose are ``axis_points``/``axis_dirs`` (3,) with its target, in one frame with
-    ``gravity``. Compliance: every revolute joint (the first only when not along gravity), with a lump on each later
-    axis (its foot on the axis before; for parallel neighbours the foot of the previous lump) and
-    at the target; harmonics on ``harmonic_joints`` (0-based; default every revolute joint)."""
+    ``gravity``. Compliance: every revolute joint (the first only when not along gravity), with
+    a lump on each later axis (its foot on the axis before; for parallel neighbours the foot of
+    the previous lump) and at the target, none on the joint's own axis (no lever about it);
+    harmonics on ``harmonic_joints`` (0-based; default every revolute joint)."""
     n = len(axis_dirs)
     g = np.asarray(gravity, dtype=np.float64)
     g = g / np.linalg.norm(g)

@@ -57,6 +57,17 @@ from dhlog.identify.propagate import (
     state_names,
 )
 from dhlog.identify.register import Registration
+from dhlog.identify.select import (
+    AUTO,
+    SELECT_FOLDS,
+    ModelRequest,
+    Selection,
+    default_gravity,
+    select_model,
+    selected_terms,
+    term_std,
+    terms_for,
+)
 from dhlog.identify.start import (
     NEVER_MOVED,
     Known,
@@ -99,6 +110,8 @@ from dhlog.identify.whole import (
 from dhlog.io.pipeline import Pipeline
 from dhlog.io.reader import LogData, read_log
 from dhlog.io.writer import sha256_of
+from dhlog.kinematics import fk_frames, fk_points_chunked
+from dhlog.nongeometric import Terms, table_deflection, to_table
 from dhlog.segment import Segmentation, segment_log
 from dhlog.validate import Validation, check_residual, table_gap, validate_samples, validate_sweeps
 
@@ -165,6 +178,18 @@ class ProcessResult:
     holdout: list[Holdout] = field(default_factory=list)
     #: K of the K-fold cross-validation asked for (0: none)
     folds: int = 0
+    #: the terms beyond the geometry asked for, the candidates tried, and the chosen terms in
+    #: the table's frames (:func:`dhlog.nongeometric.to_table`) with their σ
+    model_request: ModelRequest = field(default_factory=ModelRequest)
+    selection: Selection | None = None
+    terms: Terms | None = None
+    terms_std: FloatArray = field(default_factory=lambda: np.zeros(0))
+    #: the terms' largest deflection per joint (rad or m) and of the target (m) at the samples
+    deflection_max: FloatArray = field(default_factory=lambda: np.zeros(0))
+    deflection_target: float = 0.0
+    #: up to 2000 samples: the target where the model puts it and the terms' share of that
+    #: (k, 6: position, displacement; m, in M)
+    deflection_vectors: FloatArray = field(default_factory=lambda: np.zeros((0, 6)))
     #: what a reader should know but need not act on (the method chosen, forms shown); the
     #: ``warnings`` are for what may need action
     info: list[str] = field(default_factory=list)
@@ -197,6 +222,7 @@ def process_log(
     fit_scales: bool = False,
     holdout: int = 0,
     validate: list[str | Path] | None = None,
+    model: ModelRequest = AUTO,
     progress: Stage | None = None,
 ) -> ProcessResult:
     """Run the whole identification on the log at ``path`` (see the module docstring).
@@ -222,6 +248,7 @@ def process_log(
         analytic_only=analytic_only,
         fit_scales=fit_scales,
         holdout=holdout,
+        model=model,
         progress=progress,
     )
     for other in validate or []:
@@ -259,8 +286,22 @@ def _validate_log(
             nominal=None
             if nominal is None
             else (nominal.table, nominal.T_base, nominal.tool_point),
+            table_values=table_values(result, Q),
         )
     )
+
+
+def table_values(result: ProcessResult, Q: FloatArray) -> FloatArray:
+    """The result table's joint values at encoder values ``Q`` (m, n): ``ref + s (Q − ref)``
+    with fitted encoder scales, deflected by the terms beyond the geometry when chosen."""
+    whole, ex = result.whole, result.extraction
+    Qt = Q
+    if whole is not None and whole.layout.scale_at is not None:
+        ref = whole.model.reference_pose
+        Qt = ref + whole.model.scales * (Q - ref)
+    if result.terms is not None and ex is not None:
+        Qt = Qt + table_deflection(ex.standard, result.terms, Q, Qt)
+    return np.asarray(Qt, dtype=np.float64)
 
 
 def process_data(
@@ -276,6 +317,7 @@ def process_data(
     fit_scales: bool = False,
     parallel_sigma: float = AIC_SIGMA_2D,
     holdout: int = 0,
+    model: ModelRequest = AUTO,
     progress: Stage | None = None,
 ) -> ProcessResult:
     """The identification of :func:`process_log` on streams already decoded (``LogData``).
@@ -286,6 +328,7 @@ def process_data(
     ``parallel_sigma``: pairs within this many σ (2-D) of parallel are held parallel in the
     whole-model fit, whatever the nominal says (0: never). ``holdout`` K > 1: K-fold
     cross-validation of the whole-model fit over the session's poses (``result.holdout``).
+    ``model``: the terms beyond the geometry to try or force (:mod:`dhlog.identify.select`).
     """
 
     def stage(what: str, fraction: float) -> None:
@@ -362,6 +405,7 @@ def process_data(
         timing=timing,
         noise=log.pipeline.noise,
         folds=holdout,
+        model_request=model,
     )
     kwargs: dict[str, Any] = {
         "angle_tol": angle_tol,
@@ -675,6 +719,7 @@ def _identify_whole(
         start = replace(whole.model, clock=0.0)
         result.segmentation = seg
     result.timing = timing
+    whole = _beyond_geometry(result, whole, Q, P, sigma, options)
     whole, sample_cov = _with_model_error(result, whole, Q, P, sample_cov, which, rates, rotations)
     if rotations is None:
         whole = _pose_clustered(result, whole, Q, P, sample_cov, which, rates, sigma)
@@ -763,8 +808,28 @@ def _identify_whole(
     tools = np.vstack([ex.tool_point[None], result.extra_tool_points])
     # with fitted encoder scales the table's joint values are ref + s (q − ref)
     Q_table = ref + whole.model.scales * (Q - ref) if whole.layout.scale_at is not None else Q
+    if whole.model.terms is not None:  # and the joints stand deflected by the terms
+        frames = fk_frames(ex.standard, ref, T_base=ex.T_measurement_base)
+        result.terms = to_table(whole.model.terms, frames)
+        result.terms_std = term_std(whole)
+        deflected = Q_table + table_deflection(ex.standard, result.terms, Q, Q_table)
+        result.deflection_max = np.max(np.abs(deflected - Q_table), axis=0)
+        moved = fk_points_chunked(
+            ex.standard, deflected, ex.tool_point, T_base=ex.T_measurement_base
+        ) - fk_points_chunked(ex.standard, Q_table, ex.tool_point, T_base=ex.T_measurement_base)
+        result.deflection_target = float(np.max(np.linalg.norm(moved, axis=1)))
+        pick = np.unique(np.linspace(0, Q.shape[0] - 1, min(2000, Q.shape[0])).astype(int))
+        result.deflection_vectors = np.column_stack(
+            [
+                fk_points_chunked(
+                    ex.standard, deflected[pick], ex.tool_point, T_base=ex.T_measurement_base
+                ),
+                moved[pick],
+            ]
+        )
+        Q_table = deflected
     result.validation = validate_samples(seg, rows, Q_table, P, ex, whole.inliers, tools, which)
-    gap = table_gap(whole, ex, Q)
+    gap = table_gap(whole, ex, Q, Q_table)
     if gap > 1e-6:
         notes.append(
             f"the DH table departs from the fitted model by up to {gap * 1e3:.4f} mm: a pair "
@@ -800,6 +865,68 @@ def _identify_whole(
 #: A condition number of the scaled Jacobian above this is worth a note naming the weakest
 #: direction.
 CONDITION_NOTE = 1e3
+
+
+def _beyond_geometry(
+    result: ProcessResult,
+    whole: WholeFit,
+    Q: FloatArray,
+    P: FloatArray,
+    sigma: float,
+    options: dict[str, Any],
+) -> WholeFit:
+    """The terms beyond the geometry that ``--model`` asks for or the session proves
+    (:func:`select_model`), fitted to every sample; the candidates in ``result.selection``."""
+    request = result.model_request
+    if request.mode == "geometric":
+        return whole
+    gravity = (
+        default_gravity(whole)
+        if request.gravity is None
+        else np.asarray(request.gravity, dtype=np.float64)
+    )
+    # where the declared uncertainties are far below the residuals, the candidates are weighed
+    # with the model-error component as the final fit will be (U95 alone weighs badly)
+    declared = options.get("sample_cov")
+    if declared is None and result.noise.model == "tracker":
+        declared = result.noise.covariance(P)
+    weighed = options
+    if declared is not None:
+        found = refit_with_model_error(
+            whole,
+            Q,
+            P,
+            declared,
+            {k: options[k] for k in ("noise", "fit_scales", "rotations", "sigma_rotation")},
+            which=options["which"],
+            rates=options["rates"],
+        )
+        if found is not None:
+            weighed = {**options, "sample_cov": found.sample_cov}
+    selection = select_model(
+        request.mode,
+        whole,
+        Q,
+        P,
+        sigma=sigma,
+        options=weighed,
+        gravity=gravity,
+        harmonic_joints=request.harmonic_joints,
+        folds=result.folds if result.folds > 1 else SELECT_FOLDS,
+    )
+    result.selection = selection
+    chosen = selection.chosen
+    terms = selected_terms(selection)
+    if terms is None:
+        return whole
+    # the lumps again on the chosen candidate's axes (the geometric fit's may sit off where the
+    # terms were missing), its coefficients kept where the terms are the same
+    assert chosen.fit is not None
+    again = terms_for(chosen.fit, chosen.families, gravity, request.harmonic_joints)
+    if again is not None and again.names() == terms.names():
+        again = again.with_coefficients(terms.coefficients)
+    start = replace(whole.model, terms=again)
+    return fit_whole_model(start, Q, P, sigma=sigma, **options)
 
 
 def _identifiability_notes(result: ProcessResult, whole: WholeFit) -> None:

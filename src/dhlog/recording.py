@@ -318,6 +318,7 @@ def write_process_recording(
             )
         log_residuals(rec, shown, found, k)
         log_holdout(rec, shown)
+        log_deflection(rec, shown)
         rec.log(
             "report/dh_table",
             rr.TextDocument(result_markdown(result), media_type=rr.MediaType.MARKDOWN),
@@ -633,6 +634,32 @@ def log_holdout(rec: rr.RecordingStream, shown: Shown) -> None:
             )
 
 
+def deflection_magnification(shown: Shown) -> float:
+    """The factor that makes the terms' largest displacement of the target about 4 % of the
+    robot's extent."""
+    worst = shown.result.deflection_target
+    return _nice(0.04 * shown.scene.extent / worst) if worst > 0 else 1.0
+
+
+def log_deflection(rec: rr.RecordingStream, shown: Shown) -> None:
+    """The terms beyond the geometry (``world/m/deflection``): at up to 2000 samples, the
+    target's displacement by the chosen compliance and harmonics, magnified
+    :func:`deflection_magnification` times."""
+    vectors = shown.result.deflection_vectors
+    if not vectors.size:
+        return
+    rec.log(
+        "world/m/deflection",
+        rr.Arrows3D(
+            origins=vectors[:, :3] - vectors[:, 3:],
+            vectors=deflection_magnification(shown) * vectors[:, 3:],
+            colors=[[120, 80, 200]],
+            radii=shown.scene.line,
+        ),
+        static=True,
+    )
+
+
 def _send_components(
     rec: rr.RecordingStream, path: str, index: list[rr.TimeColumn], parts: dict[str, FloatArray]
 ) -> None:
@@ -694,6 +721,7 @@ def _process_blueprint(shown: Shown, k: float, found: list[Residuals]) -> rrb.Bl
                         "+ $origin/**",
                         "- $origin/m/magnified/**",
                         "- $origin/m/holdout/**",
+                        "- $origin/m/deflection/**",
                     ],
                     time_ranges=everything,
                     eye_controls=eye,
@@ -713,6 +741,23 @@ def _process_blueprint(shown: Shown, k: float, found: list[Residuals]) -> rrb.Bl
                         )
                     ]
                     if result.holdout
+                    else []
+                ),
+                *(
+                    [
+                        rrb.Spatial3DView(
+                            name=f"Deflection by the terms ×{deflection_magnification(shown):g} "
+                            "(compliance, harmonics) [m, robot base frame]",
+                            origin="world",
+                            contents=[
+                                "+ $origin/m/deflection/**",
+                                "+ $origin/m/joints/**",
+                                "+ $origin/m/robot/**",
+                            ],
+                            eye_controls=eye,
+                        )
+                    ]
+                    if result.deflection_vectors.size
                     else []
                 ),
                 rrb.Spatial3DView(

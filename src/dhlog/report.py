@@ -129,6 +129,7 @@ def print_result(console: Console, result: ProcessResult, *, units: str = "mm") 
     _print_fits(console, result, units)
     _print_tool_and_base(console, result, units)
     _print_holdout(console, result, units)
+    _print_terms(console, result, units)
     lines = [("Method", _method_line(result, length, lu))]
     if result.extraction is not None:
         lines.append(("Frame 1", f"origin at {frame_1_origin(result)}"))
@@ -195,6 +196,88 @@ def _print_holdout(console: Console, result: ProcessResult, units: str) -> None:
             "means the model fits the session better than it predicts the robot.",
         )
     _prose(console, [("Held out", n) for n in dict.fromkeys(notes)])
+
+
+def _print_terms(console: Console, result: ProcessResult, units: str) -> None:
+    """The models tried beyond the geometry (``--model``): terms, parameters, BIC, held-out
+    RMS, which was chosen and why; then the chosen terms with σ and what they move."""
+    selection = result.selection
+    if selection is None:
+        return
+    length, _, lu, _ = _scales(units)
+    digits = 4 if units == "mm" else 7
+    t = Table(
+        title=escape(f"Model beyond the geometry (--model {selection.mode})"),
+        title_justify="left",
+        box=box.SIMPLE_HEAD,
+        pad_edge=False,
+    )
+    for head in ("model", "terms", "params", "BIC", f"held-out RMS [{lu}]", ""):
+        t.add_column(escape(head), justify="left" if head in ("model", "") else "right")
+    for c in selection.candidates:
+        t.add_row(
+            escape(c.name),
+            str(c.terms),
+            str(c.parameters),
+            f"{c.bic:.1f}",
+            "—" if c.holdout_rms is None else f"{c.holdout_rms * length:.{digits}f}",
+            "chosen" if c.chosen else "",
+        )
+    console.print(t)
+    lines = [("Model", f"{c.name}: {c.why}") for c in selection.candidates if c.why]
+    terms = result.terms
+    if terms is not None:
+        doc = terms.document(result.terms_std)
+        for item in doc["terms"]:
+            sd = item["std"]
+            shown = "not determined" if sd is None or not math.isfinite(sd) else f"± {sd:.3g}"
+            lines.append(("Term", f"{item['name']} = {item['value']:.4g} {shown} {item['unit']}"))
+        moved = ", ".join(
+            f"joint {i + 1} {math.degrees(v) * 3600:.1f}″"
+            for i, v in enumerate(result.deflection_max)
+            if v > 0
+        )
+        lines.append(
+            (
+                "Deflection",
+                f"largest at the samples: {moved}; the target "
+                f"{result.deflection_target * length:.{digits}f} {lu} (DH tables, URDF and the UR "
+                "file cannot carry these terms: the JSON's nongeometric block does)",
+            )
+        )
+    _prose(console, lines)
+
+
+def _terms_markdown(result: ProcessResult, length: float, lu: str) -> list[str]:
+    """The models tried beyond the geometry and the chosen terms with σ, as Markdown."""
+    selection = result.selection
+    if selection is None:
+        return []
+    lines = [
+        "",
+        f"## Beyond the geometry (--model {selection.mode})",
+        "",
+        f"| model | terms | parameters | BIC | held-out RMS [{lu}] | chosen | why |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for c in selection.candidates:
+        held = "" if c.holdout_rms is None else f"{c.holdout_rms * length:.4f}"
+        lines.append(
+            f"| {c.name} | {c.terms} | {c.parameters} | {c.bic:.1f} | {held} | "
+            f"{'yes' if c.chosen else ''} | {c.why} |"
+        )
+    if result.terms is not None:
+        lines += ["", "| term | value | σ | unit |", "|---|---|---|---|"]
+        for item in result.terms.document(result.terms_std)["terms"]:
+            sd = item["std"]
+            shown = "not determined" if sd is None or not math.isfinite(sd) else f"{sd:.3g}"
+            lines.append(f"| {item['name']} | {item['value']:.4g} | {shown} | {item['unit']} |")
+        lines += [
+            "",
+            f"The terms move the target by up to {result.deflection_target * length:.4f} {lu} "
+            "at the session's samples.",
+        ]
+    return lines
 
 
 def _prose(console: Console, lines: list[tuple[str, str]], *, markup: bool = False) -> None:
@@ -454,6 +537,7 @@ def result_markdown(result: ProcessResult, *, units: str = "mm") -> str:
         ]
     if result.extraction is not None:
         lines += ["", f"Frame 1: origin at {frame_1_origin(result)}."]
+    lines += _terms_markdown(result, length, lu)
     ex = result.extraction
     if ex is not None and result.complete:
         m, q = ex.modified, ex.reference_pose

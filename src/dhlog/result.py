@@ -102,6 +102,8 @@ def result_document(result: ProcessResult) -> dict[str, Any]:
         "warnings": list(result.warnings),
         "notes": list(result.info),
     }
+    if result.selection is not None:
+        doc["nongeometric"] = nongeometric_document(result)
     if ex is not None and result.complete:
         doc["modified_dh_tool"] = {"T_n_tool": ex.T_modified_tool.tolist()}
         if std is not None:
@@ -434,6 +436,51 @@ def result_csv(result: ProcessResult, *, units: str = "mm") -> str:
         cells = [str(i + 1), _csv_cell(result.joints[i].name), row.type, *values, *stds]
         cells += [row.form, beta, std_beta]
         lines.append(",".join(cells))
+    return "\n".join(lines) + "\n"
+
+
+def nongeometric_document(result: ProcessResult) -> dict[str, Any]:
+    """The ``nongeometric`` block: the model asked and chosen with every candidate tried (BIC,
+    held-out RMS), and the chosen terms in the table's frames with σ, as the forward kinematics
+    applies them (``Δq`` added to the table's joint values)."""
+    assert result.selection is not None
+    doc: dict[str, Any] = {
+        "selection": result.selection.document(),
+        "description": (
+            "joint-value terms: q_table += Σ value · b(q); compliance b = z_i · ((p − o_i) × g) "
+            "(m: the lever arm about joint i's axis, frame i−1's z through its origin, of a unit "
+            "mass at the lump p under gravity g, taken at the undeflected pose); harmonic_sin/cos "
+            "b = sin/cos of the encoder value; lump points in the frame whose z is that axis "
+            "(standard DH frames of fk_frames), the target's in the last frame; gravity in the "
+            "base frame"
+        ),
+        "gravity": None,
+        "lumps": [],
+        "terms": [],
+    }
+    if result.terms is not None:
+        doc.update(result.terms.document(result.terms_std))
+        for t in doc["terms"]:
+            t["std"] = _num_or_none(t["std"])
+        doc["max_deflection"] = [float(v) for v in result.deflection_max]
+        doc["max_target_displacement"] = result.deflection_target
+    return doc
+
+
+def terms_csv(result: ProcessResult) -> str:
+    """The chosen terms beyond the geometry, one a row (SI: rad/m or rad), with σ; only the
+    header when the geometric model was chosen."""
+    lines = ["name,kind,joint,lump,value,std,unit"]
+    terms = result.terms
+    if terms is not None:
+        doc = terms.document(result.terms_std)
+        for t in doc["terms"]:
+            lump = doc["lumps"][t["lump"]]["on"] if "lump" in t else ""
+            sd = "" if t["std"] is None or not math.isfinite(t["std"]) else f"{t['std']:.9g}"
+            lines.append(
+                f"{t['name']},{t['kind']},{t['joint']},{_csv_cell(lump)},{t['value']:.9g},{sd},"
+                f"{t['unit']}"
+            )
     return "\n".join(lines) + "\n"
 
 

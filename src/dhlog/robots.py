@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 import tomllib
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from functools import cache
 from importlib import resources
 from typing import Any
@@ -41,6 +41,10 @@ class Robot:
     T_base: FloatArray
     tool_point: FloatArray
     limits: FloatArray
+    #: lumped link masses (kg) at the DH frame origins on joints 2 … n's axes (n−1,), and the
+    #: payload (kg) at the tool point: the simulator's gravity compliance (empty: none given)
+    masses: FloatArray = field(default_factory=lambda: np.zeros(0))
+    payload: float = 0.0
 
     @property
     def n(self) -> int:
@@ -74,6 +78,8 @@ def _robot_from_entry(name: str, entry: dict[str, Any]) -> Robot:
         T_base=T_base,
         tool_point=np.asarray(entry["tool"], dtype=np.float64) * scale,
         limits=limits,
+        masses=np.asarray(entry.get("masses", []), dtype=np.float64),
+        payload=float(entry.get("payload", 0.0)),
     )
 
 

@@ -36,6 +36,7 @@ from dhlog.extract import extract_dh
 from dhlog.geometry._checks import FloatArray, rotation_about, rotation_from_vector
 from dhlog.geometry.lines import Line
 from dhlog.kinematics import fk_frames, fk_point, joint_axes
+from dhlog.nongeometric import Lump, Term, Terms, table_deflection
 from dhlog.robots import Robot
 
 START_NS = 1_763_700_000_000_000_000
@@ -93,6 +94,13 @@ class SimulationConfig:
     encoder_scales: tuple[float, ...] | None = None
     #: days after START_NS at which the session starts (a series of sessions)
     start_day: float = 0.0
+    #: gravity compliance of the truth: (joint, rad per N·m), the torque from the robot's
+    #: lumped masses and payload (:func:`truth_terms`)
+    compliance: tuple[tuple[int, float], ...] = ()
+    #: the payload (kg) at the tool point; None: the robot's
+    payload: float | None = None
+    #: transmission harmonics of the truth: (joint, a, b), Δq = a sin q + b cos q (rad)
+    harmonic: tuple[tuple[int, float, float], ...] = ()
     seed: int = 0
 
 
@@ -173,6 +181,7 @@ def _protocol_problems(robot: Robot, cfg: SimulationConfig) -> list[str]:
         ),
     ]
     out += [why for ok, why in checks if not ok]
+    out += _terms_problems(robot, cfg)
     if cfg.protocol not in PROTOCOLS:
         out.append(f"the protocol must be one of {', '.join(PROTOCOLS)}, not '{cfg.protocol}'")
         return out
@@ -201,6 +210,61 @@ def _protocol_problems(robot: Robot, cfg: SimulationConfig) -> list[str]:
             else "the dwell must be > 0 for a step-and-measure protocol"
         )
     return out
+
+
+def _terms_problems(robot: Robot, cfg: SimulationConfig) -> list[str]:
+    """What is wrong with the compliance and harmonics of ``cfg``."""
+    out = []
+    joints = [j for j, _ in cfg.compliance] + [j for j, _, _ in cfg.harmonic]
+    values = [c for _, c in cfg.compliance] + [v for _, a, b in cfg.harmonic for v in (a, b)]
+    if any(not 1 <= j <= robot.n for j in joints):
+        out.append(f"--compliance/--harmonic name joints 1-{robot.n} of {robot.name}")
+    if not all(math.isfinite(v) for v in values):
+        out.append("--compliance/--harmonic values must be finite")
+    if cfg.compliance and robot.masses.size != robot.n - 1:
+        out.append(
+            f"--compliance needs the robot's lumped masses; {robot.name} has none in the library "
+            "(kr5 and kr210 do)"
+        )
+    if any(not 0 <= c <= 1e-3 for _, c in cfg.compliance):
+        out.append("a compliance must be in [0, 1e-3] rad/(N·m)")
+    if any(max(abs(a), abs(b)) > 0.01 for _, a, b in cfg.harmonic):
+        out.append("a harmonic's amplitudes must be within ±0.01 rad")
+    if cfg.payload is not None and not 0 <= cfg.payload <= 10_000:
+        out.append(f"the payload must be in [0, 10 000] kg (got {cfg.payload:g})")
+    return out
+
+
+#: Standard gravity (m/s²).
+GRAVITY = 9.80665
+
+
+def truth_terms(
+    robot: Robot, cfg: SimulationConfig, table: StandardDH, T_mr: FloatArray, tool: FloatArray
+) -> Terms | None:
+    """The truth's joint-value terms in ``table``'s frames (:mod:`dhlog.nongeometric`): per
+    compliant joint i, ``Δq_i = c_i τ_i`` with the gravity torque of the robot's masses (at the
+    DH frame origins on the later axes) and the payload (at the tool point), gravity along the
+    robot's −z; the harmonics as given. None without either."""
+    if not cfg.compliance and not cfg.harmonic:
+        return None
+    n = robot.n
+    g_m = T_mr[:3, :3] @ np.array([0.0, 0.0, -1.0])
+    R_base = T_mr[:3, :3] @ robot.T_base[:3, :3]  # the table's base frame in M
+    lumps = [Lump(axis, np.zeros(3)) for axis in range(1, n)] + [Lump(-1, tool.copy())]
+    payload = robot.payload if cfg.payload is None else cfg.payload
+    mass = [*robot.masses, payload] if cfg.compliance else []
+    terms, values = [], []
+    for joint, c in cfg.compliance:
+        i = joint - 1
+        for k, lump in enumerate(lumps):
+            if lump.target or lump.axis > i:
+                terms.append(Term("compliance", i, k))
+                values.append(c * GRAVITY * mass[k])
+    for joint, a, b in cfg.harmonic:
+        terms += [Term("harmonic_sin", joint - 1), Term("harmonic_cos", joint - 1)]
+        values += [a, b]
+    return Terms(tuple(terms), tuple(lumps), R_base.T @ g_m, np.array(values))
 
 
 def protocol_config(cfg: SimulationConfig) -> SimulationConfig:
@@ -265,6 +329,8 @@ class Session:
     model_error_xyz: FloatArray = field(default_factory=lambda: np.zeros((0, 3)))
     #: the still poses (k, n) of the ``random-poses`` protocol (none for the others)
     poses: FloatArray = field(default_factory=lambda: np.zeros((0, 0)))
+    #: the truth's compliance and harmonics in ``table``'s frames (None: a geometric robot)
+    terms: Terms | None = None
 
 
 def default_measurement_pose() -> FloatArray:
@@ -516,7 +582,10 @@ def simulate_session(
     if plan.motion == "step":
         t_trk = t_trk[_static(frames, t_trk)]
     q_trk = _interp(frames, t_trk)
-    xyz = fk_point(table, q_trk, tool, T_base=T_mb)
+    terms = truth_terms(robot, cfg, table, T_mr, np.asarray(tool, dtype=np.float64))
+    # the joints as they stand: the encoders' values deflected by gravity and the gears
+    q_arm = q_trk if terms is None else q_trk + table_deflection(table, terms, q_trk, q_trk)
+    xyz = fk_point(table, q_arm, tool, T_base=T_mb)
     error = np.zeros_like(xyz)
     if cfg.model_error > 0:  # the robot's unmodelled error, in M, the same for every target
         error = smooth_model_error(robot, cfg)(q_trk) @ T_mb[:3, :3].T
@@ -526,7 +595,7 @@ def simulate_session(
         from scipy.spatial.transform import Rotation
 
         R_tool = rotation_from_vector(np.asarray(cfg.tool_rotation, dtype=np.float64))
-        point_rot = fk_frames(table, q_trk, T_base=T_mb)[:, -1, :3, :3] @ R_tool
+        point_rot = fk_frames(table, q_arm, T_base=T_mb)[:, -1, :3, :3] @ R_tool
         if cfg.orientation_noise > 0:
             tilt = rng.normal(scale=cfg.orientation_noise, size=(q_trk.shape[0], 3))
             point_rot = Rotation.from_rotvec(tilt).as_matrix() @ point_rot
@@ -548,7 +617,7 @@ def simulate_session(
             keep[start : start + int(rng.integers(3, 20))] = False
     extra_xyz = []
     for extra in cfg.extra_tools:  # further targets, measured at the same instants
-        e = fk_point(table, q_trk, np.asarray(extra, dtype=np.float64), T_base=T_mb) + error
+        e = fk_point(table, q_arm, np.asarray(extra, dtype=np.float64), T_base=T_mb) + error
         if cfg.noise_kind == "uniform":
             e = e + rng.uniform(-cfg.noise, cfg.noise, e.shape)
         else:
@@ -602,6 +671,7 @@ def simulate_session(
         sweeps=sweeps,
         model_error_xyz=np.asarray(error[keep], dtype=np.float64),
         poses=poses,
+        terms=terms,
     )
 
 
@@ -671,5 +741,9 @@ def truth_document(
             "tool_rotation_rotvec": None if cfg.tool_rotation is None else list(cfg.tool_rotation),
             "orientation_noise_rad": cfg.orientation_noise,
             "extra_targets_m": [list(extra) for extra in cfg.extra_tools],
+            "compliance_rad_per_nm": [[j, c] for j, c in cfg.compliance],
+            "payload_kg": cfg.payload,
+            "harmonic_rad": [[j, a, b] for j, a, b in cfg.harmonic],
         },
+        **({} if session.terms is None else {"nongeometric": session.terms.document()}),
     }

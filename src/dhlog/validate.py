@@ -168,15 +168,16 @@ def check_residual(validation: Validation, sigma: float, notes: list[str]) -> No
         )
 
 
-def table_gap(whole: WholeFit, ex: Extraction, Q: FloatArray) -> float:
-    """Largest distance (m) between the fitted model and its DH table at the reference pose and
-    at up to 64 of the sampled joint vectors: 0 up to rounding when the extraction is exact."""
+def table_gap(whole: WholeFit, ex: Extraction, Q: FloatArray, Q_table: FloatArray) -> float:
+    """Largest distance (m) between the fitted model and its DH table at up to 64 of the
+    sampled joint vectors ``Q`` (the table's joint values ``Q_table``: the encoders scaled and
+    deflected by the terms as the table sees them): 0 up to rounding when the extraction is
+    exact."""
     from dhlog.identify.whole import predict
 
     pick = np.unique(np.linspace(0, Q.shape[0] - 1, min(64, Q.shape[0])).astype(int))
-    Qs = np.vstack([whole.model.reference_pose, Q[pick]])
-    fitted, _ = predict(whole.model, Qs)
-    ref = whole.model.reference_pose
-    Q_table = ref + whole.model.scales * (Qs - ref)  # the table sees scaled encoder values
-    table = fk_points_chunked(ex.standard, Q_table, ex.tool_point, T_base=ex.T_measurement_base)
+    fitted, _ = predict(whole.model, Q[pick])
+    table = fk_points_chunked(
+        ex.standard, Q_table[pick], ex.tool_point, T_base=ex.T_measurement_base
+    )
     return float(np.max(np.linalg.norm(fitted - table, axis=1)))

@@ -208,6 +208,7 @@ def score_poses(
     *,
     path: str,
     nominal: tuple[StandardDH, FloatArray, FloatArray] | None = None,
+    table_values: FloatArray | None = None,
 ) -> Holdout:
     """The calibrated model (table, T_measurement_base, tool point) and the nominal at the poses
     of another session (``Q``, ``P``: its samples of the primary target). When the model misses
@@ -215,7 +216,9 @@ def score_poses(
     third of them (every third pose), the tracker moved: the base is placed on that third (for
     the nominal: base and tool point) and the other poses are scored; else every pose is scored
     as it is (the nominal's base and tool point are then placed on every pose: the error the
-    nominal leaves at best)."""
+    nominal leaves at best). ``table_values`` (m, n): the calibrated table's joint values at
+    ``Q`` when they are not ``Q`` (fitted encoder scales, joints deflected by the terms beyond
+    the geometry)."""
     from dhlog.errors import InputError
 
     groups = pose_groups(Q)
@@ -226,13 +229,14 @@ def score_poses(
             f"at least {MIN_POSES}."
         )
     table, T, tool = calibrated
+    Qt = Q if table_values is None else table_values
     subset = np.isin(groups, poses[::3])
     rest = ~subset
-    as_is = fk_point(table, Q, tool, T_base=T)
+    as_is = fk_point(table, Qt, tool, T_base=T)
     moved_reg = register_nominal(
-        table, Q[subset], P[subset], tool_point=tool, T_base=T, fit_tool=False
+        table, Qt[subset], P[subset], tool_point=tool, T_base=T, fit_tool=False
     )
-    placed = fk_point(table, Q, tool, T_base=moved_reg.T_measurement_base)
+    placed = fk_point(table, Qt, tool, T_base=moved_reg.T_measurement_base)
     err_as_is = float(np.sqrt(np.mean(np.sum((P[rest] - as_is[rest]) ** 2, axis=1))))
     err_placed = float(np.sqrt(np.mean(np.sum((P[rest] - placed[rest]) ** 2, axis=1))))
     moved = err_as_is > MOVED_RATIO * err_placed

@@ -271,9 +271,7 @@ class ParameterLayout:
             terms_at = k
             names += list(terms)
             k += len(terms)
-        return cls(
-            tuple(at), target_at, scale_at, k, tuple(names), rotation_at, clock_at, terms_at
-        )
+        return cls(tuple(at), target_at, scale_at, k, tuple(names), rotation_at, clock_at, terms_at)
 
 
 def _rotate(R: FloatArray, X: FloatArray) -> FloatArray:

@@ -1,0 +1,291 @@
+"""Which terms beyond the geometry a session supports (``--model``): gravity compliance and
+transmission harmonics (:mod:`dhlog.nongeometric`), kept only where held-out poses prove them.
+
+Each candidate model (the geometric one, then with a family of terms added) is fitted by the
+whole-model maximum likelihood to the same samples (the geometric fit's inliers, at most
+:data:`SELECT_SAMPLES` of them, evenly strided) and scored two ways:
+
+* the Bayesian information criterion ``N ln(RSS/N) + p ln N`` (``N`` whitened residual
+  components, ``RSS`` their sum of squares, ``p`` the parameters the samples determine);
+* the RMS error at held-out poses of a K-fold cross-validation over poses (the same folds for
+  every candidate; :func:`dhlog.identify.holdout.cross_validate`).
+
+``auto`` adds a family (forward selection: each alone, the best proven one kept, then the
+others added to it) only when it lowers *both*: the criterion, and the
+held-out mean squared error by more than :data:`HELD_OUT_SIGMA` standard errors of the paired
+difference over the held-out poses (a gain within the folds' own scatter is no proof). The
+cross-validation runs only for a candidate the criterion prefers: a family it rejects is
+rejected without it.
+``compliance``, ``harmonic`` and ``full`` force their families; ``geometric`` tries nothing.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from dhlog.dh import JointType
+from dhlog.errors import DhlogError
+from dhlog.geometry._checks import FloatArray
+from dhlog.identify.holdout import cross_validate
+from dhlog.identify.whole import WholeFit, fit_whole_model
+from dhlog.nongeometric import Terms, design
+
+#: The ``--model`` choices and the families each forces (``auto`` tries them in this order).
+MODELS = {
+    "auto": ("compliance", "harmonic"),
+    "geometric": (),
+    "compliance": ("compliance",),
+    "harmonic": ("harmonic",),
+    "full": ("compliance", "harmonic"),
+}
+#: Most samples the candidates are fitted and scored on (evenly strided).
+SELECT_SAMPLES = 20000
+#: Folds of the selection's cross-validation when ``--holdout`` does not name K.
+SELECT_FOLDS = 5
+
+
+@dataclass(frozen=True)
+class ModelRequest:
+    """What ``--model`` asks: the mode (:data:`MODELS`), gravity in M (None: along the first
+    axis, :func:`default_gravity`) and the harmonics' joints (0-based; None: every revolute)."""
+
+    mode: str = "auto"
+    gravity: tuple[float, float, float] | None = None
+    harmonic_joints: tuple[int, ...] | None = None
+
+
+#: The default request: ``--model auto``.
+AUTO = ModelRequest()
+
+
+@dataclass
+class Candidate:
+    """One model tried: its families, term count, determined parameters, BIC, held-out RMS (m;
+    None when not cross-validated) and whether it was chosen."""
+
+    families: tuple[str, ...]
+    terms: int
+    parameters: int
+    bic: float
+    holdout_rms: float | None = None
+    chosen: bool = False
+    fit: WholeFit | None = None
+    why: str = ""
+    #: per held-out pose, the squared error (m²), in the cross-validation's order
+    squared: FloatArray | None = None
+
+    @property
+    def name(self) -> str:
+        return "+".join(self.families) if self.families else "geometric"
+
+    def document(self) -> dict[str, Any]:
+        return {
+            "model": self.name,
+            "terms": self.terms,
+            "parameters": self.parameters,
+            "bic": self.bic,
+            "holdout_rms": self.holdout_rms,
+            "chosen": self.chosen,
+            "why": self.why,
+        }
+
+
+@dataclass
+class Selection:
+    """What ``--model`` asked, the candidates tried in order, and the folds used."""
+
+    mode: str
+    candidates: list[Candidate]
+    folds: int
+    n_samples: int
+
+    @property
+    def chosen(self) -> Candidate:
+        return next(c for c in self.candidates if c.chosen)
+
+    def document(self) -> dict[str, Any]:
+        return {
+            "mode": self.mode,
+            "chosen": self.chosen.name,
+            "folds": self.folds,
+            "n_samples": self.n_samples,
+            "candidates": [c.document() for c in self.candidates],
+        }
+
+
+def default_gravity(whole: WholeFit) -> FloatArray:
+    """Gravity along the first joint's axis (a robot on the floor or the ceiling), pointing
+    against the measurement frame's z where the axis has a z component (a levelled tracker's z
+    is up)."""
+    d = whole.model.axes[0].direction
+    return np.asarray(-d if d[2] >= 0 else d, dtype=np.float64)
+
+
+def terms_for(
+    whole: WholeFit,
+    families: tuple[str, ...],
+    gravity: FloatArray,
+    harmonic_joints: tuple[int, ...] | None,
+) -> Terms | None:
+    """The terms of ``families`` on ``whole``'s axes (None for none)."""
+    if not families:
+        return None
+    model = whole.model
+    return design(
+        families,
+        [a.point for a in model.axes],
+        [a.direction for a in model.axes],
+        model.target,
+        [t is JointType.REVOLUTE for t in model.types],
+        gravity,
+        harmonic_joints,
+    )
+
+
+def select_model(
+    mode: str,
+    whole: WholeFit,
+    Q: FloatArray,
+    P: FloatArray,
+    *,
+    sigma: float,
+    options: dict[str, Any],
+    gravity: FloatArray,
+    harmonic_joints: tuple[int, ...] | None = None,
+    folds: int = SELECT_FOLDS,
+) -> Selection:
+    """Score the candidates of ``mode`` (see the module docstring) on ``whole``'s inliers.
+    ``options``: the whole fit's keyword arguments (per-sample arrays over all samples)."""
+    m = Q.shape[0]
+    stride = -(-m // SELECT_SAMPLES) if m > SELECT_SAMPLES else 1
+    pick = np.arange(0, m, stride)
+    sub: dict[str, Any] = {
+        k: (v[pick] if isinstance(v, np.ndarray) and v.shape[:1] == (m,) else v)
+        for k, v in options.items()
+    }
+    keep = whole.inliers[pick]
+    Qs, Ps = Q[pick], P[pick]
+
+    def fitted(families: tuple[str, ...]) -> Candidate:
+        terms = terms_for(whole, families, gravity, harmonic_joints)
+        start = replace(whole.model, terms=terms)
+        fit = fit_whole_model(start, Qs, Ps, sigma=sigma, keep=keep, threshold=math.inf, **sub)
+        d = fit.determined
+        p = d.basis.shape[1] if d is not None else fit.layout.size
+        per = 3 if sub.get("rotations") is None else 6
+        n_res = per * fit.n_points
+        rss = fit.chi2_dof * max(n_res - p, 1)
+        bic = n_res * math.log(max(rss, 1e-300) / n_res) + p * math.log(n_res)
+        return Candidate(families, 0 if terms is None else terms.size, p, bic, fit=fit)
+
+    def held_out(c: Candidate) -> None:
+        if c.holdout_rms is not None or c.fit is None:
+            return
+        try:
+            h = cross_validate(
+                replace(c.fit, inliers=keep),
+                Qs,
+                Ps,
+                folds,
+                fit_options={"sigma": sigma, **{k: v for k, v in sub.items() if k != "which"}},
+                which=sub.get("which"),
+            )
+        except DhlogError as exc:
+            c.why = f"not cross-validated: {exc}"
+            return
+        c.holdout_rms = h.calibrated.rms
+        c.squared = np.sum(h.calibrated_vectors**2, axis=1)
+
+    families = MODELS[mode]
+    base = fitted(())
+    candidates = [base]
+    if mode == "geometric":
+        base.chosen = True
+        return Selection(mode, candidates, folds, int(np.count_nonzero(keep)))
+    if mode != "auto":
+        forced = fitted(families)
+        held_out(base)
+        held_out(forced)
+        forced.chosen = True
+        forced.why = f"forced by --model {mode}"
+        candidates.append(forced)
+        return Selection(mode, candidates, folds, int(np.count_nonzero(keep)))
+
+    def proves(cand: Candidate, over: Candidate) -> bool:
+        """Whether ``cand`` lowers both the BIC and the held-out error of ``over`` (its
+        ``why`` says how it fared)."""
+        if cand.bic >= over.bic:
+            cand.why = f"BIC {cand.bic - over.bic:+.1f} against {over.name}"
+            return False
+        held_out(over)
+        held_out(cand)
+        if over.holdout_rms is None or cand.holdout_rms is None:
+            cand.why = cand.why or "not cross-validated"
+            return False
+        gain, spread = _paired_gain(over, cand)
+        held = (
+            f"held-out RMS {over.holdout_rms * 1e3:.4f} → {cand.holdout_rms * 1e3:.4f} mm "
+            f"(mean squared error {gain * 1e6:+.4g} ± {spread * 1e6:.2g} mm² a pose)"
+        )
+        if gain + HELD_OUT_SIGMA * spread >= 0.0:
+            cand.why = f"BIC {cand.bic - over.bic:+.1f} but {held}: not lower beyond its spread"
+            return False
+        cand.why = f"BIC {cand.bic - over.bic:+.1f} against {over.name}, {held}"
+        return True
+
+    # forward selection: each family alone, the best proven one kept, then the rest added to it
+    # (compliance and a joint's first harmonic can look alike: cos of the arm's angle)
+    current, left = base, list(families)
+    while left:
+        tried = [fitted((*current.families, family)) for family in left]
+        candidates += tried
+        proven = [c for c in tried if proves(c, current)]
+        if not proven:
+            break
+        best = min(proven, key=lambda c: (c.holdout_rms or math.inf, c.bic))
+        left = [f for f in left if f not in best.families]
+        current = best
+    current.chosen = True
+    if current is base:
+        base.why = "no family lowered both the BIC and the held-out error"
+    return Selection(mode, candidates, folds, int(np.count_nonzero(keep)))
+
+
+#: A family is added only when its held-out mean squared error is lower by more than this many
+#: standard errors of the paired difference over the held-out poses.
+HELD_OUT_SIGMA = 2.0
+
+
+def _paired_gain(current: Candidate, cand: Candidate) -> tuple[float, float]:
+    """The change of the mean squared held-out error from ``current`` to ``cand`` (m²) over the
+    same poses and folds, and its standard error."""
+    assert current.squared is not None and cand.squared is not None
+    d = cand.squared - current.squared
+    spread = float(np.std(d, ddof=1) / np.sqrt(d.size)) if d.size > 1 else math.inf
+    return float(np.mean(d)), spread
+
+
+def selected_terms(selection: Selection) -> Terms | None:
+    """The chosen candidate's fitted terms (None for the geometric model)."""
+    fit = selection.chosen.fit
+    return None if fit is None else fit.model.terms
+
+
+def term_std(fit: WholeFit) -> FloatArray:
+    """The σ of each term's coefficient (NaN where the samples do not determine it)."""
+    terms = fit.model.terms
+    k = fit.layout.terms_at
+    if terms is None or k is None:
+        return np.zeros(0)
+    var = np.diag(fit.covariance)[k : k + terms.size]
+    std = np.sqrt(np.clip(var, 0.0, None))
+    undetermined: NDArray[np.bool_] = np.zeros(terms.size, dtype=bool)
+    d = fit.determined
+    if d is not None and d.null.shape[1]:
+        undetermined = np.linalg.norm(d.null[k : k + terms.size], axis=1) > 0.5
+    return np.where(undetermined, np.nan, std)
