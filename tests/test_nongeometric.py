@@ -286,3 +286,24 @@ def test_the_command_line(tmp_path: Path) -> None:
             args,
             bad.output,
         )
+
+
+def test_the_readme_gravity_walkthrough(tmp_path: Path) -> None:
+    """README "Gravity and gears": its two commands give the model table it shows."""
+    readme = (Path(__file__).parents[1] / "README.md").read_text()
+    section = readme.split("### Gravity and gears", 1)[1].split("\n### ", 1)[0]
+    blocks = section.split("```")
+    commands = blocks[1].removeprefix("sh\n").split("\n")
+    simulate, process = (c.split()[1:] for c in commands if c.strip())
+    made = runner.invoke(
+        app, [a.replace("kr210.mcap", str(tmp_path / "kr210.mcap")) for a in simulate]
+    )
+    assert made.exit_code == 0, made.output
+    args = [a.replace("kr210.mcap", str(tmp_path / "kr210.mcap")) for a in process]
+    args[args.index("results")] = str(tmp_path / "results")
+    done = runner.invoke(app, [*args, "--no-rrd"])
+    assert done.exit_code == 0, done.output
+    printed = {line.rstrip() for line in done.output.splitlines()}
+    (table,) = [b for b in blocks if "Model beyond the geometry" in b]
+    for line in table.strip("\n").splitlines():
+        assert line.rstrip() in printed, line
