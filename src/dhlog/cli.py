@@ -11,6 +11,7 @@ import math
 import os
 import sys
 from collections.abc import Sequence
+from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any, Literal, NoReturn, get_args, get_origin
 
@@ -384,8 +385,9 @@ def simulate(
     compliant = [(int(j), c) for j, c in _tuples(compliance, "--compliance", 2)]
     harmonics = [(int(j), a, b) for j, a, b in _tuples(harmonic, "--harmonic", 3)]
     truth_path = output.with_name(output.stem + ".truth.json")
+    urdf_path = output.with_name(output.stem + ".urdf") if compliant else None
     _check_folder(output.parent)
-    for path in (output, truth_path):
+    for path in (output, truth_path, *([urdf_path] if urdf_path else [])):
         _refuse_existing(path, force)
     try:
         rob = robot_or_dh_file(robot)
@@ -452,11 +454,22 @@ def simulate(
             version=__version__,
         )
         write_truth(doc, truth_path)
+        if urdf_path is not None:  # the maker's description of the masses, for --masses
+            from dhlog.io.writer import atomic_output
+            from dhlog.simulate import masses_urdf
+
+            with atomic_output(urdf_path) as f:
+                f.write(masses_urdf(rob).encode())
     except DhlogError as exc:
         _fail(exc)
     stdout.print(
         f"wrote {output} ({session.point_xyz.shape[0]} target samples, "
         f"{session.joint_t_ns.size} joint states, {encoding}) and {truth_path}"
+        + (
+            f"; {urdf_path} (the nominal robot with its lumped masses, for --masses)"
+            if urdf_path
+            else ""
+        )
     )
     if six_dof:
         stdout.print(
@@ -654,6 +667,15 @@ def process(
             metavar="J,…", help="Joints given harmonic terms (default: every revolute joint)."
         ),
     ] = None,
+    masses: Annotated[
+        Path | None,
+        typer.Option(
+            metavar="URDF",
+            help="The robot's URDF: gravity compliance from its links' <inertial> masses (one "
+            "compliance per joint and the payload) instead of the lumped terms; gravity along "
+            "its base's -z.",
+        ),
+    ] = None,
     refine: Annotated[
         bool,
         typer.Option(
@@ -685,6 +707,11 @@ def process(
         )
         raise typer.Exit(EXIT_USAGE)
     request = _model_request(model, gravity, harmonic_joints)
+    if masses is not None:
+        if not masses.is_file():
+            stderr.print(f"error: --masses {masses}: no such file; give the robot's URDF.")
+            raise typer.Exit(EXIT_USAGE)
+        request = replace(request, masses=str(masses))
     folder = out if out is not None else log.parent
     stem = log.name.removesuffix(".zstd").removesuffix(".mcap")
     outputs = [folder / f"{stem}.dh.json", folder / f"{stem}.dh.csv"]

@@ -12,6 +12,10 @@ Each term moves one joint by a coefficient times a known function of the pose,
   points where joint i's successors meet the axes after it (the DH frame origins: on each later
   axis, its foot on the axis before) and the target (payload and tool). The torque is taken at
   the encoders' pose (the deflection it causes is far too small to change it).
+* ``compliance_masses`` (joint i), with the links' masses known (a URDF's ``<inertial>``):
+  ``b = Σ m_l z_i · ((p_l − o_i) × ĝ)`` over the links downstream (kg·m), so that the
+  coefficient is ``c_i g`` — the joint's compliance itself, beside a ``compliance`` term for the
+  payload at the target.
 * ``harmonic_sin`` / ``harmonic_cos`` (joint i): ``b = sin q_i`` / ``cos q_i`` of the encoder
   value, the first harmonic of a transmission's angle error (rad).
 
@@ -30,7 +34,14 @@ from numpy.typing import ArrayLike
 
 from dhlog.geometry._checks import FloatArray
 
-KINDS = ("compliance", "harmonic_sin", "harmonic_cos")
+KINDS = ("compliance", "compliance_masses", "harmonic_sin", "harmonic_cos")
+#: The unit of each kind's coefficient.
+UNITS = {
+    "compliance": "rad/m",
+    "compliance_masses": "rad/(kg·m)",
+    "harmonic_sin": "rad",
+    "harmonic_cos": "rad",
+}
 #: A first joint whose axis is within this angle (rad) of gravity carries no gravity torque.
 VERTICAL = np.radians(1.0)
 #: Lump points closer than this (m) at the reference pose are one (a spherical wrist's centre).
@@ -48,22 +59,29 @@ class Term:
     def name(self, lumps: tuple[Lump, ...]) -> str:
         if self.kind == "compliance":
             return f"compliance_{self.joint + 1}_{lumps[self.lump].name}"
+        if self.kind == "compliance_masses":
+            return f"compliance_{self.joint + 1}_masses"
         return f"{self.kind}_{self.joint + 1}"
 
 
 @dataclass(frozen=True, eq=False)
 class Lump:
-    """A point a unit mass is lumped at: on axis ``axis`` (0-based; moved by the joints before
-    it) or, with ``axis`` = n, the target; ``point`` in the frame its owner gives (the
-    measurement frame at the reference pose for the fitted axes; the DH frame whose z is that
-    axis — the last frame for the target — for a table)."""
+    """A point a mass is lumped at, moved by joints 1 … ``axis`` (0-based: the joints before
+    axis ``axis``): a unit mass on that axis, or (``mass`` > 0) a link's known mass at its
+    centre (a URDF's ``<inertial>``; ``axis`` then counts the joints that move the link), or
+    with ``axis`` −1 the target (moved by every joint). ``point`` is in the frame its owner
+    gives (the measurement frame at the reference pose for the fitted axes; for a table, its
+    frame ``axis`` of ``fk_frames`` — the last for the target)."""
 
     axis: int
     point: FloatArray
+    mass: float = 0.0
 
     @property
     def name(self) -> str:
-        return "target" if self.target else f"axis{self.axis + 1}"
+        if self.target:
+            return "target"
+        return f"link{self.axis}" if self.mass > 0 else f"axis{self.axis + 1}"
 
     @property
     def target(self) -> bool:
@@ -90,7 +108,7 @@ class Terms:
     def families(self) -> list[str]:
         """The families present: ``compliance`` and/or ``harmonic``."""
         kinds = {t.kind for t in self.terms}
-        out = ["compliance"] if "compliance" in kinds else []
+        out = ["compliance"] if kinds & {"compliance", "compliance_masses"} else []
         return out + (["harmonic"] if kinds & {"harmonic_sin", "harmonic_cos"} else [])
 
     def with_coefficients(self, coefficients: FloatArray) -> Terms:
@@ -114,15 +132,13 @@ class Terms:
                 B[k] = np.sin(Q[:, t.joint])
             elif t.kind == "harmonic_cos":
                 B[k] = np.cos(Q[:, t.joint])
-            else:
-                z, o, p = axis_dirs[t.joint], axis_points[t.joint], lump_points[t.lump]
-                r = p - o
-                # z · (r × g) = g · (z × r)
-                B[k] = (
-                    g[0] * (z[1] * r[2] - z[2] * r[1])
-                    + g[1] * (z[2] * r[0] - z[0] * r[2])
-                    + g[2] * (z[0] * r[1] - z[1] * r[0])
-                )
+            elif t.kind == "compliance":
+                B[k] = _lever(g, axis_dirs[t.joint], axis_points[t.joint], lump_points[t.lump])
+            else:  # the known masses downstream of the joint
+                B[k] = 0.0
+                for lump, p in zip(self.lumps, lump_points, strict=True):
+                    if lump.mass > 0 and lump.axis > t.joint:
+                        B[k] += lump.mass * _lever(g, axis_dirs[t.joint], axis_points[t.joint], p)
         return B
 
     def deflection(self, B: FloatArray, n: int) -> FloatArray:
@@ -138,8 +154,11 @@ class Terms:
             "gravity": [float(v) for v in self.gravity],
             "lumps": [
                 {
-                    "on": "target" if lump.target else f"axis {lump.axis + 1}",
+                    "on": "target"
+                    if lump.target
+                    else (f"link {lump.axis}" if lump.mass > 0 else f"axis {lump.axis + 1}"),
                     "point": [float(v) for v in lump.point],
+                    **({"mass": lump.mass} if lump.mass > 0 else {}),
                 }
                 for lump in self.lumps
             ],
@@ -151,11 +170,24 @@ class Terms:
                     **({"lump": t.lump} if t.kind == "compliance" else {}),
                     "value": float(self.coefficients[k]),
                     "std": None if std is None else float(std[k]),
-                    "unit": "rad/m" if t.kind == "compliance" else "rad",
+                    "unit": UNITS[t.kind],
                 }
                 for k, t in enumerate(self.terms)
             ],
         }
+
+
+def _lever(g: FloatArray, z: FloatArray, o: FloatArray, p: FloatArray) -> FloatArray:
+    """``z · ((p − o) × g)`` per sample (m): the lever arm about the axis (o, z) of a unit mass
+    at ``p`` under gravity ``g``."""
+    r = p - o
+    # z · (r × g) = g · (z × r)
+    return np.asarray(
+        g[0] * (z[1] * r[2] - z[2] * r[1])
+        + g[1] * (z[2] * r[0] - z[0] * r[2])
+        + g[2] * (z[0] * r[1] - z[1] * r[0]),
+        dtype=np.float64,
+    )
 
 
 def design(
@@ -166,19 +198,30 @@ def design(
     revolute: list[bool],
     gravity: FloatArray,
     harmonic_joints: tuple[int, ...] | None = None,
+    masses: tuple[Lump, ...] = (),
 ) -> Terms:
     """The terms of ``families`` (``compliance``, ``harmonic``) for a chain whose axes at the
     reference pose are ``axis_points``/``axis_dirs`` (3,) with its target, in one frame with
     ``gravity``. Compliance: every revolute joint (the first only when not along gravity), with
     a lump on each later axis (its foot on the axis before; for parallel neighbours the foot of
     the previous lump) and at the target, none on the joint's own axis (no lever about it);
-    harmonics on ``harmonic_joints`` (0-based; default every revolute joint)."""
+    harmonics on ``harmonic_joints`` (0-based; default every revolute joint). With the links'
+    ``masses`` (lumps with their mass), compliance is one term per joint for the torque of those
+    masses (its coefficient ``c g``) and one for a payload at the target."""
     n = len(axis_dirs)
     g = np.asarray(gravity, dtype=np.float64)
     g = g / np.linalg.norm(g)
     lumps: list[Lump] = []
     terms: list[Term] = []
-    if "compliance" in families:
+    if "compliance" in families and masses:
+        lumps = [*masses, Lump(-1, np.asarray(target, dtype=np.float64))]
+        for i in range(n):
+            if not revolute[i] or (i == 0 and abs(float(axis_dirs[0] @ g)) > np.cos(VERTICAL)):
+                continue
+            if any(lump.axis > i for lump in masses):
+                terms.append(Term("compliance_masses", i))
+            terms.append(Term("compliance", i, len(lumps) - 1))
+    elif "compliance" in families:
         previous = axis_points[0]
         for lx in range(1, n):
             p = _foot(axis_points[lx], axis_dirs[lx], axis_points[lx - 1], axis_dirs[lx - 1])
@@ -246,7 +289,7 @@ def to_table(terms: Terms, frames_ref: FloatArray) -> Terms:
     lumps = []
     for lump in terms.lumps:
         F = frames_ref[n if lump.target else lump.axis]
-        lumps.append(Lump(lump.axis, F[:3, :3].T @ (lump.point - F[:3, 3])))
+        lumps.append(Lump(lump.axis, F[:3, :3].T @ (lump.point - F[:3, 3]), lump.mass))
     return replace(terms, lumps=tuple(lumps), gravity=frames_ref[0][:3, :3].T @ terms.gravity)
 
 
@@ -300,10 +343,19 @@ def from_document(doc: Any, n: int, where: str) -> Terms:
         if on == "target":
             lumps.append(Lump(-1, point))
             continue
+        if str(on).startswith("link "):
+            try:
+                link, mass = int(str(on).removeprefix("link ")), float(item["mass"])
+            except (KeyError, TypeError, ValueError) as exc:
+                raise bad(f"lumps[{k}]", "'link N' needs a whole N and a numeric 'mass'") from exc
+            if not 1 <= link <= n or not np.isfinite(mass) or mass <= 0:
+                raise bad(f"lumps[{k}]", f"names link {link} of mass {mass} (links 1-{n}, kg > 0)")
+            lumps.append(Lump(link, point, mass))
+            continue
         try:
             axis = int(str(on).removeprefix("axis ")) - 1
         except ValueError as exc:
-            raise bad(f"lumps[{k}].on", "must be 'target' or 'axis N'") from exc
+            raise bad(f"lumps[{k}].on", "must be 'target', 'axis N' or 'link N'") from exc
         if not 1 <= axis < n:
             raise bad(f"lumps[{k}].on", f"names axis {axis + 1}; the table has {n} joints")
         lumps.append(Lump(axis, point))

@@ -111,7 +111,7 @@ from dhlog.io.pipeline import Pipeline
 from dhlog.io.reader import LogData, read_log
 from dhlog.io.writer import sha256_of
 from dhlog.kinematics import fk_frames, fk_points_chunked
-from dhlog.nongeometric import Terms, table_deflection, to_table
+from dhlog.nongeometric import Lump, Terms, table_deflection, to_table
 from dhlog.segment import Segmentation, segment_log
 from dhlog.validate import Validation, check_residual, table_gap, validate_samples, validate_sweeps
 
@@ -885,6 +885,11 @@ def _beyond_geometry(
         if request.gravity is None
         else np.asarray(request.gravity, dtype=np.float64)
     )
+    masses: tuple[Lump, ...] = ()
+    if request.masses is not None:
+        masses, urdf_gravity = _link_masses(result, whole, request.masses)
+        if request.gravity is None:
+            gravity = urdf_gravity
     # where the declared uncertainties are far below the residuals, the candidates are weighed
     # with the model-error component as the final fit will be (U95 alone weighs badly)
     declared = options.get("sample_cov")
@@ -913,6 +918,7 @@ def _beyond_geometry(
         gravity=gravity,
         harmonic_joints=request.harmonic_joints,
         folds=result.folds if result.folds > 1 else SELECT_FOLDS,
+        masses=masses,
     )
     result.selection = selection
     chosen = selection.chosen
@@ -922,11 +928,60 @@ def _beyond_geometry(
     # the lumps again on the chosen candidate's axes (the geometric fit's may sit off where the
     # terms were missing), its coefficients kept where the terms are the same
     assert chosen.fit is not None
-    again = terms_for(chosen.fit, chosen.families, gravity, request.harmonic_joints)
+    again = terms_for(chosen.fit, chosen.families, gravity, request.harmonic_joints, masses)
     if again is not None and again.names() == terms.names():
         again = again.with_coefficients(terms.coefficients)
     start = replace(whole.model, terms=again)
     return fit_whole_model(start, Q, P, sigma=sigma, **options)
+
+
+#: The URDF's joint axes farther than this (m, RMS) from the measured ones after placing it
+#: are worth a warning: its masses may not be this robot's, or not where they were placed.
+URDF_MISFIT = 0.01
+
+
+def _link_masses(
+    result: ProcessResult, whole: WholeFit, path: str
+) -> tuple[tuple[Lump, ...], FloatArray]:
+    """The links' masses of the URDF at ``path`` as lumps in M (its axes placed on the fitted
+    ones: ``align_lines``), and gravity along its root's −z in M."""
+    from dhlog.identify.start import align_lines
+    from dhlog.io.urdfmasses import read_link_masses
+
+    names = tuple(j.name for j in result.joints)
+    lm = read_link_masses(path, names, result.reference_pose)
+    measured = [(a.point, a.direction) for a in whole.model.axes]
+    T = align_lines(list(zip(lm.axis_points, lm.axis_dirs, strict=True)), measured)
+    if T is None:
+        raise InputError(
+            f"{path}: its joint axes do not fix a placement on the measured ones (all parallel); "
+            "give --gravity and leave --masses out for the lumped gravity terms."
+        )
+    R, t = T[:3, :3], T[:3, 3]
+    misfit = [
+        float(np.linalg.norm(np.cross(R @ p + t - a.point, a.direction)))
+        for p, a in zip(lm.axis_points, whole.model.axes, strict=True)
+    ]
+    rms = math.sqrt(float(np.mean(np.square(misfit))))
+    turned = max(
+        float(np.degrees(np.arccos(np.clip(abs((R @ d) @ a.direction), -1.0, 1.0))))
+        for d, a in zip(lm.axis_dirs, whole.model.axes, strict=True)
+    )
+    result.info.append(
+        f"--masses: {len(lm.masses)} link masses ({float(np.sum(lm.masses)):.1f} kg) from "
+        f"{path}, joints matched {lm.matched}, placed on the measured axes (RMS "
+        f"{rms * 1e3:.2f} mm, largest turn {turned:.3f}°); gravity along its base's −z."
+    )
+    if rms > URDF_MISFIT:
+        result.warnings.append(
+            f"--masses: the URDF's axes sit {rms * 1e3:.1f} mm RMS from the measured ones once "
+            "placed: is it this robot's, with its joint zero at the encoder zero?"
+        )
+    lumps = tuple(
+        Lump(k, R @ c + t, float(m))
+        for k, c, m in zip(lm.moved_by, lm.centres, lm.masses, strict=True)
+    )
+    return lumps, np.asarray(R @ np.array([0.0, 0.0, -1.0]), dtype=np.float64)
 
 
 def _identifiability_notes(result: ProcessResult, whole: WholeFit) -> None:

@@ -207,20 +207,25 @@ def _print_terms(console: Console, result: ProcessResult, units: str) -> None:
     length, _, lu, _ = _scales(units)
     digits = 4 if units == "mm" else 7
     t = Table(
-        title=escape(f"Model beyond the geometry (--model {selection.mode})"),
+        title=escape(
+            f"Model beyond the geometry (--model {selection.mode}): held-out RMS and the σ the "
+            f"model predicts over the session's joint ranges [{lu}]"
+        ),
         title_justify="left",
         box=box.SIMPLE_HEAD,
         pad_edge=False,
     )
-    for head in ("model", "terms", "params", "BIC", f"held-out RMS [{lu}]", ""):
-        t.add_column(escape(head), justify="left" if head in ("model", "") else "right")
+    for head in ("model", "params", "BIC", "held out", "σ range", ""):
+        t.add_column(
+            escape(head), justify="left" if head in ("model", "") else "right", no_wrap=True
+        )
     for c in selection.candidates:
         t.add_row(
             escape(c.name),
-            str(c.terms),
             str(c.parameters),
             f"{c.bic:.1f}",
             "—" if c.holdout_rms is None else f"{c.holdout_rms * length:.{digits}f}",
+            f"{c.range_sd * length:.{digits}f}",
             "chosen" if c.chosen else "",
         )
     console.print(t)
@@ -257,14 +262,15 @@ def _terms_markdown(result: ProcessResult, length: float, lu: str) -> list[str]:
         "",
         f"## Beyond the geometry (--model {selection.mode})",
         "",
-        f"| model | terms | parameters | BIC | held-out RMS [{lu}] | chosen | why |",
-        "|---|---|---|---|---|---|---|",
+        f"| model | terms | parameters | BIC | held-out RMS [{lu}] | σ over the ranges [{lu}] | "
+        "chosen | why |",
+        "|---|---|---|---|---|---|---|---|",
     ]
     for c in selection.candidates:
         held = "" if c.holdout_rms is None else f"{c.holdout_rms * length:.4f}"
         lines.append(
             f"| {c.name} | {c.terms} | {c.parameters} | {c.bic:.1f} | {held} | "
-            f"{'yes' if c.chosen else ''} | {c.why} |"
+            f"{c.range_sd * length:.4f} | {'yes' if c.chosen else ''} | {c.why} |"
         )
     if result.terms is not None:
         lines += ["", "| term | value | σ | unit |", "|---|---|---|---|"]

@@ -267,6 +267,39 @@ def truth_terms(
     return Terms(tuple(terms), tuple(lumps), R_base.T @ g_m, np.array(values))
 
 
+def masses_urdf(robot: Robot) -> str:
+    """A URDF of the library robot's nominal table whose links carry its lumped masses where
+    the simulator's truth puts them (the DH frame origins on joints 2 … n's axes): link k
+    (after joint k) has its frame on joint k's axis, at the DH frame origin before it, z along
+    the axis — what a maker's description with ``<inertial>`` elements gives ``--masses``."""
+    from scipy.spatial.transform import Rotation
+
+    n = robot.n
+    A = robot.table.link_transforms(np.zeros(n))
+    parts = [f'<robot name="{robot.name}">', '  <link name="base"/>']
+    for k in range(1, n + 1):
+        T = robot.T_base if k == 1 else A[k - 2]
+        rpy = Rotation.from_matrix(T[:3, :3]).as_euler("xyz")
+        mass = float(robot.masses[k - 2]) if k >= 2 and robot.masses.size == n - 1 else 0.0
+        inertial = (
+            f'<inertial><origin xyz="0 0 0"/><mass value="{mass:g}"/>'
+            '<inertia ixx="1" iyy="1" izz="1" ixy="0" ixz="0" iyz="0"/></inertial>'
+            if mass > 0
+            else ""
+        )
+        kind = "prismatic" if robot.table.joint_types[k - 1] is JointType.PRISMATIC else "revolute"
+        lo, hi = robot.limits[k - 1]
+        parts += [
+            f'  <link name="link_{k}">{inertial}</link>',
+            f'  <joint name="joint_{k}" type="{kind}">'
+            f'<parent link="{"base" if k == 1 else f"link_{k - 1}"}"/><child link="link_{k}"/>'
+            f'<origin xyz="{" ".join(f"{v:.12g}" for v in T[:3, 3])}" '
+            f'rpy="{" ".join(f"{v:.12g}" for v in rpy)}"/><axis xyz="0 0 1"/>'
+            f'<limit lower="{lo:.9g}" upper="{hi:.9g}" effort="1" velocity="1"/></joint>',
+        ]
+    return "\n".join([*parts, "</robot>", ""])
+
+
 def protocol_config(cfg: SimulationConfig) -> SimulationConfig:
     """``cfg`` with what its protocol implies spelled out: step-and-measure for ``random-poses``
     and ``coupled``; for ``coupled`` joint 2 never swept alone and moved together with 3."""

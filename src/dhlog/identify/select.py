@@ -8,12 +8,17 @@ whole-model maximum likelihood to the same samples (the geometric fit's inliers,
 * the Bayesian information criterion ``N ln(RSS/N) + p ln N`` (``N`` whitened residual
   components, ``RSS`` their sum of squares, ``p`` the parameters the samples determine);
 * the RMS error at held-out poses of a K-fold cross-validation over poses (the same folds for
-  every candidate; :func:`dhlog.identify.holdout.cross_validate`).
+  every candidate; :func:`dhlog.identify.holdout.cross_validate`);
+* the RMS FK σ its covariance predicts over the joint vectors the session's ranges span (every
+  combination of the joints' ranges): held-out poses lie among the fitted ones, and a model the
+  poses determine only there (many lumped terms fitted to sweeps from one pose) would miss the
+  robot elsewhere.
 
 ``auto`` adds a family (forward selection: each alone, the best proven one kept, then the
-others added to it) only when it lowers *both*: the criterion, and the
-held-out mean squared error by more than :data:`HELD_OUT_SIGMA` standard errors of the paired
-difference over the held-out poses (a gain within the folds' own scatter is no proof). The
+others added to it) only when it lowers the criterion, the held-out mean squared error by more
+than :data:`HELD_OUT_SIGMA` standard errors of the paired difference over the held-out poses (a
+gain within the folds' own scatter is no proof), and the error expected over the ranges
+(held-out mean square plus the predicted variance there). The
 cross-validation runs only for a candidate the criterion prefers: a family it rejects is
 rejected without it.
 ``compliance``, ``harmonic`` and ``full`` force their families; ``geometric`` tries nothing.
@@ -32,8 +37,8 @@ from dhlog.dh import JointType
 from dhlog.errors import DhlogError
 from dhlog.geometry._checks import FloatArray
 from dhlog.identify.holdout import cross_validate
-from dhlog.identify.whole import WholeFit, fit_whole_model
-from dhlog.nongeometric import Terms, design
+from dhlog.identify.whole import WholeFit, fit_whole_model, predict
+from dhlog.nongeometric import Lump, Terms, design
 
 #: The ``--model`` choices and the families each forces (``auto`` tries them in this order).
 MODELS = {
@@ -47,6 +52,9 @@ MODELS = {
 SELECT_SAMPLES = 20000
 #: Folds of the selection's cross-validation when ``--holdout`` does not name K.
 SELECT_FOLDS = 5
+#: Joint vectors (seeded, uniform in the box of the session's per-joint ranges) over which each
+#: candidate's predicted FK σ is taken.
+RANGE_POINTS = 300
 
 
 @dataclass(frozen=True)
@@ -57,6 +65,8 @@ class ModelRequest:
     mode: str = "auto"
     gravity: tuple[float, float, float] | None = None
     harmonic_joints: tuple[int, ...] | None = None
+    #: a URDF whose links' ``<inertial>`` masses give the gravity torques (None: lumped terms)
+    masses: str | None = None
 
 
 #: The default request: ``--model auto``.
@@ -78,6 +88,16 @@ class Candidate:
     why: str = ""
     #: per held-out pose, the squared error (m²), in the cross-validation's order
     squared: FloatArray | None = None
+    #: RMS predicted FK σ (m) over the joint vectors the session's ranges span (every
+    #: combination: :data:`RANGE_POINTS` seeded vectors in the per-joint box)
+    range_sd: float = math.nan
+
+    @property
+    def expected(self) -> float:
+        """The mean squared error expected over the session's ranges (m²): held-out error plus
+        what the model's uncertainty adds where the session did not go."""
+        held = math.inf if self.holdout_rms is None else self.holdout_rms
+        return held**2 + self.range_sd**2
 
     @property
     def name(self) -> str:
@@ -90,6 +110,7 @@ class Candidate:
             "parameters": self.parameters,
             "bic": self.bic,
             "holdout_rms": self.holdout_rms,
+            "range_sd": self.range_sd,
             "chosen": self.chosen,
             "why": self.why,
         }
@@ -131,6 +152,7 @@ def terms_for(
     families: tuple[str, ...],
     gravity: FloatArray,
     harmonic_joints: tuple[int, ...] | None,
+    masses: tuple[Lump, ...] = (),
 ) -> Terms | None:
     """The terms of ``families`` on ``whole``'s axes (None for none)."""
     if not families:
@@ -144,6 +166,7 @@ def terms_for(
         [t is JointType.REVOLUTE for t in model.types],
         gravity,
         harmonic_joints,
+        masses,
     )
 
 
@@ -158,6 +181,7 @@ def select_model(
     gravity: FloatArray,
     harmonic_joints: tuple[int, ...] | None = None,
     folds: int = SELECT_FOLDS,
+    masses: tuple[Lump, ...] = (),
 ) -> Selection:
     """Score the candidates of ``mode`` (see the module docstring) on ``whole``'s inliers.
     ``options``: the whole fit's keyword arguments (per-sample arrays over all samples)."""
@@ -170,9 +194,13 @@ def select_model(
     }
     keep = whole.inliers[pick]
     Qs, Ps = Q[pick], P[pick]
+    used = Qs[keep] if np.any(keep) else Qs
+    box = np.random.default_rng(0).uniform(
+        used.min(axis=0), used.max(axis=0), (RANGE_POINTS, Q.shape[1])
+    )
 
     def fitted(families: tuple[str, ...]) -> Candidate:
-        terms = terms_for(whole, families, gravity, harmonic_joints)
+        terms = terms_for(whole, families, gravity, harmonic_joints, masses)
         start = replace(whole.model, terms=terms)
         fit = fit_whole_model(start, Qs, Ps, sigma=sigma, keep=keep, threshold=math.inf, **sub)
         d = fit.determined
@@ -181,7 +209,13 @@ def select_model(
         n_res = per * fit.n_points
         rss = fit.chi2_dof * max(n_res - p, 1)
         bic = n_res * math.log(max(rss, 1e-300) / n_res) + p * math.log(n_res)
-        return Candidate(families, 0 if terms is None else terms.size, p, bic, fit=fit)
+        _, J = predict(fit.model, box, fit.layout, fit.bases)
+        assert J is not None
+        var = np.einsum("mij,jk,mik->m", J, fit.covariance, J)
+        range_sd = math.sqrt(max(float(np.mean(var)), 0.0))
+        return Candidate(
+            families, 0 if terms is None else terms.size, p, bic, fit=fit, range_sd=range_sd
+        )
 
     def held_out(c: Candidate) -> None:
         if c.holdout_rms is not None or c.fit is None:
@@ -235,6 +269,13 @@ def select_model(
         if gain + HELD_OUT_SIGMA * spread >= 0.0:
             cand.why = f"BIC {cand.bic - over.bic:+.1f} but {held}: not lower beyond its spread"
             return False
+        if cand.expected >= over.expected:
+            cand.why = (
+                f"BIC {cand.bic - over.bic:+.1f}, {held}, but its σ over the session's joint "
+                f"ranges is {cand.range_sd * 1e3:.4f} mm ({over.range_sd * 1e3:.4f} mm for "
+                f"{over.name}): the poses do not determine it where they did not go"
+            )
+            return False
         cand.why = f"BIC {cand.bic - over.bic:+.1f} against {over.name}, {held}"
         return True
 
@@ -247,7 +288,7 @@ def select_model(
         proven = [c for c in tried if proves(c, current)]
         if not proven:
             break
-        best = min(proven, key=lambda c: (c.holdout_rms or math.inf, c.bic))
+        best = min(proven, key=lambda c: (c.expected, c.bic))
         left = [f for f in left if f not in best.families]
         current = best
     current.chosen = True
