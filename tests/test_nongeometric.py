@@ -254,6 +254,7 @@ def test_the_command_line(tmp_path: Path) -> None:
     )  # fmt: skip
     assert made.exit_code == 0, made.output
     truth = json.loads((tmp_path / "c.truth.json").read_text())
+    assert (tmp_path / "c.urdf").read_text().count("<mass ") == 5  # for --masses
     assert {t["kind"] for t in truth["nongeometric"]["terms"]} == {
         "compliance",
         "harmonic_sin",
@@ -268,7 +269,7 @@ def test_the_command_line(tmp_path: Path) -> None:
     terms = (out / "c.terms.csv").read_text().splitlines()
     assert len(terms) > 3 and any(",harmonic_sin," in row for row in terms)
     urdf = runner.invoke(
-        app, ["export", str(out / "c.dh.json"), "--format", "urdf", "-o", str(tmp_path / "c.urdf")]
+        app, ["export", str(out / "c.dh.json"), "--format", "urdf", "-o", str(out / "c.urdf")]
     )
     assert urdf.exit_code == 0 and "cannot carry them" in urdf.output
     fk = runner.invoke(app, ["fk", str(out / "c.dh.json"), "--q", "0,-1,0.5,0,0.3,0"])
