@@ -20,7 +20,8 @@ default; 0 never); ``--cases`` runs the cases whose name contains the text.
 ``--beyond`` runs the cases of terms beyond the geometry instead (issue 18: robots whose truth
 bends under gravity, or does not), each against its truth's FK *with* the truth's deflection:
 
-* auto: ``dhlog process --nominal`` (``--model auto``, the default), what it chose;
+* auto: ``dhlog process --nominal`` (``--model auto``, the default; ``--masses`` with the
+  robot's URDF where the case says), what it chose;
 * geometric: ``--model geometric``;
 * limit: the true model (geometry and the truth's own terms, no others) fitted by maximum
   likelihood to the same samples, started from the truth.
@@ -138,6 +139,15 @@ BEYOND: dict[str, tuple[str, dict[str, object]]] = {
             "compliance": ((2, 2e-8), (3, 3e-8), (5, 1e-7)),
         },
     ),
+    "KR210-like, gravity compliance, 60 random poses, --masses (its URDF)": (
+        "kr210",
+        {
+            "protocol": "random-poses",
+            "poses": 60,
+            "compliance": ((2, 2e-8), (3, 3e-8), (5, 1e-7)),
+            "masses": True,
+        },
+    ),
     "KR210-like, gravity compliance, 90° sweeps (12 stops), σ 10 µm": (
         "kr210",
         {"motion": "step", "steps": 12, "compliance": ((2, 2e-8), (3, 3e-8), (5, 1e-7))},
@@ -157,12 +167,15 @@ def beyond(job: tuple[str, str, int, int]) -> dict[str, object]:
     """Squared FK errors of auto, geometric and the true-model limit for one seeded session,
     and what auto chose."""
     import dataclasses
+    import tempfile
+    from pathlib import Path
 
     from dhlog.dhfile import DHModel
     from dhlog.identify.select import ModelRequest
     from dhlog.kinematics import fk_frames
     from dhlog.nongeometric import Lump, table_deflection
     from dhlog.process import table_values
+    from dhlog.simulate import masses_urdf
 
     case, robot_name, seed, points = job
     robot = load_robot(robot_name)
@@ -172,6 +185,10 @@ def beyond(job: tuple[str, str, int, int]) -> dict[str, object]:
         "perturb_angle": math.radians(0.05),
         **BEYOND[case][1],
     }
+    urdf = None
+    if options.pop("masses", False):
+        urdf = Path(tempfile.mkdtemp()) / f"{robot_name}.urdf"
+        urdf.write_text(masses_urdf(robot))
     cfg = SimulationConfig(seed=seed, **options)  # type: ignore[arg-type]
     session = simulate_session(robot, cfg)
     log = log_data_from_session(session)
@@ -190,7 +207,9 @@ def beyond(job: tuple[str, str, int, int]) -> dict[str, object]:
         )  # type: ignore[arg-type]
         return np.asarray(np.sum((got - want) ** 2, axis=1))
 
-    auto = process_data(log, nominal=nominal)
+    auto = process_data(
+        log, nominal=nominal, model=ModelRequest("auto", masses=None if urdf is None else str(urdf))
+    )
     geometric = process_data(log, nominal=nominal, model=ModelRequest("geometric"))
     ref = auto.reference_pose
     pts, dirs = joint_axes(table, ref, T_base=T)

@@ -26,6 +26,7 @@ and the simulator's truth), from points given in the frames each carries.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 from typing import Any
 
@@ -140,6 +141,17 @@ class Terms:
                     if lump.mass > 0 and lump.axis > t.joint:
                         B[k] += lump.mass * _lever(g, axis_dirs[t.joint], axis_points[t.joint], p)
         return B
+
+    def without(self, drop: Callable[[Term], bool]) -> Terms:
+        """These terms without those ``drop`` names (their lumps kept only where used)."""
+        keep = [k for k, t in enumerate(self.terms) if not drop(t)]
+        terms = [self.terms[k] for k in keep]
+        used = sorted({t.lump for t in terms if t.lump >= 0})
+        lumps = tuple(self.lumps[k] for k in used) if used or not self.lumps else ()
+        if any(lump.mass > 0 for lump in self.lumps):  # a URDF's masses stay whole
+            lumps, used = self.lumps, list(range(len(self.lumps)))
+        terms = [replace(t, lump=used.index(t.lump)) if t.lump >= 0 else t for t in terms]
+        return Terms(tuple(terms), lumps, self.gravity, self.coefficients[keep])
 
     def deflection(self, B: FloatArray, n: int) -> FloatArray:
         """``Δq`` (n, m) from the term functions ``B`` (k, m)."""

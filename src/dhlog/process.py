@@ -928,7 +928,9 @@ def _beyond_geometry(
     # the lumps again on the chosen candidate's axes (the geometric fit's may sit off where the
     # terms were missing), its coefficients kept where the terms are the same
     assert chosen.fit is not None
-    again = terms_for(chosen.fit, chosen.families, gravity, request.harmonic_joints, masses)
+    again = terms_for(
+        chosen.fit, chosen.families, gravity, request.harmonic_joints, masses, chosen.dropped
+    )
     if again is not None and again.names() == terms.names():
         again = again.with_coefficients(terms.coefficients)
     start = replace(whole.model, terms=again)

@@ -91,6 +91,11 @@ class Candidate:
     #: RMS predicted FK σ (m) over the joint vectors the session's ranges span (every
     #: combination: :data:`RANGE_POINTS` seeded vectors in the per-joint box)
     range_sd: float = math.nan
+    #: (family, joint) whose terms were left out: the poses do not determine them over the
+    #: ranges
+    dropped: frozenset[tuple[str, int]] = frozenset()
+    #: in-sample mean squared 3-D residual (m²)
+    residual_ms: float = math.nan
 
     @property
     def expected(self) -> float:
@@ -101,7 +106,13 @@ class Candidate:
 
     @property
     def name(self) -> str:
-        return "+".join(self.families) if self.families else "geometric"
+        if not self.families:
+            return "geometric"
+        parts = []
+        for family in self.families:
+            out = sorted(j + 1 for f, j in self.dropped if f == family)
+            parts.append(family + (f" (not {','.join(map(str, out))})" if out else ""))
+        return "+".join(parts)
 
     def document(self) -> dict[str, Any]:
         return {
@@ -147,18 +158,25 @@ def default_gravity(whole: WholeFit) -> FloatArray:
     return np.asarray(-d if d[2] >= 0 else d, dtype=np.float64)
 
 
+def family_of(kind: str) -> str:
+    """The family of a term kind: ``compliance`` or ``harmonic``."""
+    return "compliance" if kind.startswith("compliance") else "harmonic"
+
+
 def terms_for(
     whole: WholeFit,
     families: tuple[str, ...],
     gravity: FloatArray,
     harmonic_joints: tuple[int, ...] | None,
     masses: tuple[Lump, ...] = (),
+    dropped: frozenset[tuple[str, int]] = frozenset(),
 ) -> Terms | None:
-    """The terms of ``families`` on ``whole``'s axes (None for none)."""
+    """The terms of ``families`` on ``whole``'s axes, without the (family, joint) ``dropped``
+    (None for none)."""
     if not families:
         return None
     model = whole.model
-    return design(
+    terms = design(
         families,
         [a.point for a in model.axes],
         [a.direction for a in model.axes],
@@ -168,6 +186,7 @@ def terms_for(
         harmonic_joints,
         masses,
     )
+    return terms.without(lambda t: (family_of(t.kind), t.joint) in dropped)
 
 
 def select_model(
@@ -199,8 +218,10 @@ def select_model(
         used.min(axis=0), used.max(axis=0), (RANGE_POINTS, Q.shape[1])
     )
 
-    def fitted(families: tuple[str, ...]) -> Candidate:
-        terms = terms_for(whole, families, gravity, harmonic_joints, masses)
+    def fitted(
+        families: tuple[str, ...], dropped: frozenset[tuple[str, int]] = frozenset()
+    ) -> Candidate:
+        terms = terms_for(whole, families, gravity, harmonic_joints, masses, dropped)
         start = replace(whole.model, terms=terms)
         fit = fit_whole_model(start, Qs, Ps, sigma=sigma, keep=keep, threshold=math.inf, **sub)
         d = fit.determined
@@ -213,9 +234,35 @@ def select_model(
         assert J is not None
         var = np.einsum("mij,jk,mik->m", J, fit.covariance, J)
         range_sd = math.sqrt(max(float(np.mean(var)), 0.0))
+        pred, _ = predict(fit.model, Qs[keep], which=None)
+        residual_ms = float(np.mean(np.sum((pred - Ps[keep]) ** 2, axis=1)))
         return Candidate(
-            families, 0 if terms is None else terms.size, p, bic, fit=fit, range_sd=range_sd
+            families,
+            0 if terms is None else terms.size,
+            p,
+            bic,
+            fit=fit,
+            range_sd=range_sd,
+            dropped=dropped,
+            residual_ms=residual_ms,
         )
+
+    def pruned(cand: Candidate, family: str) -> Candidate:
+        """``cand`` without the joints of ``family`` the poses do not determine over the
+        ranges: one joint's terms at a time, while dropping them lowers the in-sample mean
+        squared error plus the predicted variance over the ranges."""
+        while True:
+            terms = None if cand.fit is None else cand.fit.model.terms
+            joints = sorted(
+                {t.joint for t in (terms.terms if terms else ()) if family_of(t.kind) == family}
+            )
+            if len(joints) <= 1:
+                return cand
+            trials = [fitted(cand.families, cand.dropped | {(family, j)}) for j in joints]
+            best = min(trials, key=lambda c: c.residual_ms + c.range_sd**2)
+            if best.residual_ms + best.range_sd**2 >= cand.residual_ms + cand.range_sd**2:
+                return cand
+            cand = best
 
     def held_out(c: Candidate) -> None:
         if c.holdout_rms is not None or c.fit is None:
@@ -283,7 +330,12 @@ def select_model(
     # (compliance and a joint's first harmonic can look alike: cos of the arm's angle)
     current, left = base, list(families)
     while left:
-        tried = [fitted((*current.families, family)) for family in left]
+        tried = []
+        for family in left:
+            cand = fitted((*current.families, family))
+            if cand.bic < current.bic:  # worth its best form: joints it cannot carry dropped
+                cand = pruned(cand, family)
+            tried.append(cand)
         candidates += tried
         proven = [c for c in tried if proves(c, current)]
         if not proven:
