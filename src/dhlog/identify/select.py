@@ -49,7 +49,7 @@ MODELS = {
     "full": ("compliance", "harmonic"),
 }
 #: Most samples the candidates are fitted and scored on (evenly strided).
-SELECT_SAMPLES = 20000
+SELECT_SAMPLES = 5000
 #: Folds of the selection's cross-validation when ``--holdout`` does not name K.
 SELECT_FOLDS = 5
 #: Joint vectors (seeded, uniform in the box of the session's per-joint ranges) over which each
