@@ -919,6 +919,7 @@ def _beyond_geometry(
         harmonic_joints=request.harmonic_joints,
         folds=result.folds if result.folds > 1 else SELECT_FOLDS,
         masses=masses,
+        reuse=weighed is options,
     )
     result.selection = selection
     chosen = selection.chosen

@@ -201,9 +201,12 @@ def select_model(
     harmonic_joints: tuple[int, ...] | None = None,
     folds: int = SELECT_FOLDS,
     masses: tuple[Lump, ...] = (),
+    reuse: bool = False,
 ) -> Selection:
     """Score the candidates of ``mode`` (see the module docstring) on ``whole``'s inliers.
-    ``options``: the whole fit's keyword arguments (per-sample arrays over all samples)."""
+    ``options``: the whole fit's keyword arguments (per-sample arrays over all samples);
+    ``reuse``: ``whole`` was fitted with exactly these options, so that on every sample it is
+    the geometric candidate itself (no fit again)."""
     m = Q.shape[0]
     stride = -(-m // SELECT_SAMPLES) if m > SELECT_SAMPLES else 1
     pick = np.arange(0, m, stride)
@@ -222,8 +225,11 @@ def select_model(
         families: tuple[str, ...], dropped: frozenset[tuple[str, int]] = frozenset()
     ) -> Candidate:
         terms = terms_for(whole, families, gravity, harmonic_joints, masses, dropped)
-        start = replace(whole.model, terms=terms)
-        fit = fit_whole_model(start, Qs, Ps, sigma=sigma, keep=keep, threshold=math.inf, **sub)
+        if terms is None and reuse and stride == 1:
+            fit = whole  # its optimum over its inliers is the candidate's
+        else:
+            start = replace(whole.model, terms=terms)
+            fit = fit_whole_model(start, Qs, Ps, sigma=sigma, keep=keep, threshold=math.inf, **sub)
         d = fit.determined
         p = d.basis.shape[1] if d is not None else fit.layout.size
         per = 3 if sub.get("rotations") is None else 6
