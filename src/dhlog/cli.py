@@ -1007,6 +1007,88 @@ def _terms_not_exported(result: Path, fmt: str) -> None:
 
 
 @app.command(cls=_Command, epilog=EXIT_CODES)
+def compensate(
+    result: Annotated[
+        Path, typer.Argument(metavar="RESULT", help="A result JSON (<stem>.dh.json).")
+    ],
+    nominal: Annotated[
+        str,
+        typer.Option(
+            metavar="NAME|FILE",
+            help="The model the controller runs: a library robot or a DH file (its limits from "
+            "the library, when it is one).",
+        ),
+    ],
+    joints: Annotated[
+        Path,
+        typer.Option(
+            metavar="CSV",
+            help="Joint targets as the controller would run them: one row per target, one "
+            "column per joint (a header row is read and kept).",
+        ),
+    ],
+    output: Annotated[
+        Path, typer.Option("-o", "--output", metavar="CSV", help="The corrected targets.")
+    ],
+    angle_unit: Annotated[
+        str, typer.Option(metavar="rad|deg", help="The unit of the targets' revolute joints.")
+    ] = "rad",
+    force: Annotated[bool, typer.Option("--force", help="Overwrite the output.")] = False,
+) -> None:
+    """Correct joint targets for a controller that keeps its nominal model: the calibrated robot
+    (its terms beyond the geometry included) then reaches the pose the controller intended."""
+    from rich.markup import escape
+
+    from dhlog.compensate import compensate as corrected
+    from dhlog.compensate import read_targets, targets_csv
+    from dhlog.dhfile import load_dh
+    from dhlog.errors import InputError
+    from dhlog.io.writer import atomic_output
+    from dhlog.robots import load_robot, robot_names
+
+    if angle_unit not in ("rad", "deg"):
+        stderr.print(f"error: --angle-unit must be rad or deg, not '{angle_unit}'.")
+        raise typer.Exit(EXIT_USAGE)
+    if output.resolve() in {joints.resolve(), result.resolve()}:
+        stderr.print(f"error: {output} is an input; name another with -o.")
+        raise typer.Exit(EXIT_USAGE)
+    _refuse_existing(output, force)
+    try:
+        model = load_dh(result)
+        nom = _model(nominal)
+        if nom.table.n != model.table.n:
+            raise InputError(
+                f"{nominal}: has {nom.table.n} joints but {result} has {model.table.n}; give the "
+                "nominal of this robot."
+            )
+        header, Q = read_targets(joints, model.table.n)
+        revolute = np.array([t.value == "revolute" for t in model.table.joint_types])
+        if angle_unit == "deg":
+            Q = np.where(revolute, np.radians(Q), Q)
+        limits = load_robot(nominal).limits if nominal in robot_names() else None
+        done = corrected(model, nom, Q, limits=limits)
+        shown = np.where(revolute, np.degrees(done.targets), done.targets)
+        if angle_unit != "deg":
+            shown = done.targets
+        with atomic_output(output) as f:
+            f.write(targets_csv(header, shown, done.problems).encode())
+    except DhlogError as exc:
+        _fail(exc)
+    except OSError as exc:
+        _fail(OutputError(output.parent, exc))
+    for row, why in sorted(done.problems.items()):
+        stdout.print(escape(f"{joints.name} row {row + 1}: not corrected: {why}."))
+    good = np.isfinite(done.targets[:, 0])
+    largest = float(np.max(np.abs(done.targets[good] - Q[good]))) if np.any(good) else 0.0
+    worst = float(np.max(done.error[good], initial=0.0))
+    stdout.print(
+        f"wrote {escape(str(output))}: {int(good.sum())} of {len(Q)} targets corrected (largest "
+        f"change {largest:.6g} rad or m; each within {worst:.1e} m and rad of the pose the "
+        "nominal gives the original)"
+    )
+
+
+@app.command(cls=_Command, epilog=EXIT_CODES)
 def batch(
     logs: Annotated[
         list[Path], typer.Argument(metavar="LOG", help="Session logs (.mcap, bag folders).")
