@@ -339,3 +339,29 @@ def test_masses_from_a_urdf_give_each_joint_its_compliance(tmp_path: Path) -> No
     doc = result_document(result)
     jsonschema.validate(doc, SCHEMA)
     assert sum(1 for lump in doc["nongeometric"]["lumps"] if "mass" in lump) == 5
+
+
+def test_a_bad_masses_urdf_is_one_line(tmp_path: Path) -> None:
+    """--masses: a missing file (exit 1), a file that is no URDF, one without link masses and
+    one whose joints are not the robot's (exit 2): one line naming the file, no traceback."""
+    log = tmp_path / "kr5.mcap"
+    made = runner.invoke(app, ["simulate", "kr5", "-o", str(log), "--protocol", "random-poses"])
+    assert made.exit_code == 0, made.output
+    no_masses = masses_urdf(load_robot("kr5")).replace("<mass ", "<massless ")
+    other = masses_urdf(load_robot("scara"))
+    cases = {
+        "missing.urdf": None,
+        "garbage.urdf": "<robot><link",
+        "light.urdf": no_masses,
+        "scara.urdf": other,
+    }
+    for name, text in cases.items():
+        path = tmp_path / name
+        if text is not None:
+            path.write_text(text)
+        args = ["process", str(log), "--nominal", "kr5", "--masses", str(path), "--no-rrd"]
+        done = runner.invoke(app, [*args, "--out", str(tmp_path / f"out_{name}")])
+        lines = [line for line in done.output.splitlines() if line.strip()]
+        assert done.exit_code == (1 if text is None else 2), (name, done.output)
+        assert name in done.output and "Traceback" not in done.output, done.output
+        assert len(lines) <= 3, done.output  # one message, wrapped by the console
