@@ -1089,6 +1089,83 @@ def compensate(
 
 
 @app.command(cls=_Command, epilog=EXIT_CODES)
+def plan(
+    robot: Annotated[str, typer.Argument(metavar="ROBOT", help="A library robot or a DH file.")],
+    protocol: Annotated[
+        str, typer.Option(metavar="sweeps|random-poses|coupled", help="What the robot does.")
+    ] = "random-poses",
+    poses: Annotated[int, typer.Option(help="Still poses of --protocol random-poses.")] = 40,
+    steps: Annotated[int, typer.Option(help="Stops per sweep (sweeps, coupled).")] = 12,
+    sweep_deg: Annotated[float, typer.Option(help="Sweep of each revolute joint, degrees.")] = 90.0,
+    noise_mm: Annotated[
+        float, typer.Option(help="The tracker's σ per coordinate, mm (isotropic).")
+    ] = 0.01,
+    tracker_rate: Annotated[float, typer.Option(help="Tracker samples per second.")] = 100.0,
+    six_dof: Annotated[
+        bool, typer.Option("--six-dof", help="A 6-DoF probe: its orientation measured too.")
+    ] = False,
+    seed: Annotated[int, typer.Option(help="Seed of the poses drawn.")] = 0,
+) -> None:
+    """Before the session: the σ of every DH parameter and the FK σ over the workspace that a
+    protocol will give, and what it cannot determine."""
+    from rich import box
+    from rich.markup import escape
+    from rich.table import Table
+
+    from dhlog.dhfile import robot_or_dh_file
+    from dhlog.plan import plan_session
+    from dhlog.simulate import SIX_DOF_TOOL_ROTATION, SimulationConfig, config_problems
+
+    try:
+        rob = robot_or_dh_file(robot)
+        cfg = SimulationConfig(
+            noise=noise_mm * 1e-3,
+            tracker_rate=tracker_rate,
+            motion="step",
+            sweep=math.radians(sweep_deg),
+            steps=steps,
+            protocol=protocol,  # type: ignore[arg-type]
+            poses=poses,
+            tool_rotation=SIX_DOF_TOOL_ROTATION if six_dof else None,
+            base_points=12,
+            seed=seed,
+        )
+        problems = config_problems(rob, cfg)
+        if problems:
+            stderr.print(f"error: {escape(problems[0])}.")
+            raise typer.Exit(EXIT_USAGE)
+        found = plan_session(rob, cfg)
+    except DhlogError as exc:
+        _fail(exc)
+    t = Table(
+        title=f"Predicted σ of {escape(rob.name)}'s parameters ({protocol}: {found.samples} "
+        f"samples at {found.poses} poses, σ {noise_mm:g} mm)",
+        title_justify="left",
+        box=box.SIMPLE_HEAD,
+        pad_edge=False,
+    )
+    for head in ("#", "σ θ [°]", "σ d / β [mm or °]", "σ a [mm]", "σ α [°]"):
+        t.add_column(escape(head), justify="right")
+    for i, (row, form) in enumerate(zip(found.rows_std, found.forms, strict=True)):
+        cells = []
+        for k, v in enumerate(row):
+            angular = k in (0, 3) or (k == 1 and form == "hayati")
+            cells.append(
+                "fixed" if not np.isfinite(v) else f"{v * (180 / math.pi if angular else 1e3):.5f}"
+            )
+        t.add_row(str(i + 1), *cells)
+    stdout.print(t)
+    sd = found.fk_sd * 1e3
+    stdout.print(
+        f"Predicted FK σ at {sd.size} random joint vectors within the limits: RMS "
+        f"{math.sqrt(float(np.mean(sd**2))):.4f} mm, 95 % {float(np.percentile(sd, 95)):.4f} mm, "
+        f"max {float(sd.max()):.4f} mm (3-D)."
+    )
+    for line in found.fixed:
+        stdout.print(escape(f"Fixed: {line}"))
+
+
+@app.command(cls=_Command, epilog=EXIT_CODES)
 def batch(
     logs: Annotated[
         list[Path], typer.Argument(metavar="LOG", help="Session logs (.mcap, bag folders).")

@@ -148,7 +148,7 @@ def print_result(console: Console, result: ProcessResult, *, units: str = "mm") 
     aside = result.segmentation.set_aside
     if aside:
         lines.append(("Set aside", ", ".join(f"{k} {v}" for k, v in sorted(aside.items()))))
-    lines += [("Fixed", line) for line in _held_lines(result, rows)]
+    lines += [("Fixed", line) for line in held_lines(result, rows)]
     lines += [("Note", note) for note in result.info]
     _prose(console, lines)
     _prose(console, [("[yellow]Warning[/]", w) for w in result.warnings], markup=True)
@@ -413,7 +413,7 @@ def _print_tool_and_base(console: Console, result: ProcessResult, units: str) ->
     console.print(t)
 
 
-def _held_lines(result: ProcessResult, rows: list[DisplayRow]) -> list[str]:
+def held_lines(result: ProcessResult, rows: list[DisplayRow]) -> list[str]:
     """One line per reason: the parameters held by it (the names of the shown ``rows``)."""
     fixed = result.conditioned.fixed if result.conditioned is not None else result.fixed
     if not fixed or result.extraction is None:
@@ -562,7 +562,7 @@ def result_markdown(result: ProcessResult, *, units: str = "mm") -> str:
         tool = ex.tool_point * length
         shown = ", ".join(f"{v:.4f}" for v in tool)
         lines += ["", f"Tool point (frame {m.n + 1}): ({shown}) {lu}"]
-    held = _held_lines(result, rows)
+    held = held_lines(result, rows)
     if held:
         lines += ["", "## Held by convention or gauge (not measured)", ""]
         lines += [f"- {line}" for line in held]

@@ -101,6 +101,8 @@ class SimulationConfig:
     payload: float | None = None
     #: transmission harmonics of the truth: (joint, a, b), Δq = a sin q + b cos q (rad)
     harmonic: tuple[tuple[int, float, float], ...] = ()
+    #: the seed of the random poses alone (None: ``seed``): one plan, other noise
+    pose_seed: int | None = None
     seed: int = 0
 
 
@@ -392,7 +394,7 @@ def random_poses(robot: Robot, cfg: SimulationConfig, home: FloatArray) -> Float
     robot's joint limits from their own generator (the session's other draws stay as they are),
     every joint changing by at least ``MIN_POSE_CHANGE`` of its range from one pose to the next
     (the first from ``home``)."""
-    rng = np.random.default_rng([cfg.seed, 18])
+    rng = np.random.default_rng([cfg.seed if cfg.pose_seed is None else cfg.pose_seed, 18])
     lo, hi = robot.limits[:, 0], robot.limits[:, 1]
     least = MIN_POSE_CHANGE * (hi - lo)
     poses = np.empty((cfg.poses, robot.n))

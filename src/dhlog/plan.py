@@ -1,0 +1,93 @@
+"""What a measurement plan will give, before going to the cell (``dhlog plan``).
+
+The plan — a protocol on the nominal robot, with the tracker's noise — is simulated once on the
+nominal (the robot as planned) and identified as ``dhlog process --model geometric`` would; the
+covariance of that fit, rescaled by its own χ²/dof to the stated noise, is the inverse of the
+Fisher information of the plan's poses under the noise model (the first-order covariance the
+maximum-likelihood fit reaches; `tests/test_uncertainty.py` holds the reported σ to 15 % of the
+empirical spread). From it: the σ of every DH parameter (in the shown form: Hayati rows where a
+pair is nearly parallel), what the plan cannot determine, and the predicted FK σ at random joint
+vectors within the limits.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from dhlog.errors import InputError
+from dhlog.geometry._checks import FloatArray
+from dhlog.robots import Robot
+from dhlog.simulate import SimulationConfig, simulate_session
+
+#: Joint vectors (seeded, uniform within the limits) the FK σ is predicted at.
+WORKSPACE_POINTS = 300
+
+
+@dataclass
+class Plan:
+    """The predicted σ of each shown DH row (θ, d or β, a, α; NaN where fixed) with the rows'
+    forms and the reasons parameters are fixed; the predicted FK σ (m, 3-D) at
+    :data:`WORKSPACE_POINTS` joint vectors within the limits; the samples and poses the plan
+    measures."""
+
+    rows_std: FloatArray
+    forms: list[str]
+    fixed: list[str]
+    fk_sd: FloatArray
+    samples: int
+    poses: int
+    noise: float
+
+
+def plan_session(robot: Robot, cfg: SimulationConfig) -> Plan:
+    """The plan ``cfg`` (protocol, counts, noise) on ``robot`` as its nominal."""
+    from dhlog.dhfile import DHModel
+    from dhlog.identify.holdout import pose_groups
+    from dhlog.identify.select import ModelRequest
+    from dhlog.identify.sweeps import samples_with_encoders
+    from dhlog.io.memory import log_data_from_session
+    from dhlog.process import process_data
+    from dhlog.report import held_lines
+    from dhlog.result import display_rows
+    from dhlog.validate import fk_prediction_std
+
+    if cfg.perturb_length or cfg.perturb_angle:
+        raise InputError("a plan is made on the nominal robot; leave the perturbations out.")
+    if cfg.noise <= 0:
+        raise InputError("a plan needs the tracker's noise (> 0) to predict what it gives.")
+    session = simulate_session(robot, cfg)
+    names = tuple(f"joint_{i + 1}" for i in range(robot.n))
+    nominal = DHModel(robot.table, robot.T_base, robot.tool_point, names, robot.name)
+    result = process_data(
+        log_data_from_session(session), nominal=nominal, model=ModelRequest("geometric")
+    )
+    if not result.complete or result.whole is None:
+        missing = ", ".join(f"joint {j.index} ({j.reason})" for j in result.failed)
+        raise InputError(
+            f"this plan does not identify every joint: {missing or 'the whole-model fit failed'};"
+            " move every joint (sweeps or more varied poses)."
+        )
+    scale = 1.0 / math.sqrt(max(result.whole.chi2_dof, 1e-300))
+    rows = display_rows(result, "m")
+    rows_std = np.array(
+        [
+            [math.nan if r.held[k] else float(r.stds[k] or 0.0) * scale for k in range(4)]
+            for r in rows
+        ]
+    )
+    Q = np.random.default_rng(0).uniform(
+        robot.limits[:, 0], robot.limits[:, 1], (WORKSPACE_POINTS, robot.n)
+    )
+    _, Qs, _ = samples_with_encoders(result.segmentation)
+    return Plan(
+        rows_std=rows_std,
+        forms=[r.form for r in rows],
+        fixed=held_lines(result, rows),
+        fk_sd=fk_prediction_std(result, Q) * scale,
+        samples=int(Qs.shape[0]),
+        poses=int(np.unique(pose_groups(Qs)).size),
+        noise=cfg.noise,
+    )
