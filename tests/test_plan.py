@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -10,7 +11,7 @@ from typer.testing import CliRunner
 
 from dhlog.cli import app
 from dhlog.errors import InputError
-from dhlog.plan import plan_session
+from dhlog.plan import plan_session, select_poses
 from dhlog.robots import load_robot
 from dhlog.simulate import SimulationConfig
 
@@ -44,3 +45,25 @@ def test_the_plan_command() -> None:
     assert "Predicted σ of kr5's parameters" in done.output and "Predicted FK σ" in done.output
     bad = runner.invoke(app, ["plan", "kr5", "--protocol", "dance"])
     assert bad.exit_code == 1 and "protocol" in bad.output
+
+
+def test_select_chooses_more_informative_poses(tmp_path: Path) -> None:
+    """--select 40 of 500 random candidates (degrees): the chosen poses' predicted FK σ over the
+    workspace is below that of 40 drawn at random; the CSV keeps the candidates' header and
+    row numbers; near-singular candidates are counted."""
+    rob = load_robot("kr5")
+    C = np.degrees(np.random.default_rng(3).uniform(rob.limits[:, 0], rob.limits[:, 1], (500, 6)))
+    C[0, 4] = 0.0  # the wrist stretched: axes 4 and 6 in line
+    C[0, 2] = math.degrees(math.atan2(0.62, 0.12))  # and the elbow too
+    path = tmp_path / "candidates.csv"
+    path.write_text("a1,a2,a3,a4,a5,a6\n" + "\n".join(",".join(map(str, q)) for q in C) + "\n")
+    out = tmp_path / "chosen.csv"
+    args = ["plan", "kr5", "--candidates", str(path), "--select", "40", "--angle-unit", "deg"]
+    done = runner.invoke(app, [*args, "-o", str(out)])
+    assert done.exit_code == 0, done.output
+    lines = out.read_text().splitlines()
+    assert lines[0] == "row,a1,a2,a3,a4,a5,a6" and len(lines) == 41
+    rows = [int(line.split(",")[0]) for line in lines[1:]]
+    assert 1 not in rows and len(set(rows)) == 40  # the singular candidate is never chosen
+    found = select_poses(rob, np.radians(C), 40, 1e-5)
+    assert found.singular >= 1 and found.fk_sd_chosen < 0.95 * found.fk_sd_random

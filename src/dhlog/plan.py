@@ -91,3 +91,93 @@ def plan_session(robot: Robot, cfg: SimulationConfig) -> Plan:
         poses=int(np.unique(pose_groups(Qs)).size),
         noise=cfg.noise,
     )
+
+
+#: A candidate pose whose spatial Jacobian's smallest singular value is below this (m/rad, a
+#: mixed but robot-sized scale) is too near a singularity to be measured.
+NEAR_SINGULAR = 1e-3
+
+
+@dataclass
+class Selection:
+    """The poses chosen (indices into the candidates), the candidates left out as near a
+    singularity, and the predicted FK σ RMS (m) over the workspace of the chosen poses and of
+    as many drawn at random (seeded) from the usable candidates."""
+
+    chosen: list[int]
+    singular: int
+    fk_sd_chosen: float
+    fk_sd_random: float
+
+
+def select_poses(robot: Robot, candidates: FloatArray, count: int, noise: float) -> Selection:
+    """The ``count`` candidate poses that maximise the information about the whole model
+    (D-optimal: each step adds the pose that most increases ``log det`` of the Fisher
+    information, by the matrix determinant lemma), the model being the nominal's axes and tool
+    point; a position target, isotropic noise ``noise``."""
+    from dhlog.geometry.lines import Line
+    from dhlog.identify.whole import AxisModel, ParameterLayout, predict
+    from dhlog.kinematics import fk_point, joint_axes, spatial_jacobian
+
+    usable = np.array(
+        [
+            np.linalg.svd(spatial_jacobian(robot.table, q, T_base=robot.T_base), compute_uv=False)[
+                -1
+            ]
+            >= NEAR_SINGULAR
+            for q in candidates
+        ]
+    )
+    index = np.flatnonzero(usable)
+    if index.size < count:
+        raise InputError(
+            f"--select {count}: only {index.size} of the {len(candidates)} candidates are usable "
+            f"({int((~usable).sum())} near a singularity); give more candidates or select fewer."
+        )
+    ref = np.clip(np.zeros(robot.n), robot.limits[:, 0], robot.limits[:, 1])
+    points, dirs = joint_axes(robot.table, ref, T_base=robot.T_base)
+    model = AxisModel(
+        tuple(Line(p, d) for p, d in zip(points, dirs, strict=True)),
+        robot.table.joint_types,
+        fk_point(robot.table, ref, robot.tool_point, T_base=robot.T_base),
+        ref,
+        np.ones(robot.n),
+    )
+    layout = ParameterLayout.of(model.types)
+    bases = model.bases()
+    _, J = predict(model, candidates[index], layout, bases)
+    assert J is not None
+    J = J / noise
+    scale = np.sqrt(np.einsum("kij,kij->j", J, J)) + 1e-30  # columns of comparable size
+    Js = J / scale
+    info = 1e-9 * np.eye(layout.size)
+    chosen: list[int] = []
+    for _ in range(count):
+        inv = np.linalg.inv(info)
+        A = Js @ inv  # (k, 3, p)
+        G = np.einsum("kip,kjp->kij", A, Js) + np.eye(3)
+        gain = np.linalg.slogdet(G)[1]
+        gain[chosen] = -np.inf
+        best = int(np.argmax(gain))
+        chosen.append(best)
+        info = info + Js[best].T @ Js[best]
+
+    Q = np.random.default_rng(0).uniform(
+        robot.limits[:, 0], robot.limits[:, 1], (WORKSPACE_POINTS, robot.n)
+    )
+    _, Jw = predict(model, Q, layout, bases)
+    assert Jw is not None
+    Jw = Jw / scale
+
+    def fk_sd(picked: list[int]) -> float:
+        fisher = sum((Js[k].T @ Js[k] for k in picked), 1e-9 * np.eye(layout.size))
+        var = np.einsum("mij,jk,mik->m", Jw, np.linalg.inv(fisher), Jw)
+        return float(np.sqrt(np.mean(np.clip(var, 0.0, None))))
+
+    drawn = list(np.random.default_rng(1).choice(index.size, count, replace=False))
+    return Selection(
+        [int(index[k]) for k in chosen],
+        int((~usable).sum()),
+        fk_sd(chosen),
+        fk_sd([int(k) for k in drawn]),
+    )
