@@ -240,7 +240,13 @@ def select_model(
         assert J is not None
         var = np.einsum("mij,jk,mik->m", J, fit.covariance, J)
         range_sd = math.sqrt(max(float(np.mean(var)), 0.0))
-        pred, _ = predict(fit.model, Qs[keep], which=None)
+        which, rates = sub.get("which"), sub.get("rates")
+        pred, _ = predict(
+            fit.model,
+            Qs[keep],
+            which=None if which is None else which[keep],
+            rates=None if rates is None else rates[keep],
+        )
         residual_ms = float(np.mean(np.sum((pred - Ps[keep]) ** 2, axis=1)))
         return Candidate(
             families,
