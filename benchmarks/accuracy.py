@@ -40,13 +40,12 @@ from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
 
-from dhlog.geometry.lines import Line
 from dhlog.identify.analytic import AIC_SIGMA_2D
 from dhlog.identify.noise import NoiseModel
 from dhlog.identify.sweeps import samples_with_encoders
 from dhlog.identify.whole import AxisModel, fit_whole_model, predict
 from dhlog.io.memory import log_data_from_session
-from dhlog.kinematics import fk_point, joint_axes
+from dhlog.kinematics import fk_point
 from dhlog.process import process_data
 from dhlog.robots import load_robot
 from dhlog.simulate import SimulationConfig, simulate_session
@@ -116,14 +115,7 @@ def one(job: tuple[str, str, int, int, float]) -> tuple[np.ndarray, np.ndarray, 
     analytic = process_data(log, analytic_only=True)
     # the limit: the whole model fitted to the same samples from the truth
     ref = default.reference_pose
-    pts, dirs = joint_axes(session.table, ref, T_base=session.T_measurement_base)
-    truth = AxisModel(
-        tuple(Line(p, d) for p, d in zip(pts, dirs, strict=True)),
-        session.table.joint_types,
-        fk_point(session.table, ref, session.tool_point, T_base=session.T_measurement_base),
-        ref,
-        np.ones(robot.n),
-    )
+    truth = AxisModel.of_table(session.table, ref, session.tool_point, session.T_measurement_base)
     _, Qs, Ps = samples_with_encoders(default.segmentation)
     limit = fit_whole_model(truth, Qs, Ps, noise=NoiseModel(), sigma=float(cfg.noise))
     got, _ = predict(limit.model, Q)
@@ -166,14 +158,12 @@ BEYOND: dict[str, tuple[str, dict[str, object]]] = {
 def beyond(job: tuple[str, str, int, int]) -> dict[str, object]:
     """Squared FK errors of auto, geometric and the true-model limit for one seeded session,
     and what auto chose."""
-    import dataclasses
     import tempfile
     from pathlib import Path
 
     from dhlog.dhfile import DHModel
     from dhlog.identify.select import ModelRequest
-    from dhlog.kinematics import fk_frames
-    from dhlog.nongeometric import Lump, table_deflection
+    from dhlog.nongeometric import table_deflection
     from dhlog.process import table_values
     from dhlog.simulate import masses_urdf
 
@@ -212,25 +202,7 @@ def beyond(job: tuple[str, str, int, int]) -> dict[str, object]:
     )
     geometric = process_data(log, nominal=nominal, model=ModelRequest("geometric"))
     ref = auto.reference_pose
-    pts, dirs = joint_axes(table, ref, T_base=T)
-    truth = AxisModel(
-        tuple(Line(p, d) for p, d in zip(pts, dirs, strict=True)),
-        table.joint_types,
-        fk_point(table, ref, session.tool_point, T_base=T),
-        ref,
-        np.ones(robot.n),
-    )
-    if terms is not None:  # the truth's terms in M at the reference pose
-        F = fk_frames(table, ref, T_base=T)
-        lumps = tuple(
-            Lump(lp.axis, F[robot.n if lp.target else lp.axis][:3, :3] @ lp.point
-                 + F[robot.n if lp.target else lp.axis][:3, 3])
-            for lp in terms.lumps
-        )  # fmt: skip
-        truth = dataclasses.replace(
-            truth,
-            terms=dataclasses.replace(terms, lumps=lumps, gravity=F[0][:3, :3] @ terms.gravity),
-        )
+    truth = AxisModel.of_table(table, ref, session.tool_point, T, terms=terms)
     _, Qs, Ps = samples_with_encoders(auto.segmentation)
     limit = fit_whole_model(truth, Qs, Ps, noise=NoiseModel(), sigma=float(cfg.noise))
     got, _ = predict(limit.model, Q)

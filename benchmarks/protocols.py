@@ -34,12 +34,11 @@ from concurrent.futures import ProcessPoolExecutor
 import numpy as np
 
 from dhlog.dhfile import DHModel
-from dhlog.geometry.lines import Line
 from dhlog.identify.noise import NoiseModel
 from dhlog.identify.sweeps import samples_with_encoders
 from dhlog.identify.whole import AxisModel, fit_whole_model, predict
 from dhlog.io.memory import log_data_from_session
-from dhlog.kinematics import fk_frames, fk_point, joint_axes
+from dhlog.kinematics import fk_point
 from dhlog.process import measured_rotations, process_data
 from dhlog.robots import load_robot
 from dhlog.simulate import SIX_DOF_TOOL_ROTATION, SimulationConfig, simulate_session
@@ -111,19 +110,14 @@ def one(job: tuple[str, int, int, int]) -> dict[str, float]:
     sd = fk_prediction_std(result, Q)
     ref = result.reference_pose
     T = session.T_measurement_base
-    pts, dirs = joint_axes(session.table, ref, T_base=T)
     rows, Qs, Ps = samples_with_encoders(result.segmentation)
     rotations = measured_rotations(result.segmentation, rows)
-    tool_rotation = None
-    if rotations is not None and session.tool_rotation is not None:
-        tool_rotation = fk_frames(session.table, ref, T_base=T)[-1, :3, :3] @ session.tool_rotation
-    truth = AxisModel(
-        tuple(Line(p, d) for p, d in zip(pts, dirs, strict=True)),
-        session.table.joint_types,
-        fk_point(session.table, ref, session.tool_point, T_base=T),
+    truth = AxisModel.of_table(
+        session.table,
         ref,
-        np.ones(robot.n),
-        tool_rotation=tool_rotation,
+        session.tool_point,
+        T,
+        tool_rotation=session.tool_rotation if rotations is not None else None,
     )
     # the limit weighs positions by what scatters them: the tracker and the unmodelled error
     sigma = math.hypot(cfg.noise, cfg.model_error)

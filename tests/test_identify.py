@@ -10,12 +10,11 @@ import numpy as np
 import pytest
 
 from dhlog.dhfile import DHModel
-from dhlog.geometry.lines import Line
 from dhlog.identify.noise import NoiseModel
 from dhlog.identify.select import ModelRequest
 from dhlog.identify.whole import AxisModel, ParameterLayout, fit_whole_model, predict
 from dhlog.io.memory import log_data_from_session
-from dhlog.kinematics import fk_point, joint_axes
+from dhlog.kinematics import fk_point
 from dhlog.process import ProcessResult, process_data
 from dhlog.result import result_document
 from dhlog.robots import load_robot
@@ -26,14 +25,7 @@ from chains import fk_error
 
 
 def truth_model(session: Session, ref: np.ndarray) -> AxisModel:
-    pts, dirs = joint_axes(session.table, ref, T_base=session.T_measurement_base)
-    return AxisModel(
-        tuple(Line(p, d) for p, d in zip(pts, dirs, strict=True)),
-        session.table.joint_types,
-        fk_point(session.table, ref, session.tool_point, T_base=session.T_measurement_base),
-        ref,
-        np.ones(session.table.n),
-    )
+    return AxisModel.of_table(session.table, ref, session.tool_point, session.T_measurement_base)
 
 
 @pytest.mark.parametrize("robot", ["kr5", "stanford", "scara"])

@@ -143,14 +143,16 @@ class Terms:
         return B
 
     def without(self, drop: Callable[[Term], bool]) -> Terms:
-        """These terms without those ``drop`` names (their lumps kept only where used)."""
+        """These terms without those ``drop`` names; the lumps no term names are left out (a
+        URDF's link masses stay: ``compliance_masses`` sums them all)."""
         keep = [k for k, t in enumerate(self.terms) if not drop(t)]
         terms = [self.terms[k] for k in keep]
-        used = sorted({t.lump for t in terms if t.lump >= 0})
-        lumps = tuple(self.lumps[k] for k in used) if used or not self.lumps else ()
-        if any(lump.mass > 0 for lump in self.lumps):  # a URDF's masses stay whole
-            lumps, used = self.lumps, list(range(len(self.lumps)))
+        used = sorted(
+            {t.lump for t in terms if t.lump >= 0}
+            | {k for k, lump in enumerate(self.lumps) if lump.mass > 0}
+        )
         terms = [replace(t, lump=used.index(t.lump)) if t.lump >= 0 else t for t in terms]
+        lumps = tuple(self.lumps[k] for k in used)
         return Terms(tuple(terms), lumps, self.gravity, self.coefficients[keep])
 
     def deflection(self, B: FloatArray, n: int) -> FloatArray:
@@ -225,11 +227,12 @@ def design(
     g = g / np.linalg.norm(g)
     lumps: list[Lump] = []
     terms: list[Term] = []
+    # only the first axis keeps its direction: along gravity, it carries no torque
+    vertical = abs(float(axis_dirs[0] @ g)) > np.cos(VERTICAL)
+    compliant = [i for i in range(n) if revolute[i] and not (i == 0 and vertical)]
     if "compliance" in families and masses:
         lumps = [*masses, Lump(-1, np.asarray(target, dtype=np.float64))]
-        for i in range(n):
-            if not revolute[i] or (i == 0 and abs(float(axis_dirs[0] @ g)) > np.cos(VERTICAL)):
-                continue
+        for i in compliant:
             if any(lump.axis > i for lump in masses):
                 terms.append(Term("compliance_masses", i))
             terms.append(Term("compliance", i, len(lumps) - 1))
@@ -244,19 +247,11 @@ def design(
                 continue
             lumps.append(Lump(lx, p))
         lumps.append(Lump(-1, np.asarray(target, dtype=np.float64)))
-        for i in range(n):
-            if not revolute[i]:
-                continue
-            # only the first axis keeps its direction: along gravity, it carries no torque
-            if i == 0 and abs(float(axis_dirs[0] @ g)) > np.cos(VERTICAL):
-                continue
+        for i in compliant:
             for k, lump in enumerate(lumps):
                 on_axis = _distance(lump.point, axis_points[i], axis_dirs[i]) < SAME_POINT
                 if (lump.target or lump.axis > i) and not on_axis:  # no lever about it
                     terms.append(Term("compliance", i, k))
-        used = sorted({t.lump for t in terms})
-        terms = [replace(t, lump=used.index(t.lump)) for t in terms]
-        lumps = [lumps[k] for k in used]
     if "harmonic" in families:
         joints = (
             tuple(i for i in range(n) if revolute[i])
@@ -265,7 +260,8 @@ def design(
         )
         for i in joints:
             terms += [Term("harmonic_sin", i), Term("harmonic_cos", i)]
-    return Terms(tuple(terms), tuple(lumps), g, np.zeros(len(terms)))
+    # the lumps no term names (on the first axis; on a joint's own) are left out
+    return Terms(tuple(terms), tuple(lumps), g, np.zeros(len(terms))).without(lambda t: False)
 
 
 def _distance(x: FloatArray, point: FloatArray, direction: FloatArray) -> float:
@@ -303,6 +299,17 @@ def to_table(terms: Terms, frames_ref: FloatArray) -> Terms:
         F = frames_ref[n if lump.target else lump.axis]
         lumps.append(Lump(lump.axis, F[:3, :3].T @ (lump.point - F[:3, 3]), lump.mass))
     return replace(terms, lumps=tuple(lumps), gravity=frames_ref[0][:3, :3].T @ terms.gravity)
+
+
+def from_table(terms: Terms, frames_ref: FloatArray) -> Terms:
+    """The inverse of :func:`to_table`: ``terms`` in a table's frames carried into the frame of
+    ``frames_ref`` (its ``fk_frames`` at the reference pose, with the base placed there)."""
+    n = frames_ref.shape[0] - 1
+    lumps = []
+    for lump in terms.lumps:
+        F = frames_ref[n if lump.target else lump.axis]
+        lumps.append(Lump(lump.axis, F[:3, :3] @ lump.point + F[:3, 3], lump.mass))
+    return replace(terms, lumps=tuple(lumps), gravity=frames_ref[0][:3, :3] @ terms.gravity)
 
 
 def table_deflection(table: Any, terms: Terms, Q: ArrayLike, Q_table: ArrayLike) -> FloatArray:

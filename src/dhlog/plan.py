@@ -115,9 +115,8 @@ def select_poses(robot: Robot, candidates: FloatArray, count: int, noise: float)
     (D-optimal: each step adds the pose that most increases ``log det`` of the Fisher
     information, by the matrix determinant lemma), the model being the nominal's axes and tool
     point; a position target, isotropic noise ``noise``."""
-    from dhlog.geometry.lines import Line
     from dhlog.identify.whole import AxisModel, ParameterLayout, predict
-    from dhlog.kinematics import fk_point, joint_axes, spatial_jacobian
+    from dhlog.kinematics import spatial_jacobian
 
     usable = np.array(
         [
@@ -135,14 +134,7 @@ def select_poses(robot: Robot, candidates: FloatArray, count: int, noise: float)
             f"({int((~usable).sum())} near a singularity); give more candidates or select fewer."
         )
     ref = np.clip(np.zeros(robot.n), robot.limits[:, 0], robot.limits[:, 1])
-    points, dirs = joint_axes(robot.table, ref, T_base=robot.T_base)
-    model = AxisModel(
-        tuple(Line(p, d) for p, d in zip(points, dirs, strict=True)),
-        robot.table.joint_types,
-        fk_point(robot.table, ref, robot.tool_point, T_base=robot.T_base),
-        ref,
-        np.ones(robot.n),
-    )
+    model = AxisModel.of_table(robot.table, ref, robot.tool_point, robot.T_base)
     layout = ParameterLayout.of(model.types)
     bases = model.bases()
     _, J = predict(model, candidates[index], layout, bases)

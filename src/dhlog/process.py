@@ -291,15 +291,16 @@ def _validate_log(
     )
 
 
-def table_values(result: ProcessResult, Q: FloatArray) -> FloatArray:
+def table_values(result: ProcessResult, Q: FloatArray, *, deflected: bool = True) -> FloatArray:
     """The result table's joint values at encoder values ``Q`` (m, n): ``ref + s (Q − ref)``
-    with fitted encoder scales, deflected by the terms beyond the geometry when chosen."""
+    with fitted encoder scales, deflected by the terms beyond the geometry when chosen (and
+    ``deflected``)."""
     whole, ex = result.whole, result.extraction
     Qt = Q
     if whole is not None and whole.layout.scale_at is not None:
         ref = whole.model.reference_pose
         Qt = ref + whole.model.scales * (Q - ref)
-    if result.terms is not None and ex is not None:
+    if deflected and result.terms is not None and ex is not None:
         Qt = Qt + table_deflection(ex.standard, result.terms, Q, Qt)
     return np.asarray(Qt, dtype=np.float64)
 
@@ -806,28 +807,24 @@ def _identify_whole(
         )
     stage("validating", 0.0)
     tools = np.vstack([ex.tool_point[None], result.extra_tool_points])
-    # with fitted encoder scales the table's joint values are ref + s (q − ref)
-    Q_table = ref + whole.model.scales * (Q - ref) if whole.layout.scale_at is not None else Q
-    if whole.model.terms is not None:  # and the joints stand deflected by the terms
+    if whole.model.terms is not None:  # the terms in the table's frames
         frames = fk_frames(ex.standard, ref, T_base=ex.T_measurement_base)
         result.terms = to_table(whole.model.terms, frames)
         result.terms_std = term_std(whole)
-        deflected = Q_table + table_deflection(ex.standard, result.terms, Q, Q_table)
-        result.deflection_max = np.max(np.abs(deflected - Q_table), axis=0)
-        moved = fk_points_chunked(
-            ex.standard, deflected, ex.tool_point, T_base=ex.T_measurement_base
-        ) - fk_points_chunked(ex.standard, Q_table, ex.tool_point, T_base=ex.T_measurement_base)
+    # the table's joint values: ref + s (q − ref) with fitted scales, deflected by the terms
+    Q_table = table_values(result, Q)
+    if result.terms is not None:  # what the terms move, at the samples
+        bare = table_values(result, Q, deflected=False)
+        result.deflection_max = np.max(np.abs(Q_table - bare), axis=0)
+        reached = fk_points_chunked(
+            ex.standard, Q_table, ex.tool_point, T_base=ex.T_measurement_base
+        )
+        moved = reached - fk_points_chunked(
+            ex.standard, bare, ex.tool_point, T_base=ex.T_measurement_base
+        )
         result.deflection_target = float(np.max(np.linalg.norm(moved, axis=1)))
         pick = np.unique(np.linspace(0, Q.shape[0] - 1, min(2000, Q.shape[0])).astype(int))
-        result.deflection_vectors = np.column_stack(
-            [
-                fk_points_chunked(
-                    ex.standard, deflected[pick], ex.tool_point, T_base=ex.T_measurement_base
-                ),
-                moved[pick],
-            ]
-        )
-        Q_table = deflected
+        result.deflection_vectors = np.column_stack([reached[pick], moved[pick]])
     result.validation = validate_samples(seg, rows, Q_table, P, ex, whole.inliers, tools, which)
     gap = table_gap(whole, ex, Q, Q_table)
     if gap > 1e-6:

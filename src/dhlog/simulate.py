@@ -242,12 +242,13 @@ GRAVITY = 9.80665
 
 
 def truth_terms(
-    robot: Robot, cfg: SimulationConfig, table: StandardDH, T_mr: FloatArray, tool: FloatArray
+    robot: Robot, cfg: SimulationConfig, T_mr: FloatArray, tool: FloatArray
 ) -> Terms | None:
-    """The truth's joint-value terms in ``table``'s frames (:mod:`dhlog.nongeometric`): per
-    compliant joint i, ``Δq_i = c_i τ_i`` with the gravity torque of the robot's masses (at the
-    DH frame origins on the later axes) and the payload (at the tool point), gravity along the
-    robot's −z; the harmonics as given. None without either."""
+    """The truth's joint-value terms (:mod:`dhlog.nongeometric`) in the frames of the robot's
+    table, perturbed or not (its lumps sit at frame origins): per compliant joint i,
+    ``Δq_i = c_i τ_i`` with the gravity torque of the robot's masses (at the DH frame origins on
+    the later axes) and the payload (at the tool point), gravity along the robot's −z; the
+    harmonics as given. None without either."""
     if not cfg.compliance and not cfg.harmonic:
         return None
     n = robot.n
@@ -617,7 +618,7 @@ def simulate_session(
     if plan.motion == "step":
         t_trk = t_trk[_static(frames, t_trk)]
     q_trk = _interp(frames, t_trk)
-    terms = truth_terms(robot, cfg, table, T_mr, np.asarray(tool, dtype=np.float64))
+    terms = truth_terms(robot, cfg, T_mr, np.asarray(tool, dtype=np.float64))
     # the joints as they stand: the encoders' values deflected by gravity and the gears
     q_arm = q_trk if terms is None else q_trk + table_deflection(table, terms, q_trk, q_trk)
     xyz = fk_point(table, q_arm, tool, T_base=T_mb)

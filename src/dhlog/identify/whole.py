@@ -33,7 +33,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from numpy.typing import NDArray
 
-from dhlog.dh import JointType
+from dhlog.dh import JointType, StandardDH
 from dhlog.errors import DegenerateGeometryError
 from dhlog.geometry._checks import FloatArray, perpendicular_basis, rotation_from_vector
 from dhlog.geometry.lines import Line
@@ -145,6 +145,35 @@ class AxisModel:
     #: joint-value terms beyond the geometry (compliance, harmonics; :mod:`dhlog.nongeometric`),
     #: their lumps and gravity in M at the reference pose
     terms: Terms | None = None
+
+    @classmethod
+    def of_table(
+        cls,
+        table: StandardDH,
+        reference_pose: FloatArray,
+        tool_point: FloatArray,
+        T_base: FloatArray,
+        *,
+        terms: Terms | None = None,
+        tool_rotation: FloatArray | None = None,
+    ) -> AxisModel:
+        """The model a DH table (placed by ``T_base``) is at ``reference_pose``: its axes, its
+        tool point and, with ``terms`` in the table's frames, those terms in M — the table's
+        forward kinematics as the whole-model fit holds it (unit encoder scales)."""
+        from dhlog.kinematics import fk_frames, fk_point, joint_axes
+        from dhlog.nongeometric import from_table
+
+        points, dirs = joint_axes(table, reference_pose, T_base=T_base)
+        frames = fk_frames(table, reference_pose, T_base=T_base)
+        return cls(
+            tuple(Line(p, d) for p, d in zip(points, dirs, strict=True)),
+            table.joint_types,
+            fk_point(table, reference_pose, tool_point, T_base=T_base),
+            np.asarray(reference_pose, dtype=np.float64),
+            np.ones(table.n),
+            tool_rotation=None if tool_rotation is None else frames[-1][:3, :3] @ tool_rotation,
+            terms=None if terms is None else from_table(terms, frames),
+        )
 
     def targets(self) -> FloatArray:
         """Every target at the reference pose, (k, 3): the primary one first."""
@@ -470,6 +499,8 @@ def predict_columns(
     clock = layout.clock_at if rates is not None else None
     if layout.clock_at is not None:
         J[layout.clock_at] = 0.0
+    if layout.terms_at is not None:  # a term on a joint the loop skips stays zero
+        J[layout.terms_at :] = 0.0
     for i, (axis, jt) in enumerate(zip(model.axes, model.types, strict=True)):
         u, v = bases[i]
         R0, t0 = pre_R[i], pre_t[i]
@@ -527,13 +558,11 @@ def _term_columns(
     per_unit: FloatArray,
 ) -> None:
     """The columns of the terms on ``joint``: its move per unit angle (``per_unit``, (3, m))
-    times each term's function; zero for the terms of other joints (set once, at joint 0)."""
+    times each term's function (each term moves one joint: its column is set once)."""
     if B is None or layout.terms_at is None or model.terms is None:
         return
     k0 = layout.terms_at
     for k, t in enumerate(model.terms.terms):
-        if joint == 0:
-            J[k0 + k] = 0.0
         if t.joint == joint:
             J[k0 + k] = per_unit * B[k]
 
