@@ -3,6 +3,7 @@ its nominal model, round-tripped through the calibrated FK."""
 
 from __future__ import annotations
 
+import functools
 import json
 import math
 from pathlib import Path
@@ -11,7 +12,7 @@ import numpy as np
 from typer.testing import CliRunner
 
 from dhlog.cli import app
-from dhlog.compensate import compensate
+from dhlog.compensate import compensate, compensate_poses, read_poses
 from dhlog.dhfile import DHModel, parse_dh
 from dhlog.identify.select import ModelRequest
 from dhlog.io.memory import log_data_from_session
@@ -30,6 +31,7 @@ def _nominal(name: str) -> DHModel:
     return DHModel(rob.table, rob.T_base, rob.tool_point, names, name)
 
 
+@functools.cache
 def _result(name: str, **options: object) -> DHModel:
     cfg = SimulationConfig(
         perturb_length=5e-4,
@@ -78,15 +80,80 @@ def test_a_robot_with_hayati_rows_round_trips() -> None:
 
 def test_a_robot_with_compliance_round_trips() -> None:
     """A KR210-like robot bending under gravity (the terms chosen by auto)."""
-    model = _result(
+    model = _kr210()
+    assert model.terms is not None
+    _round_trip(model, "kr210")
+
+
+def _kr210() -> DHModel:
+    return _result(
         "kr210",
         protocol="random-poses",
         poses=60,
         noise=1e-5,
         compliance=((2, 2e-8), (3, 3e-8), (5, 1e-7)),
     )
-    assert model.terms is not None
-    _round_trip(model, "kr210")
+
+
+def _cartesian_round_trip(model: DHModel, name: str, configuration: bool) -> None:
+    """Cartesian targets (the nominal's last frame at random joint vectors): the calibrated FK
+    of the joint targets written is the target to 1e-9 m and rad; the pose to command instead
+    is the nominal's at those joints."""
+    rob = load_robot(name)
+    nominal = _nominal(name)
+    Q = np.random.default_rng(7).uniform(rob.limits[:, 0], rob.limits[:, 1], (40, rob.n))
+    goal = fk_frames(nominal.table, Q, T_base=nominal.T_base)[:, -1]
+    done, q_nom = compensate_poses(
+        model, nominal, goal, configuration=Q if configuration else None, limits=rob.limits
+    )
+    ok = np.isfinite(done.targets[:, 0])
+    assert ok.sum() >= 25, done.problems
+    got = fk_frames(model.table, model.joint_values(done.targets[ok]))[:, -1]
+    assert np.abs(got[:, :3, 3] - goal[ok, :3, 3]).max() < 1e-9
+    assert np.abs(got[:, :3, :3] - goal[ok, :3, :3]).max() < 1e-9
+    nominal_pose = fk_frames(nominal.table, q_nom[ok], T_base=nominal.T_base)[:, -1]
+    assert np.abs(nominal_pose - goal[ok]).max() < 1e-9  # the controller's own solution
+    if configuration:  # the branch given is kept: the nominal's solution is the vector given
+        assert np.abs(q_nom[ok] - Q[ok]).max() < 1e-8
+
+
+def test_cartesian_targets_round_trip() -> None:
+    """--poses on a robot with Hayati rows (UR5) and on one with compliance (KR210-like), with
+    the controller's configuration and, on the KR210, without it (started from home and
+    seeded vectors within the limits)."""
+    _cartesian_round_trip(_result("ur5", noise=2e-5, tracker_rate=30.0), "ur5", True)
+    _cartesian_round_trip(_kr210(), "kr210", True)
+    _cartesian_round_trip(_kr210(), "kr210", False)
+
+
+def test_cartesian_csv(tmp_path: Path) -> None:
+    """The Cartesian CSV: quaternions or fixed-axis angles in degrees, one-line errors."""
+    path = tmp_path / "poses.csv"
+    path.write_text("x,y,z,rx,ry,rz\n100,200,300,90,0,0\n")
+    T, config = read_poses(path, 6)
+    assert config is None
+    assert np.allclose(T[0, :3, 3], [0.1, 0.2, 0.3])
+    assert np.allclose(T[0, :3, :3], [[1, 0, 0], [0, 0, -1], [0, 1, 0]])
+    path.write_text("x,y,z,qw,qx,qy,qz,j1,j2,j3,j4,j5,j6\n1,2,3,0,0,0,1,0,0,0,0,0,0\n")
+    T, config = read_poses(path, 6)
+    assert config is not None and np.allclose(T[0, :3, :3], np.diag([-1, -1, 1]))
+    from dhlog.errors import InputError
+
+    for text, said in (
+        ("x,y,z,qw,qx,qy,qz\n1,2,3,1,1,0,0\n", "norm"),
+        ("x,y,qw,qx,qy,qz\n", "lacks x, y, z"),
+        ("x,y,z,qw,qx,qy,qz,rx,ry,rz\n", "once"),
+        ("x,y,z,rx,ry,rz\n1,2,nan,0,0,0\n", "line 2"),
+        ("x,y,z,rx,ry,rz,j1\n", "configuration"),
+        ("x,x,z,rx,ry,rz\n", "twice"),
+    ):
+        path.write_text(text)
+        try:
+            read_poses(path, 6)
+        except InputError as exc:
+            assert said in str(exc) and str(path) in str(exc)
+        else:
+            raise AssertionError(text)
 
 
 def test_the_command(tmp_path: Path) -> None:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import math
 from pathlib import Path
 
@@ -67,3 +68,32 @@ def test_select_chooses_more_informative_poses(tmp_path: Path) -> None:
     assert 1 not in rows and len(set(rows)) == 40  # the singular candidate is never chosen
     found = select_poses(rob, np.radians(C), 40, 1e-5)
     assert found.singular >= 1 and found.fk_sd_chosen < 0.95 * found.fk_sd_random
+    # the chosen poses replayed by the simulator, in their order, in the candidates' unit
+    log = tmp_path / "chosen.mcap"
+    sim = ["simulate", "kr5", "-o", str(log), "--protocol", "random-poses", "--poses", str(out)]
+    done = runner.invoke(app, [*sim, "--angle-unit", "deg"])
+    assert done.exit_code == 0, done.output
+    truth = json.loads(log.with_name("chosen.truth.json").read_text())
+    assert truth["simulation"]["poses"] == 40
+    from dhlog.simulate import random_poses
+
+    listed = tuple(tuple(np.radians(C[r - 1])) for r in rows)
+    replayed = random_poses(rob, SimulationConfig(pose_list=listed), np.zeros(6))
+    assert np.array_equal(replayed, np.radians(C[np.array(rows) - 1]))
+    bad = runner.invoke(app, [*sim, "--force"])  # degrees read as radians: out of the limits
+    assert bad.exit_code == 1 and "leaves the limits" in bad.output
+
+
+def test_simulate_replays_a_pose_list() -> None:
+    """A pose list is visited in order: the session's still poses are the list's, and each is
+    where the robot stands while the tracker measures (the encoders read it)."""
+    from dhlog.simulate import simulate_session
+
+    rob = load_robot("kr5")
+    Q = np.random.default_rng(4).uniform(rob.limits[:, 0], rob.limits[:, 1], (6, 6))
+    cfg = SimulationConfig(protocol="random-poses", pose_list=tuple(map(tuple, Q)), noise=0.0)
+    session = simulate_session(rob, cfg)
+    assert np.array_equal(session.poses, Q)
+    encoders = session.joint_q
+    for q in Q:  # every pose is held: some joint state reads it to the encoder's resolution
+        assert np.min(np.max(np.abs(encoders - q), axis=1)) < 1e-6

@@ -271,7 +271,18 @@ def simulate(
             "except joint 2: only with joint 3 as q3 = -q2); the last two measure only at stops."
         ),
     ] = "sweeps",
-    poses: Annotated[int, typer.Option(help="Still poses of --protocol random-poses.")] = 40,
+    poses: Annotated[
+        str,
+        typer.Option(
+            metavar="N|CSV",
+            help="Still poses of --protocol random-poses: how many to draw, or a CSV of joint "
+            "vectors to visit in order (one per row, a header row kept; what plan --select "
+            "writes), in --angle-unit.",
+        ),
+    ] = "40",
+    angle_unit: Annotated[
+        str, typer.Option(metavar="rad|deg", help="The unit of --poses CSV's revolute joints.")
+    ] = "rad",
     model_error_mm: Annotated[
         float,
         typer.Option(
@@ -376,6 +387,7 @@ def simulate(
         "lock-poses": (lock_poses, ("home", "random")),
         "point-type": (point_type, ("point", "pose")),
         "protocol": (protocol, PROTOCOLS),
+        "angle-unit": (angle_unit, ("rad", "deg")),
     }
     for option, (value, allowed) in choices.items():
         if value not in allowed:
@@ -389,8 +401,17 @@ def simulate(
     _check_folder(output.parent)
     for path in (output, truth_path, *([urdf_path] if urdf_path else [])):
         _refuse_existing(path, force)
+    pose_file = None if poses.strip().isdigit() else Path(poses)
+    if pose_file is not None and pose_file.resolve() in {
+        p.resolve() for p in (output, truth_path, *([urdf_path] if urdf_path else []))
+    }:
+        stderr.print(f"error: --poses {escape(poses)} is an output; name another.")
+        raise typer.Exit(EXIT_USAGE)
     try:
         rob = robot_or_dh_file(robot)
+        pose_list: tuple[tuple[float, ...], ...] = ()
+        if pose_file is not None:
+            pose_list = _pose_file(pose_file, rob, angle_unit)
         cfg = SimulationConfig(
             noise=noise_mm * 1e-3,
             noise_kind=noise_kind,  # type: ignore[arg-type]
@@ -402,7 +423,8 @@ def simulate(
             steps=steps,
             lock_poses=lock_poses,  # type: ignore[arg-type]
             protocol=protocol,  # type: ignore[arg-type]
-            poses=poses,
+            poses=len(pose_list) or int(poses),
+            pose_list=pose_list,
             model_error=model_error_mm * 1e-3,
             tool_rotation=SIX_DOF_TOOL_ROTATION if six_dof else None,
             orientation_noise=math.radians(orientation_noise_deg),
@@ -484,6 +506,17 @@ def simulate(
             "[streams.point].",
             markup=False,
         )
+
+
+def _pose_file(path: Path, robot: Any, angle_unit: str) -> tuple[tuple[float, ...], ...]:
+    """``simulate --poses CSV``: the joint vectors (rad or m) to visit, in the file's order."""
+    from dhlog.compensate import read_targets
+
+    _, Q = read_targets(path, robot.n)
+    if angle_unit == "deg":
+        revolute = np.array([t.value == "revolute" for t in robot.table.joint_types])
+        Q = np.where(revolute, np.radians(Q), Q)
+    return tuple(tuple(float(v) for v in q) for q in Q)
 
 
 def _triples(text: str, what: str) -> list[tuple[float, float, float]]:
@@ -1019,17 +1052,27 @@ def compensate(
             "the library, when it is one).",
         ),
     ],
+    output: Annotated[
+        Path, typer.Option("-o", "--output", metavar="CSV", help="The corrected targets.")
+    ],
     joints: Annotated[
-        Path,
+        Path | None,
         typer.Option(
             metavar="CSV",
             help="Joint targets as the controller would run them: one row per target, one "
             "column per joint (a header row is read and kept).",
         ),
-    ],
-    output: Annotated[
-        Path, typer.Option("-o", "--output", metavar="CSV", help="The corrected targets.")
-    ],
+    ] = None,
+    poses: Annotated[
+        Path | None,
+        typer.Option(
+            metavar="CSV",
+            help="Cartesian targets of the last frame in the nominal's base frame: columns x, y, "
+            "z (mm) and qw, qx, qy, qz or rx, ry, rz (degrees, fixed X, Y, Z), optionally the "
+            "controller's configuration j1 … jn (--angle-unit). Written: the corrected joint "
+            "targets and the pose to command instead.",
+        ),
+    ] = None,
     angle_unit: Annotated[
         str, typer.Option(metavar="rad|deg", help="The unit of the targets' revolute joints.")
     ] = "rad",
@@ -1041,26 +1084,27 @@ def compensate(
 
     from dhlog.compensate import compensate as corrected
     from dhlog.compensate import read_targets, targets_csv
-    from dhlog.dhfile import load_dh
-    from dhlog.errors import InputError
     from dhlog.io.writer import atomic_output
     from dhlog.robots import load_robot, robot_names
 
     if angle_unit not in ("rad", "deg"):
         stderr.print(f"error: --angle-unit must be rad or deg, not '{angle_unit}'.")
         raise typer.Exit(EXIT_USAGE)
-    if output.resolve() in {joints.resolve(), result.resolve()}:
-        stderr.print(f"error: {output} is an input; name another with -o.")
+    if (joints is None) == (poses is None):
+        stderr.print("error: give the targets once: --joints CSV or --poses CSV.")
+        raise typer.Exit(EXIT_USAGE)
+    targets = joints if joints is not None else poses
+    assert targets is not None
+    if output.resolve() in {targets.resolve(), result.resolve()}:
+        stderr.print(f"error: {escape(str(output))} is an input; name another with -o.")
         raise typer.Exit(EXIT_USAGE)
     _refuse_existing(output, force)
+    if poses is not None:
+        _compensate_poses(result, nominal, poses, output, angle_unit)
+        return
+    assert joints is not None
     try:
-        model = load_dh(result)
-        nom = _model(nominal)
-        if nom.table.n != model.table.n:
-            raise InputError(
-                f"{nominal}: has {nom.table.n} joints but {result} has {model.table.n}; give the "
-                "nominal of this robot."
-            )
+        model, nom = _result_and_nominal(result, nominal)
         header, Q = read_targets(joints, model.table.n)
         revolute = np.array([t.value == "revolute" for t in model.table.joint_types])
         if angle_unit == "deg":
@@ -1085,6 +1129,59 @@ def compensate(
         f"wrote {escape(str(output))}: {int(good.sum())} of {len(Q)} targets corrected (largest "
         f"change {largest:.6g} rad or m; each within {worst:.1e} m and rad of the pose the "
         "nominal gives the original)"
+    )
+
+
+def _result_and_nominal(result: Path, nominal: str) -> tuple[Any, Any]:
+    """The calibrated model of ``result`` and the controller's nominal, of the same robot."""
+    from dhlog.dhfile import load_dh
+    from dhlog.errors import InputError
+
+    model = load_dh(result)
+    nom = _model(nominal)
+    if nom.table.n != model.table.n:
+        raise InputError(
+            f"{nominal}: has {nom.table.n} joints but {result} has {model.table.n}; give the "
+            "nominal of this robot."
+        )
+    return model, nom
+
+
+def _compensate_poses(
+    result: Path, nominal: str, poses: Path, output: Path, angle_unit: str
+) -> None:
+    """``dhlog compensate --poses CSV``: Cartesian targets to corrected joint targets."""
+    from rich.markup import escape
+
+    from dhlog.compensate import compensate_poses, poses_csv, read_poses
+    from dhlog.io.writer import atomic_output
+    from dhlog.robots import load_robot, robot_names
+
+    try:
+        model, nom = _result_and_nominal(result, nominal)
+        T, config = read_poses(poses, model.table.n)
+        revolute = np.array([t.value == "revolute" for t in model.table.joint_types])
+        scale = np.where(revolute & (angle_unit == "deg"), 180 / math.pi, 1.0)
+        if config is not None:
+            config = config / scale
+        limits = load_robot(nominal).limits if nominal in robot_names() else None
+        done, _ = compensate_poses(model, nom, T, configuration=config, limits=limits)
+        with atomic_output(output) as f:
+            f.write(poses_csv(nom, done, scale).encode())
+    except DhlogError as exc:
+        _fail(exc)
+    except OSError as exc:
+        _fail(OutputError(output.parent, exc))
+    for row, why in sorted(done.problems.items()):
+        stdout.print(escape(f"{poses.name} row {row + 1}: not corrected: {why}."))
+    good = np.isfinite(done.targets[:, 0])
+    worst = float(np.max(done.error[good], initial=0.0))
+    stdout.print(
+        escape(
+            f"wrote {output}: {int(good.sum())} of {len(T)} Cartesian targets reached by the "
+            f"calibrated robot (each within {worst:.1e} m and rad), with the joint targets to "
+            "run and the pose to command instead."
+        )
     )
 
 

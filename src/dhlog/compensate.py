@@ -57,28 +57,29 @@ def _pose(model: DHModel, q: FloatArray, calibrated: bool) -> FloatArray:
 def _error(T: FloatArray, goal: FloatArray) -> FloatArray:
     """Per target the 6-vector (position difference, small rotation) from ``goal`` to ``T``."""
     dp = T[:, :3, 3] - goal[:, :3, 3]
+    from scipy.spatial.transform import Rotation
+
     E = np.einsum("mij,mkj->mik", T[:, :3, :3], goal[:, :3, :3])  # R_T R_goalᵀ
-    dr = np.stack([E[:, 2, 1] - E[:, 1, 2], E[:, 0, 2] - E[:, 2, 0], E[:, 1, 0] - E[:, 0, 1]], 1)
-    return np.asarray(np.concatenate([dp, dr / 2.0], axis=1), dtype=np.float64)
+    # the rotation vector, not the skew part: that vanishes again at a half turn, a false
+    # solution inverse kinematics from afar finds
+    dr = Rotation.from_matrix(E).as_rotvec()
+    return np.asarray(np.concatenate([dp, dr], axis=1), dtype=np.float64)
 
 
-def compensate(
-    result: DHModel,
-    nominal: DHModel,
-    Q: FloatArray,
-    *,
-    limits: FloatArray | None = None,
-) -> Compensation:
-    """The corrected targets of ``Q`` (m, n) for ``result`` on a controller running
-    ``nominal`` (see the module docstring); ``limits`` (n, 2): the joints' limits, when known."""
-    Q = np.asarray(Q, dtype=np.float64)
-    m, n = Q.shape
-    goal = _pose(nominal, Q, calibrated=False)
-    q = Q.copy()
+def _solve(
+    model: DHModel, calibrated: bool, goal: FloatArray, start: FloatArray, *, far: bool = False
+) -> tuple[FloatArray, FloatArray, dict[int, str]]:
+    """The joint vectors (m, n) at which ``model`` puts its last frame at ``goal`` (m, 4, 4),
+    by Newton's method with backtracking from ``start`` (m, n); the remaining pose error per row
+    (m, rad) and one line per row that is too near a singularity or did not converge. ``far``:
+    the start may be far from the solution (inverse kinematics): damped steps (Levenberg) while
+    the error is large, and the singularity judged at the solution only."""
+    m, n = start.shape
+    q = start.copy()
     active = np.ones(m, dtype=bool)
     problems: dict[int, str] = {}
-    err = _error(_pose(result, q, calibrated=True), goal)
-    for _ in range(MAX_ITERATIONS):
+    err = _error(_pose(model, q, calibrated), goal)
+    for _ in range(MAX_ITERATIONS * (4 if far else 1)):
         size = np.max(np.abs(err), axis=1)
         active &= size > CONVERGED
         if not np.any(active):
@@ -88,23 +89,28 @@ def compensate(
         for j in range(n):
             step = np.zeros(n)
             step[j] = STEP
-            plus = _error(_pose(result, q[rows] + step, calibrated=True), goal[rows])
-            minus = _error(_pose(result, q[rows] - step, calibrated=True), goal[rows])
+            plus = _error(_pose(model, q[rows] + step, calibrated), goal[rows])
+            minus = _error(_pose(model, q[rows] - step, calibrated), goal[rows])
             J[:, :, j] = (plus - minus) / (2 * STEP)
         for k, row in enumerate(rows):
             s = np.linalg.svd(J[k], compute_uv=False)
-            if s[-1] <= s[0] / SINGULAR:
+            near = float(np.max(np.abs(err[row]))) < 1e-6
+            if s[-1] <= s[0] / SINGULAR and (near or not far):
                 problems[int(row)] = (
                     f"too near a singularity (Jacobian condition {s[0] / max(s[-1], 1e-300):.3g})"
                 )
                 active[row] = False
                 continue
-            delta, *_ = np.linalg.lstsq(J[k], -err[row], rcond=None)
+            if far and not near:  # Levenberg: a bounded step through near-singular iterates
+                damping = 1e-3 * s[0] ** 2
+                delta = np.linalg.solve(J[k].T @ J[k] + damping * np.eye(n), -J[k].T @ err[row])
+            else:
+                delta, *_ = np.linalg.lstsq(J[k], -err[row], rcond=None)
             # backtracking: a full Newton step near a singularity can overshoot
             before = float(np.sum(err[row] ** 2))
             for _ in range(40):
                 trial = q[row] + delta
-                e = _error(_pose(result, trial[None], calibrated=True), goal[row : row + 1])[0]
+                e = _error(_pose(model, trial[None], calibrated), goal[row : row + 1])[0]
                 if float(np.sum(e**2)) < before or np.max(np.abs(delta)) < CONVERGED:
                     break
                 delta = delta / 2.0
@@ -119,7 +125,19 @@ def compensate(
             problems[bad] = (
                 f"did not converge (pose error {size[bad]:.3g} m or rad): too near a singularity"
             )
-    change = np.max(np.abs(q - Q), axis=1)
+    return q, size, problems
+
+
+def _checked(
+    q: FloatArray,
+    size: FloatArray,
+    problems: dict[int, str],
+    reference: FloatArray,
+    limits: FloatArray | None,
+) -> Compensation:
+    """``q`` with the rows too far from ``reference`` (a near-singular amplification) or out of
+    ``limits`` left out (NaN), each with its line."""
+    change = np.max(np.abs(q - reference), axis=1)
     for big in np.flatnonzero(change > MAX_CORRECTION).tolist():
         if big not in problems:
             problems[big] = (
@@ -127,7 +145,7 @@ def compensate(
             )
     if limits is not None:
         lo, hi = limits[:, 0], limits[:, 1]
-        for k in range(m):
+        for k in range(q.shape[0]):
             if k in problems:
                 continue
             out = np.flatnonzero((q[k] < lo) | (q[k] > hi))
@@ -140,9 +158,211 @@ def compensate(
     return Compensation(targets, size, problems)
 
 
+def compensate(
+    result: DHModel,
+    nominal: DHModel,
+    Q: FloatArray,
+    *,
+    limits: FloatArray | None = None,
+) -> Compensation:
+    """The corrected targets of ``Q`` (m, n) for ``result`` on a controller running
+    ``nominal`` (see the module docstring); ``limits`` (n, 2): the joints' limits, when known."""
+    Q = np.asarray(Q, dtype=np.float64)
+    goal = _pose(nominal, Q, calibrated=False)
+    q, size, problems = _solve(result, True, goal, Q)
+    return _checked(q, size, problems, Q, limits)
+
+
+#: Starting joint vectors tried, after the given configuration or home, for a Cartesian target
+#: with none given (seeded, uniform within the limits).
+IK_STARTS = 24
+
+
+def compensate_poses(
+    result: DHModel,
+    nominal: DHModel,
+    goal: FloatArray,
+    *,
+    configuration: FloatArray | None = None,
+    limits: FloatArray | None = None,
+) -> tuple[Compensation, FloatArray]:
+    """Cartesian targets ``goal`` (m, 4, 4: the last frame in the nominal's base frame): the
+    joint vectors at which the calibrated robot reaches them, and the nominal's own solution
+    (m, n; what the controller would run). The nominal's inverse kinematics starts from
+    ``configuration`` (m, n: the controller's joint configuration of each target) when given,
+    else from home and :data:`IK_STARTS` seeded vectors within ``limits`` (the solution nearest
+    home is not guaranteed: give the configuration to choose the branch); the calibrated one
+    starts from the nominal's and is checked as :func:`compensate` checks its corrections."""
+    goal = np.asarray(goal, dtype=np.float64)
+    m, n = goal.shape[0], nominal.table.n
+    if configuration is not None:
+        starts = [np.asarray(configuration, dtype=np.float64)]
+    else:
+        home = np.zeros((m, n))
+        if limits is not None:
+            home = np.clip(home, limits[:, 0], limits[:, 1])
+        starts = [home]
+        if limits is not None:
+            rng = np.random.default_rng(0)
+            starts += [
+                np.repeat(rng.uniform(limits[:, 0], limits[:, 1])[None], m, 0)
+                for _ in range(IK_STARTS)
+            ]
+    q_nom = np.full((m, n), np.nan)
+    nom_problems: dict[int, str] = {}
+    todo = np.arange(m)
+    for start in starts:
+        q, _, problems = _solve(nominal, False, goal[todo], start[todo], far=True)
+        inside = np.ones(todo.size, dtype=bool)
+        if limits is not None:
+            inside = np.all((q >= limits[:, 0]) & (q <= limits[:, 1]), axis=1)
+        for k, row in enumerate(todo.tolist()):
+            if k in problems:
+                nom_problems[row] = f"the nominal does not reach it: {problems[k]}"
+            elif not inside[k]:
+                nom_problems[row] = "the nominal reaches it only outside the limits"
+            else:
+                q_nom[row] = q[k]
+                nom_problems.pop(row, None)
+        todo = todo[~np.isfinite(q_nom[todo, 0])]
+        if not todo.size:
+            break
+    reached = np.isfinite(q_nom[:, 0])
+    q_cal = q_nom.copy()
+    size = np.full(m, np.inf)
+    problems = dict(nom_problems)
+    if np.any(reached):
+        rows = np.flatnonzero(reached)
+        q, s, solved = _solve(result, True, goal[rows], q_nom[rows])
+        q_cal[rows], size[rows] = q, s
+        problems.update({int(rows[k]): why for k, why in solved.items()})
+    ref = np.where(reached[:, None], q_nom, q_cal)
+    done = _checked(
+        np.where(reached[:, None], q_cal, 0.0), size, problems, np.nan_to_num(ref), limits
+    )
+    return done, q_nom
+
+
+def read_poses(
+    path: str | Path, n: int, *, angle_unit: str = "rad"
+) -> tuple[FloatArray, FloatArray | None]:
+    """Cartesian targets from a CSV with a header: ``x, y, z`` (mm) and the orientation as a
+    quaternion ``qw, qx, qy, qz`` or as angles ``rx, ry, rz`` (degrees, fixed axes X then Y then
+    Z); optionally the controller's configuration ``j1 … jn`` (``angle_unit``). Returns the
+    poses (m, 4, 4, m) and the configurations (m, n) or None. One-line errors name the file,
+    line or column."""
+    from scipy.spatial.transform import Rotation
+
+    from dhlog.errors import InputError
+
+    name = str(path)
+    try:
+        text = Path(path).read_text(encoding="utf-8-sig")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise InputError(
+            f"{name}: cannot be read ({exc}); give a CSV of Cartesian targets."
+        ) from None
+    lines = [
+        (k, line)
+        for k, line in enumerate(text.splitlines(), start=1)
+        if line.strip() and not line.lstrip().startswith("#")
+    ]
+    if not lines:
+        raise InputError(
+            f"{name}: holds no target; give a header (x, y, z, qw, qx, qy, qz) and rows."
+        )
+    header = [c.strip().lower() for c in lines[0][1].replace(";", ",").split(",")]
+    if len(set(header)) != len(header):
+        raise InputError(f"{name}, line {lines[0][0]}: a column is named twice; name each once.")
+    position = ["x", "y", "z"]
+    quaternion = ["qw", "qx", "qy", "qz"]
+    angles = ["rx", "ry", "rz"]
+    joints = [f"j{j + 1}" for j in range(n)]
+    if not all(c in header for c in position):
+        raise InputError(
+            f"{name}: its header ({', '.join(header)[:80]}) lacks x, y, z (mm); name the columns "
+            "x, y, z and qw, qx, qy, qz (or rx, ry, rz in degrees)."
+        )
+    has_q, has_r = all(c in header for c in quaternion), all(c in header for c in angles)
+    if has_q == has_r:
+        raise InputError(
+            f"{name}: give the orientation once, as qw, qx, qy, qz or as rx, ry, rz (degrees)."
+        )
+    has_j = any(c in header for c in joints)
+    if has_j and not all(c in header for c in joints):
+        raise InputError(f"{name}: the configuration needs all of {', '.join(joints)}.")
+    wanted = position + (quaternion if has_q else angles) + (joints if has_j else [])
+    unknown = [c for c in header if c not in wanted]
+    if unknown:
+        raise InputError(f"{name}: column '{unknown[0][:40]}' is not one of {', '.join(wanted)}.")
+    where = [header.index(c) for c in wanted]
+    rows = []
+    for number, line in lines[1:]:
+        cells = [c.strip() for c in line.replace(";", ",").split(",")]
+        try:
+            values = [float(cells[i]) for i in where]
+        except (ValueError, IndexError):
+            raise InputError(
+                f"{name}, line {number}: '{line.strip()[:60]}' is not {len(header)} numbers."
+            ) from None
+        if len(cells) != len(header) or not all(np.isfinite(values)):
+            raise InputError(
+                f"{name}, line {number}: has {len(cells)} values for {len(header)} columns "
+                "(finite numbers)."
+            )
+        if max(abs(v) for v in values[:3]) > 1e6:
+            raise InputError(f"{name}, line {number}: a position beyond 1 km; give mm.")
+        rows.append(values)
+    if not rows:
+        raise InputError(f"{name}: holds no target under its header.")
+    A = np.array(rows)
+    if has_q:
+        norm = np.linalg.norm(A[:, 3:7], axis=1)
+        bad = np.flatnonzero(np.abs(norm - 1.0) > 1e-3)
+        if bad.size:
+            raise InputError(
+                f"{name}, line {lines[1 + int(bad[0])][0]}: the quaternion has norm "
+                f"{norm[bad[0]]:.6g}, not 1."
+            )
+        R = Rotation.from_quat(A[:, 3:7], scalar_first=True).as_matrix()
+        rest = A[:, 7:]
+    else:
+        R = Rotation.from_euler("xyz", A[:, 3:6], degrees=True).as_matrix()
+        rest = A[:, 6:]
+    T = np.repeat(np.eye(4)[None], len(A), 0)
+    T[:, :3, :3] = R
+    T[:, :3, 3] = A[:, :3] * 1e-3
+    return T, (rest if has_j else None)
+
+
+def poses_csv(nominal: DHModel, done: Compensation, joint_scale: FloatArray) -> str:
+    """Per target reached: its row number, the corrected joint targets (shown ×
+    ``joint_scale``), and the Cartesian target a controller that takes only poses should run
+    instead (the nominal's pose at the corrected targets: x, y, z mm; qw, qx, qy, qz) —
+    the commercial "filter program" form."""
+    from scipy.spatial.transform import Rotation
+
+    n = done.targets.shape[1]
+    good = np.flatnonzero(np.isfinite(done.targets[:, 0]))
+    T = np.zeros((done.targets.shape[0], 4, 4))
+    if good.size:
+        T[good] = _pose(nominal, done.targets[good], calibrated=False)
+    head = ["row", *(f"j{j + 1}" for j in range(n)), "x", "y", "z", "qw", "qx", "qy", "qz"]
+    lines = [",".join(head)]
+    for k in range(T.shape[0]):
+        if k in done.problems:
+            continue
+        p = T[k, :3, 3] * 1e3
+        quat = Rotation.from_matrix(T[k, :3, :3]).as_quat(scalar_first=True)
+        cells = [*(done.targets[k] * joint_scale), *p, *quat]
+        lines.append(",".join([str(k + 1), *(f"{v:.15g}" for v in cells)]))
+    return "\n".join(lines) + "\n"
+
+
 def read_targets(path: str | Path, n: int) -> tuple[list[str] | None, FloatArray]:
     """Joint targets from a CSV (``,`` or ``;``): one row per target, ``n`` numbers each, an
-    optional header row of names. One-line errors name the file and line."""
+    optional header row of names; a first column headed ``row`` (what ``plan --select`` and this
+    module write) is left out. One-line errors name the file and line."""
     from dhlog.errors import InputError
 
     name = str(path)
@@ -151,16 +371,22 @@ def read_targets(path: str | Path, n: int) -> tuple[list[str] | None, FloatArray
     except (OSError, UnicodeDecodeError) as exc:
         raise InputError(f"{name}: cannot be read ({exc}); give a CSV of joint targets.") from None
     header: list[str] | None = None
+    numbered = False
     rows: list[list[float]] = []
     for number, line in enumerate(text.splitlines(), start=1):
         if not line.strip() or line.lstrip().startswith("#"):
             continue
         cells = [c.strip() for c in line.replace(";", ",").split(",")]
+        if numbered:
+            cells = cells[1:]
         try:
             values = [float(c) for c in cells]
         except ValueError:
             if header is None and not rows:
                 header = cells
+                numbered = len(cells) == n + 1 and cells[0].lower() == "row"
+                if numbered:
+                    header = cells[1:]
                 continue
             raise InputError(
                 f"{name}, line {number}: '{line.strip()[:60]}' is not {n} numbers; give one "

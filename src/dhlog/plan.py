@@ -62,7 +62,10 @@ def plan_session(robot: Robot, cfg: SimulationConfig) -> Plan:
     names = tuple(f"joint_{i + 1}" for i in range(robot.n))
     nominal = DHModel(robot.table, robot.T_base, robot.tool_point, names, robot.name)
     result = process_data(
-        log_data_from_session(session), nominal=nominal, model=ModelRequest("geometric")
+        log_data_from_session(session),
+        nominal=nominal,
+        model=ModelRequest("geometric"),
+        known_noise=cfg.noise,
     )
     if not result.complete or result.whole is None:
         missing = ", ".join(f"joint {j.index} ({j.reason})" for j in result.failed)

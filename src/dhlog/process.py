@@ -320,6 +320,7 @@ def process_data(
     holdout: int = 0,
     model: ModelRequest = AUTO,
     progress: Stage | None = None,
+    known_noise: float | None = None,
 ) -> ProcessResult:
     """The identification of :func:`process_log` on streams already decoded (``LogData``).
 
@@ -330,6 +331,8 @@ def process_data(
     whole-model fit, whatever the nominal says (0: never). ``holdout`` K > 1: K-fold
     cross-validation of the whole-model fit over the session's poses (``result.holdout``).
     ``model``: the terms beyond the geometry to try or force (:mod:`dhlog.identify.select`).
+    ``known_noise``: the tracker's σ (m) where it is known rather than measured (a plan): the
+    base plane's covariance from it.
     """
 
     def stage(what: str, fraction: float) -> None:
@@ -384,7 +387,9 @@ def process_data(
     if log.base is not None and log.base.height >= 3:
         try:
             base = fit_plane(
-                log.base.select(["x", "y", "z"]).to_numpy(), what=f"{name}: base plane"
+                log.base.select(["x", "y", "z"]).to_numpy(),
+                what=f"{name}: base plane",
+                sigma=known_noise,
             )
         except GeometryError as exc:
             notes.append(f"the base plane was not used: {exc}")

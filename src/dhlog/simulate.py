@@ -71,6 +71,9 @@ class SimulationConfig:
     protocol: Literal["sweeps", "random-poses", "coupled"] = "sweeps"
     #: random still poses of the ``random-poses`` protocol
     poses: int = 40
+    #: the ``random-poses`` protocol's still poses given, in their order (a planned list,
+    #: ``simulate --poses CSV``), in place of ``poses`` drawn ones
+    pose_list: tuple[tuple[float, ...], ...] = ()
     base_points: int = 12
     outliers: float = 0.0
     outlier_size: float = 3e-3
@@ -190,7 +193,9 @@ def _protocol_problems(robot: Robot, cfg: SimulationConfig) -> list[str]:
     bad = sorted({j for a, b, _ in cfg.coupled for j in (a, b) if not 1 <= j <= robot.n})
     if bad:
         out.append(f"the coupled moves name joint(s) {bad}; {robot.name} has joints 1-{robot.n}")
-    if cfg.protocol == "random-poses":
+    if cfg.pose_list:
+        out += _pose_list_problems(robot, cfg)
+    if cfg.protocol == "random-poses" and not cfg.pose_list:
         if not 1 <= cfg.poses <= 100_000:
             out.append(f"the number of poses must be in [1, 100 000] (got {cfg.poses})")
         if cfg.skip_joints:
@@ -212,6 +217,26 @@ def _protocol_problems(robot: Robot, cfg: SimulationConfig) -> list[str]:
             else "the dwell must be > 0 for a step-and-measure protocol"
         )
     return out
+
+
+def _pose_list_problems(robot: Robot, cfg: SimulationConfig) -> list[str]:
+    """What is wrong with the given still poses: the protocol, their count, size and limits."""
+    if cfg.protocol != "random-poses":
+        return ["a list of poses is for the random-poses protocol (static poses)"]
+    if len(cfg.pose_list) > 100_000:
+        return [f"the list holds {len(cfg.pose_list)} poses; at most 100 000"]
+    lo, hi = robot.limits[:, 0], robot.limits[:, 1]
+    for k, pose in enumerate(cfg.pose_list, start=1):
+        if len(pose) != robot.n or not all(math.isfinite(v) for v in pose):
+            return [f"pose {k} has {len(pose)} values; {robot.name} has {robot.n} joints"]
+        q = np.array(pose)
+        out = np.flatnonzero((q < lo - 1e-9) | (q > hi + 1e-9))
+        if out.size:
+            return [
+                f"pose {k} leaves the limits of joint {int(out[0]) + 1} ({pose[out[0]]:.6g} not "
+                f"in [{lo[out[0]]:.6g}, {hi[out[0]]:.6g}] rad or m)"
+            ]
+    return []
 
 
 def _terms_problems(robot: Robot, cfg: SimulationConfig) -> list[str]:
@@ -395,6 +420,8 @@ def random_poses(robot: Robot, cfg: SimulationConfig, home: FloatArray) -> Float
     robot's joint limits from their own generator (the session's other draws stay as they are),
     every joint changing by at least ``MIN_POSE_CHANGE`` of its range from one pose to the next
     (the first from ``home``)."""
+    if cfg.pose_list:
+        return np.array(cfg.pose_list, dtype=np.float64)
     rng = np.random.default_rng([cfg.seed if cfg.pose_seed is None else cfg.pose_seed, 18])
     lo, hi = robot.limits[:, 0], robot.limits[:, 1]
     least = MIN_POSE_CHANGE * (hi - lo)

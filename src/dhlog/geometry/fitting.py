@@ -122,10 +122,14 @@ def _check_encoder(encoder: ArrayLike | None, m: int, what: str) -> FloatArray |
     return q
 
 
-def fit_plane(points: ArrayLike, *, what: str = "base plane") -> PlaneFit:
+def fit_plane(
+    points: ArrayLike, *, what: str = "base plane", sigma: float | None = None
+) -> PlaneFit:
     """Least-squares plane by SVD of the centred points (seed 002, Eq. 8–9): ``n = v3``.
 
     ``points`` (m, 3). The normal's sign is chosen so that it has a non-negative z component.
+    The covariance takes the points' σ from their residuals, or ``sigma`` (m) where it is known
+    (a plan: a dozen points estimate their own σ only to ±25 %).
     """
     pts = _check_samples(points, what)
     centroid = pts.mean(axis=0)
@@ -136,7 +140,7 @@ def fit_plane(points: ArrayLike, *, what: str = "base plane") -> PlaneFit:
     plane = Plane(centroid, normal)
     residuals = plane.signed_distance(pts)
     m = pts.shape[0]
-    sigma2 = float(residuals @ residuals) / max(m - 3, 1)
+    sigma2 = float(residuals @ residuals) / max(m - 3, 1) if sigma is None else sigma**2
     u, v = perpendicular_basis(plane.normal)
     A = (pts - centroid) @ np.stack([u, v]).T
     cov = np.zeros((3, 3))
