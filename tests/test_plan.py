@@ -97,3 +97,55 @@ def test_simulate_replays_a_pose_list() -> None:
     encoders = session.joint_q
     for q in Q:  # every pose is held: some joint state reads it to the encoder's resolution
         assert np.min(np.max(np.abs(encoders - q), axis=1)) < 1e-6
+
+
+def test_a_plan_with_the_tracker_model_and_its_range(tmp_path: Path) -> None:
+    """A tracker 2.5 m away with its noise model (radial 10 µm, transverse 15 µm + 6 µm/m):
+    poses beyond its range are left out and counted; the transverse σ (≈ 30 µm at that
+    distance) dominates, so the FK σ is well above that of an isotropic 10 µm; the JSON says
+    what the console says."""
+    from dhlog.plan import Tracker
+
+    robot = load_robot("kr5")
+    cfg = SimulationConfig(protocol="random-poses", poses=30, noise=1e-5)
+    near = Tracker((2.5, 0.0, 0.5), (0.5, 3.2))
+    cut = plan_session(robot, cfg, near)
+    whole = plan_session(robot, cfg)
+    assert cut.out_of_range > 0 and cut.poses == 30 - cut.out_of_range
+    modelled = plan_session(robot, cfg, Tracker((2.5, 0.0, 0.5), model=(1e-5, 1.5e-5, 6e-6)))
+    rms = [math.sqrt(float(np.mean(p.fk_sd**2))) for p in (whole, modelled)]
+    assert 1.5 < rms[1] / rms[0] < 6, rms
+    out = tmp_path / "plan.json"
+    args = ["plan", "kr5", "--poses", "30", "--station", "2500,0,500", "--range-m", "0.5,3.2"]
+    done = runner.invoke(app, [*args, "-o", str(out)])
+    assert done.exit_code == 0, done.output
+    doc = json.loads(out.read_text())
+    assert doc["poses_out_of_range"] == cut.out_of_range and doc["poses"] == cut.poses
+    assert doc["rows"][0]["std"]["theta_rad"] is None  # θ1 fixed: the base's gauge
+    assert doc["fk_std_m"]["rms"] == pytest.approx(math.sqrt(float(np.mean(cut.fk_sd**2))))
+    for bad in (["--station", "1,2"], ["--tracker-um", "1,2,3"], ["--station", "nan,0,0"]):
+        refused = runner.invoke(app, ["plan", "kr5", *bad])
+        assert refused.exit_code == 1 and "Traceback" not in refused.output
+
+
+def test_the_simulated_tracker_scatters_along_its_line_of_sight() -> None:
+    """simulate's tracker model: the residuals' spread along the line of sight is the radial
+    σ, across it the transverse σ at that distance (30 000 samples: ±1 % each)."""
+    from dhlog.kinematics import fk_point
+    from dhlog.simulate import simulate_session
+
+    robot = load_robot("kr5")
+    cfg = SimulationConfig(
+        protocol="random-poses", poses=100, tracker_rate=1000.0, tracker_model=(1e-5, 2e-5, 0.0)
+    )
+    s = simulate_session(robot, cfg)
+    joint = np.array(
+        [np.interp(s.point_t_ns, s.joint_t_ns, s.joint_q[:, j]) for j in range(robot.n)]
+    ).T
+    e = s.point_xyz - fk_point(s.table, joint, s.tool_point, T_base=s.T_measurement_base)
+    u = s.point_xyz / np.linalg.norm(s.point_xyz, axis=1, keepdims=True)
+    along = np.sum(e * u, axis=1)
+    across = e - along[:, None] * u
+    assert e.shape[0] > 20_000
+    assert abs(np.std(along) / 1e-5 - 1) < 0.03
+    assert abs(np.sqrt(np.mean(np.sum(across**2, axis=1)) / 2) / 2e-5 - 1) < 0.03

@@ -1040,6 +1040,76 @@ def _terms_not_exported(result: Path, fmt: str) -> None:
 
 
 @app.command(cls=_Command, epilog=EXIT_CODES)
+def report(
+    result: Annotated[
+        Path, typer.Argument(metavar="RESULT", help="A result JSON (<stem>.dh.json).")
+    ],
+    output: Annotated[
+        Path,
+        typer.Option("-o", "--output", metavar="HTML", help="The certificate to write."),
+    ],
+    robot: Annotated[
+        str | None,
+        typer.Option(
+            metavar="TEXT",
+            help="The robot as the certificate names it (model, serial number); the result "
+            "does not record it.",
+        ),
+    ] = None,
+    nominal: Annotated[
+        str | None,
+        typer.Option(
+            metavar="ROBOT|FILE",
+            help="The nominal given to dhlog process (a library robot or a DH file), for "
+            "measured - nominal; the result does not record it.",
+        ),
+    ] = None,
+    log: Annotated[
+        Path | None,
+        typer.Option(
+            metavar="LOG",
+            help="The session log, when it is neither beside the result nor in the current "
+            "folder: hashed and compared with the SHA-256 the result records.",
+        ),
+    ] = None,
+    force: Annotated[bool, typer.Option("--force", help="Overwrite the output.")] = False,
+) -> None:
+    """Write a calibration certificate: one self-contained HTML page (robot, hashes, noise
+    model, held-out error before and after, DH parameters with ±1σ, residuals, warnings)."""
+    from rich.markup import escape
+
+    from dhlog.certificate import Nominal, certificate_html, load_sources
+    from dhlog.io.writer import atomic_output
+
+    if output.resolve() in {result.resolve(), *([log.resolve()] if log else [])}:
+        stderr.print(f"error: {escape(str(output))} is an input; name another with -o.")
+        raise typer.Exit(EXIT_USAGE)
+    _check_folder(output.parent)
+    _refuse_existing(output, force)
+    try:
+        sources = load_sources(result, log=log)
+        if output.resolve() in {p.resolve() for p in sources.inputs}:
+            stderr.print(f"error: {escape(str(output))} is an input; name another with -o.")
+            raise typer.Exit(EXIT_USAGE)
+        nom = None if nominal is None else Nominal(nominal, _model(nominal).table)
+        page = certificate_html(sources, robot=robot, nominal=nom)
+        with atomic_output(output) as f:
+            f.write(page.encode())
+    except DhlogError as exc:
+        _fail(exc)
+    except OSError as exc:
+        _fail(OutputError(output.parent, exc))
+    found = sources.log
+    if found.sha256 is None:
+        logged = f"log {found.name or '?'} not found, its hash not checked (--log)"
+    elif found.sha256 == found.recorded_sha256:
+        logged = f"log {found.path} matches the recorded SHA-256"
+    else:
+        logged = f"log {found.path} DIFFERS from the SHA-256 the result records"
+    stdout.print(f"wrote {escape(str(output))} ({escape(logged)})")
+
+
+@app.command(cls=_Command, epilog=EXIT_CODES)
 def compensate(
     result: Annotated[
         Path, typer.Argument(metavar="RESULT", help="A result JSON (<stem>.dh.json).")
@@ -1202,6 +1272,28 @@ def plan(
         bool, typer.Option("--six-dof", help="A 6-DoF probe: its orientation measured too.")
     ] = False,
     seed: Annotated[int, typer.Option(help="Seed of the poses drawn.")] = 0,
+    station: Annotated[
+        str | None,
+        typer.Option(
+            metavar="X,Y,Z",
+            help="Where the tracker stands, mm in the robot's base frame: poses whose target "
+            "is beyond --range-m are left out and counted, and --tracker-um's noise is along "
+            "the line of sight from here.",
+        ),
+    ] = None,
+    range_m: Annotated[
+        str,
+        typer.Option(metavar="MIN,MAX", help="The distances the tracker measures, m."),
+    ] = "0.8,30",
+    tracker_um: Annotated[
+        str | None,
+        typer.Option(
+            metavar="RADIAL,TRANSVERSE,PER_M",
+            help="With --station: the tracker's noise model in place of --noise-mm — radial "
+            "and transverse σ (µm) and the transverse σ's growth (µm per m of distance), as "
+            "in a pipeline's [noise] model = \"tracker\".",
+        ),
+    ] = None,
     candidates: Annotated[
         Path | None,
         typer.Option(
@@ -1214,7 +1306,12 @@ def plan(
     ] = 0,
     output: Annotated[
         Path | None,
-        typer.Option("-o", "--output", metavar="CSV", help="With --select: the chosen poses."),
+        typer.Option(
+            "-o",
+            "--output",
+            metavar="FILE",
+            help="With --select: the chosen poses (CSV); else the prediction as JSON.",
+        ),
     ] = None,
     angle_unit: Annotated[
         str, typer.Option(metavar="rad|deg", help="The unit of the candidates' revolute joints.")
@@ -1224,17 +1321,23 @@ def plan(
     """Before the session: the σ of every DH parameter and the FK σ over the workspace that a
     protocol will give, and what it cannot determine; or, with --candidates and --select, the
     most informative poses (D-optimal)."""
+    import json
+
     from rich import box
     from rich.markup import escape
     from rich.table import Table
 
     from dhlog.dhfile import robot_or_dh_file
+    from dhlog.io.writer import atomic_output
     from dhlog.plan import plan_session
     from dhlog.simulate import SIX_DOF_TOOL_ROTATION, SimulationConfig, config_problems
 
+    tracker = _tracker(station, range_m, tracker_um)
     if candidates is not None or select:
-        _select_poses(robot, candidates, select, output, noise_mm, angle_unit, force)
+        _select_poses(robot, candidates, select, output, noise_mm, angle_unit, force, tracker)
         return
+    if output is not None:
+        _refuse_existing(output, force)
     try:
         rob = robot_or_dh_file(robot)
         cfg = SimulationConfig(
@@ -1253,12 +1356,18 @@ def plan(
         if problems:
             stderr.print(f"error: {escape(problems[0])}.")
             raise typer.Exit(EXIT_USAGE)
-        found = plan_session(rob, cfg)
+        found = plan_session(rob, cfg, tracker)
+        if output is not None:
+            with atomic_output(output) as f:
+                f.write(json.dumps(found.document(rob.name), indent=2).encode())
     except DhlogError as exc:
         _fail(exc)
+    except OSError as exc:
+        assert output is not None
+        _fail(OutputError(output.parent, exc))
     t = Table(
         title=f"Predicted σ of {escape(rob.name)}'s parameters ({protocol}: {found.samples} "
-        f"samples at {found.poses} poses, σ {noise_mm:g} mm)",
+        f"samples at {found.poses} poses, {found.noise_model})",
         title_justify="left",
         box=box.SIMPLE_HEAD,
         pad_edge=False,
@@ -1282,6 +1391,46 @@ def plan(
     )
     for line in found.fixed:
         stdout.print(escape(f"Fixed: {line}"))
+    if found.out_of_range:
+        stdout.print(
+            f"Left out: {found.out_of_range} of the drawn poses put the target beyond the "
+            "tracker's range."
+        )
+    if output is not None:
+        stdout.print(escape(f"wrote {output}"))
+
+
+def _tracker(station: str | None, range_m: str, tracker_um: str | None) -> Any:
+    """``plan``'s tracker options as a :class:`dhlog.plan.Tracker` (None without a station)."""
+    from dhlog.plan import Tracker
+
+    if station is None:
+        if tracker_um is not None:
+            stderr.print("error: --tracker-um needs --station (where the line of sight starts).")
+            raise typer.Exit(EXIT_USAGE)
+        return None
+    xyz = _floats(station, "--station")
+    reach = _floats(range_m, "--range-m")
+    model = _floats(tracker_um, "--tracker-um") if tracker_um is not None else None
+    if not all(math.isfinite(v) for v in [*xyz, *reach, *(model or [])]):
+        stderr.print("error: --station, --range-m and --tracker-um take finite numbers.")
+        raise typer.Exit(EXIT_USAGE)
+    if len(xyz) != 3 or max(abs(v) for v in xyz) > 1e6:
+        stderr.print("error: --station needs X,Y,Z in mm (within a km).")
+        raise typer.Exit(EXIT_USAGE)
+    if len(reach) != 2 or not 0 <= reach[0] < reach[1]:
+        stderr.print("error: --range-m needs MIN,MAX in m with 0 ≤ MIN < MAX.")
+        raise typer.Exit(EXIT_USAGE)
+    if model is not None and (len(model) != 3 or min(model[:2]) <= 0 or model[2] < 0):
+        stderr.print(
+            "error: --tracker-um needs RADIAL,TRANSVERSE,PER_M: σ > 0 µm, growth ≥ 0 µm/m."
+        )
+        raise typer.Exit(EXIT_USAGE)
+    return Tracker(
+        (xyz[0] * 1e-3, xyz[1] * 1e-3, xyz[2] * 1e-3),
+        (reach[0], reach[1]),
+        None if model is None else (model[0] * 1e-6, model[1] * 1e-6, model[2] * 1e-6),
+    )
 
 
 def _select_poses(
@@ -1292,6 +1441,7 @@ def _select_poses(
     noise_mm: float,
     angle_unit: str,
     force: bool,
+    tracker: Any,
 ) -> None:
     """``dhlog plan --candidates CSV --select N -o CSV``."""
     from rich.markup import escape
@@ -1320,7 +1470,7 @@ def _select_poses(
         revolute = np.array([t.value == "revolute" for t in rob.table.joint_types])
         if angle_unit == "deg":
             Q = np.where(revolute, np.radians(Q), Q)
-        found = select_poses(rob, Q, count, noise_mm * 1e-3)
+        found = select_poses(rob, Q, count, noise_mm * 1e-3, tracker)
         shown = np.where(revolute, np.degrees(Q), Q) if angle_unit == "deg" else Q
         left = {k: "not chosen" for k in range(len(Q)) if k not in set(found.chosen)}
         with atomic_output(output) as f:  # the chosen rows, numbered as in the candidates
@@ -1333,8 +1483,8 @@ def _select_poses(
         escape(
             f"wrote {output}: {count} of {len(Q)} candidate poses, the most informative "
             f"(D-optimal: each adds the most to log det of the Fisher information); "
-            f"{found.singular} near a "
-            f"singularity left out. Predicted FK σ over the workspace (RMS, 3-D, σ {noise_mm:g} "
+            f"{found.singular} near a singularity and {found.out_of_range} beyond the "
+            f"tracker's range left out. Predicted FK σ over the workspace (RMS, 3-D, σ {noise_mm:g} "
             f"mm, one sample a pose): {found.fk_sd_chosen * 1e3:.4f} mm, against "
             f"{found.fk_sd_random * 1e3:.4f} mm for {count} drawn at random."
         )

@@ -13,12 +13,14 @@ vectors within the limits.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
+from numpy.typing import NDArray
 
 from dhlog.errors import InputError
 from dhlog.geometry._checks import FloatArray
+from dhlog.identify.noise import NoiseModel
 from dhlog.robots import Robot
 from dhlog.simulate import SimulationConfig, simulate_session
 
@@ -40,10 +42,83 @@ class Plan:
     samples: int
     poses: int
     noise: float
+    #: random poses drawn but left out: the target beyond the tracker's reach
+    out_of_range: int = 0
+    #: the noise model planned with, in words
+    noise_model: str = ""
+
+    def document(self, robot: str) -> dict[str, object]:
+        """The plan as JSON (SI units; ``null`` where a parameter is fixed)."""
+        sd = self.fk_sd
+        return {
+            "format": "dhlog-plan/1",
+            "robot": robot,
+            "samples": self.samples,
+            "poses": self.poses,
+            "poses_out_of_range": self.out_of_range,
+            "noise_m": self.noise,
+            "noise_model": self.noise_model,
+            "rows": [
+                {
+                    "form": form,
+                    "std": dict(
+                        zip(
+                            ("theta_rad", "hayati_beta_rad" if form == "hayati" else "d_m"),
+                            [None if not np.isfinite(v) else float(v) for v in row[:2]],
+                            strict=True,
+                        ),
+                        a_m=None if not np.isfinite(row[2]) else float(row[2]),
+                        alpha_rad=None if not np.isfinite(row[3]) else float(row[3]),
+                    ),
+                }
+                for row, form in zip(self.rows_std, self.forms, strict=True)
+            ],
+            "fixed": self.fixed,
+            "fk_std_m": {
+                "points": int(sd.size),
+                "rms": math.sqrt(float(np.mean(sd**2))),
+                "p95": float(np.percentile(sd, 95)),
+                "max": float(sd.max()),
+            },
+        }
 
 
-def plan_session(robot: Robot, cfg: SimulationConfig) -> Plan:
-    """The plan ``cfg`` (protocol, counts, noise) on ``robot`` as its nominal."""
+@dataclass(frozen=True)
+class Tracker:
+    """Where the tracker stands and what it reaches: the station (m, 3) in the robot's base
+    frame (its axes the base's), the range of distances (m) it measures; ``model``: its noise
+    (radial, transverse, transverse per metre; m) in place of an isotropic σ."""
+
+    station: tuple[float, float, float]
+    reach: tuple[float, float] = (0.0, math.inf)
+    model: tuple[float, float, float] | None = None
+
+    def in_reach(self, robot: Robot, Q: FloatArray) -> NDArray[np.bool_]:
+        """Per joint vector of ``Q`` (m, n): the nominal's target within the tracker's range."""
+        from dhlog.kinematics import fk_point
+
+        p = fk_point(robot.table, Q, robot.tool_point, T_base=robot.T_base)
+        distance = np.linalg.norm(p - np.asarray(self.station), axis=1)
+        return np.asarray((distance >= self.reach[0]) & (distance <= self.reach[1]))
+
+    def measurement_pose(self) -> FloatArray:
+        """T_measurement_robot: the tracker's frame at the station, axes along the base's."""
+        T = np.eye(4)
+        T[:3, 3] = -np.asarray(self.station)
+        return T
+
+    def noise(self, isotropic: float) -> NoiseModel:
+        """The noise model of the measured targets in the tracker's frame."""
+        if self.model is None:
+            return NoiseModel(sigma=isotropic)
+        radial, transverse, per_m = self.model
+        return NoiseModel("tracker", radial=radial, transverse=transverse, transverse_per_m=per_m)
+
+
+def plan_session(robot: Robot, cfg: SimulationConfig, tracker: Tracker | None = None) -> Plan:
+    """The plan ``cfg`` (protocol, counts, noise) on ``robot`` as its nominal; with
+    ``tracker``, the robot placed in front of it, its noise model, and random poses whose target
+    is out of its range left out (counted)."""
     from dhlog.dhfile import DHModel
     from dhlog.identify.holdout import pose_groups
     from dhlog.identify.select import ModelRequest
@@ -58,14 +133,44 @@ def plan_session(robot: Robot, cfg: SimulationConfig) -> Plan:
         raise InputError("a plan is made on the nominal robot; leave the perturbations out.")
     if cfg.noise <= 0:
         raise InputError("a plan needs the tracker's noise (> 0) to predict what it gives.")
-    session = simulate_session(robot, cfg)
+    out_of_range = 0
+    T_mr = None
+    pipeline = None
+    known = cfg.noise
+    if tracker is not None:
+        T_mr = tracker.measurement_pose()
+        if cfg.protocol == "random-poses":
+            from dhlog.simulate import random_poses
+
+            home = np.clip(np.zeros(robot.n), robot.limits[:, 0], robot.limits[:, 1])
+            Q = random_poses(robot, cfg, home)
+            inside = tracker.in_reach(robot, Q)
+            out_of_range = int((~inside).sum())
+            if not inside.any():
+                raise InputError(
+                    f"no pose of the plan puts the target within the tracker's range "
+                    f"({tracker.reach[0]:g}–{tracker.reach[1]:g} m from the station); move the "
+                    "station or widen the range."
+                )
+            cfg = replace(cfg, pose_list=tuple(tuple(float(v) for v in q) for q in Q[inside]))
+        if tracker.model is not None:
+            from dhlog.io.pipeline import pipeline_by_name
+
+            cfg = replace(cfg, tracker_model=tracker.model)
+            shipped = pipeline_by_name("ros2_tracker")
+            assert shipped is not None
+            pipeline = replace(shipped, noise=tracker.noise(cfg.noise))
+            radial, transverse, per_m = tracker.model  # the base plane: an equivalent σ
+            t = transverse + per_m * float(np.linalg.norm(tracker.station))
+            known = math.sqrt((radial**2 + 2 * t**2) / 3)
+    session = simulate_session(robot, cfg, T_measurement_robot=T_mr)
     names = tuple(f"joint_{i + 1}" for i in range(robot.n))
     nominal = DHModel(robot.table, robot.T_base, robot.tool_point, names, robot.name)
     result = process_data(
-        log_data_from_session(session),
+        log_data_from_session(session, pipeline),
         nominal=nominal,
         model=ModelRequest("geometric"),
-        known_noise=cfg.noise,
+        known_noise=known,
     )
     if not result.complete or result.whole is None:
         missing = ", ".join(f"joint {j.index} ({j.reason})" for j in result.failed)
@@ -93,6 +198,15 @@ def plan_session(robot: Robot, cfg: SimulationConfig) -> Plan:
         samples=int(Qs.shape[0]),
         poses=int(np.unique(pose_groups(Qs)).size),
         noise=cfg.noise,
+        out_of_range=out_of_range,
+        noise_model=(
+            f"isotropic σ {cfg.noise * 1e3:g} mm"
+            if tracker is None or tracker.model is None
+            else tracker.noise(cfg.noise)
+            .declared.replace("station [0.0, 0.0, 0.0]", "")
+            .replace(", )", ")")
+            + " at ({:g}, {:g}, {:g}) mm from the base".format(*(1e3 * np.array(tracker.station)))
+        ),
     )
 
 
@@ -111,38 +225,54 @@ class Selection:
     singular: int
     fk_sd_chosen: float
     fk_sd_random: float
+    #: candidates left out as beyond the tracker's range
+    out_of_range: int = 0
 
 
-def select_poses(robot: Robot, candidates: FloatArray, count: int, noise: float) -> Selection:
+def select_poses(
+    robot: Robot,
+    candidates: FloatArray,
+    count: int,
+    noise: float,
+    tracker: Tracker | None = None,
+) -> Selection:
     """The ``count`` candidate poses that maximise the information about the whole model
     (D-optimal: each step adds the pose that most increases ``log det`` of the Fisher
     information, by the matrix determinant lemma), the model being the nominal's axes and tool
-    point; a position target, isotropic noise ``noise``."""
+    point; a position target, isotropic noise ``noise`` or, with ``tracker``, its noise model
+    along the line of sight from its station, and candidates beyond its range left out."""
     from dhlog.identify.whole import AxisModel, ParameterLayout, predict
     from dhlog.kinematics import spatial_jacobian
 
-    usable = np.array(
+    singular = np.array(
         [
             np.linalg.svd(spatial_jacobian(robot.table, q, T_base=robot.T_base), compute_uv=False)[
                 -1
             ]
-            >= NEAR_SINGULAR
+            < NEAR_SINGULAR
             for q in candidates
         ]
     )
+    far = ~tracker.in_reach(robot, candidates) if tracker is not None else np.zeros_like(singular)
+    usable = ~singular & ~far
     index = np.flatnonzero(usable)
     if index.size < count:
         raise InputError(
             f"--select {count}: only {index.size} of the {len(candidates)} candidates are usable "
-            f"({int((~usable).sum())} near a singularity); give more candidates or select fewer."
+            f"({int(singular.sum())} near a singularity, {int((far & ~singular).sum())} beyond "
+            "the tracker's range); give more candidates or select fewer."
         )
     ref = np.clip(np.zeros(robot.n), robot.limits[:, 0], robot.limits[:, 1])
     model = AxisModel.of_table(robot.table, ref, robot.tool_point, robot.T_base)
     layout = ParameterLayout.of(model.types)
     bases = model.bases()
-    _, J = predict(model, candidates[index], layout, bases)
+    P, J = predict(model, candidates[index], layout, bases)
     assert J is not None
-    J = J / noise
+    if tracker is None or tracker.model is None:
+        J = J / noise
+    else:  # whitened along each line of sight: W with WᵀW = C⁻¹
+        W = replace(tracker.noise(noise), station=tracker.station).whiten(P, noise)
+        J = np.einsum("kij,kjp->kip", W, J)
     scale = np.sqrt(np.einsum("kij,kij->j", J, J)) + 1e-30  # columns of comparable size
     Js = J / scale
     info = 1e-9 * np.eye(layout.size)
@@ -172,7 +302,8 @@ def select_poses(robot: Robot, candidates: FloatArray, count: int, noise: float)
     drawn = list(np.random.default_rng(1).choice(index.size, count, replace=False))
     return Selection(
         [int(index[k]) for k in chosen],
-        int((~usable).sum()),
+        int(singular.sum()),
         fk_sd(chosen),
         fk_sd([int(k) for k in drawn]),
+        int((far & ~singular).sum()),
     )

@@ -106,6 +106,10 @@ class SimulationConfig:
     harmonic: tuple[tuple[int, float, float], ...] = ()
     #: the seed of the random poses alone (None: ``seed``): one plan, other noise
     pose_seed: int | None = None
+    #: a laser tracker's noise at the measurement frame's origin, in place of the isotropic
+    #: ``noise``: (radial, transverse, transverse per metre of distance) σ, m and m/m (the
+    #: ``tracker`` noise model of :mod:`dhlog.identify.noise`)
+    tracker_model: tuple[float, float, float] | None = None
     seed: int = 0
 
 
@@ -129,6 +133,15 @@ def config_problems(robot: Robot, cfg: SimulationConfig) -> list[str]:
         out.append("every number must be finite")
     checks = [
         (cfg.noise >= 0, f"the noise must be ≥ 0 (got {cfg.noise * 1e3:g} mm)"),
+        (
+            cfg.tracker_model is None
+            or (
+                len(cfg.tracker_model) == 3
+                and all(math.isfinite(v) and v >= 0 for v in cfg.tracker_model)
+                and min(cfg.tracker_model[:2]) > 0
+            ),
+            "the tracker model needs radial and transverse σ > 0 and a σ per metre ≥ 0",
+        ),
         (
             0 < cfg.tracker_rate <= 1e5,
             f"the tracker rate must be in (0, 100 000] Hz (got {cfg.tracker_rate:g})",
@@ -662,10 +675,22 @@ def simulate_session(
         if cfg.orientation_noise > 0:
             tilt = rng.normal(scale=cfg.orientation_noise, size=(q_trk.shape[0], 3))
             point_rot = Rotation.from_rotvec(tilt).as_matrix() @ point_rot
-    if cfg.noise_kind == "uniform":
-        xyz = xyz + rng.uniform(-cfg.noise, cfg.noise, xyz.shape)
-    else:
-        xyz = xyz + rng.normal(scale=cfg.noise, size=xyz.shape)
+
+    def scatter(points: FloatArray) -> FloatArray:
+        """``points`` (m, 3) as the tracker measures them."""
+        if cfg.tracker_model is not None:
+            radial, transverse, per_m = cfg.tracker_model
+            distance = np.linalg.norm(points, axis=1, keepdims=True)
+            u = points / np.maximum(distance, 1e-9)
+            e = rng.normal(size=points.shape) * (transverse + per_m * distance)
+            e += u * (np.sum(u * e, axis=1, keepdims=True) * -1.0)  # transverse part only
+            radial_e = u * rng.normal(scale=radial, size=(points.shape[0], 1))
+            return np.asarray(points + e + radial_e, dtype=np.float64)
+        if cfg.noise_kind == "uniform":
+            return points + rng.uniform(-cfg.noise, cfg.noise, points.shape)
+        return points + rng.normal(scale=cfg.noise, size=points.shape)
+
+    xyz = scatter(xyz)
     n_out = round(cfg.outliers * xyz.shape[0])
     if n_out:
         idx = rng.choice(xyz.shape[0], n_out, replace=False)
@@ -681,11 +706,7 @@ def simulate_session(
     extra_xyz = []
     for extra in cfg.extra_tools:  # further targets, measured at the same instants
         e = fk_point(table, q_arm, np.asarray(extra, dtype=np.float64), T_base=T_mb) + error
-        if cfg.noise_kind == "uniform":
-            e = e + rng.uniform(-cfg.noise, cfg.noise, e.shape)
-        else:
-            e = e + rng.normal(scale=cfg.noise, size=e.shape)
-        extra_xyz.append(e)
+        extra_xyz.append(scatter(e))
     start_ns = START_NS + round(cfg.start_day * 86_400e9)
     t_trk_ns = start_ns + ((t_trk + base_time) * 1e9).astype(np.int64)
     # encoders: another clock phase, rate and jitter
@@ -700,11 +721,7 @@ def simulate_session(
     local = np.column_stack(
         [radius * np.cos(angle), radius * np.sin(angle), np.zeros(cfg.base_points)]
     )
-    base = local @ T_mb[:3, :3].T + T_mb[:3, 3]
-    if cfg.noise_kind == "uniform":
-        base = base + rng.uniform(-cfg.noise, cfg.noise, base.shape)
-    else:
-        base = base + rng.normal(scale=cfg.noise, size=base.shape)
+    base = scatter(local @ T_mb[:3, :3].T + T_mb[:3, 3])
     base_t = start_ns + (np.linspace(0.1, base_time - 0.2, cfg.base_points) * 1e9).astype(np.int64)
     phase = [(start_ns + int((t + base_time) * 1e9), j) for t, j in marks] if cfg.phase else []
     return Session(
