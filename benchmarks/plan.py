@@ -122,31 +122,31 @@ def main() -> None:
         )
         print(
             f"FK at {WORKSPACE_POINTS} random joint vectors: predicted σ RMS "
-            f"{fk_predicted * 1e3:.4f} mm, measured RMS error {fk_measured * 1e3:.4f} mm, "
+            f"{fk_predicted * 1e6:.3f} µm, measured RMS error {fk_measured * 1e6:.3f} µm, "
             f"ratio {fk_predicted / fk_measured:.3f}"
         )
 
-        C = np.random.default_rng(3).uniform(
-            robot.limits[:, 0], robot.limits[:, 1], (500, robot.n)
-        )
+        C = np.random.default_rng(3).uniform(robot.limits[:, 0], robot.limits[:, 1], (500, robot.n))
         found = select_poses(robot, C, 40, noise)
         drawn = np.random.default_rng(11).choice(500, 40, replace=False)
         print(
             f"\n--select 40 of 500 random candidates ({found.singular} near a singularity), "
             f"{args.select_sessions} sessions each:"
         )
+        print(
+            f"  the selection's own figure (one sample a pose): {found.fk_sd_chosen * 1e6:.3f} "
+            f"µm chosen, {found.fk_sd_random * 1e6:.3f} µm for 40 drawn at random"
+        )
         for label, rows in (("D-optimal", found.chosen), ("random", list(drawn))):
             listed = tuple(tuple(float(v) for v in C[r]) for r in rows)
             plan = plan_session(robot, config(noise, 40, listed, 0, off=False))
-            jobs = [
-                (args.robot, noise, 40, listed, 2000 + s) for s in range(args.select_sessions)
-            ]
+            jobs = [(args.robot, noise, 40, listed, 2000 + s) for s in range(args.select_sessions)]
             err = np.array([e for _, e in pool.map(one, jobs)])
             measured = math.sqrt(float(np.mean(err**2)))
             predicted = math.sqrt(float(np.mean(plan.fk_sd**2)))
             print(
-                f"  {label:9s}: predicted FK σ RMS {predicted * 1e3:.4f} mm, measured RMS "
-                f"error {measured * 1e3:.4f} mm (ratio {predicted / measured:.3f})"
+                f"  {label:9s}: predicted FK σ RMS {predicted * 1e6:.3f} µm, measured RMS "
+                f"error {measured * 1e6:.3f} µm (ratio {predicted / measured:.3f})"
             )
 
 
