@@ -1101,7 +1101,7 @@ def report(
         _fail(OutputError(output.parent, exc))
     found = sources.log
     if found.sha256 is None:
-        logged = f"log {found.name or '?'} not found, its hash not checked (--log)"
+        logged = f"log {found.name or '?'} not found: its hash not checked (give it with --log)"
     elif found.sha256 == found.recorded_sha256:
         logged = f"log {found.path} matches the recorded SHA-256"
     else:
