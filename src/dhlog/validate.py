@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import Protocol
 
 import numpy as np
 from numpy.typing import NDArray
@@ -19,8 +19,19 @@ from dhlog.identify.whole import WholeFit
 from dhlog.kinematics import fk_point, fk_points_chunked
 from dhlog.segment import Segmentation
 
-if TYPE_CHECKING:
-    from dhlog.process import ProcessResult
+
+class Identified(Protocol):
+    """What :func:`fk_prediction_std` reads of a run's result (``dhlog.process.ProcessResult``):
+    the whole-model fit, else the extraction and its propagated covariance."""
+
+    @property
+    def whole(self) -> WholeFit | None: ...
+
+    @property
+    def extraction(self) -> Extraction | None: ...
+
+    @property
+    def covariance(self) -> FloatArray | None: ...
 
 
 @dataclass
@@ -69,7 +80,7 @@ def model_from_state(
     return table, tool, T
 
 
-def fk_prediction_std(result: ProcessResult, Q: FloatArray) -> FloatArray:
+def fk_prediction_std(result: Identified, Q: FloatArray) -> FloatArray:
     """Predicted RMS position error (m, 3-D) of the result's FK at each joint vector in ``Q``,
     to first order: from the whole-model fit's own covariance and its analytic Jacobian when the
     result is that fit's (the DH table reproduces it exactly, and its DH parameters may be

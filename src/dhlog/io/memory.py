@@ -11,10 +11,10 @@ import polars as pl
 
 from dhlog.io.pipeline import Pipeline, pipeline_by_name
 from dhlog.io.reader import LogData
-from dhlog.simulate import Session
+from dhlog.io.streams import RecordedStreams
 
 
-def log_data_from_session(session: Session, pipeline: Pipeline | None = None) -> LogData:
+def log_data_from_session(session: RecordedStreams, pipeline: Pipeline | None = None) -> LogData:
     """The ``LogData`` of ``session`` as the shipped ROS 2 (or phase) pipeline would read it."""
     has_encoders = session.joint_t_ns.size > 0
     pipe = pipeline or pipeline_by_name("ros2_tracker" if has_encoders else "phase_markers")

@@ -27,7 +27,7 @@ from mcap.writer import CompressionType, Writer
 from numpy.typing import NDArray
 
 from dhlog.io import ros2
-from dhlog.simulate import Session
+from dhlog.io.streams import RecordedStreams
 
 Encoding = Literal["ros2", "json", "protobuf"]
 TOPICS = {
@@ -166,12 +166,12 @@ def _stamp(t_ns: int) -> dict[str, int]:
     return {"sec": sec, "nsec": nsec}
 
 
-def _extra_streams(session: Session) -> list[str]:
+def _extra_streams(session: RecordedStreams) -> list[str]:
     """Streams of the further targets: ``point_2``, ``point_3``, … (topics ``/tracker/point_k``)."""
     return [f"point_{k + 2}" for k in range(len(session.extra_point_xyz))]
 
 
-def _events(session: Session, *, extras: bool = False) -> list[tuple[int, str, int]]:
+def _events(session: RecordedStreams, *, extras: bool = False) -> list[tuple[int, str, int]]:
     """(time, stream, index) of every message, in time order (with the further targets')."""
     ev: list[tuple[int, str, int]] = []
     ev += [(int(t), "base", i) for i, t in enumerate(session.base_t_ns)]
@@ -185,7 +185,7 @@ def _events(session: Session, *, extras: bool = False) -> list[tuple[int, str, i
     return ev
 
 
-def _quaternions(session: Session) -> NDArray[np.float64] | None:
+def _quaternions(session: RecordedStreams) -> NDArray[np.float64] | None:
     """The 6-DoF target's orientation per sample as unit quaternions (x, y, z, w), or None."""
     if session.point_rotation is None:
         return None
@@ -194,7 +194,7 @@ def _quaternions(session: Session) -> NDArray[np.float64] | None:
     return np.asarray(Rotation.from_matrix(session.point_rotation).as_quat(canonical=True))
 
 
-def _target_xyz(session: Session, stream: str, i: int) -> NDArray[np.float64]:
+def _target_xyz(session: RecordedStreams, stream: str, i: int) -> NDArray[np.float64]:
     """Sample ``i`` of a point stream: ``point``, ``base`` or a further target ``point_k``."""
     if stream == "point":
         xyz = session.point_xyz
@@ -210,7 +210,7 @@ def _phase_text(joint: int | None) -> str:
 
 
 def write_session(
-    session: Session,
+    session: RecordedStreams,
     path: str | Path,
     encoding: Encoding = "ros2",
     *,
@@ -228,7 +228,7 @@ def write_session(
             _write_protobuf(session, f, chunk_size)
 
 
-def _write_ros2(session: Session, f: IO[bytes], point_type: str, chunk_size: int) -> None:
+def _write_ros2(session: RecordedStreams, f: IO[bytes], point_type: str, chunk_size: int) -> None:
     writer = Writer(f, chunk_size=chunk_size, compression=CompressionType.ZSTD, enable_crcs=False)
     writer.start(profile="ros2", library="rosbag2 (simulated by dhlog)")
     if session.point_rotation is not None:  # a 6-DoF target: PoseStamped with its orientation
@@ -286,7 +286,7 @@ def _write_ros2(session: Session, f: IO[bytes], point_type: str, chunk_size: int
     writer.finish()  # type: ignore[no-untyped-call]
 
 
-def _write_json(session: Session, f: IO[bytes], chunk_size: int) -> None:
+def _write_json(session: RecordedStreams, f: IO[bytes], chunk_size: int) -> None:
     writer = Writer(f, chunk_size=chunk_size, compression=CompressionType.ZSTD)
     writer.start(profile="", library="dhlog simulate")
     quats = _quaternions(session)
@@ -334,7 +334,7 @@ def _write_json(session: Session, f: IO[bytes], chunk_size: int) -> None:
     writer.finish()  # type: ignore[no-untyped-call]
 
 
-def _write_protobuf(session: Session, f: IO[bytes], chunk_size: int) -> None:
+def _write_protobuf(session: RecordedStreams, f: IO[bytes], chunk_size: int) -> None:
     from foxglove_schemas_protobuf.JointState_pb2 import JointState
     from foxglove_schemas_protobuf.JointStates_pb2 import JointStates
     from foxglove_schemas_protobuf.Point3_pb2 import Point3
