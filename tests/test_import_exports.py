@@ -20,7 +20,7 @@ from scipy.spatial.transform import Rotation
 from typer.testing import CliRunner
 
 from dhlog.cli import app
-from dhlog.io.importer import parse_header
+from dhlog.io.importer import STOP_JOINT_TIMES, parse_header
 from dhlog.io.reader import COVARIANCE_COLUMNS, ORIENTATION_COLUMNS, read_log
 from dhlog.kinematics import fk_frames
 from dhlog.robots import load_robot
@@ -210,7 +210,7 @@ def test_an_export_imports_unchanged(measured: Measured, tmp_path: Path, case: s
     # the joints, and the U95 as each sample's covariance (the 0.000 floored at 0.001 mm)
     assert data.joints is not None
     assert data.joint_names == [h.split(" ")[0] for h in layout.joint_headers]
-    q = data.joints.select([f"q_{j}" for j in range(1, 7)]).to_numpy()[:: int(2.0 * 20)]
+    q = data.joints.select([f"q_{j}" for j in range(1, 7)]).to_numpy()[:: len(STOP_JOINT_TIMES)]
     np.testing.assert_allclose(np.degrees(q), measured.joints_deg[order], atol=1e-6)
     cov = points.select(COVARIANCE_COLUMNS).to_numpy()
     u95 = np.array([float(u) for u in measured.u95_mm])[order]
@@ -431,7 +431,7 @@ def test_joints_from_a_file_in_every_format(tmp_path: Path) -> None:
     assert "matched to the points" in printed and "joints q2, q3;" in printed
     data = read_log(tmp_path / "p.mcap")
     assert data.joints is not None
-    q = np.degrees(data.joints.select(["q_1", "q_2"]).to_numpy()[::40])
+    q = np.degrees(data.joints.select(["q_1", "q_2"]).to_numpy()[:: len(STOP_JOINT_TIMES)])
     np.testing.assert_allclose(q, [[20, 30], [21, 31]])
     named = tmp_path / "n.csv"
     named.write_text("Name,x,y,z\nB,4,5,6\nA,1,2,3\n")

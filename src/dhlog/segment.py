@@ -23,7 +23,7 @@ from numpy.typing import NDArray
 
 from dhlog.dh import JointType
 from dhlog.errors import InputError, TooFewSamplesError
-from dhlog.io.pipeline import SegmentationSettings
+from dhlog.io.pipeline import SEGMENTATION_RANGES, SegmentationSettings
 from dhlog.io.reader import LogData
 
 TRANSITION, IDLE = -1, -2
@@ -50,12 +50,24 @@ class Segmentation:
     warnings: list[str] = field(default_factory=list)
 
 
+def check_settings(settings: SegmentationSettings, where: str) -> None:
+    """An :class:`InputError` naming the first setting outside its range (a negative window,
+    a tolerance of 1e300, a NaN), before any of them becomes an index or a count of ns."""
+    for key, (lo, hi, unit) in SEGMENTATION_RANGES.items():
+        value = getattr(settings, key)
+        if isinstance(value, bool) or not isinstance(value, int | float) or not lo <= value <= hi:
+            raise InputError(
+                f"{where}: [segmentation] {key} is {value!r}; it must be between {lo:g} and "
+                f"{hi:g} {unit}: correct it in the pipeline."
+            )
+
+
 def _moving(
     t: NDArray[np.int64], q: NDArray[np.float64], window_ns: int, tol: float
 ) -> NDArray[np.bool_]:
     """(m, n) mask: joint k moves by more than ``tol`` across ``[t - w, t + w]`` at each sample."""
     lo = np.searchsorted(t, t - window_ns, side="left")
-    hi = np.searchsorted(t, t + window_ns, side="right") - 1
+    hi = np.maximum(np.searchsorted(t, t + window_ns, side="right") - 1, lo)
     return np.asarray(np.abs(q[hi] - q[lo]) > tol)
 
 
@@ -180,6 +192,7 @@ def segment_log(
 ) -> Segmentation:
     """Build the measurement table of ``log`` and find its sweeps (see the module docstring)."""
     settings = log.pipeline.segmentation
+    check_settings(settings, f"{log.path}: pipeline {log.pipeline.source}")
     points = log.points
     if points.height < 3:
         raise TooFewSamplesError(f"{log.path}: point stream", points.height, 3)

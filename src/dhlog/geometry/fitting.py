@@ -521,12 +521,14 @@ def fit_line(
         residuals = centred - np.outer(qc, w)
         dof = max(3 * m - 6, 1)
     travel = float(t.max() - t.min())
-    if travel < min_travel:
+    tc = t - t.mean()
+    spread = float(tc @ tc)
+    # a travel of denormals (offsets of 1e-320 m) squares to 0: no direction to speak of
+    if travel < min_travel or not spread > 0.0 or not math.isfinite(spread):
         raise SweepTooSmallError(what, travel, min_travel, "m")
     sigma2 = float(np.sum(residuals**2)) / dof
-    tc = t - t.mean()
     u, v = perpendicular_basis(direction)
-    axis_cov = np.diag([sigma2 / float(tc @ tc)] * 2 + [sigma2 / m] * 2)
+    axis_cov = np.diag([sigma2 / spread] * 2 + [sigma2 / m] * 2)
     return AxisFit(
         axis=Line(centroid, direction),
         kind="line",

@@ -13,6 +13,7 @@ The whole-model fit weighs each residual ``r = p_measured − p_model`` (m, 3) b
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -79,7 +80,14 @@ class NoiseModel:
         """The whitening of samples at ``points`` (m, 3): a scalar ``1/σ`` for the isotropic model
         (``σ`` given), else ``W`` (m, 3, 3) with ``WᵀW = C⁻¹``."""
         if self.model == "isotropic":
-            return 1.0 / (self.sigma if self.sigma is not None else sigma)
+            s = self.sigma if self.sigma is not None else sigma
+            if not (s > 0.0 and math.isfinite(s)):  # NaN too
+                raise InputError(
+                    f"the isotropic noise σ is {s:g} m, so the samples cannot be weighed by it "
+                    "(the data scatter by nothing, or the noise was given as 0); give a "
+                    "positive [noise] sigma (m) in the pipeline."
+                )
+            return 1.0 / s
         uu, s_t = self._line_of_sight(points)
         eye = np.eye(3)[None]
         return np.asarray(uu / self.radial + (eye - uu) / s_t[:, None, None], dtype=np.float64)

@@ -26,8 +26,11 @@ The log is written as rosbag2 would (profile ``ros2``, CDR): the target on ``/tr
 there is one), the joints on ``/joint_states`` (``sensor_msgs/msg/JointState``, SI units), with
 the conversion's provenance in an MCAP metadata record ``dhlog.import`` — whose ``orientation =
 true`` makes :func:`dhlog.io.reader.read_log` read the orientation without a pipeline saying so.
-Discrete points become stops: 2 s per point, the joint states at 20 Hz holding the point's joint
-values, the target measured in the middle — as a step-and-measure cell logs them.
+Discrete points become stops: 2 s per point, the target measured in the middle, three joint
+states holding the point's joint values — at the stop's start, at the measurement and at its end
+one 20 Hz period before the next stop: what the segmentation sees of a step-and-measure cell's
+20 Hz stream (the motion between two stops, the stillness around the measurement) in 3 messages
+a stop instead of 40, so that 200 000 stops write in seconds.
 
 U95 to σ: a per-coordinate U95 is 1.96 σ; a single (3D) U95 is the radius of the 95 % sphere
 of an isotropic normal distribution, 2.796 σ (√χ²₃(0.95)). A U95 the export rounded to 0 is
@@ -41,6 +44,7 @@ import dataclasses
 import io
 import json
 import math
+import os
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -58,6 +62,8 @@ U95_PER_COORDINATE = 1.959963984540054
 U95_SPHERE = 2.7954834829151074
 #: A stop's length and its encoder rate (s, Hz), the target measured in its middle.
 STOP_SECONDS, STOP_RATE = 2.0, 20.0
+#: When in a stop its joint states are written (s): its start, the measurement, its end.
+STOP_JOINT_TIMES = (0.0, STOP_SECONDS / 2, STOP_SECONDS - 1.0 / STOP_RATE)
 #: The first stop's time (ns): 2020-01-01, so that stamps look like a real clock's.
 EPOCH_NS = 1_577_836_800_000_000_000
 TIME_UNITS = {"s": 1e9, "ms": 1e6, "us": 1e3, "ns": 1.0}
@@ -92,8 +98,18 @@ EULER_DEFAULT = "xyz"
 QUATERNION_TOLERANCE = 1e-3
 #: Point-name columns by their (normalised) header, in order of preference.
 NAME_HEADERS = ("pointname", "name", "pointid", "point", "id", "ptid", "target", "label")
-_JOINT_HEADER = re.compile(r"^(?:q|j|a|joint|axis)(\d+)$")
-_TRAILING_BRACKET = re.compile(r"^(?P<name>.*?)\s*[\[(]\s*(?P<unit>[^\[\]()]*?)\s*[\])]\s*$")
+_JOINT_HEADER = re.compile(r"^(?:q|j|a|joint|axis)(\d{1,3})$")
+_TRAILING_BRACKET = re.compile(r"^(?P<name>.*?)\s*[\[({]\s*(?P<unit>[^\[\](){}]*?)\s*[\])}]\s*$")
+#: A unit after the name without brackets: ``X_m``, ``X/mm``, ``A1 deg``, ``X in m``.
+_SUFFIX_UNIT = re.compile(r"^(?P<name>.*?\S)(?:\s*[_/]\s*|\s+in\s+|\s+)(?P<unit>[^\s_/]+)$")
+#: The largest file ``dhlog import`` reads (bytes): a few hundred thousand rows of a table.
+MAX_TABLE_BYTES = 128 * 2**20
+#: The ranges of the values read, in SI units: a coordinate (m, any axis), a revolute joint
+#: value or rotation angle (rad), a prismatic joint value (m), a U95 (m).
+MAX_COORDINATE_M = 1000.0
+MAX_ANGLE_RAD = 1000.0
+MAX_TRAVEL_M = 1000.0
+U95_RANGE_M = (1e-9, 1.0)
 _KEY_DROPS = re.compile(r"[\s_\-.()\[\]/]")
 
 
@@ -174,6 +190,8 @@ def parse_header(text: str) -> Header:
     m = _TRAILING_BRACKET.match(name)
     if m and not re.fullmatch(r"[\d.,]+", m["unit"]):
         name, unit = m["name"], m["unit"].strip().lower() or None
+    elif (s := _SUFFIX_UNIT.match(name)) and s["unit"].lower() in UNIT_SPELLINGS:
+        name, unit = s["name"], s["unit"].lower()
     return Header(text.strip(), _KEY_DROPS.sub("", name.lower()), unit)
 
 
@@ -192,20 +210,31 @@ class _Table:
         self.heads = [parse_header(h) for h in self.header]
 
     def find(self, name: str) -> int | None:
-        """The index of the column called ``name`` (as written, or by its key), or None."""
-        for k, h in enumerate(self.header):
-            if h.strip() == name.strip():
-                return k
+        """The index of the column called ``name`` (as written, or by its key), or None; two
+        columns of that name are refused (which would be read?)."""
+        exact = [k for k, h in enumerate(self.header) if h.strip() == name.strip()]
+        if exact:
+            return self._one(exact)
         want = parse_header(name).key
-        return next((k for k, h in enumerate(self.heads) if h.key == want), None)
+        return self._one([k for k, h in enumerate(self.heads) if h.key == want])
 
     def key(self, *keys: str) -> int | None:
-        """The first column whose key is one of ``keys``, or None."""
+        """The column whose key is the first of ``keys`` the header holds, or None."""
         for want in keys:
-            for k, h in enumerate(self.heads):
-                if h.key == want:
-                    return k
+            found = [k for k, h in enumerate(self.heads) if h.key == want]
+            if found:
+                return self._one(found)
         return None
+
+    def _one(self, found: list[int]) -> int | None:
+        if len(found) > 1:
+            shown = " and ".join(f"'{self.header[k]}' (column {k + 1})" for k in found[:2])
+            raise ConversionError(
+                self.path,
+                f"has two columns that read alike, {shown}; rename or drop one of them (or "
+                "name the one to read with its option).",
+            )
+        return found[0] if found else None
 
     def column(self, name: str, what: str, option: str) -> int:
         """The index of the column called ``name``; the error names the option to fix it."""
@@ -220,60 +249,139 @@ class _Table:
 
     def numbers(self, k: int, what: str, hint: str) -> NDArray[np.float64]:
         """Column ``k`` as numbers (converted in one numpy call; only when that fails or meets
-        a non-finite value are the rows walked, to name the first bad one's line)."""
+        a non-finite value are the rows walked, to name the first bad one's line). In a
+        ``;``-separated table a decimal comma (``1,5``) is read as a decimal point when the
+        column holds no decimal point and no value with two commas; anything else is refused."""
         texts = self.texts(k)
-        if self.sep == ";":  # decimal commas
-            texts = [t.replace(",", ".") for t in texts]
+        if self.sep == ";" and any("," in t for t in texts):
+            texts = self._decimal_commas(texts, what)
         try:
             out = np.asarray(texts, dtype=np.float64)
             if np.all(np.isfinite(out)):
                 return out
-        except ValueError:
+        except (ValueError, OverflowError):
             pass
         out = np.empty(len(texts))
         for i, text in enumerate(texts):
             try:
                 out[i] = float(text)
-            except ValueError:
+            except (ValueError, OverflowError):
+                comma = (
+                    " (a decimal comma: in a table separated by commas or tabs write decimal "
+                    "points, or separate the fields with ';')"
+                    if re.fullmatch(r"[+-]?\d+,\d+", text)
+                    else ""
+                )
                 raise ConversionError(
-                    self.path, f"{what} '{text}' is not a number; {hint}", self.lines[i]
+                    self.path,
+                    f"{what} '{_cut(text)}' is not a number{comma}; {hint}",
+                    self.lines[i],
                 ) from None
             if not math.isfinite(out[i]):
                 raise ConversionError(
-                    self.path, f"{what} '{text}' is not finite; {hint}", self.lines[i]
+                    self.path, f"{what} '{_cut(text)}' is not finite; {hint}", self.lines[i]
                 )
         return out
+
+    def _decimal_commas(self, texts: list[str], what: str) -> list[str]:
+        """``texts`` with decimal commas as points; a column that mixes decimal commas and
+        points, or a value with a thousands separator, is refused (its line named)."""
+        for i, text in enumerate(texts):
+            if text.count(",") > 1 or ("," in text and "." in text):
+                raise ConversionError(
+                    self.path,
+                    f"{what} '{_cut(text)}' holds a thousands separator or more than one decimal "
+                    "mark; export the numbers without thousands separators.",
+                    self.lines[i],
+                )
+        points = [i for i, t in enumerate(texts) if "." in t]
+        if points:
+            i = points[0]
+            raise ConversionError(
+                self.path,
+                f"{what} mixes decimal commas and decimal points ('{_cut(texts[i])}' here); "
+                "export every number with the same decimal mark.",
+                self.lines[i],
+            )
+        return [t.replace(",", ".") for t in texts]
+
+    def in_range(
+        self, k: int, values: NDArray[np.float64], what: str, lo: float, hi: float, unit: str
+    ) -> None:
+        """Refuse the first of ``values`` (column ``k`` in SI units) outside ``[lo, hi]``."""
+        bad = np.flatnonzero(~((values >= lo) & (values <= hi)))
+        if bad.size:
+            i = int(bad[0])
+            raise ConversionError(
+                self.path,
+                f"{what} '{_cut(self.texts(k)[i])}' is out of range: dhlog reads {lo:g} to "
+                f"{hi:g} {unit} there; check the value and the unit (in the header, X [mm], or "
+                "--length-unit / --angle-unit).",
+                self.lines[i],
+            )
 
     def texts(self, k: int) -> list[str]:
         return [row[k].strip() if k < len(row) else "" for row in self.rows]
 
     def numeric(self, k: int) -> bool:
         """True when every value of column ``k`` reads as a number."""
+        comma = self.sep == ";"
         try:
-            np.asarray([t.replace(",", ".") for t in self.texts(k)], dtype=np.float64)
-        except ValueError:
+            np.asarray([t.replace(",", ".") if comma else t for t in self.texts(k)], np.float64)
+        except (ValueError, OverflowError):
             return False
         return True
 
 
+def _cut(text: str, size: int = 40) -> str:
+    """``text`` cut to ``size`` characters for a message."""
+    return text if len(text) <= size else text[: size - 1] + "…"
+
+
 def _read_text(path: str | Path, option: str = "the source") -> str:
-    try:
-        data = Path(path).read_bytes()
-    except OSError as exc:
+    """The text of an export: a regular file of at most :data:`MAX_TABLE_BYTES` (checked before
+    reading, read with that cap), UTF-8, UTF-16 with a byte-order mark (spreadsheets' "Unicode
+    text"), or else Windows-1252; NUL bytes refused."""
+    from dhlog.io.textfile import line_of, read_capped
+
+    def fail(problem: str) -> ConversionError:
+        return ConversionError(path, problem)
+
+    data = read_capped(
+        path,
+        MAX_TABLE_BYTES,
+        fail,
+        what=f"file for {option}" if option != "the source" else "tracker export",
+        hint="split the export, or write the session as an MCAP log directly.",
+        check=f"check the path of {option}.",
+    )
+    if data.startswith((b"\xff\xfe", b"\xfe\xff")):
+        try:
+            return data.decode("utf-16")
+        except UnicodeDecodeError as exc:
+            raise ConversionError(
+                path, f"is UTF-16 text with a bad byte at offset {exc.start}; export it again."
+            ) from None
+    nul = data.find(b"\x00")
+    if nul >= 0:
         raise ConversionError(
-            path, f"cannot be read ({exc.strerror}); check the path of {option}."
-        ) from None
+            path,
+            "holds a NUL byte: not a text export (UTF-16 without a byte-order mark, or binary); "
+            f"export it as UTF-8 text, as {option}.",
+            line_of(data, nul),
+        )
     for encoding in ("utf-8-sig", "cp1252"):
         try:
             return data.decode(encoding)
         except UnicodeDecodeError:
             continue
-    raise ConversionError(path, "is not text.")  # pragma: no cover - cp1252 decodes nearly all
+    return data.decode("latin-1")  # cp1252 leaves five bytes undefined
 
 
 def read_table(path: str | Path, *, header: bool = True, option: str = "the source") -> _Table:
     """A CSV (``,``), semicolon (``;``, decimal commas allowed) or tab-separated table; blank
-    lines and lines starting with ``#`` or ``//`` are skipped."""
+    lines and lines starting with ``#`` or ``//`` are skipped. A row with more fields than the
+    header (beyond empty ones) is refused, naming its line."""
     text = _read_text(path, option)
     numbered = [
         (i + 1, line)
@@ -286,7 +394,19 @@ def read_table(path: str | Path, *, header: bool = True, option: str = "the sour
         )
     first = numbered[0][1]
     sep = "\t" if "\t" in first else ";" if first.count(";") > first.count(",") else ","
-    parsed = list(csv.reader(io.StringIO("\n".join(line for _, line in numbered)), delimiter=sep))
+    reader = csv.reader(io.StringIO("\n".join(line for _, line in numbered)), delimiter=sep)
+    parsed: list[list[str]] = []
+    try:
+        for row in reader:
+            parsed.append(row)
+    except csv.Error as exc:
+        at = min(max(reader.line_num, 1), len(numbered))
+        raise ConversionError(
+            path,
+            f"cannot be read as a table ({exc}); export it as plain CSV (one row per line, "
+            "fields separated by commas, semicolons or tabs).",
+            numbered[at - 1][0],
+        ) from None
     if len(parsed) != len(numbered):
         raise ConversionError(path, "has a quoted field across lines; export it without them.")
     names = [h.strip() for h in parsed[0]] if header else [str(k) for k in range(len(parsed[0]))]
@@ -299,6 +419,19 @@ def read_table(path: str | Path, *, header: bool = True, option: str = "the sour
                 path,
                 f"has {len(row)} field(s), the header {len(names)}; check the separator "
                 "(comma, semicolon or tab) and that --format fits the file.",
+                line,
+            )
+        if len(row) > len(names) and any(c.strip() for c in row[len(names) :]):
+            comma = (
+                " — decimal commas in a comma-separated file? Export decimal points, or "
+                "separate the fields with ';'"
+                if sep == ","
+                else ""
+            )
+            raise ConversionError(
+                path,
+                f"has {len(row)} fields, the header {len(names)}{comma}; every row must have "
+                "the header's fields (check the separator and the export).",
                 line,
             )
     table = _Table(str(path), names, body, lines, sep)
@@ -318,7 +451,7 @@ def _resolution(texts: list[str]) -> float:
             shift = int(exponent) if exponent else 0
         except ValueError:
             continue
-        finest = min(finest, 10.0 ** (shift - decimals))
+        finest = min(finest, 10.0 ** max(min(shift - decimals, 300), -300))
     return finest
 
 
@@ -377,12 +510,91 @@ class _Layout:
     orientation: tuple[str, list[int]] | None  # ("quaternion", [w, x, y, z]) or ("angles", …)
     joints: list[int]
     recognised: dict[int, str]  # every column the header says is not a joint, and what it is
+    notes: list[str] = field(default_factory=list)
 
 
 def _without_unit(head: Header) -> str:
-    """A header as written without its unit (``A1 [deg]`` → ``A1``)."""
-    m = _TRAILING_BRACKET.match(head.text)
-    return m["name"].strip() if m and head.unit is not None else head.text
+    """A header as written without its unit (``A1 [deg]``, ``A1_deg`` → ``A1``)."""
+    if head.unit is None:
+        return head.text
+    m = _TRAILING_BRACKET.match(head.text) or _SUFFIX_UNIT.match(head.text)
+    return m["name"].strip() if m else head.text
+
+
+def _claim(table: _Table, claims: dict[int, str], k: int, option: str) -> None:
+    """Column ``k`` taken by ``option``; a column that two options (or one option twice) name
+    is refused."""
+    if k in claims:
+        other = claims[k]
+        if other == option:
+            raise ConversionError(
+                table.path,
+                f"{option} names the column '{table.header[k]}' twice; name each column once.",
+            )
+        raise ConversionError(
+            table.path,
+            f"{other} and {option} both name the column '{table.header[k]}'; give each its own "
+            "column.",
+        )
+    claims[k] = option
+
+
+def _joints_by_number(table: _Table, candidates: list[int], notes: list[str]) -> list[int]:
+    """The joint columns the header names (``j2, j1, j3``), in the order of their numbers
+    (``j1, j2, j3``, said in a note when it is not the header's); two columns for one joint, or
+    a joint left out between others, are refused."""
+    by_number: dict[int, int] = {}
+    for k in candidates:
+        m = _JOINT_HEADER.match(table.heads[k].key)
+        assert m is not None
+        number = int(m[1])
+        if number in by_number:
+            raise ConversionError(
+                table.path,
+                f"has two columns for joint {number}, '{table.header[by_number[number]]}' and "
+                f"'{table.header[k]}'; name the joint columns in chain order with "
+                "--joint-columns.",
+            )
+        by_number[number] = k
+    if not by_number:
+        return []
+    numbers = sorted(by_number)
+    missing = [n for n in range(numbers[0], numbers[-1] + 1) if n not in by_number]
+    if missing:
+        raise ConversionError(
+            table.path,
+            f"has joint columns {', '.join(table.header[by_number[n]] for n in numbers)} but none "
+            f"for joint {missing[0]}; name the joint columns in chain order with --joint-columns.",
+        )
+    ordered = [by_number[n] for n in numbers]
+    if ordered != candidates:
+        notes.append(
+            f"{table.path}: the joint columns were taken in the order of their numbers "
+            f"({', '.join(table.header[k] for k in ordered)}), not the header's "
+            f"({', '.join(table.header[k] for k in candidates)})."
+        )
+    return ordered
+
+
+def _stated_alike(
+    table: _Table, columns: list[int], kind: str, given: str | None, what: str
+) -> None:
+    """Refuse a header that states the unit of some of ``columns`` (``X [m]``) and not of the
+    others (``Y``, ``Z``), when no option gives it: the others would be read in the default."""
+    if given is not None:
+        return
+    stated = [k for k in columns if table.heads[k].unit not in (None, *DIMENSIONLESS)]
+    for k in stated:  # a unit dhlog does not know is the error to give first
+        _column_unit(table, k, kind, None, DEFAULT_LENGTH_UNIT)
+    silent = [table.header[k] for k in columns if k not in stated]
+    if stated and silent:
+        option = "--length-unit" if kind == "length" else "--angle-unit"
+        raise ConversionError(
+            table.path,
+            f"the header states the unit of '{table.header[stated[0]]}' but not of "
+            f"{', '.join(repr(h) for h in silent)}; state it for every {what} (X [mm]), or give "
+            f"{option}.",
+        )
 
 
 def _name_columns(table: _Table, opts: ImportOptions, *, required: bool) -> list[int]:
@@ -451,19 +663,24 @@ def _orientation_columns(
 
 
 def _layout(table: _Table, opts: ImportOptions, *, joints: bool) -> _Layout:
-    """What each column of ``table`` holds; ``joints``: the joints are in this table."""
+    """What each column of ``table`` holds; ``joints``: the joints are in this table. A column
+    two options name (``--x X --y X``, ``--joint-columns A1,A1``) is refused."""
     recognised: dict[int, str] = {}
+    claims: dict[int, str] = {}
     xyz = []
     for name, axis in zip((opts.x, opts.y, opts.z), "xyz", strict=True):
         k = table.column(name, f"the target's {axis}", f"--{axis}")
+        _claim(table, claims, k, f"--{axis}")
         xyz.append(k)
         recognised[k] = f"the target's {axis}"
     time: int | None = None
     if opts.time:
         time = table.column(opts.time, "the time", "--time")
+        _claim(table, claims, time, "--time")
         recognised[time] = "the time"
     names = _name_columns(table, opts, required=opts.joints_file is None)
     for k in names:
+        _claim(table, claims, k, "--name-column" if opts.name_column else "the point name")
         recognised[k] = "the point name"
     axes = [table.key(f"u95{a}") for a in "xyz"]
     sphere = table.key("u95")
@@ -472,11 +689,19 @@ def _layout(table: _Table, opts: ImportOptions, *, joints: bool) -> _Layout:
         u95 = ("axes", [k for k in axes if k is not None])
     elif sphere is not None:
         u95 = ("sphere", [sphere])
+    if u95 is not None and not opts.no_u95:
+        for k in u95[1]:
+            _claim(table, claims, k, f"the U95 '{table.header[k]}'")
     for u in [*axes, sphere]:
         if u is not None:
             recognised[u] = f"the U95 '{table.header[u]}'"
     orientation = _orientation_columns(table, opts, recognised)
+    if orientation is not None:
+        option = "--orientation-columns" if opts.orientation_columns else "the orientation"
+        for k in orientation[1]:
+            _claim(table, claims, k, option)
     cols: list[int] = []
+    notes: list[str] = []
     if joints and opts.joint_columns:
         for c in opts.joint_columns:
             k = table.column(c, "a joint", "--joint-columns")
@@ -486,14 +711,19 @@ def _layout(table: _Table, opts: ImportOptions, *, joints: bool) -> _Layout:
                     f"--joint-columns names '{table.header[k]}', which is "
                     f"{recognised[k]}, not a joint; name the joint columns only.",
                 )
+            _claim(table, claims, k, "--joint-columns")
             cols.append(k)
     elif joints:
-        cols = [
-            k
-            for k, h in enumerate(table.heads)
-            if k not in recognised and _JOINT_HEADER.match(h.key)
-        ]
-    return _Layout(xyz, names, time, u95, orientation, cols, recognised)
+        cols = _joints_by_number(
+            table,
+            [
+                k
+                for k, h in enumerate(table.heads)
+                if k not in recognised and _JOINT_HEADER.match(h.key)
+            ],
+            notes,
+        )
+    return _Layout(xyz, names, time, u95, orientation, cols, recognised, notes)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -518,15 +748,28 @@ def _joint_values(
         raise ConversionError(
             table.path, f"--joint-types gives {len(types)} types for {n} joint columns."
         )
+    if len(set(names)) != n:
+        twice = next(name for name in names if names.count(name) > 1)
+        raise ConversionError(
+            table.path,
+            f"two joints are named '{twice}'; name each joint once (--joint-names).",
+        )
+    revolute = [k for k, t in zip(columns, types, strict=True) if t is JointType.REVOLUTE]
+    prismatic = [k for k, t in zip(columns, types, strict=True) if t is JointType.PRISMATIC]
+    _stated_alike(table, revolute, "angle", opts.angle_unit, "revolute joint column")
+    _stated_alike(table, prismatic, "length", opts.length_unit, "prismatic joint column")
     q = np.empty((len(table.rows), n))
     for j, (k, t) in enumerate(zip(columns, types, strict=True)):
-        q[:, j] = table.numbers(k, f"joint {names[j]}", "is it a joint column (--joint-columns)?")
+        what = f"joint {names[j]}"
+        q[:, j] = table.numbers(k, what, "is it a joint column (--joint-columns)?")
         if t is JointType.PRISMATIC:
             unit = _column_unit(table, k, "length", opts.length_unit, DEFAULT_LENGTH_UNIT)
             q[:, j] *= LENGTH_UNITS[unit]
+            table.in_range(k, q[:, j], what, -MAX_TRAVEL_M, MAX_TRAVEL_M, "m")
         else:
             unit = _column_unit(table, k, "angle", opts.angle_unit, DEFAULT_ANGLE_UNIT)
             q[:, j] *= ANGLE_UNITS[unit]
+            table.in_range(k, q[:, j], what, -MAX_ANGLE_RAD, MAX_ANGLE_RAD, "rad")
     return names, q
 
 
@@ -597,7 +840,9 @@ def _u95_sigma(
             step = _resolution(table.texts(k))
             v = np.where(zero, step, v)
             floored.append((int(zero.sum()), step, unit, what))
-        values.append(v * LENGTH_UNITS[unit])
+        v = v * LENGTH_UNITS[unit]
+        table.in_range(k, v, what, *U95_RANGE_M, "m")
+        values.append(v)
     if kind == "axes":
         sd = np.column_stack(values) / U95_PER_COORDINATE
     else:
@@ -649,8 +894,11 @@ def _orientation(
         )
     from scipy.spatial.transform import Rotation
 
+    _stated_alike(table, cols, "angle", opts.angle_unit, "rotation angle")
     units = [_column_unit(table, k, "angle", opts.angle_unit, DEFAULT_ANGLE_UNIT) for k in cols]
     radians = values * np.array([ANGLE_UNITS[u] for u in units])
+    for c, k in enumerate(cols):
+        table.in_range(k, radians[:, c], table.header[k], -MAX_ANGLE_RAD, MAX_ANGLE_RAD, "rad")
     quat = Rotation.from_euler(seq, radians).as_quat()  # x, y, z, w
     axes = "fixed" if seq.islower() else "moving"
     return np.asarray(quat, dtype=np.float64), f"{named} (rotation angles, {axes} axes {seq})"
@@ -679,6 +927,7 @@ def _from_table(table: _Table, opts: ImportOptions) -> _Source:
     """The points (and joints, unless a joints file gives them) of a table with a header."""
     own_joints = opts.joints_file is None
     layout = _layout(table, opts, joints=own_joints)
+    _stated_alike(table, layout.xyz, "length", opts.length_unit, "coordinate")
     units = [
         _column_unit(table, k, "length", opts.length_unit, DEFAULT_LENGTH_UNIT) for k in layout.xyz
     ]
@@ -688,11 +937,13 @@ def _from_table(table: _Table, opts: ImportOptions) -> _Source:
             for k, u, a in zip(layout.xyz, units, "xyz", strict=True)
         ]
     )
+    for c, k in enumerate(layout.xyz):
+        table.in_range(k, xyz[:, c], table.header[k], -MAX_COORDINATE_M, MAX_COORDINATE_M, "m")
     names = None
     if layout.name:
         columns = [table.texts(k) for k in layout.name]
         names = ["::".join(parts) for parts in zip(*columns, strict=True)]
-    src = _Source(table.path, list(table.lines), names, xyz)
+    src = _Source(table.path, list(table.lines), names, xyz, notes=list(layout.notes))
     src.named_by_option = opts.name_column is not None and table.find(opts.name_column) is not None
     if layout.u95 is not None and not opts.no_u95:
         sd, note = _u95_sigma(table, layout, units[0], opts)
@@ -764,8 +1015,18 @@ def _spatialanalyzer_points(
         fields = [f for f in fields if f]
         numeric = [bool(_NUMBER.match(f)) for f in fields]
         if len(fields) >= 4 and all(numeric[-3:]) and not all(numeric):
+            point = [float(v) * LENGTH_UNITS[length_unit] for v in fields[-3:]]
+            if not all(abs(v) <= MAX_COORDINATE_M for v in point):  # inf and NaN too
+                raise ConversionError(
+                    path,
+                    f"the point {_cut('::'.join(fields[:-3]))} is at "
+                    f"{', '.join(_cut(v, 24) for v in fields[-3:])} ({length_unit}): out of "
+                    f"range: dhlog reads coordinates within ±{MAX_COORDINATE_M:g} m; check the "
+                    "value and --length-unit.",
+                    i + 1,
+                )
             names.append("::".join(fields[:-3]))
-            xyz.append([float(v) for v in fields[-3:]])
+            xyz.append(point)
             lines.append(i + 1)
         elif not names and not any(numeric):
             continue  # a header
@@ -779,7 +1040,7 @@ def _spatialanalyzer_points(
             )
     if not names:
         raise ConversionError(path, "holds no points; check --format.")
-    return names, np.asarray(xyz) * LENGTH_UNITS[length_unit], lines
+    return names, np.asarray(xyz, dtype=np.float64), lines
 
 
 def _is_table(path: Path, opts: ImportOptions) -> bool:
@@ -816,10 +1077,19 @@ def _with_joints_file(src: _Source, opts: ImportOptions) -> _Source:
             f"has no column '{opts.name_column}' (--name-column), nor has {src.path}; its "
             f"columns are {', '.join(joints.header)}; name the point column with --name-column.",
         )
+    claims: dict[int, str] = {} if nk is None else {nk: "the point name"}
     if opts.joint_columns:
-        cols = [joints.column(c, "a joint", "--joint-columns") for c in opts.joint_columns]
+        cols = []
+        for c in opts.joint_columns:
+            k = joints.column(c, "a joint", "--joint-columns")
+            _claim(joints, claims, k, "--joint-columns")
+            cols.append(k)
     else:
-        cols = [k for k, h in enumerate(joints.heads) if k != nk and _JOINT_HEADER.match(h.key)]
+        cols = _joints_by_number(
+            joints,
+            [k for k, h in enumerate(joints.heads) if k != nk and _JOINT_HEADER.match(h.key)],
+            src.notes,
+        )
     if not cols:
         raise ConversionError(
             joints.path,
@@ -951,8 +1221,8 @@ def import_source(source: str | Path, opts: ImportOptions) -> Imported:
         m = len(xyz)
         start = EPOCH_NS + np.round(np.arange(m) * STOP_SECONDS * 1e9).astype(np.int64)
         point_t = start + int(STOP_SECONDS * 1e9 / 2)
-        per_stop = int(STOP_SECONDS * STOP_RATE)
-        offsets = np.round(np.arange(per_stop) * 1e9 / STOP_RATE).astype(np.int64)
+        per_stop = len(STOP_JOINT_TIMES)
+        offsets = np.round(np.array(STOP_JOINT_TIMES) * 1e9).astype(np.int64)
         joint_t = (start[:, None] + offsets[None, :]).reshape(-1)
         joint_q = np.repeat(q, per_stop, axis=0)
         stepped = True
@@ -987,6 +1257,17 @@ def import_source(source: str | Path, opts: ImportOptions) -> Imported:
     )
 
 
+def same_file(a: str | Path, b: str | Path) -> bool:
+    """True when ``a`` and ``b`` name one file: the same path once resolved (a symbolic-link
+    loop resolves without an error), or the same file by device and inode (a hard link)."""
+    try:
+        if os.path.realpath(a) == os.path.realpath(b):
+            return True
+        return os.path.samefile(a, b)
+    except (OSError, ValueError, RuntimeError):
+        return False
+
+
 def _sha256(path: Path) -> str:
     from dhlog.io.writer import sha256_of
 
@@ -1016,18 +1297,46 @@ def _point_messages(imported: Imported) -> tuple[str, list[bytes]]:
     return ros2.POSE_WITH_COVARIANCE, [p + c.tobytes() for p, c in zip(poses, full, strict=True)]
 
 
+def _joint_payloads(
+    t_ns: NDArray[np.int64], names: list[str], q: NDArray[np.float64]
+) -> list[bytes]:
+    """CDR payloads of JointState messages, as :func:`ros2.encode_joint_state` writes them,
+    built at once: with the same names every message has the same layout, so one encoded
+    message is the template whose stamp (bytes 4–12) and positions (the 8·n bytes before the
+    empty velocity and effort) are written in per message (checked against the encoder on
+    the first and last message; the encoder itself where they differ)."""
+    m, n = q.shape
+    if m == 0:
+        return []
+    template = ros2.encode_joint_state(t_ns[:1], names, q[:1])[0]
+    size = len(template)
+    rows = np.tile(np.frombuffer(template, dtype=np.uint8), (m, 1))
+    sec, nsec = np.divmod(np.asarray(t_ns, dtype=np.int64), 1_000_000_000)
+    rows[:, 4:8] = sec.astype("<i4").view(np.uint8).reshape(m, 4)
+    rows[:, 8:12] = nsec.astype("<i4").view(np.uint8).reshape(m, 4)
+    end = size - 8
+    rows[:, end - 8 * n : end] = np.ascontiguousarray(q, dtype="<f8").view(np.uint8)
+    data = rows.tobytes()
+    out = [data[i : i + size] for i in range(0, m * size, size)]
+    if out[0] != template or out[-1] != ros2.encode_joint_state(t_ns[-1:], names, q[-1:])[0]:
+        return ros2.encode_joint_state(t_ns, names, q)  # pragma: no cover - layout changed
+    return out
+
+
 def write_imported(imported: Imported, out: str | Path) -> None:
-    """Write ``imported`` as a ROS 2 MCAP log (atomically), with its provenance."""
+    """Write ``imported`` as a ROS 2 MCAP log (atomically), with its provenance; the messages
+    in time order (points before joint states at the same stamp), ordered in one sort."""
     from mcap.writer import CompressionType, Writer
 
     from dhlog import __version__
     from dhlog.io.writer import atomic_output
 
     point_schema, points = _point_messages(imported)
-    joints = ros2.encode_joint_state(imported.joint_t_ns, imported.joint_names, imported.joint_q)
-    events = [(int(t), 0, k) for k, t in enumerate(imported.point_t_ns.tolist())]
-    events += [(int(t), 1, k) for k, t in enumerate(imported.joint_t_ns.tolist())]
-    events.sort()
+    joints = _joint_payloads(imported.joint_t_ns, imported.joint_names, imported.joint_q)
+    times = np.concatenate([imported.point_t_ns, imported.joint_t_ns]).astype(np.int64)
+    stream = np.repeat([0, 1], [len(points), len(joints)])
+    order = np.lexsort((stream, times))  # stable: each stream keeps its own order
+    payloads = points + joints
     with atomic_output(out) as f:
         writer = Writer(f, compression=CompressionType.ZSTD, enable_crcs=False)
         writer.start(profile="ros2", library=f"dhlog import {__version__}")
@@ -1039,8 +1348,9 @@ def write_imported(imported: Imported, out: str | Path) -> None:
             writer.register_channel("/tracker/point", "cdr", pid),
             writer.register_channel("/joint_states", "cdr", jid),
         )
-        payloads = (points, joints)
-        for t, stream, k in events:
-            writer.add_message(channels[stream], t, payloads[stream][k], t)
+        add = writer.add_message
+        ordered = zip(order.tolist(), times[order].tolist(), stream[order].tolist(), strict=True)
+        for i, t, s in ordered:
+            add(channels[s], t, payloads[i], t)
         writer.add_metadata("dhlog.import", {**imported.provenance, "dhlog": __version__})
         writer.finish()  # type: ignore[no-untyped-call]

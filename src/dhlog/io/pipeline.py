@@ -8,7 +8,9 @@ from the schemas a log holds when none is named.
 
 from __future__ import annotations
 
+import datetime
 import math
+import sys
 import tomllib
 from dataclasses import dataclass, field
 from importlib import resources
@@ -72,6 +74,91 @@ NOISE_KEYS = (
     "station",
     "orientation",
 )
+
+
+#: The range of each [segmentation] value (SI units: s, rad, m; a count for min_samples).
+SEGMENTATION_RANGES: dict[str, tuple[float, float, str]] = {
+    "lock_tolerance": (0.0, 1.0, "rad (m for prismatic joints)"),
+    "motion_window": (0.0, 3600.0, "s"),
+    "join_tolerance": (0.0, 3600.0, "s"),
+    "min_samples": (1, 1_000_000, "samples"),
+    "min_sweep": (0.0, 2.0 * math.pi, "rad"),
+    "min_travel": (0.0, 10.0, "m"),
+    "clock_offset": (-3e9, 3e9, "s"),
+}
+#: The range of each [noise] standard deviation (m, rad; transverse_per_m in m per m).
+NOISE_RANGES: dict[str, tuple[float, float, str]] = {
+    "sigma": (1e-9, 1.0, "m"),
+    "radial": (1e-9, 1.0, "m"),
+    "transverse": (1e-9, 1.0, "m"),
+    "transverse_per_m": (0.0, 1.0, "m per m of distance"),
+    "orientation": (1e-9, math.pi, "rad"),
+}
+#: The farthest a tracker station may be from the measurement frame's origin (m).
+MAX_STATION_M = 1000.0
+#: The largest pipeline file read (bytes).
+MAX_BYTES = 1 * 2**20
+#: The most characters a string value may have, and the most joints.
+MAX_TEXT, MAX_JOINTS = 1000, 64
+
+
+def _shown(value: object) -> str:
+    """A value as the file spells it, cut short (``true``, ``"abc"``, ``[1, 2]``)."""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, int) and abs(value) > 10**30:
+        return "an integer of more than 30 digits"
+    if isinstance(value, datetime.date | datetime.time):  # a TOML date or time
+        return f"the date/time {value.isoformat()}"
+    text = f'"{value}"' if isinstance(value, str) else repr(value)
+    return text if len(text) <= 40 else text[:37] + "…"
+
+
+def _text(source: str, where: str, value: object) -> str:
+    """A string value (the key named in ``where``)."""
+    if not isinstance(value, str):
+        raise PipelineError(source, f"{where} must be a string, not {_shown(value)}.")
+    if len(value) > MAX_TEXT:
+        raise PipelineError(
+            source, f"{where} is a string of {len(value)} characters (at most {MAX_TEXT})."
+        )
+    return value
+
+
+def _flag(source: str, where: str, value: object) -> bool:
+    if not isinstance(value, bool):
+        raise PipelineError(source, f"{where} must be true or false, not {_shown(value)}.")
+    return value
+
+
+def _texts(source: str, where: str, value: object) -> list[str]:
+    if not isinstance(value, list):
+        raise PipelineError(source, f"{where} must be a list of strings, not {_shown(value)}.")
+    if len(value) > MAX_JOINTS:
+        raise PipelineError(source, f"{where} has {len(value)} entries (at most {MAX_JOINTS}).")
+    return [_text(source, f"{where}[{k}]", v) for k, v in enumerate(value)]
+
+
+def _number(
+    source: str, where: str, value: object, lo: float, hi: float, unit: str, *, whole: bool = False
+) -> float:
+    """A finite number (not a boolean; a whole one when ``whole``) within ``[lo, hi]``."""
+    span = f"{int(lo)} to {int(hi)}" if whole else f"{lo:g} to {hi:g} {unit}"
+    whole_one = ", a whole one" if whole else ""
+    refused = PipelineError(
+        source,
+        f"{where} must be a finite number from {span}{whole_one}, not {_shown(value)}; correct "
+        "it in the pipeline.",
+    )
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        raise refused
+    try:
+        x = float(value)
+    except OverflowError:
+        raise refused from None
+    if not math.isfinite(x) or not lo <= x <= hi or (whole and not x.is_integer()):
+        raise refused
+    return x
 
 
 def _check_keys(source: str, where: str, given: dict[str, Any], known: tuple[str, ...]) -> None:
@@ -160,22 +247,43 @@ def _table(where: str, data: dict[str, Any], key: str) -> dict[str, Any]:
 
 
 def parse_pipeline(text: str, source: str) -> Pipeline:
-    """Parse pipeline TOML ``text``; ``source`` names the file in error messages."""
+    """Parse pipeline TOML ``text``; ``source`` names the file in error messages. Every value
+    is checked for its type and range, each failure one :class:`PipelineError` naming the key."""
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise PipelineError(source, f"not valid TOML ({exc}).") from None
+    except RecursionError:
+        raise PipelineError(
+            source, "is nested too deeply to be a pipeline (not valid TOML)."
+        ) from None
+    except ValueError:  # an integer beyond Python's digit limit
+        raise PipelineError(
+            source,
+            f"holds an integer of more than {sys.get_int_max_str_digits()} digits; not a "
+            "pipeline: check what the file holds.",
+        ) from None
+    try:
+        return _parse(data, source)
+    except RecursionError:
+        raise PipelineError(source, "is nested too deeply to be a pipeline.") from None
+
+
+def _parse(data: dict[str, Any], source: str) -> Pipeline:
     _check_keys(source, "top level", data, TOP_KEYS)
-    name = str(data.get("name", Path(source).stem))
+    name = _text(source, "name", data.get("name", Path(source).stem))
+    description = _text(source, "description", data.get("description", ""))
     raw_enc = data.get("encoding", list(ENCODINGS))
-    encodings = tuple([raw_enc] if isinstance(raw_enc, str) else raw_enc)
+    if isinstance(raw_enc, str):
+        raw_enc = [raw_enc]
+    encodings = tuple(_texts(source, "encoding", raw_enc))
     bad = [e for e in encodings if e not in ENCODINGS]
-    if bad:
+    if bad or not encodings:
         raise PipelineError(source, f"encoding {bad} unknown; use one of {list(ENCODINGS)}.")
-    unit = str(data.get("length_unit", "m"))
+    unit = _text(source, "length_unit", data.get("length_unit", "m"))
     if unit not in ("m", "mm"):
         raise PipelineError(source, f"length_unit '{unit}' unknown; use 'm' or 'mm'.")
-    angle_unit = str(data.get("angle_unit", "rad"))
+    angle_unit = _text(source, "angle_unit", data.get("angle_unit", "rad"))
     if angle_unit not in ("rad", "deg", "gon"):
         raise PipelineError(
             source, f"angle_unit '{angle_unit}' unknown; use 'rad', 'deg' or 'gon'."
@@ -192,14 +300,19 @@ def parse_pipeline(text: str, source: str) -> Pipeline:
         if not isinstance(spec, dict):
             raise PipelineError(source, f"[streams.{stream}] must be a table.")
         _check_keys(source, f"[streams.{stream}]", spec, STREAM_KEYS)
-        required = bool(spec.get("required", stream == "point"))
-        fields = {str(k): str(v) for k, v in _table(source, spec, "fields").items()}
+        where = f"[streams.{stream}]"
+        required = _flag(source, f"{where} required", spec.get("required", stream == "point"))
+        fields = {
+            str(k): _text(source, f"{where} fields.{k}", v)
+            for k, v in _table(source, spec, "fields").items()
+        }
         _check_keys(source, f"[streams.{stream}] fields", fields, FIELD_KEYS[stream])
         extra = spec.get("extra_topics", [])
         if stream != "point" and extra:
             raise PipelineError(source, f"[streams.{stream}] extra_topics is for the point stream.")
         if not isinstance(extra, list) or not all(isinstance(t, str) for t in extra):
             raise PipelineError(source, "[streams.point] extra_topics must be a list of topics.")
+        extra = _texts(source, f"{where} extra_topics", extra)
         orientation = spec.get("orientation", False)
         if not isinstance(orientation, bool) or (orientation and stream != "point"):
             raise PipelineError(
@@ -218,21 +331,25 @@ def parse_pipeline(text: str, source: str) -> Pipeline:
             raise PipelineError(
                 source, f"[streams.{stream}] vertical must be one of {list(VERTICAL)}."
             )
-        if not isinstance(pose_index, int) or isinstance(pose_index, bool) or pose_index < 0:
+        if (
+            not isinstance(pose_index, int)
+            or isinstance(pose_index, bool)
+            or not 0 <= pose_index <= 1_000_000
+        ):
             raise PipelineError(
-                source, f"[streams.{stream}] pose_index must be a whole number >= 0."
+                source, f"[streams.{stream}] pose_index must be a whole number from 0 to 1000000."
             )
         if coordinates == "spherical" and orientation:
             raise PipelineError(
                 source, "[streams.point] a spherical point stream has no orientation."
             )
         streams[stream] = StreamSpec(
-            str(spec.get("topic", DEFAULT_TOPICS[stream])),
+            _text(source, f"{where} topic", spec.get("topic", DEFAULT_TOPICS[stream])),
             required,
             fields,
             tuple(extra),
             orientation,
-            str(spec.get("child_frame", "")),
+            _text(source, f"{where} child_frame", spec.get("child_frame", "")),
             pose_index,
             str(coordinates),
             str(vertical),
@@ -241,12 +358,15 @@ def parse_pipeline(text: str, source: str) -> Pipeline:
         raise PipelineError(source, "it has no [streams.point]; the target stream is required.")
     joints = _table(source, data, "joints")
     _check_keys(source, "[joints]", joints, JOINT_KEYS)
-    names = joints.get("names")
-    types_raw = joints.get("types")
+    names = None if "names" not in joints else _texts(source, "[joints] names", joints["names"])
+    if names is not None and len(set(names)) != len(names):
+        twice = next(n for n in names if names.count(n) > 1)
+        raise PipelineError(source, f"[joints] names holds '{twice}' twice; name each joint once.")
+    types_raw = None if "types" not in joints else _texts(source, "[joints] types", joints["types"])
     types: tuple[JointType | None, ...] | None = None
     if types_raw is not None:
         try:
-            types = tuple(None if t in ("", "auto") else JointType.parse(str(t)) for t in types_raw)
+            types = tuple(None if t in ("", "auto") else JointType.parse(t) for t in types_raw)
         except ValueError as exc:
             raise PipelineError(source, f"[joints] types: {exc}") from None
         if names is not None and len(types) != len(names):
@@ -255,39 +375,36 @@ def parse_pipeline(text: str, source: str) -> Pipeline:
     _check_keys(
         source, "[segmentation]", seg_table, tuple(SegmentationSettings.__dataclass_fields__)
     )
+    seg_values: dict[str, Any] = {}
     for k, v in seg_table.items():
-        want = type(getattr(SegmentationSettings, k))
-        ok = (
-            isinstance(v, bool)
-            if want is bool
-            else isinstance(v, int | float) and not isinstance(v, bool)
-        )
-        if not ok or (want is not bool and not math.isfinite(float(v))):
-            kind = "true or false" if want is bool else "a finite number"
-            raise PipelineError(source, f"[segmentation] {k} must be {kind}, not {v!r}.")
-    try:
-        seg = SegmentationSettings(
-            **{k: type(getattr(SegmentationSettings, k))(v) for k, v in seg_table.items()}
-        )
-    except (TypeError, ValueError) as exc:
-        raise PipelineError(source, f"[segmentation]: {exc}") from None
+        where = f"[segmentation] {k}"
+        if k == "clock_offset_fixed":
+            seg_values[k] = _flag(source, where, v)
+            continue
+        x = _number(source, where, v, *SEGMENTATION_RANGES[k], whole=k == "min_samples")
+        seg_values[k] = int(x) if k == "min_samples" else x
+    seg = SegmentationSettings(**seg_values)
     noise_table = _table(source, data, "noise")
     _check_keys(source, "[noise]", noise_table, NOISE_KEYS)
-    try:
-        kwargs: dict[str, Any] = {
-            k: (
-                str(v)
-                if k == "model"
-                else tuple(float(x) for x in v)
-                if k == "station"
-                else float(v)
+    kwargs: dict[str, Any] = {}
+    for k, v in noise_table.items():
+        where = f"[noise] {k}"
+        if k == "model":
+            kwargs[k] = _text(source, where, v)
+        elif k == "station":
+            if not isinstance(v, list) or len(v) != 3:
+                raise PipelineError(
+                    source, f"{where} needs three coordinates [x, y, z] in metres, not {_shown(v)}."
+                )
+            kwargs[k] = tuple(
+                _number(source, f"{where}[{i}]", x, -MAX_STATION_M, MAX_STATION_M, "m")
+                for i, x in enumerate(v)
             )
-            for k, v in noise_table.items()
-        }
-        if "station" in kwargs and len(kwargs["station"]) != 3:
-            raise ValueError("station needs three coordinates [x, y, z] in metres")
+        else:
+            kwargs[k] = _number(source, where, v, *NOISE_RANGES[k])
+    try:
         noise = NoiseModel(**kwargs)
-    except (TypeError, ValueError, DhlogError) as exc:
+    except DhlogError as exc:
         raise PipelineError(source, f"[noise]: {exc}") from None
     if streams["point"].coordinates == "spherical" and any(noise.station):
         raise PipelineError(
@@ -297,13 +414,13 @@ def parse_pipeline(text: str, source: str) -> Pipeline:
         )
     return Pipeline(
         name=name,
-        description=str(data.get("description", "")),
+        description=description,
         source=source,
         encodings=encodings,
         length_unit=unit,
         angle_unit=angle_unit,
         streams=streams,
-        joint_names=tuple(str(n) for n in names) if names is not None else None,
+        joint_names=tuple(names) if names is not None else None,
         joint_types=types,
         segmentation=seg,
         noise=noise,
@@ -311,12 +428,14 @@ def parse_pipeline(text: str, source: str) -> Pipeline:
 
 
 def load_pipeline(path: str | Path) -> Pipeline:
-    """Read a pipeline file."""
-    try:
-        text = Path(path).read_text(encoding="utf-8")
-    except OSError as exc:
-        raise PipelineError(str(path), f"cannot be read ({exc.strerror}).") from None
-    return parse_pipeline(text, str(path))
+    """Read a pipeline file (a regular file of at most :data:`MAX_BYTES`, UTF-8)."""
+    from dhlog.io.textfile import decode_utf8, read_capped
+
+    def fail(problem: str) -> PipelineError:
+        return PipelineError(str(path), problem)
+
+    data = read_capped(path, MAX_BYTES, fail, what="pipeline", hint="give the pipeline file.")
+    return parse_pipeline(decode_utf8(data, fail, what="pipeline file"), str(path))
 
 
 def shipped_pipelines() -> list[Pipeline]:
