@@ -99,7 +99,7 @@ DH_CASES: list[tuple[str, str, bytes, str]] = [
         _dh(_set("standard_dh.0.a", True)),
         "standard_dh[0] (joint 1).a is true",
     ),
-    ("1e308", "dh.json", _dh(_set("standard_dh.2.d_offset", 1e308)), "beyond ±100 m"),
+    ("1e308", "dh.json", _dh(_set("standard_dh.2.a", 1e308)), "beyond ±100 m"),
     ("5000 digits", "dh.json", _huge_integer(5000), "more than 4300 digits"),
     ("400 digits", "dh.json", _huge_integer(400), "not a finite number"),
     ("nan", "dh.json", _dh(_set("standard_dh.1.alpha", math.nan)), ".alpha is nan"),

@@ -39,6 +39,10 @@ MAX_BYTES = 10 * 2**20
 MAX_JOINTS = 64
 #: The largest DH length (a, d, the tool point) in metres: no robot reaches further.
 MAX_LENGTH_M = 100.0
+#: The largest standard-DH ``d`` (m): that of a nearly parallel pair's row is ill-conditioned and
+#: its common normal lies far away (0.5 km in a real KR5, 13.5 km in a simulated one: about the
+#: offset over the angle between the axes), so only absurd values are refused.
+MAX_OFFSET_M = 1e9
 #: The largest distance of the robot's base from the measurement frame's origin (m).
 MAX_BASE_M = 1000.0
 #: The largest DH angle (two turns either way).
@@ -176,7 +180,7 @@ def parse_dh(data: dict[str, Any], source: str) -> DHModel:
             raise f.error(f"{at}.type", f"is {_shown(jt)}; use revolute or prismatic.") from None
         for key, alias, out, scale, limit, unit in (
             ("theta_offset", "theta", theta, angle, MAX_ANGLE_RAD, "rad"),
-            ("d_offset", "d", d, length, MAX_LENGTH_M, "m"),
+            ("d_offset", "d", d, length, MAX_OFFSET_M, "m"),
             ("a", None, a, length, MAX_LENGTH_M, "m"),
             ("alpha", None, alpha, angle, MAX_ANGLE_RAD, "rad"),
         ):
