@@ -225,16 +225,63 @@ def summary_frame(rows: list[dict[str, Any]]) -> pl.DataFrame:
     return pl.DataFrame([{c: r.get(c) for c in columns} for r in rows], schema=schema, orient="row")
 
 
+def summary_paths(folder: Path) -> list[Path]:
+    """``summary.csv`` and ``summary.parquet`` in ``folder``."""
+    return [folder / f"{SUMMARY_STEM}.csv", folder / f"{SUMMARY_STEM}.parquet"]
+
+
 def write_summary(frame: pl.DataFrame, folder: Path, *, hold_signals: bool = False) -> list[Path]:
     """``summary.csv`` and ``summary.parquet`` in ``folder``, moved into place together
-    (``hold_signals``: as ``staged_outputs`` says)."""
+    (``hold_signals``: as ``staged_outputs`` says): both written to temporary files first, and
+    when the second cannot be moved into place the first one moved is removed again — never a
+    summary.csv without its summary.parquet."""
     from dhlog.io.writer import staged_outputs
 
-    paths = [folder / f"{SUMMARY_STEM}.csv", folder / f"{SUMMARY_STEM}.parquet"]
-    with staged_outputs(paths, hold_signals=hold_signals) as temps:
-        frame.write_csv(temps[0])
-        frame.write_parquet(temps[1])
+    paths = summary_paths(folder)
+    for path in paths:
+        if path.is_dir():
+            raise OSError(21, f"{path.name} is a folder", str(path))
+    before = [_stamp(path) for path in paths]
+    try:
+        with staged_outputs(paths, hold_signals=hold_signals) as temps:
+            frame.write_csv(temps[0])
+            frame.write_parquet(temps[1])
+    except BaseException:
+        moved = [p for p, old in zip(paths, before, strict=True) if _stamp(p) not in (old, None)]
+        if len(moved) < len(paths):  # a partial set: take back what was moved
+            for path in moved:
+                path.unlink(missing_ok=True)
+        raise
     return paths
+
+
+def _stamp(path: Path) -> Stamp | None:
+    try:
+        st = path.stat()
+    except OSError:
+        return None
+    return (st.st_ino, st.st_mtime_ns)
+
+
+def check_paths(jobs: list[BatchJob], folder: Path) -> None:
+    """Before any work: no input of the batch (a log, the nominal or pipeline file) may be one
+    of its outputs (:class:`~dhlog.resultcheck.InputIsOutputError`), and no output may be a
+    folder (an :class:`~dhlog.errors.InputError`); nothing is written either way."""
+    from dhlog.resultcheck import printable, refuse_inputs_as_outputs
+
+    outputs = [path for job in jobs for path in job_outputs(job)] + summary_paths(folder)
+    inputs = [(Path(job.log), "log") for job in jobs]
+    if jobs:
+        for spec, what in ((jobs[0].nominal, "nominal DH file"), (jobs[0].pipeline, "pipeline")):
+            if spec is not None and Path(spec).is_file():
+                inputs.append((Path(spec), what))
+    refuse_inputs_as_outputs(inputs, outputs)
+    for path in outputs:
+        if path.is_dir():
+            raise InputError(
+                f"{printable(str(path))}: is a folder where dhlog batch writes a file; move it "
+                "away or choose another --out. Nothing was written."
+            )
 
 
 def run_batch(

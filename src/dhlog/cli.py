@@ -976,6 +976,7 @@ def export(
     from dhlog import export as exports
     from dhlog.dhfile import robot_or_dh_file
     from dhlog.io.writer import atomic_output
+    from dhlog.resultcheck import refuse_inputs_as_outputs
 
     if zero_offsets not in ("origins", "calibration") or (
         zero_offsets == "calibration" and (template is not None or format != "urdf")
@@ -989,9 +990,18 @@ def export(
         stderr.print("error: --template is for --format urdf.")
         raise typer.Exit(EXIT_USAGE)
     if format not in EXPORT_FORMATS:
-        stderr.print(f"error: --format must be one of {', '.join(EXPORT_FORMATS)}, not '{format}'.")
+        stderr.print(
+            f"error: --format must be one of {', '.join(EXPORT_FORMATS)}, not '{escape(format)}'."
+        )
         raise typer.Exit(EXIT_USAGE)
     _check_folder(output.parent)
+    inputs = [(result, "result"), *([(template, "URDF template")] if template else [])]
+    if limits_from and Path(limits_from).exists():
+        inputs.append((Path(limits_from), "DH file of --limits-from"))
+    try:  # exit 2, with or without --force: the input stays as it is
+        refuse_inputs_as_outputs(inputs, [output])
+    except DhlogError as exc:
+        _fail(exc)
     _refuse_existing(output, force)
     extra = ""
     try:
@@ -1022,17 +1032,18 @@ def export(
 
 def _terms_not_exported(result: Path, fmt: str) -> None:
     """Say so when the result carries terms beyond the geometry that ``fmt`` cannot carry."""
-    from dhlog.dhfile import load_dh
+    from dhlog.dhfile import parse_dh
+    from dhlog.resultcheck import load_result, printable
 
     try:
-        terms = load_dh(result).terms
+        terms = parse_dh(load_result(result), str(result)).terms
     except DhlogError:
         return
     if terms is None:
         return
     stdout.print(
-        f"note: {result.name} carries {terms.size} joint-value terms beyond the geometry "
-        f"({', '.join(terms.families())}); {fmt} cannot carry them, so the export is the "
+        f"note: {printable(result.name)} carries {terms.size} joint-value terms beyond the "
+        f"geometry ({', '.join(terms.families())}); {fmt} cannot carry them, so the export is the "
         "geometric part (the robot as it would stand without gravity and gear errors): apply "
         "the JSON's nongeometric block for compensation (dhlog fk, DHModel.joint_values).",
         markup=False,
@@ -1291,7 +1302,7 @@ def plan(
             metavar="RADIAL,TRANSVERSE,PER_M",
             help="With --station: the tracker's noise model in place of --noise-mm — radial "
             "and transverse σ (µm) and the transverse σ's growth (µm per m of distance), as "
-            "in a pipeline's [noise] model = \"tracker\".",
+            'in a pipeline\'s [noise] model = "tracker".',
         ),
     ] = None,
     candidates: Annotated[
@@ -1484,8 +1495,8 @@ def _select_poses(
             f"wrote {output}: {count} of {len(Q)} candidate poses, the most informative "
             f"(D-optimal: each adds the most to log det of the Fisher information); "
             f"{found.singular} near a singularity and {found.out_of_range} beyond the "
-            f"tracker's range left out. Predicted FK σ over the workspace (RMS, 3-D, σ {noise_mm:g} "
-            f"mm, one sample a pose): {found.fk_sd_chosen * 1e3:.4f} mm, against "
+            f"tracker's range left out. Predicted FK σ over the workspace (RMS, 3-D, "
+            f"σ {noise_mm:g} mm, one sample a pose): {found.fk_sd_chosen * 1e3:.4f} mm, against "
             f"{found.fk_sd_random * 1e3:.4f} mm for {count} drawn at random."
         )
     )
@@ -1565,22 +1576,27 @@ def batch(
 
     from dhlog.batch import (
         HOLDOUT_SUFFIX,
-        SUMMARY_STEM,
         TERMS_SUFFIX,
         BatchJob,
+        check_paths,
         output_stamps,
         run_batch,
         stem_of,
         summary_frame,
+        summary_paths,
         write_summary,
         written_logs,
     )
+    from dhlog.identify.select import MODELS
 
     if jobs < 1 or jobs > 256:
         stderr.print(f"error: --jobs must be between 1 and 256, not {jobs}.")
         raise typer.Exit(EXIT_USAGE)
     if units not in ("mm", "m"):
-        stderr.print(f"error: --units must be mm or m, not '{units}'.")
+        stderr.print(f"error: --units must be mm or m, not '{escape(units)}'.")
+        raise typer.Exit(EXIT_USAGE)
+    if model not in MODELS:  # said here: the value is the user's text, never markup
+        stderr.print(f"error: --model must be one of {', '.join(MODELS)}, not '{escape(model)}'.")
         raise typer.Exit(EXIT_USAGE)
     if holdout == 1 or not 0 <= holdout <= 1000:
         stderr.print(f"error: --holdout must be 0 (none) or a fold count of 2-1000, not {holdout}.")
@@ -1594,11 +1610,21 @@ def batch(
                 "results; rename one, or process them into different folders."
             )
             raise typer.Exit(EXIT_USAGE)
+    work = [
+        BatchJob(
+            str(log), str(out), pipeline, nominal, no_rrd, analytic_only, units, holdout, model
+        )
+        for log in logs
+    ]
+    try:  # exit 2, with or without --force: no input is overwritten, no output is a folder
+        check_paths(work, out)
+    except DhlogError as exc:
+        _fail(exc)
     suffixes = [".dh.json", ".dh.csv", *([] if no_rrd else [".rrd"])]
     suffixes += [HOLDOUT_SUFFIX] if holdout else []
     request = _model_request(model, None, None)
     suffixes += [TERMS_SUFFIX] if request.mode != "geometric" and not analytic_only else []
-    wanted = [out / f"{s}{x}" for s in stems for x in suffixes] + [out / f"{SUMMARY_STEM}.csv"]
+    wanted = [out / f"{s}{x}" for s in stems for x in suffixes] + summary_paths(out)
     clash = [str(p) for p in wanted if p.exists()]
     if clash and not force:
         stderr.print(f"error: {escape(clash[0])} (and {len(clash) - 1} more) exist; pass --force.")
@@ -1613,12 +1639,6 @@ def batch(
             _pipeline(pipeline)
         except DhlogError as exc:
             _fail(exc)
-    work = [
-        BatchJob(
-            str(log), str(out), pipeline, nominal, no_rrd, analytic_only, units, holdout, model
-        )
-        for log in logs
-    ]
     before = output_stamps(work)
     try:
         with Progress(
@@ -1779,12 +1799,16 @@ def import_(
     """Convert a tracker export (CSV, SpatialAnalyzer, Leica) into a log dhlog process reads."""
     from rich.markup import escape
 
-    from dhlog.io.importer import ImportOptions, import_source, write_imported
+    from dhlog.io.importer import ImportOptions, import_source, same_file, write_imported
 
     out = output if output is not None else source.with_suffix(".mcap")
-    if out.resolve() == source.resolve():
-        stderr.print("error: the output would replace the source; name another with -o.")
-        raise typer.Exit(EXIT_USAGE)
+    for given, what in ((source, "the source"), (joints_file, "the --joints-file")):
+        if given is not None and same_file(out, given):
+            stderr.print(
+                f"error: the output {escape(str(out))} would replace {what}; an output is never "
+                "one of the inputs: name another with -o."
+            )
+            raise typer.Exit(EXIT_USAGE)
     _check_folder(out.parent)
     _refuse_existing(out, force)
     opts = ImportOptions(
@@ -1948,9 +1972,12 @@ def _compare_trends(summary: Path, threshold: float, rrd: Path | None) -> None:
     from rich.markup import escape
 
     from dhlog.compare import read_summary, trends, write_trend_recording
+    from dhlog.resultcheck import printable, refuse_inputs_as_outputs
 
     try:
-        logs, times, found = trends(read_summary(summary))
+        if rrd is not None:  # the summary stays as it is
+            refuse_inputs_as_outputs([(summary, "batch summary")], [rrd])
+        logs, times, found = trends(read_summary(summary), printable(str(summary)))
         if rrd is not None:
             _check_folder(rrd.parent)
             write_trend_recording(logs, times, found, rrd)
@@ -1981,8 +2008,8 @@ def _compare_trends(summary: Path, threshold: float, rrd: Path | None) -> None:
         ("first", "last", "change", "|change|\n/ σ", "largest\nstep / σ"),
         rows,
     )
-    if moved:
-        stdout.print(f"moved beyond {threshold:g}σ: {', '.join(moved)} (marked *).")
+    if moved:  # the names are the summary's columns: text, never markup
+        stdout.print(f"moved beyond {threshold:g}σ: {escape(', '.join(moved))} (marked *).")
     else:
         stdout.print(f"no parameter moved beyond {threshold:g}σ over the sessions.")
     if rrd is not None:

@@ -10,7 +10,6 @@ placed elsewhere in the second session is no change of the robot.
 
 from __future__ import annotations
 
-import json
 import math
 from dataclasses import dataclass
 from datetime import datetime
@@ -22,6 +21,14 @@ import numpy as np
 from dhlog.dhfile import DHFileError, parse_dh
 from dhlog.geometry._checks import FloatArray, wrap_angle
 from dhlog.kinematics import fk_point
+from dhlog.resultcheck import (
+    MAX_ANGLE_RAD,
+    MAX_LENGTH_M,
+    MAX_SUMMARY_BYTES,
+    load_result,
+    printable,
+    read_limited,
+)
 
 NAMES = ("theta_offset", "d_offset", "a", "alpha")
 
@@ -59,17 +66,31 @@ class Comparison:
 
 
 def _load(path: str | Path) -> dict[str, Any]:
-    try:
-        data = json.loads(Path(path).read_text(encoding="utf-8"))
-    except (OSError, json.JSONDecodeError, UnicodeDecodeError) as exc:
-        raise DHFileError(str(path), f"cannot be read as JSON ({exc}).") from None
-    if not isinstance(data, dict) or not isinstance(data.get("standard_dh"), list):
-        raise DHFileError(str(path), "is not a dhlog result (no 'standard_dh').")
-    return data
+    """A result JSON, its size, nesting and every field used here checked
+    (:func:`dhlog.resultcheck.load_result`)."""
+    return load_result(path)
 
 
 def _rows(data: dict[str, Any], hayati: bool) -> list[dict[str, Any]]:
     return list(data["hayati_dh"]["rows"]) if hayati else list(data["standard_dh"])
+
+
+def _units(data: dict[str, Any]) -> tuple[float, float]:
+    """The result's length and angle scales to metres and radians (a result is in m and rad;
+    a DH file may say ``units = {length = "mm", angle = "deg"}``)."""
+    units = data.get("units") or {}
+    return (1e-3 if units.get("length") == "mm" else 1.0), (
+        math.pi / 180 if units.get("angle") == "deg" else 1.0
+    )
+
+
+def _value(row: dict[str, Any], key: str) -> float:
+    """A row's parameter, as the DH reader takes it (``theta``/``d`` for the offsets, 0 when
+    absent)."""
+    if key in row:
+        return float(row[key])
+    short = key.removesuffix("_offset")
+    return float(row.get(short, 0.0)) if short != key else float(row[key])
 
 
 def _std(row: dict[str, Any], key: str) -> float | None:
@@ -87,20 +108,23 @@ def parameters(data: dict[str, Any], hayati: bool | None = None) -> list[Paramet
     the Hayati rows; default: where the result has them), then the tool point."""
     if hayati is None:
         hayati = bool(data.get("hayati_dh"))
+    length, angle = _units(data)
     out: list[Parameter] = []
     for i, row in enumerate(_rows(data, hayati)):
         for key in NAMES:
-            if key == "d_offset" and row.get("form") == "hayati":
+            if key == "d_offset" and hayati and row.get("form") == "hayati":
                 key = "beta"
             angular = key in ("theta_offset", "alpha", "beta")
-            out.append(
-                (f"{key.removesuffix('_offset')}_{i + 1}", float(row[key]), _std(row, key), angular)
-            )
+            f = angle if angular else length
+            sd = _std(row, key)
+            name = f"{key.removesuffix('_offset')}_{i + 1}"
+            out.append((name, _value(row, key) * f, None if sd is None else sd * f, angular))
     tool = data.get("tool") or {}
     if tool.get("point") is not None:
         for k, axis in enumerate("xyz"):
             sd = (tool.get("std") or [None] * 3)[k]
-            out.append((f"tool_{axis}", float(tool["point"][k]), sd, False))
+            sd = None if sd is None else float(sd) * length
+            out.append((f"tool_{axis}", float(tool["point"][k]) * length, sd, False))
     return out
 
 
@@ -112,7 +136,9 @@ def compare(
     A, B = _load(a_path), _load(b_path)
     if len(A["standard_dh"]) != len(B["standard_dh"]):
         raise DHFileError(
-            str(b_path), f"has {len(B['standard_dh'])} joints, {a_path} {len(A['standard_dh'])}."
+            printable(str(b_path)),
+            f"has {len(B['standard_dh'])} joints, {printable(str(a_path))} "
+            f"{len(A['standard_dh'])}; compare two results of the same robot.",
         )
     forms = [
         [r["form"] for r in d["hayati_dh"]["rows"]] if d.get("hayati_dh") else None for d in (A, B)
@@ -132,10 +158,18 @@ def compare(
     if limits is None:
         revolute = [t.value == "revolute" for t in ma.table.joint_types]
         limits = np.array([[-math.pi, math.pi] if r else [-0.1, 0.1] for r in revolute])
+    limits = np.asarray(limits, dtype=np.float64)
+    if limits.shape != (n, 2) or not np.all(np.isfinite(limits)):
+        raise DHFileError(
+            printable(str(a_path)),
+            f"has {n} joints, but the joint range given has {len(limits)}; give the limits of "
+            "the same robot (--limits-from).",
+        )
     Q = np.random.default_rng(0).uniform(limits[:, 0], limits[:, 1], (points, n))
-    diff = np.linalg.norm(
-        fk_point(ma.table, Q, ma.tool_point) - fk_point(mb.table, Q, mb.tool_point), axis=1
-    )
+    with np.errstate(all="ignore"):
+        diff = np.linalg.norm(
+            fk_point(ma.table, Q, ma.tool_point) - fk_point(mb.table, Q, mb.tool_point), axis=1
+        )
     worst = int(np.argmax(diff))
     return Comparison(
         changes, float(np.sqrt(np.mean(diff**2))), float(diff[worst]), Q[worst], points
@@ -157,68 +191,183 @@ class Trend:
     largest_step: float | None
 
 
-def read_summary(path: str | Path) -> Any:
-    """A batch summary (``summary.csv`` or ``.parquet``) as a polars frame."""
-    import polars as pl
-
-    source = str(path)
-    try:
-        frame = pl.read_parquet(path) if source.endswith(".parquet") else pl.read_csv(path)
-    except (OSError, pl.exceptions.PolarsError) as exc:
-        raise DHFileError(source, f"cannot be read as a batch summary ({exc}).") from None
-    needed = {"log", "session_start", "status"}
-    if not needed <= set(frame.columns):
-        raise DHFileError(source, "is not a dhlog batch summary (no log, session_start, status).")
-    return frame
-
-
+#: The most columns a batch summary may have (100 joints: four parameters and their σ each,
+#: the tool's, and a few dozen others).
+MAX_SUMMARY_COLUMNS = 1024
+#: The columns every summary has, and the columns read as text.
+_NEEDED = ("log", "session_start", "status", "robot", "joints")
+_TEXT = (*_NEEDED, "reason", "model")
 #: Summary columns that are parameters, by their name's start.
 _PARAMETER = ("theta_", "d_", "beta_", "a_", "alpha_", "tool_")
+_ANGULAR = ("theta_", "alpha_", "beta_")
+_SUMMARY_FIX = "repair it, or write the summary again with dhlog batch"
 
 
-def trends(frame: Any) -> tuple[list[str], list[float], list[Trend]]:
-    """Every parameter's trend over the identified sessions of a batch summary, in session
-    order: (the logs, their start times in s since the epoch, the trends)."""
+def _summary_fault(source: str, exc: BaseException) -> DHFileError:
+    """A reader's error as one line (polars' messages run over several)."""
+    lines = [line.strip() for line in str(exc).splitlines() if line.strip()]
+    first = printable(lines[0] if lines else type(exc).__name__)[:200]
+    return DHFileError(
+        source,
+        f"cannot be read as a batch summary ({first}); give the summary.csv or summary.parquet "
+        "that dhlog batch wrote.",
+    )
+
+
+def read_summary(path: str | Path) -> Any:
+    """A batch summary (``summary.csv`` or ``.parquet``) as a polars frame, checked as untrusted
+    input: its size before it is read, at most ``MAX_SUMMARY_COLUMNS`` columns (counted before
+    the rows are read), the columns a trend needs present, text columns as text, and every
+    parameter and its σ a number in range (a cell that is not names its column and line)."""
+    import io
+
     import polars as pl
 
-    rows = frame.filter(pl.col("status").is_in(["ok", "partial"])).sort(
-        "session_start", maintain_order=True
-    )  # sessions that start together: in the order given
-    if rows.height < 2:
-        raise DHFileError("summary", "needs two identified sessions or more for a trend.")
-    robots = rows.select(["robot", "joints"]).unique()
-    if robots.height > 1:
-        listed = "; ".join(f"{r} ({j})" for r, j in robots.iter_rows())
+    source = printable(str(path))
+    raw = read_limited(path, MAX_SUMMARY_BYTES, "batch summary")
+    parquet = str(path).endswith(".parquet")
+    try:
+        if parquet:
+            columns = list(pl.read_parquet_schema(io.BytesIO(raw)))
+        else:
+            columns = pl.read_csv(io.BytesIO(raw), n_rows=0, infer_schema=False).columns
+        if len(columns) > MAX_SUMMARY_COLUMNS:
+            raise DHFileError(
+                source,
+                f"has {len(columns)} columns, more than a batch summary has (at most "
+                f"{MAX_SUMMARY_COLUMNS}); give the summary that dhlog batch wrote.",
+            )
+        if parquet:
+            frame = pl.read_parquet(io.BytesIO(raw))
+        else:  # every cell as text: the columns are typed below, a bad cell named
+            frame = pl.read_csv(io.BytesIO(raw), infer_schema=False)
+    except (OSError, ValueError, OverflowError, pl.exceptions.PolarsError) as exc:
+        raise _summary_fault(source, exc) from None
+    except pl.exceptions.PanicException as exc:  # the reader's own fault, on damaged bytes
+        raise _summary_fault(source, exc) from None
+    missing = [c for c in _NEEDED if c not in frame.columns]
+    if missing:
         raise DHFileError(
-            "summary",
-            f"holds sessions of different robots ({listed}); a trend is of one robot — "
-            "filter the summary to one.",
+            source,
+            f"is not a dhlog batch summary (no column {', '.join(missing)}); give the "
+            "summary.csv or summary.parquet that dhlog batch wrote.",
         )
-    times = [
-        datetime.fromisoformat(str(t)).timestamp() if t is not None else float("nan")
-        for t in rows["session_start"].to_list()
-    ]
+    typed = []
+    for name in frame.columns:
+        column = frame[name]
+        if name in _TEXT:
+            typed.append(_text_column(column, source))
+        elif name.startswith(_PARAMETER) or name.removeprefix("std_").startswith(_PARAMETER):
+            typed.append(_parameter_column(column, source, parquet))
+        elif not parquet:  # other columns: numbers where every cell is one
+            try:
+                typed.append(column.cast(pl.Float64))
+            except pl.exceptions.PolarsError:
+                pass
+    return frame.with_columns(typed)
+
+
+def _text_column(column: Any, source: str) -> Any:
+    import polars as pl
+
+    try:
+        return column.cast(pl.String)
+    except pl.exceptions.PolarsError:
+        raise DHFileError(
+            source,
+            f"column {printable(column.name)} holds {column.dtype}, not text; {_SUMMARY_FIX}.",
+        ) from None
+
+
+def _parameter_column(column: Any, source: str, parquet: bool) -> Any:
+    """A parameter (or σ) column as float64, NaN where missing; a cell that is no number, or a
+    value out of range, names its column and line."""
+    import polars as pl
+
+    name = printable(column.name)
+    if column.dtype == pl.String:
+        values = column.str.strip_chars().cast(pl.Float64, strict=False)
+    elif column.dtype == pl.Null or column.dtype.is_numeric():
+        values = column.cast(pl.Float64)
+    else:
+        raise DHFileError(
+            source, f"column {name} holds {column.dtype}, not numbers; {_SUMMARY_FIX}."
+        )
+
+    def where(index: int) -> str:
+        return f"row {index + 1}" if parquet else f"line {index + 2}"
+
+    bad = (values.is_null() & column.is_not_null()).arg_true()
+    if bad.len():
+        k = int(bad[0])
+        cell = printable(str(column[k]))[:40]
+        raise DHFileError(
+            source, f"column {name}, {where(k)}: '{cell}' is not a number; {_SUMMARY_FIX}."
+        )
+    array = values.fill_null(float("nan")).to_numpy().astype(np.float64)
+    sigma = column.name.startswith("std_")
+    angular = column.name.removeprefix("std_").startswith(_ANGULAR)
+    bound, unit = (MAX_ANGLE_RAD, "rad") if angular else (MAX_LENGTH_M, "m")
+    with np.errstate(invalid="ignore"):
+        wrong = np.isinf(array) | (np.abs(array) > bound) | ((array < 0) if sigma else False)
+    if np.any(wrong):
+        k = int(np.flatnonzero(wrong)[0])
+        raise DHFileError(
+            source,
+            f"column {name}, {where(k)}: {array[k]:.6g} is not a "
+            f"{'σ' if sigma else 'value'} within ±{bound:g} {unit}; {_SUMMARY_FIX}.",
+        )
+    return pl.Series(column.name, array, dtype=pl.Float64)
+
+
+def trends(frame: Any, source: str = "summary") -> tuple[list[str], list[float], list[Trend]]:
+    """Every parameter's trend over the identified sessions of a batch summary
+    (:func:`read_summary`), in session order: (the logs, their start times in s since the epoch,
+    the trends). ``source`` names the summary in the messages."""
+    import polars as pl
+
+    try:
+        rows = frame.filter(pl.col("status").is_in(["ok", "partial"])).sort(
+            "session_start", maintain_order=True
+        )  # sessions that start together: in the order given
+        robots = rows.select(["robot", "joints"]).unique(maintain_order=True)
+    except pl.exceptions.PolarsError as exc:
+        raise _summary_fault(source, exc) from None
+    if rows.height < 2:
+        raise DHFileError(source, "needs two identified sessions or more for a trend.")
+    if robots.height > 1:
+        listed = "; ".join(f"{r} ({j})" for r, j in robots.head(4).iter_rows())
+        raise DHFileError(
+            source,
+            f"holds sessions of different robots ({printable(listed)[:300]}); a trend is of one "
+            "robot — filter the summary to one.",
+        )
+    logs = [str(v) for v in rows["log"].to_list()]
+    starts = rows["session_start"].to_list()
+    times = [_session_time(t, log, source) for t, log in zip(starts, logs, strict=True)]
+    present = set(rows.columns)
     out = []
     for name in rows.columns:
         if not name.startswith(_PARAMETER):
             continue
-        values = rows[name].cast(pl.Float64).to_numpy()
+        values = rows[name].cast(pl.Float64).fill_null(float("nan")).to_numpy()
         std_col = f"std_{name}"
         sigmas = (
             rows[std_col].cast(pl.Float64).fill_null(float("nan")).to_numpy()
-            if std_col in rows.columns
+            if std_col in present
             else np.full(values.size, np.nan)
         )
         if np.all(np.isnan(values)):
             continue
-        angular = name.startswith(("theta_", "alpha_", "beta_"))
-        steps = np.diff(values)
-        if angular:
-            steps = np.array([wrap_angle(s) for s in steps])
-        step_sigma = np.hypot(sigmas[1:], sigmas[:-1])
-        z = np.abs(steps) / step_sigma
-        change = float(steps.sum())  # NaN where a session lacks the parameter
-        total_sigma = math.hypot(sigmas[0], sigmas[-1])
+        angular = name.startswith(_ANGULAR)
+        with np.errstate(all="ignore"):
+            steps = np.diff(values)
+            if angular:
+                steps = np.array([wrap_angle(s) for s in steps])
+            step_sigma = np.hypot(sigmas[1:], sigmas[:-1])
+            z = np.abs(steps) / step_sigma
+            change = float(steps.sum())  # NaN where a session lacks the parameter
+            total_sigma = math.hypot(sigmas[0], sigmas[-1])
         out.append(
             Trend(
                 name,
@@ -230,7 +379,27 @@ def trends(frame: Any) -> tuple[list[str], list[float], list[Trend]]:
                 float(np.nanmax(z)) if np.any(np.isfinite(z)) else None,
             )
         )
-    return [str(v) for v in rows["log"].to_list()], times, out
+    return logs, times, out
+
+
+#: Session starts a trend can place: 1970 to 2262 (nanoseconds since the epoch in 64 bits).
+_LATEST_S = 9.2e9
+
+
+def _session_time(value: object, log: str, source: str) -> float:
+    """A session's start (ISO 8601 text) in s since the epoch (an identified session has one)."""
+    try:
+        t = datetime.fromisoformat(str(value)).timestamp() if value is not None else math.nan
+    except (ValueError, OverflowError, OSError):
+        t = float("nan")
+    if not 0.0 <= t < _LATEST_S:  # NaN too
+        shown = "empty" if value is None else f"'{printable(str(value))[:40]}'"
+        raise DHFileError(
+            source,
+            f"column session_start of {printable(log)[:80]} is {shown}, not a time from 1970 to "
+            f"2262 in ISO 8601 (2026-01-31T08:00:00+00:00); {_SUMMARY_FIX}.",
+        )
+    return t
 
 
 def write_trend_recording(

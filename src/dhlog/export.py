@@ -18,6 +18,7 @@ from __future__ import annotations
 import json
 import math
 import xml.etree.ElementTree as ET
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -26,6 +27,15 @@ import numpy as np
 from dhlog.dh import HayatiDH, JointType, StandardDH, standard_to_modified
 from dhlog.dhfile import DHFileError, DHModel, parse_dh
 from dhlog.geometry._checks import FloatArray, roll_pitch_yaw
+from dhlog.resultcheck import (
+    MAX_ANGLE_RAD,
+    MAX_LENGTH_M,
+    MAX_RESULT_BYTES,
+    load_result,
+    printable,
+    read_limited,
+    xml_comment_text,
+)
 
 
 def _table_of(data: dict[str, Any], source: str) -> tuple[StandardDH, DHModel]:
@@ -63,16 +73,23 @@ def _origin(parent: ET.Element, T: FloatArray) -> None:
 
 
 def _load(result_path: str | Path) -> tuple[dict[str, Any], StandardDH, DHModel]:
-    """The result (or DH) JSON, its well-conditioned table and its DH model."""
-    source = str(result_path)
-    try:
-        data = json.loads(Path(result_path).read_text(encoding="utf-8"))
-    except (OSError, json.JSONDecodeError, UnicodeDecodeError) as exc:
-        raise DHFileError(source, f"cannot be read as JSON ({exc}).") from None
-    if not isinstance(data, dict):
-        raise DHFileError(source, "must hold an object with a 'standard_dh' array.")
-    table, model = _table_of(data, source)
+    """The result (or DH) JSON, its well-conditioned table and its DH model; the file's size,
+    nesting and every field used checked first (:func:`dhlog.resultcheck.load_result`)."""
+    data = load_result(result_path)
+    table, model = _table_of(data, printable(str(result_path)))
     return data, table, model
+
+
+def _limits(limits: FloatArray, n: int, source: str) -> FloatArray:
+    """Joint limits (n, 2), finite, lower below upper."""
+    limits = np.asarray(limits, dtype=np.float64)
+    if limits.shape != (n, 2) or not np.all(np.isfinite(limits)):
+        raise DHFileError(
+            source,
+            f"has {n} joints, but the limits given are for {len(limits)}; give the limits of "
+            "the same robot (--limits-from).",
+        )
+    return limits
 
 
 def _without_offsets(table: StandardDH) -> StandardDH:
@@ -113,10 +130,12 @@ def urdf_document(
                 for t in table.joint_types
             ]
         )
+    limits = _limits(limits, n, printable(source))
     names = list(model.joint_names)
     if len(set(names)) != len(names):
         names = [f"joint_{i + 1}" for i in range(n)]
-    robot = ET.Element("robot", name=name or Path(source).name.split(".")[0])
+    robot_name = printable(name or Path(source).name.split(".")[0]) or "robot"
+    robot = ET.Element("robot", name=robot_name)
     ET.SubElement(robot, "link", name="measurement")
     ET.SubElement(robot, "link", name="base_link")
     fixed = ET.SubElement(robot, "joint", name="base_in_measurement", type="fixed")
@@ -152,15 +171,17 @@ def urdf_document(
         _origin(joint, origin)
         parent = link
     comment = ET.Comment(
-        " written by dhlog export from "
-        + Path(source).name
-        + (
-            ": joint zero = encoder zero (the zero offsets are in the joint origins); "
-            if zero_offsets == "origins"
-            else ": the zero offsets are in each joint's <calibration rising>: joint position "
-            "= encoder value + rising; "
+        xml_comment_text(
+            " written by dhlog export from "
+            + Path(source).name
+            + (
+                ": joint zero = encoder zero (the zero offsets are in the joint origins); "
+                if zero_offsets == "origins"
+                else ": the zero offsets are in each joint's <calibration rising>: joint "
+                "position = encoder value + rising; "
+            )
+            + "frame base_link = DH frame 1, flange = frame n+1, tool0 = the measured target "
         )
-        + "frame base_link = DH frame 1, flange = frame n+1, tool0 = the measured target "
     )
     robot.insert(0, comment)
     ET.indent(robot)
@@ -223,9 +244,10 @@ def ur_calibration(result_path: str | Path) -> tuple[str, FloatArray]:
     tail[:3, 3] += tail[:3, :3] @ model.tool_point  # the target in wrist_3_link
     to_tool0 = rpy_matrix(*UR_FLANGE) @ rpy_matrix(*UR_TOOL0)
     tcp = np.linalg.inv(to_tool0) @ np.r_[tail[:3, 3], 1.0]
-    digest = hashlib.sha256(Path(result_path).read_bytes()).hexdigest()[:16]
+    digest = hashlib.sha256(read_limited(result_path, MAX_RESULT_BYTES, "result JSON"))
     lines = [
-        f"# written by dhlog export from {Path(source).name}: the kinematics of the measured",
+        f"# written by dhlog export from {printable(Path(source).name)}: the kinematics of the "
+        "measured",
         "# robot in the Universal Robots ROS 2 description's layout (default_kinematics.yaml).",
         "# base_link = DH frame 1; joint zero = encoder zero. The target (TCP) in tool0, in m:",
         f"#   tcp: [{tcp[0]:.17g}, {tcp[1]:.17g}, {tcp[2]:.17g}]",
@@ -238,7 +260,7 @@ def ur_calibration(result_path: str | Path) -> tuple[str, FloatArray]:
             ("x", "y", "z", "roll", "pitch", "yaw"), (*T[:3, 3], r, p, y), strict=True
         ):
             lines.append(f"    {key}: {float(value):.17g}")
-    lines.append(f"  hash: dhlog_{digest}")
+    lines.append(f"  hash: dhlog_{digest.hexdigest()[:16]}")
     return "\n".join(lines) + "\n", tcp[:3]
 
 
@@ -269,7 +291,10 @@ def rtb_document(result_path: str | Path) -> str:
         "        [" + ", ".join(repr(float(v)) for v in row) + "]" for row in model.T_base
     )
     tool = ", ".join(repr(float(v)) for v in model.tool_point)
-    return f"""\"\"\"{Path(source).name} as a robotics-toolbox robot (written by dhlog export).
+    # the file name as a Python literal (its repr), written so that the docstring holds exactly
+    # that: backslashes doubled, double quotes escaped (no \"\"\" can end it early)
+    shown = repr(Path(source).name).replace("\\", "\\\\").replace('"', '\\"')
+    return f"""\"\"\"{shown} as a robotics-toolbox robot (written by dhlog export).
 
 Standard DH, SI units; q is the encoder value (the zero offsets are the links' offsets);
 robot.fkine(q).t is the measured target in the measurement frame.
@@ -303,7 +328,7 @@ def dh_table_document(result_path: str | Path, fmt: str) -> str:
     names = list(model.joint_names)
     out: list[dict[str, Any]] = []
     for i in range(table.n):
-        sigma = std_rows[i].get("std", {}) if i < len(std_rows) else {}
+        sigma = (std_rows[i].get("std") or {}) if i < len(std_rows) else {}
         common = {"joint": names[i], "type": str(table.joint_types[i])}
         out.append(
             {
@@ -410,6 +435,182 @@ class TemplateError(DHFileError):
     """A URDF template that cannot take the result (unreadable, joints missing or not a chain)."""
 
 
+#: The largest URDF template read (a robot's URDF is tens of kB; its meshes are other files).
+MAX_TEMPLATE_BYTES = 16 * 2**20
+#: The deepest nesting of a template's elements (a URDF's is four or five).
+MAX_TEMPLATE_DEPTH = 64
+#: URDF's joint types; the moving ones (one degree of freedom) take a result's joint.
+URDF_JOINT_TYPES = ("revolute", "continuous", "prismatic", "fixed", "floating", "planar")
+MOVING = ("revolute", "continuous", "prismatic")
+_XACRO = "a xacro file must be expanded first (xacro robot.urdf.xacro > robot.urdf)"
+
+
+class _RefusedError(Exception):
+    """What stops the template's parser: a DOCTYPE, or elements nested too deep."""
+
+
+class _TemplateBuilder(ET.TreeBuilder):
+    """The template's tree with its comments; a DOCTYPE (the door to entity expansion and
+    external entities: a URDF needs none) and nesting beyond ``MAX_TEMPLATE_DEPTH`` stop the
+    parser before anything is built from them."""
+
+    def __init__(self) -> None:
+        super().__init__(insert_comments=True)
+        self.depth = 0
+
+    def start(self, tag: str, attrs: dict[str, str]) -> ET.Element:
+        self.depth += 1
+        if self.depth > MAX_TEMPLATE_DEPTH:
+            raise _RefusedError(f"its elements are nested more than {MAX_TEMPLATE_DEPTH} deep")
+        return super().start(tag, attrs)
+
+    def end(self, tag: str) -> ET.Element:
+        self.depth -= 1
+        return super().end(tag)
+
+    def doctype(self, name: str, pubid: str | None, system: str | None) -> None:
+        raise _RefusedError(
+            "it has a DOCTYPE (a URDF needs none, and its entities are not expanded)"
+        )
+
+
+def read_template(template_path: str | Path) -> ET.Element:
+    """A URDF template's ``<robot>`` element (with its comments), read as untrusted input: its
+    size before it is parsed, no DOCTYPE (no entity is ever expanded or fetched), bounded
+    nesting."""
+    src = printable(str(template_path))
+    raw = read_limited(template_path, MAX_TEMPLATE_BYTES, "URDF template")
+    parser = ET.XMLParser(target=_TemplateBuilder())
+    try:
+        parser.feed(raw)
+        robot = parser.close()
+    except _RefusedError as exc:
+        raise TemplateError(src, f"cannot be used as a template: {exc}; {_XACRO}.") from None
+    except ET.ParseError as exc:
+        raise TemplateError(src, f"is not well-formed XML ({exc}); {_XACRO}.") from None
+    except (ValueError, LookupError) as exc:  # an encoding the parser does not know
+        raise TemplateError(src, f"cannot be read as XML ({exc}).") from None
+    if robot.tag != "robot":
+        raise TemplateError(
+            src, f"has <{printable(str(robot.tag))[:40]}> at its root, not <robot>; {_XACRO}."
+        )
+    return robot
+
+
+@dataclass(frozen=True)
+class _TemplateJoint:
+    """A ``<joint>`` of a template: its links, its origin (4×4) and its axis (unit vector)."""
+
+    name: str
+    kind: str
+    parent: str
+    child: str
+    origin: FloatArray
+    axis: FloatArray
+
+
+def _triple(element: ET.Element | None, attr: str, default: float, bound: float) -> list[float]:
+    """Three finite numbers of an attribute (``xyz``, ``rpy``), each within ±``bound``."""
+    text = None if element is None else element.get(attr)
+    if text is None:
+        return [default] * 3
+    try:
+        values = [float(v) for v in text.split()]
+    except ValueError:
+        values = []
+    if len(values) != 3 or not all(math.isfinite(v) and abs(v) <= bound for v in values):
+        raise ValueError(f"{attr}='{printable(text)[:60]}' is not three numbers within ±{bound:g}")
+    return values
+
+
+def _template_joints(robot: ET.Element, src: str) -> dict[str, _TemplateJoint]:
+    """The ``<joint>`` elements of ``<robot>`` itself (not those of a ``<transmission>``), by
+    name, each checked: a name, a type, a parent and a child link, origin and axis numbers."""
+    joints: dict[str, _TemplateJoint] = {}
+    for k, element in enumerate(robot.findall("joint")):
+        name = element.get("name")
+        if not name:
+            raise TemplateError(src, f"joint {k + 1} of <robot> has no name; repair the template.")
+        shown = printable(name)[:80]
+        if name in joints:
+            raise TemplateError(src, f"has two joints named {shown}; repair the template.")
+        kind = element.get("type")
+        if kind not in URDF_JOINT_TYPES:
+            raise TemplateError(
+                src,
+                f"joint {shown} has type '{printable(str(kind))[:20]}', not one of "
+                f"{', '.join(URDF_JOINT_TYPES)}; repair the template.",
+            )
+        links = [element.find(tag) for tag in ("parent", "child")]
+        parent, child = (e.get("link") if e is not None else None for e in links)
+        if not parent or not child:
+            raise TemplateError(
+                src, f"joint {shown} needs <parent link=…> and <child link=…>; repair the template."
+            )
+        origin, axis = element.find("origin"), element.find("axis")
+        try:
+            xyz = _triple(origin, "xyz", 0.0, MAX_LENGTH_M)
+            rpy = _triple(origin, "rpy", 0.0, MAX_ANGLE_RAD)
+            direction = np.array([1.0, 0.0, 0.0])  # URDF's default axis
+            if axis is not None and axis.get("xyz") is not None:
+                direction = np.array(_triple(axis, "xyz", 0.0, MAX_LENGTH_M))
+        except ValueError as exc:
+            raise TemplateError(src, f"joint {shown}: {exc}; repair the template.") from None
+        if kind in MOVING and not np.linalg.norm(direction) > 1e-9:
+            raise TemplateError(src, f"joint {shown} has a zero axis; repair the template.")
+        T = rpy_matrix(*rpy)
+        T[:3, 3] = xyz
+        joints[name] = _TemplateJoint(name, kind, parent, child, T, direction)
+    return joints
+
+
+class _Frames:
+    """Each link's frame in the tree's root at joint values zero (the origins composed down
+    from the root), a loop of joints refused."""
+
+    def __init__(self, joints: dict[str, _TemplateJoint], src: str) -> None:
+        self.src = src
+        self.parent_of: dict[str, _TemplateJoint] = {}
+        for j in joints.values():
+            other = self.parent_of.setdefault(j.child, j)
+            if other is not j:
+                raise TemplateError(
+                    src,
+                    f"link {printable(j.child)[:80]} is the child of two joints "
+                    f"({printable(other.name)[:80]}, {printable(j.name)[:80]}); a URDF is a "
+                    "tree: repair the template.",
+                )
+        self.cache: dict[str, FloatArray] = {}
+
+    def root(self, link: str) -> str:
+        self.frame(link)  # refuses a loop on the way up
+        while link in self.parent_of:
+            link = self.parent_of[link].parent
+        return link
+
+    def frame(self, link: str) -> FloatArray:
+        chain: list[str] = []
+        at = link
+        while at not in self.cache:
+            joint = self.parent_of.get(at)
+            if joint is None:  # the root
+                self.cache[at] = np.eye(4)
+                break
+            if at in chain:
+                raise TemplateError(
+                    self.src,
+                    f"its joints form a loop through link {printable(at)[:80]}; a URDF is a "
+                    "tree: repair the template.",
+                )
+            chain.append(at)
+            at = joint.parent
+        T = self.cache[at]
+        for name in reversed(chain):
+            T = T @ self.parent_of[name].origin
+            self.cache[name] = T
+        return self.cache[link]
+
+
 def urdf_from_template(result_path: str | Path, template_path: str | Path) -> str:
     """The template URDF with the result's kinematics: the template's joints matched by name get
     calibrated origins; links, meshes, inertials, limits and every other element stay.
@@ -420,60 +621,55 @@ def urdf_from_template(result_path: str | Path, template_path: str | Path) -> st
     placed by joint 1's link, turned about and moved along axis 1 to fit the other links to the
     template's (the base is a gauge the data does not fix). The measurement frame and the target
     are added as the links ``dhlog_measurement`` and ``dhlog_target``. Joint zero = encoder zero.
+    Only the ``<joint>`` elements of ``<robot>`` itself are changed (those of a
+    ``<transmission>`` name joints, they are not joints).
     """
-    import xml.etree.ElementTree as ElementTree
-
-    import yourdfpy  # type: ignore[import-untyped]
     from scipy.optimize import least_squares
 
-    src = str(template_path)
+    src = printable(str(template_path))
     _, table, model = _load(result_path)
-    try:
-        tree = ElementTree.parse(
-            src, parser=ElementTree.XMLParser(target=ElementTree.TreeBuilder(insert_comments=True))
-        )
-        urdf = yourdfpy.URDF.load(src, load_meshes=False, build_scene_graph=True)
-    except (OSError, ElementTree.ParseError, ValueError, KeyError, AttributeError) as exc:
-        raise TemplateError(
-            src,
-            f"cannot be read as a URDF ({type(exc).__name__}: {exc}); a xacro file must "
-            "be expanded first (xacro robot.urdf.xacro > robot.urdf).",
-        ) from None
+    robot = read_template(template_path)
+    template = _template_joints(robot, src)
     names = list(model.joint_names)
-    moving = {
-        name: j
-        for name, j in urdf.joint_map.items()
-        if j.type in ("revolute", "continuous", "prismatic")
-    }
+    if len(set(names)) != len(names):
+        raise DHFileError(
+            printable(str(result_path)),
+            "names two joints alike, so they cannot be matched to a template's by name; "
+            "rename them in the result's joints.",
+        )
+    moving = {name: j for name, j in template.items() if j.kind in MOVING}
     missing = [n for n in names if n not in moving]
     if missing:
+        listed = ", ".join(list(moving)[:20]) + (" …" if len(moving) > 20 else "")
         raise TemplateError(
             src,
-            f"has no joint {', '.join(missing)} of the result; its moving joints are "
-            f"{', '.join(moving) or 'none'} (the result's joints are named by the log's joint "
-            "states).",
+            f"has no joint {printable(', '.join(missing))[:200]} of the result; its moving "
+            f"joints are {printable(listed) or 'none'} (the result's joints are named by the "
+            "log's joint states).",
         )
     joints = [moving[n] for n in names]
     for name, j, kind in zip(names, joints, table.joint_types, strict=True):
-        if (j.type == "prismatic") != (kind is JointType.PRISMATIC):
-            raise TemplateError(src, f"joint {name} is {j.type} there but {kind} in the result.")
-    parent_of = {j.child: j for j in urdf.joint_map.values()}
+        if (j.kind == "prismatic") != (kind is JointType.PRISMATIC):
+            raise TemplateError(
+                src, f"joint {printable(name)} is {j.kind} there but {kind} in the result."
+            )
+    frames = _Frames(template, src)
+    L = [frames.frame(j.child) for j in joints]
+    Lp = [frames.frame(j.parent) for j in joints]
     for k in range(1, len(joints)):
         link = joints[k].parent
-        while link != joints[k - 1].child:
-            j = parent_of.get(link)
-            if j is None or j.type != "fixed":
+        while link != joints[k - 1].child:  # no loop: the frames were composed
+            up = frames.parent_of.get(link)
+            if up is None or up.kind != "fixed":
                 raise TemplateError(
                     src,
-                    f"joint {names[k]} does not follow joint {names[k - 1]} through fixed joints "
-                    "only; give a template whose joints form the result's chain.",
+                    f"joint {printable(names[k])} does not follow joint {printable(names[k - 1])} "
+                    "through fixed joints only; give a template whose joints form the result's "
+                    "chain.",
                 )
-            link = j.parent
-    urdf.update_cfg(np.zeros(urdf.num_actuated_joints))
-    root = urdf.base_link
-    L = [np.asarray(urdf.get_transform(j.child, root)) for j in joints]
-    Lp = [np.asarray(urdf.get_transform(j.parent, root)) for j in joints]
-    axes = [np.asarray(j.axis if j.axis is not None else [1.0, 0.0, 0.0], float) for j in joints]
+            link = up.parent
+    root = frames.root(joints[0].parent)
+    axes = [j.axis for j in joints]
     align = [_h(_align(a)) for a in axes]
     n = table.n
     rows = table.link_transforms(np.zeros(n))
@@ -503,7 +699,7 @@ def urdf_from_template(result_path: str | Path, template_path: str | Path) -> st
 
     def misfit(x: FloatArray) -> FloatArray:
         B = placed(x)
-        out = []
+        out: list[float] = []
         for i in range(1, n):
             P = B @ F[i]
             local = np.linalg.inv(P) @ L[i]
@@ -514,7 +710,7 @@ def urdf_from_template(result_path: str | Path, template_path: str | Path) -> st
     x = least_squares(misfit, np.zeros(2), x_scale=[0.1, 0.1]).x if n > 1 else np.zeros(2)
     B = placed(x)
     W = link_frames(B)
-    by_name = {j.get("name"): j for j in tree.getroot().iter("joint")}
+    by_name = {j.get("name"): j for j in robot.findall("joint")}  # <robot>'s own joints
     for i in range(1, n):
         parent = W[i - 1] @ np.linalg.inv(L[i - 1]) @ Lp[i]  # rigid in link i-1
         element = by_name[names[i]]
@@ -522,33 +718,35 @@ def urdf_from_template(result_path: str | Path, template_path: str | Path) -> st
             element.remove(old)
         origin_at = _origin_element(np.linalg.inv(parent) @ W[i])
         element.insert(0, origin_at)
-    robot = tree.getroot()
     target = B @ F[n] @ np.r_[model.tool_point, 1.0]
     last = np.linalg.inv(W[n - 1]) @ target
     if len(robot):
         robot[-1].tail = "\n  "
+    links = {e.get("name") for e in robot.findall("link")}
     for link, parent_link, T in (
         ("dhlog_measurement", root, B),
         ("dhlog_target", joints[-1].child, _h(p=last[:3])),
     ):
-        if link in {e.get("name") for e in robot.iter("link")}:
-            raise TemplateError(src, f"already has a link {link}; remove it first.")
-        ElementTree.SubElement(robot, "link", name=link).tail = "\n  "
-        joint = ElementTree.SubElement(robot, "joint", name=f"{link}_fixed", type="fixed")
-        ElementTree.SubElement(joint, "parent", link=parent_link)
-        ElementTree.SubElement(joint, "child", link=link)
+        if link in links or f"{link}_fixed" in template:
+            raise TemplateError(src, f"already has a link {link} (or its joint); remove it first.")
+        ET.SubElement(robot, "link", name=link).tail = "\n  "
+        joint = ET.SubElement(robot, "joint", name=f"{link}_fixed", type="fixed")
+        ET.SubElement(joint, "parent", link=parent_link)
+        ET.SubElement(joint, "child", link=link)
         joint.append(_origin_element(T))
-        ElementTree.indent(joint, level=1)
+        ET.indent(joint, level=1)
         joint.tail = "\n  "
     joint.tail = "\n"
-    note = ElementTree.Comment(
-        f" joint origins of {', '.join(names[1:])} calibrated by dhlog export from "
-        f"{Path(str(result_path)).name}: joint zero = encoder zero; dhlog_measurement = the "
-        "tracker's frame, dhlog_target = the measured target "
+    note = ET.Comment(
+        xml_comment_text(
+            f" joint origins of {', '.join(names[1:])} calibrated by dhlog export from "
+            f"{Path(str(result_path)).name}: joint zero = encoder zero; dhlog_measurement = the "
+            "tracker's frame, dhlog_target = the measured target "
+        )
     )
     note.tail = "\n  "
     robot.insert(0, note)
-    return '<?xml version="1.0"?>\n' + ElementTree.tostring(robot, encoding="unicode") + "\n"
+    return '<?xml version="1.0"?>\n' + ET.tostring(robot, encoding="unicode") + "\n"
 
 
 def _origin_element(T: FloatArray) -> ET.Element:
