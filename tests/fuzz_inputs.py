@@ -44,14 +44,13 @@ import math
 import random
 import re
 import shutil
-import signal
-import threading
 import time
 from collections.abc import Callable, Iterator
-from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
+
+from fuzzing import Hang, time_limit
 
 FAMILIES = ("dh", "pipeline", "export")
 ROOT = Path(__file__).parents[1]
@@ -515,28 +514,6 @@ def cases(
 # ---------------------------------------------------------------------------- judging
 
 
-class _Hang(BaseException):
-    """The time limit of a case ran out."""
-
-
-@contextmanager
-def _time_limit(seconds: float) -> Iterator[None]:
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-
-    def expire(signum: int, frame: object) -> None:
-        raise _Hang()
-
-    previous = signal.signal(signal.SIGALRM, expire)
-    signal.setitimer(signal.ITIMER_REAL, seconds)
-    try:
-        yield
-    finally:
-        signal.setitimer(signal.ITIMER_REAL, 0)
-        signal.signal(signal.SIGALRM, previous)
-
-
 def _state(folder: Path) -> dict[str, str]:
     """Every file under ``folder`` and its SHA-256."""
     return {
@@ -562,9 +539,9 @@ def run_case(case: Case, folder: Path, *, timeout: float = 30.0) -> Outcome:
     args = [a.replace("{d}", str(work)) for a in case.args]
     start = time.monotonic()
     try:
-        with _time_limit(timeout):
+        with time_limit(timeout):
             result = CliRunner().invoke(app, args)
-    except _Hang:
+    except Hang:
         return Outcome(case.name, case.family, -1, (f"hang (over {timeout:g} s)",), "", timeout)
     seconds = time.monotonic() - start
     code, stderr, stdout = result.exit_code, result.stderr, result.stdout

@@ -47,15 +47,14 @@ import json
 import os
 import random
 import shutil
-import signal
-import threading
 import time
 import xml.etree.ElementTree as ET
 from collections.abc import Iterator
-from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
+
+from fuzzing import Hang, time_limit
 
 FAMILIES = ("result", "summary", "template", "names", "paths")
 SAMPLE = Path(__file__).parents[1] / "sample_logs" / "kr5_0.01mm.mcap"
@@ -839,28 +838,6 @@ def cases(
 # ---------------------------------------------------------------------------- judging
 
 
-class _Hang(BaseException):
-    """The time limit of a case ran out."""
-
-
-@contextmanager
-def _time_limit(seconds: float) -> Iterator[None]:
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-
-    def expire(signum: int, frame: object) -> None:
-        raise _Hang()
-
-    previous = signal.signal(signal.SIGALRM, expire)
-    signal.setitimer(signal.ITIMER_REAL, seconds)
-    try:
-        yield
-    finally:
-        signal.setitimer(signal.ITIMER_REAL, 0)
-        signal.signal(signal.SIGALRM, previous)
-
-
 def _prepare(case: Case, folder: Path) -> None:
     if folder.exists():
         shutil.rmtree(folder)
@@ -946,9 +923,9 @@ def run_case(case: Case, folder: Path, *, timeout: float = 30.0) -> Outcome:
     problems: list[str] = []
     start = time.monotonic()
     try:
-        with _time_limit(timeout):
+        with time_limit(timeout):
             result = CliRunner().invoke(app, args)
-    except _Hang:
+    except Hang:
         return Outcome(case.name, case.family, -1, (f"hang (over {timeout:g} s)",), "", timeout)
     seconds = time.monotonic() - start
     code = result.exit_code

@@ -14,7 +14,6 @@ from __future__ import annotations
 import json
 import math
 import os
-import stat
 import unicodedata
 from collections.abc import Iterable, Sequence
 from pathlib import Path
@@ -66,31 +65,19 @@ class InputIsOutputError(InputError):
 
 def read_limited(path: str | Path, limit: int, what: str) -> bytes:
     """The bytes of a regular file of at most ``limit`` bytes (its size checked before it is
-    read; a folder, a device or a pipe refused); ``what`` names it in the messages."""
+    read; a folder, a device or a pipe refused: :func:`dhlog.io.textfile.read_capped`);
+    ``what`` names it in the messages."""
+    from dhlog.io.textfile import read_capped
+
     name = str(path)
-    try:
-        st = os.stat(path)
-    except (OSError, ValueError) as exc:
-        why = getattr(exc, "strerror", None) or str(exc)
-        raise DHFileError(name, f"cannot be read ({why}); give the {what}.") from None
-    if stat.S_ISDIR(st.st_mode):
-        raise DHFileError(name, f"is a folder, not a file; give the {what}.")
-    if not stat.S_ISREG(st.st_mode):
-        raise DHFileError(name, f"is not a regular file (a device or a pipe); give the {what}.")
-    too_big = (
-        f"is over {limit / 2**20:.0f} MiB, more than a {what} can be; give the {what} "
-        "itself (is this the right file?)."
+    return read_capped(
+        path,
+        limit,
+        lambda message: DHFileError(name, message),
+        what=what,
+        hint=f"give the {what} itself (is this the right file?).",
+        check=f"give the {what}.",
     )
-    if st.st_size > limit:
-        raise DHFileError(name, too_big)
-    try:
-        with open(path, "rb") as f:
-            data = f.read(limit + 1)
-    except OSError as exc:
-        raise DHFileError(name, f"cannot be read ({exc.strerror or exc}).") from None
-    if len(data) > limit:  # it grew while we looked
-        raise DHFileError(name, too_big)
-    return data
 
 
 def _parse_int(text: str) -> int | float:

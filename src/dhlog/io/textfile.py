@@ -53,7 +53,9 @@ def read_capped(
             f"is not a regular file (a device, pipe or socket); dhlog reads a {what} only from "
             "a regular file: save it to one first."
         )
-    too_large = f"larger than any {what} dhlog reads ({shown_size(limit)} at most); {hint}"
+    # the limits are binary (2**20 multiples): said as such too
+    binary = f"over {limit / 2**20:g} MiB: " if limit >= 2**20 else ""
+    too_large = f"{binary}larger than any {what} dhlog reads ({shown_size(limit)} at most); {hint}"
     if st.st_size > limit:
         raise fail(f"is {shown_size(st.st_size)}, {too_large}")
     try:
