@@ -236,10 +236,8 @@ def compensate_poses(
         q, s, solved = _solve(result, True, goal[rows], q_nom[rows])
         q_cal[rows], size[rows] = q, s
         problems.update({int(rows[k]): why for k, why in solved.items()})
-    ref = np.where(reached[:, None], q_nom, q_cal)
-    done = _checked(
-        np.where(reached[:, None], q_cal, 0.0), size, problems, np.nan_to_num(ref), limits
-    )
+    # rows the nominal does not reach are NaN and already have their line in ``problems``
+    done = _checked(np.nan_to_num(q_cal), size, problems, np.nan_to_num(q_nom), limits)
     return done, q_nom
 
 

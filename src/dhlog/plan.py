@@ -61,15 +61,19 @@ class Plan:
             "rows": [
                 {
                     "form": form,
-                    "std": dict(
-                        zip(
-                            ("theta_rad", "hayati_beta_rad" if form == "hayati" else "d_m"),
-                            [None if not np.isfinite(v) else float(v) for v in row[:2]],
+                    "std": {
+                        name: None if not np.isfinite(v) else float(v)
+                        for name, v in zip(
+                            (
+                                "theta_rad",
+                                "hayati_beta_rad" if form == "hayati" else "d_m",
+                                "a_m",
+                                "alpha_rad",
+                            ),
+                            row,
                             strict=True,
-                        ),
-                        a_m=None if not np.isfinite(row[2]) else float(row[2]),
-                        alpha_rad=None if not np.isfinite(row[3]) else float(row[3]),
-                    ),
+                        )
+                    },
                 }
                 for row, form in zip(self.rows_std, self.forms, strict=True)
             ],
@@ -106,6 +110,17 @@ class Tracker:
         T = np.eye(4)
         T[:3, 3] = -np.asarray(self.station)
         return T
+
+    def described(self, isotropic: float) -> str:
+        """The noise planned with and where the tracker stands, in words."""
+        where = "at ({:g}, {:g}, {:g}) mm from the base".format(*(1e3 * np.array(self.station)))
+        if self.model is None:
+            return f"isotropic σ {isotropic * 1e3:g} mm, tracker {where}"
+        radial, transverse, per_m = (1e6 * v for v in self.model)
+        return (
+            f"tracker (radial {radial:.1f} µm, transverse {transverse:.1f} µm + {per_m:.1f} "
+            f"µm/m) {where}"
+        )
 
     def noise(self, isotropic: float) -> NoiseModel:
         """The noise model of the measured targets in the tracker's frame."""
@@ -201,11 +216,8 @@ def plan_session(robot: Robot, cfg: SimulationConfig, tracker: Tracker | None = 
         out_of_range=out_of_range,
         noise_model=(
             f"isotropic σ {cfg.noise * 1e3:g} mm"
-            if tracker is None or tracker.model is None
-            else tracker.noise(cfg.noise)
-            .declared.replace("station [0.0, 0.0, 0.0]", "")
-            .replace(", )", ")")
-            + " at ({:g}, {:g}, {:g}) mm from the base".format(*(1e3 * np.array(tracker.station)))
+            if tracker is None
+            else tracker.described(cfg.noise)
         ),
     )
 
