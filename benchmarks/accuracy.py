@@ -41,13 +41,13 @@ from concurrent.futures import ProcessPoolExecutor
 import numpy as np
 
 from dhlog.identify.analytic import AIC_SIGMA_2D
-from dhlog.identify.noise import NoiseModel
+from dhlog.identify.run import process_data
 from dhlog.identify.sweeps import samples_with_encoders
 from dhlog.identify.whole import AxisModel, fit_whole_model, predict
 from dhlog.io.memory import log_data_from_session
-from dhlog.kinematics import fk_point
-from dhlog.process import process_data
-from dhlog.robots import load_robot
+from dhlog.model.fk import fk_point
+from dhlog.model.noise import NoiseModel
+from dhlog.model.robots import load_robot
 from dhlog.simulate import SimulationConfig, simulate_session
 
 CASES: dict[str, tuple[str, dict[str, object]]] = {
@@ -161,10 +161,10 @@ def beyond(job: tuple[str, str, int, int]) -> dict[str, object]:
     import tempfile
     from pathlib import Path
 
-    from dhlog.dhfile import DHModel
+    from dhlog.identify.run import table_values
     from dhlog.identify.select import ModelRequest
-    from dhlog.nongeometric import table_deflection
-    from dhlog.process import table_values
+    from dhlog.io.dhfile import DHModel
+    from dhlog.model.terms import table_deflection
     from dhlog.simulate import masses_urdf
 
     case, robot_name, seed, points = job

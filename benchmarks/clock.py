@@ -20,10 +20,10 @@ from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
 
+from dhlog.identify.run import process_data
 from dhlog.io.memory import log_data_from_session
-from dhlog.kinematics import fk_point
-from dhlog.process import process_data
-from dhlog.robots import load_robot
+from dhlog.model.fk import fk_point
+from dhlog.model.robots import load_robot
 from dhlog.simulate import SimulationConfig, simulate_session
 
 CASES: dict[str, dict[str, object]] = {

@@ -24,10 +24,10 @@ import numpy as np
 import yaml
 import yourdfpy
 
-from dhlog.dh import modified_dh_transform
-from dhlog.dhfile import load_dh
-from dhlog.kinematics import fk_point
-from dhlog.robots import load_robot
+from dhlog.io.dhfile import load_dh
+from dhlog.model.dh import modified_dh_transform
+from dhlog.model.fk import fk_point
+from dhlog.model.robots import load_robot
 
 DHLOG = str(Path(sys.executable).with_name("dhlog"))
 ROOT = Path(__file__).resolve().parents[1]

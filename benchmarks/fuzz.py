@@ -53,8 +53,8 @@ def main() -> None:
     parser.add_argument("--timeout", type=float, default=60.0)
     parser.add_argument("--out", type=Path, default=Path("fuzz-failures"))
     args = parser.parse_args()
-    import dhlog.cli
-    import dhlog.process  # noqa: F401
+    import dhlog.cli.app
+    import dhlog.identify.run  # noqa: F401
 
     work = Path(tempfile.mkdtemp(prefix="dhlog-fuzz-"))
     generator = cases(args.cases, args.seed, work / "base")

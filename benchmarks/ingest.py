@@ -20,10 +20,10 @@ import tempfile
 import time
 from pathlib import Path
 
+from dhlog.identify.segment import segment_log
 from dhlog.io.reader import read_log
 from dhlog.io.writer import write_session
-from dhlog.robots import load_robot
-from dhlog.segment import segment_log
+from dhlog.model.robots import load_robot
 from dhlog.simulate import SimulationConfig, simulate_session
 
 

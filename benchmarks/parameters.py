@@ -30,7 +30,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
-from dhlog.robots import load_robot
+from dhlog.model.robots import load_robot
 from montecarlo import sessions
 
 NAMES = ("θ", "d", "a", "α")

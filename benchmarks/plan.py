@@ -26,14 +26,14 @@ from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
 
-from dhlog.dhfile import DHModel
+from dhlog.cell.plan import WORKSPACE_POINTS, plan_session, select_poses
+from dhlog.identify.run import process_data
 from dhlog.identify.select import ModelRequest
+from dhlog.io.dhfile import DHModel
 from dhlog.io.memory import log_data_from_session
-from dhlog.kinematics import fk_point
-from dhlog.plan import WORKSPACE_POINTS, plan_session, select_poses
-from dhlog.process import process_data
-from dhlog.result import display_rows
-from dhlog.robots import load_robot
+from dhlog.model.fk import fk_point
+from dhlog.model.robots import load_robot
+from dhlog.result.document import display_rows
 from dhlog.simulate import SimulationConfig, simulate_session
 
 OFF = {"perturb_length": 2e-4, "perturb_angle": math.radians(0.05)}
@@ -54,7 +54,7 @@ def config(noise: float, poses: int, pose_list: Poses, seed: int, off: bool) -> 
 
 
 def workspace(robot_name: str) -> np.ndarray:
-    """The plan's joint vectors (:data:`dhlog.plan.WORKSPACE_POINTS`, seeded as the plan)."""
+    """The plan's joint vectors (:data:`dhlog.cell.plan.WORKSPACE_POINTS`, seeded as the plan)."""
     robot = load_robot(robot_name)
     return np.random.default_rng(0).uniform(
         robot.limits[:, 0], robot.limits[:, 1], (WORKSPACE_POINTS, robot.n)

@@ -62,8 +62,8 @@ def baseline(path: str) -> None:
 
 def stages(path: str) -> None:
     """Seconds per stage of one in-process run, as JSON."""
-    from dhlog.process import process_log
-    from dhlog.result import result_csv, result_document
+    from dhlog.identify.run import process_log
+    from dhlog.result.document import result_csv, result_document
 
     marks: list[tuple[str, float]] = [("start", time.perf_counter())]
 

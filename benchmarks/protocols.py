@@ -33,16 +33,16 @@ from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
 
-from dhlog.dhfile import DHModel
-from dhlog.identify.noise import NoiseModel
+from dhlog.identify.run import measured_rotations, process_data
 from dhlog.identify.sweeps import samples_with_encoders
+from dhlog.identify.validate import fk_prediction_std
 from dhlog.identify.whole import AxisModel, fit_whole_model, predict
+from dhlog.io.dhfile import DHModel
 from dhlog.io.memory import log_data_from_session
-from dhlog.kinematics import fk_point
-from dhlog.process import measured_rotations, process_data
-from dhlog.robots import load_robot
+from dhlog.model.fk import fk_point
+from dhlog.model.noise import NoiseModel
+from dhlog.model.robots import load_robot
 from dhlog.simulate import SIX_DOF_TOOL_ROTATION, SimulationConfig, simulate_session
-from dhlog.validate import fk_prediction_std
 
 OFF = {"perturb_length": 2e-4, "perturb_angle": math.radians(0.05)}
 

@@ -4,7 +4,7 @@
 
 Each log is processed by ``dhlog process`` (its recording written to a temporary folder), the
 recording drawn by the Rerun viewer at 1600×1000 under Xvfb with Mesa's software Vulkan
-(``dhlog.render``), the picture judged (not blank, not one colour) and saved, halved to
+(``dhlog.present.render``), the picture judged (not blank, not one colour) and saved, halved to
 1600×1000 pixels, as ``<out>/<log>.png`` for the README. Prints one line per log.
 """
 
@@ -18,7 +18,7 @@ from pathlib import Path
 
 from PIL import Image
 
-from dhlog.render import judge, missing, screenshot
+from dhlog.present.render import judge, missing, screenshot
 
 ROOT = Path(__file__).resolve().parents[1]
 DHLOG = str(Path(sys.executable).with_name("dhlog"))

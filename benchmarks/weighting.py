@@ -26,12 +26,12 @@ import numpy as np
 import polars as pl
 
 import dhlog.identify.variance as variance
-from dhlog import process
-from dhlog.dhfile import DHModel
+from dhlog.identify import run as process
+from dhlog.io.dhfile import DHModel
 from dhlog.io.memory import log_data_from_session
 from dhlog.io.reader import COVARIANCE_COLUMNS
-from dhlog.kinematics import fk_point
-from dhlog.robots import load_robot
+from dhlog.model.fk import fk_point
+from dhlog.model.robots import load_robot
 from dhlog.simulate import SimulationConfig, simulate_session
 
 

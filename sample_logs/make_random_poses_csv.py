@@ -24,7 +24,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from dhlog import __version__
-from dhlog.robots import load_robot
+from dhlog.model.robots import load_robot
 from dhlog.simulate import SIX_DOF_TOOL_ROTATION, SimulationConfig, simulate_session, truth_document
 
 CONFIG = SimulationConfig(

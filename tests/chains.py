@@ -7,10 +7,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from dhlog.dh import JointType, StandardDH
 from dhlog.geometry.lines import Line, Plane
-from dhlog.kinematics import fk_point, joint_axes
-from dhlog.process import ProcessResult
+from dhlog.identify.run import ProcessResult
+from dhlog.model.dh import JointType, StandardDH
+from dhlog.model.fk import fk_point, joint_axes
 from dhlog.simulate import Session
 
 PI = np.pi

@@ -110,7 +110,7 @@ def make_bases(folder: Path) -> Bases:
     (geometric model, about a second)."""
     from typer.testing import CliRunner
 
-    from dhlog.cli import app
+    from dhlog.cli.app import app
 
     folder.mkdir(parents=True, exist_ok=True)
     log = SAMPLES / "kr5_0.01mm.mcap"
@@ -527,7 +527,7 @@ def run_case(case: Case, folder: Path, *, timeout: float = 30.0) -> Outcome:
     """Run ``case`` in this process through Typer's runner and judge it."""
     from typer.testing import CliRunner
 
-    from dhlog.cli import app
+    from dhlog.cli.app import app
 
     work = folder / "case"
     if work.exists():

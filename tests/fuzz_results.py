@@ -129,9 +129,9 @@ def make_bases(folder: Path) -> Bases:
     result with a Hayati block, a template and summary rows drawn from it."""
     from typer.testing import CliRunner
 
-    from dhlog.batch import summary_row
-    from dhlog.cli import app
-    from dhlog.export import urdf_document
+    from dhlog.cli.app import app
+    from dhlog.fleet.batch import summary_row
+    from dhlog.result.export import urdf_document
 
     folder.mkdir(parents=True, exist_ok=True)
     done = CliRunner().invoke(
@@ -202,7 +202,7 @@ def make_bases(folder: Path) -> Bases:
 
 def summary_bytes(rows: list[dict[str, Any]], fmt: str) -> bytes:
     """Rows as dhlog batch writes them (``csv`` or ``parquet``)."""
-    from dhlog.batch import summary_frame
+    from dhlog.fleet.batch import summary_frame
 
     buf = io.BytesIO()
     frame = summary_frame(rows)
@@ -395,7 +395,7 @@ def mutate_summary(rows: list[dict[str, Any]], rng: random.Random) -> tuple[str,
     """(what was done, the bytes, the format, whether it must be refused)."""
     import polars as pl
 
-    from dhlog.batch import summary_frame
+    from dhlog.fleet.batch import summary_frame
 
     fmt = rng.choice(["csv", "parquet"])
     rows = [dict(r) for r in rows]
@@ -914,7 +914,7 @@ def run_case(case: Case, folder: Path, *, timeout: float = 30.0) -> Outcome:
     """Run ``case`` in this process through Typer's runner and judge it."""
     from typer.testing import CliRunner
 
-    from dhlog.cli import app
+    from dhlog.cli.app import app
 
     work = folder / "case"
     _prepare(case, work)

@@ -93,7 +93,7 @@ def time_limit(seconds: float) -> Iterator[None]:
 
 
 def _session(seed: int, **kw: object):  # type: ignore[no-untyped-def]
-    from dhlog.robots import load_robot
+    from dhlog.model.robots import load_robot
     from dhlog.simulate import SimulationConfig, simulate_session
 
     cfg = SimulationConfig(
@@ -499,7 +499,7 @@ def run_in_process(case: Case, folder: Path) -> Outcome:
     this process."""
     from typer.testing import CliRunner
 
-    from dhlog.cli import app
+    from dhlog.cli.app import app
 
     log = folder / "case.mcap"
     log.write_bytes(case.data)

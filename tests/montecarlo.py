@@ -13,14 +13,14 @@ from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
 
-from dhlog.dhfile import DHModel
 from dhlog.geometry._checks import FloatArray
 from dhlog.identify.analytic import NOMINAL_SIGMA_2D
+from dhlog.identify.run import process_data
 from dhlog.identify.select import ModelRequest
+from dhlog.io.dhfile import DHModel
 from dhlog.io.memory import log_data_from_session
-from dhlog.process import process_data
-from dhlog.result import nominal_difference
-from dhlog.robots import load_robot
+from dhlog.model.robots import load_robot
+from dhlog.result.document import nominal_difference
 from dhlog.simulate import SimulationConfig, simulate_session
 
 

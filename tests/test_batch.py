@@ -12,7 +12,7 @@ import polars as pl
 import pytest
 from typer.testing import CliRunner
 
-from dhlog.cli import app
+from dhlog.cli.app import app
 
 SAMPLES = Path(__file__).parents[1] / "sample_logs"
 runner = CliRunner()
@@ -86,7 +86,7 @@ def test_the_trend_finds_the_changed_parameter(batch: Path, tmp_path: Path) -> N
     done = runner.invoke(app, ["compare", str(batch / "summary.parquet"), "--rrd", str(rrd)])
     assert done.exit_code == 0, done.output
     assert "moved beyond 3σ" in done.output and "a_2" in done.output.split("moved beyond")[1]
-    from dhlog.compare import read_summary, trends
+    from dhlog.fleet.compare import read_summary, trends
 
     _, _, found = trends(read_summary(batch / "summary.parquet"))
     a2 = next(t for t in found if t.name == "a_2")
@@ -116,7 +116,7 @@ def test_a_summary_written_before_the_units_were_named_still_compares(
 
 
 def test_holdout_columns_carry_their_unit(tmp_path: Path) -> None:
-    from dhlog.batch import summary_row
+    from dhlog.fleet.batch import summary_row
 
     doc = {
         "joints": [{"name": "j1"}],

@@ -20,8 +20,8 @@ from typing import Any
 import pytest
 from typer.testing import CliRunner
 
-from dhlog.cli import app
-from dhlog.robots import load_robot
+from dhlog.cli.app import app
+from dhlog.model.robots import load_robot
 
 runner = CliRunner()
 ROOT = Path(__file__).resolve().parents[1]
@@ -443,7 +443,7 @@ def test_the_output_never_replaces_an_input_or_an_existing_file(poses: Made) -> 
 
 
 def test_other_commands_do_not_import_matplotlib() -> None:
-    code = "import sys, dhlog.cli; print('matplotlib' in sys.modules)"
+    code = "import sys, dhlog.cli.app; print('matplotlib' in sys.modules)"
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert done.stdout.strip() == "False"
 

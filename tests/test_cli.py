@@ -14,7 +14,7 @@ import pytest
 from typer.testing import CliRunner
 
 from dhlog import __version__
-from dhlog.cli import app
+from dhlog.cli.app import app
 
 runner = CliRunner()
 

@@ -19,7 +19,7 @@ import pytest
 from rich.console import Console
 from typer.testing import CliRunner
 
-from dhlog.cli import _print_values, app
+from dhlog.cli.app import _print_values, app
 
 ROOT = Path(__file__).parents[1]
 SAMPLE = ROOT / "sample_logs" / "kr5_0.01mm.mcap"

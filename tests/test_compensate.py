@@ -11,15 +11,15 @@ from pathlib import Path
 import numpy as np
 from typer.testing import CliRunner
 
-from dhlog.cli import app
-from dhlog.compensate import compensate, compensate_poses, read_poses
-from dhlog.dhfile import DHModel, parse_dh
+from dhlog.cell.compensate import compensate, compensate_poses, read_poses
+from dhlog.cli.app import app
+from dhlog.identify.run import process_data
 from dhlog.identify.select import ModelRequest
+from dhlog.io.dhfile import DHModel, parse_dh
 from dhlog.io.memory import log_data_from_session
-from dhlog.kinematics import fk_frames
-from dhlog.process import process_data
-from dhlog.result import result_document
-from dhlog.robots import load_robot
+from dhlog.model.fk import fk_frames
+from dhlog.model.robots import load_robot
+from dhlog.result.document import result_document
 from dhlog.simulate import SimulationConfig, simulate_session
 
 runner = CliRunner()

@@ -12,10 +12,10 @@ import pytest
 import yourdfpy
 from typer.testing import CliRunner
 
-from dhlog.cli import app
-from dhlog.dhfile import load_dh
-from dhlog.kinematics import fk_point
-from dhlog.robots import load_robot
+from dhlog.cli.app import app
+from dhlog.io.dhfile import load_dh
+from dhlog.model.fk import fk_point
+from dhlog.model.robots import load_robot
 
 SAMPLES = Path(__file__).parents[1] / "sample_logs"
 runner = CliRunner()
@@ -93,7 +93,7 @@ def test_compare_finds_the_changed_parameter_and_nothing_else(tmp_path: Path) ->
         done = runner.invoke(app, ["process", str(log), "--no-rrd", "--out", str(tmp_path)])
         assert done.exit_code == 0, done.output
         results.append(tmp_path / f"s{k}.dh.json")
-    from dhlog.compare import compare
+    from dhlog.fleet.compare import compare
 
     same = compare(results[0], results[1])
     z = [c.significance for c in same.changes if c.significance is not None]
@@ -243,7 +243,7 @@ def test_the_plain_dh_tables_reproduce_the_result(ur5_result: Path, tmp_path: Pa
     transform) and dh-csv's standard rows read back by polars give dhlog's FK to 1e-9 m."""
     import polars as pl
 
-    from dhlog.dh import modified_dh_transform, standard_dh_transform
+    from dhlog.model.dh import modified_dh_transform, standard_dh_transform
 
     _export(ur5_result, "dh-json", tmp_path / "dh.json")
     _export(ur5_result, "dh-csv", tmp_path / "dh.csv")

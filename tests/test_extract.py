@@ -5,12 +5,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from dhlog.dh import JointType, StandardDH
 from dhlog.errors import DegenerateGeometryError, DhlogError
-from dhlog.extract import extract_dh, place_prismatic_axis
 from dhlog.geometry.lines import Line, Plane, RelationKind
-from dhlog.kinematics import fk_point, joint_axes
-from dhlog.robots import load_robot, robot_names
+from dhlog.identify.extract import extract_dh, place_prismatic_axis
+from dhlog.model.dh import JointType, StandardDH
+from dhlog.model.fk import fk_point, joint_axes
+from dhlog.model.robots import load_robot, robot_names
 
 from chains import Chain, arbitrary_chain, canonical_chain
 

@@ -21,7 +21,7 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from dhlog.cli import app
+from dhlog.cli.app import app
 from dhlog.errors import DhlogError, GeometryError, InputError
 
 ROOT = Path(__file__).parents[1]
@@ -172,7 +172,7 @@ def test_the_nominal_of_process_is_refused_before_any_work(tmp_path: Path) -> No
 
 
 def test_a_project_written_dh_file_still_reads() -> None:
-    from dhlog.dhfile import load_dh
+    from dhlog.io.dhfile import load_dh
 
     model = load_dh(TRUTH)
     assert model.table.n == 6 and model.joint_names[0] == "joint_1"
@@ -253,8 +253,8 @@ def test_segmentation_out_of_range_is_refused_by_the_segmentation_too() -> None:
     index (a negative window) or a count of nanoseconds (1e300 s)."""
     import dataclasses
 
+    from dhlog.identify.segment import check_settings
     from dhlog.io.pipeline import SegmentationSettings
-    from dhlog.segment import check_settings
 
     check_settings(SegmentationSettings(), "here")
     for key, value in (("motion_window", -1.0), ("join_tolerance", 1e300), ("min_samples", 0)):
@@ -267,7 +267,7 @@ def test_segmentation_out_of_range_is_refused_by_the_segmentation_too() -> None:
 
 
 def test_whiten_refuses_a_zero_sigma() -> None:
-    from dhlog.identify.noise import NoiseModel
+    from dhlog.model.noise import NoiseModel
 
     points = np.zeros((3, 3))
     assert NoiseModel().whiten(points, 2e-5) == pytest.approx(5e4)

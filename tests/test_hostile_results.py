@@ -24,7 +24,7 @@ import pytest
 import yaml
 from typer.testing import CliRunner
 
-from dhlog.cli import app
+from dhlog.cli.app import app
 from fuzz_results import (
     FAMILIES,
     LAUGHS,
@@ -207,7 +207,7 @@ def test_results_over_the_size_limit_folders_and_devices_are_refused_before_read
 
 
 def _summary_frame(bases: Bases) -> pl.DataFrame:
-    from dhlog.batch import summary_frame
+    from dhlog.fleet.batch import summary_frame
 
     return summary_frame(bases.rows)
 
@@ -454,8 +454,8 @@ def test_origins_go_only_into_the_robots_own_joints(bases: Bases, tmp_path: Path
     import numpy as np
     import yourdfpy
 
-    from dhlog.dhfile import load_dh
-    from dhlog.kinematics import fk_point
+    from dhlog.io.dhfile import load_dh
+    from dhlog.model.fk import fk_point
 
     result = tmp_path / "r.dh.json"
     result.write_text(json.dumps(bases.result))
@@ -616,7 +616,7 @@ def test_batch_leaves_no_summary_csv_without_its_parquet(
 ) -> None:
     """A summary.parquet that is a folder: exit 2 before any log is processed. And when the
     parquet cannot be moved into place after the CSV was, the CSV is taken back."""
-    from dhlog import batch
+    from dhlog.fleet import batch
     from dhlog.io import writer
 
     out = tmp_path / "out"

@@ -9,17 +9,17 @@ import math
 import numpy as np
 import pytest
 
-from dhlog.dhfile import DHModel
-from dhlog.identify.noise import NoiseModel
+from dhlog.identify.run import ProcessResult, process_data
 from dhlog.identify.select import ModelRequest
+from dhlog.identify.validate import fk_prediction_std
 from dhlog.identify.whole import AxisModel, ParameterLayout, fit_whole_model, predict
+from dhlog.io.dhfile import DHModel
 from dhlog.io.memory import log_data_from_session
-from dhlog.kinematics import fk_point
-from dhlog.process import ProcessResult, process_data
-from dhlog.result import result_document
-from dhlog.robots import load_robot
+from dhlog.model.fk import fk_point
+from dhlog.model.noise import NoiseModel
+from dhlog.model.robots import load_robot
+from dhlog.result.document import result_document
 from dhlog.simulate import Session, SimulationConfig, simulate_session
-from dhlog.validate import fk_prediction_std
 
 from chains import fk_error
 
@@ -227,8 +227,8 @@ def test_per_sample_covariance_of_pose_with_covariance_stamped_weighs_the_fit(tm
     weighted by it (noise model "per-sample", χ²/dof ≈ 1) and the FK error is covered."""
     from mcap_ros2.writer import Writer
 
+    from dhlog.identify.run import process_log
     from dhlog.io import ros2
-    from dhlog.process import process_log
 
     rob = load_robot("kr5")
     session = simulate_session(rob, SimulationConfig(seed=12, noise=1e-9, tracker_rate=50.0))
@@ -299,8 +299,8 @@ def test_several_targets_are_fitted_jointly(tmp_path) -> None:  # type: ignore[n
     pipeline with ``extra_topics``, both enter the whole-model fit, the second target's tool
     point comes out within its σ, and axis 6 is far better determined than from the primary
     target alone."""
+    from dhlog.identify.run import process_log
     from dhlog.io.pipeline import parse_pipeline
-    from dhlog.process import process_log
 
     rob = load_robot("kr5")
     near = (0.002, 0.0, 0.05)
@@ -360,9 +360,9 @@ def test_a_target_whose_orientation_is_measured_fixes_the_wrist(tmp_path) -> Non
     axis 6, read with ``orientation = true``: the orientation enters the whole-model fit, axis
     6's direction is far better determined than from the 2 mm circle alone, the target frame's
     orientation in the last frame comes out within its σ, and the FK error is covered."""
+    from dhlog.identify.run import process_log
     from dhlog.io.pipeline import parse_pipeline
     from dhlog.io.writer import write_session
-    from dhlog.process import process_log
 
     rob = dataclasses.replace(load_robot("kr5"), tool_point=np.array([0.002, 0.0, 0.05]))
     cfg = SimulationConfig(
@@ -390,7 +390,7 @@ def test_a_target_whose_orientation_is_measured_fixes_the_wrist(tmp_path) -> Non
     ex = with_rot.extraction
     assert ex is not None and session.tool_rotation is not None
     # the truth's target frame in the result's last frame, at the reference pose
-    from dhlog.kinematics import fk_frames
+    from dhlog.model.fk import fk_frames
 
     R_true_world = (
         fk_frames(session.table, session.reference_pose, T_base=session.T_measurement_base)[
@@ -412,7 +412,7 @@ def test_scara_gauges_are_fixed_and_the_table_equals_the_model() -> None:
     with their reasons, never printed as measured; the table reproduces the fitted model."""
     from pathlib import Path
 
-    from dhlog.process import process_log
+    from dhlog.identify.run import process_log
 
     result = process_log(Path(__file__).parents[1] / "sample_logs" / "scara.mcap")
     rows = result_document(result)["standard_dh"]
@@ -450,7 +450,7 @@ def test_encoder_scales_are_fitted_on_request() -> None:
     Q = np.random.default_rng(20).uniform(rob.limits[:, 0], rob.limits[:, 1], (200, 6))
     offsets = np.array([r["theta_offset"] for r in rows])
     scale = np.array([r["encoder_scale"] for r in rows])
-    from dhlog.dh import StandardDH
+    from dhlog.model.dh import StandardDH
 
     as_doc = StandardDH(
         table.standard.joint_types,

@@ -13,13 +13,13 @@ import pytest
 from mcap.reader import make_reader
 from typer.testing import CliRunner
 
-from dhlog.cli import app
+from dhlog.cli.app import app
+from dhlog.identify.run import process_log
+from dhlog.identify.validate import fk_prediction_std
 from dhlog.io.reader import read_log
-from dhlog.kinematics import fk_point
-from dhlog.process import process_log
-from dhlog.robots import load_robot
+from dhlog.model.fk import fk_point
+from dhlog.model.robots import load_robot
 from dhlog.simulate import Session, SimulationConfig, simulate_session
-from dhlog.validate import fk_prediction_std
 
 runner = CliRunner()
 NOISE = 1e-5
@@ -177,7 +177,7 @@ def test_the_readme_walkthrough_from_the_bundled_csv(tmp_path: Path) -> None:
     """README "Your own data": sample_logs/kr5_stops.csv (a KR5 off its nominal, 8 stops per
     joint, one tracker point per stop) imported, processed with --nominal kr5, exported as a
     URDF: the result's FK within 4σ of the truth beside the CSV at 200 joint vectors."""
-    from dhlog.dhfile import dh_model_from, load_dh
+    from dhlog.io.dhfile import dh_model_from, load_dh
 
     samples = Path(__file__).parents[1] / "sample_logs"
     imported(str(samples / "kr5_stops.csv"), "-o", str(tmp_path / "run.mcap"))

@@ -19,11 +19,11 @@ from mcap.reader import make_reader
 from scipy.spatial.transform import Rotation
 from typer.testing import CliRunner
 
-from dhlog.cli import app
+from dhlog.cli.app import app
 from dhlog.io.importer import STOP_JOINT_TIMES, parse_header
 from dhlog.io.reader import COVARIANCE_COLUMNS, ORIENTATION_COLUMNS, read_log
-from dhlog.kinematics import fk_frames
-from dhlog.robots import load_robot
+from dhlog.model.fk import fk_frames
+from dhlog.model.robots import load_robot
 
 runner = CliRunner()
 POSES = 40

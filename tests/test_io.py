@@ -19,11 +19,11 @@ from dhlog.errors import (
     TooFewSamplesError,
     UnknownSchemaError,
 )
+from dhlog.identify.segment import segment_log
 from dhlog.io.pipeline import load_pipeline, parse_pipeline, pipeline_by_name, shipped_pipelines
 from dhlog.io.reader import read_log
 from dhlog.io.writer import write_session
-from dhlog.robots import load_robot
-from dhlog.segment import segment_log
+from dhlog.model.robots import load_robot
 from dhlog.simulate import Session, SimulationConfig, simulate_session
 
 ENCODINGS = ["ros2", "json", "protobuf"]
@@ -510,9 +510,9 @@ def test_spherical_tracker_angles_as_the_point_stream(
 
     from mcap.writer import Writer
 
-    from dhlog.dh import JointType
-    from dhlog.kinematics import fk_point
-    from dhlog.process import process_data
+    from dhlog.identify.run import process_data
+    from dhlog.model.dh import JointType
+    from dhlog.model.fk import fk_point
 
     cart = read_log(written(session, tmp_path, "ros2"))
     xyz = cart.points.select(["x", "y", "z"]).to_numpy()

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from dhlog.dh import (
+from dhlog.model.dh import (
     ModifiedDH,
     StandardDH,
     modified_dh_transform,
@@ -13,8 +13,8 @@ from dhlog.dh import (
     standard_dh_transform,
     standard_to_modified,
 )
-from dhlog.kinematics import fk_frames, fk_point, spatial_jacobian
-from dhlog.robots import load_robot, robot_names
+from dhlog.model.fk import fk_frames, fk_point, spatial_jacobian
+from dhlog.model.robots import load_robot, robot_names
 
 from chains import arbitrary_chain
 
@@ -121,7 +121,7 @@ def test_table_validation() -> None:
 def test_chunked_fk_equals_the_frame_by_frame_fk(name: str) -> None:
     """``fk_points_chunked`` (the tool point carried back row by row, in chunks) gives the same
     points as ``fk_point`` (every link frame), across chunk boundaries, to rounding."""
-    from dhlog.kinematics import fk_points_chunked
+    from dhlog.model.fk import fk_points_chunked
 
     robot = load_robot(name)
     Q = np.random.default_rng(4).uniform(robot.limits[:, 0], robot.limits[:, 1], (1000, robot.n))

@@ -13,17 +13,17 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from dhlog import nongeometric as ng
-from dhlog.cli import app
-from dhlog.dhfile import DHModel, load_dh
+from dhlog.cli.app import app
 from dhlog.errors import InputError
+from dhlog.identify.run import ProcessResult, process_data
 from dhlog.identify.select import ModelRequest
 from dhlog.identify.whole import ParameterLayout, predict
+from dhlog.io.dhfile import DHModel, load_dh
 from dhlog.io.memory import log_data_from_session
-from dhlog.kinematics import fk_frames, fk_point
-from dhlog.process import ProcessResult, process_data
-from dhlog.result import result_document, terms_csv
-from dhlog.robots import load_robot
+from dhlog.model import terms as ng
+from dhlog.model.fk import fk_frames, fk_point
+from dhlog.model.robots import load_robot
+from dhlog.result.document import result_document, terms_csv
 from dhlog.simulate import Session, SimulationConfig, masses_urdf, simulate_session
 from test_identify import truth_model
 
@@ -115,7 +115,7 @@ def _fk_truth(session: Session, Q: np.ndarray) -> np.ndarray:
 def _fk_result(result: ProcessResult, Q: np.ndarray) -> np.ndarray:
     """The result's FK through its JSON, as a user's stack loads it (DHModel.joint_values)."""
     doc = json.loads(json.dumps(result_document(result)))
-    from dhlog.dhfile import parse_dh
+    from dhlog.io.dhfile import parse_dh
 
     model = parse_dh(doc, "result.json")
     return fk_point(model.table, model.joint_values(Q), model.tool_point, T_base=model.T_base)

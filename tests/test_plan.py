@@ -10,10 +10,10 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from dhlog.cli import app
+from dhlog.cell.plan import plan_session, select_poses
+from dhlog.cli.app import app
 from dhlog.errors import InputError
-from dhlog.plan import plan_session, select_poses
-from dhlog.robots import load_robot
+from dhlog.model.robots import load_robot
 from dhlog.simulate import SimulationConfig
 
 runner = CliRunner()
@@ -104,7 +104,7 @@ def test_a_plan_with_the_tracker_model_and_its_range(tmp_path: Path) -> None:
     poses beyond its range are left out and counted; the transverse σ (≈ 30 µm at that
     distance) dominates, so the FK σ is well above that of an isotropic 10 µm; the JSON says
     what the console says."""
-    from dhlog.plan import Tracker
+    from dhlog.cell.plan import Tracker
 
     robot = load_robot("kr5")
     cfg = SimulationConfig(protocol="random-poses", poses=30, noise=1e-5)
@@ -131,7 +131,7 @@ def test_a_plan_with_the_tracker_model_and_its_range(tmp_path: Path) -> None:
 def test_the_simulated_tracker_scatters_along_its_line_of_sight() -> None:
     """simulate's tracker model: the residuals' spread along the line of sight is the radial
     σ, across it the transverse σ at that distance (30 000 samples: ±1 % each)."""
-    from dhlog.kinematics import fk_point
+    from dhlog.model.fk import fk_point
     from dhlog.simulate import simulate_session
 
     robot = load_robot("kr5")

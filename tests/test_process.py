@@ -16,16 +16,16 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from dhlog.cli import app
-from dhlog.dhfile import load_dh
+from dhlog.cli.app import app
+from dhlog.identify.run import ProcessResult, process_log
+from dhlog.identify.validate import fk_prediction_std
+from dhlog.io.dhfile import load_dh
 from dhlog.io.writer import write_session
-from dhlog.kinematics import fk_point
-from dhlog.process import ProcessResult, process_log
-from dhlog.recording import write_process_recording
-from dhlog.result import nominal_difference, result_csv, result_document
-from dhlog.robots import load_robot
+from dhlog.model.fk import fk_point
+from dhlog.model.robots import load_robot
+from dhlog.present.recording import write_process_recording
+from dhlog.result.document import nominal_difference, result_csv, result_document
 from dhlog.simulate import SimulationConfig, simulate_session
-from dhlog.validate import fk_prediction_std
 
 SAMPLES = Path(__file__).parents[1] / "sample_logs"
 LOGS = sorted(SAMPLES.glob("*.mcap"))
@@ -121,7 +121,7 @@ def test_result_documents_follow_the_contract(processed) -> None:  # type: ignor
 
 
 def load_dh_from(doc: dict) -> tuple:  # type: ignore[type-arg]
-    from dhlog.dhfile import parse_dh
+    from dhlog.io.dhfile import parse_dh
 
     model = parse_dh(doc, "result")
     return model.table, model.T_base, model.tool_point
@@ -174,8 +174,19 @@ def test_each_run_is_its_own_recording(processed, tmp_path: Path) -> None:  # ty
         (entry,) = RrdReader(path).recordings()
         assert entry.application_id == "dhlog process"
         ids.add(entry.recording_id)
-        text = path.read_bytes()
-        assert result.sha256.encode() in text and Path(result.path).name.encode() in text
+        (props,) = [
+            c.to_record_batch().to_pydict()
+            for c in RrdReader(path).stream()
+            if c.entity_path == "/__properties/dhlog"
+        ]
+        assert props["log_sha256"] == [[result.sha256]] and props["log"] == [[str(result.path)]]
+        names = [
+            c.to_record_batch().to_pydict()["RecordingInfo:name"]
+            for c in RrdReader(path).stream()
+            if c.entity_path == "/__properties"
+            and "RecordingInfo:name" in c.to_record_batch().schema.names
+        ]
+        assert names and names[0][0][0].startswith(Path(result.path).name)
     assert len(ids) == 2
 
 
@@ -183,7 +194,7 @@ def test_the_residual_components_match_the_validation(processed) -> None:  # typ
     """The FK residual components plotted per joint (radial, axial, tangential) are the FK
     residual the result reports, split along orthonormal directions: their norm equals the
     validation's residual at each sample."""
-    from dhlog.recording import residual_parts
+    from dhlog.present.recording import residual_parts
 
     _, result, _ = processed
     found = [r for r in residual_parts(result) if r.kind == "fk"]
@@ -304,9 +315,9 @@ def test_sweeps_from_anywhere_are_carried_to_the_reference_pose(robot: str) -> N
     """Every joint swept from its own random locked pose: the axes are carried to the reference
     pose through the upstream axes, and the result still agrees with the truth within the
     propagated uncertainty (with the truth as nominal: every parameter within 3σ)."""
-    from dhlog.dhfile import DHModel
+    from dhlog.identify.run import process_data
+    from dhlog.io.dhfile import DHModel
     from dhlog.io.memory import log_data_from_session
-    from dhlog.process import process_data
 
     rob = load_robot(robot)
     session = simulate_session(
@@ -331,8 +342,8 @@ def test_nearly_parallel_axes_get_hayati_parameters_and_a_note() -> None:
     from parallel, so d = 0 by convention. Tilted by about 1 mrad (a real misalignment, far
     beyond the noise): the DH d explodes, which is said, and the Hayati–Mirmirani parameters
     (β in place of d) describe the pair."""
+    from dhlog.identify.run import process_data
     from dhlog.io.memory import log_data_from_session
-    from dhlog.process import process_data
 
     rob = load_robot("ur5")
     exact = process_data(log_data_from_session(simulate_session(rob, SimulationConfig(seed=5))))
@@ -371,8 +382,8 @@ def test_the_whole_model_fit_is_closer_to_the_truth_than_the_seed_method() -> No
     samples, but the maximum-likelihood fit of the whole model to every sample (the default)
     brings the model closer to the truth over the whole workspace, its uncertainty covers the
     error, and the result carries the analytic table, the covariance and the noise model."""
+    from dhlog.identify.run import process_data
     from dhlog.io.memory import log_data_from_session
-    from dhlog.process import process_data
 
     rob = load_robot("kr5")
     session = simulate_session(rob, SimulationConfig(seed=5, noise=2e-5, sweep=math.radians(60)))

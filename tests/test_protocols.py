@@ -14,20 +14,20 @@ import polars as pl
 import pytest
 from typer.testing import CliRunner
 
-from dhlog.cli import app
-from dhlog.dhfile import DHModel
+from dhlog.cli.app import app
 from dhlog.identify.holdout import pose_groups
 from dhlog.identify.propagate import NOT_DETERMINED
 from dhlog.identify.register import register_nominal
+from dhlog.identify.run import process_data
+from dhlog.identify.validate import fk_prediction_std
+from dhlog.io.dhfile import DHModel
 from dhlog.io.memory import log_data_from_session
 from dhlog.io.reader import COVARIANCE_COLUMNS
 from dhlog.io.writer import write_session
-from dhlog.kinematics import fk_point
-from dhlog.process import process_data
-from dhlog.result import result_document
-from dhlog.robots import Robot, load_robot
+from dhlog.model.fk import fk_point
+from dhlog.model.robots import Robot, load_robot
+from dhlog.result.document import result_document
 from dhlog.simulate import Session, SimulationConfig, default_measurement_pose, simulate_session
-from dhlog.validate import fk_prediction_std
 
 from chains import fk_error
 
@@ -276,8 +276,8 @@ def test_the_readme_random_poses_walkthrough(tmp_path: Path) -> None:
     0.000) imported unchanged and processed with --nominal kr5 --holdout 5: exit 0, the
     probe's orientation used, a model-error σ estimated, the held-out table as the README
     shows it, and the FK within 4σ of the truth beside the export at 200 joint vectors."""
-    from dhlog.dhfile import dh_model_from, load_dh
-    from dhlog.process import process_log
+    from dhlog.identify.run import process_log
+    from dhlog.io.dhfile import dh_model_from, load_dh
 
     samples = Path(__file__).parents[1] / "sample_logs"
     runner = CliRunner()
@@ -333,7 +333,7 @@ def test_several_targets_at_random_poses_are_fitted_together() -> None:
 def test_the_batch_summary_carries_the_cross_validation(tmp_path: Path) -> None:
     """dhlog batch --holdout 5: one log's summary row has the held-out statistics of the nominal
     and of the calibrated model (m, named so), the calibrated far below the nominal."""
-    from dhlog.batch import BatchJob, process_job
+    from dhlog.fleet.batch import BatchJob, process_job
 
     _, session = random_poses(9)
     write_session(session, tmp_path / "poses.mcap")

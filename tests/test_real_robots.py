@@ -16,14 +16,14 @@ import numpy as np
 import pytest
 from rich.console import Console
 
-from dhlog.dh import HayatiDH
-from dhlog.dhfile import DHModel
+from dhlog.identify.run import ProcessResult, process_data
+from dhlog.io.dhfile import DHModel
 from dhlog.io.memory import log_data_from_session
-from dhlog.kinematics import fk_point, fk_points_chunked
-from dhlog.process import ProcessResult, process_data
-from dhlog.report import print_result
-from dhlog.result import display_rows, nominal_difference, result_csv, result_document
-from dhlog.robots import load_robot
+from dhlog.model.dh import HayatiDH
+from dhlog.model.fk import fk_point, fk_points_chunked
+from dhlog.model.robots import load_robot
+from dhlog.present.console import print_result
+from dhlog.result.document import display_rows, nominal_difference, result_csv, result_document
 from dhlog.simulate import Session, SimulationConfig, simulate_session
 
 
@@ -233,7 +233,7 @@ def test_a_unit_slip_stops_with_the_remedy_named(
 
     from typer.testing import CliRunner
 
-    from dhlog.cli import app
+    from dhlog.cli.app import app
 
     session = simulate_session(load_robot("kr5"), SimulationConfig(seed=12))
     if change == "mm":
@@ -287,7 +287,7 @@ def test_the_real_geometry_sample_log_gives_its_clock_offset_and_hayati_row() ->
     the file: the offset within 4σ of the truth file's, row 2 in the Hayati form."""
     import json
 
-    from dhlog.process import process_log
+    from dhlog.identify.run import process_log
 
     here = Path(__file__).parents[1] / "sample_logs"
     truth = json.loads((here / "kr5_real.truth.json").read_text())

@@ -13,10 +13,10 @@ import pytest
 from mcap.writer import Writer
 
 from dhlog.geometry.lines import Line
+from dhlog.identify.run import process_data
 from dhlog.io import ros2
 from dhlog.io.pipeline import parse_pipeline
 from dhlog.io.reader import read_log
-from dhlog.process import process_data
 
 DATA = Path(__file__).parents[2] / "shared" / "realdata" / "positioner_table.tsv"
 S = 1_000_000_000

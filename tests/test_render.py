@@ -10,8 +10,8 @@ from pathlib import Path
 import pytest
 from typer.testing import CliRunner
 
-from dhlog.cli import app
-from dhlog.render import judge, missing, screenshot
+from dhlog.cli.app import app
+from dhlog.present.render import judge, missing, screenshot
 
 SAMPLES = Path(__file__).parents[1] / "sample_logs"
 runner = CliRunner()

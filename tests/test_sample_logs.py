@@ -8,9 +8,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from dhlog.identify.segment import segment_log
 from dhlog.io.reader import read_log
 from dhlog.io.writer import sha256_of
-from dhlog.segment import segment_log
 
 LOGS = sorted((Path(__file__).parents[1] / "sample_logs").glob("*.mcap"))
 

@@ -6,9 +6,9 @@ import numpy as np
 import polars as pl
 import pytest
 
+from dhlog.identify.segment import segment_log, shared_locked_pose
 from dhlog.io.pipeline import parse_pipeline
 from dhlog.io.reader import LogData
-from dhlog.segment import segment_log, shared_locked_pose
 
 S = 1_000_000_000
 PIPE = parse_pipeline("[streams.point]\n[streams.joints]\n", "crafted.toml")

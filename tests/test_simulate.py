@@ -12,9 +12,9 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from dhlog.cli import app
-from dhlog.kinematics import fk_frames, fk_point
-from dhlog.robots import load_robot
+from dhlog.cli.app import app
+from dhlog.model.fk import fk_frames, fk_point
+from dhlog.model.robots import load_robot
 from dhlog.simulate import (
     MIN_POSE_CHANGE,
     Session,

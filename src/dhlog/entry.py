@@ -1,7 +1,7 @@
 """The console entry point: signals are handled before anything heavy is imported.
 
 Ctrl-C or SIGTERM while Python imports numpy, polars and the rest ends the program with one line
-and exit 130 / 143 (there is nothing to clean up yet); afterwards :func:`dhlog.cli.run` turns
+and exit 130 / 143 (there is nothing to clean up yet); afterwards :func:`dhlog.cli.app.run` turns
 them into the same exits after the temporary files of an unfinished run are removed.
 """
 
@@ -21,10 +21,10 @@ def _early(signum: int, frame: object) -> None:
 
 
 def run() -> None:
-    """``dhlog``: see :func:`dhlog.cli.run`."""
+    """``dhlog``: see :func:`dhlog.cli.app.run`."""
     signal.signal(signal.SIGINT, _early)
     signal.signal(signal.SIGTERM, _early)
-    from dhlog import cli
+    from dhlog.cli import app as cli
 
     signal.signal(signal.SIGINT, signal.default_int_handler)
     cli.run()

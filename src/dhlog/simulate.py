@@ -30,14 +30,14 @@ from typing import Literal
 import numpy as np
 from numpy.typing import NDArray
 
-from dhlog.contract import RESULT_FORMAT, dh_documents, relation_documents
-from dhlog.dh import JointType, StandardDH
-from dhlog.extract import extract_dh
 from dhlog.geometry._checks import FloatArray, rotation_about, rotation_from_vector
 from dhlog.geometry.lines import Line
-from dhlog.kinematics import fk_frames, fk_point, joint_axes
-from dhlog.nongeometric import Lump, Term, Terms, table_deflection
-from dhlog.robots import Robot
+from dhlog.identify.extract import extract_dh
+from dhlog.model.dh import JointType, StandardDH
+from dhlog.model.fk import fk_frames, fk_point, joint_axes
+from dhlog.model.robots import Robot
+from dhlog.model.terms import Lump, Term, Terms, table_deflection
+from dhlog.result.contract import RESULT_FORMAT, dh_documents, relation_documents
 
 START_NS = 1_763_700_000_000_000_000
 PROTOCOLS = ("sweeps", "random-poses", "coupled")
@@ -108,7 +108,7 @@ class SimulationConfig:
     pose_seed: int | None = None
     #: a laser tracker's noise at the measurement frame's origin, in place of the isotropic
     #: ``noise``: (radial, transverse, transverse per metre of distance) σ, m and m/m (the
-    #: ``tracker`` noise model of :mod:`dhlog.identify.noise`)
+    #: ``tracker`` noise model of :mod:`dhlog.model.noise`)
     tracker_model: tuple[float, float, float] | None = None
     seed: int = 0
 
@@ -282,7 +282,7 @@ GRAVITY = 9.80665
 def truth_terms(
     robot: Robot, cfg: SimulationConfig, T_mr: FloatArray, tool: FloatArray
 ) -> Terms | None:
-    """The truth's joint-value terms (:mod:`dhlog.nongeometric`) in the frames of the robot's
+    """The truth's joint-value terms (:mod:`dhlog.model.terms`) in the frames of the robot's
     table, perturbed or not (its lumps sit at frame origins): per compliant joint i,
     ``Δq_i = c_i τ_i`` with the gravity torque of the robot's masses (at the DH frame origins on
     the later axes) and the payload (at the tool point), gravity along the robot's −z; the

@@ -10,15 +10,21 @@ from typing import Any
 
 import numpy as np
 
-from dhlog.dh import JointType, StandardDH
-from dhlog.dhfile import DHModel
 from dhlog.errors import DhlogError
-from dhlog.extract import NEAR_PARALLEL, Extraction, HayatiRow, extract_dh, hayati_parameters
 from dhlog.geometry._checks import FloatArray, wrap_angle
 from dhlog.geometry.fitting import PlaneFit
 from dhlog.geometry.lines import Line, Plane
+from dhlog.identify.extract import (
+    NEAR_PARALLEL,
+    Extraction,
+    HayatiRow,
+    extract_dh,
+    hayati_parameters,
+)
 from dhlog.identify.propagate import mixed_angles, mixed_vector, state_difference, state_vector
 from dhlog.identify.sweeps import JointReport, carried_axis
+from dhlog.io.dhfile import DHModel
+from dhlog.model.dh import JointType, StandardDH
 
 #: 2D 99.73 % radius (the "3σ" of a two-dimensional tilt or offset): sqrt(χ²₂(0.9973)).
 THREE_SIGMA_2D = 3.44
@@ -39,7 +45,7 @@ NOMINAL_SIGMA_2D = 5.0
 AIC_SIGMA_2D = 2.0
 
 
-#: (:data:`dhlog.extract.NEAR_PARALLEL`) Axes closer than this to parallel (rad) also get
+#: (:data:`dhlog.identify.extract.NEAR_PARALLEL`) Axes closer than this to parallel (rad) also get
 #: Hayati–Mirmirani parameters; no pair further from parallel is ever classified parallel,
 #: however uncertain its axes.
 

@@ -23,11 +23,11 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
-from dhlog.dh import StandardDH
 from dhlog.geometry._checks import FloatArray
 from dhlog.identify.register import register_nominal
 from dhlog.identify.whole import WholeFit, fit_whole_model, predict
-from dhlog.kinematics import fk_point
+from dhlog.model.dh import StandardDH
+from dhlog.model.fk import fk_point
 
 #: Consecutive samples whose joint values all differ by less than this (rad or m) are one pose.
 SAME_POSE = 1e-3

@@ -17,13 +17,13 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from dhlog.dh import HayatiDH, JointType, StandardDH
 from dhlog.errors import DhlogError
-from dhlog.extract import Extraction, hayati_parameters, hayati_table
 from dhlog.geometry._checks import FloatArray, wrap_angle
 from dhlog.geometry.fitting import PlaneFit
 from dhlog.geometry.lines import Line, Plane
+from dhlog.identify.extract import Extraction, hayati_parameters, hayati_table
 from dhlog.identify.whole import AxisModel, WholeFit
+from dhlog.model.dh import HayatiDH, JointType, StandardDH
 
 #: A DH parameter whose derivatives with respect to every fitted quantity stay below this is
 #: held by a convention (its numerical derivative is then ~1e-9 at most).

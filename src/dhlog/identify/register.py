@@ -20,10 +20,10 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from dhlog.dh import StandardDH
 from dhlog.errors import DegenerateGeometryError
 from dhlog.geometry._checks import FloatArray, nearest_rotation, rotation_from_vector
-from dhlog.kinematics import fk_frames
+from dhlog.model.dh import StandardDH
+from dhlog.model.fk import fk_frames
 
 #: Samples beyond this many robust scales (median absolute 3-D residual / 0.6745·√3-ish) are
 #: outliers of the registration.

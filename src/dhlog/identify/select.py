@@ -1,5 +1,5 @@
 """Which terms beyond the geometry a session supports (``--model``): gravity compliance and
-transmission harmonics (:mod:`dhlog.nongeometric`), kept only where held-out poses prove them.
+transmission harmonics (:mod:`dhlog.model.terms`), kept only where held-out poses prove them.
 
 Each candidate model (the geometric one, then with a family of terms added) is fitted by the
 whole-model maximum likelihood to the same samples (the geometric fit's inliers, at most
@@ -33,12 +33,12 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from dhlog.dh import JointType
 from dhlog.errors import DhlogError
 from dhlog.geometry._checks import FloatArray
 from dhlog.identify.holdout import cross_validate
 from dhlog.identify.whole import WholeFit, fit_whole_model, predict
-from dhlog.nongeometric import Lump, Terms, design
+from dhlog.model.dh import JointType
+from dhlog.model.terms import Lump, Terms, design
 
 #: The ``--model`` choices and the families each forces (``auto`` tries them in this order).
 MODELS = {

@@ -25,12 +25,12 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from dhlog.dh import JointType, StandardDH
 from dhlog.errors import GeometryError
 from dhlog.geometry._checks import FloatArray, nearest_rotation, rotation_about
 from dhlog.geometry.lines import Line
-from dhlog.geometry.screws import chain_motion
 from dhlog.identify.register import Registration, register_nominal
+from dhlog.model.dh import JointType, StandardDH
+from dhlog.model.screws import chain_motion
 
 #: A joint whose encoder values span less than this (rad or m) never moved in the log.
 NEVER_MOVED = 1e-3
@@ -95,7 +95,7 @@ def start_from_nominal(
     start of every joint ``known`` does not give an axis for (see the module docstring). Raises
     :class:`~dhlog.errors.DegenerateGeometryError` when neither the swept axes nor the points
     place it."""
-    from dhlog.kinematics import fk_point, joint_axes
+    from dhlog.model.fk import fk_point, joint_axes
 
     types = tuple(table.joint_types)
     found = [k for k in known if k.axis is not None]

@@ -9,15 +9,15 @@ import numpy as np
 import polars as pl
 from numpy.typing import NDArray
 
-from dhlog.dh import JointType
-from dhlog.dhfile import DHModel
 from dhlog.errors import GeometryError
 from dhlog.geometry._checks import FloatArray
 from dhlog.geometry.fitting import AxisFit, detect_joint_type, fit_axis_robust
 from dhlog.geometry.lines import Line
-from dhlog.geometry.screws import chain_motion, points_at_reference
+from dhlog.identify.segment import Segmentation
+from dhlog.io.dhfile import DHModel
 from dhlog.io.reader import LogData
-from dhlog.segment import Segmentation
+from dhlog.model.dh import JointType
+from dhlog.model.screws import chain_motion, points_at_reference
 
 
 @dataclass

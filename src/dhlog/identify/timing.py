@@ -32,8 +32,8 @@ from numpy.typing import NDArray
 from dhlog.errors import DhlogError
 from dhlog.geometry._checks import FloatArray
 from dhlog.geometry.fitting import fit_circle_algebraic, fit_line
+from dhlog.identify.segment import Segmentation, _interpolate_encoders
 from dhlog.io.reader import LogData
-from dhlog.segment import Segmentation, _interpolate_encoders
 
 #: Fewest moving samples a sweep needs to estimate the lag from.
 MIN_MOVING = 20

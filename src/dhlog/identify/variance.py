@@ -26,8 +26,8 @@ from numpy.typing import NDArray
 
 from dhlog.geometry._checks import FloatArray
 from dhlog.identify.holdout import pose_groups
-from dhlog.identify.noise import model_error_sigma
 from dhlog.identify.whole import WholeFit, fit_whole_model, predict
+from dhlog.model.noise import model_error_sigma
 
 #: Per-sample uncertainties this far below the residuals (χ²/dof above it) call for a
 #: model-error variance component.

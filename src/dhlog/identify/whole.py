@@ -33,12 +33,12 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from numpy.typing import NDArray
 
-from dhlog.dh import JointType, StandardDH
 from dhlog.errors import DegenerateGeometryError
 from dhlog.geometry._checks import FloatArray, perpendicular_basis, rotation_from_vector
 from dhlog.geometry.lines import Line
-from dhlog.identify.noise import NoiseModel
-from dhlog.nongeometric import Terms
+from dhlog.model.dh import JointType, StandardDH
+from dhlog.model.noise import NoiseModel
+from dhlog.model.terms import Terms
 
 #: Samples per chunk of the normal-equation accumulation.
 CHUNK = 16384
@@ -142,7 +142,7 @@ class AxisModel:
     #: residual clock offset δ (s): the encoders are read at ``Q − δ q̇`` (see
     #: :mod:`dhlog.identify.timing`); 0 unless the fit carries it
     clock: float = 0.0
-    #: joint-value terms beyond the geometry (compliance, harmonics; :mod:`dhlog.nongeometric`),
+    #: joint-value terms beyond the geometry (compliance, harmonics; :mod:`dhlog.model.terms`),
     #: their lumps and gravity in M at the reference pose
     terms: Terms | None = None
 
@@ -160,8 +160,8 @@ class AxisModel:
         """The model a DH table (placed by ``T_base``) is at ``reference_pose``: its axes, its
         tool point and, with ``terms`` in the table's frames, those terms in M — the table's
         forward kinematics as the whole-model fit holds it (unit encoder scales)."""
-        from dhlog.kinematics import fk_frames, fk_point, joint_axes
-        from dhlog.nongeometric import from_table
+        from dhlog.model.fk import fk_frames, fk_point, joint_axes
+        from dhlog.model.terms import from_table
 
         points, dirs = joint_axes(table, reference_pose, T_base=T_base)
         frames = fk_frames(table, reference_pose, T_base=T_base)
@@ -1007,7 +1007,7 @@ def fit_whole_model(
 
     With more than ``subsample`` samples the fit first converges on an evenly strided subset and
     then finishes on every sample (usually one pass: the step left is far below σ)."""
-    from dhlog.identify.noise import whitening_from_std
+    from dhlog.model.noise import whitening_from_std
 
     m = Q.shape[0]
     layout = ParameterLayout.of(

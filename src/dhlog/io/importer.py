@@ -52,9 +52,9 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
-from dhlog.dh import JointType
 from dhlog.errors import InputError
 from dhlog.io import ros2
+from dhlog.model.dh import JointType
 
 FORMATS = ("csv", "spatialanalyzer", "leica")
 #: σ = U95 / this, per coordinate (1.96) or from a 3D radius (√χ²₃(0.95)).

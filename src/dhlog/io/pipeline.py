@@ -17,9 +17,9 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
-from dhlog.dh import JointType
 from dhlog.errors import DhlogError, PipelineError
-from dhlog.identify.noise import NoiseModel
+from dhlog.model.dh import JointType
+from dhlog.model.noise import NoiseModel
 
 STREAMS = ("point", "joints", "base", "phase")
 DEFAULT_TOPICS = {

@@ -22,7 +22,6 @@ import numpy as np
 import polars as pl
 from numpy.typing import NDArray
 
-from dhlog.dh import JointType
 from dhlog.errors import (
     InputError,
     JointNamesError,
@@ -33,6 +32,7 @@ from dhlog.errors import (
 from dhlog.io import ros2
 from dhlog.io.mcapscan import ZSTD_MAGIC, ChannelInfo, McapScan, RawMessages, scan_mcap
 from dhlog.io.pipeline import Pipeline, shipped_pipelines
+from dhlog.model.dh import JointType
 
 POINT_SCHEMAS = {
     ros2.POINT_STAMPED: "point",

@@ -11,9 +11,9 @@ from typing import Any
 
 import numpy as np
 
-from dhlog.dh import JointType, ModifiedDH, StandardDH, modified_to_standard
 from dhlog.errors import DhlogError
 from dhlog.geometry._checks import FloatArray
+from dhlog.model.dh import JointType, ModifiedDH, StandardDH, modified_to_standard
 
 _LENGTH_SCALE = {"m": 1.0, "mm": 1e-3, "cm": 1e-2}
 

@@ -10,18 +10,18 @@ from typing import Protocol
 import numpy as np
 from numpy.typing import NDArray
 
-from dhlog.dh import JointType, StandardDH
-from dhlog.extract import Extraction
 from dhlog.geometry._checks import FloatArray, rotation_from_vector
+from dhlog.identify.extract import Extraction
 from dhlog.identify.propagate import state_vector
+from dhlog.identify.segment import Segmentation
 from dhlog.identify.sweeps import JointReport
 from dhlog.identify.whole import WholeFit
-from dhlog.kinematics import fk_point, fk_points_chunked
-from dhlog.segment import Segmentation
+from dhlog.model.dh import JointType, StandardDH
+from dhlog.model.fk import fk_point, fk_points_chunked
 
 
 class Identified(Protocol):
-    """What :func:`fk_prediction_std` reads of a run's result (``dhlog.process.ProcessResult``):
+    """What :func:`fk_prediction_std` reads of a run's result (``identify.run.ProcessResult``):
     the whole-model fit, else the extraction and its propagated covariance."""
 
     @property

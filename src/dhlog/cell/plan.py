@@ -20,8 +20,8 @@ from numpy.typing import NDArray
 
 from dhlog.errors import InputError
 from dhlog.geometry._checks import FloatArray
-from dhlog.identify.noise import NoiseModel
-from dhlog.robots import Robot
+from dhlog.model.noise import NoiseModel
+from dhlog.model.robots import Robot
 from dhlog.simulate import SimulationConfig, simulate_session
 
 #: Joint vectors (seeded, uniform within the limits) the FK σ is predicted at.
@@ -99,7 +99,7 @@ class Tracker:
 
     def in_reach(self, robot: Robot, Q: FloatArray) -> NDArray[np.bool_]:
         """Per joint vector of ``Q`` (m, n): the nominal's target within the tracker's range."""
-        from dhlog.kinematics import fk_point
+        from dhlog.model.fk import fk_point
 
         p = fk_point(robot.table, Q, robot.tool_point, T_base=robot.T_base)
         distance = np.linalg.norm(p - np.asarray(self.station), axis=1)
@@ -134,15 +134,15 @@ def plan_session(robot: Robot, cfg: SimulationConfig, tracker: Tracker | None = 
     """The plan ``cfg`` (protocol, counts, noise) on ``robot`` as its nominal; with
     ``tracker``, the robot placed in front of it, its noise model, and random poses whose target
     is out of its range left out (counted)."""
-    from dhlog.dhfile import DHModel
     from dhlog.identify.holdout import pose_groups
+    from dhlog.identify.run import process_data
     from dhlog.identify.select import ModelRequest
     from dhlog.identify.sweeps import samples_with_encoders
+    from dhlog.identify.validate import fk_prediction_std
+    from dhlog.io.dhfile import DHModel
     from dhlog.io.memory import log_data_from_session
-    from dhlog.process import process_data
-    from dhlog.report import held_lines
-    from dhlog.result import display_rows
-    from dhlog.validate import fk_prediction_std
+    from dhlog.present.console import held_lines
+    from dhlog.result.document import display_rows
 
     if cfg.perturb_length or cfg.perturb_angle:
         raise InputError("a plan is made on the nominal robot; leave the perturbations out.")
@@ -254,7 +254,7 @@ def select_poses(
     point; a position target, isotropic noise ``noise`` or, with ``tracker``, its noise model
     along the line of sight from its station, and candidates beyond its range left out."""
     from dhlog.identify.whole import AxisModel, ParameterLayout, predict
-    from dhlog.kinematics import spatial_jacobian
+    from dhlog.model.fk import spatial_jacobian
 
     singular = np.array(
         [

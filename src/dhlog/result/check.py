@@ -19,8 +19,8 @@ from collections.abc import Iterable, Sequence
 from pathlib import Path
 from typing import Any
 
-from dhlog.dhfile import DHFileError
 from dhlog.errors import InputError
+from dhlog.io.dhfile import DHFileError
 
 #: The largest result (or DH) JSON read, and the largest batch summary (a result is ~40 kB).
 MAX_RESULT_BYTES = 100 * 2**20

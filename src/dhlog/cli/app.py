@@ -24,7 +24,7 @@ from dhlog import __version__
 from dhlog.errors import DhlogError, OutputError
 
 if TYPE_CHECKING:
-    from dhlog.dhfile import DHModel
+    from dhlog.io.dhfile import DHModel
     from dhlog.io.pipeline import Pipeline
 
 EXIT_USAGE, EXIT_INPUT, EXIT_PARTIAL = 1, 2, 3
@@ -368,7 +368,7 @@ def simulate(
     """Write a simulated calibration session and its ground truth."""
     from rich.markup import escape
 
-    from dhlog.dhfile import robot_or_dh_file
+    from dhlog.io.dhfile import robot_or_dh_file
     from dhlog.io.writer import sha256_of, write_session, write_truth
     from dhlog.simulate import (
         PROTOCOLS,
@@ -510,7 +510,7 @@ def simulate(
 
 def _pose_file(path: Path, robot: Any, angle_unit: str) -> tuple[tuple[float, ...], ...]:
     """``simulate --poses CSV``: the joint vectors (rad or m) to visit, in the file's order."""
-    from dhlog.compensate import read_targets
+    from dhlog.cell.compensate import read_targets
 
     _, Q = read_targets(path, robot.n)
     if angle_unit == "deg":
@@ -585,7 +585,7 @@ def _viewer() -> str:
 
 def _model(spec: str) -> DHModel:
     """A DH model from a DH file or a library robot name."""
-    from dhlog.dhfile import dh_model_from
+    from dhlog.io.dhfile import dh_model_from
 
     return dh_model_from(spec)
 
@@ -724,9 +724,9 @@ def process(
     from rich.markup import escape
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
-    from dhlog.batch import HOLDOUT_SUFFIX, TERMS_SUFFIX, write_results
-    from dhlog.process import process_log
-    from dhlog.report import print_result
+    from dhlog.fleet.batch import HOLDOUT_SUFFIX, TERMS_SUFFIX, write_results
+    from dhlog.identify.run import process_log
+    from dhlog.present.console import print_result
 
     if units not in ("mm", "m"):
         stderr.print(f"error: --units must be mm or m, not '{units}'.")
@@ -879,7 +879,7 @@ def fk(
     angle_unit: Annotated[str, typer.Option(help="rad or deg: the unit of --q.")] = "rad",
 ) -> None:
     """Pose of the last frame and the spatial manipulator Jacobian at q."""
-    from dhlog.kinematics import fk_frames, fk_point, spatial_jacobian
+    from dhlog.model.fk import fk_frames, fk_point, spatial_jacobian
 
     try:
         model = _model(dh)
@@ -973,10 +973,10 @@ def export(
     """Write the identified model in a form a robot stack loads."""
     from rich.markup import escape
 
-    from dhlog import export as exports
-    from dhlog.dhfile import robot_or_dh_file
+    from dhlog.io.dhfile import robot_or_dh_file
     from dhlog.io.writer import atomic_output
-    from dhlog.resultcheck import refuse_inputs_as_outputs
+    from dhlog.result import export as exports
+    from dhlog.result.check import refuse_inputs_as_outputs
 
     if zero_offsets not in ("origins", "calibration") or (
         zero_offsets == "calibration" and (template is not None or format != "urdf")
@@ -1032,8 +1032,8 @@ def export(
 
 def _terms_not_exported(result: Path, fmt: str) -> None:
     """Say so when the result carries terms beyond the geometry that ``fmt`` cannot carry."""
-    from dhlog.dhfile import parse_dh
-    from dhlog.resultcheck import load_result, printable
+    from dhlog.io.dhfile import parse_dh
+    from dhlog.result.check import load_result, printable
 
     try:
         terms = parse_dh(load_result(result), str(result)).terms
@@ -1089,8 +1089,8 @@ def report(
     model, held-out error before and after, DH parameters with ±1σ, residuals, warnings)."""
     from rich.markup import escape
 
-    from dhlog.certificate import Nominal, certificate_html, load_sources
     from dhlog.io.writer import atomic_output
+    from dhlog.present.certificate import Nominal, certificate_html, load_sources
 
     if output.resolve() in {result.resolve(), *([log.resolve()] if log else [])}:
         stderr.print(f"error: {escape(str(output))} is an input; name another with -o.")
@@ -1163,10 +1163,10 @@ def compensate(
     (its terms beyond the geometry included) then reaches the pose the controller intended."""
     from rich.markup import escape
 
-    from dhlog.compensate import compensate as corrected
-    from dhlog.compensate import read_targets, targets_csv
+    from dhlog.cell.compensate import compensate as corrected
+    from dhlog.cell.compensate import read_targets, targets_csv
     from dhlog.io.writer import atomic_output
-    from dhlog.robots import load_robot, robot_names
+    from dhlog.model.robots import load_robot, robot_names
 
     if angle_unit not in ("rad", "deg"):
         stderr.print(f"error: --angle-unit must be rad or deg, not '{angle_unit}'.")
@@ -1215,8 +1215,8 @@ def compensate(
 
 def _result_and_nominal(result: Path, nominal: str) -> tuple[Any, Any]:
     """The calibrated model of ``result`` and the controller's nominal, of the same robot."""
-    from dhlog.dhfile import load_dh
     from dhlog.errors import InputError
+    from dhlog.io.dhfile import load_dh
 
     model = load_dh(result)
     nom = _model(nominal)
@@ -1234,9 +1234,9 @@ def _compensate_poses(
     """``dhlog compensate --poses CSV``: Cartesian targets to corrected joint targets."""
     from rich.markup import escape
 
-    from dhlog.compensate import compensate_poses, poses_csv, read_poses
+    from dhlog.cell.compensate import compensate_poses, poses_csv, read_poses
     from dhlog.io.writer import atomic_output
-    from dhlog.robots import load_robot, robot_names
+    from dhlog.model.robots import load_robot, robot_names
 
     try:
         model, nom = _result_and_nominal(result, nominal)
@@ -1338,9 +1338,9 @@ def plan(
     from rich.markup import escape
     from rich.table import Table
 
-    from dhlog.dhfile import robot_or_dh_file
+    from dhlog.cell.plan import plan_session
+    from dhlog.io.dhfile import robot_or_dh_file
     from dhlog.io.writer import atomic_output
-    from dhlog.plan import plan_session
     from dhlog.simulate import SIX_DOF_TOOL_ROTATION, SimulationConfig, config_problems
 
     tracker = _tracker(station, range_m, tracker_um)
@@ -1412,8 +1412,8 @@ def plan(
 
 
 def _tracker(station: str | None, range_m: str, tracker_um: str | None) -> Any:
-    """``plan``'s tracker options as a :class:`dhlog.plan.Tracker` (None without a station)."""
-    from dhlog.plan import Tracker
+    """``plan``'s tracker options as a :class:`dhlog.cell.plan.Tracker` (None without a station)."""
+    from dhlog.cell.plan import Tracker
 
     if station is None:
         if tracker_um is not None:
@@ -1457,10 +1457,10 @@ def _select_poses(
     """``dhlog plan --candidates CSV --select N -o CSV``."""
     from rich.markup import escape
 
-    from dhlog.compensate import read_targets, targets_csv
-    from dhlog.dhfile import robot_or_dh_file
+    from dhlog.cell.compensate import read_targets, targets_csv
+    from dhlog.cell.plan import select_poses
+    from dhlog.io.dhfile import robot_or_dh_file
     from dhlog.io.writer import atomic_output
-    from dhlog.plan import select_poses
 
     if candidates is None or count < 1 or output is None:
         stderr.print("error: --select N (N ≥ 1) needs --candidates CSV and -o CSV.")
@@ -1574,7 +1574,7 @@ def batch(
         TimeRemainingColumn,
     )
 
-    from dhlog.batch import (
+    from dhlog.fleet.batch import (
         HOLDOUT_SUFFIX,
         TERMS_SUFFIX,
         BatchJob,
@@ -1877,8 +1877,8 @@ def compare_results(
     ] = None,
 ) -> None:
     """Has the robot changed? Two results, or every parameter's trend over a batch summary."""
-    from dhlog.compare import compare
-    from dhlog.dhfile import robot_or_dh_file
+    from dhlog.fleet.compare import compare
+    from dhlog.io.dhfile import robot_or_dh_file
 
     if second is None:
         if first.suffix not in (".csv", ".parquet"):
@@ -1971,8 +1971,8 @@ def _compare_trends(summary: Path, threshold: float, rrd: Path | None) -> None:
     """The console table (and optionally the recording) of a batch summary's trends."""
     from rich.markup import escape
 
-    from dhlog.compare import read_summary, trends, write_trend_recording
-    from dhlog.resultcheck import printable, refuse_inputs_as_outputs
+    from dhlog.fleet.compare import read_summary, trends, write_trend_recording
+    from dhlog.result.check import printable, refuse_inputs_as_outputs
 
     try:
         if rrd is not None:  # the summary stays as it is
@@ -2035,8 +2035,8 @@ def show(
     ] = False,
 ) -> None:
     """A Rerun recording of a robot from its DH table, each joint swept in turn."""
-    from dhlog.recording import write_robot_recording
-    from dhlog.robots import load_robot
+    from dhlog.model.robots import load_robot
+    from dhlog.present.recording import write_robot_recording
 
     try:
         model = _model(dh)

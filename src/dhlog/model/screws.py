@@ -14,9 +14,9 @@ from collections.abc import Sequence
 import numpy as np
 from numpy.typing import ArrayLike
 
-from dhlog.dh import JointType
 from dhlog.geometry._checks import FloatArray, rotation_about
 from dhlog.geometry.lines import Line
+from dhlog.model.dh import JointType
 
 
 def joint_motion(axis: Line, joint_type: JointType, delta: float) -> FloatArray:

@@ -37,14 +37,6 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike
 
-from dhlog.dh import (
-    HayatiDH,
-    JointType,
-    ModifiedDH,
-    StandardDH,
-    standard_dh_transform,
-    standard_to_modified,
-)
 from dhlog.errors import DegenerateGeometryError, ShapeError
 from dhlog.geometry._checks import (
     FloatArray,
@@ -64,6 +56,14 @@ from dhlog.geometry.lines import (
     classify_lines,
     common_normal_feet,
     intersect_line_plane,
+)
+from dhlog.model.dh import (
+    HayatiDH,
+    JointType,
+    ModifiedDH,
+    StandardDH,
+    standard_dh_transform,
+    standard_to_modified,
 )
 
 
@@ -523,7 +523,7 @@ def hayati_table(
 def table_in_hayati_form(table: StandardDH, q_ref: FloatArray, rows: frozenset[int]) -> StandardDH:
     """A standard table (a nominal) with ``rows`` in the Hayati–Mirmirani form, same forward
     kinematics, θ kept on the table's own branch."""
-    from dhlog.kinematics import fk_frames
+    from dhlog.model.fk import fk_frames
 
     frames = fk_frames(table, q_ref)
     return _table_from_frames(frames, table.joint_types, q_ref, table, rows)

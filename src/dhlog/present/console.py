@@ -19,8 +19,8 @@ from rich.markup import escape
 from rich.table import Table
 
 from dhlog.geometry._checks import FloatArray, roll_pitch_yaw
-from dhlog.process import ProcessResult
-from dhlog.result import (
+from dhlog.identify.run import ProcessResult
+from dhlog.result.document import (
     DisplayRow,
     display_rows,
     display_scales,

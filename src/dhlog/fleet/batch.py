@@ -87,10 +87,10 @@ def process_job(job: BatchJob, *, hold_signals: bool = False) -> dict[str, Any]:
     folder = Path(job.folder)
     outputs = job_outputs(job)
     try:
-        from dhlog.dhfile import dh_model_from
+        from dhlog.identify.run import process_log
         from dhlog.identify.select import ModelRequest
+        from dhlog.io.dhfile import dh_model_from
         from dhlog.io.pipeline import pipeline_from
-        from dhlog.process import process_log
 
         pipe = pipeline_from(job.pipeline) if job.pipeline is not None else None
         nom = dh_model_from(job.nominal) if job.nominal is not None else None
@@ -137,7 +137,7 @@ def write_results(
     into place together; returns the JSON document. ``with_log``: the log's own channels in the
     recording."""
     from dhlog.io.writer import staged_outputs
-    from dhlog.result import holdout_csv, result_csv, result_document, terms_csv
+    from dhlog.result.document import holdout_csv, result_csv, result_document, terms_csv
 
     document = result_document(result)
     with staged_outputs(outputs, hold_signals=hold_signals) as temps:
@@ -149,7 +149,7 @@ def write_results(
             elif path.name.endswith(TERMS_SUFFIX):
                 temp.write_bytes(terms_csv(result).encode())
             else:
-                from dhlog.recording import write_process_recording
+                from dhlog.present.recording import write_process_recording
 
                 write_process_recording(result, temp, with_log=with_log)
     return document
@@ -177,7 +177,7 @@ def summary_row(
     nominal: str | None,
 ) -> dict[str, Any]:
     """One summary row of a processed log from its result document."""
-    from dhlog.compare import parameters
+    from dhlog.fleet.compare import parameters
 
     names = [j["name"] for j in doc.get("joints", [])]
     start = (
@@ -265,9 +265,9 @@ def _stamp(path: Path) -> Stamp | None:
 
 def check_paths(jobs: list[BatchJob], folder: Path) -> None:
     """Before any work: no input of the batch (a log, the nominal or pipeline file) may be one
-    of its outputs (:class:`~dhlog.resultcheck.InputIsOutputError`), and no output may be a
+    of its outputs (:class:`~dhlog.result.check.InputIsOutputError`), and no output may be a
     folder (an :class:`~dhlog.errors.InputError`); nothing is written either way."""
-    from dhlog.resultcheck import printable, refuse_inputs_as_outputs
+    from dhlog.result.check import printable, refuse_inputs_as_outputs
 
     outputs = [path for job in jobs for path in job_outputs(job)] + summary_paths(folder)
     inputs = [(Path(job.log), "log") for job in jobs]

@@ -33,14 +33,14 @@ from typing import TYPE_CHECKING, Any, NoReturn
 import numpy as np
 
 from dhlog import __version__
-from dhlog.contract import RESULT_FORMAT
 from dhlog.errors import DhlogError, InputError
 from dhlog.geometry._checks import roll_pitch_yaw
+from dhlog.result.contract import RESULT_FORMAT
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
-    from dhlog.dh import StandardDH
+    from dhlog.model.dh import StandardDH
 
 #: What to do about a damaged result JSON.
 REMEDY = "the file is damaged or not a dhlog result: write it again with dhlog process"
@@ -1023,8 +1023,8 @@ def nominal_deltas(
     nominal is put in the rows' form first (its rows of nearly parallel pairs in the
     Hayati–Mirmirani form, as ``dhlog process`` does); rows whose nominal has no such form get
     none."""
-    from dhlog.extract import table_in_hayati_form
     from dhlog.geometry._checks import wrap_angle
+    from dhlog.identify.extract import table_in_hayati_form
 
     hayati = frozenset(r.joint - 1 for r in rows if r.form == "hayati")
     table = nominal

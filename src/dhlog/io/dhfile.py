@@ -26,12 +26,12 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike
 
-from dhlog.dh import JointType, StandardDH
 from dhlog.errors import DhlogError, InputError, ShapeError
 from dhlog.geometry._checks import FloatArray
 from dhlog.io.textfile import decode_utf8, read_capped
-from dhlog.nongeometric import Terms, from_document, table_deflection
-from dhlog.robots import Robot, UnknownRobotError, load_robot
+from dhlog.model.dh import JointType, StandardDH
+from dhlog.model.robots import Robot, UnknownRobotError, load_robot
+from dhlog.model.terms import Terms, from_document, table_deflection
 
 #: The largest DH file read (bytes): a result JSON of a long chain is a few hundred kB.
 MAX_BYTES = 10 * 2**20
@@ -307,7 +307,7 @@ def robot_or_dh_file(spec: str) -> Robot:
 
 def dh_model_from(spec: str) -> DHModel:
     """A DH model from a DH file or a library robot name."""
-    from dhlog.robots import load_robot
+    from dhlog.model.robots import load_robot
 
     if Path(spec).suffix in (".json", ".toml") or Path(spec).exists():
         return load_dh(spec)

@@ -5,7 +5,7 @@ two time lines: ``sensor_time`` (the samples' own stamps) and ``joint_position``
 joint's encoder value, m° or µm: the residual plots' x axis), sent as columns. Each run is its
 own recording (a new recording id; the log's hash is a property). The default blueprint opens
 on the 3D view and the DH table, the per-joint residual plots below the table, side panels
-closed; ``dhlog.render`` draws it headless to check it.
+closed; ``dhlog.present.render`` draws it headless to check it.
 
 Entities (``world`` is the robot's base frame, DH frame 1, z up; ``world/m`` carries the
 measurement frame M into it, so everything below is logged in M):
@@ -37,13 +37,13 @@ import numpy as np
 import rerun as rr
 import rerun.blueprint as rrb
 
-from dhlog.dh import JointType, StandardDH
 from dhlog.geometry._checks import FloatArray, perpendicular_basis
-from dhlog.kinematics import fk_frames
+from dhlog.model.dh import JointType, StandardDH
+from dhlog.model.fk import fk_frames
 
 if TYPE_CHECKING:
+    from dhlog.identify.run import ProcessResult
     from dhlog.identify.sweeps import JointReport
-    from dhlog.process import ProcessResult
 
 PALETTE = np.array(
     [
@@ -270,7 +270,7 @@ class Shown:
 def write_process_recording(
     result: ProcessResult, path: str | Path, *, with_log: bool = False
 ) -> None:
-    """Write the recording of a :class:`~dhlog.process.ProcessResult` to ``path`` atomically.
+    """Write the recording of a :class:`~dhlog.identify.run.ProcessResult` to ``path`` atomically.
 
     Each run is its own recording (a new recording id), named by the log, the time of the run
     and the nominal; the log's hash is a property. ``with_log``: the MCAP's own channels are
@@ -280,7 +280,7 @@ def write_process_recording(
     from datetime import UTC, datetime
 
     from dhlog import __version__
-    from dhlog.report import result_markdown
+    from dhlog.present.console import result_markdown
 
     shown = Shown.of(result)
     k = shown.magnification()

@@ -316,7 +316,7 @@ def table_deflection(table: Any, terms: Terms, Q: ArrayLike, Q_table: ArrayLike)
     """``Δq`` (m, n) of ``terms`` given in ``table``'s frames (:func:`to_table`) at the encoder
     values ``Q`` (m, n) whose table joint values are ``Q_table`` (the encoders scaled, when
     scales were fitted); add it to ``Q_table`` for the forward kinematics."""
-    from dhlog.kinematics import fk_frames
+    from dhlog.model.fk import fk_frames
 
     Qe = np.atleast_2d(np.asarray(Q, dtype=np.float64))
     Qt = np.atleast_2d(np.asarray(Q_table, dtype=np.float64))

@@ -25,21 +25,10 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from dhlog.dh import JointType, StandardDH
-from dhlog.dhfile import DHModel
 from dhlog.errors import DegenerateGeometryError, DhlogError, GeometryError, InputError
-from dhlog.extract import (
-    NEAR_PARALLEL,
-    Extraction,
-    HayatiRow,
-    extract_dh,
-    hayati_table,
-    table_in_hayati_form,
-)
 from dhlog.geometry._checks import FloatArray, nearest_rotation
 from dhlog.geometry.fitting import PlaneFit, fit_plane
 from dhlog.geometry.lines import ANGLE_TOL, DISTANCE_TOL, Line, Plane, RelationKind, classify_lines
-from dhlog.geometry.screws import motions_back, points_at_reference
 from dhlog.identify.analytic import (
     AIC_SIGMA_2D,
     hayati_rows,
@@ -48,8 +37,15 @@ from dhlog.identify.analytic import (
     partial_extraction,
     propagate_analytic,
 )
+from dhlog.identify.extract import (
+    NEAR_PARALLEL,
+    Extraction,
+    HayatiRow,
+    extract_dh,
+    hayati_table,
+    table_in_hayati_form,
+)
 from dhlog.identify.holdout import Holdout, cross_validate, score_poses
-from dhlog.identify.noise import NoiseModel
 from dhlog.identify.propagate import (
     NOT_DETERMINED,
     fixed_reasons,
@@ -57,6 +53,7 @@ from dhlog.identify.propagate import (
     state_names,
 )
 from dhlog.identify.register import Registration
+from dhlog.identify.segment import Segmentation, segment_log
 from dhlog.identify.select import (
     AUTO,
     SELECT_FOLDS,
@@ -91,6 +88,13 @@ from dhlog.identify.timing import (
     rejoin,
     sweep_phases,
 )
+from dhlog.identify.validate import (
+    Validation,
+    check_residual,
+    table_gap,
+    validate_samples,
+    validate_sweeps,
+)
 from dhlog.identify.variance import (
     Whiten,
     design_effect,
@@ -107,13 +111,15 @@ from dhlog.identify.whole import (
     predict,
     relative_tilt_variances,
 )
+from dhlog.io.dhfile import DHModel
 from dhlog.io.pipeline import Pipeline
 from dhlog.io.reader import LogData, read_log
 from dhlog.io.writer import sha256_of
-from dhlog.kinematics import fk_frames, fk_points_chunked
-from dhlog.nongeometric import Lump, Terms, table_deflection, to_table
-from dhlog.segment import Segmentation, segment_log
-from dhlog.validate import Validation, check_residual, table_gap, validate_samples, validate_sweeps
+from dhlog.model.dh import JointType, StandardDH
+from dhlog.model.fk import fk_frames, fk_points_chunked
+from dhlog.model.noise import NoiseModel
+from dhlog.model.screws import motions_back, points_at_reference
+from dhlog.model.terms import Lump, Terms, table_deflection, to_table
 
 #: Largest number of samples per joint the per-joint fits (the whole-model fit's start) use.
 START_FIT_POINTS = 4000
@@ -179,7 +185,7 @@ class ProcessResult:
     #: K of the K-fold cross-validation asked for (0: none)
     folds: int = 0
     #: the terms beyond the geometry asked for, the candidates tried, and the chosen terms in
-    #: the table's frames (:func:`dhlog.nongeometric.to_table`) with their σ
+    #: the table's frames (:func:`dhlog.model.terms.to_table`) with their σ
     model_request: ModelRequest = field(default_factory=ModelRequest)
     selection: Selection | None = None
     terms: Terms | None = None
@@ -1053,7 +1059,7 @@ def _with_model_error(
 def _whitening(result: ProcessResult, sample_cov: FloatArray | None, sigma: float) -> Whiten:
     """The whitening of samples ``rows`` at ``points``: their own covariances when the log
     carries them, else the noise model's."""
-    from dhlog.identify.noise import whitening_from_std
+    from dhlog.model.noise import whitening_from_std
 
     def whiten(points: FloatArray, rows: NDArray[np.bool_]) -> FloatArray | float:
         if sample_cov is not None:

@@ -20,9 +20,9 @@ from pathlib import Path
 
 import numpy as np
 
-from dhlog.dhfile import DHModel
 from dhlog.geometry._checks import FloatArray
-from dhlog.kinematics import fk_frames
+from dhlog.io.dhfile import DHModel
+from dhlog.model.fk import fk_frames
 
 #: Newton iterations at most, and the pose error (m, rad) at which a target has converged.
 MAX_ITERATIONS = 30

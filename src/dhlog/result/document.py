@@ -11,13 +11,13 @@ import numpy as np
 from numpy.typing import NDArray
 
 from dhlog import __version__
-from dhlog.contract import RESULT_FORMAT, dh_documents, relation_documents
-from dhlog.dh import JointType
-from dhlog.extract import NEAR_PARALLEL
 from dhlog.geometry._checks import FloatArray, wrap_angle
+from dhlog.identify.extract import NEAR_PARALLEL
 from dhlog.identify.propagate import state_difference, state_names, state_vector
+from dhlog.identify.run import ProcessResult
 from dhlog.identify.sweeps import JointReport
-from dhlog.process import ProcessResult
+from dhlog.model.dh import JointType
+from dhlog.result.contract import RESULT_FORMAT, dh_documents, relation_documents
 
 
 def _fit_doc(j: JointReport, t_ns: NDArray[np.int64]) -> dict[str, Any] | None:
@@ -195,7 +195,7 @@ HAYATI_DESCRIPTION = (
 
 
 def _conditioned_document(result: ProcessResult, n_rows: int) -> dict[str, Any]:
-    """``hayati_dh``: the table of :class:`~dhlog.process.Conditioned`, row by row."""
+    """``hayati_dh``: the table of :class:`~dhlog.identify.run.Conditioned`, row by row."""
     c = result.conditioned
     assert c is not None
     t = c.table

@@ -18,10 +18,10 @@ from typing import Any
 
 import numpy as np
 
-from dhlog.dhfile import DHFileError, parse_dh
 from dhlog.geometry._checks import FloatArray, wrap_angle
-from dhlog.kinematics import fk_point
-from dhlog.resultcheck import (
+from dhlog.io.dhfile import DHFileError, parse_dh
+from dhlog.model.fk import fk_point
+from dhlog.result.check import (
     MAX_ANGLE_RAD,
     MAX_LENGTH_M,
     MAX_SUMMARY_BYTES,
@@ -67,7 +67,7 @@ class Comparison:
 
 def _load(path: str | Path) -> dict[str, Any]:
     """A result JSON, its size, nesting and every field used here checked
-    (:func:`dhlog.resultcheck.load_result`)."""
+    (:func:`dhlog.result.check.load_result`)."""
     return load_result(path)
 
 
@@ -409,7 +409,7 @@ def write_trend_recording(
     import rerun as rr
     import rerun.blueprint as rrb
 
-    from dhlog.recording import _recording_file
+    from dhlog.present.recording import _recording_file
 
     groups = sorted({t.name.rsplit("_", 1)[0] for t in found})
     blueprint = rrb.Blueprint(

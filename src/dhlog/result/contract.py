@@ -8,9 +8,9 @@ from typing import Any
 
 import numpy as np
 
-from dhlog.dh import StandardDH, standard_to_modified
-from dhlog.extract import PairRelation
 from dhlog.geometry._checks import FloatArray
+from dhlog.identify.extract import PairRelation
+from dhlog.model.dh import StandardDH, standard_to_modified
 
 RESULT_FORMAT = "dhlog.result/1"
 

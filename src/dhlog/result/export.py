@@ -24,10 +24,10 @@ from typing import Any
 
 import numpy as np
 
-from dhlog.dh import HayatiDH, JointType, StandardDH, standard_to_modified
-from dhlog.dhfile import DHFileError, DHModel, parse_dh
 from dhlog.geometry._checks import FloatArray, roll_pitch_yaw
-from dhlog.resultcheck import (
+from dhlog.io.dhfile import DHFileError, DHModel, parse_dh
+from dhlog.model.dh import HayatiDH, JointType, StandardDH, standard_to_modified
+from dhlog.result.check import (
     MAX_ANGLE_RAD,
     MAX_LENGTH_M,
     MAX_RESULT_BYTES,
@@ -74,7 +74,7 @@ def _origin(parent: ET.Element, T: FloatArray) -> None:
 
 def _load(result_path: str | Path) -> tuple[dict[str, Any], StandardDH, DHModel]:
     """The result (or DH) JSON, its well-conditioned table and its DH model; the file's size,
-    nesting and every field used checked first (:func:`dhlog.resultcheck.load_result`)."""
+    nesting and every field used checked first (:func:`dhlog.result.check.load_result`)."""
     data = load_result(result_path)
     table, model = _table_of(data, printable(str(result_path)))
     return data, table, model

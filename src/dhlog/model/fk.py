@@ -10,8 +10,8 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike
 
-from dhlog.dh import HayatiDH, ModifiedDH, StandardDH
 from dhlog.geometry._checks import FloatArray, check_vector3
+from dhlog.model.dh import HayatiDH, ModifiedDH, StandardDH
 
 DHTable = StandardDH | ModifiedDH
 

@@ -21,10 +21,10 @@ import numpy as np
 import polars as pl
 from numpy.typing import NDArray
 
-from dhlog.dh import JointType
 from dhlog.errors import InputError, TooFewSamplesError
 from dhlog.io.pipeline import SEGMENTATION_RANGES, SegmentationSettings
 from dhlog.io.reader import LogData
+from dhlog.model.dh import JointType
 
 TRANSITION, IDLE = -1, -2
 

@@ -1,0 +1,1 @@
+"""The ``dhlog`` command line: a thin layer over the library."""

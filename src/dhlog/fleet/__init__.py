@@ -1,0 +1,1 @@
+"""Many sessions: batch runs and the comparisons and trends over their results."""

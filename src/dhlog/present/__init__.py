@@ -1,0 +1,1 @@
+"""What a person looks at: console tables, the Rerun recording, the certificate page."""
