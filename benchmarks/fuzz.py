@@ -1,13 +1,21 @@
-"""The long fuzz run: many mutated logs through ``dhlog process``, each in its own process.
+"""The long fuzz runs: many hostile inputs through the real commands, each in its own process.
 
-    .venv/bin/python benchmarks/fuzz.py [--cases 10000] [--workers 2] [--seed 0]
-                                        [--timeout 60] [--out fuzz-failures]
+    .venv/bin/python benchmarks/fuzz.py [--kind logs|inputs|results] [--cases 10000]
+                                        [--workers 2] [--seed 0] [--timeout 60]
+                                        [--out fuzz-failures]
 
-The cases are ``tests/fuzzing.py``'s (four families in turn: bytes, records, payloads, odd).
-Each runs ``dhlog process LOG --no-rrd --out DIR`` in a child forked from a warm parent (dhlog
-imported once), with a time limit; the child's peak RSS comes from ``wait4``. Printed: cases,
-outcomes (exit codes) and problems per family, the slowest and the largest cases, and one
-reproducer file per distinct problem (``--out``: the log, and its name and stderr).
+``--kind logs`` (the default): ``tests/fuzzing.py``'s damaged logs (four families in turn:
+bytes, records, payloads, odd) through ``dhlog process LOG --no-rrd --out DIR``.
+``--kind inputs``: ``tests/fuzz_inputs.py``'s DH files, pipelines and tracker exports (``fk``,
+``process --nominal``, ``process --pipeline``, ``import``). ``--kind results``:
+``tests/fuzz_results.py``'s result JSONs, batch summaries, URDF templates, names and output
+paths (``compare``, ``export``, ``batch``).
+
+Each case runs in a child forked from a warm parent (dhlog imported once, the real inputs the
+cases start from made once), with a time limit; the child's peak RSS comes from ``wait4``.
+Printed: cases, outcomes (exit codes) and problems per family, the slowest and the largest
+cases, and one reproducer per distinct problem (``--out``: the case pickled, and its name,
+problems and stderr).
 """
 
 from __future__ import annotations
@@ -25,19 +33,83 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
-from fuzzing import FAMILIES, Case, Outcome, cases, run_in_process
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
+from typing import Any
+
+import fuzzing
 
 
-def start(case: Case, folder: Path) -> tuple[int, int]:
-    """Fork a child that runs ``case`` and writes its pickled Outcome to a pipe."""
+@dataclass(frozen=True)
+class Problem:
+    """How a case ended when the harness itself could not judge it (a hang, a dead child)."""
+
+    case: str
+    family: str
+    exit_code: int
+    problems: tuple[str, ...]
+    stderr: str
+
+
+@dataclass(frozen=True)
+class Harness:
+    """One kind of fuzz case: its families, its seeded cases, and how a child runs one."""
+
+    families: tuple[str, ...]
+    cases: Iterator[Any]
+    run: Callable[[Any, Path], Any]
+
+
+def harness(kind: str, count: int, seed: int, work: Path) -> Harness:
+    """The cases of ``kind`` (their real inputs made once, here, in the parent)."""
+    if kind == "logs":
+        return Harness(
+            fuzzing.FAMILIES, fuzzing.cases(count, seed, work / "base"), fuzzing.run_in_process
+        )
+    import fuzz_inputs
+    import fuzz_results
+
+    module: Any = fuzz_inputs if kind == "inputs" else fuzz_results
+    (work / "base").mkdir()
+    return Harness(
+        module.FAMILIES,
+        from_child(lambda: module.cases(seed, count, module.make_bases(work / "base"))),
+        lambda case, folder: module.run_case(case, folder, timeout=1e9),
+    )
+
+
+def from_child(make: Callable[[], Iterator[Any]]) -> Iterator[Any]:
+    """The cases ``make()`` yields, made in a forked child and pickled back one by one: the
+    parent never runs polars (the summaries' cases write Parquet), since a child forked after
+    polars started its thread pool can wait on it forever."""
+    r, w = os.pipe()
+    pid = os.fork()
+    if pid == 0:
+        os.close(r)
+        with os.fdopen(w, "wb") as f:
+            for case in make():
+                blob = pickle.dumps(case)
+                f.write(len(blob).to_bytes(8, "little") + blob)
+        os._exit(0)
+    os.close(w)
+    with os.fdopen(r, "rb") as f:
+        while size := f.read(8):
+            yield pickle.loads(f.read(int.from_bytes(size, "little")))
+    _, status = os.waitpid(pid, 0)
+    if status:
+        raise SystemExit("making the fuzz cases failed (their generator's child died)")
+
+
+def start(run: Callable[[Any, Path], Any], case: Any, folder: Path) -> tuple[int, int]:
+    """Fork a child that runs ``case`` and writes its pickled outcome to a pipe."""
     r, w = os.pipe()
     pid = os.fork()
     if pid == 0:  # the child
         os.close(r)
         try:
-            outcome = run_in_process(case, folder)
+            outcome = run(case, folder)
         except BaseException as exc:  # the harness itself failed: report, never hang
-            outcome = Outcome(case.name, case.family, -1, (f"harness: {exc!r}",), "")
+            outcome = Problem(case.name, case.family, -1, (f"harness: {exc!r}",), "")
         with os.fdopen(w, "wb") as f:
             f.write(pickle.dumps(outcome))
         os._exit(0)
@@ -47,6 +119,7 @@ def start(case: Case, folder: Path) -> tuple[int, int]:
 
 def main() -> None:
     parser = argparse.ArgumentParser()
+    parser.add_argument("--kind", choices=("logs", "inputs", "results"), default="logs")
     parser.add_argument("--cases", type=int, default=10000)
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--seed", type=int, default=0)
@@ -57,13 +130,14 @@ def main() -> None:
     import dhlog.identify.run  # noqa: F401
 
     work = Path(tempfile.mkdtemp(prefix="dhlog-fuzz-"))
-    generator = cases(args.cases, args.seed, work / "base")
+    chosen = harness(args.kind, args.cases, args.seed, work)
+    generator = chosen.cases
     slots = [work / f"slot{k}" for k in range(args.workers)]
     for s in slots:
         s.mkdir()
-    running: dict[int, tuple[Case, int, float, int]] = {}  # pid -> case, fd, start, slot
+    running: dict[int, tuple[Any, int, float, int]] = {}  # pid -> case, fd, start, slot
     free = list(range(args.workers))
-    results: list[tuple[Outcome, float, float]] = []
+    results: list[tuple[Any, float, float]] = []
     begun = time.time()
     exhausted = False
     reported = 0
@@ -74,7 +148,7 @@ def main() -> None:
                 exhausted = True
                 break
             slot = free.pop()
-            pid, fd = start(case, slots[slot])
+            pid, fd = start(chosen.run, case, slots[slot])
             running[pid] = (case, fd, time.time(), slot)
         time.sleep(0.005)
         for pid in list(running):
@@ -86,7 +160,7 @@ def main() -> None:
             if done == 0:  # a hang: kill it
                 os.kill(pid, signal.SIGKILL)
                 _, status, usage = os.wait4(pid, 0)
-                outcome = Outcome(case.name, case.family, -9, ("hang",), "")
+                outcome = Problem(case.name, case.family, -9, ("hang",), "")
             else:
                 with os.fdopen(fd, "rb") as f:
                     blob = f.read()
@@ -94,13 +168,13 @@ def main() -> None:
                 outcome = (
                     pickle.loads(blob)
                     if blob
-                    else Outcome(case.name, case.family, -1, (f"child died ({status})",), "")
+                    else Problem(case.name, case.family, -1, (f"child died ({status})",), "")
                 )
             if fd >= 0:
                 os.close(fd)
             rss = usage.ru_maxrss / 1024.0  # MiB (ru_maxrss is in KiB on Linux)
             if rss > 1024:
-                outcome = Outcome(
+                outcome = Problem(
                     outcome.case,
                     outcome.family,
                     outcome.exit_code,
@@ -113,9 +187,9 @@ def main() -> None:
                     (",".join(outcome.problems) + outcome.stderr[-120:]).encode()
                 ).hexdigest()[:12]
                 args.out.mkdir(exist_ok=True)
-                target = args.out / f"{key}.mcap"
+                target = args.out / f"{key}.case.pickle"
                 if not target.exists():
-                    target.write_bytes(case.data)
+                    target.write_bytes(pickle.dumps(case))
                     (args.out / f"{key}.txt").write_text(
                         f"{outcome.case}\n{outcome.problems}\n{outcome.stderr}\n"
                     )
@@ -125,10 +199,13 @@ def main() -> None:
             reported = len(results) // 500 * 500
             print(f"... {len(results)} cases, {time.time() - begun:.0f} s", flush=True)
     total = time.time() - begun
-    print(f"\n{len(results)} cases in {total:.0f} s ({args.workers} workers, seed {args.seed})\n")
+    print(
+        f"\n{len(results)} {args.kind} cases in {total:.0f} s "
+        f"({args.workers} workers, seed {args.seed})\n"
+    )
     print("| family | cases | exit 0 | exit 2 | exit 3 | problems |")
     print("|---|---|---|---|---|---|")
-    for family in FAMILIES:
+    for family in chosen.families:
         mine = [o for o, _, _ in results if o.family == family]
         codes = Counter(o.exit_code for o in mine)
         bad = sum(1 for o in mine if o.problems)
