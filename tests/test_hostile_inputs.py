@@ -394,9 +394,9 @@ def test_an_import_source_that_is_no_regular_file_is_refused(tmp_path: Path) -> 
 def test_an_export_larger_than_the_cap_is_refused_before_reading(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    import dhlog.io.importer as importer
+    import dhlog.io.exports.table as table
 
-    monkeypatch.setattr(importer, "MAX_TABLE_BYTES", 1000)
+    monkeypatch.setattr(table, "MAX_TABLE_BYTES", 1000)
     src = tmp_path / "big.csv"
     src.write_text(HEAD + "\n" + "1,2,3,0,0,0\n" * 200)
     refused(

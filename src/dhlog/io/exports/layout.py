@@ -1,0 +1,226 @@
+"""What each column of an export holds, read from its header: the point name, x, y, z, U95, the
+orientation of a 6-DoF target (quaternion ``Q0 Q1 Q2 Q3`` scalar first as Leica writes it,
+``Qw Qx Qy Qz`` in any order, or rotation angles ``Rx Ry Rz`` in the ``--euler`` sequence), the
+time, and the joints (``q1…``, ``j1…``, ``A1…``, ``joint_1…``, ``axis1…``; or
+``--joint-columns``). A column the header names (orientation, U95, time) is never taken as a
+joint; a column two options name is refused.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass, field
+
+from dhlog.io.exports.options import ImportOptions
+from dhlog.io.exports.table import ConversionError, Table, parse_header
+
+#: Orientation columns by their (normalised) header: quaternions, scalar first, and rotation
+#: angles (X, Y, Z).
+QUATERNION_HEADERS = (("qw", "qx", "qy", "qz"), ("q0", "q1", "q2", "q3"))
+ANGLE_HEADERS = (
+    ("rx", "ry", "rz"),
+    ("rotx", "roty", "rotz"),
+    ("rotationx", "rotationy", "rotationz"),
+)
+#: Point-name columns by their (normalised) header, in order of preference.
+NAME_HEADERS = ("pointname", "name", "pointid", "point", "id", "ptid", "target", "label")
+#: A joint column by its (normalised) header, with the joint's number.
+JOINT_HEADER = re.compile(r"^(?:q|j|a|joint|axis)(\d{1,3})$")
+
+
+@dataclass
+class Layout:
+    """The columns of a table by what they hold (indices into its header)."""
+
+    xyz: list[int]
+    name: list[int]
+    time: int | None
+    u95: tuple[str, list[int]] | None  # ("axes", [x, y, z]) or ("sphere", [k])
+    orientation: tuple[str, list[int]] | None  # ("quaternion", [w, x, y, z]) or ("angles", …)
+    joints: list[int]
+    recognised: dict[int, str]  # every column the header says is not a joint, and what it is
+    notes: list[str] = field(default_factory=list)
+
+
+def claim(table: Table, claims: dict[int, str], k: int, option: str) -> None:
+    """Column ``k`` taken by ``option``; a column that two options (or one option twice) name
+    is refused."""
+    if k in claims:
+        other = claims[k]
+        if other == option:
+            raise ConversionError(
+                table.path,
+                f"{option} names the column '{table.header[k]}' twice; name each column once.",
+            )
+        raise ConversionError(
+            table.path,
+            f"{other} and {option} both name the column '{table.header[k]}'; give each its own "
+            "column.",
+        )
+    claims[k] = option
+
+
+def joints_by_number(table: Table, candidates: list[int], notes: list[str]) -> list[int]:
+    """The joint columns the header names (``j2, j1, j3``), in the order of their numbers
+    (``j1, j2, j3``, said in a note when it is not the header's); two columns for one joint, or
+    a joint left out between others, are refused."""
+    by_number: dict[int, int] = {}
+    for k in candidates:
+        m = JOINT_HEADER.match(table.heads[k].key)
+        assert m is not None
+        number = int(m[1])
+        if number in by_number:
+            raise ConversionError(
+                table.path,
+                f"has two columns for joint {number}, '{table.header[by_number[number]]}' and "
+                f"'{table.header[k]}'; name the joint columns in chain order with "
+                "--joint-columns.",
+            )
+        by_number[number] = k
+    if not by_number:
+        return []
+    numbers = sorted(by_number)
+    missing = [n for n in range(numbers[0], numbers[-1] + 1) if n not in by_number]
+    if missing:
+        raise ConversionError(
+            table.path,
+            f"has joint columns {', '.join(table.header[by_number[n]] for n in numbers)} but none "
+            f"for joint {missing[0]}; name the joint columns in chain order with --joint-columns.",
+        )
+    ordered = [by_number[n] for n in numbers]
+    if ordered != candidates:
+        notes.append(
+            f"{table.path}: the joint columns were taken in the order of their numbers "
+            f"({', '.join(table.header[k] for k in ordered)}), not the header's "
+            f"({', '.join(table.header[k] for k in candidates)})."
+        )
+    return ordered
+
+
+def _name_columns(table: Table, opts: ImportOptions, *, required: bool) -> list[int]:
+    """The point-name column(s): ``--name-column`` (which may name the joints file's instead,
+    unless ``required``), else by the header (collection, group, point joined, or a name)."""
+    if opts.name_column and (required or table.find(opts.name_column) is not None):
+        return [table.column(opts.name_column, "the point name", "--name-column")]
+    collection, group, point = table.key("collection"), table.key("group"), table.key("point")
+    if point is not None and (collection is not None or group is not None):
+        return [k for k in (collection, group, point) if k is not None]
+    k = table.key(*NAME_HEADERS)
+    return [] if k is None else [k]
+
+
+def _orientation_columns(
+    table: Table, opts: ImportOptions, recognised: dict[int, str]
+) -> tuple[str, list[int]] | None:
+    """The orientation's columns (and ``recognised`` completed with every orientation set the
+    header holds, used or not)."""
+    found: list[tuple[str, list[int]]] = []
+    for kind, sets in (("quaternion", QUATERNION_HEADERS), ("angles", ANGLE_HEADERS)):
+        for keys in sets:
+            hits = [table.key(key) for key in keys]
+            if all(c is not None for c in hits):
+                found.append((kind, [c for c in hits if c is not None]))
+    # --joint-columns naming all of Q0…Q3: joints counted from 0, not a quaternion
+    zero_based = set(QUATERNION_HEADERS[1]) <= {parse_header(c).key for c in opts.joint_columns}
+    # Q0…Q3 beside Q4…: joints counted from 0, or a quaternion and more joints?
+    leica = [f for f in found if [table.heads[c].key for c in f[1]] == list(QUATERNION_HEADERS[1])]
+    if leica and not zero_based:
+        more = [
+            h.text
+            for h in table.heads
+            if (m := JOINT_HEADER.match(h.key)) and h.key.startswith("q") and int(m[1]) >= 4
+        ]
+        if more and not opts.orientation_columns and not opts.joint_columns:
+            raise ConversionError(
+                table.path,
+                f"has Q0…Q3 and {', '.join(more)}: a quaternion (Q0 scalar first, as Leica "
+                "writes it) beside more joints, or joints counted from 0? Name the joints "
+                "with --joint-columns, or the orientation with --orientation-columns "
+                "(none to leave it out).",
+            )
+    if zero_based:
+        found = [f for f in found if f not in leica]
+    for _, used in found:
+        for c in used:
+            recognised.setdefault(c, "the orientation")
+    if opts.orientation_columns:
+        if [c.lower() for c in opts.orientation_columns] == ["none"]:
+            return None
+        cols = [
+            table.column(c, "the orientation", "--orientation-columns")
+            for c in opts.orientation_columns
+        ]
+        if len(cols) not in (3, 4):
+            raise ConversionError(
+                table.path,
+                f"--orientation-columns names {len(cols)} column(s); give four (a quaternion, "
+                "scalar first: w, x, y, z) or three (rotation angles, see --euler), or none.",
+            )
+        for c in cols:
+            recognised[c] = "the orientation"
+        return ("quaternion" if len(cols) == 4 else "angles", cols)
+    return found[0] if found else None
+
+
+def column_layout(table: Table, opts: ImportOptions, *, joints: bool) -> Layout:
+    """What each column of ``table`` holds; ``joints``: the joints are in this table. A column
+    two options name (``--x X --y X``, ``--joint-columns A1,A1``) is refused."""
+    recognised: dict[int, str] = {}
+    claims: dict[int, str] = {}
+    xyz = []
+    for name, axis in zip((opts.x, opts.y, opts.z), "xyz", strict=True):
+        k = table.column(name, f"the target's {axis}", f"--{axis}")
+        claim(table, claims, k, f"--{axis}")
+        xyz.append(k)
+        recognised[k] = f"the target's {axis}"
+    time: int | None = None
+    if opts.time:
+        time = table.column(opts.time, "the time", "--time")
+        claim(table, claims, time, "--time")
+        recognised[time] = "the time"
+    names = _name_columns(table, opts, required=opts.joints_file is None)
+    for k in names:
+        claim(table, claims, k, "--name-column" if opts.name_column else "the point name")
+        recognised[k] = "the point name"
+    axes = [table.key(f"u95{a}") for a in "xyz"]
+    sphere = table.key("u95")
+    u95: tuple[str, list[int]] | None = None
+    if all(k is not None for k in axes):
+        u95 = ("axes", [k for k in axes if k is not None])
+    elif sphere is not None:
+        u95 = ("sphere", [sphere])
+    if u95 is not None and not opts.no_u95:
+        for k in u95[1]:
+            claim(table, claims, k, f"the U95 '{table.header[k]}'")
+    for u in [*axes, sphere]:
+        if u is not None:
+            recognised[u] = f"the U95 '{table.header[u]}'"
+    orientation = _orientation_columns(table, opts, recognised)
+    if orientation is not None:
+        option = "--orientation-columns" if opts.orientation_columns else "the orientation"
+        for k in orientation[1]:
+            claim(table, claims, k, option)
+    cols: list[int] = []
+    notes: list[str] = []
+    if joints and opts.joint_columns:
+        for c in opts.joint_columns:
+            k = table.column(c, "a joint", "--joint-columns")
+            if k in recognised:
+                raise ConversionError(
+                    table.path,
+                    f"--joint-columns names '{table.header[k]}', which is "
+                    f"{recognised[k]}, not a joint; name the joint columns only.",
+                )
+            claim(table, claims, k, "--joint-columns")
+            cols.append(k)
+    elif joints:
+        cols = joints_by_number(
+            table,
+            [
+                k
+                for k, h in enumerate(table.heads)
+                if k not in recognised and JOINT_HEADER.match(h.key)
+            ],
+            notes,
+        )
+    return Layout(xyz, names, time, u95, orientation, cols, recognised, notes)

@@ -1,0 +1,68 @@
+"""How ``dhlog import`` reads a source: the formats and the options (``dhlog import --help``),
+checked before any file is opened."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from dhlog.errors import InputError
+from dhlog.io.exports.table import ANGLE_UNITS, LENGTH_UNITS, TIME_UNITS, unit_name
+
+FORMATS = ("csv", "spatialanalyzer", "leica")
+#: The default sequence of rotation angles: about the fixed (measurement) axes X, then Y, then Z,
+#: R = Rz(rz)·Ry(ry)·Rx(rx) (scipy's ``"xyz"``; upper case would be moving axes).
+EULER_DEFAULT = "xyz"
+
+
+@dataclass
+class ImportOptions:
+    """How to read the source: column names, units, joint types (see ``dhlog import --help``).
+
+    ``length_unit`` and ``angle_unit`` are None when not given: the header's unit, else mm and
+    degrees. ``orientation_columns``: four (a quaternion, scalar first) or three (rotation angles
+    in the ``euler`` sequence) columns, ``["none"]`` to leave the orientation out, or empty to
+    recognise it from the header."""
+
+    format: str = "csv"
+    joints_file: Path | None = None
+    x: str = "x"
+    y: str = "y"
+    z: str = "z"
+    joint_columns: list[str] = field(default_factory=list)
+    joint_names: list[str] = field(default_factory=list)
+    joint_types: list[str] = field(default_factory=list)
+    time: str | None = None
+    time_unit: str = "s"
+    name_column: str | None = None
+    length_unit: str | None = None
+    angle_unit: str | None = None
+    orientation_columns: list[str] = field(default_factory=list)
+    euler: str = EULER_DEFAULT
+    no_u95: bool = False
+
+
+def checked_options(opts: ImportOptions) -> None:
+    """Refuse an unknown format, unit or time unit (naming the option); the units given are
+    set to their names in ``LENGTH_UNITS`` / ``ANGLE_UNITS``."""
+    if opts.format not in FORMATS:
+        raise InputError(f"--format must be one of {', '.join(FORMATS)}, not '{opts.format}'.")
+    for option, value, kind in (
+        ("--length-unit", opts.length_unit, "length"),
+        ("--angle-unit", opts.angle_unit, "angle"),
+    ):
+        if value is None:
+            continue
+        try:
+            unit = unit_name(value, kind)
+        except ValueError:
+            known = ", ".join(LENGTH_UNITS if kind == "length" else ANGLE_UNITS)
+            raise InputError(f"{option} must be one of {known}, not '{value}'.") from None
+        if kind == "length":
+            opts.length_unit = unit
+        else:
+            opts.angle_unit = unit
+    if opts.time_unit not in TIME_UNITS:
+        raise InputError(
+            f"--time-unit must be one of {', '.join(TIME_UNITS)}, not '{opts.time_unit}'."
+        )

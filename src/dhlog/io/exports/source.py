@@ -1,0 +1,306 @@
+"""An export's points in SI units (:class:`Source`): coordinates in their header's unit, U95
+columns as each point's covariance, the orientation as unit quaternions, the time, and the joint
+values when the export holds them.
+
+U95 to σ: a per-coordinate U95 is 1.96 σ; a single (3D) U95 is the radius of the 95 % sphere
+of an isotropic normal distribution, 2.796 σ (√χ²₃(0.95)). A U95 the export rounded to 0 is
+floored at the export's resolution (the last decimal written), and said in a note.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import re
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+
+from dhlog.io.exports.layout import JOINT_HEADER, Layout, column_layout
+from dhlog.io.exports.options import ImportOptions
+from dhlog.io.exports.table import (
+    ANGLE_UNITS,
+    DEFAULT_ANGLE_UNIT,
+    DEFAULT_LENGTH_UNIT,
+    LENGTH_UNITS,
+    TIME_UNITS,
+    ConversionError,
+    Table,
+    column_unit,
+    resolution,
+    stated_alike,
+    without_unit,
+)
+from dhlog.model.dh import JointType
+
+#: σ = U95 / this, per coordinate (1.96) or from a 3D radius (√χ²₃(0.95)).
+U95_PER_COORDINATE = 1.959963984540054
+U95_SPHERE = 2.7954834829151074
+#: The first stop's time (ns): 2020-01-01, so that stamps look like a real clock's.
+EPOCH_NS = 1_577_836_800_000_000_000
+#: A quaternion is normalised when its norm is this close to 1, else refused.
+QUATERNION_TOLERANCE = 1e-3
+#: The ranges of the values read, in SI units: a coordinate (m, any axis), a revolute joint
+#: value or rotation angle (rad), a prismatic joint value (m), a U95 (m).
+MAX_COORDINATE_M = 1000.0
+MAX_ANGLE_RAD = 1000.0
+MAX_TRAVEL_M = 1000.0
+U95_RANGE_M = (1e-9, 1.0)
+
+
+def joint_values(
+    table: Table, columns: list[int], opts: ImportOptions
+) -> tuple[list[str], NDArray[np.float64]]:
+    """Joint names and values in SI units (rad, m), each column in its header's unit."""
+    n = len(columns)
+    names = opts.joint_names or [without_unit(table.heads[k]) for k in columns]
+    if len(names) != n:
+        raise ConversionError(
+            table.path, f"--joint-names gives {len(names)} names for {n} joint columns."
+        )
+    try:
+        types = [JointType.parse(t) for t in opts.joint_types] or [JointType.REVOLUTE] * n
+    except ValueError as exc:
+        raise ConversionError(table.path, f"--joint-types: {exc}") from None
+    if len(types) != n:
+        raise ConversionError(
+            table.path, f"--joint-types gives {len(types)} types for {n} joint columns."
+        )
+    if len(set(names)) != n:
+        twice = next(name for name in names if names.count(name) > 1)
+        raise ConversionError(
+            table.path,
+            f"two joints are named '{twice}'; name each joint once (--joint-names).",
+        )
+    revolute = [k for k, t in zip(columns, types, strict=True) if t is JointType.REVOLUTE]
+    prismatic = [k for k, t in zip(columns, types, strict=True) if t is JointType.PRISMATIC]
+    stated_alike(table, revolute, "angle", opts.angle_unit, "revolute joint column")
+    stated_alike(table, prismatic, "length", opts.length_unit, "prismatic joint column")
+    q = np.empty((len(table.rows), n))
+    for j, (k, t) in enumerate(zip(columns, types, strict=True)):
+        what = f"joint {names[j]}"
+        q[:, j] = table.numbers(k, what, "is it a joint column (--joint-columns)?")
+        if t is JointType.PRISMATIC:
+            unit = column_unit(table, k, "length", opts.length_unit, DEFAULT_LENGTH_UNIT)
+            q[:, j] *= LENGTH_UNITS[unit]
+            table.in_range(k, q[:, j], what, -MAX_TRAVEL_M, MAX_TRAVEL_M, "m")
+        else:
+            unit = column_unit(table, k, "angle", opts.angle_unit, DEFAULT_ANGLE_UNIT)
+            q[:, j] *= ANGLE_UNITS[unit]
+            table.in_range(k, q[:, j], what, -MAX_ANGLE_RAD, MAX_ANGLE_RAD, "rad")
+    return names, q
+
+
+@dataclass
+class Source:
+    """The points of a source in SI units, before the joints are attached: per point its line,
+    name (when the source names points), position, covariance, orientation (x, y, z, w) and
+    time, and the joints when the source holds them."""
+
+    path: str
+    lines: list[int]
+    names: list[str] | None
+    xyz: NDArray[np.float64]
+    cov: NDArray[np.float64] | None = None
+    quat: NDArray[np.float64] | None = None
+    t_ns: NDArray[np.int64] | None = None
+    joint_names: list[str] = field(default_factory=list)
+    q: NDArray[np.float64] | None = None
+    notes: list[str] = field(default_factory=list)
+    warnings: list[str] = field(default_factory=list)
+    provenance: dict[str, str] = field(default_factory=dict)
+    named_by_option: bool = False
+
+    def take(self, rows: NDArray[np.int64]) -> Source:
+        """The points at ``rows``, in that order."""
+        at = rows.tolist()
+        return dataclasses.replace(
+            self,
+            lines=[self.lines[i] for i in at],
+            names=None if self.names is None else [self.names[i] for i in at],
+            xyz=self.xyz[rows],
+            cov=None if self.cov is None else self.cov[rows],
+            quat=None if self.quat is None else self.quat[rows],
+            t_ns=None if self.t_ns is None else self.t_ns[rows],
+            q=None if self.q is None else self.q[rows],
+        )
+
+
+def _u95_sigma(
+    table: Table, layout: Layout, xyz_unit: str, opts: ImportOptions
+) -> tuple[NDArray[np.float64], str | None]:
+    """σ per coordinate (m, 3) from the U95 columns, and the note on values floored: a U95 the
+    export rounded to 0 is floored at the column's resolution (its last decimal as written)."""
+    assert layout.u95 is not None
+    kind, cols = layout.u95
+    hint = "fix the export, or leave U95 out with --no-u95."
+    values, floored = [], []
+    for k in cols:
+        what = table.header[k]
+        v = table.numbers(k, what, hint)
+        negative = np.flatnonzero(v < 0)
+        if negative.size:
+            i = int(negative[0])
+            raise ConversionError(
+                table.path,
+                f"{what} is {table.texts(k)[i]}: a U95 cannot be negative; {hint}",
+                table.lines[i],
+            )
+        zero = v == 0
+        unit = column_unit(table, k, "length", opts.length_unit, xyz_unit)
+        if np.all(zero):
+            raise ConversionError(
+                table.path,
+                f"{what} is 0 at every point: the export holds no uncertainty; export U95 with "
+                "more decimals, or leave it out with --no-u95.",
+            )
+        if np.any(zero):
+            step = resolution(table.texts(k))
+            v = np.where(zero, step, v)
+            floored.append((int(zero.sum()), step, unit, what))
+        v = v * LENGTH_UNITS[unit]
+        table.in_range(k, v, what, *U95_RANGE_M, "m")
+        values.append(v)
+    if kind == "axes":
+        sd = np.column_stack(values) / U95_PER_COORDINATE
+    else:
+        sd = np.repeat(values[0][:, None], 3, axis=1) / U95_SPHERE
+    note = None
+    if floored:
+        count = sum(n for n, *_ in floored)
+        steps = sorted({f"{step:g} {unit}" for _, step, unit, _ in floored})
+        columns = ", ".join(what for *_, what in floored)
+        note = (
+            f"{table.path}: {count} U95 value(s) read 0 (rounded by the export) and were floored "
+            f"at the export's resolution, {' / '.join(steps)} (the last decimal written in "
+            f"{columns})."
+        )
+    return sd, note
+
+
+def _orientation(
+    table: Table, layout: Layout, opts: ImportOptions
+) -> tuple[NDArray[np.float64], str]:
+    """The target frame's orientation in the measurement frame as unit quaternions (m, 4:
+    x, y, z, w), and how it was read."""
+    assert layout.orientation is not None
+    kind, cols = layout.orientation
+    hint = "is it an orientation column (--orientation-columns)?"
+    values = np.column_stack([table.numbers(k, table.header[k], hint) for k in cols])
+    named = ", ".join(table.header[k] for k in cols)
+    if kind == "quaternion":
+        norm = np.linalg.norm(values, axis=1)
+        bad = np.flatnonzero(np.abs(norm - 1.0) > QUATERNION_TOLERANCE)
+        if bad.size:
+            i = int(bad[0])
+            raise ConversionError(
+                table.path,
+                f"the quaternion {named} has norm {norm[i]:.6g}, not 1 (within "
+                f"{QUATERNION_TOLERANCE:g}); check that these are the orientation's columns, "
+                "scalar first (--orientation-columns), and that the export writes enough "
+                "decimals.",
+                table.lines[i],
+            )
+        wxyz = values / norm[:, None]
+        return np.ascontiguousarray(wxyz[:, [1, 2, 3, 0]]), f"{named} (quaternion, scalar first)"
+    seq = opts.euler
+    if not re.fullmatch(r"[xyz]{3}|[XYZ]{3}", seq) or seq[0] == seq[1] or seq[1] == seq[2]:
+        raise ConversionError(
+            table.path,
+            f"--euler must be three axes, lower case for fixed axes (xyz: about X, then Y, "
+            f"then Z) or upper case for moving ones (ZYX), not '{seq}'.",
+        )
+    from scipy.spatial.transform import Rotation
+
+    stated_alike(table, cols, "angle", opts.angle_unit, "rotation angle")
+    units = [column_unit(table, k, "angle", opts.angle_unit, DEFAULT_ANGLE_UNIT) for k in cols]
+    radians = values * np.array([ANGLE_UNITS[u] for u in units])
+    for c, k in enumerate(cols):
+        table.in_range(k, radians[:, c], table.header[k], -MAX_ANGLE_RAD, MAX_ANGLE_RAD, "rad")
+    quat = Rotation.from_euler(seq, radians).as_quat()  # x, y, z, w
+    axes = "fixed" if seq.islower() else "moving"
+    return np.asarray(quat, dtype=np.float64), f"{named} (rotation angles, {axes} axes {seq})"
+
+
+def _times(table: Table, k: int, opts: ImportOptions) -> NDArray[np.int64]:
+    with np.errstate(over="ignore"):  # an absurd value becomes inf, refused below
+        t = table.numbers(k, "time", "is --time the right column?") * TIME_UNITS[opts.time_unit]
+    bad = np.flatnonzero(np.diff(t) <= 0)
+    if bad.size:
+        raise ConversionError(
+            table.path,
+            "time does not increase; sort the export by time, or leave --time out to import "
+            "the rows as stops.",
+            table.lines[bad[0] + 1],
+        )
+    if not t[-1] - t[0] <= 1e15:  # over 11 days (or infinite): the wrong unit
+        raise ConversionError(
+            table.path,
+            f"the time column spans {(t[-1] - t[0]) / 86.4e12:.3g} days; check --time-unit.",
+        )
+    return np.asarray(np.round(t - t[0]).astype(np.int64) + EPOCH_NS, dtype=np.int64)
+
+
+def from_table(table: Table, opts: ImportOptions) -> Source:
+    """The points (and joints, unless a joints file gives them) of a table with a header."""
+    own_joints = opts.joints_file is None
+    layout = column_layout(table, opts, joints=own_joints)
+    stated_alike(table, layout.xyz, "length", opts.length_unit, "coordinate")
+    units = [
+        column_unit(table, k, "length", opts.length_unit, DEFAULT_LENGTH_UNIT) for k in layout.xyz
+    ]
+    xyz = np.column_stack(
+        [
+            table.numbers(k, table.header[k], f"is --{a} the right column?") * LENGTH_UNITS[u]
+            for k, u, a in zip(layout.xyz, units, "xyz", strict=True)
+        ]
+    )
+    for c, k in enumerate(layout.xyz):
+        table.in_range(k, xyz[:, c], table.header[k], -MAX_COORDINATE_M, MAX_COORDINATE_M, "m")
+    names = None
+    if layout.name:
+        columns = [table.texts(k) for k in layout.name]
+        names = ["::".join(parts) for parts in zip(*columns, strict=True)]
+    src = Source(table.path, list(table.lines), names, xyz, notes=list(layout.notes))
+    src.named_by_option = opts.name_column is not None and table.find(opts.name_column) is not None
+    if layout.u95 is not None and not opts.no_u95:
+        sd, note = _u95_sigma(table, layout, units[0], opts)
+        src.cov = np.zeros((len(sd), 6))
+        src.cov[:, 0], src.cov[:, 3], src.cov[:, 5] = sd[:, 0] ** 2, sd[:, 1] ** 2, sd[:, 2] ** 2
+        src.provenance["u95_columns"] = ", ".join(table.header[k] for k in layout.u95[1])
+        if note:
+            src.notes.append(note)
+    elif opts.format == "leica" and not opts.no_u95:
+        raise ConversionError(
+            table.path,
+            "has no U95 column (U95, U(95), or U95 X, U95 Y, U95 Z, with a unit or not); its "
+            f"columns are {', '.join(table.header)}; export the U95, or import it without "
+            "with --no-u95 (or --format csv).",
+        )
+    if layout.orientation is not None:
+        src.quat, how = _orientation(table, layout, opts)
+        src.provenance["orientation"] = "true"
+        src.provenance["orientation_columns"] = how
+    if layout.time is not None:
+        src.t_ns = _times(table, layout.time, opts)
+    if own_joints:
+        if not layout.joints:
+            raise ConversionError(
+                table.path,
+                "has no joint columns (q1…, j1…, A1…, joint_1…, axis1…); its columns are "
+                f"{', '.join(table.header)}; name them with --joint-columns, or give the "
+                "joint values in a file with --joints-file.",
+            )
+        src.joint_names, src.q = joint_values(table, layout.joints, opts)
+    else:
+        own = [
+            h.text
+            for k, h in enumerate(table.heads)
+            if k not in layout.recognised and JOINT_HEADER.match(h.key)
+        ]
+        if own:
+            src.notes.append(
+                f"{table.path}: its joint columns ({', '.join(own)}) were left out: the joints "
+                "come from --joints-file."
+            )
+    return src
