@@ -41,9 +41,11 @@ from concurrent.futures import ProcessPoolExecutor
 import numpy as np
 
 from dhlog.identify.analytic import AIC_SIGMA_2D
+from dhlog.identify.axismodel import AxisModel
+from dhlog.identify.prediction import predict
 from dhlog.identify.run import process_data
 from dhlog.identify.sweeps import samples_with_encoders
-from dhlog.identify.whole import AxisModel, fit_whole_model, predict
+from dhlog.identify.whole import fit_whole_model
 from dhlog.io.memory import log_data_from_session
 from dhlog.model.fk import fk_point
 from dhlog.model.noise import NoiseModel

@@ -33,10 +33,12 @@ from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
 
+from dhlog.identify.axismodel import AxisModel
+from dhlog.identify.prediction import predict
 from dhlog.identify.run import measured_rotations, process_data
 from dhlog.identify.sweeps import samples_with_encoders
 from dhlog.identify.validate import fk_prediction_std
-from dhlog.identify.whole import AxisModel, fit_whole_model, predict
+from dhlog.identify.whole import fit_whole_model
 from dhlog.io.dhfile import DHModel
 from dhlog.io.memory import log_data_from_session
 from dhlog.model.fk import fk_point

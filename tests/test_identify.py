@@ -9,10 +9,12 @@ import math
 import numpy as np
 import pytest
 
+from dhlog.identify.axismodel import AxisModel, ParameterLayout
+from dhlog.identify.prediction import predict
 from dhlog.identify.run import ProcessResult, process_data
 from dhlog.identify.select import ModelRequest
 from dhlog.identify.validate import fk_prediction_std
-from dhlog.identify.whole import AxisModel, ParameterLayout, fit_whole_model, predict
+from dhlog.identify.whole import fit_whole_model
 from dhlog.io.dhfile import DHModel
 from dhlog.io.memory import log_data_from_session
 from dhlog.model.fk import fk_point
@@ -57,7 +59,7 @@ def test_the_adjoint_gradient_equals_the_jacobian_transpose_times_the_residual(
     """The full pass's gradient by the adjoint of the chain (no J formed) against ``JᵀWr`` of
     the explicit columns, with two targets, a clock offset, a tracker's 3x3 whitening, held-out
     samples and samples beyond the truncation: equal to rounding (1e-9 relative)."""
-    from dhlog.identify.whole import _accumulate, _gradient, _Samples
+    from dhlog.identify.passes import Samples, accumulate, gradient
 
     rob = load_robot(robot)
     session = simulate_session(rob, SimulationConfig(seed=1))
@@ -84,12 +86,12 @@ def test_the_adjoint_gradient_equals_the_jacobian_transpose_times_the_residual(
     rates = rng.normal(scale=0.5, size=Q.shape)
     model = dataclasses.replace(model, clock=0.003)
     layout = ParameterLayout.of(model.types, fit_scales=fit_scales, extra_targets=1, clock=True)
-    data = _Samples(
+    data = Samples(
         Q, P, rng.random(m) > 0.1, None, lambda x, W: nm.whiten(x, 1e-4), which, Qd=rates
     )
     n1, n2 = np.zeros(m), np.zeros(m)
-    _, g, cost, count, chi2 = _accumulate(model, layout, bases, data, 5.0, n1)
-    g2, cost2, count2, chi22 = _gradient(model, layout, bases, data, 5.0, n2)
+    _, g, cost, count, chi2 = accumulate(model, layout, bases, data, 5.0, n1)
+    g2, cost2, count2, chi22 = gradient(model, layout, bases, data, 5.0, n2)
     assert count == count2 < 0.95 * m
     assert np.abs(n1 - n2).max() < 1e-8  # in sigma: rounding of metre-sized sums
     assert cost2 == pytest.approx(cost, rel=1e-12)
@@ -349,7 +351,7 @@ def test_several_targets_are_fitted_jointly(tmp_path) -> None:  # type: ignore[n
 
 
 def axis6_cov(result: ProcessResult) -> np.ndarray:
-    from dhlog.identify.whole import axis_covariances
+    from dhlog.identify.relations import axis_covariances
 
     assert result.whole is not None
     return axis_covariances(result.whole)[5][:2, :2]

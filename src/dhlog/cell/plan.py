@@ -253,7 +253,8 @@ def select_poses(
     information, by the matrix determinant lemma), the model being the nominal's axes and tool
     point; a position target, isotropic noise ``noise`` or, with ``tracker``, its noise model
     along the line of sight from its station, and candidates beyond its range left out."""
-    from dhlog.identify.whole import AxisModel, ParameterLayout, predict
+    from dhlog.identify.axismodel import AxisModel, ParameterLayout
+    from dhlog.identify.prediction import predict
     from dhlog.model.fk import spatial_jacobian
 
     singular = np.array(

@@ -24,8 +24,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from dhlog.geometry._checks import FloatArray
+from dhlog.identify.prediction import predict
 from dhlog.identify.register import register_nominal
-from dhlog.identify.whole import WholeFit, fit_whole_model, predict
+from dhlog.identify.whole import WholeFit, fit_whole_model
 from dhlog.model.dh import StandardDH
 from dhlog.model.fk import fk_point
 

@@ -21,8 +21,9 @@ from dhlog.errors import DhlogError
 from dhlog.geometry._checks import FloatArray, wrap_angle
 from dhlog.geometry.fitting import PlaneFit
 from dhlog.geometry.lines import Line, Plane
+from dhlog.identify.axismodel import AxisModel
 from dhlog.identify.extract import Extraction, hayati_parameters, hayati_table
-from dhlog.identify.whole import AxisModel, WholeFit
+from dhlog.identify.whole import WholeFit
 from dhlog.model.dh import HayatiDH, JointType, StandardDH
 
 #: A DH parameter whose derivatives with respect to every fitted quantity stay below this is

@@ -37,6 +37,7 @@ from dhlog.identify.analytic import (
     partial_extraction,
     propagate_analytic,
 )
+from dhlog.identify.axismodel import AxisModel
 from dhlog.identify.extract import (
     NEAR_PARALLEL,
     Extraction,
@@ -46,6 +47,7 @@ from dhlog.identify.extract import (
     table_in_hayati_form,
 )
 from dhlog.identify.holdout import Holdout, cross_validate, score_poses
+from dhlog.identify.prediction import predict
 from dhlog.identify.propagate import (
     NOT_DETERMINED,
     fixed_reasons,
@@ -53,6 +55,7 @@ from dhlog.identify.propagate import (
     state_names,
 )
 from dhlog.identify.register import Registration
+from dhlog.identify.relations import axis_covariances, constrain_pairs, relative_tilt_variances
 from dhlog.identify.segment import Segmentation, segment_log
 from dhlog.identify.select import (
     AUTO,
@@ -101,16 +104,7 @@ from dhlog.identify.variance import (
     refit_with_model_error,
     whitened_residuals,
 )
-from dhlog.identify.whole import (
-    CHI3_MEDIAN,
-    AxisModel,
-    WholeFit,
-    axis_covariances,
-    constrain_pairs,
-    fit_whole_model,
-    predict,
-    relative_tilt_variances,
-)
+from dhlog.identify.whole import CHI3_MEDIAN, WholeFit, fit_whole_model
 from dhlog.io.dhfile import DHModel
 from dhlog.io.pipeline import Pipeline
 from dhlog.io.reader import LogData, read_log

@@ -36,7 +36,8 @@ from numpy.typing import NDArray
 from dhlog.errors import DhlogError
 from dhlog.geometry._checks import FloatArray
 from dhlog.identify.holdout import cross_validate
-from dhlog.identify.whole import WholeFit, fit_whole_model, predict
+from dhlog.identify.prediction import predict
+from dhlog.identify.whole import WholeFit, fit_whole_model
 from dhlog.model.dh import JointType
 from dhlog.model.terms import Lump, Terms, design
 

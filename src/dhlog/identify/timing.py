@@ -12,7 +12,7 @@ is an error proportional to their speed — a lag the geometry of the sweeps exp
    combined by their weights. The encoders are joined again at the corrected offset
    (:func:`rejoin`) before anything is fitted.
 2. **Maximum likelihood**: the whole-model fit carries ``δ`` as one more parameter (the
-   prediction at ``Q − δ q̇``, :mod:`dhlog.identify.whole`), so its σ and its correlations
+   prediction at ``Q − δ q̇``, :mod:`dhlog.identify.prediction`), so its σ and its correlations
    enter every DH parameter's uncertainty; should it move by more than a fraction of its σ,
    the encoders are joined once more and the fit repeated.
 

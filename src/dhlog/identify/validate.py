@@ -87,7 +87,7 @@ def fk_prediction_std(result: Identified, Q: FloatArray) -> FloatArray:
     ill-conditioned where the fit's are not), else from the DH model's propagated covariance."""
     whole = result.whole
     if whole is not None:
-        from dhlog.identify.whole import predict
+        from dhlog.identify.prediction import predict
 
         _, Jw = predict(whole.model, Q, whole.layout, whole.bases)
         assert Jw is not None
@@ -184,7 +184,7 @@ def table_gap(whole: WholeFit, ex: Extraction, Q: FloatArray, Q_table: FloatArra
     sampled joint vectors ``Q`` (the table's joint values ``Q_table``: the encoders scaled and
     deflected by the terms as the table sees them): 0 up to rounding when the extraction is
     exact."""
-    from dhlog.identify.whole import predict
+    from dhlog.identify.prediction import predict
 
     pick = np.unique(np.linspace(0, Q.shape[0] - 1, min(64, Q.shape[0])).astype(int))
     fitted, _ = predict(whole.model, Q[pick])

@@ -26,7 +26,8 @@ from numpy.typing import NDArray
 
 from dhlog.geometry._checks import FloatArray
 from dhlog.identify.holdout import pose_groups
-from dhlog.identify.whole import WholeFit, fit_whole_model, predict
+from dhlog.identify.prediction import predict
+from dhlog.identify.whole import WholeFit, fit_whole_model
 from dhlog.model.noise import model_error_sigma
 
 #: Per-sample uncertainties this far below the residuals (χ²/dof above it) call for a

@@ -1,0 +1,120 @@
+"""The pair relations of the whole-model fit: each axis's covariance and the variance of the
+angle between consecutive axes (the pairs' tolerances), and the fit held to the relations the
+data cannot reject (parallel, collinear).
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+
+from dhlog.geometry._checks import FloatArray
+from dhlog.geometry.lines import Line
+from dhlog.identify.whole import WholeFit
+from dhlog.model.dh import JointType
+
+
+def axis_covariances(fit: WholeFit) -> list[FloatArray]:
+    """Per axis, the 4×4 covariance of ``[δe·u, δe·v, δc·u, δc·v]`` (the form of
+    ``AxisFit.axis_covariance``): a tilt ``a`` about u moves the direction by ``−a v``, a tilt
+    ``b`` about v by ``+b u``."""
+    out = []
+    layout = fit.layout
+    for i, jt in enumerate(fit.model.types):
+        k = layout.axis_at[i]
+        width = 4 if jt is JointType.REVOLUTE else 2
+        C = fit.covariance[k : k + width, k : k + width]
+        B = np.zeros((4, width))
+        B[0, 1], B[1, 0] = 1.0, -1.0
+        if width == 4:
+            B[2, 2], B[3, 3] = 1.0, 1.0
+        out.append(np.asarray(B @ C @ B.T, dtype=np.float64))
+    return out
+
+
+def _relative_tilt_rows(fit: WholeFit, i: int) -> list[FloatArray]:
+    """The two rows (``layout.size``,) giving ``e · (δd_{i+1} − sign δd_i)`` for ``e`` in axis
+    i's perpendicular basis: the linearised change of the angle between axes i and i+1."""
+    model, layout, bases = fit.model, fit.layout, fit.bases
+    d1, d2 = model.axes[i].direction, model.axes[i + 1].direction
+    sign = 1.0 if d1 @ d2 >= 0 else -1.0
+    (u1, v1), (u2, v2) = bases[i], bases[i + 1]
+    k1, k2 = layout.axis_at[i], layout.axis_at[i + 1]
+    rows = []
+    for e in (u1, v1):  # δd = −a v + b u for tilts (a about u, b about v)
+        row = np.zeros(layout.size)
+        row[k2], row[k2 + 1] = -(e @ v2), e @ u2
+        row[k1], row[k1 + 1] = sign * (e @ v1), -sign * (e @ u1)
+        rows.append(row)
+    return rows
+
+
+def relative_tilt_variances(fit: WholeFit) -> list[float]:
+    """Per consecutive pair of axes, the variance (rad², per component) of the angle between
+    them, from the fit's whole covariance: the two axes' own variances less what they share —
+    axes that only ever moved together (a coupled move) are determined far better relative to
+    each other than each alone."""
+    out = []
+    for i in range(fit.model.n - 1):
+        rows = np.array(_relative_tilt_rows(fit, i))
+        out.append(float(np.trace(rows @ fit.covariance @ rows.T)) / 2.0)
+    return out
+
+
+def constrain_pairs(fit: WholeFit, parallel: list[int], collinear: list[int]) -> WholeFit:
+    """The fit under the constraint that axes ``i, i+1`` (0-based ``i``) are exactly parallel
+    (``parallel``) or the same line (``collinear``): the relations a classification fixes when
+    the data cannot reject them.
+
+    To first order the constrained optimum and its covariance follow from the unconstrained
+    ones without another pass over the samples (the model is linear far beyond these moves):
+    ``x = −C Aᵀ (A C Aᵀ)⁻¹ c₀`` and ``C' = C − C Aᵀ (A C Aᵀ)⁻¹ A C`` for the linearised
+    constraints ``c₀ + A x = 0``; then the constrained axes are made exactly parallel (or
+    coincident), a change of second order."""
+    model, layout, bases = fit.model, fit.layout, fit.bases
+    rows: list[FloatArray] = []
+    c0: list[float] = []
+    for i in sorted(set(parallel) | set(collinear)):
+        d1, d2 = model.axes[i].direction, model.axes[i + 1].direction
+        sign = 1.0 if d1 @ d2 >= 0 else -1.0
+        (u1, v1), (u2, v2) = bases[i], bases[i + 1]
+        k1, k2 = layout.axis_at[i], layout.axis_at[i + 1]
+        rows += _relative_tilt_rows(fit, i)
+        c0 += [float(e @ (d2 - sign * d1)) for e in (u1, v1)]
+        if i in collinear:
+            c1, c2 = model.axes[i].point, model.axes[i + 1].point
+            for e in (u1, v1):
+                row = np.zeros(layout.size)
+                row[k2 + 2], row[k2 + 3] = e @ u2, e @ v2
+                row[k1 + 2], row[k1 + 3] = -(e @ u1), -(e @ v1)
+                rows.append(row)
+                c0.append(float(e @ (c2 - c1)))
+    if not rows:
+        return fit
+    A, c = np.array(rows), np.array(c0)
+    C = fit.covariance
+    CA = C @ A.T
+    S = A @ CA
+    K = CA @ np.linalg.pinv(S)
+    delta = -K @ c
+    cov = C - K @ CA.T
+    moved = model.moved(np.asarray(delta, dtype=np.float64), layout, bases)
+    axes = list(moved.axes)
+    for i in range(len(axes) - 1):
+        if i in parallel or i in collinear:
+            d1 = axes[i].direction
+            sign = 1.0 if d1 @ axes[i + 1].direction >= 0 else -1.0
+            point = axes[i].project(axes[i + 1].point) if i in collinear else axes[i + 1].point
+            axes[i + 1] = Line(point, sign * d1)
+    snapped = replace(moved, axes=tuple(axes))
+    return replace(
+        fit,
+        model=snapped,
+        covariance=np.asarray((cov + cov.T) / 2, dtype=np.float64),
+        bases=snapped.bases(),
+        constrained={
+            **{i: "parallel" for i in parallel},
+            **{i: "collinear" for i in collinear},
+        },
+    )
