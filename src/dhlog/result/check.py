@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import json
 import math
-import os
 import unicodedata
 from collections.abc import Iterable, Sequence
 from pathlib import Path
@@ -21,6 +20,7 @@ from typing import Any
 
 from dhlog.errors import InputError
 from dhlog.io.dhfile import DHFileError
+from dhlog.io.paths import SameFiles
 
 #: The largest result (or DH) JSON read, and the largest batch summary (a result is ~40 kB).
 MAX_RESULT_BYTES = 100 * 2**20
@@ -433,36 +433,12 @@ def _check_nongeometric(data: dict[str, Any], f: _Fields, n: int) -> None:
 # ---------------------------------------------------------------------------- outputs
 
 
-def _identity(path: Path) -> Path:
-    try:
-        return path.resolve()
-    except (OSError, RuntimeError, ValueError):  # a symlink loop, a name the system refuses
-        return Path(os.path.abspath(path))
-
-
-def _inode(path: Path) -> tuple[int, int] | None:
-    try:
-        st = os.stat(path)
-    except (OSError, ValueError):
-        return None
-    return (st.st_dev, st.st_ino)
-
-
 def refuse_inputs_as_outputs(inputs: Iterable[tuple[Path, str]], outputs: Iterable[Path]) -> None:
     """:class:`InputIsOutputError` when an input (path, what it is) is one of ``outputs``: the
     same path once resolved (symbolic links followed), or the same file (hard links)."""
-    by_path: dict[Path, Path] = {}
-    by_inode: dict[tuple[int, int], Path] = {}
-    for out in outputs:
-        by_path.setdefault(_identity(out), out)
-        inode = _inode(out)
-        if inode is not None:
-            by_inode.setdefault(inode, out)
+    written = SameFiles(outputs)
     for path, what in inputs:
-        hit = by_path.get(_identity(path))
-        if hit is None:
-            inode = _inode(path)
-            hit = by_inode.get(inode) if inode is not None else None
+        hit = written.find(path)
         if hit is not None:
             raise InputIsOutputError(path, what, hit)
 
