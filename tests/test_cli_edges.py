@@ -19,7 +19,8 @@ import pytest
 from rich.console import Console
 from typer.testing import CliRunner
 
-from dhlog.cli.app import _print_values, app
+from dhlog.cli.app import app
+from dhlog.cli.results import print_values
 
 ROOT = Path(__file__).parents[1]
 SAMPLE = ROOT / "sample_logs" / "kr5_0.01mm.mcap"
@@ -140,6 +141,159 @@ def test_an_output_folder_that_is_a_file_is_said_to_be_one(args: list[str], tmp_
     assert a_file.read_text() == "mine\n" and sorted(tmp_path.iterdir()) == [a_file]
 
 
+# ------------------------------------------------------- user text: printed as text, one line
+
+
+@pytest.mark.parametrize(
+    ("args", "said"),
+    [
+        (
+            ["process", str(SAMPLE), "--model", "[/]"],
+            "--model must be one of auto, geometric, compliance, harmonic, full, not '[/]'.",
+        ),
+        (
+            ["process", str(SAMPLE), "--units", "[bold]x[/]"],
+            "--units must be mm or m, not '[bold]x[/]'.",
+        ),
+        (
+            ["process", str(SAMPLE), "--gravity", "[/]"],
+            "--gravity must be numbers separated by commas, not '[/]'.",
+        ),
+        (
+            ["simulate", "scara", "-o", "{d}/s.mcap", "--encoding", "[/]"],
+            "--encoding must be one of ros2, json, protobuf, not '[/]'.",
+        ),
+        (
+            ["simulate", "scara", "-o", "{d}/s.mcap", "--compliance", "[/]"],
+            "--compliance takes J:C groups separated by ',', not '[/]'.",
+        ),
+        (["fk", "kr5", "--q", "0", "--units", "[/]"], "--units must be mm or m, not '[/]'."),
+        (["fk", "kr5", "--q", "0", "--units", ":a:"], "--units must be mm or m, not ':a:'."),
+        (
+            [
+                "plan",
+                "kr5",
+                "--candidates",
+                "{d}/c.csv",
+                "--select",
+                "2",
+                "-o",
+                "{d}/o.csv",
+                "--angle-unit",
+                "[/]",
+            ],
+            "--angle-unit must be rad or deg, not '[/]'.",
+        ),
+    ],
+)
+def test_markup_in_an_option_value_is_printed_as_text(
+    args: list[str], said: str, tmp_path: Path
+) -> None:
+    """``--model '[/]'`` ended in rich's MarkupError (a traceback): an option's value is the
+    user's text, never markup (nor an emoji code: ``:a:`` was 🅰)."""
+    done = runner.invoke(app, [a.format(d=tmp_path) for a in args])
+    assert done.exit_code == 1 and isinstance(done.exception, SystemExit), done.output
+    assert _lines(done.stderr) == [f"error: {said}"]
+    assert not list(tmp_path.iterdir())
+
+
+def test_an_unknown_option_holding_markup_is_a_usage_error() -> None:
+    """The parser's own message quotes the option: it was a MarkupError traceback too."""
+    done = _dhlog("process", "--[/]x")
+    assert done.returncode == 1, done.stderr
+    assert _lines(done.stderr) == ["error: No such option: --[/]x (see dhlog --help)"]
+
+
+@pytest.mark.parametrize(
+    ("args", "said"),
+    [
+        (
+            ["simulate", "scara", "-o", "{d}/s.mcap", "--compliance", "inf:1e-8"],
+            "--compliance takes J:C groups separated by ',', not 'inf:1e-8'.",
+        ),
+        (
+            ["simulate", "scara", "-o", "{d}/s.mcap", "--harmonic", "nan:1e-4:0"],
+            "--harmonic takes J:A:B groups separated by ',', not 'nan:1e-4:0'.",
+        ),
+        (
+            ["simulate", "scara", "-o", "{d}/s.mcap", "--skip-joints", "inf"],
+            "--skip-joints takes joint numbers (1, 2, …), not 'inf'.",
+        ),
+        (
+            ["simulate", "scara", "-o", "{d}/s.mcap", "--skip-joints", "1.5"],
+            "--skip-joints takes joint numbers (1, 2, …), not '1.5'.",
+        ),
+        (
+            ["process", str(SAMPLE), "--harmonic-joints", "inf"],
+            "--harmonic-joints takes joint numbers (1, 2, …), not 'inf'.",
+        ),
+    ],
+)
+def test_a_joint_number_that_is_not_whole_is_refused_by_name(
+    args: list[str], said: str, tmp_path: Path
+) -> None:
+    """``inf`` or ``nan`` as a joint number ended in OverflowError / ValueError tracebacks;
+    ``--skip-joints 1.5`` skipped joint 1."""
+    done = runner.invoke(app, [a.format(d=tmp_path) for a in args])
+    assert done.exit_code == 1 and isinstance(done.exception, SystemExit), done.output
+    assert _lines(done.stderr) == [f"error: {said}"]
+    assert not list(tmp_path.iterdir())
+
+
+@pytest.mark.parametrize(
+    ("args", "code", "existing"),
+    [
+        (["process", "{odd}.mcap", "--no-rrd"], 2, None),  # the log cannot be read
+        (["process", str(SAMPLE), "--masses", "{odd}.urdf"], 1, None),  # no such file
+        (["show", "kr5", "-o", "{odd}.rrd"], 1, "{odd}.rrd"),  # exists, no --force
+        (["simulate", "scara", "-o", "{odd}/s.mcap"], 1, None),  # the folder does not exist
+        (["simulate", "scara", "-o", "{odd}/s.mcap"], 2, "{odd}"),  # the folder is a file
+    ],
+)
+def test_a_path_holding_a_line_break_is_shown_on_one_line(
+    args: list[str], code: int, existing: str | None, tmp_path: Path
+) -> None:
+    """An error is one line: a newline in a path is shown escaped, ``\\x0a``."""
+    odd = str(tmp_path / "a\nb")
+    if existing is not None:
+        Path(existing.format(odd=odd)).write_text("mine\n")
+    before = sorted(tmp_path.iterdir())
+    done = runner.invoke(app, [a.format(odd=odd) for a in args])
+    assert done.exit_code == code, done.output
+    (line,) = _lines(done.stderr)
+    assert line.startswith("error: ") and str(tmp_path / "a\\x0ab") in line, line
+    assert sorted(tmp_path.iterdir()) == before
+
+
+# ------------------------------------------------------------------- compare's recording
+
+
+@pytest.fixture(scope="module")
+def summary(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A batch summary (CSV) of real rows."""
+    from fuzz_results import make_bases, summary_bytes
+
+    folder = tmp_path_factory.mktemp("summary")
+    path = folder / "summary.csv"
+    path.write_bytes(summary_bytes(make_bases(folder / "bases").rows, "csv"))
+    return path
+
+
+def test_compare_keeps_an_existing_recording_without_force(summary: Path, tmp_path: Path) -> None:
+    """``compare SUMMARY --rrd old.rrd`` wrote over the recording; like every other output it
+    now needs --force, and is refused before any work."""
+    rrd = tmp_path / "trend.rrd"
+    rrd.write_bytes(b"mine")
+    done = runner.invoke(app, ["compare", str(summary), "--rrd", str(rrd)])
+    assert done.exit_code == 1, done.output
+    assert _lines(done.stderr) == [f"error: {rrd} exists; pass --force to overwrite it."]
+    assert done.stdout == "" and rrd.read_bytes() == b"mine"
+    assert sorted(tmp_path.iterdir()) == [rrd]
+    forced = runner.invoke(app, ["compare", str(summary), "--rrd", str(rrd), "--force"])
+    assert forced.exit_code == 0, forced.output
+    assert rrd.read_bytes() != b"mine" and rrd.stat().st_size > 0
+
+
 # ------------------------------------------------------------------------ damaged logs
 
 
@@ -227,7 +381,7 @@ def test_compare_tables_never_cut_a_value(width: int) -> None:
     """On a narrow terminal rich squeezed every column and cut values (and whole narrow
     columns) without a sign; every value now appears whole, within the width."""
     console = Console(width=width, record=True, file=open(os.devnull, "w"))
-    _print_values(console, "Changes (B − A; σ: both sessions combined)", HEADS, ROWS)
+    print_values(console, "Changes (B − A; σ: both sessions combined)", HEADS, ROWS)
     text = console.export_text()
     assert all(len(line) <= width for line in text.splitlines())
     assert "…" not in text

@@ -1,0 +1,389 @@
+"""The robot's cell, before and after a session: ``dhlog plan`` (the σ a protocol will give, the
+most informative poses) and ``dhlog compensate`` (targets corrected for a controller that keeps
+its nominal model)."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Annotated, Any
+
+import numpy as np
+import typer
+
+from dhlog.cli.common import EXIT_USAGE, fail, plain, refuse_existing, stderr, stdout
+from dhlog.cli.options import floats, load_model
+from dhlog.errors import DhlogError, OutputError
+
+
+def compensate(
+    result: Annotated[
+        Path, typer.Argument(metavar="RESULT", help="A result JSON (<stem>.dh.json).")
+    ],
+    nominal: Annotated[
+        str,
+        typer.Option(
+            metavar="NAME|FILE",
+            help="The model the controller runs: a library robot or a DH file (its limits from "
+            "the library, when it is one).",
+        ),
+    ],
+    output: Annotated[
+        Path, typer.Option("-o", "--output", metavar="CSV", help="The corrected targets.")
+    ],
+    joints: Annotated[
+        Path | None,
+        typer.Option(
+            metavar="CSV",
+            help="Joint targets as the controller would run them: one row per target, one "
+            "column per joint (a header row is read and kept).",
+        ),
+    ] = None,
+    poses: Annotated[
+        Path | None,
+        typer.Option(
+            metavar="CSV",
+            help="Cartesian targets of the last frame in the nominal's base frame: columns x, y, "
+            "z (mm) and qw, qx, qy, qz or rx, ry, rz (degrees, fixed X, Y, Z), optionally the "
+            "controller's configuration j1 … jn (--angle-unit). Written: the corrected joint "
+            "targets and the pose to command instead.",
+        ),
+    ] = None,
+    angle_unit: Annotated[
+        str, typer.Option(metavar="rad|deg", help="The unit of the targets' revolute joints.")
+    ] = "rad",
+    force: Annotated[bool, typer.Option("--force", help="Overwrite the output.")] = False,
+) -> None:
+    """Correct joint targets for a controller that keeps its nominal model: the calibrated robot
+    (its terms beyond the geometry included) then reaches the pose the controller intended."""
+    from dhlog.cell.compensate import compensate as corrected
+    from dhlog.cell.compensate import read_targets, targets_csv
+    from dhlog.io.writer import atomic_output
+    from dhlog.model.robots import load_robot, robot_names
+
+    if angle_unit not in ("rad", "deg"):
+        stderr.print(f"error: --angle-unit must be rad or deg, not '{plain(angle_unit)}'.")
+        raise typer.Exit(EXIT_USAGE)
+    if (joints is None) == (poses is None):
+        stderr.print("error: give the targets once: --joints CSV or --poses CSV.")
+        raise typer.Exit(EXIT_USAGE)
+    targets = joints if joints is not None else poses
+    assert targets is not None
+    if output.resolve() in {targets.resolve(), result.resolve()}:
+        stderr.print(f"error: {plain(output)} is an input; name another with -o.")
+        raise typer.Exit(EXIT_USAGE)
+    refuse_existing(output, force)
+    if poses is not None:
+        _compensate_poses(result, nominal, poses, output, angle_unit)
+        return
+    assert joints is not None
+    try:
+        model, nom = _result_and_nominal(result, nominal)
+        header, Q = read_targets(joints, model.table.n)
+        revolute = np.array([t.value == "revolute" for t in model.table.joint_types])
+        if angle_unit == "deg":
+            Q = np.where(revolute, np.radians(Q), Q)
+        limits = load_robot(nominal).limits if nominal in robot_names() else None
+        done = corrected(model, nom, Q, limits=limits)
+        shown = np.where(revolute, np.degrees(done.targets), done.targets)
+        if angle_unit != "deg":
+            shown = done.targets
+        with atomic_output(output) as f:
+            f.write(targets_csv(header, shown, done.problems).encode())
+    except DhlogError as exc:
+        fail(exc)
+    except OSError as exc:
+        fail(OutputError(output.parent, exc))
+    for row, why in sorted(done.problems.items()):
+        stdout.print(plain(f"{joints.name} row {row + 1}: not corrected: {why}."))
+    good = np.isfinite(done.targets[:, 0])
+    largest = float(np.max(np.abs(done.targets[good] - Q[good]))) if np.any(good) else 0.0
+    worst = float(np.max(done.error[good], initial=0.0))
+    stdout.print(
+        f"wrote {plain(output)}: {int(good.sum())} of {len(Q)} targets corrected (largest "
+        f"change {largest:.6g} rad or m; each within {worst:.1e} m and rad of the pose the "
+        "nominal gives the original)"
+    )
+
+
+def _result_and_nominal(result: Path, nominal: str) -> tuple[Any, Any]:
+    """The calibrated model of ``result`` and the controller's nominal, of the same robot."""
+    from dhlog.errors import InputError
+    from dhlog.io.dhfile import load_dh
+
+    model = load_dh(result)
+    nom = load_model(nominal)
+    if nom.table.n != model.table.n:
+        raise InputError(
+            f"{nominal}: has {nom.table.n} joints but {result} has {model.table.n}; give the "
+            "nominal of this robot."
+        )
+    return model, nom
+
+
+def _compensate_poses(
+    result: Path, nominal: str, poses: Path, output: Path, angle_unit: str
+) -> None:
+    """``dhlog compensate --poses CSV``: Cartesian targets to corrected joint targets."""
+    from dhlog.cell.compensate import compensate_poses, poses_csv, read_poses
+    from dhlog.io.writer import atomic_output
+    from dhlog.model.robots import load_robot, robot_names
+
+    try:
+        model, nom = _result_and_nominal(result, nominal)
+        T, config = read_poses(poses, model.table.n)
+        revolute = np.array([t.value == "revolute" for t in model.table.joint_types])
+        scale = np.where(revolute & (angle_unit == "deg"), 180 / math.pi, 1.0)
+        if config is not None:
+            config = config / scale
+        limits = load_robot(nominal).limits if nominal in robot_names() else None
+        done, _ = compensate_poses(model, nom, T, configuration=config, limits=limits)
+        with atomic_output(output) as f:
+            f.write(poses_csv(nom, done, scale).encode())
+    except DhlogError as exc:
+        fail(exc)
+    except OSError as exc:
+        fail(OutputError(output.parent, exc))
+    for row, why in sorted(done.problems.items()):
+        stdout.print(plain(f"{poses.name} row {row + 1}: not corrected: {why}."))
+    good = np.isfinite(done.targets[:, 0])
+    worst = float(np.max(done.error[good], initial=0.0))
+    stdout.print(
+        plain(
+            f"wrote {output}: {int(good.sum())} of {len(T)} Cartesian targets reached by the "
+            f"calibrated robot (each within {worst:.1e} m and rad), with the joint targets to "
+            "run and the pose to command instead."
+        )
+    )
+
+
+def plan(
+    robot: Annotated[str, typer.Argument(metavar="ROBOT", help="A library robot or a DH file.")],
+    protocol: Annotated[
+        str, typer.Option(metavar="sweeps|random-poses|coupled", help="What the robot does.")
+    ] = "random-poses",
+    poses: Annotated[int, typer.Option(help="Still poses of --protocol random-poses.")] = 40,
+    steps: Annotated[int, typer.Option(help="Stops per sweep (sweeps, coupled).")] = 12,
+    sweep_deg: Annotated[float, typer.Option(help="Sweep of each revolute joint, degrees.")] = 90.0,
+    noise_mm: Annotated[
+        float, typer.Option(help="The tracker's σ per coordinate, mm (isotropic).")
+    ] = 0.01,
+    tracker_rate: Annotated[float, typer.Option(help="Tracker samples per second.")] = 100.0,
+    six_dof: Annotated[
+        bool, typer.Option("--six-dof", help="A 6-DoF probe: its orientation measured too.")
+    ] = False,
+    seed: Annotated[int, typer.Option(help="Seed of the poses drawn.")] = 0,
+    station: Annotated[
+        str | None,
+        typer.Option(
+            metavar="X,Y,Z",
+            help="Where the tracker stands, mm in the robot's base frame: poses whose target "
+            "is beyond --range-m are left out and counted, and --tracker-um's noise is along "
+            "the line of sight from here.",
+        ),
+    ] = None,
+    range_m: Annotated[
+        str,
+        typer.Option(metavar="MIN,MAX", help="The distances the tracker measures, m."),
+    ] = "0.8,30",
+    tracker_um: Annotated[
+        str | None,
+        typer.Option(
+            metavar="RADIAL,TRANSVERSE,PER_M",
+            help="With --station: the tracker's noise model in place of --noise-mm — radial "
+            "and transverse σ (µm) and the transverse σ's growth (µm per m of distance), as "
+            'in a pipeline\'s [noise] model = "tracker".',
+        ),
+    ] = None,
+    candidates: Annotated[
+        Path | None,
+        typer.Option(
+            metavar="CSV",
+            help="Candidate joint vectors (one per row, a header row kept) to --select from.",
+        ),
+    ] = None,
+    select: Annotated[
+        int, typer.Option(metavar="N", help="With --candidates: the N most informative poses.")
+    ] = 0,
+    output: Annotated[
+        Path | None,
+        typer.Option(
+            "-o",
+            "--output",
+            metavar="FILE",
+            help="With --select: the chosen poses (CSV); else the prediction as JSON.",
+        ),
+    ] = None,
+    angle_unit: Annotated[
+        str, typer.Option(metavar="rad|deg", help="The unit of the candidates' revolute joints.")
+    ] = "rad",
+    force: Annotated[bool, typer.Option("--force", help="Overwrite the output.")] = False,
+) -> None:
+    """Before the session: the σ of every DH parameter and the FK σ over the workspace that a
+    protocol will give, and what it cannot determine; or, with --candidates and --select, the
+    most informative poses (D-optimal)."""
+    import json
+
+    from rich import box
+    from rich.table import Table
+
+    from dhlog.cell.plan import plan_session
+    from dhlog.io.dhfile import robot_or_dh_file
+    from dhlog.io.writer import atomic_output
+    from dhlog.simulate import SIX_DOF_TOOL_ROTATION, SimulationConfig, config_problems
+
+    tracker = _tracker(station, range_m, tracker_um)
+    if candidates is not None or select:
+        _select_poses(robot, candidates, select, output, noise_mm, angle_unit, force, tracker)
+        return
+    if output is not None:
+        refuse_existing(output, force)
+    try:
+        rob = robot_or_dh_file(robot)
+        cfg = SimulationConfig(
+            noise=noise_mm * 1e-3,
+            tracker_rate=tracker_rate,
+            motion="step",
+            sweep=math.radians(sweep_deg),
+            steps=steps,
+            protocol=protocol,  # type: ignore[arg-type]
+            poses=poses,
+            tool_rotation=SIX_DOF_TOOL_ROTATION if six_dof else None,
+            base_points=12,
+            seed=seed,
+        )
+        problems = config_problems(rob, cfg)
+        if problems:
+            stderr.print(f"error: {plain(problems[0])}.")
+            raise typer.Exit(EXIT_USAGE)
+        found = plan_session(rob, cfg, tracker)
+        if output is not None:
+            with atomic_output(output) as f:
+                f.write(json.dumps(found.document(rob.name), indent=2).encode())
+    except DhlogError as exc:
+        fail(exc)
+    except OSError as exc:
+        assert output is not None
+        fail(OutputError(output.parent, exc))
+    t = Table(
+        title=f"Predicted σ of {plain(rob.name)}'s parameters ({plain(protocol)}: {found.samples} "
+        f"samples at {found.poses} poses, {found.noise_model})",
+        title_justify="left",
+        box=box.SIMPLE_HEAD,
+        pad_edge=False,
+    )
+    for head in ("#", "σ θ [°]", "σ d / β [mm or °]", "σ a [mm]", "σ α [°]"):
+        t.add_column(plain(head), justify="right")
+    for i, (row, form) in enumerate(zip(found.rows_std, found.forms, strict=True)):
+        cells = []
+        for k, v in enumerate(row):
+            angular = k in (0, 3) or (k == 1 and form == "hayati")
+            cells.append(
+                "fixed" if not np.isfinite(v) else f"{v * (180 / math.pi if angular else 1e3):.5f}"
+            )
+        t.add_row(str(i + 1), *cells)
+    stdout.print(t)
+    sd = found.fk_sd * 1e3
+    stdout.print(
+        f"Predicted FK σ at {sd.size} random joint vectors within the limits: RMS "
+        f"{math.sqrt(float(np.mean(sd**2))):.4f} mm, 95 % {float(np.percentile(sd, 95)):.4f} mm, "
+        f"max {float(sd.max()):.4f} mm (3-D)."
+    )
+    for line in found.fixed:
+        stdout.print(plain(f"Fixed: {line}"))
+    if found.out_of_range:
+        stdout.print(
+            f"Left out: {found.out_of_range} of the drawn poses put the target beyond the "
+            "tracker's range."
+        )
+    if output is not None:
+        stdout.print(plain(f"wrote {output}"))
+
+
+def _tracker(station: str | None, range_m: str, tracker_um: str | None) -> Any:
+    """``plan``'s tracker options as a :class:`dhlog.cell.plan.Tracker` (None without a station)."""
+    from dhlog.cell.plan import Tracker
+
+    if station is None:
+        if tracker_um is not None:
+            stderr.print("error: --tracker-um needs --station (where the line of sight starts).")
+            raise typer.Exit(EXIT_USAGE)
+        return None
+    xyz = floats(station, "--station")
+    reach = floats(range_m, "--range-m")
+    model = floats(tracker_um, "--tracker-um") if tracker_um is not None else None
+    if not all(math.isfinite(v) for v in [*xyz, *reach, *(model or [])]):
+        stderr.print("error: --station, --range-m and --tracker-um take finite numbers.")
+        raise typer.Exit(EXIT_USAGE)
+    if len(xyz) != 3 or max(abs(v) for v in xyz) > 1e6:
+        stderr.print("error: --station needs X,Y,Z in mm (within a km).")
+        raise typer.Exit(EXIT_USAGE)
+    if len(reach) != 2 or not 0 <= reach[0] < reach[1]:
+        stderr.print("error: --range-m needs MIN,MAX in m with 0 ≤ MIN < MAX.")
+        raise typer.Exit(EXIT_USAGE)
+    if model is not None and (len(model) != 3 or min(model[:2]) <= 0 or model[2] < 0):
+        stderr.print(
+            "error: --tracker-um needs RADIAL,TRANSVERSE,PER_M: σ > 0 µm, growth ≥ 0 µm/m."
+        )
+        raise typer.Exit(EXIT_USAGE)
+    return Tracker(
+        (xyz[0] * 1e-3, xyz[1] * 1e-3, xyz[2] * 1e-3),
+        (reach[0], reach[1]),
+        None if model is None else (model[0] * 1e-6, model[1] * 1e-6, model[2] * 1e-6),
+    )
+
+
+def _select_poses(
+    robot: str,
+    candidates: Path | None,
+    count: int,
+    output: Path | None,
+    noise_mm: float,
+    angle_unit: str,
+    force: bool,
+    tracker: Any,
+) -> None:
+    """``dhlog plan --candidates CSV --select N -o CSV``."""
+    from dhlog.cell.compensate import read_targets, targets_csv
+    from dhlog.cell.plan import select_poses
+    from dhlog.io.dhfile import robot_or_dh_file
+    from dhlog.io.writer import atomic_output
+
+    if candidates is None or count < 1 or output is None:
+        stderr.print("error: --select N (N ≥ 1) needs --candidates CSV and -o CSV.")
+        raise typer.Exit(EXIT_USAGE)
+    if angle_unit not in ("rad", "deg"):
+        stderr.print(f"error: --angle-unit must be rad or deg, not '{plain(angle_unit)}'.")
+        raise typer.Exit(EXIT_USAGE)
+    if noise_mm <= 0:
+        stderr.print(f"error: --noise-mm must be > 0, not {noise_mm:g}.")
+        raise typer.Exit(EXIT_USAGE)
+    if output.resolve() == candidates.resolve():
+        stderr.print(f"error: {plain(output)} is the input; name another with -o.")
+        raise typer.Exit(EXIT_USAGE)
+    refuse_existing(output, force)
+    try:
+        rob = robot_or_dh_file(robot)
+        header, Q = read_targets(candidates, rob.n)
+        revolute = np.array([t.value == "revolute" for t in rob.table.joint_types])
+        if angle_unit == "deg":
+            Q = np.where(revolute, np.radians(Q), Q)
+        found = select_poses(rob, Q, count, noise_mm * 1e-3, tracker)
+        shown = np.where(revolute, np.degrees(Q), Q) if angle_unit == "deg" else Q
+        left = {k: "not chosen" for k in range(len(Q)) if k not in set(found.chosen)}
+        with atomic_output(output) as f:  # the chosen rows, numbered as in the candidates
+            f.write(targets_csv(header, shown, left).encode())
+    except DhlogError as exc:
+        fail(exc)
+    except OSError as exc:
+        fail(OutputError(output.parent, exc))
+    stdout.print(
+        plain(
+            f"wrote {output}: {count} of {len(Q)} candidate poses, the most informative "
+            f"(D-optimal: each adds the most to log det of the Fisher information); "
+            f"{found.singular} near a singularity and {found.out_of_range} beyond the "
+            f"tracker's range left out. Predicted FK σ over the workspace (RMS, 3-D, "
+            f"σ {noise_mm:g} mm, one sample a pose): {found.fk_sd_chosen * 1e3:.4f} mm, against "
+            f"{found.fk_sd_random * 1e3:.4f} mm for {count} drawn at random."
+        )
+    )

@@ -1,0 +1,102 @@
+"""A robot's DH table on its own: ``dhlog fk`` (the pose and Jacobian at joint values) and
+``dhlog show`` (a recording of each joint swept in turn)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import numpy as np
+import typer
+
+from dhlog.cli.common import EXIT_USAGE, fail, plain, refuse_existing, stderr, stdout
+from dhlog.cli.options import angles, floats, load_model
+from dhlog.errors import DhlogError
+
+
+def fk(
+    dh: Annotated[str, typer.Argument(help="A DH file, a result JSON, or a library robot name.")],
+    q: Annotated[
+        str,
+        typer.Option(
+            "--q", help="Joint values, comma-separated (in --angle-unit, m for prismatic)."
+        ),
+    ],
+    units: Annotated[str, typer.Option(help="mm or m for the printed translation.")] = "m",
+    angle_unit: Annotated[str, typer.Option(help="rad or deg: the unit of --q.")] = "rad",
+) -> None:
+    """Pose of the last frame and the spatial manipulator Jacobian at q."""
+    from dhlog.model.fk import fk_frames, fk_point, spatial_jacobian
+
+    try:
+        model = load_model(dh)
+    except DhlogError as exc:
+        fail(exc)
+    for option, value, allowed in (
+        ("units", units, ("mm", "m")),
+        ("angle-unit", angle_unit, ("rad", "deg")),
+    ):
+        if value not in allowed:
+            stderr.print(f"error: --{option} must be {' or '.join(allowed)}, not '{plain(value)}'.")
+            raise typer.Exit(EXIT_USAGE)
+    values = np.array(floats(q, "--q"))
+    if values.size == model.table.n:
+        values = angles(values, angle_unit, model.table.joint_types)
+    if values.size != model.table.n:
+        stderr.print(
+            f"error: --q has {values.size} values but {plain(dh)} has {model.table.n} joints."
+        )
+        raise typer.Exit(EXIT_USAGE)
+    scale = 1e3 if units == "mm" else 1.0
+    if model.terms is not None:  # the joints as they stand: deflected by the result's terms
+        deflected = model.joint_values(values)
+        shown_dq = ", ".join(f"{v:+.3g}" for v in deflected - values)
+        stdout.print(f"joint deflection by the nongeometric terms (rad or m): {shown_dq}")
+        values = deflected
+    T = fk_frames(model.table, values, T_base=model.T_base)[-1]
+    J = spatial_jacobian(model.table, values, T_base=model.T_base)
+    np.set_printoptions(precision=6, suppress=True, linewidth=120)
+    shown = T.copy()
+    shown[:3, 3] *= scale
+    stdout.print(f"T_base_last (translation in {units}):")
+    stdout.print(str(shown))
+    tool = fk_point(model.table, values, model.tool_point, T_base=model.T_base) * scale
+    stdout.print(f"tool point ({units}): {tool}")
+    stdout.print("spatial Jacobian [v; w] (rows vx vy vz wx wy wz, one column per joint):")
+    stdout.print(str(J))
+
+
+def show(
+    dh: Annotated[
+        str,
+        typer.Argument(
+            help="A DH file, a result JSON, or a library robot "
+            "(elbow, scara, stanford, kr5, puma560, ur5)."
+        ),
+    ],
+    output: Annotated[
+        Path | None,
+        typer.Option("-o", "--output", help="The .rrd to write (default: <name>.rrd)."),
+    ] = None,
+    steps: Annotated[int, typer.Option(help="Steps per joint sweep.")] = 60,
+    force: Annotated[
+        bool, typer.Option("--force", help="Overwrite an existing recording.")
+    ] = False,
+) -> None:
+    """A Rerun recording of a robot from its DH table, each joint swept in turn."""
+    from dhlog.model.robots import load_robot
+    from dhlog.present.recording import write_robot_recording
+
+    try:
+        model = load_model(dh)
+        limits = None
+        if not (Path(dh).suffix in (".json", ".toml") or Path(dh).exists()):
+            limits = load_robot(dh).limits
+        path = output if output is not None else Path(f"{Path(dh).stem}.rrd")
+        refuse_existing(path, force)
+        write_robot_recording(
+            model.table, path, T_base=model.T_base, limits=limits, title=Path(dh).stem, steps=steps
+        )
+    except DhlogError as exc:
+        fail(exc)
+    stdout.print(f"wrote {plain(path)}; open it with: rerun {plain(path)}")

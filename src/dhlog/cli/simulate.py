@@ -1,0 +1,314 @@
+"""``dhlog simulate``: a simulated calibration session and its ground truth."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Annotated, Any, Literal
+
+import numpy as np
+import typer
+
+from dhlog import __version__
+from dhlog.cli.common import (
+    EXIT_USAGE,
+    check_folder,
+    fail,
+    plain,
+    refuse_existing,
+    stderr,
+    stdout,
+)
+from dhlog.cli.options import joint_numbers, triples, tuples
+from dhlog.errors import DhlogError
+
+
+def simulate(
+    robot: Annotated[
+        str,
+        typer.Argument(
+            help="A library robot (kr5, puma560, ur5, elbow, scara, stanford) or a DH file."
+        ),
+    ],
+    output: Annotated[
+        Path,
+        typer.Option(
+            "-o",
+            "--output",
+            help="The MCAP file to write; the truth goes beside it as <stem>.truth.json.",
+        ),
+    ],
+    encoding: Annotated[
+        str, typer.Option(help="ros2 (as rosbag2 writes it), json or protobuf.")
+    ] = "ros2",
+    noise_mm: Annotated[
+        float, typer.Option(help="Tracker noise: σ (gaussian) or half-width (uniform), mm.")
+    ] = 0.01,
+    noise_kind: Annotated[str, typer.Option(help="gaussian or uniform.")] = "gaussian",
+    motion: Annotated[
+        str, typer.Option(help="continuous, or step (step-and-measure).")
+    ] = "continuous",
+    tracker_rate: Annotated[float, typer.Option(help="Tracker samples per second.")] = 100.0,
+    joint_rate: Annotated[
+        float, typer.Option(help="Joint-state samples per second (own clock).")
+    ] = 250.0,
+    sweep_deg: Annotated[float, typer.Option(help="Sweep of each revolute joint, degrees.")] = 90.0,
+    travel_mm: Annotated[float, typer.Option(help="Travel of each prismatic joint, mm.")] = 100.0,
+    steps: Annotated[int, typer.Option(help="Stops per sweep in step mode.")] = 12,
+    lock_poses: Annotated[
+        str, typer.Option(help="home (all sweeps from one pose) or random.")
+    ] = "home",
+    protocol: Annotated[
+        str,
+        typer.Option(
+            help="sweeps (each joint alone), random-poses (--poses still poses within the "
+            "limits, every joint changing) or coupled (each joint alone in --steps stops, "
+            "except joint 2: only with joint 3 as q3 = -q2); the last two measure only at stops."
+        ),
+    ] = "sweeps",
+    poses: Annotated[
+        str,
+        typer.Option(
+            metavar="N|CSV",
+            help="Still poses of --protocol random-poses: how many to draw, or a CSV of joint "
+            "vectors to visit in order (one per row, a header row kept; what plan --select "
+            "writes), in --angle-unit.",
+        ),
+    ] = "40",
+    angle_unit: Annotated[
+        str, typer.Option(metavar="rad|deg", help="The unit of --poses CSV's revolute joints.")
+    ] = "rad",
+    model_error_mm: Annotated[
+        float,
+        typer.Option(
+            help="σ per coordinate of an unmodelled smooth error of the robot's position "
+            "(what gravity and gears leave after a geometric model), mm."
+        ),
+    ] = 0.0,
+    compliance: Annotated[
+        str,
+        typer.Option(
+            metavar="J:C,…",
+            help="Gravity compliance of the truth: joint J yields C rad per N·m of the gravity "
+            "torque of the robot's lumped masses and payload (kr5, kr210), e.g. '2:2e-8,3:3e-8'.",
+        ),
+    ] = "",
+    payload_kg: Annotated[
+        float | None, typer.Option(help="Payload at the tool point for --compliance, kg.")
+    ] = None,
+    harmonic: Annotated[
+        str,
+        typer.Option(
+            metavar="J:A:B,…",
+            help="Transmission error of the truth: Δq_J = A sin q_J + B cos q_J, rad, e.g. "
+            "'2:1e-4:5e-5'.",
+        ),
+    ] = "",
+    six_dof: Annotated[
+        bool,
+        typer.Option(
+            "--six-dof",
+            help="A 6-DoF target: its frame, turned on the flange, written with its "
+            "orientation (PoseStamped / PoseInFrame).",
+        ),
+    ] = False,
+    orientation_noise_deg: Annotated[
+        float, typer.Option(help="σ of the 6-DoF target's orientation noise, degrees.")
+    ] = 0.0,
+    extra_targets: Annotated[
+        str,
+        typer.Option(
+            help="Further targets (SMRs) as 'x,y,z;x,y,z', mm in the flange frame, measured at "
+            "the same instants on /tracker/point_2, /tracker/point_3, …"
+        ),
+    ] = "",
+    base_points: Annotated[int, typer.Option(help="Points probed on the mounting plane.")] = 12,
+    outliers: Annotated[float, typer.Option(help="Fraction of gross outliers (mm-sized).")] = 0.0,
+    dropouts: Annotated[
+        float, typer.Option(help="Fraction of tracker samples lost in bursts.")
+    ] = 0.0,
+    no_encoders: Annotated[
+        bool, typer.Option("--no-encoders", help="Write no joint states (phase markers instead).")
+    ] = False,
+    phase: Annotated[bool, typer.Option("--phase", help="Write phase markers.")] = False,
+    point_type: Annotated[
+        str, typer.Option(help="ROS 2 target message: point (PointStamped) or pose (PoseStamped).")
+    ] = "point",
+    perturb_mm: Annotated[
+        float, typer.Option(help="σ of length errors of the simulated robot against its table, mm.")
+    ] = 0.0,
+    perturb_deg: Annotated[
+        float, typer.Option(help="σ of angle errors of the simulated robot, degrees.")
+    ] = 0.0,
+    skip_joints: Annotated[
+        str,
+        typer.Option(
+            help="Joints (1-based, comma-separated) never swept, to make a partial session."
+        ),
+    ] = "",
+    clock_offset_ms: Annotated[
+        float,
+        typer.Option(
+            help="Joint-state stamps written this many ms early (the tracker's clock is right): "
+            "the clock offset a pipeline would need."
+        ),
+    ] = 0.0,
+    start_day: Annotated[
+        float,
+        typer.Option(help="Days after 2025-11-21 04:40 UTC the session starts (a series)."),
+    ] = 0.0,
+    seed: Annotated[int, typer.Option(help="Random seed.")] = 0,
+    force: Annotated[bool, typer.Option("--force", help="Overwrite existing outputs.")] = False,
+) -> None:
+    """Write a simulated calibration session and its ground truth."""
+    from dhlog.io.dhfile import robot_or_dh_file
+    from dhlog.io.writer import sha256_of, write_session, write_truth
+    from dhlog.simulate import (
+        PROTOCOLS,
+        SIX_DOF_TOOL_ROTATION,
+        SimulationConfig,
+        config_problems,
+        simulate_session,
+        swept_joints,
+        truth_document,
+    )
+
+    choices = {
+        "encoding": (encoding, ("ros2", "json", "protobuf")),
+        "noise-kind": (noise_kind, ("gaussian", "uniform")),
+        "motion": (motion, ("continuous", "step")),
+        "lock-poses": (lock_poses, ("home", "random")),
+        "point-type": (point_type, ("point", "pose")),
+        "protocol": (protocol, PROTOCOLS),
+        "angle-unit": (angle_unit, ("rad", "deg")),
+    }
+    for option, (value, allowed) in choices.items():
+        if value not in allowed:
+            stderr.print(
+                f"error: --{option} must be one of {', '.join(allowed)}, not '{plain(value)}'."
+            )
+            raise typer.Exit(EXIT_USAGE)
+    extra_tools = triples(extra_targets, "--extra-targets")
+    compliant = [(int(j), c) for j, c in tuples(compliance, "--compliance", 2)]
+    harmonics = [(int(j), a, b) for j, a, b in tuples(harmonic, "--harmonic", 3)]
+    truth_path = output.with_name(output.stem + ".truth.json")
+    urdf_path = output.with_name(output.stem + ".urdf") if compliant else None
+    check_folder(output.parent)
+    for path in (output, truth_path, *([urdf_path] if urdf_path else [])):
+        refuse_existing(path, force)
+    pose_file = None if poses.strip().isdigit() else Path(poses)
+    if pose_file is not None and pose_file.resolve() in {
+        p.resolve() for p in (output, truth_path, *([urdf_path] if urdf_path else []))
+    }:
+        stderr.print(f"error: --poses {plain(poses)} is an output; name another.")
+        raise typer.Exit(EXIT_USAGE)
+    try:
+        rob = robot_or_dh_file(robot)
+        pose_list: tuple[tuple[float, ...], ...] = ()
+        if pose_file is not None:
+            pose_list = _pose_file(pose_file, rob, angle_unit)
+        cfg = SimulationConfig(
+            noise=noise_mm * 1e-3,
+            noise_kind=noise_kind,  # type: ignore[arg-type]
+            tracker_rate=tracker_rate,
+            joint_rate=joint_rate,
+            motion=motion,  # type: ignore[arg-type]
+            sweep=math.radians(sweep_deg),
+            travel=travel_mm * 1e-3,
+            steps=steps,
+            lock_poses=lock_poses,  # type: ignore[arg-type]
+            protocol=protocol,  # type: ignore[arg-type]
+            poses=len(pose_list) or int(poses),
+            pose_list=pose_list,
+            model_error=model_error_mm * 1e-3,
+            tool_rotation=SIX_DOF_TOOL_ROTATION if six_dof else None,
+            orientation_noise=math.radians(orientation_noise_deg),
+            extra_tools=tuple((x * 1e-3, y * 1e-3, z * 1e-3) for x, y, z in extra_tools),
+            base_points=base_points,
+            outliers=outliers,
+            dropouts=dropouts,
+            encoders=not no_encoders,
+            phase=phase or no_encoders,
+            perturb_length=perturb_mm * 1e-3,
+            perturb_angle=math.radians(perturb_deg),
+            skip_joints=tuple(joint_numbers(skip_joints, "--skip-joints")),
+            clock_offset=clock_offset_ms * 1e-3,
+            start_day=start_day,
+            compliance=tuple(compliant),
+            payload=payload_kg,
+            harmonic=tuple(harmonics),
+            seed=seed,
+        )
+        problems = config_problems(rob, cfg)
+        if problems:
+            stderr.print(f"error: {plain(problems[0])}.")
+            raise typer.Exit(EXIT_USAGE)
+        session = simulate_session(rob, cfg)
+        swept = swept_joints(rob, cfg)
+        for k, (got, jt) in enumerate(zip(session.sweeps, rob.table.joint_types, strict=True)):
+            asked = cfg.sweep if jt.value == "revolute" else cfg.travel
+            if k + 1 in swept and got < asked - 1e-9:
+                shown = (
+                    f"sweep {math.degrees(got):.1f}° (asked {math.degrees(asked):g}°)"
+                    if jt.value == "revolute"
+                    else f"travel {got * 1e3:.1f} mm (asked {asked * 1e3:g} mm)"
+                )
+                stdout.print(f"note: joint {k + 1}: {shown}, as its limits allow.")
+        kind: Literal["point", "pose"] = "pose" if point_type == "pose" else "point"
+        write_session(session, output, encoding, point_type=kind)  # type: ignore[arg-type]
+        pipeline = (
+            "phase_markers"
+            if no_encoders
+            else {"ros2": "ros2_tracker", "json": "foxglove_json", "protobuf": "foxglove_protobuf"}[
+                encoding
+            ]
+        )
+        doc = truth_document(
+            session,
+            source_path=output.name,
+            sha256=sha256_of(output),
+            pipeline=pipeline,
+            version=__version__,
+        )
+        write_truth(doc, truth_path)
+        if urdf_path is not None:  # the maker's description of the masses, for --masses
+            from dhlog.io.writer import atomic_output
+            from dhlog.simulate import masses_urdf
+
+            with atomic_output(urdf_path) as f:
+                f.write(masses_urdf(rob).encode())
+    except DhlogError as exc:
+        fail(exc)
+    stdout.print(
+        f"wrote {plain(output)} ({session.point_xyz.shape[0]} target samples, "
+        f"{session.joint_t_ns.size} joint states, {encoding}) and {plain(truth_path)}"
+        + (
+            f"; {plain(urdf_path)} (the nominal robot with its lumped masses, for --masses)"
+            if urdf_path
+            else ""
+        )
+    )
+    if six_dof:
+        stdout.print(
+            "note: the target's orientation is in /tracker/point: read it with "
+            "orientation = true in the pipeline's [streams.point].",
+            markup=False,
+        )
+    if extra_tools:
+        topics = ", ".join(f'"/tracker/point_{k + 2}"' for k in range(len(extra_tools)))
+        stdout.print(
+            f"note: read the further targets with extra_topics = [{topics}] in the pipeline's "
+            "[streams.point].",
+            markup=False,
+        )
+
+
+def _pose_file(path: Path, robot: Any, angle_unit: str) -> tuple[tuple[float, ...], ...]:
+    """``simulate --poses CSV``: the joint vectors (rad or m) to visit, in the file's order."""
+    from dhlog.cell.compensate import read_targets
+
+    _, Q = read_targets(path, robot.n)
+    if angle_unit == "deg":
+        revolute = np.array([t.value == "revolute" for t in robot.table.joint_types])
+        Q = np.where(revolute, np.radians(Q), Q)
+    return tuple(tuple(float(v) for v in q) for q in Q)
