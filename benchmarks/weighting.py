@@ -27,9 +27,9 @@ import polars as pl
 
 import dhlog.identify.variance as variance
 from dhlog.identify import run as process
+from dhlog.io.decode.frames import COVARIANCE_COLUMNS
 from dhlog.io.dhfile import DHModel
 from dhlog.io.memory import log_data_from_session
-from dhlog.io.reader import COVARIANCE_COLUMNS
 from dhlog.model.fk import fk_point
 from dhlog.model.robots import load_robot
 from dhlog.simulate import SimulationConfig, simulate_session

@@ -20,9 +20,10 @@ from scipy.spatial.transform import Rotation
 from typer.testing import CliRunner
 
 from dhlog.cli.app import app
+from dhlog.io.decode.frames import COVARIANCE_COLUMNS, ORIENTATION_COLUMNS
 from dhlog.io.exports.table import parse_header
 from dhlog.io.importer import STOP_JOINT_TIMES
-from dhlog.io.reader import COVARIANCE_COLUMNS, ORIENTATION_COLUMNS, read_log
+from dhlog.io.reader import read_log
 from dhlog.model.fk import fk_frames
 from dhlog.model.robots import load_robot
 

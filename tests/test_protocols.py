@@ -20,9 +20,9 @@ from dhlog.identify.propagate import NOT_DETERMINED
 from dhlog.identify.register import register_nominal
 from dhlog.identify.run import process_data
 from dhlog.identify.validate import fk_prediction_std
+from dhlog.io.decode.frames import COVARIANCE_COLUMNS
 from dhlog.io.dhfile import DHModel
 from dhlog.io.memory import log_data_from_session
-from dhlog.io.reader import COVARIANCE_COLUMNS
 from dhlog.io.writer import write_session
 from dhlog.model.fk import fk_point
 from dhlog.model.robots import Robot, load_robot

@@ -132,7 +132,7 @@ def test_a_joint_drifting_beyond_the_tolerance_is_not_locked() -> None:
 def test_clock_offset_within_the_join_tolerance_and_its_correction() -> None:
     """Encoder stamps 4 ms late: the sweeps are still found, the interpolated values are off by
     the motion in 4 ms, and the pipeline's clock_offset removes that."""
-    from dhlog.io.reader import _joints_frame
+    from dhlog.io.decode.frames import joints_frame
 
     late = crafted(SESSION, clock_error_s=0.004)
     seg = segment_log(late)
@@ -146,7 +146,7 @@ def test_clock_offset_within_the_join_tolerance_and_its_correction() -> None:
     blocks = [
         (late.joints["t_ns"].to_numpy(), (late.joint_names, late.joints.drop("t_ns").to_numpy()))
     ]
-    late.joints, _ = _joints_frame("crafted.mcap", "/joint_states", blocks, pipe)
+    late.joints, _ = joints_frame("crafted.mcap", "/joint_states", blocks, pipe)
     fixed = segment_log(late).table.filter(pl.col("segment") == 1)
     corners = np.array([k[0] for k in SESSION]) * S
     smooth = np.abs(fixed["t_ns"].to_numpy()[:, None] - corners).min(axis=1) > 0.011 * S

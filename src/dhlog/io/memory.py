@@ -26,7 +26,7 @@ def log_data_from_session(session: RecordedStreams, pipeline: Pipeline | None = 
     if session.point_rotation is not None:
         from scipy.spatial.transform import Rotation
 
-        from dhlog.io.reader import ORIENTATION_COLUMNS
+        from dhlog.io.decode.frames import ORIENTATION_COLUMNS
 
         quat = Rotation.from_matrix(session.point_rotation).as_quat(canonical=True)
         points = points.with_columns(

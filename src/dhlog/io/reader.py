@@ -5,67 +5,51 @@ Two paths give identical tables: the fast path walks the file with numpy
 (:mod:`dhlog.io.ros2`); the general path reads every message through the mcap library's decoders
 (``mcap_ros2``, protobuf, JSON). JSON and protobuf messages are decoded one by one on both paths,
 by the same field extractors. Time is the message's own stamp where it has one, else log time.
+
+Here: the pipeline's choice, each stream's channels found and checked, the streams assembled
+into :class:`LogData`, a rosbag2 bag folder read as one log, per-message zstd payloads; the
+decoding itself is :mod:`dhlog.io.decode`.
 """
 
 from __future__ import annotations
 
-import json
-import math
-import re
-import struct
-from collections.abc import Callable, Iterable
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import polars as pl
-from numpy.typing import NDArray
 
-from dhlog.errors import (
-    InputError,
-    JointNamesError,
-    MissingTopicError,
-    PipelineError,
-    UnknownSchemaError,
+from dhlog.errors import InputError, MissingTopicError, PipelineError
+from dhlog.io.decode.blocks import Block, decode_stream
+from dhlog.io.decode.frames import (
+    COVARIANCE_COLUMNS,
+    ORIENTATION_COLUMNS,
+    cartesian,
+    clean,
+    joints_frame,
+    points_frame,
 )
-from dhlog.io import ros2
+from dhlog.io.decode.messages import json_decoder, phase_value
 from dhlog.io.mcapscan import ZSTD_MAGIC, ChannelInfo, McapScan, RawMessages, scan_mcap
 from dhlog.io.pipeline import Pipeline, shipped_pipelines
-from dhlog.model.dh import JointType
 
-POINT_SCHEMAS = {
-    ros2.POINT_STAMPED: "point",
-    ros2.POSE_STAMPED: "pose.position",
-    "foxglove.Point3InFrame": "point",
-    "foxglove.PoseInFrame": "pose.position",
-    ros2.POSE_WITH_COVARIANCE: "pose.pose.position",
-}
-#: Point schemas that carry a covariance: the path of the row-major 6×6 (pose) covariance.
-COVARIANCE_SCHEMAS = {ros2.POSE_WITH_COVARIANCE: "pose.covariance"}
-#: Columns of the position covariance (m²) in the point frames and the measurement table.
-COVARIANCE_COLUMNS = ("cxx", "cxy", "cxz", "cyy", "cyz", "czz")
-#: Point schemas that carry the target frame's orientation, and where.
-ORIENTATION_SCHEMAS = {
-    ros2.POSE_STAMPED: "pose.orientation",
-    "foxglove.PoseInFrame": "pose.orientation",
-    ros2.POSE_WITH_COVARIANCE: "pose.pose.orientation",
-}
+#: What the rest of dhlog reads from here (the columns of the point table among them).
+__all__ = [
+    "COVARIANCE_COLUMNS",
+    "IMPORT_METADATA",
+    "ORIENTATION_COLUMNS",
+    "LogData",
+    "choose_pipeline",
+    "read_log",
+]
+
 #: The metadata record ``dhlog import`` writes; ``orientation = "true"`` in it turns the point
 #: stream's orientation on when no pipeline is named (the export carried a 6-DoF target's).
 IMPORT_METADATA = "dhlog.import"
-#: Columns of the target frame's orientation (unit quaternion) with ``orientation = true``.
-ORIENTATION_COLUMNS = ("rot_x", "rot_y", "rot_z", "rot_w")
-#: Point schemas that are transforms (the target is a frame's origin): single, and lists of
-#: them, selected by ``[streams.point] child_frame``.
-TRANSFORM_SCHEMAS = ("geometry_msgs/msg/TransformStamped", "foxglove.FrameTransform")
-TRANSFORM_LISTS = ("tf2_msgs/msg/TFMessage", "foxglove.FrameTransforms")
-#: Foxglove's list of poses in one frame: the target is ``poses[pose_index]``.
-POSES_IN_FRAME = "foxglove.PosesInFrame"
-#: JSON field keys of a spherical point stream (horizontal angle, vertical angle, distance).
-SPHERICAL_FIELDS = ("horizontal", "vertical", "distance")
-JOINT_SCHEMAS = (ros2.JOINT_STATE, "foxglove.JointStates")
-PHASE_SCHEMAS = (ros2.STRING,)
+#: No robot dhlog identifies has more joints than this (phase markers beyond it are damage).
+MAX_JOINTS = 64
 
 
 @dataclass
@@ -87,246 +71,6 @@ class LogData:
     set_aside: dict[str, int] = field(default_factory=dict)
     warnings: list[str] = field(default_factory=list)
     pipeline_reason: str | None = None
-
-
-def _get(obj: Any, path: str) -> Any:
-    for part in path.split("."):
-        if isinstance(obj, dict):
-            obj = obj[part]
-        elif isinstance(obj, list | tuple) or (part.isdigit() and not hasattr(obj, part)):
-            obj = obj[int(part)]  # a list item by index (ValueError on a name: unreadable)
-        else:
-            obj = getattr(obj, part)
-    return obj
-
-
-def _first(obj: Any, names: Iterable[str]) -> Any:
-    for name in names:
-        try:
-            return _get(obj, name)
-        except (KeyError, AttributeError, TypeError):
-            continue
-    return None
-
-
-def _stamp_ns(obj: Any) -> int | None:
-    """The message's own stamp: ROS ``header.stamp`` or Foxglove ``timestamp``; None if absent."""
-    stamp = _first(obj, ("header.stamp", "timestamp"))
-    if stamp is None:
-        return None
-    sec = _first(stamp, ("sec", "seconds"))
-    nsec = _first(stamp, ("nanosec", "nsec", "nanos"))
-    if sec is None:
-        return None
-    value = int(sec) * 1_000_000_000 + int(nsec or 0)
-    return value if value != 0 else None
-
-
-Extracted = tuple[int | None, Any]
-
-
-class _OtherFrameError(Exception):
-    """A transform message without the frame the pipeline selects: not this stream's sample."""
-
-
-class _TransformExtractor:
-    """Translation (and rotation) of the transform to ``child_frame`` in a TransformStamped,
-    FrameTransform or a list of them (TFMessage, FrameTransforms); without ``child_frame``, the
-    first child frame met (``frames``: every child frame seen, for the reader's warning)."""
-
-    def __init__(self, schema: str, child_frame: str, orientation: bool) -> None:
-        self.schema, self.orientation = schema, orientation
-        self.chosen: str | None = child_frame or None
-        self.frames: set[str] = set()
-
-    def __call__(self, msg: Any) -> Extracted:
-        items = list(_get(msg, "transforms")) if self.schema in TRANSFORM_LISTS else [msg]
-        children = [str(_get(item, "child_frame_id")) for item in items]
-        self.frames.update(children)
-        if self.chosen is None and children:
-            self.chosen = children[0]
-        if self.chosen not in children:
-            raise _OtherFrameError
-        item = items[children.index(self.chosen)]
-        if self.schema.startswith("foxglove"):
-            t, r = _get(item, "translation"), _get(item, "rotation")
-        else:
-            t, r = _get(item, "transform.translation"), _get(item, "transform.rotation")
-        xyz = [float(_get(t, "x")), float(_get(t, "y")), float(_get(t, "z"))]
-        if self.orientation:
-            xyz += [float(_get(r, c)) for c in ("x", "y", "z", "w")]
-        return _stamp_ns(item), xyz
-
-
-def _point_extractor(
-    schema: str,
-    fields: dict[str, str],
-    orientation: bool = False,
-    child_frame: str = "",
-    pose_index: int = 0,
-) -> Callable[[Any], Extracted] | None:
-    if schema in TRANSFORM_SCHEMAS or schema in TRANSFORM_LISTS:
-        return _TransformExtractor(schema, child_frame, orientation)
-    if schema == POSES_IN_FRAME and not fields:
-
-        def pose_of_many(msg: Any) -> Extracted:
-            pose = _get(msg, "poses")[pose_index]  # IndexError: counted as unreadable
-            p = _get(pose, "position")
-            xyz = [float(_get(p, "x")), float(_get(p, "y")), float(_get(p, "z"))]
-            if orientation:
-                r = _get(pose, "orientation")
-                xyz += [float(_get(r, c)) for c in ("x", "y", "z", "w")]
-            return _stamp_ns(msg), xyz
-
-        return pose_of_many
-    if fields:
-        spherical = any(k in fields for k in SPHERICAL_FIELDS)
-        keys = SPHERICAL_FIELDS if spherical else ("x", "y", "z")
-        paths = [fields.get(k, k) for k in keys]
-        stamp_path = fields.get("stamp_ns")
-
-        def custom(msg: Any) -> Extracted:
-            stamp = int(_get(msg, stamp_path)) if stamp_path else _stamp_ns(msg)
-            return stamp, [float(_get(msg, p)) for p in paths]
-
-        return custom
-    base = POINT_SCHEMAS.get(schema)
-    if base is None:
-        return None
-
-    cov_path = COVARIANCE_SCHEMAS.get(schema)
-    rot_path = ORIENTATION_SCHEMAS.get(schema) if orientation else None
-    if orientation and rot_path is None:
-        return None
-
-    def standard(msg: Any) -> Extracted:
-        p = _get(msg, base)
-        xyz = [float(_get(p, "x")), float(_get(p, "y")), float(_get(p, "z"))]
-        if rot_path is not None:
-            r = _get(msg, rot_path)
-            xyz += [float(_get(r, c)) for c in ("x", "y", "z", "w")]
-        if cov_path is not None:
-            c = [float(v) for v in _get(msg, cov_path)]
-            if len(c) != 36:
-                raise ValueError(f"covariance has {len(c)} entries, not 36")
-            xyz += [c[0], c[1], c[2], c[7], c[8], c[14]]
-        return _stamp_ns(msg), xyz
-
-    return standard
-
-
-def _joint_extractor(schema: str, fields: dict[str, str]) -> Callable[[Any], Extracted] | None:
-    if schema == "foxglove.JointStates" or fields.get("joints"):
-        key = fields.get("joints", "joints")
-
-        def foxglove(msg: Any) -> Extracted:
-            joints = _get(msg, key)
-            return _stamp_ns(msg), (
-                [str(_get(j, "name")) for j in joints],
-                [float(_get(j, "position")) for j in joints],
-            )
-
-        return foxglove
-    if schema == ros2.JOINT_STATE or fields.get("names"):
-        names_path, pos_path = fields.get("names", "name"), fields.get("positions", "position")
-
-        def ros(msg: Any) -> Extracted:
-            return _stamp_ns(msg), (
-                [str(n) for n in _get(msg, names_path)],
-                [float(v) for v in _get(msg, pos_path)],
-            )
-
-        return ros
-    return None
-
-
-_JOINT_IN_TEXT = re.compile(r"(\d+)\s*$")
-
-
-def _phase_value(value: Any, joint_names: list[str]) -> int | None:
-    """A phase marker as a 1-based joint index, or None for 'no joint is being moved'."""
-    if value is None or isinstance(value, bool):
-        return None
-    if isinstance(value, int | float):
-        return int(value) if int(value) > 0 else None
-    text = str(value).strip()
-    if text.startswith("{"):
-        try:
-            return _phase_value(json.loads(text).get("joint"), joint_names)
-        except (ValueError, AttributeError):
-            return None
-    if text in joint_names:
-        return joint_names.index(text) + 1
-    match = _JOINT_IN_TEXT.search(text)
-    return int(match.group(1)) if match and int(match.group(1)) > 0 else None
-
-
-def _phase_extractor(schema: str, fields: dict[str, str]) -> Callable[[Any], Extracted]:
-    key = fields.get("joint")
-
-    def phase(msg: Any) -> Extracted:
-        if key:
-            return _stamp_ns(msg), _get(msg, key)
-        value = _first(msg, ("joint", "data"))
-        return _stamp_ns(msg), value
-
-    return phase
-
-
-def _json_decoder(data: bytes) -> Any:
-    return json.loads(data)
-
-
-def _message_decoder(info: ChannelInfo) -> Callable[[bytes], Any] | None:
-    """Per-message decoder for a channel's encoding (the mcap library's, or json)."""
-    if info.message_encoding == "json":
-        return _json_decoder
-    schema = _schema_record(info)
-    if info.message_encoding == "cdr":
-        from mcap_ros2.decoder import DecoderFactory as Ros2Factory
-
-        return Ros2Factory().decoder_for("cdr", schema)
-    if info.message_encoding == "protobuf":
-        from mcap_protobuf.decoder import DecoderFactory as ProtobufFactory
-
-        return ProtobufFactory().decoder_for("protobuf", schema)
-    return None
-
-
-def _schema_record(info: ChannelInfo) -> Any:
-    from mcap.records import Schema
-
-    return Schema(id=1, name=info.schema_name, encoding=info.schema_encoding, data=info.schema_data)
-
-
-ACCEPTED = {
-    "point": "geometry_msgs/msg/PointStamped, geometry_msgs/msg/PoseStamped, "
-    "geometry_msgs/msg/PoseWithCovarianceStamped, geometry_msgs/msg/TransformStamped, "
-    "tf2_msgs/msg/TFMessage, foxglove.Point3InFrame, foxglove.PoseInFrame, "
-    "foxglove.PosesInFrame, foxglove.FrameTransform(s), or JSON with field paths",
-    "base": "the same types as the point stream",
-    "joints": "sensor_msgs/msg/JointState, foxglove.JointStates, or JSON with field paths",
-    "phase": 'std_msgs/msg/String or JSON {"joint": k}',
-}
-
-
-def _extractor(
-    stream: str,
-    info: ChannelInfo,
-    fields: dict[str, str],
-    orientation: bool = False,
-    child_frame: str = "",
-    pose_index: int = 0,
-) -> Callable[[Any], Extracted] | None:
-    if stream in ("point", "base"):
-        return _point_extractor(
-            info.schema_name, fields, orientation and stream == "point", child_frame, pose_index
-        )
-    if stream == "joints":
-        return _joint_extractor(info.schema_name, fields)
-    if info.schema_name in PHASE_SCHEMAS or info.message_encoding == "json" or fields:
-        return _phase_extractor(info.schema_name, fields)
-    return None
 
 
 def _channels_for(scan_channels: dict[int, ChannelInfo], topic: str) -> list[ChannelInfo]:
@@ -368,9 +112,6 @@ def choose_pipeline(path: str, channels: dict[int, ChannelInfo]) -> tuple[Pipeli
     return pipeline, reason
 
 
-Block = tuple[NDArray[np.int64], Any]
-
-
 def _damage_error(scan: McapScan, lacking: str) -> InputError | None:
     """The error for a file whose damage left too little to read (a pipeline or a required
     topic missing), naming where the damage is and what was recovered before it; None for an
@@ -392,264 +133,6 @@ def _damage_error(scan: McapScan, lacking: str) -> InputError | None:
         f"{scan.path}: the file {where}: {got}. Copy the log again from where it was recorded "
         "(a recording or copy cut short?)."
     )
-
-
-def _bulk_ok(
-    raw: RawMessages, info: ChannelInfo, schemas: tuple[str, ...], fields: dict[str, str]
-) -> bool:
-    return (
-        info.message_encoding == "cdr"
-        and info.schema_name in schemas
-        and not fields
-        and bool(np.all(ros2.little_endian(raw)))
-    )
-
-
-#: What a damaged payload can make a decoder raise (struct, UTF-8, JSON, protobuf, CDR parsers,
-#: recursion on nesting): caught per message, where it is understood, and counted.
-_DAMAGED = (Exception,)
-
-
-def _decode_stream(
-    stream: str,
-    infos: list[ChannelInfo],
-    raw_by_channel: dict[int, RawMessages] | None,
-    general: dict[int, list[tuple[int, Any]]] | None,
-    fields: dict[str, str],
-    path: str,
-    orientation: bool = False,
-    damaged: list[tuple[str, int, int, str]] | None = None,
-    child_frame: str = "",
-    notes: list[str] | None = None,
-    pose_index: int = 0,
-) -> list[Block]:
-    """Blocks of (times, values) of one stream over all its channels.
-
-    Values are an (m, 3) array for point streams, ``(names, (m, k) array)`` for joints and a
-    list for phase markers. ``raw_by_channel`` is the fast path's input (bulk CDR where the
-    layout allows, per-message decoding otherwise); ``general`` the mcap library's messages.
-    Messages that cannot be decoded are skipped and reported in ``damaged`` as (topic, count,
-    total, first reason); when none of a channel's messages can be read, that is an error.
-    """
-    blocks: list[Block] = []
-    for info in infos:
-        extract = _extractor(stream, info, fields, orientation, child_frame, pose_index)
-        if extract is None:
-            accepted = ACCEPTED[stream]
-            if orientation and stream == "point":
-                accepted = (
-                    "geometry_msgs/msg/PoseStamped, foxglove.PoseInFrame, foxglove.PosesInFrame "
-                    "or transforms (the pipeline asks "
-                    "for the target's orientation: orientation = true)"
-                )
-            raise UnknownSchemaError(
-                path, info.topic, info.schema_name, info.message_encoding, accepted
-            )
-        bad, first_bad = 0, ""
-        if raw_by_channel is not None:
-            raw = raw_by_channel.get(info.id)
-            if raw is None or len(raw) == 0:
-                continue
-            bulk = _bulk_blocks(stream, info, raw, fields, orientation)
-            if bulk is not None:
-                blocks.extend(bulk)
-                continue
-            try:
-                decode = _message_decoder(info)
-            except _DAMAGED as exc:  # the schema itself is damaged
-                raise UnknownSchemaError(
-                    path,
-                    info.topic,
-                    info.schema_name,
-                    info.message_encoding,
-                    f"{ACCEPTED[stream]} (its schema cannot be parsed: {_reason(exc)})",
-                ) from None
-            if decode is None:
-                raise UnknownSchemaError(
-                    path, info.topic, info.schema_name, info.message_encoding, ACCEPTED[stream]
-                )
-            msgs = []
-            for i in range(len(raw)):
-                try:
-                    msgs.append((int(raw.log_time[i]), decode(raw.payload(i))))
-                except _DAMAGED as exc:
-                    bad += 1
-                    first_bad = first_bad or f"log time {int(raw.log_time[i])}: {_reason(exc)}"
-        else:
-            assert general is not None
-            msgs = general.get(info.id, [])
-        total = len(msgs) + bad
-        t_list, values = [], []
-        for log_time, msg in msgs:
-            try:
-                stamp, value = extract(msg)
-                value = _checked(stream, value)
-                if stamp is not None and not 0 <= stamp < 2**63:
-                    raise ValueError(f"stamp {stamp} ns out of range")
-            except _OtherFrameError:  # a transform of another frame: not a sample
-                total -= 1
-                continue
-            except _DAMAGED as exc:
-                bad += 1
-                first_bad = first_bad or f"log time {log_time}: {_reason(exc)}"
-                continue
-            t_list.append(stamp if stamp is not None else log_time)
-            values.append(value)
-        if bad and not values:
-            if fields:
-                raise InputError(
-                    f"{path}: {info.topic}: the pipeline's [streams.{stream}] fields "
-                    f"({', '.join(f'{k} = {v!r}' for k, v in fields.items())}) do not fit its "
-                    f"messages ({first_bad}); fix the field paths."
-                )
-            raise UnknownSchemaError(
-                path,
-                info.topic,
-                info.schema_name,
-                info.message_encoding,
-                f"{ACCEPTED[stream]} (none of its {total} message(s) could be read; first: "
-                f"{first_bad})",
-            )
-        if bad and damaged is not None:
-            damaged.append((info.topic, bad, total, first_bad))
-        if isinstance(extract, _TransformExtractor):
-            frames = ", ".join(sorted(extract.frames)) or "none"
-            if len(extract.frames) > 1 and not child_frame and notes is not None:
-                notes.append(
-                    f"{path}: {info.topic} carries the frames {frames}; the target is "
-                    f"'{extract.chosen}' (set child_frame in [streams.{stream}] to choose)."
-                )
-            if not values and not bad:
-                raise InputError(
-                    f"{path}: {info.topic} has no transform to the frame '{child_frame}' "
-                    f"(frames: {frames}); set child_frame in "
-                    f"[streams.{stream}]."
-                )
-        t = np.asarray(t_list, dtype=np.int64)
-        if stream in ("point", "base"):
-            width = max((len(v) for v in values), default=3)
-            rows = [v + [math.nan] * (width - len(v)) for v in values]
-            blocks.append((t, np.asarray(rows, dtype=np.float64).reshape(-1, width)))
-        elif stream == "joints":
-            layouts: dict[tuple[str, ...], list[int]] = {}
-            for i, (names, _) in enumerate(values):
-                layouts.setdefault(tuple(names), []).append(i)
-            for names_key, rows_of in layouts.items():
-                q = np.asarray([values[r][1] for r in rows_of], dtype=np.float64)
-                blocks.append((t[rows_of], (list(names_key), q.reshape(len(rows_of), -1))))
-        else:
-            blocks.append((t, values))
-    return blocks
-
-
-def _reason(exc: BaseException) -> str:
-    """One line on why a message or schema could not be read."""
-    text = " ".join(str(exc).split())
-    return f"{type(exc).__name__}: {text[:120]}" if text else type(exc).__name__
-
-
-def _checked(stream: str, value: Any) -> Any:
-    """``value`` as the stream needs it, or ValueError: numbers for points; names and as many
-    positions for joint states (a message with fewer positions than names keeps the names that
-    have one)."""
-    if stream in ("point", "base"):
-        return [float(v) for v in value]
-    if stream == "joints":
-        names, positions = value
-        positions = [float(v) for v in positions]
-        names = [str(n) for n in names][: len(positions)]
-        if not names:
-            raise ValueError("a joint state without positions")
-        return names, positions[: len(names)]
-    return value
-
-
-def _bulk_blocks(
-    stream: str, info: ChannelInfo, raw: RawMessages, fields: dict[str, str], orientation: bool
-) -> list[Block] | None:
-    """The bulk CDR decode of a channel where its type and layout allow, else None (also when
-    the bulk decode meets a payload that lies about its layout: the per-message path then reads
-    what can be read and counts the rest)."""
-    with_rot = orientation and stream == "point"
-    try:
-        if with_rot and _bulk_ok(raw, info, (ros2.POSE_STAMPED,), fields):
-            stamps, xyz = ros2.decode_point_bulk(raw, orientation=True)
-            return [(np.where(stamps != 0, stamps, raw.log_time), xyz)]
-        if with_rot and _bulk_ok(raw, info, (ros2.POSE_WITH_COVARIANCE,), fields):
-            # the pose's orientation sits where PoseStamped's does: x, y, z, q (4), cov (6)
-            stamps, rot = ros2.decode_point_bulk(raw, orientation=True)
-            _, cov = ros2.decode_point_bulk(raw, covariance=True)
-            xyz = np.hstack([rot, cov[:, 3:]])
-            return [(np.where(stamps != 0, stamps, raw.log_time), xyz)]
-        if (
-            not with_rot
-            and stream in ("point", "base")
-            and _bulk_ok(raw, info, (ros2.POINT_STAMPED, ros2.POSE_STAMPED), fields)
-        ):
-            stamps, xyz = ros2.decode_point_bulk(raw)
-            return [(np.where(stamps != 0, stamps, raw.log_time), xyz)]
-        if (
-            not with_rot
-            and stream in ("point", "base")
-            and _bulk_ok(raw, info, (ros2.POSE_WITH_COVARIANCE,), fields)
-        ):
-            stamps, xyz = ros2.decode_point_bulk(raw, covariance=True)
-            return [(np.where(stamps != 0, stamps, raw.log_time), xyz)]
-        if stream == "joints" and _bulk_ok(raw, info, (ros2.JOINT_STATE,), fields):
-            return [(stamps, (names, q)) for stamps, names, q in ros2.decode_joint_state_bulk(raw)]
-    except (ValueError, IndexError, struct.error, UnicodeDecodeError, OverflowError):
-        return None
-    return None
-
-
-def _points_frame(blocks: list[Block], scale: float, orientation: bool = False) -> pl.DataFrame:
-    """``t_ns, x, y, z`` (m), with ``orientation`` the target frame's orientation
-    (``ORIENTATION_COLUMNS``, a unit quaternion), and the position covariance (m²,
-    ``COVARIANCE_COLUMNS``) when any channel carries one (null for samples of channels that do
-    not). Block values: ``x, y, z``, then with ``orientation`` the quaternion (4), then the
-    covariance (6) where the channel has one."""
-    t = np.concatenate([b[0] for b in blocks]) if blocks else np.zeros(0, dtype=np.int64)
-    first_cov = 7 if orientation else 3
-    with_cov = any(b[1].shape[1] == first_cov + 6 for b in blocks)
-    width = first_cov + 6 if with_cov else first_cov
-    parts = []
-    for b in blocks:
-        v = b[1]
-        if v.shape[1] < width:
-            v = np.hstack([v, np.full((v.shape[0], width - v.shape[1]), np.nan)])
-        parts.append(v)
-    arr = np.concatenate(parts) if parts else np.zeros((0, width))
-    cols: dict[str, Any] = {
-        "t_ns": t.astype(np.int64),
-        "x": arr[:, 0] * scale,
-        "y": arr[:, 1] * scale,
-        "z": arr[:, 2] * scale,
-    }
-    if with_cov:
-        for k, name in enumerate(COVARIANCE_COLUMNS):
-            cols[name] = pl.Series(name, arr[:, first_cov + k] * scale**2, nan_to_null=True)
-    if orientation:
-        quat = arr[:, 3:7]
-        quat = quat / np.linalg.norm(quat, axis=1, keepdims=True)
-        for k, name in enumerate(ORIENTATION_COLUMNS):
-            cols[name] = quat[:, k]
-    return pl.DataFrame(cols)
-
-
-def _cartesian(values: NDArray[np.float64], pipeline: Pipeline) -> NDArray[np.float64]:
-    """A spherical stream's (horizontal angle, vertical angle, distance) as x, y, z in the
-    tracker's own frame (length unit unchanged): the horizontal angle turns from +x towards +y
-    about +z, the vertical angle is from the zenith (+z) or, with ``vertical = "elevation"``,
-    from the horizon; angles in the pipeline's ``angle_unit``."""
-    scale = pipeline.angle_scale
-    hz, v, d = values[:, 0] * scale, values[:, 1] * scale, values[:, 2]
-    if pipeline.streams["point"].vertical == "elevation":
-        v = math.pi / 2 - v
-    out = values.copy()
-    out[:, 0] = d * np.sin(v) * np.cos(hz)
-    out[:, 1] = d * np.sin(v) * np.sin(hz)
-    out[:, 2] = d * np.cos(v)
-    return out
 
 
 def read_log(
@@ -752,7 +235,7 @@ def read_log(
     with_rot = pipeline.streams["point"].orientation
 
     def blocks_of(stream: str, channels: list[ChannelInfo] | None = None) -> list[Block]:
-        return _decode_stream(
+        return decode_stream(
             stream,
             infos[stream] if channels is None else channels,
             scan.messages if fast else None,
@@ -769,9 +252,9 @@ def read_log(
     def points_of(channels: list[ChannelInfo] | None = None) -> pl.DataFrame:
         blocks = blocks_of("point", channels)
         if pipeline.streams["point"].coordinates == "spherical":
-            blocks = [(t, _cartesian(v, pipeline)) for t, v in blocks]
-        frame = _points_frame(blocks, pipeline.length_scale, with_rot)
-        return _clean(frame, "point", set_aside)
+            blocks = [(t, cartesian(v, pipeline)) for t, v in blocks]
+        frame = points_frame(blocks, pipeline.length_scale, with_rot)
+        return clean(frame, "point", set_aside)
 
     points = points_of()
     if targets:  # one frame per target, labelled 0 (the primary one), 1, 2, …
@@ -782,18 +265,18 @@ def read_log(
         points = pl.concat(frames, how="diagonal").sort("t_ns", maintain_order=True)
     base = None
     if "base" in infos:
-        base = _clean(_points_frame(blocks_of("base"), pipeline.length_scale), "base", set_aside)
+        base = clean(points_frame(blocks_of("base"), pipeline.length_scale), "base", set_aside)
     joints, joint_names = None, list(pipeline.joint_names or [])
     if "joints" in infos:
-        joints, joint_names = _joints_frame(
+        joints, joint_names = joints_frame(
             name, infos["joints"][0].topic, blocks_of("joints"), pipeline
         )
-        joints = _clean(joints, "joints", set_aside)
+        joints = clean(joints, "joints", set_aside)
     phase = None
     if "phase" in infos:
         marks_blocks = blocks_of("phase")
         t = np.concatenate([b[0] for b in marks_blocks]) if marks_blocks else np.zeros(0, np.int64)
-        marks = [_phase_value(v, joint_names) for b in marks_blocks for v in b[1]]
+        marks = [phase_value(v, joint_names) for b in marks_blocks for v in b[1]]
         limit = len(joint_names) if joint_names else MAX_JOINTS
         absurd = sum(1 for m in marks if m is not None and m > limit)
         if absurd:  # a marker naming joint 999999999 is damage, not a joint to allocate
@@ -813,12 +296,6 @@ def read_log(
     return LogData(
         name, pipeline, points, joints, joint_names, base, phase, set_aside, warnings, reason
     )
-
-
-#: No robot dhlog identifies has more joints than this (phase markers beyond it are damage).
-MAX_JOINTS = 64
-#: Larger coordinates (m) or encoder values (rad, m) are not measurements.
-MAX_VALUE = 1e5
 
 
 def _imported_orientation(path: str | Path) -> bool:
@@ -921,68 +398,6 @@ def _unzstd_messages(messages: dict[int, RawMessages], path: str) -> dict[int, R
     return out
 
 
-def _clean(frame: pl.DataFrame, stream: str, set_aside: dict[str, int]) -> pl.DataFrame:
-    value_cols = [c for c in frame.columns if c != "t_ns"]
-    finite = (
-        pl.all_horizontal(
-            [
-                pl.col(c).is_finite().fill_null(c in COVARIANCE_COLUMNS)  # no covariance: kept
-                for c in value_cols
-            ]
-        )
-        if value_cols
-        else pl.lit(True)
-    )
-    kept = frame.filter(finite)
-    dropped = frame.height - kept.height
-    if dropped:
-        set_aside[f"non_finite_{stream}"] = dropped
-    # values no measurement has (beyond 100 km, or 10⁶ rad of encoder travel) and stamps
-    # outside 1970-2262 are damage, not data: set aside before any arithmetic overflows
-    ranged = [c for c in value_cols if c in ("x", "y", "z") or c.startswith("q_")]
-    sane = pl.all_horizontal([pl.col(c).abs() < MAX_VALUE for c in ranged]) if ranged else True
-    before = kept.height
-    kept = kept.filter(sane & (pl.col("t_ns") >= 0))
-    if kept.height < before:
-        set_aside[f"out_of_range_{stream}"] = before - kept.height
-    return kept.sort("t_ns", maintain_order=True)
-
-
-def _joints_frame(
-    path: str, topic: str, blocks: list[Block], pipeline: Pipeline
-) -> tuple[pl.DataFrame, list[str]]:
-    """The joints table in chain order from blocks of (times, (names, positions))."""
-    seen: list[str] = []
-    for _, (names, _) in blocks:
-        seen.extend(n for n in names if n not in seen)
-    expected = list(pipeline.joint_names) if pipeline.joint_names else seen
-    missing = [n for n in expected if n not in seen]
-    if missing or not expected:
-        raise JointNamesError(path, topic, expected, seen)
-    column = {n: i for i, n in enumerate(expected)}
-    t = np.concatenate([b[0] for b in blocks]).astype(np.int64)
-    q = np.full((t.size, len(expected)), np.nan)
-    row = 0
-    for times, (names, values) in blocks:
-        src = [k for k, n in enumerate(names) if n in column]
-        dst = [column[names[k]] for k in src]
-        q[row : row + times.size, dst] = values[:, src]
-        row += times.size
-    types = pipeline.joint_types or (None,) * len(expected)
-    if len(types) != len(expected):
-        raise PipelineError(
-            pipeline.source,
-            f"[joints] types lists {len(types)} joint(s) but {path} has {len(expected)} on "
-            f"{topic} ({', '.join(expected)}); give one type per joint.",
-        )
-    for j, jt in enumerate(types):  # prismatic in the length unit, the rest in the angle unit
-        q[:, j] *= pipeline.length_scale if jt is JointType.PRISMATIC else pipeline.angle_scale
-    offset_ns = round(pipeline.segmentation.clock_offset * 1e9)
-    data: dict[str, Any] = {"t_ns": t + offset_ns}
-    data.update({f"q_{j + 1}": q[:, j] for j in range(len(expected))})
-    return pl.DataFrame(data), expected
-
-
 def _read_general(path: str, infos: list[ChannelInfo]) -> dict[int, list[tuple[int, Any]]]:
     """Every message of ``infos``' topics through the mcap library's reader and decoders."""
     from mcap.decoder import DecoderFactory
@@ -993,7 +408,7 @@ def _read_general(path: str, infos: list[ChannelInfo]) -> dict[int, list[tuple[i
 
     class JsonFactory(DecoderFactory):
         def decoder_for(self, message_encoding: str, schema: Any) -> Callable[[bytes], Any] | None:
-            return _json_decoder if message_encoding == "json" else None
+            return json_decoder if message_encoding == "json" else None
 
     out: dict[int, list[tuple[int, Any]]] = {}
     topics = sorted({i.topic for i in infos})

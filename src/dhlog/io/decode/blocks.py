@@ -1,0 +1,238 @@
+"""A stream's channels decoded into blocks of (times, values): bulk CDR for little-endian
+PointStamped, PoseStamped, PoseWithCovarianceStamped and JointState (:mod:`dhlog.io.ros2`),
+message by message otherwise (:mod:`dhlog.io.decode.messages`). A message any decoder fails on
+is skipped and counted, unless none of its channel's can be read (then the error names the
+topic and the first failure); a bulk decode that meets a payload lying about its layout falls
+back to the per-message path.
+"""
+
+from __future__ import annotations
+
+import math
+import struct
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from dhlog.errors import InputError, UnknownSchemaError
+from dhlog.io import ros2
+from dhlog.io.decode.messages import (
+    ACCEPTED,
+    OtherFrameError,
+    TransformExtractor,
+    extractor,
+    message_decoder,
+)
+from dhlog.io.mcapscan import ChannelInfo, RawMessages
+
+#: A stream's samples from one channel (or one joint-name layout): times (ns) and values.
+Block = tuple[NDArray[np.int64], Any]
+
+
+def _bulk_ok(
+    raw: RawMessages, info: ChannelInfo, schemas: tuple[str, ...], fields: dict[str, str]
+) -> bool:
+    return (
+        info.message_encoding == "cdr"
+        and info.schema_name in schemas
+        and not fields
+        and bool(np.all(ros2.little_endian(raw)))
+    )
+
+
+#: What a damaged payload can make a decoder raise (struct, UTF-8, JSON, protobuf, CDR parsers,
+#: recursion on nesting): caught per message, where it is understood, and counted.
+_DAMAGED = (Exception,)
+
+
+def decode_stream(
+    stream: str,
+    infos: list[ChannelInfo],
+    raw_by_channel: dict[int, RawMessages] | None,
+    general: dict[int, list[tuple[int, Any]]] | None,
+    fields: dict[str, str],
+    path: str,
+    orientation: bool = False,
+    damaged: list[tuple[str, int, int, str]] | None = None,
+    child_frame: str = "",
+    notes: list[str] | None = None,
+    pose_index: int = 0,
+) -> list[Block]:
+    """Blocks of (times, values) of one stream over all its channels.
+
+    Values are an (m, 3) array for point streams, ``(names, (m, k) array)`` for joints and a
+    list for phase markers. ``raw_by_channel`` is the fast path's input (bulk CDR where the
+    layout allows, per-message decoding otherwise); ``general`` the mcap library's messages.
+    Messages that cannot be decoded are skipped and reported in ``damaged`` as (topic, count,
+    total, first reason); when none of a channel's messages can be read, that is an error.
+    """
+    blocks: list[Block] = []
+    for info in infos:
+        extract = extractor(stream, info, fields, orientation, child_frame, pose_index)
+        if extract is None:
+            accepted = ACCEPTED[stream]
+            if orientation and stream == "point":
+                accepted = (
+                    "geometry_msgs/msg/PoseStamped, foxglove.PoseInFrame, foxglove.PosesInFrame "
+                    "or transforms (the pipeline asks "
+                    "for the target's orientation: orientation = true)"
+                )
+            raise UnknownSchemaError(
+                path, info.topic, info.schema_name, info.message_encoding, accepted
+            )
+        bad, first_bad = 0, ""
+        if raw_by_channel is not None:
+            raw = raw_by_channel.get(info.id)
+            if raw is None or len(raw) == 0:
+                continue
+            bulk = _bulk_blocks(stream, info, raw, fields, orientation)
+            if bulk is not None:
+                blocks.extend(bulk)
+                continue
+            try:
+                decode = message_decoder(info)
+            except _DAMAGED as exc:  # the schema itself is damaged
+                raise UnknownSchemaError(
+                    path,
+                    info.topic,
+                    info.schema_name,
+                    info.message_encoding,
+                    f"{ACCEPTED[stream]} (its schema cannot be parsed: {_reason(exc)})",
+                ) from None
+            if decode is None:
+                raise UnknownSchemaError(
+                    path, info.topic, info.schema_name, info.message_encoding, ACCEPTED[stream]
+                )
+            msgs = []
+            for i in range(len(raw)):
+                try:
+                    msgs.append((int(raw.log_time[i]), decode(raw.payload(i))))
+                except _DAMAGED as exc:
+                    bad += 1
+                    first_bad = first_bad or f"log time {int(raw.log_time[i])}: {_reason(exc)}"
+        else:
+            assert general is not None
+            msgs = general.get(info.id, [])
+        total = len(msgs) + bad
+        t_list, values = [], []
+        for log_time, msg in msgs:
+            try:
+                stamp, value = extract(msg)
+                value = _checked(stream, value)
+                if stamp is not None and not 0 <= stamp < 2**63:
+                    raise ValueError(f"stamp {stamp} ns out of range")
+            except OtherFrameError:  # a transform of another frame: not a sample
+                total -= 1
+                continue
+            except _DAMAGED as exc:
+                bad += 1
+                first_bad = first_bad or f"log time {log_time}: {_reason(exc)}"
+                continue
+            t_list.append(stamp if stamp is not None else log_time)
+            values.append(value)
+        if bad and not values:
+            if fields:
+                raise InputError(
+                    f"{path}: {info.topic}: the pipeline's [streams.{stream}] fields "
+                    f"({', '.join(f'{k} = {v!r}' for k, v in fields.items())}) do not fit its "
+                    f"messages ({first_bad}); fix the field paths."
+                )
+            raise UnknownSchemaError(
+                path,
+                info.topic,
+                info.schema_name,
+                info.message_encoding,
+                f"{ACCEPTED[stream]} (none of its {total} message(s) could be read; first: "
+                f"{first_bad})",
+            )
+        if bad and damaged is not None:
+            damaged.append((info.topic, bad, total, first_bad))
+        if isinstance(extract, TransformExtractor):
+            frames = ", ".join(sorted(extract.frames)) or "none"
+            if len(extract.frames) > 1 and not child_frame and notes is not None:
+                notes.append(
+                    f"{path}: {info.topic} carries the frames {frames}; the target is "
+                    f"'{extract.chosen}' (set child_frame in [streams.{stream}] to choose)."
+                )
+            if not values and not bad:
+                raise InputError(
+                    f"{path}: {info.topic} has no transform to the frame '{child_frame}' "
+                    f"(frames: {frames}); set child_frame in "
+                    f"[streams.{stream}]."
+                )
+        t = np.asarray(t_list, dtype=np.int64)
+        if stream in ("point", "base"):
+            width = max((len(v) for v in values), default=3)
+            rows = [v + [math.nan] * (width - len(v)) for v in values]
+            blocks.append((t, np.asarray(rows, dtype=np.float64).reshape(-1, width)))
+        elif stream == "joints":
+            layouts: dict[tuple[str, ...], list[int]] = {}
+            for i, (names, _) in enumerate(values):
+                layouts.setdefault(tuple(names), []).append(i)
+            for names_key, rows_of in layouts.items():
+                q = np.asarray([values[r][1] for r in rows_of], dtype=np.float64)
+                blocks.append((t[rows_of], (list(names_key), q.reshape(len(rows_of), -1))))
+        else:
+            blocks.append((t, values))
+    return blocks
+
+
+def _reason(exc: BaseException) -> str:
+    """One line on why a message or schema could not be read."""
+    text = " ".join(str(exc).split())
+    return f"{type(exc).__name__}: {text[:120]}" if text else type(exc).__name__
+
+
+def _checked(stream: str, value: Any) -> Any:
+    """``value`` as the stream needs it, or ValueError: numbers for points; names and as many
+    positions for joint states (a message with fewer positions than names keeps the names that
+    have one)."""
+    if stream in ("point", "base"):
+        return [float(v) for v in value]
+    if stream == "joints":
+        names, positions = value
+        positions = [float(v) for v in positions]
+        names = [str(n) for n in names][: len(positions)]
+        if not names:
+            raise ValueError("a joint state without positions")
+        return names, positions[: len(names)]
+    return value
+
+
+def _bulk_blocks(
+    stream: str, info: ChannelInfo, raw: RawMessages, fields: dict[str, str], orientation: bool
+) -> list[Block] | None:
+    """The bulk CDR decode of a channel where its type and layout allow, else None (also when
+    the bulk decode meets a payload that lies about its layout: the per-message path then reads
+    what can be read and counts the rest)."""
+    with_rot = orientation and stream == "point"
+    try:
+        if with_rot and _bulk_ok(raw, info, (ros2.POSE_STAMPED,), fields):
+            stamps, xyz = ros2.decode_point_bulk(raw, orientation=True)
+            return [(np.where(stamps != 0, stamps, raw.log_time), xyz)]
+        if with_rot and _bulk_ok(raw, info, (ros2.POSE_WITH_COVARIANCE,), fields):
+            # the pose's orientation sits where PoseStamped's does: x, y, z, q (4), cov (6)
+            stamps, rot = ros2.decode_point_bulk(raw, orientation=True)
+            _, cov = ros2.decode_point_bulk(raw, covariance=True)
+            xyz = np.hstack([rot, cov[:, 3:]])
+            return [(np.where(stamps != 0, stamps, raw.log_time), xyz)]
+        if (
+            not with_rot
+            and stream in ("point", "base")
+            and _bulk_ok(raw, info, (ros2.POINT_STAMPED, ros2.POSE_STAMPED), fields)
+        ):
+            stamps, xyz = ros2.decode_point_bulk(raw)
+            return [(np.where(stamps != 0, stamps, raw.log_time), xyz)]
+        if (
+            not with_rot
+            and stream in ("point", "base")
+            and _bulk_ok(raw, info, (ros2.POSE_WITH_COVARIANCE,), fields)
+        ):
+            stamps, xyz = ros2.decode_point_bulk(raw, covariance=True)
+            return [(np.where(stamps != 0, stamps, raw.log_time), xyz)]
+        if stream == "joints" and _bulk_ok(raw, info, (ros2.JOINT_STATE,), fields):
+            return [(stamps, (names, q)) for stamps, names, q in ros2.decode_joint_state_bulk(raw)]
+    except (ValueError, IndexError, struct.error, UnicodeDecodeError, OverflowError):
+        return None
+    return None

@@ -1,0 +1,140 @@
+"""Blocks of (times, values) as the polars tables of :class:`dhlog.io.reader.LogData`: the
+target's ``t_ns, x, y, z`` (with its orientation and covariance columns), a spherical stream
+turned Cartesian, the joints in chain order in SI units, and every table cleaned of non-finite
+and out-of-range samples (counted by reason)."""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+import polars as pl
+from numpy.typing import NDArray
+
+from dhlog.errors import JointNamesError, PipelineError
+from dhlog.io.decode.blocks import Block
+from dhlog.io.pipeline import Pipeline
+from dhlog.model.dh import JointType
+
+#: Columns of the position covariance (m²) in the point frames and the measurement table.
+COVARIANCE_COLUMNS = ("cxx", "cxy", "cxz", "cyy", "cyz", "czz")
+#: Columns of the target frame's orientation (unit quaternion) with ``orientation = true``.
+ORIENTATION_COLUMNS = ("rot_x", "rot_y", "rot_z", "rot_w")
+#: Larger coordinates (m) or encoder values (rad, m) are not measurements.
+MAX_VALUE = 1e5
+
+
+def points_frame(blocks: list[Block], scale: float, orientation: bool = False) -> pl.DataFrame:
+    """``t_ns, x, y, z`` (m), with ``orientation`` the target frame's orientation
+    (``ORIENTATION_COLUMNS``, a unit quaternion), and the position covariance (m²,
+    ``COVARIANCE_COLUMNS``) when any channel carries one (null for samples of channels that do
+    not). Block values: ``x, y, z``, then with ``orientation`` the quaternion (4), then the
+    covariance (6) where the channel has one."""
+    t = np.concatenate([b[0] for b in blocks]) if blocks else np.zeros(0, dtype=np.int64)
+    first_cov = 7 if orientation else 3
+    with_cov = any(b[1].shape[1] == first_cov + 6 for b in blocks)
+    width = first_cov + 6 if with_cov else first_cov
+    parts = []
+    for b in blocks:
+        v = b[1]
+        if v.shape[1] < width:
+            v = np.hstack([v, np.full((v.shape[0], width - v.shape[1]), np.nan)])
+        parts.append(v)
+    arr = np.concatenate(parts) if parts else np.zeros((0, width))
+    cols: dict[str, Any] = {
+        "t_ns": t.astype(np.int64),
+        "x": arr[:, 0] * scale,
+        "y": arr[:, 1] * scale,
+        "z": arr[:, 2] * scale,
+    }
+    if with_cov:
+        for k, name in enumerate(COVARIANCE_COLUMNS):
+            cols[name] = pl.Series(name, arr[:, first_cov + k] * scale**2, nan_to_null=True)
+    if orientation:
+        quat = arr[:, 3:7]
+        quat = quat / np.linalg.norm(quat, axis=1, keepdims=True)
+        for k, name in enumerate(ORIENTATION_COLUMNS):
+            cols[name] = quat[:, k]
+    return pl.DataFrame(cols)
+
+
+def cartesian(values: NDArray[np.float64], pipeline: Pipeline) -> NDArray[np.float64]:
+    """A spherical stream's (horizontal angle, vertical angle, distance) as x, y, z in the
+    tracker's own frame (length unit unchanged): the horizontal angle turns from +x towards +y
+    about +z, the vertical angle is from the zenith (+z) or, with ``vertical = "elevation"``,
+    from the horizon; angles in the pipeline's ``angle_unit``."""
+    scale = pipeline.angle_scale
+    hz, v, d = values[:, 0] * scale, values[:, 1] * scale, values[:, 2]
+    if pipeline.streams["point"].vertical == "elevation":
+        v = math.pi / 2 - v
+    out = values.copy()
+    out[:, 0] = d * np.sin(v) * np.cos(hz)
+    out[:, 1] = d * np.sin(v) * np.sin(hz)
+    out[:, 2] = d * np.cos(v)
+    return out
+
+
+def clean(frame: pl.DataFrame, stream: str, set_aside: dict[str, int]) -> pl.DataFrame:
+    """``frame`` without its non-finite samples (a missing covariance kept), values no
+    measurement has and stamps before 1970, each counted in ``set_aside`` by reason; sorted by
+    time."""
+    value_cols = [c for c in frame.columns if c != "t_ns"]
+    finite = (
+        pl.all_horizontal(
+            [
+                pl.col(c).is_finite().fill_null(c in COVARIANCE_COLUMNS)  # no covariance: kept
+                for c in value_cols
+            ]
+        )
+        if value_cols
+        else pl.lit(True)
+    )
+    kept = frame.filter(finite)
+    dropped = frame.height - kept.height
+    if dropped:
+        set_aside[f"non_finite_{stream}"] = dropped
+    # values no measurement has (beyond 100 km, or 10⁶ rad of encoder travel) and stamps
+    # outside 1970-2262 are damage, not data: set aside before any arithmetic overflows
+    ranged = [c for c in value_cols if c in ("x", "y", "z") or c.startswith("q_")]
+    sane = pl.all_horizontal([pl.col(c).abs() < MAX_VALUE for c in ranged]) if ranged else True
+    before = kept.height
+    kept = kept.filter(sane & (pl.col("t_ns") >= 0))
+    if kept.height < before:
+        set_aside[f"out_of_range_{stream}"] = before - kept.height
+    return kept.sort("t_ns", maintain_order=True)
+
+
+def joints_frame(
+    path: str, topic: str, blocks: list[Block], pipeline: Pipeline
+) -> tuple[pl.DataFrame, list[str]]:
+    """The joints table in chain order from blocks of (times, (names, positions))."""
+    seen: list[str] = []
+    for _, (names, _) in blocks:
+        seen.extend(n for n in names if n not in seen)
+    expected = list(pipeline.joint_names) if pipeline.joint_names else seen
+    missing = [n for n in expected if n not in seen]
+    if missing or not expected:
+        raise JointNamesError(path, topic, expected, seen)
+    column = {n: i for i, n in enumerate(expected)}
+    t = np.concatenate([b[0] for b in blocks]).astype(np.int64)
+    q = np.full((t.size, len(expected)), np.nan)
+    row = 0
+    for times, (names, values) in blocks:
+        src = [k for k, n in enumerate(names) if n in column]
+        dst = [column[names[k]] for k in src]
+        q[row : row + times.size, dst] = values[:, src]
+        row += times.size
+    types = pipeline.joint_types or (None,) * len(expected)
+    if len(types) != len(expected):
+        raise PipelineError(
+            pipeline.source,
+            f"[joints] types lists {len(types)} joint(s) but {path} has {len(expected)} on "
+            f"{topic} ({', '.join(expected)}); give one type per joint.",
+        )
+    for j, jt in enumerate(types):  # prismatic in the length unit, the rest in the angle unit
+        q[:, j] *= pipeline.length_scale if jt is JointType.PRISMATIC else pipeline.angle_scale
+    offset_ns = round(pipeline.segmentation.clock_offset * 1e9)
+    data: dict[str, Any] = {"t_ns": t + offset_ns}
+    data.update({f"q_{j + 1}": q[:, j] for j in range(len(expected))})
+    return pl.DataFrame(data), expected
