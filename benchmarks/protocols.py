@@ -35,7 +35,8 @@ import numpy as np
 
 from dhlog.identify.axismodel import AxisModel
 from dhlog.identify.prediction import predict
-from dhlog.identify.run import measured_rotations, process_data
+from dhlog.identify.run import process_data
+from dhlog.identify.samples import measured_rotations
 from dhlog.identify.sweeps import samples_with_encoders
 from dhlog.identify.validate import fk_prediction_std
 from dhlog.identify.whole import fit_whole_model

@@ -12,8 +12,9 @@
 
 Either gives a :class:`Start`: every joint's axis at the reference pose, the types, the target
 and, for the joints started, where their start came from. The whole-model fit decides whether
-the samples determine them. Pure numpy/scipy on arrays (``Q`` (m, n) encoder values, ``P``
-(m, 3) the primary target's points).
+the samples determine them. Both are pure numpy/scipy on arrays (``Q`` (m, n) encoder values,
+``P`` (m, 3) the primary target's points); :func:`start_unswept` picks one for a run's joints and
+measurement table, after checking that every joint to start moved at all.
 """
 
 from __future__ import annotations
@@ -29,6 +30,9 @@ from dhlog.errors import GeometryError
 from dhlog.geometry._checks import FloatArray, nearest_rotation, rotation_about
 from dhlog.geometry.lines import Line
 from dhlog.identify.register import Registration, register_nominal
+from dhlog.identify.segment import Segmentation
+from dhlog.identify.sweeps import JointReport, samples_with_encoders, target_labels
+from dhlog.io.dhfile import DHModel
 from dhlog.model.dh import JointType, StandardDH
 from dhlog.model.screws import chain_motion
 
@@ -61,6 +65,52 @@ class Start:
     target: FloatArray
     sources: dict[int, str]
     registration: Registration | None = None
+
+
+def start_unswept(
+    joints: Sequence[JointReport],
+    seg: Segmentation,
+    ref: FloatArray,
+    nominal: DHModel | None,
+    warnings: list[str],
+) -> Start | None:
+    """The start of the ``joints`` the sweeps did not identify, from every sample with encoder
+    values: the nominal's (:func:`start_from_nominal`) or, without one, a coupled move's
+    (:func:`start_from_neighbours`). None when one of them never moved, the nominal cannot be
+    placed on the points (both said in ``warnings``), or a joint has no start."""
+    rows, Q, P = samples_with_encoders(seg)
+    if rows.size == 0 or _any_never_moved(joints, Q, warnings):
+        return None
+    which = target_labels(seg, rows)
+    primary = slice(None) if which is None else which == 0
+    known = [Known(j.index - 1, j.type, j.axis if j.ok else None) for j in joints]
+    if nominal is None:
+        return start_from_neighbours(known, Q[primary], P[primary], ref)
+    try:
+        return start_from_nominal(
+            known,
+            Q[primary],
+            P[primary],
+            ref,
+            nominal.table,
+            T_base=nominal.T_base,
+            tool_point=nominal.tool_point,
+        )
+    except GeometryError as exc:
+        warnings.append(f"the nominal could not be placed on the points: {exc}")
+        return None
+
+
+def _any_never_moved(joints: Sequence[JointReport], Q: FloatArray, warnings: list[str]) -> bool:
+    """Warn about (and return True for) a joint not identified whose encoder never moved."""
+    still = never_moved(Q, [j.index - 1 for j in joints if not j.ok])
+    if still:
+        names = ", ".join(f"joint {k + 1} ({joints[k].name})" for k in still)
+        warnings.append(
+            f"{names}: never moved in this log (its encoder values span less than "
+            f"{NEVER_MOVED:g}): nothing in the samples measures it."
+        )
+    return bool(still)
 
 
 def never_moved(Q: FloatArray, joints: Sequence[int]) -> list[int]:

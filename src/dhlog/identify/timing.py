@@ -10,7 +10,8 @@ is an error proportional to their speed — a lag the geometry of the sweeps exp
    each sample's angle (position) ``φ``, independent of any clock; ``φ = a + b Q − b δ q̇``
    is linear in ``a, b, e = −b δ`` and gives ``δ`` with its σ; the sweeps' estimates are
    combined by their weights. The encoders are joined again at the corrected offset
-   (:func:`rejoin`) before anything is fitted.
+   (:func:`rejoin`) before anything is fitted (:func:`clock_start`, up to
+   :data:`START_REJOINS` times).
 2. **Maximum likelihood**: the whole-model fit carries ``δ`` as one more parameter (the
    prediction at ``Q − δ q̇``, :mod:`dhlog.identify.prediction`), so its σ and its correlations
    enter every DH parameter's uncertainty; should it move by more than a fraction of its σ,
@@ -43,6 +44,18 @@ START_POINTS = 3000
 MOVING_SPEED = 1e-3
 #: Below this fraction of sweep samples taken while moving, a log is step-and-measure.
 STEP_FRACTION = 0.5
+#: The whole-model fit joins the encoders again when its clock offset moved by more than this
+#: many of its σ from the offset they were joined at (at most MAX_REJOINS times).
+REJOIN_BELOW = 0.25
+MAX_REJOINS = 2
+#: ... and by more than this (s): below it, the fit's own first-order move of the encoders
+#: (``Q − δ q̇``) errs by ``δ² q̈ / 2``, under 10⁻⁸ rad at 1 rad/s².
+REJOIN_FIT = 1e-4
+#: The start estimate joins the encoders again only for a move beyond this (s): the fit
+#: carries the rest.
+REJOIN_START = REJOIN_FIT
+#: The start estimate of the clock offset joins the encoders again at most this many times.
+START_REJOINS = 4
 
 
 @dataclass(frozen=True)
@@ -220,3 +233,34 @@ def _sweep_lag(
     if not (math.isfinite(delta) and std > 0.0):
         return (b, None, None)
     return b, delta, std
+
+
+def clock_start(
+    seg: Segmentation, log: LogData, info: list[str], phases: list[SweepPhase] | None = None
+) -> tuple[Segmentation, Timing | None]:
+    """The clock offset's start estimate from the sweeps' phases (:func:`phase_lag`), the
+    encoders joined again at it; the pipeline's offset where it is fixed or cannot be told."""
+    pipe = log.pipeline.segmentation
+    if not seg.has_encoders or log.joints is None:
+        return seg, None
+    if pipe.clock_offset_fixed:
+        return seg, Timing(pipe.clock_offset, None, "pipeline", pipe.clock_offset, "fixed")
+    total, std = 0.0, None
+    for attempt in range(START_REJOINS):
+        lag = phase_lag(seg, log, phases if attempt == 0 else None)
+        if lag is None:
+            break
+        delta, std = lag
+        if abs(delta) <= max(REJOIN_BELOW * std, REJOIN_START):
+            break
+        total += delta
+        seg = rejoin(seg, log, total)
+    if std is None:
+        info.append(
+            "no sweep moves while the tracker samples it (step-and-measure): a clock offset "
+            "between tracker and joint states has no effect and is not estimated."
+        )
+        return seg, Timing(
+            pipe.clock_offset, None, "pipeline", pipe.clock_offset, "step-and-measure"
+        )
+    return seg, Timing(pipe.clock_offset + total, std, "estimated", pipe.clock_offset)

@@ -17,8 +17,9 @@ Pure numpy/scipy.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -28,13 +29,19 @@ from dhlog.geometry._checks import FloatArray
 from dhlog.identify.holdout import pose_groups
 from dhlog.identify.prediction import predict
 from dhlog.identify.whole import WholeFit, fit_whole_model
-from dhlog.model.noise import model_error_sigma
+from dhlog.model.noise import NoiseModel, model_error_sigma, whitening_from_std
 
 #: Per-sample uncertainties this far below the residuals (χ²/dof above it) call for a
 #: model-error variance component.
 MODEL_ERROR_CHI2 = 2.0
 #: A design effect below this is not applied (nor said).
 SMALL_EFFECT = 1.1
+#: What a geometric model leaves that a tracker's stated uncertainty does not explain.
+MODEL_ERROR_CAUSES = (
+    "likely causes: gravity bending the joints and links (compliance), gear and encoder errors "
+    "that vary with the angle, thermal drift during the session, a target that slipped on the "
+    "flange, or a declared noise model more optimistic than the tracker"
+)
 
 
 @dataclass(frozen=True)
@@ -144,3 +151,77 @@ def design_effect(
     rho = min(max(1.0 - within / total, 0.0), 1.0) if total > 0 else 0.0
     effect = 1.0 + (m / g - 1.0) * rho
     return DesignEffect(effect, rho, m, g) if effect >= SMALL_EFFECT else None
+
+
+def with_model_error(
+    whole: WholeFit,
+    Q: FloatArray,
+    P: FloatArray,
+    sample_cov: FloatArray | None,
+    noise: NoiseModel,
+    which: NDArray[np.int64] | None,
+    rates: FloatArray | None,
+    rotations: FloatArray | None,
+    warnings: list[str],
+) -> tuple[WholeFit, FloatArray | None, NoiseModel]:
+    """The model-error component (:func:`refit_with_model_error`) where the declared
+    uncertainties (per-sample covariances, the tracker model ``noise``) are far below the
+    residuals, said in a warning. Returns the fit, the covariances it used and the noise model
+    (with its model-error σ)."""
+    declared = sample_cov
+    if declared is None and noise.model == "tracker":
+        declared = noise.covariance(P)
+    if declared is None:
+        return whole, sample_cov, noise
+    options = {
+        "noise": noise,
+        "fit_scales": whole.layout.scale_at is not None,
+        "rotations": rotations,
+        "sigma_rotation": noise.orientation,
+    }
+    found = refit_with_model_error(whole, Q, P, declared, options, which=which, rates=rates)
+    if found is None:
+        return whole, sample_cov, noise
+    noise = replace(noise, model_error=found.sigma)
+    warnings.append(
+        f"the residuals are {math.sqrt(found.chi2_before):.1f}x what the declared "
+        f"uncertainties ({noise.declared}) explain (χ²/dof {found.chi2_before:.1f}): "
+        f"the model (or an optimistic noise model), not the tracker, limits the fit; a "
+        f"model-error σ of {found.sigma * 1e3:.4f} mm per coordinate was estimated and added "
+        f"to every sample's ({MODEL_ERROR_CAUSES})."
+    )
+    return found.fit, found.sample_cov, noise
+
+
+def whitening(noise: NoiseModel, sample_cov: FloatArray | None, sigma: float) -> Whiten:
+    """The whitening of samples ``rows`` at ``points``: their own covariances when the log
+    carries them, else the noise model's (isotropic σ ``sigma`` unless it names its own)."""
+
+    def whiten(points: FloatArray, rows: NDArray[np.bool_]) -> FloatArray | float:
+        if sample_cov is not None:
+            return whitening_from_std(sample_cov[rows])
+        return noise.whiten(points, sigma)
+
+    return whiten
+
+
+def pose_clustered(
+    whole: WholeFit,
+    Q: FloatArray,
+    P: FloatArray,
+    whiten: Whiten,
+    which: NDArray[np.int64] | None,
+    rates: FloatArray | None,
+    info: list[str],
+) -> WholeFit:
+    """The covariance times the design effect of several samples a pose (:func:`design_effect`),
+    said in a note."""
+    d = design_effect(whole, Q, P, whiten, which=which, rates=rates)
+    if d is None:
+        return whole
+    info.append(
+        f"{d.samples} samples at {d.poses} poses ({d.per_pose:.1f} a pose) share their pose's "
+        f"error ({d.rho:.0%} of the residual variance): the uncertainty is scaled by the "
+        f"design effect, σ x{math.sqrt(d.effect):.2f}."
+    )
+    return replace(whole, covariance=whole.covariance * d.effect)

@@ -195,7 +195,7 @@ HAYATI_DESCRIPTION = (
 
 
 def _conditioned_document(result: ProcessResult, n_rows: int) -> dict[str, Any]:
-    """``hayati_dh``: the table of :class:`~dhlog.identify.run.Conditioned`, row by row."""
+    """``hayati_dh``: the table of :class:`~dhlog.identify.conditioning.Conditioned`, row by row."""
     c = result.conditioned
     assert c is not None
     t = c.table
