@@ -157,7 +157,7 @@ def test_an_output_folder_that_is_a_file_is_said_to_be_one(args: list[str], tmp_
         ),
         (
             ["process", str(SAMPLE), "--gravity", "[/]"],
-            "--gravity must be numbers separated by commas, not '[/]'.",
+            "--gravity must be finite numbers separated by commas, not '[/]'.",
         ),
         (
             ["simulate", "scara", "-o", "{d}/s.mcap", "--encoding", "[/]"],
@@ -226,6 +226,14 @@ def test_an_unknown_option_holding_markup_is_a_usage_error() -> None:
         (
             ["process", str(SAMPLE), "--harmonic-joints", "inf"],
             "--harmonic-joints takes joint numbers (1, 2, …), not 'inf'.",
+        ),
+        (
+            ["fk", "kr5", "--q", "0,0,nan,0,0,0"],
+            "--q must be finite numbers separated by commas, not '0,0,nan,0,0,0'.",
+        ),
+        (
+            ["process", str(SAMPLE), "--reference-pose", "inf,0,0,0,0,0"],
+            "--reference-pose must be finite numbers separated by commas, not 'inf,0,0,0,0,0'.",
         ),
     ],
 )

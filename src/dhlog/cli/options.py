@@ -50,12 +50,20 @@ def tuples(text: str, what: str, size: int) -> list[tuple[float, ...]]:
     return out
 
 
-def floats(text: str, what: str) -> list[float]:
+def floats(text: str, what: str, *, finite: bool = True) -> list[float]:
+    """Comma-separated numbers, finite unless ``finite`` is False (exit 1 naming the option
+    otherwise: ``nan`` or ``inf`` in a joint vector printed NaN matrices, in a reference pose
+    failed far from the option)."""
     try:
-        return [float(v) for v in text.replace(",", " ").split()]
+        values = [float(v) for v in text.replace(",", " ").split()]
     except ValueError:
-        stderr.print(f"error: {what} must be numbers separated by commas, not '{plain(text)}'.")
+        values = [math.nan]
+    if finite and not all(math.isfinite(v) for v in values):
+        stderr.print(
+            f"error: {what} must be finite numbers separated by commas, not '{plain(text)}'."
+        )
         raise typer.Exit(EXIT_USAGE) from None
+    return values
 
 
 PIPELINE_HELP = (
@@ -111,7 +119,7 @@ def model_request(model: str, gravity: str | None, harmonic_joints: str | None) 
 def joint_numbers(text: str, what: str) -> list[int]:
     """Joint numbers (1, 2, …), comma-separated (exit 1 naming the option when one is not a
     whole number; their range is the robot's to check)."""
-    values = floats(text, what)
+    values = floats(text, what, finite=False)
     if not all(math.isfinite(v) and v == int(v) for v in values):
         stderr.print(f"error: {what} takes joint numbers (1, 2, …), not '{plain(text)}'.")
         raise typer.Exit(EXIT_USAGE)
