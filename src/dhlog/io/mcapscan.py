@@ -12,8 +12,10 @@ bytes``; a Message body is ``channel_id u16, sequence u32, log_time u64, publish
 
 from __future__ import annotations
 
+import mmap
 import os
 import struct
+from collections import deque
 from collections.abc import Callable, Iterable
 from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
@@ -151,8 +153,10 @@ class _Walker:
         self.schemas: dict[int, tuple[str, str, bytes]] = {}
         self.channels: dict[int, ChannelInfo] = {}
         self.pending_channels: dict[int, tuple[str, str, int]] = {}
-        self.chunks: list[U8] = []
-        self.parts: dict[int, list[tuple[int, I64, I64, I64]]] = {}
+        #: per kept channel: its payloads' bytes (compacted chunk by chunk: a chunk itself is
+        #: dropped once its wanted payloads are copied out) and (starts, lengths, log times)
+        self.data: dict[int, bytearray] = {}
+        self.parts: dict[int, list[tuple[I64, I64, I64]]] = {}
         self.loose: dict[int, list[tuple[int, bytes]]] = {}
         self.metadata: list[str] = []
         self.count = 0
@@ -201,17 +205,14 @@ class _Walker:
     def chunk(self, chunk: U8, index: dict[int, NDArray[np.uint64]] | None) -> None:
         """Locate the messages of a decompressed chunk via its MessageIndex records (one per
         channel: log times and offsets), or record by record when it has none."""
-        chunk_no = len(self.chunks)
-        self.chunks.append(chunk)
         if index is None:
-            self._walk_chunk(chunk, chunk_no)
+            self._walk_chunk(chunk, 0, chunk.shape[0])
             return
         covered = 0
         found: list[tuple[int, I64, I64, I64]] = []
         for cid, pairs in index.items():
             located = _located(chunk, pairs)
             if located is None:  # the index lies: walk the chunk record by record instead
-                self.chunks.pop()
                 self.chunk(chunk, None)
                 return
             offsets, lengths = located
@@ -226,16 +227,29 @@ class _Walker:
             gap_ends = np.concatenate([offsets, [chunk.shape[0]]])
             has_gap = gap_ends > gap_starts
             for begin, stop in zip(gap_starts[has_gap], gap_ends[has_gap], strict=True):
-                self._walk_chunk(chunk[int(begin) : int(stop)], chunk_no, base=int(begin))
+                self._walk_chunk(chunk, int(begin), int(stop))
         for cid, offsets, lengths, log_times in found:
             if self.keep(cid):
-                self.parts.setdefault(cid, []).append(
-                    (chunk_no, offsets + _MESSAGE_HEADER, lengths - 22, log_times)
-                )
+                self._keep(cid, chunk, offsets + _MESSAGE_HEADER, lengths - 22, log_times)
 
-    def _walk_chunk(self, chunk: U8, chunk_no: int, base: int = 0) -> None:
-        buf = memoryview(chunk.data if base == 0 else chunk.tobytes())
-        pos = 0
+    def _keep(self, cid: int, chunk: U8, starts: I64, lengths: I64, log_times: I64) -> None:
+        """Copy the payloads at ``starts`` (``lengths`` bytes each) of ``chunk`` to the end of
+        channel ``cid``'s bytes."""
+        data = self.data.setdefault(cid, bytearray())
+        if starts.size == 0:
+            return
+        ends = np.cumsum(lengths)
+        total = int(ends[-1])
+        # every payload byte's place in the chunk: one gather for the chunk's messages
+        shift = np.repeat(starts - (ends - lengths), lengths)
+        taken = chunk[shift + np.arange(total, dtype=np.int64)]
+        self.parts.setdefault(cid, []).append((len(data) + ends - lengths, lengths, log_times))
+        data += taken.data
+
+    def _walk_chunk(self, chunk: U8, begin: int, stop: int) -> None:
+        """The records of ``chunk[begin:stop]`` one by one."""
+        buf = memoryview(chunk.data)[:stop]
+        pos = begin
         starts: dict[int, list[int]] = {}
         lens: dict[int, list[int]] = {}
         times: dict[int, list[int]] = {}
@@ -247,45 +261,39 @@ class _Walker:
                 break
             if op == OP_MESSAGE:
                 if length < 22:
-                    self.damage(f"a message record at byte {base + pos} of a chunk", "too short")
+                    self.damage(f"a message record at byte {pos} of a chunk", "too short")
                     pos = body_end
                     continue
                 cid, _, log_time = struct.unpack_from("<HIQ", buf, pos + 9)
                 self.count += 1
                 if log_time >= 2**63:
-                    self.damage(f"a message at byte {base + pos} of a chunk", "log time too large")
+                    self.damage(f"a message at byte {pos} of a chunk", "log time too large")
                     pos = body_end
                     continue
                 if self.keep(cid):
-                    starts.setdefault(cid, []).append(base + pos + _MESSAGE_HEADER)
+                    starts.setdefault(cid, []).append(pos + _MESSAGE_HEADER)
                     lens.setdefault(cid, []).append(length - 22)
                     times.setdefault(cid, []).append(log_time)
             else:
-                self.record(
-                    op, buf[pos + 9 : body_end], f"a record in a chunk at byte {base + pos}"
-                )
+                self.record(op, buf[pos + 9 : body_end], f"a record in a chunk at byte {pos}")
             pos = body_end
         for cid in starts:
-            self.parts.setdefault(cid, []).append(
-                (
-                    chunk_no,
-                    np.asarray(starts[cid], dtype=np.int64),
-                    np.asarray(lens[cid], dtype=np.int64),
-                    np.asarray(times[cid], dtype=np.int64),
-                )
+            self._keep(
+                cid,
+                chunk,
+                np.asarray(starts[cid], dtype=np.int64),
+                np.asarray(lens[cid], dtype=np.int64),
+                np.asarray(times[cid], dtype=np.int64),
             )
 
     def result(self) -> dict[int, RawMessages]:
-        sizes = np.array([c.shape[0] for c in self.chunks], dtype=np.int64)
-        bases = np.concatenate([[0], np.cumsum(sizes)])
-        data = np.concatenate(self.chunks) if self.chunks else np.zeros(0, dtype=np.uint8)
         out: dict[int, RawMessages] = {}
         for cid, parts in self.parts.items():
             out[cid] = RawMessages(
-                data=data,
-                starts=np.concatenate([s + bases[c] for c, s, _, _ in parts]),
-                lengths=np.concatenate([n for _, _, n, _ in parts]),
-                log_time=np.concatenate([t for _, _, _, t in parts]),
+                data=np.frombuffer(self.data.pop(cid), dtype=np.uint8),
+                starts=np.concatenate([s for s, _, _ in parts]),
+                lengths=np.concatenate([n for _, n, _ in parts]),
+                log_time=np.concatenate([t for _, _, t in parts]),
             )
         for cid, loose in self.loose.items():
             blob = np.frombuffer(b"".join(d for _, d in loose), dtype=np.uint8)
@@ -324,6 +332,25 @@ def _decompress(compression: str, payload: bytes | memoryview, size: int, path: 
 
 
 ZSTD_MAGIC = b"\x28\xb5\x2f\xfd"
+#: Chunks decompressed ahead of the walk, per worker thread.
+IN_FLIGHT = 4
+#: The mapped file's pages are given back in steps of this many bytes once walked.
+RELEASE_STEP = 64 << 20
+
+
+def _mapped(path: str | Path) -> mmap.mmap | bytes:
+    """The file, mapped read-only (its pages are read as the walk needs them and given back
+    after it: a 550 MB log was held whole); read whole where it cannot be mapped (empty, not
+    a regular file)."""
+    name = str(path)
+    try:
+        with open(path, "rb") as f:
+            try:
+                return mmap.mmap(f.fileno(), 0, access=mmap.ACCESS_READ)
+            except (ValueError, OSError):
+                return f.read()
+    except OSError as exc:
+        raise InputError(f"{name}: cannot be read ({exc.strerror}); check the path.") from None
 
 
 def _unzstd_file(blob: bytes, name: str) -> bytes:
@@ -349,13 +376,10 @@ def scan_mcap(
 
     ``progress`` (optional) is called with the fraction of the work done."""
     name = str(path)
-    try:
-        blob = Path(path).read_bytes()
-    except OSError as exc:
-        raise InputError(f"{name}: cannot be read ({exc.strerror}); check the path.") from None
-    if blob.startswith(ZSTD_MAGIC):  # a file-compressed log (rosbag2 --compression-mode file)
-        blob = _unzstd_file(blob, name)
-    if not blob.startswith(MAGIC):
+    blob = _mapped(path)
+    if blob[:4] == ZSTD_MAGIC:  # a file-compressed log (rosbag2 --compression-mode file)
+        blob = _unzstd_file(bytes(blob), name)
+    if blob[: len(MAGIC)] != MAGIC:
         raise NotMcapError(name)
     walker = _Walker(name, set(topics) if topics is not None else None)
     view = memoryview(blob)
@@ -363,14 +387,40 @@ def scan_mcap(
     profile = ""
     truncated_at: int | None = None
     pending: tuple[Future[bytes], dict[int, NDArray[np.uint64]], int] | None = None
-    chunks: list[tuple[Future[bytes], dict[int, NDArray[np.uint64]], int]] = []
-    decompressed = ThreadPoolExecutor(max_workers=os.cpu_count() or 1)
+    chunks: deque[tuple[Future[bytes], dict[int, NDArray[np.uint64]], int]] = deque()
+    workers = os.cpu_count() or 1
+    decompressed = ThreadPoolExecutor(max_workers=workers)
+    done = 0
+    released = 0  # the file's pages before this offset are given back (a mapped file)
+
+    def walk_oldest() -> None:
+        """Walk the oldest decompressed chunk (its records dropped after: the chunks in
+        flight are bounded, not the whole file's)."""
+        nonlocal done, released
+        future, index, at = chunks.popleft()
+        try:
+            records = future.result()
+        except _DamagedError as exc:
+            walker.damage(f"the chunk at byte {at}", exc)
+        else:
+            trusted = None if not index or -1 in index else index
+            walker.chunk(np.frombuffer(records, dtype=np.uint8), trusted)
+        done += 1
+        if progress is not None and done % 16 == 0:
+            progress(min(1.0, (chunks[0][2] if chunks else pos) / end))
+        # what every chunk still in flight starts after is read for good
+        safe = (chunks[0][2] if chunks else at) // RELEASE_STEP * RELEASE_STEP
+        if isinstance(blob, mmap.mmap) and safe - released >= RELEASE_STEP:
+            blob.madvise(mmap.MADV_DONTNEED, released, safe - released)
+            released = safe
 
     def flush() -> None:
         nonlocal pending
         if pending is not None:
             chunks.append(pending)
             pending = None
+            if len(chunks) > IN_FLIGHT * workers:
+                walk_oldest()
 
     while pos < end:
         if pos + 9 > end:
@@ -441,20 +491,10 @@ def scan_mcap(
             else:
                 walker.record(op, view[body : body + length], f"a record at byte {pos}")
         pos = body + length
-        if progress is not None and op == OP_CHUNK:
-            progress(0.5 * pos / end)
     flush()
     with decompressed:
-        for done, (future, index, at) in enumerate(chunks, start=1):
-            try:
-                records = future.result()
-            except _DamagedError as exc:
-                walker.damage(f"the chunk at byte {at}", exc)
-                continue
-            trusted = None if not index or -1 in index else index
-            walker.chunk(np.frombuffer(records, dtype=np.uint8), trusted)
-            if progress is not None and done % 16 == 0:
-                progress(0.5 + 0.5 * done / len(chunks))
+        while chunks:
+            walk_oldest()
     scan = McapScan(
         path=name,
         channels=dict(walker.channels),
