@@ -239,10 +239,12 @@ class _Walker:
         if starts.size == 0:
             return
         ends = np.cumsum(lengths)
-        total = int(ends[-1])
-        # every payload byte's place in the chunk: one gather for the chunk's messages
-        shift = np.repeat(starts - (ends - lengths), lengths)
-        taken = chunk[shift + np.arange(total, dtype=np.int64)]
+        width = int(lengths[0])
+        if width > 0 and bool(np.all(lengths == width)):  # one layout: a row gather
+            taken = gather_rows(chunk, starts, width).reshape(-1)
+        else:  # every payload byte's place in the chunk: one gather for the chunk's messages
+            shift = np.repeat(starts - (ends - lengths), lengths)
+            taken = chunk[shift + np.arange(int(ends[-1]), dtype=np.int64)]
         self.parts.setdefault(cid, []).append((len(data) + ends - lengths, lengths, log_times))
         data += taken.data
 
