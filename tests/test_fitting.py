@@ -14,15 +14,14 @@ from dhlog.errors import (
     SweepTooSmallError,
     TooFewPointsError,
 )
-from dhlog.geometry.fitting import (
-    AxisFit,
+from dhlog.geometry.axisfit import AxisFit
+from dhlog.geometry.circles import (
     fit_circle,
     fit_circle_algebraic,
     fit_circle_encoder,
     fit_circle_geometric,
-    fit_line,
-    fit_plane,
 )
+from dhlog.geometry.fitting import fit_line, fit_plane
 
 CENTER = np.array([0.8, -0.3, 0.45])
 NORMAL = np.array([0.3, -0.2, 0.9]) / np.linalg.norm([0.3, -0.2, 0.9])

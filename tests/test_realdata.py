@@ -95,13 +95,13 @@ def test_every_axis_fits_within_a_few_hundredths_of_a_millimetre(positioner) -> 
     """Across the motion (distance from the fitted line or circle: straightness, roundness) the
     residuals are 11-21 µm RMS. Along the motion the encoder-aided residual also holds the
     stages' positioning error against their commanded values (up to 81 µm RMS on x)."""
-    from dhlog.geometry.fitting import _orthogonal_distances
+    from dhlog.geometry.fitting import orthogonal_distances
 
     assert all(j.ok for j in positioner.joints), [j.reason for j in positioner.joints]
     points = positioner.segmentation.table.select(["x", "y", "z"]).to_numpy()
     for j in positioner.joints:
         assert j.fit is not None and j.fit.n_points == 11 and j.n_outliers == 0
-        across = _orthogonal_distances(j.fit, points[j.rows])
+        across = orthogonal_distances(j.fit, points[j.rows])
         assert np.sqrt(np.mean(across**2)) < 0.05e-3, j.name
         assert j.fit.rms < 0.1e-3, j.name
 

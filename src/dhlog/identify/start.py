@@ -184,7 +184,7 @@ def start_from_neighbours(
     with a parallel neighbour (module docstring); None when one of them has none (no such
     move, the joints before the pair not at the reference pose, a circle that cannot be fitted
     or whose axis is not parallel to the neighbour's)."""
-    from dhlog.geometry.fitting import fit_circle_encoder
+    from dhlog.geometry.circles import fit_circle_encoder
 
     axes: list[Line | None] = [k.axis for k in known]
     types: list[JointType | None] = [k.type for k in known]

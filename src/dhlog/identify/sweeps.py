@@ -11,7 +11,8 @@ from numpy.typing import NDArray
 
 from dhlog.errors import GeometryError
 from dhlog.geometry._checks import FloatArray
-from dhlog.geometry.fitting import AxisFit, detect_joint_type, fit_axis_robust
+from dhlog.geometry.axisfit import AxisFit
+from dhlog.geometry.fitting import detect_joint_type, fit_axis_robust
 from dhlog.geometry.lines import Line
 from dhlog.identify.segment import Segmentation
 from dhlog.io.dhfile import DHModel

@@ -32,7 +32,8 @@ from numpy.typing import NDArray
 
 from dhlog.errors import DhlogError
 from dhlog.geometry._checks import FloatArray
-from dhlog.geometry.fitting import fit_circle_algebraic, fit_line
+from dhlog.geometry.circles import fit_circle_algebraic
+from dhlog.geometry.fitting import fit_line
 from dhlog.identify.segment import Segmentation, _interpolate_encoders
 from dhlog.io.reader import LogData
 
