@@ -14,13 +14,8 @@ from dhlog.errors import DhlogError
 from dhlog.geometry._checks import FloatArray, wrap_angle
 from dhlog.geometry.fitting import PlaneFit
 from dhlog.geometry.lines import Line, Plane
-from dhlog.identify.extract import (
-    NEAR_PARALLEL,
-    Extraction,
-    HayatiRow,
-    extract_dh,
-    hayati_parameters,
-)
+from dhlog.identify.extract import Extraction, extract_dh
+from dhlog.identify.hayati import NEAR_PARALLEL, HayatiRow, hayati_parameters
 from dhlog.identify.propagate import mixed_angles, mixed_vector, state_difference, state_vector
 from dhlog.identify.sweeps import JointReport, carried_axis
 from dhlog.io.dhfile import DHModel
@@ -45,7 +40,7 @@ NOMINAL_SIGMA_2D = 5.0
 AIC_SIGMA_2D = 2.0
 
 
-#: (:data:`dhlog.identify.extract.NEAR_PARALLEL`) Axes closer than this to parallel (rad) also get
+#: (:data:`dhlog.identify.hayati.NEAR_PARALLEL`) Axes closer than this to parallel (rad) also get
 #: Hayati–Mirmirani parameters; no pair further from parallel is ever classified parallel,
 #: however uncertain its axes.
 

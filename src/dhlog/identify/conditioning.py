@@ -13,7 +13,8 @@ from numpy.typing import NDArray
 
 from dhlog.errors import DhlogError
 from dhlog.geometry._checks import FloatArray
-from dhlog.identify.extract import NEAR_PARALLEL, Extraction, hayati_table, table_in_hayati_form
+from dhlog.identify.extract import Extraction, hayati_table
+from dhlog.identify.hayati import NEAR_PARALLEL, table_in_hayati_form
 from dhlog.identify.propagate import NOT_DETERMINED, state_names
 from dhlog.identify.whole import WholeFit
 from dhlog.model.dh import StandardDH

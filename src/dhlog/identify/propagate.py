@@ -22,7 +22,8 @@ from dhlog.geometry._checks import FloatArray, wrap_angle
 from dhlog.geometry.fitting import PlaneFit
 from dhlog.geometry.lines import Line, Plane
 from dhlog.identify.axismodel import AxisModel
-from dhlog.identify.extract import Extraction, hayati_parameters, hayati_table
+from dhlog.identify.extract import Extraction, hayati_table
+from dhlog.identify.hayati import hayati_parameters
 from dhlog.identify.whole import WholeFit
 from dhlog.model.dh import HayatiDH, JointType, StandardDH
 

@@ -37,7 +37,8 @@ from dhlog.identify.analytic import AIC_SIGMA_2D, pair_tolerances, partial_extra
 from dhlog.identify.beyond import beyond_geometry, deflections
 from dhlog.identify.checks import check_fit_noise, check_noise_model, check_sizes, check_units
 from dhlog.identify.conditioning import Conditioned, identifiability_notes
-from dhlog.identify.extract import Extraction, HayatiRow, extract_dh
+from dhlog.identify.extract import Extraction, extract_dh
+from dhlog.identify.hayati import HayatiRow
 from dhlog.identify.holdout import Holdout, cross_validate, score_poses
 from dhlog.identify.prediction import predict
 from dhlog.identify.register import Registration

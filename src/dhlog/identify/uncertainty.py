@@ -28,7 +28,8 @@ from dhlog.identify.conditioning import (
     near_parallel_pairs,
     nominal_rows,
 )
-from dhlog.identify.extract import Extraction, HayatiRow
+from dhlog.identify.extract import Extraction
+from dhlog.identify.hayati import HayatiRow
 from dhlog.identify.propagate import fixed_reasons, propagate
 from dhlog.identify.sweeps import JointReport
 from dhlog.identify.whole import WholeFit

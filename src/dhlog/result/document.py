@@ -12,7 +12,7 @@ from numpy.typing import NDArray
 
 from dhlog import __version__
 from dhlog.geometry._checks import FloatArray, wrap_angle
-from dhlog.identify.extract import NEAR_PARALLEL
+from dhlog.identify.hayati import NEAR_PARALLEL
 from dhlog.identify.propagate import state_difference, state_names, state_vector
 from dhlog.identify.run import ProcessResult
 from dhlog.identify.sweeps import JointReport

@@ -137,7 +137,7 @@ def nominal_deltas(
     Hayati–Mirmirani form, as ``dhlog process`` does); rows whose nominal has no such form get
     none."""
     from dhlog.geometry._checks import wrap_angle
-    from dhlog.identify.extract import table_in_hayati_form
+    from dhlog.identify.hayati import table_in_hayati_form
 
     hayati = frozenset(r.joint - 1 for r in rows if r.form == "hayati")
     table = nominal
