@@ -2,13 +2,15 @@
 processed one ``dhlog process`` after another (the shell loop a site runs without ``batch``).
 
     .venv/bin/python benchmarks/batch.py [--logs 16] [--jobs 1 2] [--runs 3] [--no-rrd]
-                                         [--tracker-rate 100]
+                                         [--tracker-rate 100] [--executor process dask]
 
 The logs are simulated KR5 sessions off their nominal (0.2 mm, 0.02°; tracker 100 Hz — about
 7 500 target samples each — or ``--tracker-rate``, σ 10 µm), written once by ``dhlog simulate`` into
 ``$TMPDIR/dhlog-bench-batch``. Each ``--jobs`` value is timed as a whole command by
 ``farm-bench``, paired run by run against the loop (``--vs``), recordings included unless
-``--no-rrd``. Prints farm-bench's report for each.
+``--no-rrd``, for each ``--executor``: ``process`` (the pool of worker processes) and ``dask`` (a
+Dask cluster of ``--jobs`` worker processes that the command starts and closes: its start and
+close are in the figures). Prints farm-bench's report for each.
 """
 
 from __future__ import annotations
@@ -62,6 +64,7 @@ def main() -> None:
     parser.add_argument("--runs", type=int, default=3)
     parser.add_argument("--no-rrd", action="store_true")
     parser.add_argument("--tracker-rate", type=float, default=100.0, help="Hz")
+    parser.add_argument("--executor", nargs="+", default=["process"], choices=["process", "dask"])
     args = parser.parse_args()
     logs = make_logs(args.logs, args.tracker_rate)
     out = Path(tempfile.mkdtemp(prefix="dhlog-batch-out-"))
@@ -72,21 +75,23 @@ def main() -> None:
         f"sh -c 'for f in {names}; do {DHLOG} process $f --out {out}/loop --force {flags} "
         ">/dev/null 2>&1; done'"
     )
-    for jobs in args.jobs:
+    for executor, jobs in ((e, j) for e in args.executor for j in args.jobs):
         command = [
             DHLOG,
             "batch",
             *map(str, logs),
             "--out",
-            str(out / f"j{jobs}"),
+            str(out / f"{executor}{jobs}"),
             "--force",
             "--jobs",
             str(jobs),
+            "--executor",
+            executor,
             *rrd,
         ]
         print(
-            f"== dhlog batch --jobs {jobs} ({len(logs)} logs{', no recordings' if rrd else ''}) "
-            "vs one dhlog process after another",
+            f"== dhlog batch --executor {executor} --jobs {jobs} ({len(logs)} logs"
+            f"{', no recordings' if rrd else ''}) vs one dhlog process after another",
             flush=True,
         )
         subprocess.run(

@@ -35,7 +35,11 @@ def batch(
     jobs: Annotated[
         int,
         typer.Option(
-            "--jobs", "-j", metavar="N", help="Logs processed at once (worker processes)."
+            "--jobs",
+            "-j",
+            metavar="N",
+            help="Logs processed at once (worker processes; with --scheduler, the cluster's "
+            "workers).",
         ),
     ] = 1,
     pipeline: Annotated[
@@ -81,6 +85,23 @@ def batch(
         ),
     ] = "auto",
     force: Annotated[bool, typer.Option("--force", help="Overwrite existing results.")] = False,
+    executor: Annotated[
+        str,
+        typer.Option(
+            metavar="process|dask",
+            help="Where the logs are processed: process, a pool of --jobs worker processes; "
+            "dask, a Dask cluster (pip install 'dhlog[dask]'): the one at --scheduler, or one "
+            "started here with --jobs workers.",
+        ),
+    ] = "process",
+    scheduler: Annotated[
+        str | None,
+        typer.Option(
+            metavar="ADDRESS",
+            help="The Dask scheduler's address (tcp://host:8786), with --executor dask; its "
+            "workers must see the logs and --out at the same paths (a shared file system).",
+        ),
+    ] = None,
 ) -> None:
     """Process many logs in --jobs workers into one summary table (a failing log is a row)."""
     import time
@@ -107,10 +128,19 @@ def batch(
         write_summary,
         written_logs,
     )
+    from dhlog.fleet.executors import EXECUTORS
     from dhlog.identify.select import MODELS
 
     if jobs < 1 or jobs > 256:
         stderr.print(f"error: --jobs must be between 1 and 256, not {jobs}.")
+        raise typer.Exit(EXIT_USAGE)
+    if executor not in EXECUTORS:
+        stderr.print(
+            f"error: --executor must be one of {', '.join(EXECUTORS)}, not '{plain(executor)}'."
+        )
+        raise typer.Exit(EXIT_USAGE)
+    if scheduler is not None and executor != "dask":
+        stderr.print("error: --scheduler is the address of a Dask scheduler: add --executor dask.")
         raise typer.Exit(EXIT_USAGE)
     if units not in ("mm", "m"):
         stderr.print(f"error: --units must be mm or m, not '{plain(units)}'.")
@@ -181,7 +211,7 @@ def batch(
 
             start = time.perf_counter()
             try:
-                rows = run_batch(work, jobs, done)
+                rows = run_batch(work, jobs, done, executor=executor, scheduler=scheduler)
             except DhlogError as exc:
                 fail(exc)
             seconds = time.perf_counter() - start
@@ -194,12 +224,22 @@ def batch(
         _batch_stopped(exc, written_logs(work, before), len(work))
     counts = {s: sum(1 for r in rows if r["status"] == s) for s in ("ok", "partial", "failed")}
     stdout.print(
-        f"{len(rows)} log(s) in {seconds:.1f} s with {jobs} worker(s): {counts['ok']} ok, "
+        f"{len(rows)} log(s) in {seconds:.1f} s {_where(executor, scheduler, jobs)}: "
+        f"{counts['ok']} ok, "
         f"{counts['partial']} partial, {counts['failed']} failed; wrote "
         + ", ".join(plain(p) for p in paths)
     )
     if counts["partial"] or counts["failed"]:
         raise typer.Exit(EXIT_PARTIAL)
+
+
+def _where(executor: str, scheduler: str | None, jobs: int) -> str:
+    """Where the logs were processed, as the closing line says it."""
+    if executor == "process":
+        return f"with {jobs} worker(s)"
+    if scheduler is None:
+        return f"on a Dask cluster of {jobs} worker(s)"
+    return f"on the Dask cluster at {plain(scheduler)}"
 
 
 def _batch_stopped(cause: BaseException, written: list[str], total: int) -> NoReturn:

@@ -1,6 +1,7 @@
-"""``dhlog batch``: many logs, each processed as ``dhlog process`` would, in a process pool.
+"""``dhlog batch``: many logs, each processed as ``dhlog process`` would, in a process pool or
+on a Dask cluster (:mod:`dhlog.fleet.executors`).
 
-Each log is one job in a worker process: its results (``<stem>.dh.json``, ``.dh.csv``, and the
+Each log is one job in a worker: its results (``<stem>.dh.json``, ``.dh.csv``, and the
 recording unless ``no_rrd``) are written into the output folder as ``dhlog process --out`` writes
 them, and the job returns one summary row. A log that fails is a row with status ``failed`` and
 its one-line reason; nothing stops the batch. The summary (one row per log: its time, robot,
@@ -9,11 +10,9 @@ polars, atomically, in the order the logs were given. Lengths in the summary are
 times seconds, as its column names say (``fk_rms_m``, ``clock_offset_s``; the parameters, as in
 the result JSON, are metres and radians).
 
-An interrupt (SIGINT, or the command line's SIGTERM) stops the workers at once: they never see
-the terminal's Ctrl-C themselves (SIGINT is held while they are started, so they begin with it
-held, and they ignore it), and are sent SIGTERM, on which a worker removes its temporary files
-and exits (killed when it has not within ``STOP_GRACE`` seconds, its temporary files removed for
-it). :func:`written_logs` then says which logs' results are in place.
+An interrupt (SIGINT, or the command line's SIGTERM) stops the workers at once (how, each
+executor says), their temporary files removed; :func:`written_logs` then says which logs'
+results are in place.
 """
 
 from __future__ import annotations
@@ -25,8 +24,9 @@ import threading
 import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager, nullcontext
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from datetime import UTC, datetime
+from functools import partial
 from pathlib import Path
 from typing import Any
 
@@ -288,53 +288,82 @@ def run_batch(
     jobs: list[BatchJob],
     workers: int,
     on_done: Callable[[dict[str, Any]], None] | None = None,
+    *,
+    executor: str = "process",
+    scheduler: str | None = None,
 ) -> list[dict[str, Any]]:
-    """Every job in a pool of ``workers`` processes (1: in this process); rows in job order.
-    ``on_done`` is called with each row as its job finishes.
+    """Every job, rows in job order; ``on_done`` is called with each row as its job finishes.
 
-    An exception here (an interrupt above all) stops the workers before it goes on: no worker
-    outlives the call, and no temporary file either; :func:`written_logs` says what was done."""
+    ``executor``: ``"process"``, a pool of ``workers`` processes (1: in this process), or
+    ``"dask"``, a Dask cluster (:func:`~dhlog.fleet.executors.run_on_dask`: the one at
+    ``scheduler``, or one started here with ``workers`` worker processes), which gets the jobs
+    with absolute paths (:func:`absolute`; the rows name the logs as given). A job whose worker
+    died is a ``failed`` row with the reason.
+
+    An exception here (an interrupt above all) stops the workers before it goes on: no job runs
+    on, and no temporary file is left; :func:`written_logs` says what was done."""
+    from dhlog.fleet.executors import EXECUTORS, run_in_processes, run_on_dask
+
     if not jobs:
         raise InputError("no logs to process.")
-    rows: list[dict[str, Any] | None] = [None] * len(jobs)
-    if workers <= 1:
-        for k, job in enumerate(jobs):
-            rows[k] = process_job(job, hold_signals=_main_thread())
+    if executor not in EXECUTORS:
+        raise InputError(f"no executor '{executor}'; the executors are {', '.join(EXECUTORS)}.")
+    if executor == "process" and workers <= 1:
+        rows = []
+        for job in jobs:
+            rows.append(process_job(job, hold_signals=_main_thread()))
             if on_done is not None:
-                on_done(rows[k])  # type: ignore[arg-type]
-        return [r for r in rows if r is not None]
-    import multiprocessing
-    from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
-
-    context = multiprocessing.get_context("spawn")  # no fork of a process holding threads
-    pool = ProcessPoolExecutor(max_workers=workers, mp_context=context, initializer=_worker_start)
+                on_done(rows[-1])
+        return rows
     try:
-        with _sigint_held():  # the workers start with SIGINT held (a mask is inherited)
-            futures = {pool.submit(_worker_job, job): k for k, job in enumerate(jobs)}
-        pending = set(futures)
-        while pending:  # short waits: a signal another thread took is acted on within one
-            finished, pending = wait(pending, timeout=WAKE_EVERY, return_when=FIRST_COMPLETED)
-            for future in sorted(finished, key=futures.__getitem__):
-                k = futures[future]
-                try:
-                    rows[k] = future.result()
-                except Exception as exc:  # a worker that died (out of memory, killed)
-                    rows[k] = _failed(Path(jobs[k].log), f"the worker stopped ({exc}).", 0.0)
-                if on_done is not None:
-                    on_done(rows[k])  # type: ignore[arg-type]
+        if executor == "dask":
+            pairs = [(absolute(job), job) for job in jobs]
+            return run_on_dask(
+                process_sent, pairs, workers, scheduler=scheduler, lost=_lost_pair, on_done=on_done
+            )
+        work = partial(process_job, hold_signals=True)
+        return run_in_processes(work, jobs, workers, lost=_lost, on_done=on_done)
     except BaseException:
-        _stop_workers(pool)
-        remove_staged(jobs)
+        remove_staged(jobs)  # what a killed worker left
         raise
-    pool.shutdown()
-    return [r for r in rows if r is not None]
 
 
-#: Seconds a worker has to end after SIGTERM before it is killed.
-STOP_GRACE = 2.0
-#: Seconds between the pool's checks for a signal: Python acts on a signal in its main thread
-#: only, and a signal the kernel gave another thread does not wake a main thread that waits.
-WAKE_EVERY = 0.2
+def absolute(job: BatchJob) -> BatchJob:
+    """The job with its log, folder, and pipeline or nominal file (when it names one) as
+    absolute paths: what a worker on another machine, reading the same shared file system at
+    the same paths, needs."""
+
+    def file(spec: str | None) -> str | None:
+        return os.path.abspath(spec) if spec is not None and Path(spec).exists() else spec
+
+    return replace(
+        job,
+        log=os.path.abspath(job.log),
+        folder=os.path.abspath(job.folder),
+        pipeline=file(job.pipeline),
+        nominal=file(job.nominal),
+    )
+
+
+def process_sent(pair: tuple[BatchJob, BatchJob]) -> dict[str, Any]:
+    """:func:`process_job` of the job sent to a worker (:func:`absolute`), its row naming the
+    log (in its reason too) and robot as the job given did."""
+    sent, given = pair
+    row = process_job(sent)
+    row["log"] = given.log
+    if row.get("reason"):
+        row["reason"] = row["reason"].replace(sent.log, given.log)
+    if sent.nominal is not None and row.get("robot") == sent.nominal:
+        row["robot"] = given.nominal
+    return row
+
+
+def _lost(job: BatchJob, reason: str) -> dict[str, Any]:
+    return _failed(Path(job.log), reason, 0.0)
+
+
+def _lost_pair(pair: tuple[BatchJob, BatchJob], reason: str) -> dict[str, Any]:
+    return _lost(pair[1], reason)
 
 
 def _main_thread() -> bool:
@@ -356,72 +385,6 @@ def _handlers_restored() -> Iterator[None]:
         for s, handler in saved.items():
             if handler is not None:
                 signal.signal(s, handler)
-
-
-@contextmanager
-def _sigint_held() -> Iterator[None]:
-    """SIGINT held (blocked, not lost: delivered after the block) in this thread: processes
-    started in the block begin with it held, so the terminal's Ctrl-C, sent to every process
-    of the foreground group, never reaches a worker (a worker importing its modules would print
-    a traceback)."""
-    if not hasattr(signal, "pthread_sigmask"):  # pragma: no cover - not POSIX
-        yield
-        return
-    before = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
-    try:
-        yield
-    finally:
-        signal.pthread_sigmask(signal.SIG_SETMASK, before)
-
-
-class _WorkerStopped(BaseException):
-    """SIGTERM in a worker busy with a job: raised where it is, so the job's temporary files
-    are removed on the way out."""
-
-
-_BUSY = False
-
-
-def _on_worker_sigterm(signum: int, frame: object) -> None:
-    if _BUSY:
-        raise _WorkerStopped()
-    os._exit(128 + signum)  # idle: nothing to clean up, nothing to say
-
-
-def _worker_start() -> None:
-    """A worker's set-up: SIGINT ignored (the parent stops the workers), SIGTERM ends it."""
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-    signal.signal(signal.SIGTERM, _on_worker_sigterm)
-
-
-def _worker_job(job: BatchJob) -> dict[str, Any]:
-    """:func:`process_job` in a worker: on SIGTERM the worker leaves no temporary file and ends
-    without a word (``os._exit``: no traceback, no finaliser of a half-built recording)."""
-    global _BUSY
-    _BUSY = True
-    try:
-        return process_job(job, hold_signals=True)
-    except _WorkerStopped:
-        os._exit(128 + signal.SIGTERM)
-    finally:
-        _BUSY = False
-
-
-def _stop_workers(pool: Any) -> None:
-    """Cancel what has not started and end every worker: SIGTERM, then SIGKILL after
-    ``STOP_GRACE`` seconds."""
-    processes = list((getattr(pool, "_processes", None) or {}).values())
-    pool.shutdown(wait=False, cancel_futures=True)
-    for p in processes:
-        if p.is_alive():
-            p.terminate()
-    deadline = time.monotonic() + STOP_GRACE
-    for p in processes:
-        p.join(max(0.0, deadline - time.monotonic()))
-    for p in processes:
-        if p.is_alive():
-            p.kill()
-            p.join(1.0)
 
 
 def remove_staged(jobs: list[BatchJob]) -> None:

@@ -17,6 +17,7 @@ from __future__ import annotations
 import json
 import os
 import tempfile
+import threading
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -85,15 +86,64 @@ JSON_SCHEMAS: dict[str, dict[str, Any]] = {
 }
 
 
+#: Threads in a block that must not be cut in half (:func:`signals_deferred`, the moves of
+#: :func:`staged_outputs`), each with the stop asked of it meanwhile (:func:`stop_thread`).
+_UNCUT: dict[int, type[BaseException] | None] = {}
+_UNCUT_LOCK = threading.Lock()
+
+
+def stop_thread(ident: int, exc: type[BaseException]) -> None:
+    """Raise ``exc`` in the thread ``ident`` at its next Python instruction, or, when it is in
+    a block that must not be cut in half, as that block ends: how a Dask worker's job is
+    stopped (:mod:`dhlog.fleet.executors`; a thread has no signals). Code in C runs on until
+    it returns."""
+    with _UNCUT_LOCK:
+        if ident in _UNCUT:
+            _UNCUT[ident] = exc
+        else:
+            _async_exc(ident, exc)
+
+
+def forget_stop() -> None:
+    """Drop a stop asked of this thread and not yet raised (a job that ended meanwhile)."""
+    with _UNCUT_LOCK:
+        _async_exc(threading.get_ident(), None)
+
+
+def _async_exc(ident: int, exc: type[BaseException] | None) -> None:
+    import ctypes
+
+    ctypes.pythonapi.PyThreadState_SetAsyncExc(ctypes.c_ulong(ident), exc and ctypes.py_object(exc))
+
+
+@contextmanager
+def _stop_deferred() -> Iterator[None]:
+    """A stop of this thread (:func:`stop_thread`) asked during the block raised after it."""
+    ident = threading.get_ident()
+    if ident in _UNCUT:  # nested: the outer block raises it
+        yield
+        return
+    try:
+        with _UNCUT_LOCK:
+            _UNCUT[ident] = None
+        yield
+    finally:
+        with _UNCUT_LOCK:
+            asked = _UNCUT.pop(ident, None)
+        if asked is not None:
+            raise asked()
+
+
 @contextmanager
 def signals_deferred() -> Iterator[None]:
     """SIGINT and SIGTERM noted during the block and raised again right after it (in the main
-    thread; elsewhere the block runs as it is): for work that must not be cut in half."""
+    thread; elsewhere a stop of the thread, :func:`stop_thread`): for work that must not be cut
+    in half."""
     import signal
-    import threading
 
     if threading.current_thread() is not threading.main_thread():
-        yield
+        with _stop_deferred():
+            yield
         return
     noted: list[int] = []
 
@@ -154,8 +204,9 @@ def staged_outputs(paths: list[Path], *, hold_signals: bool = False) -> Iterator
 
             signal.signal(signal.SIGINT, signal.SIG_IGN)
             signal.signal(signal.SIGTERM, signal.SIG_IGN)
-        for staged, target in zip(temps, paths, strict=True):
-            publish(staged, target)
+        with _stop_deferred():  # a thread's stop, too, waits for the moves
+            for staged, target in zip(temps, paths, strict=True):
+                publish(staged, target)
     finally:
         for staged in temps:
             staged.unlink(missing_ok=True)
