@@ -409,7 +409,7 @@ def write_trend_recording(
     import rerun as rr
     import rerun.blueprint as rrb
 
-    from dhlog.present.recording import _recording_file
+    from dhlog.present.recording import recording_file as _recording_file
 
     groups = sorted({t.name.rsplit("_", 1)[0] for t in found})
     blueprint = rrb.Blueprint(

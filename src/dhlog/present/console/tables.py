@@ -1,0 +1,293 @@
+"""The console report of a result (:func:`print_result`): the DH table (±1σ under each value),
+measured − nominal, the per-joint fits, tool and base, held-out errors, the models tried beyond
+the geometry, then the labelled lines (method, frame 1, clock, FK check, what is fixed, notes,
+warnings). Every user text (joint names, paths, notes) is printed literally, on one line."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+from rich import box
+from rich.console import Console
+from rich.markup import escape
+from rich.table import Table
+
+from dhlog.geometry._checks import FloatArray, roll_pitch_yaw
+from dhlog.identify.run import ProcessResult
+from dhlog.present.console.layout import (
+    NAME_WIDTH,
+    decimals,
+    literal,
+    scales,
+    short_name,
+    table_title,
+    value_cells,
+    value_sigma,
+)
+from dhlog.present.console.notes import clock_line, held_lines, method_line, prose
+from dhlog.result.document import DisplayRow, display_rows, frame_1_origin, nominal_difference
+
+
+def print_result(console: Console, result: ProcessResult, *, units: str = "mm") -> None:
+    """The DH table (±1σ), measured − nominal, the fits, tool and base, how the table was found,
+    the FK check, what is held by convention, notes and warnings."""
+    length, _, lu, au = scales(units)
+    rows = display_rows(result, units)
+    if rows:
+        dh = Table(
+            title=table_title(rows), title_justify="left", box=box.SIMPLE_HEAD, pad_edge=False
+        )
+        dh.add_column("#", justify="right", no_wrap=True)
+        dh.add_column("joint", no_wrap=True, max_width=NAME_WIDTH)
+        dh.add_column("type", no_wrap=True)
+        heads = (f"θ [{au}]", f"d [{lu}]", f"a [{lu}]", f"α [{au}]")
+        for head in heads:
+            dh.add_column(escape(head), justify="right", no_wrap=True)
+        for i, row in enumerate(rows):
+            cells = value_cells(row, units)
+            name = short_name(result.joints[i].name)
+            dh.add_row(str(i + 1), name, row.type[0].upper(), *(f"{v}\n{s}" for v, s in cells))
+        console.print(dh)
+        _print_nominal(console, result, rows, units)
+    _print_fits(console, result, units)
+    _print_tool_and_base(console, result, units)
+    _print_holdout(console, result, units)
+    _print_terms(console, result, units)
+    lines = [("Method", method_line(result, length, lu))]
+    if result.extraction is not None:
+        lines.append(("Frame 1", f"origin at {frame_1_origin(result)}"))
+    clock = clock_line(result)
+    if clock:
+        lines.append(("Clock", clock))
+    val = result.validation
+    if val is not None:
+        lines.append(
+            (
+                "FK check",
+                f"RMS {val.rms * length:.4f} {lu}, max {val.max * length:.4f} {lu} "
+                f"(3-D distance of each of {val.n_points} samples from the FK of the table)",
+            )
+        )
+    aside = result.segmentation.set_aside
+    if aside:
+        lines.append(("Set aside", ", ".join(f"{k} {v}" for k, v in sorted(aside.items()))))
+    lines += [("Fixed", line) for line in held_lines(result, rows)]
+    lines += [("Note", note) for note in result.info]
+    prose(console, lines)
+    prose(console, [("[yellow]Warning[/]", w) for w in result.warnings], markup=True)
+
+
+def _print_nominal(
+    console: Console, result: ProcessResult, rows: list[DisplayRow], units: str
+) -> None:
+    diff = nominal_difference(result, shown=True)
+    if diff is None or result.nominal is None:
+        return
+    length, angle, lu, au = scales(units)
+    lb, ab = decimals(units)
+    t = Table(
+        title=f"Measured − nominal ({literal(result.nominal.source)})",
+        title_justify="left",
+        box=box.SIMPLE_HEAD,
+        pad_edge=False,
+    )
+    t.add_column("#", justify="right", no_wrap=True)
+    t.add_column("joint", no_wrap=True, max_width=NAME_WIDTH)
+    for head in (f"Δθ [{au}]", f"Δd [{lu}]", f"Δa [{lu}]", f"Δα [{au}]"):
+        t.add_column(escape(head), justify="right", no_wrap=True)
+    for i, d in enumerate(diff):
+        hayati = i < len(rows) and rows[i].form == "hayati"
+        cells = []
+        for k in range(4):
+            angular = k in (0, 3) or (k == 1 and hayati)
+            v = d[k] * (angle if angular else length)
+            text = "–" if not math.isfinite(v) else f"{v:+.{ab if angular else lb}f}"
+            cells.append(f"Δβ {text}" if k == 1 and hayati else text)
+        t.add_row(str(i + 1), short_name(result.joints[i].name), *cells)
+    console.print(t)
+
+
+def _print_fits(console: Console, result: ProcessResult, units: str) -> None:
+    if all(j.fit is None for j in result.joints) and all(j.ok for j in result.joints):
+        return  # no sweep (random static poses): nothing but the whole-model fit to show
+    length, angle, lu, au = scales(units)
+    fits = Table(
+        title="Per-joint fits (RMS: 3-D distance of each sample from its circle or line; "
+        "FK RMS: from the FK of the table)",
+        title_justify="left",
+        box=box.SIMPLE_HEAD,
+        pad_edge=False,
+    )
+    fits.add_column("#", justify="right", no_wrap=True)
+    fits.add_column("joint", no_wrap=True, max_width=NAME_WIDTH)
+    for head in ("samples", "outliers", f"RMS [{lu}]", "sweep", f"FK RMS [{lu}]"):
+        fits.add_column(escape(head), justify="right", no_wrap=True)
+    fits.add_column("status", no_wrap=True)
+    val = result.validation
+    for j in result.joints:
+        f = j.fit
+        sweep = ""
+        if f is not None:
+            sweep = (
+                f"{f.sweep * angle:.1f} {au}"
+                if f.kind == "circle"
+                else f"{f.sweep * length:.1f} {lu}"
+            )
+        fk = ""
+        if val is not None and j.index in val.per_joint:
+            fk = f"{val.per_joint[j.index][0] * length:.4f}"
+        fits.add_row(
+            str(j.index),
+            short_name(j.name),
+            str(j.rows.size) if f else "0",
+            str(j.n_outliers) if f else "",
+            f"{f.rms * length:.4f}" if f else "",
+            sweep,
+            fk,
+            "ok" if j.ok else "[red]failed[/]",
+        )
+    console.print(fits)
+    for j in result.failed:
+        console.print(
+            f"[red]joint {j.index} ({literal(j.name)}) not identified:[/] {literal(j.reason)}"
+        )
+
+
+def _print_tool_and_base(console: Console, result: ProcessResult, units: str) -> None:
+    """The tool point in the last frame and frame 1 in the measurement frame, with σ."""
+    ex, std = result.extraction, result.std
+    if ex is None or not result.complete:
+        return
+    length, angle, lu, au = scales(units)
+    lb, ab = decimals(units)
+    n = ex.standard.n
+    s = np.full(9, np.nan) if std is None else std[4 * n : 4 * n + 9]
+    t = Table(
+        title="Tool and base, ±1σ under each value (M: the measurement frame)",
+        title_justify="left",
+        box=box.SIMPLE_HEAD,
+        pad_edge=False,
+    )
+    t.add_column("")
+    for head in ("x", "y", "z"):
+        t.add_column(head, justify="right", no_wrap=True)
+
+    def row(label: str, values: FloatArray, stds: FloatArray, factor: float, base: int) -> None:
+        cells = []
+        for v, sd in zip(values, stds, strict=True):
+            value, sigma = value_sigma(float(v) * factor, float(sd) * factor, False, base)
+            cells.append(f"{value}\n{sigma or 'fixed'}")
+        t.add_row(escape(label), *cells)
+
+    row(f"tool point in frame {n + 1} [{lu}]", ex.tool_point, s[0:3], length, lb)
+    T = ex.T_measurement_base
+    row(f"frame 1 origin in M [{lu}]", T[:3, 3], s[3:6], length, lb)
+    row(
+        f"frame 1 rotation in M [{au}]\n(roll, pitch, yaw; σ of a small\nrotation about x, y, z)",
+        np.array(roll_pitch_yaw(T[:3, :3])),
+        s[6:9],
+        angle,
+        ab,
+    )
+    console.print(t)
+
+
+def _print_holdout(console: Console, result: ProcessResult, units: str) -> None:
+    """Per held-out check, the position error of the nominal and of the calibrated model at
+    poses not used to fit: mean, RMS, 95th percentile, max."""
+    if not result.holdout:
+        return
+    length, _, lu, _ = scales(units)
+    digits = 4 if units == "mm" else 7
+    t = Table(
+        title=escape(f"Held-out error: 3-D distance at poses not used to fit [{lu}]"),
+        title_justify="left",
+        box=box.SIMPLE_HEAD,
+        pad_edge=False,
+    )
+    for head in ("check", "model", "poses", "mean", "RMS", "95 %", "max"):
+        t.add_column(head, justify="left" if head in ("check", "model") else "right")
+    for h in result.holdout:
+        what = f"{h.folds}-fold" if h.kind == "cross-validation" else Path(h.path or "").name
+        if h.registered:
+            what += " (placed)"
+        for label, stats in (("nominal", h.nominal), ("calibrated", h.calibrated)):
+            if stats is None:
+                continue
+            t.add_row(
+                literal(what) if label == "nominal" or h.nominal is None else "",
+                label,
+                str(stats.n_poses),
+                *(
+                    f"{v * length:.{digits}f}"
+                    for v in (stats.mean, stats.rms, stats.p95, stats.max)
+                ),
+            )
+    console.print(t)
+    in_sample = result.validation
+    notes = [note for h in result.holdout for note in h.notes]
+    if in_sample is not None:
+        notes.insert(
+            0,
+            f"in-sample FK RMS {in_sample.rms * length:.{digits}f} {lu} over "
+            f"{in_sample.n_points} samples (the fitted ones); a held-out error far above it "
+            "means the model fits the session better than it predicts the robot.",
+        )
+    prose(console, [("Held out", n) for n in dict.fromkeys(notes)])
+
+
+def _print_terms(console: Console, result: ProcessResult, units: str) -> None:
+    """The models tried beyond the geometry (``--model``): terms, parameters, BIC, held-out
+    RMS, which was chosen and why; then the chosen terms with σ and what they move."""
+    selection = result.selection
+    if selection is None:
+        return
+    length, _, lu, _ = scales(units)
+    digits = 4 if units == "mm" else 7
+    t = Table(
+        title=escape(
+            f"Model beyond the geometry (--model {selection.mode}): held-out RMS and the σ the "
+            f"model predicts over the session's joint ranges [{lu}]"
+        ),
+        title_justify="left",
+        box=box.SIMPLE_HEAD,
+        pad_edge=False,
+    )
+    for head in ("model", "params", "BIC", "held out", "σ range", ""):
+        t.add_column(
+            escape(head), justify="left" if head in ("model", "") else "right", no_wrap=True
+        )
+    for c in selection.candidates:
+        t.add_row(
+            literal(c.name),
+            str(c.parameters),
+            f"{c.bic:.1f}",
+            "—" if c.holdout_rms is None else f"{c.holdout_rms * length:.{digits}f}",
+            f"{c.range_sd * length:.{digits}f}",
+            "chosen" if c.chosen else "",
+        )
+    console.print(t)
+    lines = [("Model", f"{c.name}: {c.why}") for c in selection.candidates if c.why]
+    terms = result.terms
+    if terms is not None:
+        doc = terms.document(result.terms_std)
+        for item in doc["terms"]:
+            sd = item["std"]
+            shown = "not determined" if sd is None or not math.isfinite(sd) else f"± {sd:.3g}"
+            lines.append(("Term", f"{item['name']} = {item['value']:.4g} {shown} {item['unit']}"))
+        moved = ", ".join(
+            f"joint {i + 1} {math.degrees(v) * 3600:.1f}″"
+            for i, v in enumerate(result.deflection_max)
+            if v > 0
+        )
+        lines.append(
+            (
+                "Deflection",
+                f"largest at the samples: {moved}; the target "
+                f"{result.deflection_target * length:.{digits}f} {lu} (DH tables, URDF and the UR "
+                "file cannot carry these terms: the JSON's nongeometric block does)",
+            )
+        )
+    prose(console, lines)
