@@ -299,11 +299,13 @@ def _run_tasks(
             k = futures[future]
             try:
                 row = future.result()
-            except distributed.KilledWorker as exc:
+            except distributed.KilledWorker as exc:  # its workers died, each in turn
                 row = lost(items[k], f"the worker stopped ({exc}).")
-            except Exception as exc:  # raised by the task, or dropped by the scheduler
+            except distributed.CancelledError as exc:  # the scheduler lost, or was lost
+                row = lost(items[k], f"the cluster dropped the task ({exc}).")
+            except Exception as exc:  # raised on the worker (dhlog missing there, say)
                 row = lost(
-                    items[k], f"the task failed on its worker ({type(exc).__name__}: {exc})."
+                    items[k], f"the task raised on its worker ({type(exc).__name__}: {exc})."
                 )
             rows[k] = row
             if on_done is not None:
