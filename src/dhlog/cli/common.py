@@ -131,7 +131,7 @@ def plain(text: object) -> str:
     line (line breaks and other controls as ``\\n``-like escapes, :func:`printable`)."""
     from rich.markup import escape
 
-    from dhlog.result.check import printable
+    from dhlog.io.safetext import printable
 
     return escape(printable(str(text)))
 

@@ -60,9 +60,9 @@ def export(
 ) -> None:
     """Write the identified model in a form a robot stack loads."""
     from dhlog.io.dhfile import robot_or_dh_file
+    from dhlog.io.paths import refuse_inputs_as_outputs
     from dhlog.io.writer import atomic_output
     from dhlog.result import export as exports
-    from dhlog.result.check import refuse_inputs_as_outputs
 
     if zero_offsets not in ("origins", "calibration") or (
         zero_offsets == "calibration" and (template is not None or format != "urdf")
@@ -119,7 +119,8 @@ def export(
 def _terms_not_exported(result: Path, fmt: str) -> None:
     """Say so when the result carries terms beyond the geometry that ``fmt`` cannot carry."""
     from dhlog.io.dhfile import parse_dh
-    from dhlog.result.check import load_result, printable
+    from dhlog.io.safetext import printable
+    from dhlog.result.check import load_result
 
     try:
         terms = parse_dh(load_result(result), str(result)).terms
@@ -293,7 +294,7 @@ def print_values(
     from rich.cells import cell_len
     from rich.table import Table
 
-    from dhlog.result.check import printable
+    from dhlog.io.safetext import printable
 
     def width(texts: Sequence[str]) -> int:
         return max(cell_len(line) for text in texts for line in text.split("\n"))
@@ -323,7 +324,8 @@ def print_values(
 def _compare_trends(summary: Path, threshold: float, rrd: Path | None, force: bool) -> None:
     """The console table (and optionally the recording) of a batch summary's trends."""
     from dhlog.fleet.compare import read_summary, trends, write_trend_recording
-    from dhlog.result.check import printable, refuse_inputs_as_outputs
+    from dhlog.io.paths import refuse_inputs_as_outputs
+    from dhlog.io.safetext import printable
 
     try:
         if rrd is not None:  # before any work; the summary stays as it is, even with --force

@@ -267,7 +267,8 @@ def check_paths(jobs: list[BatchJob], folder: Path) -> None:
     """Before any work: no input of the batch (a log, the nominal or pipeline file) may be one
     of its outputs (:class:`~dhlog.result.check.InputIsOutputError`), and no output may be a
     folder (an :class:`~dhlog.errors.InputError`); nothing is written either way."""
-    from dhlog.result.check import printable, refuse_inputs_as_outputs
+    from dhlog.io.paths import refuse_inputs_as_outputs
+    from dhlog.io.safetext import printable
 
     outputs = [path for job in jobs for path in job_outputs(job)] + summary_paths(folder)
     inputs = [(Path(job.log), "log") for job in jobs]

@@ -20,15 +20,10 @@ import numpy as np
 
 from dhlog.geometry._checks import FloatArray, wrap_angle
 from dhlog.io.dhfile import DHFileError, parse_dh
+from dhlog.io.safetext import printable
 from dhlog.model.fk import fk_point
-from dhlog.result.check import (
-    MAX_ANGLE_RAD,
-    MAX_LENGTH_M,
-    MAX_SUMMARY_BYTES,
-    load_result,
-    printable,
-    read_limited,
-)
+from dhlog.result.check import MAX_SUMMARY_BYTES, load_result, read_limited
+from dhlog.result.fields import MAX_ANGLE_RAD, MAX_LENGTH_M
 
 NAMES = ("theta_offset", "d_offset", "a", "alpha")
 

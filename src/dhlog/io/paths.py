@@ -1,11 +1,24 @@
 """Whether two paths name one file: an output that is one of a command's inputs is refused before
-anything is written (``dhlog import``, ``export``, ``compare``, ``batch``)."""
+anything is written (``dhlog import``, ``export``, ``compare``, ``batch``;
+:func:`refuse_inputs_as_outputs`)."""
 
 from __future__ import annotations
 
 import os
 from collections.abc import Iterable
 from pathlib import Path
+
+from dhlog.errors import InputError
+
+
+class InputIsOutputError(InputError):
+    """An output path is one of the command's inputs."""
+
+    def __init__(self, input_path: object, what: str, output_path: object) -> None:
+        super().__init__(
+            f"{input_path}: the {what} is also an output of this command ({output_path}) and "
+            "would be overwritten; choose another output path (or folder). Nothing was written."
+        )
 
 
 def resolved(path: str | Path) -> str:
@@ -53,3 +66,13 @@ def same_file(a: str | Path, b: str | Path) -> bool:
     """True when ``a`` and ``b`` name one file: the same path once resolved (a symbolic-link
     loop resolves without an error), or the same file by device and inode (a hard link)."""
     return SameFiles([Path(b)]).find(a) is not None
+
+
+def refuse_inputs_as_outputs(inputs: Iterable[tuple[Path, str]], outputs: Iterable[Path]) -> None:
+    """:class:`InputIsOutputError` when an input (path, what it is) is one of ``outputs``: the
+    same path once resolved (symbolic links followed), or the same file (hard links)."""
+    written = SameFiles(outputs)
+    for path, what in inputs:
+        hit = written.find(path)
+        if hit is not None:
+            raise InputIsOutputError(path, what, hit)

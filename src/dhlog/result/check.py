@@ -1,67 +1,36 @@
-"""Result JSONs, batch summaries and URDF templates read as untrusted input.
+"""Result JSONs and batch summaries read as untrusted input.
 
 Every byte of a file handed to ``compare``, ``export`` or ``batch`` may be damaged or hostile:
 its size is checked before it is read (:func:`read_limited`), a JSON document's nesting is
 bounded by the parser, and each field those commands use is checked for presence, type and
 range (:func:`check_result`) before any of them touches it, so that a fault is one line naming
-the file and the field. :class:`FieldReader` does those reads for them and for ``dhlog report``
-(:mod:`dhlog.present.certificate.read`), each in its own wording (:data:`WORDING_IS`,
-:data:`WORDING_MUST`) and error. :func:`refuse_inputs_as_outputs` keeps a command from writing
-over one of its own inputs. Text that lands in an output (file names in comments) is made safe
-for it by :func:`printable` and :func:`xml_comment_text`.
+the file and the field. The reads go through :class:`~dhlog.result.fields.FieldReader`, shared
+with ``dhlog report``.
 """
 
 from __future__ import annotations
 
 import json
 import math
-import unicodedata
-from collections.abc import Callable, Iterable, Sequence
-from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, NoReturn
+from typing import Any
 
-from dhlog.errors import InputError
 from dhlog.io.dhfile import DHFileError
-from dhlog.io.paths import SameFiles
+from dhlog.io.safetext import printable as printable  # handed on: see below
+from dhlog.result.fields import WORDING_IS, FieldReader
+
+# ``printable`` lives in dhlog.io.safetext; it is handed on from here only while
+# present/console/layout.py (re-laid at the same time) imports it from this module.
 
 #: The largest result (or DH) JSON read, and the largest batch summary (a result is ~40 kB).
 MAX_RESULT_BYTES = 100 * 2**20
 MAX_SUMMARY_BYTES = 100 * 2**20
 #: The most joints a result may have.
 MAX_JOINTS = 100
-#: The largest length (m) and angle (rad) a result's field may hold: a kilometre, 16 turns.
-MAX_LENGTH_M = 1e3
-MAX_ANGLE_RAD = 100.0
-#: The largest standard-DH ``d`` of the rows of a nearly parallel pair (the row the result also
-#: gives in the Hayati-Mirmirani form, and the next): their common normal lies far away (0.5 km
-#: in a real KR5, 13.5 km in a simulated one; ~ the offset over the angle between the axes).
-MAX_FAR_LENGTH_M = 1e9
 #: The longest joint name.
 MAX_NAME = 256
 #: Integers with more digits than this are read as floats (Python refuses over 4 300 digits).
 _INT_DIGITS = 18
-
-_FIX = "repair that field, or give the <stem>.dh.json that dhlog process wrote"
-
-
-class ResultFieldError(DHFileError):
-    """A field of a result JSON is missing, null, of the wrong type or out of range."""
-
-    def __init__(self, path: str, field: str, problem: str) -> None:
-        self.field = field
-        super().__init__(path, f"{field} {problem}; {_FIX}.")
-
-
-class InputIsOutputError(InputError):
-    """An output path is one of the command's inputs."""
-
-    def __init__(self, input_path: object, what: str, output_path: object) -> None:
-        super().__init__(
-            f"{input_path}: the {what} is also an output of this command ({output_path}) and "
-            "would be overwritten; choose another output path (or folder). Nothing was written."
-        )
-
 
 # ---------------------------------------------------------------------------- reading
 
@@ -119,49 +88,7 @@ def load_result(path: str | Path) -> dict[str, Any]:
     return check_result(data, name)
 
 
-# ---------------------------------------------------------------------------- fields
-
-
-@dataclass(frozen=True)
-class Wording:
-    """How a :class:`FieldReader` words a refusal: ``mismatch`` (a value of the wrong type,
-    with ``{kind}``, what it is, and ``{wanted}``), the nouns of a JSON string and array,
-    ``not_finite`` (with ``{value}``) and ``overflow`` (an integer beyond a float's range;
-    None: refused as not finite)."""
-
-    mismatch: str
-    text: str
-    array: str
-    not_finite: str
-    overflow: str | None
-
-    def kind(self, value: object) -> str:
-        """A JSON value's type as a reader would name it."""
-        if value is None:
-            return "null"
-        if isinstance(value, bool):
-            return "true/false"
-        if isinstance(value, int | float):
-            return "a number"
-        if isinstance(value, str):
-            return self.text
-        if isinstance(value, list):
-            return self.array
-        if isinstance(value, dict):
-            return "an object"
-        return type(value).__name__
-
-
-#: ``compare``, ``export`` and ``batch``: "tool.point is text, not a list".
-WORDING_IS = Wording("is {kind}, not {wanted}", "text", "a list", "is not a finite number", None)
-#: ``report``: "tool.point must be an array, not a string".
-WORDING_MUST = Wording(
-    "must be {wanted}, not {kind}",
-    "a string",
-    "an array",
-    "must be a finite number, not {value}",
-    "is out of range",
-)
+# ---------------------------------------------------------------------------- checks
 
 
 def name_problem(name: str) -> str | None:
@@ -176,186 +103,6 @@ def name_problem(name: str) -> str | None:
         if control or 0xD800 <= code <= 0xDFFF or code in (0xFFFE, 0xFFFF):
             return f"holds the character U+{code:04X} (a control character or a non-character)"
     return None
-
-
-def _at(at: str, key: str) -> str:
-    return f"{at}.{key}" if at else key
-
-
-class FieldReader:
-    """Typed reads of an untrusted JSON document (the file ``path``), each refusal an
-    ``error(path, field, problem)`` naming the field, worded by ``wording``. ``length`` and
-    ``angle``: the document's units in m and rad, for the ranges of :meth:`number`'s units."""
-
-    def __init__(
-        self,
-        path: str,
-        *,
-        error: Callable[[str, str, str], Exception] = ResultFieldError,
-        wording: Wording = WORDING_IS,
-        length: float = 1.0,
-        angle: float = 1.0,
-    ) -> None:
-        self.path = path
-        self.error = error
-        self.wording = wording
-        self.length = length
-        self.angle = angle
-
-    def fail(self, field: str, problem: str) -> NoReturn:
-        raise self.error(self.path, field, problem)
-
-    def mismatch(self, value: object, field: str, wanted: str) -> NoReturn:
-        kind = self.wording.kind(value)
-        self.fail(field, self.wording.mismatch.format(kind=kind, wanted=wanted))
-
-    def get(
-        self,
-        holder: dict[str, Any],
-        key: str,
-        at: str = "",
-        *,
-        required: bool = True,
-        null: bool = False,
-    ) -> Any:
-        """``holder[key]`` (field ``at.key``): None when it is missing and not ``required``; a
-        null where one is ``required`` is refused unless ``null`` (then the reader that takes
-        the value words the refusal)."""
-        if key not in holder:
-            if required:
-                self.fail(_at(at, key), "is missing")
-            return None
-        value = holder[key]
-        if value is None and required and not null:
-            self.fail(_at(at, key), "is null")
-        return value
-
-    def obj(self, value: Any, field: str) -> dict[str, Any]:
-        if not isinstance(value, dict):
-            self.mismatch(value, field, "an object")
-        return value
-
-    def obj_or_null(self, value: Any, field: str) -> dict[str, Any] | None:
-        return None if value is None else self.obj(value, field)
-
-    def array(self, value: Any, field: str, *, most: int | None = None) -> list[Any]:
-        """A list (of at most ``most`` items)."""
-        if not isinstance(value, list):
-            self.mismatch(value, field, self.wording.array)
-        if most is not None and len(value) > most:
-            self.fail(field, f"has {len(value)} entries (at most {most})")
-        return value
-
-    def array_or_null(self, value: Any, field: str, *, most: int | None = None) -> list[Any] | None:
-        return None if value is None else self.array(value, field, most=most)
-
-    def number(
-        self,
-        value: Any,
-        field: str,
-        unit: str | None = None,
-        *,
-        sigma: bool = False,
-        minimum: float | None = None,
-    ) -> float:
-        """A finite number; within the range of its ``unit`` when one is given (``length``,
-        ``angle``, ``far``: a length of an ill-conditioned row, ``mass``; any other: plain);
-        ``sigma``: not negative; at least ``minimum``."""
-        if isinstance(value, bool) or not isinstance(value, int | float):
-            self.mismatch(value, field, "a number")
-        try:
-            v = float(value)
-        except OverflowError:
-            if self.wording.overflow is not None:
-                self.fail(field, self.wording.overflow)
-            v = math.inf
-        if not math.isfinite(v):
-            self.fail(field, self.wording.not_finite.format(value=v))
-        if unit is not None:
-            if unit == "length":
-                bound, shown, scaled = MAX_LENGTH_M, "m", v * self.length
-            elif unit == "far":
-                bound, shown, scaled = MAX_FAR_LENGTH_M, "m", v * self.length
-            elif unit == "angle":
-                bound, shown, scaled = MAX_ANGLE_RAD, "rad", v * self.angle
-            elif unit == "mass":
-                bound, shown, scaled = 1e6, "kg", v
-            else:
-                bound, shown, scaled = 1e3, "", v
-            if abs(scaled) > bound:
-                self.fail(field, f"is {v:.6g}, beyond ±{bound:g} {shown}".rstrip())
-        if sigma and v < 0:
-            self.fail(field, f"is {v:.6g}; a standard deviation is not negative")
-        if minimum is not None and v < minimum:
-            self.fail(field, f"must be at least {minimum:g}, not {v:g}")
-        return v
-
-    def number_or_null(
-        self, value: Any, field: str, *, minimum: float | None = None
-    ) -> float | None:
-        return None if value is None else self.number(value, field, minimum=minimum)
-
-    def integer(self, value: Any, field: str, *, minimum: int | None = None) -> int:
-        if isinstance(value, bool) or not isinstance(value, int):
-            self.mismatch(value, field, "a whole number")
-        if minimum is not None and value < minimum:
-            self.fail(field, f"must be at least {minimum}, not {value}")
-        return value
-
-    def text(self, value: Any, field: str, choices: Sequence[str] | None = None) -> str:
-        if not isinstance(value, str):
-            self.mismatch(value, field, self.wording.text)
-        if choices is not None and value.strip().lower() not in choices:
-            self.fail(field, f"must be one of {', '.join(choices)}")
-        return value
-
-    def texts(self, value: Any, field: str) -> list[str]:
-        return [self.text(v, f"{field}[{k}]") for k, v in enumerate(self.array(value, field))]
-
-    def vector(
-        self, value: Any, field: str, size: int, *, null: bool = False
-    ) -> list[float | None]:
-        """``size`` numbers (``null``: each may be null)."""
-        items = self.array(value, field)
-        if len(items) != size:
-            self.fail(field, f"must hold {size} numbers, not {len(items)}")
-        if null:
-            return [self.number_or_null(v, f"{field}[{k}]") for k, v in enumerate(items)]
-        return [self.number(v, f"{field}[{k}]") for k, v in enumerate(items)]
-
-    # keyed forms: parent[key] at ``at`` (optional ones None when missing or null; a required
-    # null refused by the typed reader)
-
-    def get_obj(
-        self, parent: dict[str, Any], key: str, at: str = "", *, required: bool = True
-    ) -> dict[str, Any] | None:
-        v = self.get(parent, key, at, required=required, null=True)
-        if v is None and not required:
-            return None
-        return self.obj(v, _at(at, key))
-
-    def get_number(
-        self,
-        parent: dict[str, Any],
-        key: str,
-        at: str = "",
-        *,
-        required: bool = True,
-        null: bool = False,
-        minimum: float | None = None,
-    ) -> float | None:
-        v = self.get(parent, key, at, required=required, null=True)
-        if v is None and (null or not required):
-            return None
-        return self.number(v, _at(at, key), minimum=minimum)
-
-    def get_text(
-        self, parent: dict[str, Any], key: str, at: str = "", *, required: bool = True
-    ) -> str | None:
-        v = self.get(parent, key, at, required=required, null=True)
-        if v is None and not required:
-            return None
-        return self.text(v, _at(at, key))
 
 
 def _numbers(f: FieldReader, value: Any, field: str, unit: str, size: int) -> list[float]:
@@ -404,8 +151,8 @@ def _scales(data: dict[str, Any], f: FieldReader) -> tuple[float, float]:
 
 def check_result(data: Any, source: str) -> dict[str, Any]:
     """``data`` (a parsed result or DH JSON) when every field ``compare``, ``export`` and
-    ``batch`` use is present, of its type and in range; else :class:`ResultFieldError` naming
-    the first that is not."""
+    ``batch`` use is present, of its type and in range; else
+    :class:`~dhlog.result.fields.ResultFieldError` naming the first that is not."""
     if not isinstance(data, dict):
         raise DHFileError(
             source,
@@ -564,42 +311,3 @@ def _check_nongeometric(data: dict[str, Any], f: FieldReader, n: int) -> None:
             lump_at = f.number(term["lump"], f"{at}.lump", "plain")
             if lump_at != int(lump_at) or lump_at < 0:
                 f.fail(f"{at}.lump", "must be a lump's index (0, 1, …)")
-
-
-# ---------------------------------------------------------------------------- outputs
-
-
-def refuse_inputs_as_outputs(inputs: Iterable[tuple[Path, str]], outputs: Iterable[Path]) -> None:
-    """:class:`InputIsOutputError` when an input (path, what it is) is one of ``outputs``: the
-    same path once resolved (symbolic links followed), or the same file (hard links)."""
-    written = SameFiles(outputs)
-    for path, what in inputs:
-        hit = written.find(path)
-        if hit is not None:
-            raise InputIsOutputError(path, what, hit)
-
-
-# ---------------------------------------------------------------------------- text in outputs
-
-
-def printable(text: str) -> str:
-    """``text`` with every character that is not printable on one line (controls, line and
-    paragraph separators, surrogates of undecodable file names, unassigned code points) as a
-    ``\\xNN`` / ``\\uNNNN`` escape: safe in a comment of XML, YAML or Python."""
-    out = []
-    for ch in text:
-        category = unicodedata.category(ch)
-        if category[0] == "C" or category in ("Zl", "Zp"):
-            code = ord(ch)
-            out.append(f"\\x{code:02x}" if code < 0x100 else f"\\u{code:04x}")
-        else:
-            out.append(ch)
-    return "".join(out)
-
-
-def xml_comment_text(text: str) -> str:
-    """``text`` fit for an XML comment: printable, no ``--``, not ending in ``-``."""
-    safe = printable(text)
-    while "--" in safe:
-        safe = safe.replace("--", "- -")
-    return safe + " " if safe.endswith("-") else safe

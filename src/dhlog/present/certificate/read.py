@@ -23,8 +23,8 @@ from dhlog.present.certificate.shown import (
     Triple,
     mm,
 )
-from dhlog.result.check import WORDING_MUST, FieldReader
 from dhlog.result.contract import RESULT_FORMAT
+from dhlog.result.fields import WORDING_MUST, FieldReader
 
 #: What to do about a damaged result JSON.
 REMEDY = "the file is damaged or not a dhlog result: write it again with dhlog process"

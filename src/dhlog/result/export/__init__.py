@@ -1,0 +1,17 @@
+"""A result in the forms robot stacks load: a URDF (:mod:`.urdf`), a user's URDF template with
+calibrated origins (:mod:`.template`, the template read in :mod:`.templatefile`), the UR
+description's kinematics YAML and a roboticstoolbox robot (:mod:`.robotics`), the plain DH tables
+(:mod:`.tables`); each reads the result through :mod:`.source`."""
+
+from dhlog.result.export.robotics import rtb_document, ur_calibration
+from dhlog.result.export.tables import dh_table_document
+from dhlog.result.export.template import urdf_from_template
+from dhlog.result.export.urdf import urdf_document
+
+__all__ = [
+    "dh_table_document",
+    "rtb_document",
+    "ur_calibration",
+    "urdf_document",
+    "urdf_from_template",
+]

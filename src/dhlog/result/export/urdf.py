@@ -1,0 +1,169 @@
+"""A result as a URDF whose joints reproduce the identified model (:func:`urdf_document`).
+
+The URDF chain is ``measurement`` (the tracker's frame M) → ``base_link`` (DH frame 1, placed by
+``T_measurement_base``) → ``link_1`` … ``link_n`` → ``flange`` (frame n+1) → ``tool0`` (the
+target). Joint i turns (slides) about z of its frame; its origin is the previous row's transform
+at encoder zero, ``A_{i−1}(0) = Rz(θ_offset) Tz(d_offset) Tx(a) Rx(α)`` (a Hayati–Mirmirani row
+``… Rx(α) Ry(β)``, when the result has one: the well-conditioned form), so that
+
+    link_i = frame_i · Rz(q_i)   and   frame_{i+1} = link_i · A_i(0) = frame_i · A_i(q_i),
+
+which is the result's forward kinematics exactly: the URDF's joint zero is the encoder zero (the
+zero offsets are in the joint origins). An encoder scale (``--fit-encoder-scales``) has no place
+in a URDF and is refused.
+"""
+
+from __future__ import annotations
+
+import math
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+import numpy as np
+
+from dhlog.geometry._checks import FloatArray, roll_pitch_yaw
+from dhlog.io.dhfile import DHFileError
+from dhlog.io.safetext import printable, xml_comment_text
+from dhlog.model.dh import HayatiDH, JointType, StandardDH
+from dhlog.result.export.source import load_table
+
+
+def _origin(parent: ET.Element, T: FloatArray) -> None:
+    xyz = " ".join(f"{v:.17g}" for v in T[:3, 3])
+    rpy = " ".join(f"{v:.17g}" for v in roll_pitch_yaw(T[:3, :3]))
+    ET.SubElement(parent, "origin", xyz=xyz, rpy=rpy)
+
+
+def origin_element(T: FloatArray) -> ET.Element:
+    """An ``<origin>`` element of the transform ``T`` (4×4): its ``xyz`` and URDF's ``rpy``."""
+    element = ET.Element("origin")
+    element.set("xyz", " ".join(f"{v:.17g}" for v in T[:3, 3]))
+    element.set("rpy", " ".join(f"{v:.17g}" for v in roll_pitch_yaw(T[:3, :3])))
+    return element
+
+
+def rpy_matrix(roll: float, pitch: float, yaw: float) -> FloatArray:
+    """URDF's fixed-axis roll-pitch-yaw: ``Rz(yaw) Ry(pitch) Rx(roll)``, as a 4×4 transform."""
+    cr, sr, cp, sp, cy, sy = (
+        math.cos(roll),
+        math.sin(roll),
+        math.cos(pitch),
+        math.sin(pitch),
+        math.cos(yaw),
+        math.sin(yaw),
+    )
+    T = np.eye(4)
+    T[:3, :3] = [
+        [cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
+        [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
+        [-sp, cp * sr, cp * cr],
+    ]
+    return T
+
+
+def _limits(limits: FloatArray, n: int, source: str) -> FloatArray:
+    """Joint limits (n, 2), finite, lower below upper."""
+    limits = np.asarray(limits, dtype=np.float64)
+    if limits.shape != (n, 2) or not np.all(np.isfinite(limits)):
+        raise DHFileError(
+            source,
+            f"has {n} joints, but the limits given are for {len(limits)}; give the limits of "
+            "the same robot (--limits-from).",
+        )
+    return limits
+
+
+def _without_offsets(table: StandardDH) -> StandardDH:
+    """The table with its zero offsets (θ of revolute, d of prismatic rows) set to zero."""
+    revolute = np.array([t is JointType.REVOLUTE for t in table.joint_types])
+    theta = np.where(revolute, 0.0, table.theta_offset)
+    d = np.where(revolute, table.d_offset, 0.0)
+    if isinstance(table, HayatiDH):
+        return HayatiDH(table.joint_types, theta, d, table.a, table.alpha, table.beta, table.hayati)
+    return StandardDH(table.joint_types, theta, d, table.a, table.alpha)
+
+
+def urdf_document(
+    result_path: str | Path,
+    *,
+    name: str | None = None,
+    limits: FloatArray | None = None,
+    zero_offsets: str = "origins",
+) -> str:
+    """The URDF text of a result (or DH) JSON; ``limits`` (n, 2) the joint limits (rad, m;
+    default ±π and ±1 m). ``zero_offsets``: ``origins`` (joint zero = encoder zero, the
+    offsets in the joint origins) or ``calibration`` (the origins without them; each joint's
+    ``<calibration rising="…"/>`` holds its offset: joint position = encoder value + rising)."""
+    source = str(result_path)
+    _, table, model = load_table(result_path)
+    if zero_offsets not in ("origins", "calibration"):
+        raise ValueError(f"zero_offsets must be origins or calibration, not {zero_offsets!r}")
+    offsets = np.where(
+        [t is JointType.REVOLUTE for t in table.joint_types], table.theta_offset, table.d_offset
+    )
+    if zero_offsets == "calibration":
+        table = _without_offsets(table)
+    n = table.n
+    if limits is None:
+        limits = np.array(
+            [
+                [-math.pi, math.pi] if t is JointType.REVOLUTE else [-1.0, 1.0]
+                for t in table.joint_types
+            ]
+        )
+    limits = _limits(limits, n, printable(source))
+    names = list(model.joint_names)
+    if len(set(names)) != len(names):
+        names = [f"joint_{i + 1}" for i in range(n)]
+    robot_name = printable(name or Path(source).name.split(".")[0]) or "robot"
+    robot = ET.Element("robot", name=robot_name)
+    ET.SubElement(robot, "link", name="measurement")
+    ET.SubElement(robot, "link", name="base_link")
+    fixed = ET.SubElement(robot, "joint", name="base_in_measurement", type="fixed")
+    ET.SubElement(fixed, "parent", link="measurement")
+    ET.SubElement(fixed, "child", link="base_link")
+    _origin(fixed, model.T_base)
+    rows = table.link_transforms(np.zeros(n))
+    parent = "base_link"
+    for i in range(n):
+        child = f"link_{i + 1}"
+        ET.SubElement(robot, "link", name=child)
+        kind = "revolute" if table.joint_types[i] is JointType.REVOLUTE else "prismatic"
+        joint = ET.SubElement(robot, "joint", name=names[i], type=kind)
+        ET.SubElement(joint, "parent", link=parent)
+        ET.SubElement(joint, "child", link=child)
+        _origin(joint, np.eye(4) if i == 0 else rows[i - 1])
+        ET.SubElement(joint, "axis", xyz="0 0 1")
+        lo, hi = limits[i]
+        ET.SubElement(
+            joint, "limit", lower=f"{lo:.17g}", upper=f"{hi:.17g}", effort="0", velocity="0"
+        )
+        if zero_offsets == "calibration":
+            ET.SubElement(joint, "calibration", rising=f"{offsets[i]:.17g}")
+        parent = child
+    for link, origin in (("flange", rows[n - 1]), ("tool0", None)):
+        ET.SubElement(robot, "link", name=link)
+        joint = ET.SubElement(robot, "joint", name=f"{link}_fixed", type="fixed")
+        ET.SubElement(joint, "parent", link=parent)
+        ET.SubElement(joint, "child", link=link)
+        if origin is None:
+            origin = np.eye(4)
+            origin[:3, 3] = model.tool_point
+        _origin(joint, origin)
+        parent = link
+    comment = ET.Comment(
+        xml_comment_text(
+            " written by dhlog export from "
+            + Path(source).name
+            + (
+                ": joint zero = encoder zero (the zero offsets are in the joint origins); "
+                if zero_offsets == "origins"
+                else ": the zero offsets are in each joint's <calibration rising>: joint "
+                "position = encoder value + rising; "
+            )
+            + "frame base_link = DH frame 1, flange = frame n+1, tool0 = the measured target "
+        )
+    )
+    robot.insert(0, comment)
+    ET.indent(robot)
+    return '<?xml version="1.0"?>\n' + ET.tostring(robot, encoding="unicode") + "\n"
