@@ -94,7 +94,8 @@ def time_limit(seconds: float) -> Iterator[None]:
 
 def _session(seed: int, **kw: object):  # type: ignore[no-untyped-def]
     from dhlog.model.robots import load_robot
-    from dhlog.simulate import SimulationConfig, simulate_session
+    from dhlog.simulate.config import SimulationConfig
+    from dhlog.simulate.session import simulate_session
 
     cfg = SimulationConfig(
         seed=seed,

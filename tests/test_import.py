@@ -19,7 +19,8 @@ from dhlog.identify.validate import fk_prediction_std
 from dhlog.io.reader import read_log
 from dhlog.model.fk import fk_point
 from dhlog.model.robots import load_robot
-from dhlog.simulate import Session, SimulationConfig, simulate_session
+from dhlog.simulate.config import SimulationConfig
+from dhlog.simulate.session import Session, simulate_session
 
 runner = CliRunner()
 NOISE = 1e-5

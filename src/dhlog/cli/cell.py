@@ -230,7 +230,7 @@ def plan(
     from dhlog.cell.plan import plan_session
     from dhlog.io.dhfile import robot_or_dh_file
     from dhlog.io.writer import atomic_output
-    from dhlog.simulate import SIX_DOF_TOOL_ROTATION, SimulationConfig, config_problems
+    from dhlog.simulate.config import SIX_DOF_TOOL_ROTATION, SimulationConfig, config_problems
 
     tracker = _tracker(station, range_m, tracker_um)
     if candidates is not None or select:

@@ -163,15 +163,15 @@ def simulate(
     """Write a simulated calibration session and its ground truth."""
     from dhlog.io.dhfile import robot_or_dh_file
     from dhlog.io.writer import sha256_of, write_session, write_truth
-    from dhlog.simulate import (
+    from dhlog.simulate.config import (
         PROTOCOLS,
         SIX_DOF_TOOL_ROTATION,
         SimulationConfig,
         config_problems,
-        simulate_session,
-        swept_joints,
-        truth_document,
     )
+    from dhlog.simulate.protocols import swept_joints
+    from dhlog.simulate.session import simulate_session
+    from dhlog.simulate.truth import truth_document
 
     choices = {
         "encoding": (encoding, ("ros2", "json", "protobuf")),
@@ -273,7 +273,7 @@ def simulate(
         write_truth(doc, truth_path)
         if urdf_path is not None:  # the maker's description of the masses, for --masses
             from dhlog.io.writer import atomic_output
-            from dhlog.simulate import masses_urdf
+            from dhlog.simulate.robot import masses_urdf
 
             with atomic_output(urdf_path) as f:
                 f.write(masses_urdf(rob).encode())

@@ -1,0 +1,245 @@
+"""The settings of a simulated session (:class:`SimulationConfig`) and what is wrong with them
+for a robot (:func:`config_problems`)."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Literal
+
+import numpy as np
+
+from dhlog.model.dh import JointType
+from dhlog.model.robots import Robot
+
+PROTOCOLS = ("sweeps", "random-poses", "coupled")
+#: the ``coupled`` protocol's pair: joint 3 follows joint 2 as q3 = −q2 (the level forearm move)
+COUPLED_PAIR = (2, 3, -1.0)
+#: the target frame's fixed rotation in the flange frame (rotation vector, rad) of the command
+#: line's ``--six-dof``
+SIX_DOF_TOOL_ROTATION = (0.3, -0.2, 0.5)
+
+
+@dataclass(frozen=True)
+class SimulationConfig:
+    """Settings of a simulated session (SI units; noise is σ, or the half-width if uniform)."""
+
+    noise: float = 1e-5
+    noise_kind: Literal["gaussian", "uniform"] = "gaussian"
+    tracker_rate: float = 100.0
+    joint_rate: float = 250.0
+    motion: Literal["continuous", "step"] = "continuous"
+    sweep: float = math.radians(90.0)
+    travel: float = 0.1
+    speed: float = 0.5
+    linear_speed: float = 0.05
+    steps: int = 12
+    dwell: float = 0.3
+    lock_poses: Literal["home", "random"] = "home"
+    #: what the robot does (see the module docstring); ``random-poses`` and ``coupled`` are
+    #: step-and-measure whatever ``motion`` says
+    protocol: Literal["sweeps", "random-poses", "coupled"] = "sweeps"
+    #: random still poses of the ``random-poses`` protocol
+    poses: int = 40
+    #: the ``random-poses`` protocol's still poses given, in their order (a planned list,
+    #: ``simulate --poses CSV``), in place of ``poses`` drawn ones
+    pose_list: tuple[tuple[float, ...], ...] = ()
+    base_points: int = 12
+    outliers: float = 0.0
+    outlier_size: float = 3e-3
+    dropouts: float = 0.0
+    encoders: bool = True
+    phase: bool = False
+    perturb_length: float = 0.0
+    perturb_angle: float = 0.0
+    #: σ (m, per coordinate, RMS over the joint limits) of an unmodelled smooth error of the
+    #: robot's position (what gravity and gears leave after a geometric model)
+    model_error: float = 0.0
+    clock_jitter: float = 2e-4
+    #: seconds the joint-state clock runs behind the tracker's: the stamps are written that much
+    #: early, so a pipeline needs ``clock_offset`` = this value to put them right
+    clock_offset: float = 0.0
+    skip_joints: tuple[int, ...] = ()
+    coupled: tuple[tuple[int, int, float], ...] = ()
+    extra_tools: tuple[tuple[float, float, float], ...] = ()
+    tool_rotation: tuple[float, float, float] | None = None
+    orientation_noise: float = 0.0
+    encoder_scales: tuple[float, ...] | None = None
+    #: days after START_NS at which the session starts (a series of sessions)
+    start_day: float = 0.0
+    #: gravity compliance of the truth: (joint, rad per N·m), the torque from the robot's
+    #: lumped masses and payload (:func:`dhlog.simulate.robot.truth_terms`)
+    compliance: tuple[tuple[int, float], ...] = ()
+    #: the payload (kg) at the tool point; None: the robot's
+    payload: float | None = None
+    #: transmission harmonics of the truth: (joint, a, b), Δq = a sin q + b cos q (rad)
+    harmonic: tuple[tuple[int, float, float], ...] = ()
+    #: the seed of the random poses alone (None: ``seed``): one plan, other noise
+    pose_seed: int | None = None
+    #: a laser tracker's noise at the measurement frame's origin, in place of the isotropic
+    #: ``noise``: (radial, transverse, transverse per metre of distance) σ, m and m/m (the
+    #: ``tracker`` noise model of :mod:`dhlog.model.noise`)
+    tracker_model: tuple[float, float, float] | None = None
+    seed: int = 0
+
+
+def config_problems(robot: Robot, cfg: SimulationConfig) -> list[str]:
+    """What is wrong with ``cfg`` for ``robot`` (empty when it can be simulated): every rate,
+    count, fraction, sweep and travel in its range, joints that exist."""
+    out = []
+    finite = [
+        cfg.noise,
+        cfg.tracker_rate,
+        cfg.joint_rate,
+        cfg.sweep,
+        cfg.travel,
+        cfg.clock_offset,
+        cfg.start_day,
+        cfg.model_error,
+        cfg.orientation_noise,
+        *(v for extra in cfg.extra_tools for v in extra),
+    ]
+    if not all(math.isfinite(v) for v in finite):
+        out.append("every number must be finite")
+    checks = [
+        (cfg.noise >= 0, f"the noise must be ≥ 0 (got {cfg.noise * 1e3:g} mm)"),
+        (
+            cfg.tracker_model is None
+            or (
+                len(cfg.tracker_model) == 3
+                and all(math.isfinite(v) and v >= 0 for v in cfg.tracker_model)
+                and min(cfg.tracker_model[:2]) > 0
+            ),
+            "the tracker model needs radial and transverse σ > 0 and a σ per metre ≥ 0",
+        ),
+        (
+            0 < cfg.tracker_rate <= 1e5,
+            f"the tracker rate must be in (0, 100 000] Hz (got {cfg.tracker_rate:g})",
+        ),
+        (
+            0 < cfg.joint_rate <= 1e5,
+            f"the joint rate must be in (0, 100 000] Hz (got {cfg.joint_rate:g})",
+        ),
+        (0 <= cfg.outliers < 1, f"the outlier fraction must be in [0, 1) (got {cfg.outliers:g})"),
+        (0 <= cfg.dropouts < 1, f"the dropout fraction must be in [0, 1) (got {cfg.dropouts:g})"),
+        (cfg.steps >= 2, f"a step sweep needs at least 2 stops (got {cfg.steps})"),
+        (cfg.base_points >= 0, f"the base points must be ≥ 0 (got {cfg.base_points})"),
+        (cfg.perturb_length >= 0 and cfg.perturb_angle >= 0, "the perturbations must be ≥ 0"),
+        (
+            abs(cfg.clock_offset) <= 10.0,
+            f"the clock offset must be within ±10 s (got {cfg.clock_offset:g} s)",
+        ),
+        (
+            0 <= cfg.start_day <= 36_500,
+            f"the start day must be within 0 and 36 500 (got {cfg.start_day:g})",
+        ),
+    ]
+    out += [why for ok, why in checks if not ok]
+    out += _protocol_problems(robot, cfg)
+    bad = [j for j in cfg.skip_joints if not 1 <= j <= robot.n]
+    if bad:
+        out.append(f"--skip-joints names joint(s) {bad}; {robot.name} has joints 1-{robot.n}")
+    if not 0 < cfg.sweep <= 2 * math.pi:
+        out.append(f"the sweep must be in (0, 360]°, not {math.degrees(cfg.sweep):g}°")
+    if not 0 < cfg.travel <= 10.0:
+        out.append(f"the travel must be in (0, 10 000] mm, not {cfg.travel * 1e3:g} mm")
+    return out
+
+
+def _protocol_problems(robot: Robot, cfg: SimulationConfig) -> list[str]:
+    """What is wrong with the protocol, the model error and the targets of ``cfg``."""
+    out = []
+    checks = [
+        (
+            0 <= cfg.model_error <= 0.1,
+            f"the model error must be in [0, 100] mm (got {cfg.model_error * 1e3:g} mm)",
+        ),
+        (
+            0 <= cfg.orientation_noise <= math.pi / 2,
+            f"the orientation noise must be in [0, 90]° "
+            f"(got {math.degrees(cfg.orientation_noise):g}°)",
+        ),
+        (
+            cfg.orientation_noise == 0 or cfg.tool_rotation is not None,
+            "an orientation noise needs a 6-DoF target (a tool rotation: --six-dof)",
+        ),
+        (
+            all(max(abs(v) for v in extra) <= 10.0 for extra in cfg.extra_tools),
+            "the further targets must lie within 10 000 mm of the flange",
+        ),
+    ]
+    out += [why for ok, why in checks if not ok]
+    out += _terms_problems(robot, cfg)
+    if cfg.protocol not in PROTOCOLS:
+        out.append(f"the protocol must be one of {', '.join(PROTOCOLS)}, not '{cfg.protocol}'")
+        return out
+    bad = sorted({j for a, b, _ in cfg.coupled for j in (a, b) if not 1 <= j <= robot.n})
+    if bad:
+        out.append(f"the coupled moves name joint(s) {bad}; {robot.name} has joints 1-{robot.n}")
+    if cfg.pose_list:
+        out += _pose_list_problems(robot, cfg)
+    if cfg.protocol == "random-poses" and not cfg.pose_list:
+        if not 1 <= cfg.poses <= 100_000:
+            out.append(f"the number of poses must be in [1, 100 000] (got {cfg.poses})")
+        if cfg.skip_joints:
+            out.append("--skip-joints is for sweeps; the random-poses protocol sweeps no joint")
+    if cfg.protocol == "coupled":
+        types = robot.table.joint_types
+        if robot.n < 3:
+            out.append(f"the coupled protocol moves joints 2 and 3; {robot.name} has {robot.n}")
+        elif not all(types[j - 1] is JointType.REVOLUTE for j in COUPLED_PAIR[:2]):
+            out.append(
+                f"the coupled protocol moves joints 2 and 3 together (q3 = −q2): both must be "
+                f"revolute, and {robot.name}'s are {types[1].value} and {types[2].value}"
+            )
+    if cfg.protocol != "sweeps" and cfg.dwell * cfg.tracker_rate < 1.0 - 1e-9:
+        out.append(
+            f"the dwell ({cfg.dwell:g} s) at a tracker rate of {cfg.tracker_rate:g} Hz leaves "
+            f"some stops without a sample; raise the tracker rate to ≥ {1.0 / cfg.dwell:g} Hz"
+            if cfg.dwell > 0
+            else "the dwell must be > 0 for a step-and-measure protocol"
+        )
+    return out
+
+
+def _pose_list_problems(robot: Robot, cfg: SimulationConfig) -> list[str]:
+    """What is wrong with the given still poses: the protocol, their count, size and limits."""
+    if cfg.protocol != "random-poses":
+        return ["a list of poses is for the random-poses protocol (static poses)"]
+    if len(cfg.pose_list) > 100_000:
+        return [f"the list holds {len(cfg.pose_list)} poses; at most 100 000"]
+    lo, hi = robot.limits[:, 0], robot.limits[:, 1]
+    for k, pose in enumerate(cfg.pose_list, start=1):
+        if len(pose) != robot.n or not all(math.isfinite(v) for v in pose):
+            return [f"pose {k} has {len(pose)} values; {robot.name} has {robot.n} joints"]
+        q = np.array(pose)
+        out = np.flatnonzero((q < lo - 1e-9) | (q > hi + 1e-9))
+        if out.size:
+            return [
+                f"pose {k} leaves the limits of joint {int(out[0]) + 1} ({pose[out[0]]:.6g} not "
+                f"in [{lo[out[0]]:.6g}, {hi[out[0]]:.6g}] rad or m)"
+            ]
+    return []
+
+
+def _terms_problems(robot: Robot, cfg: SimulationConfig) -> list[str]:
+    """What is wrong with the compliance and harmonics of ``cfg``."""
+    out = []
+    joints = [j for j, _ in cfg.compliance] + [j for j, _, _ in cfg.harmonic]
+    values = [c for _, c in cfg.compliance] + [v for _, a, b in cfg.harmonic for v in (a, b)]
+    if any(not 1 <= j <= robot.n for j in joints):
+        out.append(f"--compliance/--harmonic name joints 1-{robot.n} of {robot.name}")
+    if not all(math.isfinite(v) for v in values):
+        out.append("--compliance/--harmonic values must be finite")
+    if cfg.compliance and robot.masses.size != robot.n - 1:
+        out.append(
+            f"--compliance needs the robot's lumped masses; {robot.name} has none in the library "
+            "(kr5 and kr210 do)"
+        )
+    if any(not 0 <= c <= 1e-3 for _, c in cfg.compliance):
+        out.append("a compliance must be in [0, 1e-3] rad/(N·m)")
+    if any(max(abs(a), abs(b)) > 0.01 for _, a, b in cfg.harmonic):
+        out.append("a harmonic's amplitudes must be within ±0.01 rad")
+    if cfg.payload is not None and not 0 <= cfg.payload <= 10_000:
+        out.append(f"the payload must be in [0, 10 000] kg (got {cfg.payload:g})")
+    return out
