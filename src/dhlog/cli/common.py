@@ -128,12 +128,10 @@ stdout = _Console(highlight=False, emoji=False)
 
 def plain(text: object) -> str:
     """User text (a path, a name, an option's value) as rich prints it: never markup, and on one
-    line (line breaks and other controls as ``\\n``-like escapes, :func:`printable`)."""
-    from rich.markup import escape
+    line (:func:`dhlog.present.console.layout.literal`)."""
+    from dhlog.present.console.layout import literal
 
-    from dhlog.io.safetext import printable
-
-    return escape(printable(str(text)))
+    return literal(text)
 
 
 def fail(exc: DhlogError, code: int = EXIT_INPUT) -> None:

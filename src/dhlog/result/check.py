@@ -16,11 +16,7 @@ from pathlib import Path
 from typing import Any
 
 from dhlog.io.dhfile import DHFileError
-from dhlog.io.safetext import printable as printable  # handed on: see below
 from dhlog.result.fields import WORDING_IS, FieldReader
-
-# ``printable`` lives in dhlog.io.safetext; it is handed on from here only while
-# present/console/layout.py (re-laid at the same time) imports it from this module.
 
 #: The largest result (or DH) JSON read, and the largest batch summary (a result is ~40 kB).
 MAX_RESULT_BYTES = 100 * 2**20

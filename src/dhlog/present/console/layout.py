@@ -8,7 +8,7 @@ import math
 
 from rich.markup import escape
 
-from dhlog.result.check import printable
+from dhlog.io.safetext import printable
 from dhlog.result.document import DisplayRow, display_scales
 
 #: A σ beyond these (m, rad) is not a measurement's: such a value is labelled undetermined.
@@ -89,7 +89,7 @@ def table_title(rows: list[DisplayRow]) -> str:
 def literal(text: object) -> str:
     """User text (a joint name, a path, a note) as rich markup that prints it as it is and on one
     line: markup escaped, controls and line breaks as ``\\xNN`` escapes
-    (:func:`~dhlog.result.check.printable`). Where it is used no markup tag follows it, so the
+    (:func:`~dhlog.io.safetext.printable`). Where it is used no markup tag follows it, so the
     backslash rich's ``escape`` adds after a lone trailing backslash (which would print twice)
     is left off."""
     shown = printable(str(text))
