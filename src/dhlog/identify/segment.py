@@ -149,7 +149,7 @@ def _label_encoder_samples(
     return labels, segments
 
 
-def _interpolate_encoders(
+def interpolate_encoders(
     points: pl.DataFrame, joints: pl.DataFrame, n: int, tol_ns: int
 ) -> tuple[pl.DataFrame, NDArray[np.int64], NDArray[np.int64]]:
     """Encoder values at each target time, linear between the encoder sample before (found by
@@ -233,7 +233,7 @@ def _segment_with_encoders(
     q_enc = joints.select(cols).to_numpy()
     labels, found = _label_encoder_samples(t_enc, q_enc, settings)
     tol_ns = int(settings.join_tolerance * 1e9)
-    table, i_prev, i_next = _interpolate_encoders(log.points, joints, n, tol_ns)
+    table, i_prev, i_next = interpolate_encoders(log.points, joints, n, tol_ns)
     t = table["t_ns"].to_numpy()
     # a target sample takes the label of the encoder samples on both sides, if they agree;
     # without an encoder sample on each side within the join tolerance it has no encoder values

@@ -34,7 +34,7 @@ from dhlog.errors import DhlogError
 from dhlog.geometry._checks import FloatArray
 from dhlog.geometry.circles import fit_circle_algebraic
 from dhlog.geometry.fitting import fit_line
-from dhlog.identify.segment import Segmentation, _interpolate_encoders
+from dhlog.identify.segment import Segmentation, interpolate_encoders
 from dhlog.io.reader import LogData
 
 #: Fewest moving samples a sweep needs to estimate the lag from.
@@ -108,7 +108,7 @@ def rejoin(seg: Segmentation, log: LogData, extra: float) -> Segmentation:
     joints = log.joints.sort("t_ns").with_columns(pl.col("t_ns") + shift)
     tol_ns = int(log.pipeline.segmentation.join_tolerance * 1e9)
     points = seg.table.select("t_ns")
-    joined, _, _ = _interpolate_encoders(points, joints, n, tol_ns)
+    joined, _, _ = interpolate_encoders(points, joints, n, tol_ns)
     cols = [f"q_{i + 1}" for i in range(n)]
     table = seg.table.with_columns(joined.select(cols))
     lost = table.select(pl.any_horizontal(pl.col(cols).is_null()) & pl.col("joint").is_not_null())
