@@ -68,6 +68,7 @@ def main(
     ] = False,
 ) -> None:
     """Exact Denavit-Hartenberg parameters from robot calibration logs (MCAP)."""
+    quiet_numerics()  # every command, however the app is called (run() or the app itself)
 
 
 # in the order dhlog --help lists them

@@ -15,7 +15,6 @@ from dhlog.cli.common import (
     check_writable,
     fail,
     plain,
-    quiet_numerics,
     stderr,
     stdout,
     viewer,
@@ -160,7 +159,6 @@ def process(
     force: Annotated[bool, typer.Option("--force", help="Overwrite existing results.")] = False,
 ) -> None:
     """Identify the DH parameters from a calibration log and write <stem>.dh.json, .dh.csv, .rrd."""
-    quiet_numerics()
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
     from dhlog.fleet.batch import HOLDOUT_SUFFIX, TERMS_SUFFIX, write_results
