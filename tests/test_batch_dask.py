@@ -155,7 +155,16 @@ def test_a_stopped_batch_stops_its_running_tasks(
         assert client.gather(client.map(abs, [-1, -2], pure=False)) == [1, 2]
         assert time.monotonic() - free < 3.0  # both threads free: no task ran on
         assert not any(client.processing().values())
-    assert list(out.iterdir()) == []  # no result, no temporary file
+    # no temporary file; each log's results complete or absent (on a quiet machine a slow log
+    # can finish within the second before the interrupt: its results then stand, whole)
+    from dhlog.fleet.batch import job_outputs
+
+    left = set(out.iterdir())
+    for job in jobs:
+        outputs = set(job_outputs(job))
+        assert outputs <= left or not outputs & left, (job.log, sorted(left))
+        left -= outputs
+    assert not left, sorted(left)
 
 
 # ------------------------------------------------------- the thread stop the Dask path rests on
