@@ -7,6 +7,7 @@ from __future__ import annotations
 import hashlib
 import html
 import json
+import os
 import re
 import shutil
 import subprocess
@@ -506,3 +507,13 @@ def test_the_page_renders_in_chromium_without_errors(poses: Made, sweeps: Made) 
                 page.close()
         finally:
             browser.close()
+
+
+def test_a_result_that_is_a_pipe_is_refused_without_waiting(tmp_path: Path) -> None:
+    """A FIFO named as the result: the read waited for a writer forever; now one line, exit 2."""
+    fifo = tmp_path / "r.dh.json"
+    os.mkfifo(fifo)
+    done = runner.invoke(app, ["report", str(fifo), "-o", str(tmp_path / "c.html")])
+    assert done.exit_code == 2, done.output
+    assert "is not a regular file" in done.stderr and len(done.stderr.strip().splitlines()) == 1
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["r.dh.json"]

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import stat
 from dataclasses import dataclass
 from datetime import UTC, datetime
 from pathlib import Path
@@ -94,6 +95,12 @@ def load_sources(result_path: Path, *, log: Path | None = None) -> Sources:
     the current folder, hashed where found; and ``<stem>.holdout.csv`` beside it."""
     name = str(result_path)
     try:
+        mode = result_path.stat().st_mode
+        if not (stat.S_ISREG(mode) or stat.S_ISDIR(mode)):  # a pipe would wait, a device stream
+            raise InputError(
+                f"{name}: is not a regular file (a device, pipe or socket); dhlog report reads a "
+                "result only from a regular file: save it to one first."
+            )
         with open(result_path, "rb") as f:
             data = f.read(MAX_RESULT_BYTES + 1)
         modified = datetime.fromtimestamp(result_path.stat().st_mtime, tz=UTC)
