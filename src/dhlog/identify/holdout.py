@@ -107,10 +107,17 @@ class Holdout:
 def pose_groups(Q: FloatArray) -> NDArray[np.int64]:
     """A pose index (0, 1, …) per sample of ``Q`` (m, n) in time order: a new pose wherever a
     joint value moves by :data:`SAME_POSE` or more from the previous sample."""
-    if Q.shape[0] == 0:
-        return np.zeros(0, dtype=np.int64)
-    step = np.max(np.abs(np.diff(Q, axis=0)), axis=1) >= SAME_POSE
-    return np.concatenate([[0], np.cumsum(step)]).astype(np.int64)
+    m = Q.shape[0]
+    step = np.zeros(m, dtype=np.int64)
+    for start in range(1, m, POSE_CHUNK):  # the differences a chunk at a time: (m, n) twice
+        stop = min(start + POSE_CHUNK, m)
+        moved = np.abs(Q[start:stop] - Q[start - 1 : stop - 1])
+        step[start:stop] = np.max(moved, axis=1) >= SAME_POSE
+    return np.cumsum(step)
+
+
+#: Samples a chunk in :func:`pose_groups`.
+POSE_CHUNK = 1 << 18
 
 
 def _pose_errors(

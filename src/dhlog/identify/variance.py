@@ -90,7 +90,7 @@ Whiten = Callable[[FloatArray, NDArray[np.intp]], FloatArray | float]
 
 def whitened_residuals(
     fit: WholeFit,
-    rows: NDArray[np.bool_],
+    rows: NDArray[np.bool_] | NDArray[np.intp],
     Q: FloatArray,
     P: FloatArray,
     whiten: Whiten,
@@ -98,10 +98,11 @@ def whitened_residuals(
     which: NDArray[np.int64] | None = None,
     rates: FloatArray | None = None,
 ) -> FloatArray:
-    """The whitened position residuals (k, 3) of the samples ``rows`` under ``fit``, predicted
+    """The whitened position residuals (k, 3) of the samples ``rows`` (a mask or indices) under
+    ``fit``, predicted
     ``CHUNK`` samples at a time: the chain's per-sample motions of every sample at once took
     0.9 GiB at a million samples."""
-    index = np.flatnonzero(rows)
+    index = np.flatnonzero(rows) if rows.dtype == np.bool_ else np.asarray(rows, dtype=np.intp)
     out = np.empty((index.size, 3))
     for start in range(0, index.size, CHUNK):
         at = index[start : start + CHUNK]
@@ -146,18 +147,27 @@ def design_effect(
     poses hold fewer than two samples on average or the effect is below :data:`SMALL_EFFECT`.
     ``whiten(points, rows)``: the whitening of the samples ``rows`` (a scalar or (m, 3, 3))."""
     inl = whole.inliers
-    groups = pose_groups(Q)[inl]
-    ids, inverse = np.unique(groups, return_inverse=True)
-    m, g = int(inl.sum()), int(ids.size)
-    if g == 0 or m < 2 * g or m - g < 3:
+    groups = pose_groups(Q)[inl]  # in time order: a pose's samples are consecutive
+    inverse = np.zeros(groups.size, dtype=np.int64)
+    np.cumsum(groups[1:] != groups[:-1], out=inverse[1:])
+    m, g = int(groups.size), int(inverse[-1]) + 1 if groups.size else 0
+    if g == 0 or m < 2 * g or m - g < 3:  # sweeps: about a pose a sample, nothing to scale
         return None
-    rw = whitened_residuals(whole, inl, Q, P, whiten, which=which, rates=rates)
+    # per pose the sum of the whitened residuals, and their sum of squares, a block at a time:
+    # within-pose Σ|r − r̄|² = Σ|r|² − Σ_pose n |r̄|²
+    index = np.flatnonzero(inl)
+    sums = np.zeros((g, 3))
+    squares = 0.0
+    for start in range(0, m, 8 * CHUNK):
+        at = index[start : start + 8 * CHUNK]
+        rw = whitened_residuals(whole, at, Q, P, whiten, which=which, rates=rates)
+        pose = inverse[start : start + at.size]
+        for k in range(3):
+            sums[:, k] += np.bincount(pose, weights=rw[:, k], minlength=g)
+        squares += float(np.sum(rw**2))
     count = np.bincount(inverse, minlength=g)[:, None]
-    mean = np.zeros((g, 3))
-    np.add.at(mean, inverse, rw)
-    mean /= count
-    within = float(np.sum((rw - mean[inverse]) ** 2)) / (3 * (m - g))
-    total = float(np.sum(rw**2)) / max(3 * m - whole.layout.size, 1)
+    within = (squares - float(np.sum(sums**2 / count))) / (3 * (m - g))
+    total = squares / max(3 * m - whole.layout.size, 1)
     rho = min(max(1.0 - within / total, 0.0), 1.0) if total > 0 else 0.0
     effect = 1.0 + (m / g - 1.0) * rho
     return DesignEffect(effect, rho, m, g) if effect >= SMALL_EFFECT else None
