@@ -256,6 +256,15 @@ def read_log(
         frame = points_frame(blocks, pipeline.length_scale, with_rot)
         return clean(frame, "point", set_aside)
 
+    def release(*later: str) -> None:
+        """Drop the payloads no stream still to be decoded reads (they were all held until the
+        end: the joint states' beside the decoded points)."""
+        if not fast:
+            return
+        needed = {c.id for s in later if s in infos for c in infos[s]}
+        for cid in [c for c in scan.messages if c not in needed]:
+            del scan.messages[cid]
+
     points = points_of()
     if targets:  # one frame per target, labelled 0 (the primary one), 1, 2, …
         frames = [points.with_columns(pl.lit(0, dtype=pl.Int32).alias("target"))]
@@ -263,15 +272,18 @@ def read_log(
             frame = points_of(channels)
             frames.append(frame.with_columns(pl.lit(k + 1, dtype=pl.Int32).alias("target")))
         points = pl.concat(frames, how="diagonal").sort("t_ns", maintain_order=True)
+    release("base", "joints", "phase")
     base = None
     if "base" in infos:
         base = clean(points_frame(blocks_of("base"), pipeline.length_scale), "base", set_aside)
+    release("joints", "phase")
     joints, joint_names = None, list(pipeline.joint_names or [])
     if "joints" in infos:
         joints, joint_names = joints_frame(
             name, infos["joints"][0].topic, blocks_of("joints"), pipeline
         )
         joints = clean(joints, "joints", set_aside)
+    release("phase")
     phase = None
     if "phase" in infos:
         marks_blocks = blocks_of("phase")
