@@ -90,7 +90,8 @@ def clean(frame: pl.DataFrame, stream: str, set_aside: dict[str, int]) -> pl.Dat
         if value_cols
         else pl.lit(True)
     )
-    kept = frame.filter(finite)
+    mask = frame.select(finite).to_series()
+    kept = frame if mask.all(ignore_nulls=False) else frame.filter(mask)  # a clean log: no copy
     dropped = frame.height - kept.height
     if dropped:
         set_aside[f"non_finite_{stream}"] = dropped
@@ -99,9 +100,12 @@ def clean(frame: pl.DataFrame, stream: str, set_aside: dict[str, int]) -> pl.Dat
     ranged = [c for c in value_cols if c in ("x", "y", "z") or c.startswith("q_")]
     sane = pl.all_horizontal([pl.col(c).abs() < MAX_VALUE for c in ranged]) if ranged else True
     before = kept.height
-    kept = kept.filter(sane & (pl.col("t_ns") >= 0))
-    if kept.height < before:
+    mask = kept.select(sane & (pl.col("t_ns") >= 0)).to_series()
+    if not mask.all(ignore_nulls=False):
+        kept = kept.filter(mask)
         set_aside[f"out_of_range_{stream}"] = before - kept.height
+    if kept["t_ns"].is_sorted():
+        return kept
     return kept.sort("t_ns", maintain_order=True)
 
 
