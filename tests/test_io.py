@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import struct
 from pathlib import Path
 
 import numpy as np
@@ -669,3 +670,92 @@ def _write_points_and_joints(
                 effort=np.zeros(0),
             )
             writer.write(jc, t + lag[1], store.serialize_cdr(msg, "sensor_msgs/msg/JointState"))
+
+
+# ------------------------------------------------- the MCAP walk: late channels, loose messages
+
+
+def _rewritten(tmp_path: Path) -> tuple[Path, bytes]:
+    """The 0.1 mm sample log rewritten by the mcap library's writer in 4 KiB uncompressed
+    chunks (many chunks: the walk runs behind the decompression)."""
+    from mcap.reader import make_reader
+    from mcap.writer import CompressionType, Writer
+
+    out = tmp_path / "small.mcap"
+    with (
+        open(Path(__file__).parents[1] / "sample_logs/kr5_0.1mm.mcap", "rb") as f,
+        open(out, "wb") as g,
+    ):
+        w = Writer(g, chunk_size=4096, compression=CompressionType.NONE)
+        w.start(profile="ros2", library="test")
+        schemas: dict[int, int] = {}
+        channels: dict[int, int] = {}
+        for schema, channel, msg in make_reader(f).iter_messages(log_time_order=False):
+            if schema.id not in schemas:
+                schemas[schema.id] = w.register_schema(schema.name, schema.encoding, schema.data)
+            if channel.id not in channels:
+                channels[channel.id] = w.register_channel(
+                    channel.topic, channel.message_encoding, schemas[schema.id], channel.metadata
+                )
+            w.add_message(channels[channel.id], msg.log_time, msg.data, msg.publish_time)
+        w.finish()
+    return out, out.read_bytes()
+
+
+def _counts(path: Path, topics: list[str] | None = None) -> dict[str, int]:
+    from dhlog.io.mcapscan import scan_mcap
+
+    scan = scan_mcap(path, topics=topics)
+    return {scan.channels[c].topic: len(m) for c, m in scan.messages.items()}
+
+
+def test_channels_defined_only_after_their_chunks_keep_their_messages(tmp_path: Path) -> None:
+    """Every Channel record inside the chunks made unknown (and DataEnd), so the channels are
+    defined only by the summary, after every chunk: with a topic filter, the walk (which runs
+    behind the decompression) kept only the last chunks' messages."""
+    path, data = _rewritten(tmp_path)
+    whole = _counts(path)
+    b = bytearray(data)
+    pos = 8
+    while pos + 9 <= len(b):
+        op = b[pos]
+        (length,) = struct.unpack_from("<Q", b, pos + 1)
+        if op == 6:  # a chunk: blank its channel records
+            (name,) = struct.unpack_from("<I", b, pos + 9 + 28)
+            p = pos + 9 + 32 + name
+            (records,) = struct.unpack_from("<Q", b, p)
+            q = p + 8
+            while q < p + 8 + records:
+                (size,) = struct.unpack_from("<Q", b, q + 1)
+                if b[q] == 4:
+                    b[q] = 0x80
+                q += 9 + size
+        if op == 0x0F:
+            b[pos] = 0x80
+            break
+        pos += 9 + length
+    late = tmp_path / "late.mcap"
+    late.write_bytes(bytes(b))
+    wanted = ["/tracker/point", "/joint_states"]
+    assert _counts(late, wanted) == {k: v for k, v in whole.items() if k in wanted}
+    assert _counts(late, ["/tracker/point"]) == {"/tracker/point": whole["/tracker/point"]}
+
+
+def test_loose_messages_join_their_channels_chunked_ones(tmp_path: Path) -> None:
+    """A message outside any chunk on a channel that also has chunked messages: the loose one
+    replaced all the chunked ones (2 904 → 1)."""
+    from dhlog.io.mcapscan import scan_mcap
+
+    path, data = _rewritten(tmp_path)
+    scan = scan_mcap(path)
+    cid = next(c for c, i in scan.channels.items() if i.topic == "/tracker/point")
+    before = len(scan.messages[cid])
+    pos = 8
+    while data[pos] != 0x0F:
+        pos += 9 + struct.unpack_from("<Q", data, pos + 1)[0]
+    body = struct.pack("<HIQQ", cid, 0, 10**18, 10**18) + scan.messages[cid].payload(0)
+    mixed = tmp_path / "mixed.mcap"
+    mixed.write_bytes(data[:pos] + bytes([5]) + struct.pack("<Q", len(body)) + body + data[pos:])
+    again = scan_mcap(mixed)
+    assert len(again.messages[cid]) == before + 1
+    assert again.messages[cid].log_time[-1] == 10**18

@@ -12,7 +12,6 @@ bytes``; a Message body is ``channel_id u16, sequence u32, log_time u64, publish
 
 from __future__ import annotations
 
-import mmap
 import os
 import struct
 from collections import deque
@@ -198,9 +197,16 @@ class _Walker:
                 del self.pending_channels[cid]
 
     def keep(self, cid: int) -> bool:
+        """Whether channel ``cid``'s messages are wanted; a channel not defined yet is kept for
+        now (its definition may come after: in the summary of a file whose in-chunk channel
+        records are lost) and judged in :meth:`result`."""
+        if self.wanted is None:
+            return True
         info = self.channels.get(cid)
-        topic = info.topic if info else self.pending_channels.get(cid, ("",))[0]
-        return self.wanted is None or topic in self.wanted
+        if info is None and cid not in self.pending_channels:
+            return True
+        topic = info.topic if info else self.pending_channels[cid][0]
+        return topic in self.wanted
 
     def chunk(self, chunk: U8, index: dict[int, NDArray[np.uint64]] | None) -> None:
         """Locate the messages of a decompressed chunk via its MessageIndex records (one per
@@ -290,18 +296,24 @@ class _Walker:
 
     def result(self) -> dict[int, RawMessages]:
         out: dict[int, RawMessages] = {}
+        for cid, loose in self.loose.items():  # messages outside chunks: after the chunks' bytes
+            data = self.data.setdefault(cid, bytearray())
+            lengths = np.array([len(d) for _, d in loose], dtype=np.int64)
+            starts = len(data) + np.concatenate([[0], np.cumsum(lengths)[:-1]]).astype(np.int64)
+            self.parts.setdefault(cid, []).append(
+                (starts, lengths, np.array([t for t, _ in loose], np.int64))
+            )
+            data += b"".join(d for _, d in loose)
         for cid, parts in self.parts.items():
+            defined = cid in self.channels or cid in self.pending_channels
+            if self.wanted is not None and not (defined and self.keep(cid)):
+                continue  # kept while its channel was unknown: not wanted, or never defined
             out[cid] = RawMessages(
                 data=np.frombuffer(self.data.pop(cid), dtype=np.uint8),
                 starts=np.concatenate([s for s, _, _ in parts]),
                 lengths=np.concatenate([n for _, n, _ in parts]),
                 log_time=np.concatenate([t for _, _, t in parts]),
             )
-        for cid, loose in self.loose.items():
-            blob = np.frombuffer(b"".join(d for _, d in loose), dtype=np.uint8)
-            lengths = np.array([len(d) for _, d in loose], dtype=np.int64)
-            starts = np.concatenate([[0], np.cumsum(lengths)[:-1]]).astype(np.int64)
-            out[cid] = RawMessages(blob, starts, lengths, np.array([t for t, _ in loose], np.int64))
         return out
 
 
@@ -336,23 +348,16 @@ def _decompress(compression: str, payload: bytes | memoryview, size: int, path: 
 ZSTD_MAGIC = b"\x28\xb5\x2f\xfd"
 #: Chunks decompressed ahead of the walk, per worker thread.
 IN_FLIGHT = 4
-#: The mapped file's pages are given back in steps of this many bytes once walked.
-RELEASE_STEP = 64 << 20
 
 
-def _mapped(path: str | Path) -> mmap.mmap | bytes:
-    """The file, mapped read-only (its pages are read as the walk needs them and given back
-    after it: a 550 MB log was held whole); read whole where it cannot be mapped (empty, not
-    a regular file)."""
-    name = str(path)
+def _read(path: str | Path) -> bytes:
+    """The file's bytes. (Mapped instead, a log cut short or failing to read while it is walked
+    — another process truncating it, a network file system's error — ended the process with
+    SIGBUS and no word; read, it is an error naming the file, or the part read.)"""
     try:
-        with open(path, "rb") as f:
-            try:
-                return mmap.mmap(f.fileno(), 0, access=mmap.ACCESS_READ)
-            except (ValueError, OSError):
-                return f.read()
+        return Path(path).read_bytes()
     except OSError as exc:
-        raise InputError(f"{name}: cannot be read ({exc.strerror}); check the path.") from None
+        raise InputError(f"{path}: cannot be read ({exc.strerror}); check the path.") from None
 
 
 def _unzstd_file(blob: bytes, name: str) -> bytes:
@@ -378,7 +383,7 @@ def scan_mcap(
 
     ``progress`` (optional) is called with the fraction of the work done."""
     name = str(path)
-    blob = _mapped(path)
+    blob = _read(path)
     if blob[:4] == ZSTD_MAGIC:  # a file-compressed log (rosbag2 --compression-mode file)
         blob = _unzstd_file(bytes(blob), name)
     if blob[: len(MAGIC)] != MAGIC:
@@ -393,12 +398,11 @@ def scan_mcap(
     workers = os.cpu_count() or 1
     decompressed = ThreadPoolExecutor(max_workers=workers)
     done = 0
-    released = 0  # the file's pages before this offset are given back (a mapped file)
 
     def walk_oldest() -> None:
         """Walk the oldest decompressed chunk (its records dropped after: the chunks in
         flight are bounded, not the whole file's)."""
-        nonlocal done, released
+        nonlocal done
         future, index, at = chunks.popleft()
         try:
             records = future.result()
@@ -410,11 +414,6 @@ def scan_mcap(
         done += 1
         if progress is not None and done % 16 == 0:
             progress(min(1.0, (chunks[0][2] if chunks else pos) / end))
-        # what every chunk still in flight starts after is read for good
-        safe = (chunks[0][2] if chunks else at) // RELEASE_STEP * RELEASE_STEP
-        if isinstance(blob, mmap.mmap) and safe - released >= RELEASE_STEP:
-            blob.madvise(mmap.MADV_DONTNEED, released, safe - released)
-            released = safe
 
     def flush() -> None:
         nonlocal pending
