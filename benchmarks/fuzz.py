@@ -24,6 +24,7 @@ import argparse
 import hashlib
 import os
 import pickle
+import shutil
 import signal
 import sys
 import tempfile
@@ -79,22 +80,30 @@ def harness(kind: str, count: int, seed: int, work: Path) -> Harness:
 
 
 def from_child(make: Callable[[], Iterator[Any]]) -> Iterator[Any]:
-    """The cases ``make()`` yields, made in a forked child and pickled back one by one: the
-    parent never runs polars (the summaries' cases write Parquet), since a child forked after
-    polars started its thread pool can wait on it forever."""
+    """The cases ``make()`` yields — the real inputs they start from made first — in a forked
+    child, pickled back one by one: the parent never runs a polars query (the summaries' cases
+    write Parquet), since a child forked after polars ran one can wait on its threads forever."""
     r, w = os.pipe()
     pid = os.fork()
     if pid == 0:
-        os.close(r)
-        with os.fdopen(w, "wb") as f:
-            for case in make():
-                blob = pickle.dumps(case)
-                f.write(len(blob).to_bytes(8, "little") + blob)
-        os._exit(0)
+        code = 1
+        try:
+            os.close(r)
+            with os.fdopen(w, "wb") as f:
+                for case in make():
+                    blob = pickle.dumps(case)
+                    f.write(len(blob).to_bytes(8, "little") + blob)
+            code = 0
+        finally:
+            os._exit(code)  # never back into the parent's main()
     os.close(w)
     with os.fdopen(r, "rb") as f:
         while size := f.read(8):
-            yield pickle.loads(f.read(int.from_bytes(size, "little")))
+            want = int.from_bytes(size, "little")
+            blob = f.read(want)
+            if len(size) < 8 or len(blob) < want:
+                break  # the generator died mid-case
+            yield pickle.loads(blob)
     _, status = os.waitpid(pid, 0)
     if status:
         raise SystemExit("making the fuzz cases failed (their generator's child died)")
@@ -222,6 +231,7 @@ def main() -> None:
     big = max(results, key=lambda r: r[2])
     print(f"slowest: {slow[0].case} {slow[1]:.2f} s; largest: {big[0].case} {big[2]:.0f} MiB")
     print(f"reproducers: {args.out}/" if any(o.problems for o, _, _ in results) else "")
+    shutil.rmtree(work, ignore_errors=True)
 
 
 if __name__ == "__main__":
