@@ -35,21 +35,10 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
 from collections.abc import Callable, Iterator
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import fuzzing
-
-
-@dataclass(frozen=True)
-class Problem:
-    """How a case ended when the harness itself could not judge it (a hang, a dead child)."""
-
-    case: str
-    family: str
-    exit_code: int
-    problems: tuple[str, ...]
-    stderr: str
 
 
 @dataclass(frozen=True)
@@ -118,7 +107,7 @@ def start(run: Callable[[Any, Path], Any], case: Any, folder: Path) -> tuple[int
         try:
             outcome = run(case, folder)
         except BaseException as exc:  # the harness itself failed: report, never hang
-            outcome = Problem(case.name, case.family, -1, (f"harness: {exc!r}",), "")
+            outcome = fuzzing.Outcome(case.name, case.family, -1, (f"harness: {exc!r}",), "")
         with os.fdopen(w, "wb") as f:
             f.write(pickle.dumps(outcome))
         os._exit(0)
@@ -169,7 +158,7 @@ def main() -> None:
             if done == 0:  # a hang: kill it
                 os.kill(pid, signal.SIGKILL)
                 _, status, usage = os.wait4(pid, 0)
-                outcome = Problem(case.name, case.family, -9, ("hang",), "")
+                outcome = fuzzing.Outcome(case.name, case.family, -9, ("hang",), "")
             else:
                 with os.fdopen(fd, "rb") as f:
                     blob = f.read()
@@ -177,19 +166,15 @@ def main() -> None:
                 outcome = (
                     pickle.loads(blob)
                     if blob
-                    else Problem(case.name, case.family, -1, (f"child died ({status})",), "")
+                    else fuzzing.Outcome(
+                        case.name, case.family, -1, (f"child died ({status})",), ""
+                    )
                 )
             if fd >= 0:
                 os.close(fd)
             rss = usage.ru_maxrss / 1024.0  # MiB (ru_maxrss is in KiB on Linux)
             if rss > 1024:
-                outcome = Problem(
-                    outcome.case,
-                    outcome.family,
-                    outcome.exit_code,
-                    (*outcome.problems, f"peak RSS {rss:.0f} MiB"),
-                    outcome.stderr,
-                )
+                outcome = replace(outcome, problems=(*outcome.problems, f"peak RSS {rss:.0f} MiB"))
             results.append((outcome, elapsed, rss))
             if outcome.problems:
                 key = hashlib.sha256(

@@ -44,13 +44,12 @@ import math
 import random
 import re
 import shutil
-import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from fuzzing import Hang, time_limit
+from fuzzing import Outcome, common_problems, invoke
 
 FAMILIES = ("dh", "pipeline", "export")
 ROOT = Path(__file__).parents[1]
@@ -79,18 +78,6 @@ class Case:
     args: tuple[str, ...]
     outputs: tuple[str, ...]
     refuse: bool
-
-
-@dataclass(frozen=True)
-class Outcome:
-    """How a case ended and what was wrong with it (empty: nothing)."""
-
-    case: str
-    family: str
-    exit_code: int
-    problems: tuple[str, ...]
-    stderr: str
-    seconds: float
 
 
 @dataclass(frozen=True)
@@ -525,10 +512,6 @@ def _state(folder: Path) -> dict[str, str]:
 
 def run_case(case: Case, folder: Path, *, timeout: float = 30.0) -> Outcome:
     """Run ``case`` in this process through Typer's runner and judge it."""
-    from typer.testing import CliRunner
-
-    from dhlog.cli.app import app
-
     work = folder / "case"
     if work.exists():
         shutil.rmtree(work)
@@ -536,39 +519,16 @@ def run_case(case: Case, folder: Path, *, timeout: float = 30.0) -> Outcome:
     for name, data in case.files:
         (work / name).write_bytes(data)
     before = _state(work)
-    args = [a.replace("{d}", str(work)) for a in case.args]
-    start = time.monotonic()
-    try:
-        with time_limit(timeout):
-            result = CliRunner().invoke(app, args)
-    except Hang:
+    ran = invoke([a.replace("{d}", str(work)) for a in case.args], timeout)
+    if ran is None:
         return Outcome(case.name, case.family, -1, (f"hang (over {timeout:g} s)",), "", timeout)
-    seconds = time.monotonic() - start
-    code, stderr, stdout = result.exit_code, result.stderr, result.stdout
-    crashed = result.exception is not None and not isinstance(result.exception, SystemExit)
-    if crashed:
-        import traceback
-
-        stderr += "".join(traceback.format_exception(result.exception))
-    problems: list[str] = []
-    if crashed or "Traceback" in stderr or "Traceback" in stdout:
-        problems.append("traceback")
-    if code not in (0, 2, 3):
-        problems.append(f"exit {code}")
-    if case.refuse and code == 0:
-        problems.append("accepted (exit 0) where it must be refused")
-    lines = [line for line in stderr.splitlines() if line.strip()]
-    if code in (2, 3) and len(lines) != 1:
+    problems, new = common_problems(ran, before, _state(work), codes=(0, 2, 3), refuse=case.refuse)
+    lines = [line for line in ran.stderr.splitlines() if line.strip()]
+    if ran.code in (2, 3) and len(lines) != 1:
         problems.append(f"{len(lines)} lines on stderr")
-    after = _state(work)
-    changed = [n for n, h in before.items() if after.get(n) != h]
-    if changed:
-        problems.append(f"input changed: {changed}")
-    new = sorted(set(after) - set(before))
     if any(n.startswith(".") or "/." in n or ".part" in n or "tmp" in n for n in new):
         problems.append(f"temporary files left: {new}")
-    if code == 2 and new:
-        problems.append(f"output written on exit 2: {new}")
-    if code in (0, 3) and not set(case.outputs) <= set(new):
+    if ran.code in (0, 3) and not set(case.outputs) <= set(new):
         problems.append(f"outputs {new}, expected {list(case.outputs)}")
-    return Outcome(case.name, case.family, code, tuple(problems), stderr.strip()[-400:], seconds)
+    shown = ran.stderr.strip()[-400:]
+    return Outcome(case.name, case.family, ran.code, tuple(problems), shown, ran.seconds)

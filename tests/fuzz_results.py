@@ -47,14 +47,13 @@ import json
 import os
 import random
 import shutil
-import time
 import xml.etree.ElementTree as ET
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from fuzzing import Hang, time_limit
+from fuzzing import Outcome, common_problems, invoke
 
 FAMILIES = ("result", "summary", "template", "names", "paths")
 SAMPLE = Path(__file__).parents[1] / "sample_logs" / "kr5_0.01mm.mcap"
@@ -97,18 +96,6 @@ class Case:
     refuse: bool
     sparse: tuple[tuple[str, int], ...] = ()
     links: tuple[tuple[str, str, str], ...] = ()
-
-
-@dataclass(frozen=True)
-class Outcome:
-    """How a case ended and what was wrong with it (empty: nothing)."""
-
-    case: str
-    family: str
-    exit_code: int
-    problems: tuple[str, ...]
-    stderr: str
-    seconds: float
 
 
 @dataclass(frozen=True)
@@ -912,52 +899,23 @@ def check_output(kind: str, path: Path) -> list[str]:
 
 def run_case(case: Case, folder: Path, *, timeout: float = 30.0) -> Outcome:
     """Run ``case`` in this process through Typer's runner and judge it."""
-    from typer.testing import CliRunner
-
-    from dhlog.cli.app import app
-
     work = folder / "case"
     _prepare(case, work)
     before = _state(work)
-    args = [a.replace("{d}", str(work)) for a in case.args]
-    problems: list[str] = []
-    start = time.monotonic()
-    try:
-        with time_limit(timeout):
-            result = CliRunner().invoke(app, args)
-    except Hang:
+    ran = invoke([a.replace("{d}", str(work)) for a in case.args], timeout)
+    if ran is None:
         return Outcome(case.name, case.family, -1, (f"hang (over {timeout:g} s)",), "", timeout)
-    seconds = time.monotonic() - start
-    code = result.exit_code
-    stderr, stdout = result.stderr, result.stdout
-    crashed = result.exception is not None and not isinstance(result.exception, SystemExit)
-    if crashed:
-        import traceback
-
-        stderr += "".join(traceback.format_exception(result.exception))
-    if crashed or "Traceback" in stderr or "Traceback" in stdout:
-        problems.append("traceback")
-    if code not in (0, 2):
-        problems.append(f"exit {code}")
-    if case.refuse and code == 0:
-        problems.append("accepted (exit 0) where it must be refused")
-    lines = [line for line in stderr.splitlines() if line.strip()]
-    if code == 2 and (len(lines) != 1 or stdout.strip()):
-        problems.append(f"{len(lines)} lines on stderr, {len(stdout.splitlines())} on stdout")
-    after = _state(work)
-    changed = [n for n, h in before.items() if after.get(n) != h]
-    if changed:
-        problems.append(f"input changed: {changed}")
-    new = sorted(set(after) - set(before))
+    problems, new = common_problems(ran, before, _state(work), codes=(0, 2), refuse=case.refuse)
+    lines = [line for line in ran.stderr.splitlines() if line.strip()]
+    if ran.code == 2 and (len(lines) != 1 or ran.stdout.strip()):
+        problems.append(f"{len(lines)} lines on stderr, {len(ran.stdout.splitlines())} on stdout")
     if any(".part" in n or n.startswith(".") for n in new):
         problems.append(f"temporary files left: {new}")
-    if code == 2 and new:
-        problems.append(f"output written on exit 2: {new}")
-    if code == 0:
+    if ran.code == 0:
         want = [case.output] if case.output else []
         if new != want:
             problems.append(f"outputs {new}, expected {want}")
         elif case.output and case.check:
             problems += check_output(case.check, work / case.output)
-    shown = stderr.strip()[-400:]
-    return Outcome(case.name, case.family, code, tuple(problems), shown, seconds)
+    shown = ran.stderr.strip()[-400:]
+    return Outcome(case.name, case.family, ran.code, tuple(problems), shown, ran.seconds)

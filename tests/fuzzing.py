@@ -31,6 +31,7 @@ import random
 import signal
 import struct
 import threading
+import time
 import zlib
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
@@ -57,17 +58,80 @@ class Case:
 
 @dataclass(frozen=True)
 class Outcome:
-    """How ``dhlog process`` ended on a case, and what was wrong with it (empty: nothing)."""
+    """How a command ended on a case, and what was wrong with it (empty: nothing); every fuzzer's
+    (the logs', the inputs', the results') and the long runs' of ``benchmarks/fuzz.py``."""
 
     case: str
     family: str
     exit_code: int
     problems: tuple[str, ...]
     stderr: str
+    seconds: float = 0.0
 
 
 class Hang(BaseException):
     """The time limit of a case ran out (the input fuzzers' in-process runs)."""
+
+
+@dataclass(frozen=True)
+class Invoked:
+    """How the app ended on one command line run in this process: exit code, standard output
+    and error (a crash's traceback appended), seconds, whether it raised."""
+
+    code: int
+    stdout: str
+    stderr: str
+    seconds: float
+    crashed: bool
+
+
+def invoke(args: list[str], timeout: float) -> Invoked | None:
+    """``dhlog ARGS`` through Typer's runner in this process, within ``timeout`` seconds (None:
+    it hung)."""
+    import traceback
+
+    from typer.testing import CliRunner
+
+    from dhlog.cli.app import app
+
+    start = time.monotonic()
+    try:
+        with time_limit(timeout):
+            result = CliRunner().invoke(app, args)
+    except Hang:
+        return None
+    stderr = result.stderr
+    crashed = result.exception is not None and not isinstance(result.exception, SystemExit)
+    if crashed:
+        stderr += "".join(traceback.format_exception(result.exception))
+    return Invoked(result.exit_code, result.stdout, stderr, time.monotonic() - start, crashed)
+
+
+def common_problems(
+    ran: Invoked,
+    before: dict[str, str],
+    after: dict[str, str],
+    *,
+    codes: tuple[int, ...],
+    refuse: bool,
+) -> tuple[list[str], list[str]]:
+    """What every input fuzzer holds a run to — no traceback, an exit code of ``codes``, a
+    refusal where the case must be refused, its inputs unchanged (``before`` and ``after``: each
+    file's fingerprint), nothing written on exit 2 — and the files it added."""
+    problems: list[str] = []
+    if ran.crashed or "Traceback" in ran.stderr or "Traceback" in ran.stdout:
+        problems.append("traceback")
+    if ran.code not in codes:
+        problems.append(f"exit {ran.code}")
+    if refuse and ran.code == 0:
+        problems.append("accepted (exit 0) where it must be refused")
+    changed = [n for n, h in before.items() if after.get(n) != h]
+    if changed:
+        problems.append(f"input changed: {changed}")
+    new = sorted(set(after) - set(before))
+    if ran.code == 2 and new:
+        problems.append(f"output written on exit 2: {new}")
+    return problems, new
 
 
 @contextmanager
