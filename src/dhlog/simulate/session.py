@@ -109,7 +109,7 @@ def simulate_session(
     terms = truth_terms(robot, cfg, T_mr, np.asarray(tool, dtype=np.float64))
     # the joints as they stand: the encoders' values deflected by gravity and the gears
     q_arm = q_trk if terms is None else q_trk + table_deflection(table, terms, q_trk, q_trk)
-    xyz = _points(table, q_arm, tool, T_mb)
+    xyz = fk_point(table, q_arm, tool, T_base=T_mb)
     error = np.zeros_like(xyz)
     if cfg.model_error > 0:  # the robot's unmodelled error, in M, the same for every target
         error = smooth_model_error(robot, cfg)(q_trk) @ T_mb[:3, :3].T
@@ -121,7 +121,7 @@ def simulate_session(
     keep = dropouts(xyz.shape[0], cfg, rng)
     extra_xyz = []
     for extra in cfg.extra_tools:  # further targets, measured at the same instants
-        e = _points(table, q_arm, np.asarray(extra, dtype=np.float64), T_mb) + error
+        e = fk_point(table, q_arm, np.asarray(extra, dtype=np.float64), T_base=T_mb) + error
         extra_xyz.append(scatter(e, cfg, rng))
     start_ns = START_NS + round(cfg.start_day * 86_400e9)
     t_trk_ns = start_ns + ((t_trk + base_time) * 1e9).astype(np.int64)
@@ -163,18 +163,3 @@ def simulate_session(
         poses=poses,
         terms=terms,
     )
-
-
-#: Samples a block in :func:`_points`.
-FK_BLOCK = 1 << 16
-
-
-def _points(table: StandardDH, q: FloatArray, tool: FloatArray, T_base: FloatArray) -> FloatArray:
-    """``fk_point`` block by block (each sample's own arithmetic, so the same numbers): the
-    link frames of every sample at once took 18 GB for a 20 M-sample session."""
-    out = np.empty((q.shape[0], 3))
-    for start in range(0, q.shape[0], FK_BLOCK):
-        out[start : start + FK_BLOCK] = fk_point(
-            table, q[start : start + FK_BLOCK], tool, T_base=T_base
-        )
-    return out
