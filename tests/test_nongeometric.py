@@ -182,7 +182,7 @@ def test_the_result_carries_the_terms(
     assert auto.validation is not None
     # the FK of the JSON at the fitted samples gives the validation's own residual RMS
     seg = auto.segmentation
-    ok = ~np.isnan(auto.validation.vectors[:, 0])
+    ok = auto.validation.rows
     Q = seg.table.select([f"q_{i + 1}" for i in range(6)]).to_numpy()[ok]
     P = seg.table.select(["x", "y", "z"]).to_numpy()[ok]
     fk = fk_point(model.table, model.joint_values(Q), model.tool_point, T_base=model.T_base)

@@ -11,10 +11,12 @@ from dataclasses import replace
 from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 
 from dhlog.errors import InputError
 from dhlog.geometry._checks import FloatArray
 from dhlog.identify.extract import Extraction
+from dhlog.identify.persample import SampleArray, blocks
 from dhlog.identify.select import (
     SELECT_FOLDS,
     ModelRequest,
@@ -34,8 +36,8 @@ from dhlog.model.terms import Lump
 def beyond_geometry(
     request: ModelRequest,
     whole: WholeFit,
-    Q: FloatArray,
-    P: FloatArray,
+    Q: SampleArray,
+    P: SampleArray,
     sigma: float,
     options: dict[str, Any],
     *,
@@ -66,7 +68,7 @@ def beyond_geometry(
     declared = options.get("sample_cov")
     noise = options["noise"]
     if declared is None and noise.model == "tracker":
-        declared = noise.covariance(P)
+        declared = noise.covariance(P[:])  # (m, 3, 3): a tracker model's weighing holds them
     weighed = options
     if declared is not None:
         found = refit_with_model_error(
@@ -158,16 +160,26 @@ def link_masses(
 
 
 def deflections(
-    ex: Extraction, Q_table: FloatArray, bare: FloatArray
+    ex: Extraction, Q_table: SampleArray, bare: SampleArray
 ) -> tuple[FloatArray, float, FloatArray]:
     """What the terms move at the samples, from the table's joint values with the terms
-    (``Q_table``) and without (``bare``), both (m, n): the largest deflection per joint (rad or
-    m), of the target (m), and up to 2000 samples' target and its move (k, 6; m, in M)."""
-    deflection_max = np.max(np.abs(Q_table - bare), axis=0)
-    reached = fk_points_chunked(ex.standard, Q_table, ex.tool_point, T_base=ex.T_measurement_base)
-    moved = reached - fk_points_chunked(
-        ex.standard, bare, ex.tool_point, T_base=ex.T_measurement_base
-    )
-    target = float(np.max(np.linalg.norm(moved, axis=1)))
-    pick = np.unique(np.linspace(0, Q_table.shape[0] - 1, min(2000, Q_table.shape[0])).astype(int))
-    return deflection_max, target, np.column_stack([reached[pick], moved[pick]])
+    (``Q_table``) and without (``bare``), both (m, n), a block at a time: the largest deflection
+    per joint (rad or m), of the target (m), and up to 2000 samples' target and its move (k, 6;
+    m, in M)."""
+    m, n = Q_table.shape[0], Q_table.shape[1]
+    T = ex.T_measurement_base
+
+    def moves(at: slice | NDArray[np.intp]) -> tuple[FloatArray, FloatArray, FloatArray]:
+        q, q0 = Q_table[at], bare[at]
+        reached = fk_points_chunked(ex.standard, q, ex.tool_point, T_base=T)
+        moved = reached - fk_points_chunked(ex.standard, q0, ex.tool_point, T_base=T)
+        return np.abs(q - q0), reached, moved
+
+    deflection_max, target = np.zeros(n), 0.0
+    for sl in blocks(m):
+        dq, _, moved = moves(sl)
+        deflection_max = np.maximum(deflection_max, np.max(dq, axis=0, initial=0.0))
+        target = max(target, float(np.max(np.linalg.norm(moved, axis=1), initial=0.0)))
+    pick = np.unique(np.linspace(0, m - 1, min(2000, m)).astype(np.intp))
+    _, reached, moved = moves(pick)
+    return deflection_max, target, np.column_stack([reached, moved])

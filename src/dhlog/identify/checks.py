@@ -56,8 +56,10 @@ def check_units(
     :data:`SMALLEST_ROBOT`, or a joint whose samples turn (move) by 1/57.3, 57.3, 10⁻³ or 10³
     per encoder unit; warn on any other encoder slope far from 1."""
     pipe = log.pipeline
-    P = seg.table.select(["x", "y", "z"]).to_numpy()
-    extent = float(np.linalg.norm(np.nanmax(P, axis=0) - np.nanmin(P, axis=0))) if len(P) else 0
+    columns = seg.xyz_columns
+    extent = (
+        float(np.linalg.norm([np.nanmax(c) - np.nanmin(c) for c in columns])) if seg.height else 0
+    )
     where = f"{log.path}: the target's samples span {extent:.4g} m"
     if extent > LARGEST_ROBOT:
         fits = "mm" if pipe.length_unit == "m" else "a unit 1000x smaller than mm"

@@ -18,12 +18,14 @@ Pure numpy/scipy.
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
 
 from dhlog.geometry._checks import FloatArray
+from dhlog.identify.persample import SampleArray, blocks
 from dhlog.identify.prediction import predict
 from dhlog.identify.register import register_nominal
 from dhlog.identify.whole import WholeFit, fit_whole_model
@@ -104,16 +106,29 @@ class Holdout:
         return doc
 
 
-def pose_groups(Q: FloatArray) -> NDArray[np.int64]:
+def pose_groups(Q: SampleArray) -> NDArray[np.int64]:
     """A pose index (0, 1, …) per sample of ``Q`` (m, n) in time order: a new pose wherever a
     joint value moves by :data:`SAME_POSE` or more from the previous sample."""
-    m = Q.shape[0]
-    step = np.zeros(m, dtype=np.int64)
-    for start in range(1, m, POSE_CHUNK):  # the differences a chunk at a time: (m, n) twice
-        stop = min(start + POSE_CHUNK, m)
-        moved = np.abs(Q[start:stop] - Q[start - 1 : stop - 1])
-        step[start:stop] = np.max(moved, axis=1) >= SAME_POSE
-    return np.cumsum(step)
+    out = np.empty(Q.shape[0], dtype=np.int64)
+    for sl, poses in pose_blocks(Q):
+        out[sl] = poses
+    return out
+
+
+def pose_blocks(Q: SampleArray) -> Iterator[tuple[slice, NDArray[np.int64]]]:
+    """:func:`pose_groups` a block of :data:`POSE_CHUNK` samples at a time: the block and its
+    samples' poses."""
+    offset, previous = 0, None
+    for sl in blocks(Q.shape[0], POSE_CHUNK):
+        q = Q[sl]
+        step = np.zeros(q.shape[0], dtype=np.int64)
+        if previous is not None:
+            step[0] = np.max(np.abs(q[0] - previous)) >= SAME_POSE
+        if q.shape[0] > 1:
+            step[1:] = np.max(np.abs(q[1:] - q[:-1]), axis=1) >= SAME_POSE
+        poses = offset + np.cumsum(step)
+        offset, previous = int(poses[-1]), q[-1]
+        yield sl, poses
 
 
 #: Samples a chunk in :func:`pose_groups`.
@@ -121,7 +136,7 @@ POSE_CHUNK = 1 << 18
 
 
 def _pose_errors(
-    groups: NDArray[np.int64], mask: NDArray[np.bool_], P: FloatArray, pred: FloatArray
+    groups: NDArray[np.int64], mask: NDArray[np.bool_], P: SampleArray, pred: FloatArray
 ) -> tuple[FloatArray, FloatArray]:
     """Per pose with samples in ``mask``: the mean measured position and the mean residual
     (``pred``: the prediction at the samples in ``mask``)."""
@@ -137,8 +152,8 @@ def _pose_errors(
 
 def cross_validate(
     whole: WholeFit,
-    Q: FloatArray,
-    P: FloatArray,
+    Q: SampleArray,
+    P: SampleArray,
     folds: int,
     *,
     fit_options: dict[str, object],

@@ -17,6 +17,7 @@ from numpy.typing import NDArray
 
 from dhlog.geometry._checks import FloatArray
 from dhlog.identify.axismodel import AxisModel, ParameterLayout
+from dhlog.identify.persample import PerSample
 from dhlog.identify.prediction import (
     cross_rows,
     orientation_residual,
@@ -45,15 +46,15 @@ class Samples:
     model's), each one's target (``which``), a 6-DoF target's measured orientations ``R``
     (m, 3, 3) weighted by ``1/sigma_rot``, and the joints' speeds ``Qd`` (m, n: clock offset)."""
 
-    Q: FloatArray
-    P: FloatArray
+    Q: FloatArray | PerSample
+    P: FloatArray | PerSample
     keep: NDArray[np.bool_]
     W: FloatArray | None
     whiten: Whitening
     which: NDArray[np.int64] | None = None
     R: FloatArray | None = None
     sigma_rot: float = 1.0
-    Qd: FloatArray | None = None
+    Qd: FloatArray | PerSample | None = None
 
     @property
     def per_sample(self) -> int:
@@ -103,12 +104,13 @@ def accumulate(
     def chunk(start: int) -> tuple[FloatArray, FloatArray, float, int, float]:
         sl = slice(start, min(start + CHUNK, m))
         rates = None if data.Qd is None else data.Qd[sl]
-        prefix = prefix_motions(model, data.Q[sl], rates)
+        Q, P = data.Q[sl], data.P[sl]
+        prefix = prefix_motions(model, Q, rates)
         which = None if data.which is None else data.which[sl]
-        pred, J = predict_columns(model, data.Q[sl], layout, bases, which, prefix, rates)
+        pred, J = predict_columns(model, Q, layout, bases, which, prefix, rates)
         assert J is not None
-        r = pred - data.P[sl].T  # (3, c)
-        W = data.whiten(data.P[sl], None if data.W is None else data.W[sl])
+        r = pred - P.T  # (3, c)
+        W = data.whiten(P, None if data.W is None else data.W[sl])
         folded = 1.0  # a scalar weight of J applied to H and g instead of to every entry
         if isinstance(W, float):
             rw, Jw = r * W, J
@@ -124,7 +126,7 @@ def accumulate(
         nrm, use, cost = _truncated(rw, keep, limit)
         norms[sl] = nrm
         if data.R is not None:  # the target frame's orientation, weighted by 1/σ_rot
-            R_pred, Jr = predict_orientation(model, data.Q[sl], layout, bases, prefix, rates)
+            R_pred, Jr = predict_orientation(model, Q, layout, bases, prefix, rates)
             ro = orientation_residual(R_pred, np.moveaxis(data.R[sl], 0, 2)) / data.sigma_rot
             # σ_rot is the orientations' own scale (or declared): judged on theirs, not on
             # a position limit that declared covariances far above the residuals make tiny
@@ -218,8 +220,9 @@ def gradient(
             v = _turn(Ks[i], v, sins[i], coss[i])
             rel[i] = v
             x = v + axis.point[:, None]
-        r = x - data.P[sl].T
-        W = data.whiten(data.P[sl], None if data.W is None else data.W[sl])
+        P = data.P[sl]
+        r = x - P.T
+        W = data.whiten(P, None if data.W is None else data.W[sl])
         if isinstance(W, float):
             rw = r * W
             rho = rw * W

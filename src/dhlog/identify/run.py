@@ -28,6 +28,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 
 from dhlog.errors import GeometryError, InputError
 from dhlog.geometry._checks import FloatArray
@@ -40,7 +41,7 @@ from dhlog.identify.conditioning import Conditioned, identifiability_notes
 from dhlog.identify.extract import Extraction, extract_dh
 from dhlog.identify.hayati import HayatiRow
 from dhlog.identify.holdout import Holdout, cross_validate, score_poses
-from dhlog.identify.prediction import predict
+from dhlog.identify.persample import PerSample
 from dhlog.identify.register import Registration
 from dhlog.identify.relations import relation_tolerances, with_fixed_relations
 from dhlog.identify.samples import (
@@ -77,7 +78,13 @@ from dhlog.identify.validate import (
     validate_samples,
     validate_sweeps,
 )
-from dhlog.identify.variance import pose_clustered, whitened_residuals, whitening, with_model_error
+from dhlog.identify.variance import (
+    pose_clustered,
+    residual_norms,
+    whitened_cost,
+    whitening,
+    with_model_error,
+)
 from dhlog.identify.whole import CHI3_MEDIAN, WholeFit, fit_whole_model
 from dhlog.io.dhfile import DHModel
 from dhlog.io.pipeline import Pipeline
@@ -492,8 +499,7 @@ def _identify_whole(
     for attempt in range(MAX_REJOINS + 1):
         rates = None
         if speeds is not None:
-            t_ns = seg.table["t_ns"].to_numpy()[rows]
-            rates = speeds.at(t_ns)
+            rates = _rates(speeds, seg, rows)
         options: dict[str, Any] = {
             "noise": result.noise,
             "fit_scales": fit_scales,
@@ -517,8 +523,7 @@ def _identify_whole(
             # samples it did not see by far more than the noise, so the first fit judged no
             # sample an outlier; judge them at its optimum, on the noise's own scale
             if not fit_sigmas:
-                pred = predict(whole.model, Q, which=which, rates=rates)[0]
-                norms = np.linalg.norm(P - pred, axis=1)
+                norms = residual_norms(whole.model, Q, P, which=which, rates=rates)
                 sigma = max(float(np.median(norms)) / CHI3_MEDIAN, 1e-9)
             whole = fit_whole_model(whole.model, Q, P, sigma=sigma, **options)
         if not clocked or timing is None:
@@ -564,8 +569,7 @@ def _identify_whole(
 
     def cost(fit: WholeFit) -> float:
         """The whitened sum of squares of ``whole``'s inliers under ``fit`` (positions)."""
-        rw = whitened_residuals(fit, whole.inliers, Q, P, whiten, which=which, rates=rates)
-        return float(np.sum(rw**2))
+        return whitened_cost(fit, whole.inliers, Q, P, whiten, which=which, rates=rates)
 
     whole, tolerances = with_fixed_relations(whole, tolerances, cost, result.info)
     kw = {**kwargs, "pair_tolerances": tolerances}
@@ -602,9 +606,9 @@ def _identify_whole(
         result.terms = to_table(whole.model.terms, frames)
         result.terms_std = term_std(whole)
     # the table's joint values: ref + s (q − ref) with fitted scales, deflected by the terms
-    Q_table = table_values(result, Q)
+    Q_table = Q.map(lambda q: table_values(result, q), Q.shape)
     if result.terms is not None:  # what the terms move, at the samples
-        bare = table_values(result, Q, deflected=False)
+        bare = Q.map(lambda q: table_values(result, q, deflected=False), Q.shape)
         result.deflection_max, result.deflection_target, result.deflection_vectors = deflections(
             ex, Q_table, bare
         )
@@ -658,10 +662,10 @@ def _validate_log(
             f"--validate needs a log of the same robot ({ex.standard.n} joints) with encoder "
             "values."
         )
-    rows, Q, P = samples_with_encoders(seg)
+    rows, Qs, Ps = samples_with_encoders(seg)
     which = target_labels(seg, rows)
-    if which is not None:
-        Q, P = Q[which == 0], P[which == 0]
+    primary = slice(None) if which is None else which == 0
+    Q, P = Qs[primary], Ps[primary]  # a session scored: its own poses, whole
     nominal = result.nominal
     result.holdout.append(
         score_poses(
@@ -675,6 +679,11 @@ def _validate_log(
             table_values=table_values(result, Q),
         )
     )
+
+
+def _rates(speeds: JointRates, seg: Segmentation, rows: NDArray[np.intp]) -> PerSample:
+    """The joints' speeds (m, n) at the samples ``rows``, read a block at a time."""
+    return PerSample((rows.size, seg.n_joints), lambda index: speeds.at(seg.t_ns[rows[index]]))
 
 
 def table_values(result: ProcessResult, Q: FloatArray, *, deflected: bool = True) -> FloatArray:

@@ -25,11 +25,11 @@ def measured_rotations(seg: Segmentation, rows: NDArray[np.int64]) -> FloatArray
     (``orientation = true`` in the pipeline), else None."""
     from dhlog.io.reader import ORIENTATION_COLUMNS
 
-    if not all(c in seg.table.columns for c in ORIENTATION_COLUMNS):
+    if not all(c in seg.points.columns for c in ORIENTATION_COLUMNS):
         return None
     from scipy.spatial.transform import Rotation  # 0.35 s of imports: only when needed
 
-    quat = seg.table.select(ORIENTATION_COLUMNS).to_numpy()[rows]
+    quat = np.column_stack([seg.column(c, rows) for c in ORIENTATION_COLUMNS])
     return np.asarray(Rotation.from_quat(quat).as_matrix(), dtype=np.float64)  # x, y, z, w
 
 
@@ -61,9 +61,9 @@ def sample_covariance(seg: Segmentation, rows: NDArray[np.int64]) -> FloatArray 
     positive definite (the noise model then applies to all)."""
     from dhlog.io.reader import COVARIANCE_COLUMNS
 
-    if not all(c in seg.table.columns for c in COVARIANCE_COLUMNS):
+    if not all(c in seg.points.columns for c in COVARIANCE_COLUMNS):
         return None
-    c = seg.table.select(COVARIANCE_COLUMNS).to_numpy()[rows]
+    c = np.column_stack([seg.column(name, rows) for name in COVARIANCE_COLUMNS])
     if not np.all(np.isfinite(c)):
         return None
     cov = np.empty((rows.size, 3, 3))

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import warnings
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 import polars as pl
@@ -29,17 +30,90 @@ from dhlog.model.dh import JointType
 TRANSITION, IDLE = -1, -2
 
 
+@dataclass(frozen=True)
+class Encoders:
+    """The joint-state stream at its own rate, sorted by time: ``t_ns`` (k,), ``q`` (k, n).
+
+    A target sample at time t takes the values interpolated linearly between the encoder sample
+    at or before t (the last, within ``tol_ns``: ``join_asof`` backward) and the next one (within
+    ``tol_ns`` after t; the same one where its stamp is t); it has none when either is missing.
+    The values are computed for the samples asked for, never stored per target sample."""
+
+    t_ns: NDArray[np.int64]
+    q: NDArray[np.float64]
+    tol_ns: int
+    #: how far the stamps were moved from the log's (ns)
+    shift_ns: int = 0
+
+    @classmethod
+    def of(cls, joints: pl.DataFrame, n: int, tol_ns: int) -> Encoders:
+        """From a joint-state table (``t_ns, q_1 … q_n``) sorted by time."""
+        cols = [f"q_{j + 1}" for j in range(n)]
+        t = np.ascontiguousarray(joints["t_ns"].to_numpy(), dtype=np.int64)
+        return cls(
+            t, np.ascontiguousarray(joints.select(cols).to_numpy(), dtype=np.float64), tol_ns
+        )
+
+    def shifted(self, shift_ns: int) -> Encoders:
+        """The stream with its stamps moved by ``shift_ns`` from the log's."""
+        return Encoders(self.t_ns + (shift_ns - self.shift_ns), self.q, self.tol_ns, shift_ns)
+
+    def neighbours(self, t: NDArray[np.int64]) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
+        """The encoder samples before and after each time ``t`` (-1 where missing: then both)."""
+        t_enc, tol = self.t_ns, self.tol_ns
+        k = t_enc.size
+        i_prev = np.searchsorted(t_enc, t, side="right") - 1
+        i_prev[(i_prev >= 0) & (t - t_enc[np.maximum(i_prev, 0)] > tol)] = -1
+        if k == 0:
+            return i_prev, i_prev
+        exact = (i_prev >= 0) & (t_enc[np.maximum(i_prev, 0)] == t)
+        after = np.minimum(i_prev + 1, k - 1)
+        has_next = (i_prev >= 0) & (i_prev + 1 < k) & (t_enc[after] - t <= tol)
+        i_next = np.where(exact, i_prev, np.where(has_next, after, -1))
+        ok = (i_prev >= 0) & (i_next >= 0)
+        return np.where(ok, i_prev, -1), np.where(ok, i_next, -1)
+
+    def at(self, t: NDArray[np.int64], cols: list[int] | None = None) -> NDArray[np.float64]:
+        """The encoder values (c, n), or of joints ``cols`` (0-based), at times ``t``; NaN at
+        times without encoder values."""
+        lo, hi = self.neighbours(np.asarray(t, dtype=np.int64))
+        ok = lo >= 0
+        lo, hi = np.maximum(lo, 0), np.maximum(hi, 0)
+        t_enc = self.t_ns
+        if t_enc.size == 0:
+            return np.full((lo.size, self.q.shape[1] if cols is None else len(cols)), np.nan)
+        span = (t_enc[hi] - t_enc[lo]).astype(np.float64)
+        w = np.divide(
+            (t - t_enc[lo]).astype(np.float64), span, out=np.zeros(lo.size), where=span > 0
+        )
+        q = self.q if cols is None else self.q[:, cols]
+        q_lo = q[lo]
+        out = q_lo + (q[hi] - q_lo) * w[:, None]
+        out[~ok] = np.nan
+        return np.asarray(out, dtype=np.float64)
+
+
+#: Target samples a block in the passes over the measurement table.
+BLOCK = 1 << 18
+
+
 @dataclass
 class Segmentation:
     """The measurement table and what was found in it.
 
-    ``table``: ``t_ns, x, y, z, q_1 … q_n, joint, segment`` (joint 1-based, both null where a
-    sample is in no sweep). ``segments``: one row per sweep: ``segment, joint, n, q_start, q_end,
-    sweep, t_start_ns, t_end_ns, lock_q_1 … lock_q_n``. ``set_aside``: target samples (and other
-    samples) not used, by reason. ``reference_pose``: the locked pose most sweeps share.
+    ``points``: the log's point stream (``t_ns, x, y, z`` and what else it carries);
+    ``segment``: each target sample's sweep (0: none); ``encoders``: the joint-state stream the
+    encoder values are interpolated from, sample by sample where asked (None without encoders).
+    ``table`` is the measurement table of the design (``t_ns, x, y, z, q_1 … q_n, joint,
+    segment``; joint 1-based, both null where a sample is in no sweep), built when asked for —
+    ``dhlog process`` never builds it whole: it reads the samples a block at a time.
+    ``segments``: one row per sweep: ``segment, joint, n, q_start, q_end, sweep, t_start_ns,
+    t_end_ns, lock_q_1 … lock_q_n``. ``set_aside``: target samples (and other samples) not
+    used, by reason. ``reference_pose``: the locked pose most sweeps share.
     """
 
-    table: pl.DataFrame
+    points: pl.DataFrame
+    segment: NDArray[np.int32]
     segments: pl.DataFrame
     n_joints: int
     joint_names: list[str]
@@ -48,6 +122,91 @@ class Segmentation:
     base: pl.DataFrame | None
     has_encoders: bool
     warnings: list[str] = field(default_factory=list)
+    encoders: Encoders | None = None
+
+    @property
+    def height(self) -> int:
+        """The number of target samples."""
+        return self.points.height
+
+    @cached_property
+    def t_ns(self) -> NDArray[np.int64]:
+        """Every target sample's time (a view of the point stream's column)."""
+        return np.asarray(self.points["t_ns"].to_numpy(), dtype=np.int64)
+
+    @cached_property
+    def xyz_columns(self) -> tuple[NDArray[np.float64], ...]:
+        """The points' x, y and z columns (views of the point stream's)."""
+        return tuple(
+            np.asarray(self.points[c].to_numpy(), dtype=np.float64) for c in ("x", "y", "z")
+        )
+
+    def xyz(self, rows: NDArray[np.integer] | slice) -> NDArray[np.float64]:
+        """The target samples ``rows`` (c, 3)."""
+        x, y, z = self.xyz_columns
+        return np.column_stack([x[rows], y[rows], z[rows]])
+
+    def q(
+        self, rows: NDArray[np.integer] | slice, cols: list[int] | None = None
+    ) -> NDArray[np.float64]:
+        """The encoder values (c, n), or of joints ``cols`` (0-based), at the samples ``rows``;
+        NaN where a sample has none (and everywhere without encoders)."""
+        t = self.t_ns[rows]
+        if self.encoders is None:
+            return np.full((t.size, self.n_joints if cols is None else len(cols)), np.nan)
+        return self.encoders.at(t, cols)
+
+    def column(self, name: str, rows: NDArray[np.integer] | slice) -> NDArray[np.generic]:
+        """A further column of the point stream (``target``, orientation, covariance) at
+        ``rows``."""
+        return np.asarray(self.points[name].to_numpy()[rows])
+
+    @cached_property
+    def joint_of_segment(self) -> NDArray[np.int32]:
+        """The joint (1-based) of each sweep id (0: none), indexable by ``segment``."""
+        ids = self.segments["segment"].to_numpy()
+        out = np.zeros(
+            int(max(ids.max(), self.segment.max(initial=0))) + 1 if ids.size else 1, dtype=np.int32
+        )
+        out[ids] = self.segments["joint"].to_numpy()
+        return out
+
+    def joint(self, rows: NDArray[np.integer] | slice) -> NDArray[np.int32]:
+        """The joint (1-based) whose sweep each sample ``rows`` is in (0: none)."""
+        return np.asarray(self.joint_of_segment[self.segment[rows]], dtype=np.int32)
+
+    @cached_property
+    def table(self) -> pl.DataFrame:
+        """The measurement table (see the class): every sample's encoder values at once —
+        for a reader of the table, not for the passes over a long log."""
+        n = self.n_joints
+        values = []
+        for j in range(n):
+            column = np.empty(self.height)
+            for start in range(0, self.height, BLOCK):
+                sl = slice(start, min(start + BLOCK, self.height))
+                column[sl] = self.q(sl, [j])[:, 0]
+            series = pl.Series(f"q_{j + 1}", column)
+            if self.encoders is None:
+                series = pl.Series(f"q_{j + 1}", [None] * self.height, dtype=pl.Float64)
+            else:
+                missing = np.flatnonzero(~self.has_q(slice(None)))
+                series = series.scatter(missing, None) if missing.size else series
+            values.append(series)
+        seg_id = self.segment
+        return self.points.with_columns(
+            values,
+        ).with_columns(
+            pl.Series("joint", self.joint(slice(None))).cast(pl.Int32).replace(0, None),
+            pl.Series("segment", seg_id).cast(pl.Int32).replace(0, None),
+        )
+
+    def has_q(self, rows: NDArray[np.integer] | slice) -> NDArray[np.bool_]:
+        """Whether each sample ``rows`` has encoder values (an encoder sample each side)."""
+        if self.encoders is None:
+            return np.zeros(self.t_ns[rows].size, dtype=bool)
+        lo, _ = self.encoders.neighbours(self.t_ns[rows])
+        return np.asarray(lo >= 0)
 
 
 def check_settings(settings: SegmentationSettings, where: str) -> None:
@@ -149,41 +308,6 @@ def _label_encoder_samples(
     return labels, segments
 
 
-def interpolate_encoders(
-    points: pl.DataFrame, joints: pl.DataFrame, n: int, tol_ns: int
-) -> tuple[pl.DataFrame, NDArray[np.int64], NDArray[np.int64]]:
-    """Encoder values at each target time, linear between the encoder sample before (found by
-    ``join_asof`` backward within ``tol_ns``) and the one after (the next encoder sample, if
-    within ``tol_ns``); null where either is missing.
-
-    Also returns the row numbers of those two encoder samples (-1 where missing).
-    """
-    cols = [f"q_{j + 1}" for j in range(n)]
-    enc = joints.select("t_ns").with_columns(pl.int_range(pl.len(), dtype=pl.Int64).alias("i_enc"))
-    prev = points.select("t_ns").join_asof(enc, on="t_ns", strategy="backward", tolerance=tol_ns)
-    i_prev = prev["i_enc"].fill_null(-1).to_numpy()
-    t_enc = joints["t_ns"].to_numpy()
-    q_enc = joints.select(cols).to_numpy(order="fortran")
-    t = points["t_ns"].to_numpy()
-    exact = (i_prev >= 0) & (t_enc[np.maximum(i_prev, 0)] == t)
-    after = np.minimum(i_prev + 1, t_enc.size - 1)
-    has_next = (i_prev >= 0) & (i_prev + 1 < t_enc.size) & (t_enc[after] - t <= tol_ns)
-    i_next = np.where(exact, i_prev, np.where(has_next, after, -1))
-    ok = (i_prev >= 0) & (i_next >= 0)
-    lo, hi = np.maximum(i_prev, 0), np.maximum(i_next, 0)
-    span = (t_enc[hi] - t_enc[lo]).astype(np.float64)
-    w = np.divide((t - t_enc[lo]).astype(np.float64), span, out=np.zeros(t.size), where=span > 0)
-    values = []
-    missing = np.flatnonzero(~ok)
-    for j, c in enumerate(cols):
-        column = np.ascontiguousarray(q_enc[:, j])
-        q_lo = column[lo]
-        series = pl.Series(c, q_lo + (column[hi] - q_lo) * w)
-        values.append(series.scatter(missing, None) if missing.size else series)
-    out = points.with_columns(values)
-    return out, np.where(ok, i_prev, -1), np.where(ok, i_next, -1)
-
-
 def segment_log(
     log: LogData,
     *,
@@ -198,13 +322,15 @@ def segment_log(
         raise TooFewSamplesError(f"{log.path}: point stream", points.height, 3)
     set_aside = dict(log.set_aside)
     notes = list(log.warnings)
+    encoders = None
     if log.joints is not None and log.joints.height > 0:
-        seg = _segment_with_encoders(log, settings, joint_types, set_aside, notes)
+        table, seg_id, segments, n, names, encoders = _segment_with_encoders(
+            log, settings, joint_types, set_aside, notes
+        )
     elif log.phase is not None:
-        seg = _segment_with_phase(log, settings, set_aside, notes)
+        table, seg_id, segments, n, names = _segment_with_phase(log, settings, set_aside, notes)
     else:
         raise TooFewSamplesError(f"{log.path}: joint-state and phase streams", 0, 1)
-    table, segments, n, names = seg
     if n == 0:
         raise InputError(
             f"{log.path}: no joint is named by the log (no joint states, and no phase marker "
@@ -214,7 +340,17 @@ def segment_log(
     if ref is None and log.joints is not None and segments.height:
         ref = shared_locked_pose(segments, n, settings.lock_tolerance)
     return Segmentation(
-        table, segments, n, names, set_aside, ref, log.base, log.joints is not None, notes
+        table,
+        seg_id,
+        segments,
+        n,
+        names,
+        set_aside,
+        ref,
+        log.base,
+        log.joints is not None,
+        notes,
+        encoders,
     )
 
 
@@ -224,25 +360,30 @@ def _segment_with_encoders(
     joint_types: list[JointType | None] | None,
     set_aside: dict[str, int],
     notes: list[str],
-) -> tuple[pl.DataFrame, pl.DataFrame, int, list[str]]:
+) -> tuple[pl.DataFrame, NDArray[np.int32], pl.DataFrame, int, list[str], Encoders]:
     assert log.joints is not None
     n = len(log.joint_names)
-    cols = [f"q_{j + 1}" for j in range(n)]
     joints = log.joints.sort("t_ns")
-    t_enc = joints["t_ns"].to_numpy()
-    q_enc = joints.select(cols).to_numpy()
+    encoders = Encoders.of(joints, n, int(settings.join_tolerance * 1e9))
+    t_enc, q_enc = encoders.t_ns, encoders.q
     labels, found = _label_encoder_samples(t_enc, q_enc, settings)
-    tol_ns = int(settings.join_tolerance * 1e9)
-    table, i_prev, i_next = interpolate_encoders(log.points, joints, n, tol_ns)
-    t = table["t_ns"].to_numpy()
+    points = log.points
+    t = np.asarray(points["t_ns"].to_numpy(), dtype=np.int64)
     # a target sample takes the label of the encoder samples on both sides, if they agree;
     # without an encoder sample on each side within the join tolerance it has no encoder values
-    label = np.where(labels[i_prev] == labels[i_next], labels[i_prev], TRANSITION)
-    label = np.where((i_prev < 0) | (i_next < 0), IDLE - 1, label)
+    label = np.empty(t.size, dtype=np.int32)
+    for start in range(0, t.size, BLOCK):
+        sl = slice(start, min(start + BLOCK, t.size))
+        i_prev, i_next = encoders.neighbours(t[sl])
+        here = np.where(labels[i_prev] == labels[i_next], labels[i_prev], TRANSITION)
+        label[sl] = np.where((i_prev < 0) | (i_next < 0), IDLE - 1, here)
     seg_rows: list[dict[str, float | int]] = []
-    seg_id = np.full(t.size, -1, dtype=np.int64)
+    seg_id = np.zeros(t.size, dtype=np.int32)
     for k, (joint, start, end, _lock) in enumerate(found):
-        members = np.flatnonzero(label == k)
+        # its target samples lie between its first and last encoder samples
+        lo = int(np.searchsorted(t, t_enc[start], side="left"))
+        hi = int(np.searchsorted(t, t_enc[end - 1], side="right"))
+        members = lo + np.flatnonzero(label[lo:hi] == k)
         q_joint = q_enc[start:end, joint]
         jt = joint_types[joint] if joint_types and joint < len(joint_types) else None
         minimum = settings.min_travel if jt is JointType.PRISMATIC else settings.min_sweep
@@ -282,14 +423,8 @@ def _segment_with_encoders(
     _count(set_aside, "transition", int(np.count_nonzero(label == TRANSITION)))
     _count(set_aside, "idle", int(np.count_nonzero(label == IDLE)))
     _count(set_aside, "no_encoder", int(np.count_nonzero(label == IDLE - 1)))
-    joint_col = np.zeros(t.size, dtype=np.int64)
-    for row in seg_rows:
-        joint_col[seg_id == row["segment"]] = row["joint"]
-    table = table.with_columns(
-        pl.Series("joint", np.where(seg_id > 0, joint_col, 0)).cast(pl.Int32).replace(0, None),
-        pl.Series("segment", seg_id).cast(pl.Int32).replace(-1, None),
-    )
-    return table, _segments_frame(seg_rows, n), n, list(log.joint_names)
+    del label
+    return points, seg_id, _segments_frame(seg_rows, n), n, list(log.joint_names), encoders
 
 
 def _count(set_aside: dict[str, int], key: str, value: int) -> None:
@@ -317,7 +452,7 @@ def _segment_with_phase(
     settings: SegmentationSettings,
     set_aside: dict[str, int],
     notes: list[str],
-) -> tuple[pl.DataFrame, pl.DataFrame, int, list[str]]:
+) -> tuple[pl.DataFrame, NDArray[np.int32], pl.DataFrame, int, list[str]]:
     assert log.phase is not None
     marks = log.phase.sort("t_ns")
     labelled = log.points.sort("t_ns").join_asof(marks, on="t_ns", strategy="backward")
@@ -328,7 +463,7 @@ def _segment_with_phase(
     names = list(log.joint_names) or [f"joint_{j + 1}" for j in range(n)]
     n = max(n, len(names))
     t = labelled["t_ns"].to_numpy()
-    seg_id = np.full(t.size, -1, dtype=np.int64)
+    seg_id = np.zeros(t.size, dtype=np.int32)
     rows: list[dict[str, float | int]] = []
     for st, start, end in _runs(joint):
         if st == 0:
@@ -353,12 +488,7 @@ def _segment_with_phase(
                 **{f"lock_q_{j + 1}": float("nan") for j in range(n)},
             }
         )
-    table = labelled.drop("joint").with_columns(
-        *[pl.lit(None, dtype=pl.Float64).alias(f"q_{j + 1}") for j in range(n)],
-        pl.Series("joint", np.where(seg_id > 0, joint, 0)).cast(pl.Int32).replace(0, None),
-        pl.Series("segment", seg_id).cast(pl.Int32).replace(-1, None),
-    )
-    return table, _segments_frame(rows, n), n, names
+    return labelled.drop("joint"), seg_id, _segments_frame(rows, n), n, names
 
 
 def shared_locked_pose(segments: pl.DataFrame, n: int, tol: float) -> NDArray[np.float64]:

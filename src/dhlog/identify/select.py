@@ -36,6 +36,7 @@ from numpy.typing import NDArray
 from dhlog.errors import DhlogError
 from dhlog.geometry._checks import FloatArray
 from dhlog.identify.holdout import cross_validate
+from dhlog.identify.persample import PerSample, SampleArray
 from dhlog.identify.prediction import predict
 from dhlog.identify.whole import WholeFit, fit_whole_model
 from dhlog.model.dh import JointType
@@ -193,8 +194,8 @@ def terms_for(
 def select_model(
     mode: str,
     whole: WholeFit,
-    Q: FloatArray,
-    P: FloatArray,
+    Q: SampleArray,
+    P: SampleArray,
     *,
     sigma: float,
     options: dict[str, Any],
@@ -212,7 +213,7 @@ def select_model(
     stride = -(-m // SELECT_SAMPLES) if m > SELECT_SAMPLES else 1
     pick = np.arange(0, m, stride)
     sub: dict[str, Any] = {
-        k: (v[pick] if isinstance(v, np.ndarray) and v.shape[:1] == (m,) else v)
+        k: (v[pick] if isinstance(v, np.ndarray | PerSample) and v.shape[:1] == (m,) else v)
         for k, v in options.items()
     }
     keep = whole.inliers[pick]

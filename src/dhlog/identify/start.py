@@ -78,7 +78,8 @@ def start_unswept(
     values: the nominal's (:func:`start_from_nominal`) or, without one, a coupled move's
     (:func:`start_from_neighbours`). None when one of them never moved, the nominal cannot be
     placed on the points (both said in ``warnings``), or a joint has no start."""
-    rows, Q, P = samples_with_encoders(seg)
+    rows, Qs, Ps = samples_with_encoders(seg)
+    Q, P = Qs[:], Ps[:]  # the start reads every sample at once (a session of still poses)
     if rows.size == 0 or _any_never_moved(joints, Q, warnings):
         return None
     which = target_labels(seg, rows)

@@ -14,6 +14,7 @@ from dhlog.geometry._checks import FloatArray
 from dhlog.geometry.axisfit import AxisFit
 from dhlog.geometry.fitting import detect_joint_type, fit_axis_robust
 from dhlog.geometry.lines import Line
+from dhlog.identify.persample import PerSample, blocks
 from dhlog.identify.segment import Segmentation
 from dhlog.io.dhfile import DHModel
 from dhlog.io.reader import LogData
@@ -130,13 +131,13 @@ def fit_joint(
         .to_numpy()[0]
     )
     report.segments = chosen
-    in_sweep = seg.table["segment"].is_in(chosen).fill_null(False)
-    if "target" in seg.table.columns:  # the per-joint fits use the primary target's circles
-        in_sweep = in_sweep & (seg.table["target"] == 0)
-    report.rows = np.flatnonzero(in_sweep.to_numpy())
-    rows = seg.table[report.rows]
-    points = rows.select(["x", "y", "z"]).to_numpy()
-    encoder = rows[f"q_{k}"].to_numpy() if seg.has_encoders else None
+    in_sweep = np.isin(seg.segment, np.asarray(chosen, dtype=np.int32))
+    if "target" in seg.points.columns:  # the per-joint fits use the primary target's circles
+        in_sweep &= seg.points["target"].to_numpy() == 0
+    report.rows = np.flatnonzero(in_sweep)
+    del in_sweep
+    points = seg.xyz(report.rows)
+    encoder = seg.q(report.rows, [k - 1])[:, 0] if seg.has_encoders else None
     try:
         stride = 1 if max_points is None else max(1, points.shape[0] // max_points)
         jt, source = _joint_type(k, name, points[::stride], log, nominal, notes)
@@ -212,9 +213,8 @@ class TargetAtReference:
             rows = np.concatenate([j.rows[j.inliers] for j in joints])
             if max_rows is not None and rows.size > max_rows:
                 rows = rows[:: -(-rows.size // max_rows)]
-            cols = [f"q_{i + 1}" for i in range(seg.n_joints)]
-            self.Q = seg.table.select(cols).to_numpy()[rows]
-            self.P = seg.table.select(["x", "y", "z"]).to_numpy()[rows]
+            self.Q = seg.q(rows)
+            self.P = seg.xyz(rows)
 
     def __call__(self, axes: list[Line | None] | None = None) -> tuple[FloatArray, FloatArray]:
         joints = self.joints
@@ -250,21 +250,22 @@ def _common_point_of_circles(fits: list[AxisFit]) -> FloatArray:
     return np.asarray(least_squares(distances, start).x, dtype=np.float64)
 
 
-def samples_with_encoders(seg: Segmentation) -> tuple[NDArray[np.int64], FloatArray, FloatArray]:
+def samples_with_encoders(seg: Segmentation) -> tuple[NDArray[np.intp], PerSample, PerSample]:
     """Rows of the measurement table with every encoder value (sweeps, coupled moves, still
-    poses), their encoder values (m, n) and points (m, 3)."""
-    table = seg.table
-    Q = table.select([f"q_{i + 1}" for i in range(seg.n_joints)]).to_numpy()
-    P = table.select(["x", "y", "z"]).to_numpy()
-    ok = np.isfinite(Q).all(axis=1) & np.isfinite(P).all(axis=1)
+    poses), and their encoder values (m, n) and points (m, 3), read a block at a time."""
+    ok = np.empty(seg.height, dtype=bool)
+    for sl in blocks(seg.height):
+        ok[sl] = np.isfinite(seg.q(sl)).all(axis=1) & np.isfinite(seg.xyz(sl)).all(axis=1)
     rows = np.flatnonzero(ok)
-    if rows.size == table.height:
-        return rows, Q, P
-    return rows, Q[rows], P[rows]
+    del ok
+    n = seg.n_joints
+    Q = PerSample((rows.size, n), lambda index: seg.q(rows[index]))
+    P = PerSample((rows.size, 3), lambda index: seg.xyz(rows[index]))
+    return rows, Q, P
 
 
-def target_labels(seg: Segmentation, rows: NDArray[np.int64]) -> NDArray[np.int64] | None:
+def target_labels(seg: Segmentation, rows: NDArray[np.intp]) -> NDArray[np.int64] | None:
     """Which target each of ``rows`` measured (0 the primary one), or None with one target."""
-    if "target" not in seg.table.columns:
+    if "target" not in seg.points.columns:
         return None
-    return np.asarray(seg.table["target"].to_numpy()[rows], dtype=np.int64)
+    return np.asarray(seg.column("target", rows), dtype=np.int64)

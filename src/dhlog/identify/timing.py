@@ -34,7 +34,8 @@ from dhlog.errors import DhlogError
 from dhlog.geometry._checks import FloatArray
 from dhlog.geometry.circles import fit_circle_algebraic
 from dhlog.geometry.fitting import fit_line
-from dhlog.identify.segment import Segmentation, interpolate_encoders
+from dhlog.identify.persample import blocks
+from dhlog.identify.segment import BLOCK, Segmentation
 from dhlog.io.reader import LogData
 
 #: Fewest moving samples a sweep needs to estimate the lag from.
@@ -99,34 +100,30 @@ class JointRates:
 
 
 def rejoin(seg: Segmentation, log: LogData, extra: float) -> Segmentation:
-    """``seg`` with its encoder columns joined again with the joint-state stamps moved by
-    ``extra`` seconds more (labels and sweeps kept; samples left without encoder values by the
-    move get nulls)."""
-    assert log.joints is not None
-    n = seg.n_joints
-    shift = round(extra * 1e9)
-    joints = log.joints.sort("t_ns").with_columns(pl.col("t_ns") + shift)
-    tol_ns = int(log.pipeline.segmentation.join_tolerance * 1e9)
-    points = seg.table.select("t_ns")
-    joined, _, _ = interpolate_encoders(points, joints, n, tol_ns)
-    cols = [f"q_{i + 1}" for i in range(n)]
-    table = seg.table.with_columns(joined.select(cols))
-    lost = table.select(pl.any_horizontal(pl.col(cols).is_null()) & pl.col("joint").is_not_null())
-    if lost.to_series().any():  # moved off the joint stream's ends: out of their sweeps
-        mask = lost.to_series()
-        table = table.with_columns(
-            pl.when(mask).then(None).otherwise(pl.col(c)).alias(c) for c in ("joint", "segment")
-        )
-        aside = dict(seg.set_aside)
-        aside["no_encoder"] = aside.get("no_encoder", 0) + int(mask.sum())
-        counts = table.group_by("segment").len().rename({"len": "n_now"})
-        segments = (
-            seg.segments.join(counts, on="segment", how="left")
-            .with_columns(pl.col("n_now").fill_null(0).cast(seg.segments["n"].dtype).alias("n"))
-            .drop("n_now")
-        )
-        return replace(seg, table=table, segments=segments, set_aside=aside)
-    return replace(seg, table=table)
+    """``seg`` with its encoder values joined again with the joint-state stamps moved by
+    ``extra`` seconds more (labels and sweeps kept; samples of a sweep left without encoder
+    values by the move leave it)."""
+    assert seg.encoders is not None
+    pipeline_shift = round(extra * 1e9)
+    encoders = seg.encoders.shifted(pipeline_shift)
+    moved = replace(seg, encoders=encoders)
+    segment = seg.segment
+    lost = np.zeros(0, dtype=np.intp)
+    for sl in blocks(seg.height, BLOCK):
+        inside = np.flatnonzero(segment[sl] > 0)
+        if inside.size:
+            at = sl.start + inside
+            lost = np.concatenate([lost, at[~moved.has_q(at)]])
+    if not lost.size:  # moved off the joint stream's ends: out of their sweeps
+        return moved
+    segment = segment.copy()
+    segment[lost] = 0
+    aside = dict(seg.set_aside)
+    aside["no_encoder"] = aside.get("no_encoder", 0) + int(lost.size)
+    ids = seg.segments["segment"].to_numpy()
+    counts = np.bincount(segment, minlength=int(ids.max(initial=0)) + 1)
+    segments = seg.segments.with_columns(pl.Series("n", counts[ids]).cast(seg.segments["n"].dtype))
+    return replace(moved, segment=segment, segments=segments, set_aside=aside)
 
 
 @dataclass(frozen=True)
@@ -146,28 +143,22 @@ class SweepPhase:
 def sweep_phases(seg: Segmentation, log: LogData) -> list[SweepPhase]:
     """Per sweep: the points-only fit's angle (position) regressed on ``1, Q, q̇`` (see the
     module); at most :data:`START_POINTS` evenly strided samples per sweep."""
-    table = seg.table
-    if log.joints is None or "segment" not in table.columns:
+    if log.joints is None or seg.encoders is None:
         return []
-    n = seg.n_joints
-    labels = table["segment"].fill_null(-1).to_numpy()
-    joints = table["joint"].fill_null(0).to_numpy()
-    t_ns = table["t_ns"].to_numpy()
-    P = table.select(["x", "y", "z"]).to_numpy()
-    Q = table.select([f"q_{i + 1}" for i in range(n)]).to_numpy()
-    rates = JointRates(log, n)
+    rates = JointRates(log, seg.n_joints)
     out = []
-    for sid in np.unique(labels[labels > 0]):
-        rows = np.flatnonzero(labels == sid)
-        rows = rows[np.isfinite(Q[rows]).all(axis=1)]
+    for sid, j1 in zip(seg.segments["segment"], seg.segments["joint"], strict=True):
+        rows = np.flatnonzero(seg.segment == sid)
+        Q = seg.q(rows)
+        rows = rows[np.isfinite(Q).all(axis=1)]
         if rows.size < 4:
             continue
         if rows.size > START_POINTS:
             rows = rows[:: -(-rows.size // START_POINTS)]
-        j = int(joints[rows[0]]) - 1
-        rate = rates.at(t_ns[rows], [j])[:, 0]
+        j = int(j1) - 1
+        rate = rates.at(seg.t_ns[rows], [j])[:, 0]
         moving = int(np.count_nonzero(np.abs(rate) > MOVING_SPEED))
-        one = _sweep_lag(P[rows], Q[rows, j], rate, moving >= MIN_MOVING)
+        one = _sweep_lag(seg.xyz(rows), seg.q(rows, [j])[:, 0], rate, moving >= MIN_MOVING)
         if one is not None:
             slope, delta, std = one
             out.append(SweepPhase(j + 1, slope, delta, std, moving, int(rows.size)))

@@ -12,6 +12,7 @@ from numpy.typing import NDArray
 
 from dhlog.geometry._checks import FloatArray, rotation_from_vector
 from dhlog.identify.extract import Extraction
+from dhlog.identify.persample import SampleArray, blocks
 from dhlog.identify.propagate import state_vector
 from dhlog.identify.segment import Segmentation
 from dhlog.identify.sweeps import JointReport
@@ -34,35 +35,84 @@ class Identified(Protocol):
     def covariance(self) -> FloatArray | None: ...
 
 
+#: At most this many samples' FK residual vectors are kept for the recording (evenly strided
+#: over the measurement table: the viewer shows no more), whatever the log's length.
+SHOWN_SAMPLES = 500_000
+
+
+def shown_stride(height: int) -> int:
+    """Every how many rows of a measurement table of ``height`` rows the recording shows one."""
+    return max(1, -(-height // SHOWN_SAMPLES))
+
+
 @dataclass
 class Validation:
-    """FK of the result against each assigned sample with encoder values (m), and summaries:
-    ``vectors`` (table rows, 3) sample − FK, NaN at rows not checked; ``residuals`` their
-    lengths."""
+    """FK of the result against each assigned sample with encoder values, summarised: RMS, max
+    and count over the samples checked, per joint (``per_joint``: joint → RMS, max, count; 0 for
+    coupled moves and still poses) and overall; the residual vectors (sample − FK) kept at the
+    rows the recording shows (``rows``: table rows, ascending; every :func:`shown_stride`-th)."""
 
+    rows: NDArray[np.intp]
     vectors: FloatArray
-    residuals: FloatArray
     per_joint: dict[int, tuple[float, float, int]]
     rms: float
     max: float
     n_points: int
 
-    @classmethod
-    def of(
-        cls,
-        vectors: FloatArray,
-        per_joint: dict[int, tuple[float, float, int]],
-        used: FloatArray,
-    ) -> Validation:
-        """The validation of the residual ``vectors``, with RMS, max and count over the
-        residual lengths ``used`` (m)."""
-        return cls(
-            vectors=vectors,
-            residuals=np.sqrt(np.sum(vectors**2, axis=1)),
+    @property
+    def residuals(self) -> FloatArray:
+        """The lengths of the kept residual vectors."""
+        return np.asarray(np.sqrt(np.sum(self.vectors**2, axis=1)), dtype=np.float64)
+
+    def at(self, rows: NDArray[np.intp]) -> FloatArray:
+        """The residual vectors (k, 3) at table ``rows``: NaN where none was kept."""
+        out = np.full((rows.size, 3), np.nan)
+        if self.rows.size:
+            where = np.minimum(np.searchsorted(self.rows, rows), self.rows.size - 1)
+            hit = self.rows[where] == rows
+            out[hit] = self.vectors[where[hit]]
+        return out
+
+
+class _Tally:
+    """Residual lengths summed per joint and overall, and the vectors at the shown rows."""
+
+    def __init__(self, height: int) -> None:
+        self.stride = shown_stride(height)
+        self.joints: dict[int, list[float]] = {}  # joint → [sum of squares, max, count]
+        self.rows: list[NDArray[np.intp]] = []
+        self.vectors: list[FloatArray] = []
+
+    def add(self, rows: NDArray[np.intp], vectors: FloatArray, joints: NDArray[np.integer]) -> None:
+        r = np.sqrt(np.sum(vectors**2, axis=1))
+        for k in np.unique(joints):
+            rk = r[joints == k]
+            acc = self.joints.setdefault(int(k), [0.0, 0.0, 0])
+            acc[0] += float(rk @ rk)
+            acc[1] = max(acc[1], float(rk.max()))
+            acc[2] += rk.size
+        shown = rows % self.stride == 0
+        self.rows.append(rows[shown])
+        self.vectors.append(vectors[shown])
+
+    def validation(self) -> Validation:
+        rows = np.concatenate(self.rows) if self.rows else np.zeros(0, dtype=np.intp)
+        vectors = np.vstack(self.vectors) if self.vectors else np.zeros((0, 3))
+        order = np.argsort(rows, kind="stable")
+        per_joint = {
+            k: (math.sqrt(s / c), mx, int(c)) for k, (s, mx, c) in sorted(self.joints.items()) if c
+        }
+        total = int(sum(c for _, _, c in self.joints.values()))
+        ss = sum(s for s, _, _ in self.joints.values())
+        return Validation(
+            rows=rows[order],
+            vectors=vectors[order],
             per_joint=per_joint,
-            rms=float(np.sqrt(np.mean(used**2))) if used.size else float("nan"),
-            max=float(used.max()) if used.size else float("nan"),
-            n_points=int(used.size),
+            rms=math.sqrt(ss / total) if total else float("nan"),
+            max=max((mx for _, mx, _ in self.joints.values()), default=float("nan"))
+            if total
+            else float("nan"),
+            n_points=total,
         )
 
 
@@ -119,54 +169,51 @@ def validate_sweeps(
     """FK of the result at every assigned inlier sample's own encoder values against the sample."""
     if not seg.has_encoders:
         return None
-    table = seg.table
-    cols = [f"q_{i + 1}" for i in range(seg.n_joints)]
-    Q = table.select(cols).to_numpy()
-    P = table.select(["x", "y", "z"]).to_numpy()
-    vectors = np.full((table.height, 3), np.nan)
-    per_joint: dict[int, tuple[float, float, int]] = {}
-    used: list[FloatArray] = []
+    tally = _Tally(seg.height)
     for j in joints:
         rows = j.rows[j.inliers]
-        if rows.size == 0:
-            continue
-        pred = fk_points_chunked(ex.standard, Q[rows], ex.tool_point, T_base=ex.T_measurement_base)
-        vectors[rows] = P[rows] - pred
-        r = np.linalg.norm(vectors[rows], axis=1)
-        per_joint[j.index] = (float(np.sqrt(np.mean(r**2))), float(r.max()), int(r.size))
-        used.append(r)
-    return Validation.of(vectors, per_joint, np.concatenate(used) if used else np.zeros(0))
+        for sl in blocks(rows.size):
+            at = rows[sl]
+            pred = fk_points_chunked(
+                ex.standard, seg.q(at), ex.tool_point, T_base=ex.T_measurement_base
+            )
+            tally.add(at, seg.xyz(at) - pred, np.full(at.size, j.index))
+    return tally.validation()
 
 
 def validate_samples(
     seg: Segmentation,
-    rows: NDArray[np.int64],
-    Q: FloatArray,
-    P: FloatArray,
+    rows: NDArray[np.intp],
+    Q: SampleArray,
+    P: SampleArray,
     ex: Extraction,
     inliers: NDArray[np.bool_],
     tools: FloatArray | None = None,
     which: NDArray[np.int64] | None = None,
 ) -> Validation:
     """FK of the DH result at every sample with encoder values against the sample (per joint by
-    the sweep it belongs to; coupled moves and still poses under joint 0). ``tools`` (k, 3):
-    the tool point of each target in the last frame, ``which`` each sample's target."""
-    if tools is None or which is None:
-        pred = fk_points_chunked(ex.standard, Q, ex.tool_point, T_base=ex.T_measurement_base)
-    else:
-        pred = np.empty_like(P)
-        for k, tool in enumerate(tools):
-            mask = which == k
-            pred[mask] = fk_points_chunked(ex.standard, Q[mask], tool, T_base=ex.T_measurement_base)
-    r = np.sqrt(np.sum((pred - P) ** 2, axis=1))
-    vectors = np.full((seg.table.height, 3), np.nan)
-    vectors[rows[inliers]] = (P - pred)[inliers]
-    labels = seg.table["joint"].fill_null(0).to_numpy()[rows]
-    per_joint: dict[int, tuple[float, float, int]] = {}
-    for k in np.unique(labels[inliers]):
-        rk = r[inliers & (labels == k)]
-        per_joint[int(k)] = (float(np.sqrt(np.mean(rk**2))), float(rk.max()), int(rk.size))
-    return Validation.of(vectors, per_joint, r[inliers])
+    the sweep it belongs to; coupled moves and still poses under joint 0), a block at a time.
+    ``Q``: the table's joint values at the samples ``rows`` of the measurement table, ``P``
+    their points; ``tools`` (k, 3): the tool point of each target in the last frame, ``which``
+    each sample's target."""
+    tally = _Tally(seg.height)
+    T = ex.T_measurement_base
+    for sl in blocks(rows.size):
+        use = np.flatnonzero(inliers[sl])
+        if not use.size:
+            continue
+        at = sl.start + use
+        Qb, Pb = Q[at], P[at]
+        if tools is None or which is None:
+            pred = fk_points_chunked(ex.standard, Qb, ex.tool_point, T_base=T)
+        else:
+            pred = np.empty_like(Pb)
+            wb = which[at]
+            for k, tool in enumerate(tools):
+                mask = wb == k
+                pred[mask] = fk_points_chunked(ex.standard, Qb[mask], tool, T_base=T)
+        tally.add(rows[at], Pb - pred, seg.joint(rows[at]))
+    return tally.validation()
 
 
 def check_residual(validation: Validation, sigma: float, notes: list[str]) -> None:
@@ -179,7 +226,7 @@ def check_residual(validation: Validation, sigma: float, notes: list[str]) -> No
         )
 
 
-def table_gap(whole: WholeFit, ex: Extraction, Q: FloatArray, Q_table: FloatArray) -> float:
+def table_gap(whole: WholeFit, ex: Extraction, Q: SampleArray, Q_table: SampleArray) -> float:
     """Largest distance (m) between the fitted model and its DH table at up to 64 of the
     sampled joint vectors ``Q`` (the table's joint values ``Q_table``: the encoders scaled and
     deflected by the terms as the table sees them): 0 up to rounding when the extraction is

@@ -26,8 +26,10 @@ import numpy as np
 from numpy.typing import NDArray
 
 from dhlog.geometry._checks import FloatArray
-from dhlog.identify.holdout import pose_groups
+from dhlog.identify.axismodel import AxisModel
+from dhlog.identify.holdout import pose_blocks
 from dhlog.identify.passes import CHUNK
+from dhlog.identify.persample import SampleArray, blocks
 from dhlog.identify.prediction import predict
 from dhlog.identify.whole import WholeFit, fit_whole_model
 from dhlog.model.noise import NoiseModel, model_error_sigma, whitening_from_std
@@ -58,13 +60,13 @@ class ModelError:
 
 def refit_with_model_error(
     whole: WholeFit,
-    Q: FloatArray,
-    P: FloatArray,
+    Q: SampleArray,
+    P: SampleArray,
     declared: FloatArray,
     fit_options: dict[str, Any],
     *,
     which: NDArray[np.int64] | None = None,
-    rates: FloatArray | None = None,
+    rates: SampleArray | None = None,
 ) -> ModelError | None:
     """The model-error component (module docstring) of ``whole``, fitted with the declared
     covariances ``declared`` (m, 3, 3); None when χ²/dof is at most :data:`MODEL_ERROR_CHI2`.
@@ -74,14 +76,63 @@ def refit_with_model_error(
     before = whole.chi2_dof
     s, cov = 0.0, declared
     for _ in range(2):  # the residuals barely move with the weights: twice is converged
-        pred, _ = predict(whole.model, Q, which=which, rates=rates)
         inl = whole.inliers
+        r = residuals(whole.model, Q, P, inl, which=which, rates=rates)
         dof = max(3 * int(np.count_nonzero(inl)) - whole.layout.size, 1)
-        s = model_error_sigma((P - pred)[inl], declared[inl], dof)
+        s = model_error_sigma(r, declared[inl], dof)
         cov = declared + (s * s) * np.eye(3)[None]
         options = {**fit_options, "sigma": s, "sample_cov": cov, "which": which, "rates": rates}
         whole = fit_whole_model(whole.model, Q, P, **options)
     return ModelError(whole, s, cov, before)
+
+
+def residuals(
+    model: AxisModel,
+    Q: SampleArray,
+    P: SampleArray,
+    rows: NDArray[np.bool_],
+    *,
+    which: NDArray[np.int64] | None = None,
+    rates: SampleArray | None = None,
+) -> FloatArray:
+    """The position residuals ``P − model`` (k, 3) of the samples ``rows`` (a mask), predicted
+    a block at a time."""
+    out = np.empty((int(np.count_nonzero(rows)), 3))
+    done = 0
+    for sl in blocks(Q.shape[0], CHUNK):
+        at = sl.start + np.flatnonzero(rows[sl])
+        if not at.size:
+            continue
+        pred, _ = predict(
+            model,
+            Q[at],
+            which=None if which is None else which[at],
+            rates=None if rates is None else rates[at],
+        )
+        out[done : done + at.size] = P[at] - pred
+        done += at.size
+    return out
+
+
+def residual_norms(
+    model: AxisModel,
+    Q: SampleArray,
+    P: SampleArray,
+    *,
+    which: NDArray[np.int64] | None = None,
+    rates: SampleArray | None = None,
+) -> FloatArray:
+    """The length of every sample's position residual under ``model`` (m,), a block at a time."""
+    out = np.empty(Q.shape[0])
+    for sl in blocks(Q.shape[0], CHUNK):
+        pred, _ = predict(
+            model,
+            Q[sl],
+            which=None if which is None else which[sl],
+            rates=None if rates is None else rates[sl],
+        )
+        out[sl] = np.linalg.norm(P[sl] - pred, axis=1)
+    return out
 
 
 #: The whitening of the samples ``rows`` (a mask) at ``points``: a scalar or (m, 3, 3).
@@ -91,33 +142,65 @@ Whiten = Callable[[FloatArray, NDArray[np.intp]], FloatArray | float]
 def whitened_residuals(
     fit: WholeFit,
     rows: NDArray[np.bool_] | NDArray[np.intp],
-    Q: FloatArray,
-    P: FloatArray,
+    Q: SampleArray,
+    P: SampleArray,
     whiten: Whiten,
     *,
     which: NDArray[np.int64] | None = None,
-    rates: FloatArray | None = None,
+    rates: SampleArray | None = None,
 ) -> FloatArray:
     """The whitened position residuals (k, 3) of the samples ``rows`` (a mask or indices) under
-    ``fit``, predicted
-    ``CHUNK`` samples at a time: the chain's per-sample motions of every sample at once took
-    0.9 GiB at a million samples."""
+    ``fit``, predicted ``CHUNK`` samples at a time: the chain's per-sample motions of every
+    sample at once took 0.9 GiB at a million samples."""
     index = np.flatnonzero(rows) if rows.dtype == np.bool_ else np.asarray(rows, dtype=np.intp)
     out = np.empty((index.size, 3))
     for start in range(0, index.size, CHUNK):
         at = index[start : start + CHUNK]
-        pred, _ = predict(
-            fit.model,
-            Q[at],
-            which=None if which is None else which[at],
-            rates=None if rates is None else rates[at],
-        )
-        r = P[at] - pred
-        W = whiten(P[at], at)
-        out[start : start + at.size] = (
-            r * W if isinstance(W, float) else np.einsum("mij,mj->mi", W, r)
-        )
+        out[start : start + at.size] = _whitened(fit, at, Q, P, whiten, which, rates)
     return out
+
+
+def _whitened(
+    fit: WholeFit,
+    at: NDArray[np.intp],
+    Q: SampleArray,
+    P: SampleArray,
+    whiten: Whiten,
+    which: NDArray[np.int64] | None,
+    rates: SampleArray | None,
+) -> FloatArray:
+    """The whitened position residuals of the samples ``at`` (indices) under ``fit``."""
+    pred, _ = predict(
+        fit.model,
+        Q[at],
+        which=None if which is None else which[at],
+        rates=None if rates is None else rates[at],
+    )
+    Pa = P[at]
+    r = Pa - pred
+    W = whiten(Pa, at)
+    return r * W if isinstance(W, float) else np.einsum("mij,mj->mi", W, r)
+
+
+def whitened_cost(
+    fit: WholeFit,
+    rows: NDArray[np.bool_],
+    Q: SampleArray,
+    P: SampleArray,
+    whiten: Whiten,
+    *,
+    which: NDArray[np.int64] | None = None,
+    rates: SampleArray | None = None,
+) -> float:
+    """The whitened sum of squares of the samples ``rows`` (a mask) under ``fit``, a block at a
+    time (nothing kept per sample)."""
+    total = 0.0
+    for sl in blocks(Q.shape[0], CHUNK):
+        at = sl.start + np.flatnonzero(rows[sl])
+        if at.size:
+            rw = _whitened(fit, at, Q, P, whiten, which, rates)
+            total += float(np.sum(rw**2))
+    return total
 
 
 @dataclass(frozen=True)
@@ -136,36 +219,36 @@ class DesignEffect:
 
 def design_effect(
     whole: WholeFit,
-    Q: FloatArray,
-    P: FloatArray,
+    Q: SampleArray,
+    P: SampleArray,
     whiten: Whiten,
     *,
     which: NDArray[np.int64] | None = None,
-    rates: FloatArray | None = None,
+    rates: SampleArray | None = None,
 ) -> DesignEffect | None:
     """The design effect of the fit's inliers grouped by pose (module docstring); None where
     poses hold fewer than two samples on average or the effect is below :data:`SMALL_EFFECT`.
     ``whiten(points, rows)``: the whitening of the samples ``rows`` (a scalar or (m, 3, 3))."""
     inl = whole.inliers
-    groups = pose_groups(Q)[inl]  # in time order: a pose's samples are consecutive
-    inverse = np.zeros(groups.size, dtype=np.int64)
-    np.cumsum(groups[1:] != groups[:-1], out=inverse[1:])
-    m, g = int(groups.size), int(inverse[-1]) + 1 if groups.size else 0
+    m, g = _inlier_poses(Q, inl, None)
     if g == 0 or m < 2 * g or m - g < 3:  # sweeps: about a pose a sample, nothing to scale
         return None
     # per pose the sum of the whitened residuals, and their sum of squares, a block at a time:
     # within-pose Σ|r − r̄|² = Σ|r|² − Σ_pose n |r̄|²
-    index = np.flatnonzero(inl)
     sums = np.zeros((g, 3))
+    count = np.zeros(g)
     squares = 0.0
-    for start in range(0, m, 8 * CHUNK):
-        at = index[start : start + 8 * CHUNK]
-        rw = whitened_residuals(whole, at, Q, P, whiten, which=which, rates=rates)
-        pose = inverse[start : start + at.size]
+
+    def add(at: NDArray[np.intp], pose: NDArray[np.int64]) -> None:
+        nonlocal squares
+        rw = _whitened(whole, at, Q, P, whiten, which, rates)
         for k in range(3):
             sums[:, k] += np.bincount(pose, weights=rw[:, k], minlength=g)
+        count[:] += np.bincount(pose, minlength=g)
         squares += float(np.sum(rw**2))
-    count = np.bincount(inverse, minlength=g)[:, None]
+
+    _inlier_poses(Q, inl, add)
+    count = count[:, None]
     within = (squares - float(np.sum(sums**2 / count))) / (3 * (m - g))
     total = squares / max(3 * m - whole.layout.size, 1)
     rho = min(max(1.0 - within / total, 0.0), 1.0) if total > 0 else 0.0
@@ -173,14 +256,39 @@ def design_effect(
     return DesignEffect(effect, rho, m, g) if effect >= SMALL_EFFECT else None
 
 
+def _inlier_poses(
+    Q: SampleArray,
+    inliers: NDArray[np.bool_],
+    visit: Callable[[NDArray[np.intp], NDArray[np.int64]], None] | None,
+) -> tuple[int, int]:
+    """The inliers and their poses counted (m, g), each inlier's pose numbered 0, 1, … among
+    the inliers in time order (a pose's samples are consecutive); ``visit(rows, poses)`` is
+    called with them at most ``CHUNK`` at a time."""
+    m, g, last = 0, 0, -1
+    for sl, poses in pose_blocks(Q):
+        use = np.flatnonzero(inliers[sl])
+        mine = poses[use]
+        if not mine.size:
+            continue
+        new = np.empty(mine.size, dtype=bool)
+        new[0] = mine[0] != last
+        new[1:] = mine[1:] != mine[:-1]
+        numbered = g - 1 + np.cumsum(new)
+        if visit is not None:
+            for part in blocks(mine.size, CHUNK):
+                visit(sl.start + use[part], numbered[part])
+        g, m, last = int(numbered[-1]) + 1, m + mine.size, int(mine[-1])
+    return m, g
+
+
 def with_model_error(
     whole: WholeFit,
-    Q: FloatArray,
-    P: FloatArray,
+    Q: SampleArray,
+    P: SampleArray,
     sample_cov: FloatArray | None,
     noise: NoiseModel,
     which: NDArray[np.int64] | None,
-    rates: FloatArray | None,
+    rates: SampleArray | None,
     rotations: FloatArray | None,
     warnings: list[str],
 ) -> tuple[WholeFit, FloatArray | None, NoiseModel]:
@@ -190,7 +298,7 @@ def with_model_error(
     (with its model-error σ)."""
     declared = sample_cov
     if declared is None and noise.model == "tracker":
-        declared = noise.covariance(P)
+        declared = noise.covariance(P[:])  # (m, 3, 3): a tracker model's weighing holds them
     if declared is None:
         return whole, sample_cov, noise
     options = {
@@ -227,11 +335,11 @@ def whitening(noise: NoiseModel, sample_cov: FloatArray | None, sigma: float) ->
 
 def pose_clustered(
     whole: WholeFit,
-    Q: FloatArray,
-    P: FloatArray,
+    Q: SampleArray,
+    P: SampleArray,
     whiten: Whiten,
     which: NDArray[np.int64] | None,
-    rates: FloatArray | None,
+    rates: SampleArray | None,
     info: list[str],
 ) -> WholeFit:
     """The covariance times the design effect of several samples a pose (:func:`design_effect`),

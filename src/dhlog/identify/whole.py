@@ -22,6 +22,7 @@ from dhlog.errors import DegenerateGeometryError
 from dhlog.geometry._checks import FloatArray
 from dhlog.identify.axismodel import AxisModel, ParameterLayout
 from dhlog.identify.passes import Samples, accumulate, gradient
+from dhlog.identify.persample import SampleArray
 from dhlog.identify.prediction import orientation_residual, predict_orientation
 from dhlog.model.noise import NoiseModel
 
@@ -249,8 +250,8 @@ def _finish_on_all(
 
 def fit_whole_model(
     start: AxisModel,
-    Q: FloatArray,
-    P: FloatArray,
+    Q: SampleArray,
+    P: SampleArray,
     *,
     noise: NoiseModel,
     sigma: float,
@@ -260,7 +261,7 @@ def fit_whole_model(
     rotations: FloatArray | None = None,
     sigma_rotation: float | None = None,
     fit_scales: bool = False,
-    rates: FloatArray | None = None,
+    rates: SampleArray | None = None,
     threshold: float = 5.0,
     max_iterations: int = 30,
     subsample: int = 40000,

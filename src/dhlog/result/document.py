@@ -53,7 +53,7 @@ def result_document(result: ProcessResult) -> dict[str, Any]:
         relations = relation_documents(ex.relations)
     val = result.validation
     per_joint = {} if val is None else val.per_joint
-    t_ns = result.segmentation.table["t_ns"].to_numpy()
+    t_ns = result.segmentation.t_ns
     doc: dict[str, Any] = {
         "format": RESULT_FORMAT,
         "dhlog_version": __version__,

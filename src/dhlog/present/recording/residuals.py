@@ -75,11 +75,11 @@ def residual_parts(result: ProcessResult, shown: Shown | None = None) -> list[Re
     directions) and the FK residual the validation reports (radial, axial, tangential)."""
     shown = shown or Shown.of(result)
     out = []
-    checked = result.validation.vectors if result.validation is not None else None
+    validation = result.validation
     for j in result.joints:
         if j.fit is None:
             continue
-        rows = j.rows[j.inliers]
+        rows = shown.drawn(j.rows[j.inliers])
         P = shown.xyz[rows]
         dirs = _directions(j, P)
         if dirs is None or rows.size == 0:
@@ -95,12 +95,13 @@ def residual_parts(result: ProcessResult, shown: Shown | None = None) -> list[Re
             u, v = perpendicular_basis(n)
             parts = {"radial": w @ u, "tangential": w @ v}
         out.append(Residuals("fit", j.index, rows, shown.position(rows, j.index), parts))
-        if checked is None:
+        if validation is None:
             continue
-        ok = np.all(np.isfinite(checked[rows]), axis=1)  # rows the validation checked
+        checked = validation.at(rows)
+        ok = np.all(np.isfinite(checked), axis=1)  # rows the validation checked
         if not np.any(ok):
             continue
-        r = checked[rows[ok]]
+        r = checked[ok]
         fk_parts = {
             name: np.sum(r * d[ok], axis=1)
             for name, d in zip(("radial", "axial", "tangential"), dirs, strict=True)

@@ -14,6 +14,8 @@ import rerun as rr
 import rerun.blueprint as rrb
 
 from dhlog.geometry._checks import FloatArray
+from dhlog.identify.persample import PerSample
+from dhlog.identify.validate import shown_stride
 from dhlog.model.dh import JointType
 from dhlog.model.fk import fk_frames
 
@@ -85,23 +87,26 @@ class Scene:
 @dataclass(frozen=True)
 class Shown:
     """What a result's recording draws, read from the result once: the samples (``xyz`` in M,
-    ``t`` stamps, ``q`` encoder values or None), the DH frames of the shown table, the
+    ``t`` stamps, ``q`` encoder values or None; read by table rows as they are drawn), every
+    how many rows of the table are drawn (``stride``: the viewer shows no more than
+    :data:`~dhlog.identify.validate.SHOWN_SAMPLES`), the DH frames of the shown table, the
     transform from M to the displayed base frame and the scene's sizes."""
 
     result: ProcessResult
-    xyz: FloatArray
+    xyz: FloatArray | PerSample
     t: np.ndarray
-    q: FloatArray | None
+    q: FloatArray | PerSample | None
     frames: FloatArray | None
     T: FloatArray
     scene: Scene
+    stride: int = 1
 
     @classmethod
     def of(cls, result: ProcessResult) -> Shown:
-        table = result.segmentation.table
-        xyz = table.select(["x", "y", "z"]).to_numpy()
-        qcols = [f"q_{i + 1}" for i in range(len(result.joints))]
-        q = table.select(qcols).to_numpy() if all(c in table.columns for c in qcols) else None
+        seg = result.segmentation
+        stride = shown_stride(seg.height)
+        xyz = PerSample((seg.height, 3), seg.xyz)
+        q = PerSample((seg.height, seg.n_joints), seg.q) if seg.encoders is not None else None
         frames: FloatArray | None = None
         T: FloatArray = np.eye(4)
         ex = result.extraction
@@ -118,9 +123,14 @@ class Shown:
             T = np.asarray(np.linalg.inv(ex.T_measurement_base), dtype=np.float64)
             if float(np.median(frames[:, :3, 3] @ T[2, :3] + T[2, 3])) < 0.0:
                 T = np.diag([1.0, -1.0, -1.0, 1.0]) @ T
-        centre = ex.T_measurement_base[:3, 3] if ex is not None else np.median(xyz, axis=0)
-        reach = float(np.max(np.linalg.norm(xyz - centre, axis=1))) if xyz.size else 1.0
-        return cls(result, xyz, table["t_ns"].to_numpy(), q, frames, T, Scene(max(reach, 0.05)))
+        some = xyz[::stride]
+        centre = ex.T_measurement_base[:3, 3] if ex is not None else np.median(some, axis=0)
+        reach = float(np.max(np.linalg.norm(some - centre, axis=1))) if some.size else 1.0
+        return cls(result, xyz, seg.t_ns, q, frames, T, Scene(max(reach, 0.05)), stride)
+
+    def drawn(self, rows: np.ndarray) -> np.ndarray:
+        """The table ``rows`` (ascending) the recording draws: every :attr:`stride`-th row."""
+        return rows if self.stride == 1 else rows[rows % self.stride == 0]
 
     def position(self, rows: np.ndarray, joint: int) -> np.ndarray:
         """The moved joint's encoder value at ``rows`` on the joint time line (m°, or µm)."""
@@ -135,7 +145,7 @@ class Shown:
         looking at the samples' centre from the front-right, above, at 1.9 times the robot's
         extent."""
         T = self.T
-        xyz = self.xyz
+        xyz = self.xyz[:: self.stride]
         centre = np.median(xyz @ T[:3, :3].T + T[:3, 3], axis=0) if xyz.size else np.zeros(3)
         centre[2] *= 0.6  # a little towards the floor: the base stays in the picture
         towards = np.array([1.0, -1.3, 0.8])

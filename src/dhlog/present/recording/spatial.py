@@ -87,17 +87,16 @@ def log_samples(rec: rr.RecordingStream, shown: Shown) -> None:
     sweeps named on the sensor time line, the set-aside ones (dimmed) and rejected outliers
     (red) always shown."""
     result, xyz, t, scene = shown.result, shown.xyz, shown.t, shown.scene
-    table = result.segmentation.table
-    segment = table["segment"].fill_null(0).to_numpy()
-    joint = table["joint"].fill_null(0).to_numpy()
-    outlier = np.zeros(table.height, dtype=bool)
+    seg = result.segmentation
+    segment = seg.segment
+    outlier = np.zeros(seg.height, dtype=bool)
     for j in result.joints:
         outlier[j.rows[~j.inliers]] = True
     for sid in np.unique(segment[segment > 0]):
-        sel = np.flatnonzero((segment == sid) & ~outlier)
+        sel = shown.drawn(np.flatnonzero((segment == sid) & ~outlier))
         if sel.size == 0:
             continue
-        k = int(joint[sel[0]])
+        k = int(seg.joint(sel[:1])[0])
         path = f"world/m/samples/segment_{int(sid)}"
         rec.log(
             path,
@@ -112,26 +111,26 @@ def log_samples(rec: rr.RecordingStream, shown: Shown) -> None:
             ],
             columns=rr.Points3D.columns(positions=xyz[sel]),
         )
-    seg = result.segmentation.segments
-    if seg.height:
+    sweeps = seg.segments
+    if sweeps.height:
         names = [j.name for j in result.joints]
         texts = [
             f"sweep {int(s)}: joint {int(k)} ({names[int(k) - 1] if 0 < k <= len(names) else '?'})"
-            for s, k in zip(seg["segment"], seg["joint"], strict=True)
+            for s, k in zip(sweeps["segment"], sweeps["joint"], strict=True)
         ]
         rec.send_columns(
             "sweeps",
-            indexes=[time_column(seg["t_start_ns"].to_numpy())],
+            indexes=[time_column(sweeps["t_start_ns"].to_numpy())],
             columns=rr.TextLog.columns(text=texts),
         )
-    aside = segment == 0
-    if np.any(aside):
+    aside = shown.drawn(np.flatnonzero(segment == 0))
+    if aside.size:
         rec.log(
             "world/m/samples/set_aside",
             rr.Points3D(xyz[aside], colors=[DIM], radii=0.5 * scene.sample),
             static=True,
         )
-    if np.any(outlier):
+    if np.any(outlier):  # every outlier, however many rows are drawn
         rec.log(
             "world/m/samples/outliers",
             rr.Points3D(xyz[outlier], colors=[[255, 0, 0]], radii=1.5 * scene.sample),
@@ -156,7 +155,7 @@ def log_fits(rec: rr.RecordingStream, shown: Shown) -> None:
         color = joint_color(j.index)
         axis = j.axis if j.axis is not None else f.axis
         n = axis.direction
-        pts = shown.xyz[j.rows[j.inliers]]
+        pts = shown.xyz[shown.drawn(j.rows[j.inliers])]
         if f.kind == "circle":
             u, v = perpendicular_basis(n)
             w = pts - f.center

@@ -1,0 +1,93 @@
+"""Per-sample quantities read a block at a time: the samples of a long log are never held as
+one (m, n) array of encoder values next to another.
+
+A :class:`PerSample` looks like an (m, …) array to the code that reads it by rows — a slice,
+an index array, a mask, ``shape`` — and computes those rows when asked (the encoder values
+interpolated from the joint-state stream, the points gathered from the point stream, the joints'
+speeds, the table's joint values). Arithmetic on it as a whole fails loudly: a pass over every
+sample goes through :func:`blocks`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterator
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+#: Rows (into the samples) a PerSample is asked for: a slice or an index array.
+Index = slice | NDArray[np.intp]
+
+#: Samples a block in the passes over every sample that build nothing per sample.
+BLOCK = 1 << 16
+
+
+def blocks(m: int, size: int = BLOCK) -> Iterator[slice]:
+    """Consecutive slices of at most ``size`` covering ``range(m)``."""
+    for start in range(0, m, size):
+        yield slice(start, min(start + size, m))
+
+
+class PerSample:
+    """An (m, …) per-sample array whose rows ``fetch(index)`` computes on demand (``index`` a
+    slice with step 1 or an index array). Indexing as numpy does by rows (a slice, an integer
+    array, a boolean mask, and a tuple whose first item is one of those) returns a numpy array.
+    """
+
+    __array_priority__ = 1000.0
+
+    def __init__(self, shape: tuple[int, ...], fetch: Callable[[Index], NDArray[Any]]) -> None:
+        self._shape = shape
+        self._fetch = fetch
+
+    @property
+    def shape(self) -> tuple[int, ...]:
+        return self._shape
+
+    @property
+    def ndim(self) -> int:
+        return len(self._shape)
+
+    def __len__(self) -> int:
+        return self._shape[0]
+
+    def __repr__(self) -> str:
+        return f"PerSample(shape={self._shape})"
+
+    def __getitem__(self, index: Any) -> NDArray[Any]:
+        if isinstance(index, tuple):
+            rows, *rest = index
+            return self[rows][(slice(None), *rest)]
+        m = self._shape[0]
+        if isinstance(index, slice):
+            start, stop, step = index.indices(m)
+            if step == 1:
+                return self._fetch(slice(start, max(start, stop)))
+            return self._fetch(np.arange(start, stop, step, dtype=np.intp))
+        arr = np.asarray(index)
+        if arr.dtype == np.bool_:
+            if arr.shape != (m,):
+                raise IndexError(f"a mask of shape {arr.shape} for {m} samples")
+            return self._fetch(np.flatnonzero(arr))
+        if np.issubdtype(arr.dtype, np.integer):
+            idx = arr.astype(np.intp, copy=False)
+            if idx.ndim != 1:
+                raise IndexError("per-sample rows are indexed by a 1-D array")
+            if idx.size and (int(idx.min()) < -m or int(idx.max()) >= m):
+                raise IndexError(f"row out of range for {m} samples")
+            return self._fetch(np.where(idx < 0, idx + m, idx))
+        raise TypeError(f"per-sample rows cannot be indexed by {type(index).__name__}")
+
+    def __array__(self, *args: object, **kwargs: object) -> NDArray[Any]:
+        raise TypeError(
+            "a PerSample is read a block at a time (persample.blocks); it is never made whole"
+        )
+
+    def map(self, f: Callable[[NDArray[Any]], NDArray[Any]], shape: tuple[int, ...]) -> PerSample:
+        """``f`` applied to the rows as they are read (``shape``: the result's)."""
+        return PerSample(shape, lambda index: f(self[index]))
+
+
+#: What the passes over the samples read: an array, or a PerSample read a block at a time.
+SampleArray = NDArray[np.float64] | PerSample
