@@ -495,7 +495,7 @@ def _identify_whole(
     stage("identifying", 0.1)
     timing = result.timing
     clocked = timing is not None and timing.source == "estimated"
-    speeds = JointRates(result.log, seg.n_joints) if clocked else None
+    speeds = JointRates(seg.encoders) if clocked and seg.encoders is not None else None
     for attempt in range(MAX_REJOINS + 1):
         rates = None
         if speeds is not None:

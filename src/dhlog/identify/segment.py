@@ -40,7 +40,8 @@ class Encoders:
     The values are computed for the samples asked for, never stored per target sample."""
 
     t_ns: NDArray[np.int64]
-    q: NDArray[np.float64]
+    #: each joint's values (k,): views of the joint-state table's columns where they can be
+    q: tuple[NDArray[np.float64], ...]
     tol_ns: int
     #: how far the stamps were moved from the log's (ns)
     shift_ns: int = 0
@@ -48,11 +49,18 @@ class Encoders:
     @classmethod
     def of(cls, joints: pl.DataFrame, n: int, tol_ns: int) -> Encoders:
         """From a joint-state table (``t_ns, q_1 … q_n``) sorted by time."""
-        cols = [f"q_{j + 1}" for j in range(n)]
-        t = np.ascontiguousarray(joints["t_ns"].to_numpy(), dtype=np.int64)
-        return cls(
-            t, np.ascontiguousarray(joints.select(cols).to_numpy(), dtype=np.float64), tol_ns
-        )
+        t = np.asarray(joints["t_ns"].to_numpy(), dtype=np.int64)
+        q = tuple(np.asarray(joints[f"q_{j + 1}"].to_numpy(), dtype=np.float64) for j in range(n))
+        return cls(t, q, tol_ns)
+
+    @property
+    def log_t_ns(self) -> NDArray[np.int64]:
+        """The stamps as the log has them."""
+        return self.t_ns if self.shift_ns == 0 else self.t_ns - self.shift_ns
+
+    def values(self, rows: slice | NDArray[np.intp]) -> NDArray[np.float64]:
+        """The encoder samples ``rows`` (c, n)."""
+        return np.column_stack([column[rows] for column in self.q])
 
     def shifted(self, shift_ns: int) -> Encoders:
         """The stream with its stamps moved by ``shift_ns`` from the log's."""
@@ -80,17 +88,20 @@ class Encoders:
         ok = lo >= 0
         lo, hi = np.maximum(lo, 0), np.maximum(hi, 0)
         t_enc = self.t_ns
+        which = range(len(self.q)) if cols is None else cols
+        out = np.full((lo.size, len(which)), np.nan)
         if t_enc.size == 0:
-            return np.full((lo.size, self.q.shape[1] if cols is None else len(cols)), np.nan)
+            return out
         span = (t_enc[hi] - t_enc[lo]).astype(np.float64)
         w = np.divide(
             (t - t_enc[lo]).astype(np.float64), span, out=np.zeros(lo.size), where=span > 0
         )
-        q = self.q if cols is None else self.q[:, cols]
-        q_lo = q[lo]
-        out = q_lo + (q[hi] - q_lo) * w[:, None]
+        for k, j in enumerate(which):
+            column = self.q[j]
+            q_lo = column[lo]
+            out[:, k] = q_lo + (column[hi] - q_lo) * w
         out[~ok] = np.nan
-        return np.asarray(out, dtype=np.float64)
+        return out
 
 
 #: Target samples a block in the passes over the measurement table.
@@ -363,9 +374,10 @@ def _segment_with_encoders(
 ) -> tuple[pl.DataFrame, NDArray[np.int32], pl.DataFrame, int, list[str], Encoders]:
     assert log.joints is not None
     n = len(log.joint_names)
-    joints = log.joints.sort("t_ns")
+    # the reader gives the stream sorted by time: the encoders are views of its columns
+    joints = log.joints if log.joints["t_ns"].is_sorted() else log.joints.sort("t_ns")
     encoders = Encoders.of(joints, n, int(settings.join_tolerance * 1e9))
-    t_enc, q_enc = encoders.t_ns, encoders.q
+    t_enc, q_enc = encoders.t_ns, encoders.values(slice(None))
     labels, found = _label_encoder_samples(t_enc, q_enc, settings)
     points = log.points
     t = np.asarray(points["t_ns"].to_numpy(), dtype=np.int64)

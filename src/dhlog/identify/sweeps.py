@@ -14,7 +14,7 @@ from dhlog.geometry._checks import FloatArray
 from dhlog.geometry.axisfit import AxisFit
 from dhlog.geometry.fitting import detect_joint_type, fit_axis_robust
 from dhlog.geometry.lines import Line
-from dhlog.identify.persample import PerSample, blocks
+from dhlog.identify.persample import PerSample, blocks, compact_rows
 from dhlog.identify.segment import Segmentation
 from dhlog.io.dhfile import DHModel
 from dhlog.io.reader import LogData
@@ -134,7 +134,7 @@ def fit_joint(
     in_sweep = np.isin(seg.segment, np.asarray(chosen, dtype=np.int32))
     if "target" in seg.points.columns:  # the per-joint fits use the primary target's circles
         in_sweep &= seg.points["target"].to_numpy() == 0
-    report.rows = np.flatnonzero(in_sweep)
+    report.rows = compact_rows(np.flatnonzero(in_sweep), seg.height)
     del in_sweep
     points = seg.xyz(report.rows)
     encoder = seg.q(report.rows, [k - 1])[:, 0] if seg.has_encoders else None
@@ -256,7 +256,7 @@ def samples_with_encoders(seg: Segmentation) -> tuple[NDArray[np.intp], PerSampl
     ok = np.empty(seg.height, dtype=bool)
     for sl in blocks(seg.height):
         ok[sl] = np.isfinite(seg.q(sl)).all(axis=1) & np.isfinite(seg.xyz(sl)).all(axis=1)
-    rows = np.flatnonzero(ok)
+    rows = compact_rows(np.flatnonzero(ok), seg.height)
     del ok
     n = seg.n_joints
     Q = PerSample((rows.size, n), lambda index: seg.q(rows[index]))

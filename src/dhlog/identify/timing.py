@@ -35,7 +35,7 @@ from dhlog.geometry._checks import FloatArray
 from dhlog.geometry.circles import fit_circle_algebraic
 from dhlog.geometry.fitting import fit_line
 from dhlog.identify.persample import blocks
-from dhlog.identify.segment import BLOCK, Segmentation
+from dhlog.identify.segment import BLOCK, Encoders, Segmentation
 from dhlog.io.reader import LogData
 
 #: Fewest moving samples a sweep needs to estimate the lag from.
@@ -77,25 +77,24 @@ class JointRates:
     """Each joint's speed from the encoder stream (its finite differences at their midpoints),
     prepared once per log and interpolated at any times (0 outside the stream)."""
 
-    def __init__(self, log: LogData, n: int) -> None:
-        assert log.joints is not None
-        joints = log.joints.sort("t_ns")
-        t = joints["t_ns"].to_numpy().astype(np.float64)
-        Q = joints.select([f"q_{i + 1}" for i in range(n)]).to_numpy()
+    def __init__(self, encoders: Encoders) -> None:
+        t = encoders.log_t_ns.astype(np.float64)
         dt = np.diff(t) * 1e-9
         ok = dt > 0
         self.mid = (t[1:] + t[:-1])[ok] / 2.0
-        self.speeds = np.diff(Q, axis=0)[ok] / dt[ok, None]  # (k, n)
+        # (n, k): each joint's row contiguous, as np.interp reads it (a column would be copied
+        # whole at every call, and the passes call once a block)
+        self.speeds = np.stack([np.diff(q)[ok] / dt[ok] for q in encoders.q])
 
     def at(self, t_ns: NDArray[np.int64], joints: list[int] | None = None) -> FloatArray:
         """Speeds (m, len(joints)) at ``t_ns`` of ``joints`` (0-based; default all)."""
-        cols = range(self.speeds.shape[1]) if joints is None else joints
+        cols = range(self.speeds.shape[0]) if joints is None else joints
         out = np.zeros((t_ns.size, len(cols)))
         if self.mid.size < 2:
             return out
         x = t_ns.astype(np.float64)
         for k, i in enumerate(cols):
-            out[:, k] = np.interp(x, self.mid, self.speeds[:, i], left=0.0, right=0.0)
+            out[:, k] = np.interp(x, self.mid, self.speeds[i], left=0.0, right=0.0)
         return out
 
 
@@ -145,7 +144,7 @@ def sweep_phases(seg: Segmentation, log: LogData) -> list[SweepPhase]:
     module); at most :data:`START_POINTS` evenly strided samples per sweep."""
     if log.joints is None or seg.encoders is None:
         return []
-    rates = JointRates(log, seg.n_joints)
+    rates = JointRates(seg.encoders)
     out = []
     for sid, j1 in zip(seg.segments["segment"], seg.segments["joint"], strict=True):
         rows = np.flatnonzero(seg.segment == sid)
