@@ -92,7 +92,7 @@ class PerSample:
 def compact_rows(rows: NDArray[np.intp], height: int) -> NDArray[np.intp]:
     """Row numbers into a table of ``height`` rows as int32 where they fit (half the memory of
     a long log's index arrays)."""
-    return rows.astype(np.int32) if height < 2**31 else rows  # type: ignore[return-value]
+    return rows.astype(np.int32) if height < 2**31 else rows
 
 
 #: What the passes over the samples read: an array, or a PerSample read a block at a time.
