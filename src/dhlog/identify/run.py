@@ -74,6 +74,7 @@ from dhlog.identify.uncertainty import analytic_uncertainty, whole_uncertainty
 from dhlog.identify.validate import (
     Validation,
     check_residual,
+    shown_stride,
     table_gap,
     validate_samples,
     validate_sweeps,
@@ -261,6 +262,13 @@ def process_data(
     check_units(seg, log, phases, notes)
     seg, timing = clock_start(seg, log, info, phases)
     check_sizes(name, n, nominal, reference_pose)
+    every = shown_stride(seg.height)
+    if every > 1:
+        info.append(
+            f"the recording draws every {every}th sample ({-(-seg.height // every)} of "
+            f"{seg.height}; outliers all): a viewer shows no more. Every sample enters the fit "
+            "and the FK check."
+        )
     ref = (
         np.asarray(reference_pose, dtype=np.float64)
         if reference_pose is not None

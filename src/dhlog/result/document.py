@@ -16,6 +16,7 @@ from dhlog.identify.hayati import NEAR_PARALLEL
 from dhlog.identify.propagate import state_difference, state_names, state_vector
 from dhlog.identify.run import ProcessResult
 from dhlog.identify.sweeps import JointReport
+from dhlog.identify.validate import shown_stride
 from dhlog.model.dh import JointType
 from dhlog.result.contract import RESULT_FORMAT, dh_documents, relation_documents
 
@@ -180,9 +181,15 @@ def result_document(result: ProcessResult) -> dict[str, Any]:
             "rms": result.base.rms,
             "n_points": int(result.base.residuals.size),
         }
+    height = result.segmentation.height
+    every = shown_stride(height)
     doc["segmentation"] = {
         "segments": result.segmentation.segments.height,
         "set_aside": dict(result.segmentation.set_aside),
+        "samples": height,
+        # the recording draws every `recording_every`-th sample: the viewer shows no more
+        "recording_samples": -(-height // every),
+        "recording_every": every,
     }
     return doc
 

@@ -1,0 +1,134 @@
+"""Samples read a block at a time (issue 21): the per-sample arrays read on demand, the encoder
+values interpolated from the joint-state stream as the design's ``join_asof`` gives them, and a
+recording that draws every k-th sample of a long log while the fit and the check use all."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import polars as pl
+import pytest
+
+import dhlog.identify.validate as validate
+from dhlog.identify.persample import PerSample, blocks
+from dhlog.identify.run import process_log
+from dhlog.identify.segment import Encoders
+from dhlog.model.fk import fk_point
+from dhlog.present.recording import residual_parts
+from dhlog.result.document import result_document
+
+SAMPLES = Path(__file__).parents[1] / "sample_logs"
+
+
+def _array_like(values: np.ndarray) -> PerSample:
+    return PerSample(values.shape, lambda index: values[index].copy())
+
+
+def test_a_persample_reads_rows_as_numpy_does() -> None:
+    values = np.arange(60.0).reshape(20, 3)
+    rows = _array_like(values)
+    assert rows.shape == (20, 3) and len(rows) == 20
+    mask = values[:, 0] % 9 == 0
+    for index in (slice(3, 11), slice(None, None, 4), slice(-5, None), np.array([4, -1, 0]), mask):
+        np.testing.assert_array_equal(rows[index], values[index])
+    np.testing.assert_array_equal(rows[np.array([2, 7]), 1], values[[2, 7], 1])
+    np.testing.assert_array_equal(rows[5:9][:, 2], values[5:9, 2])
+    np.testing.assert_array_equal(rows.map(lambda v: 2 * v, (20, 3))[::3], 2 * values[::3])
+    assert [(s.start, s.stop) for s in blocks(20, 8)] == [(0, 8), (8, 16), (16, 20)]
+
+
+def test_a_persample_is_never_made_whole_by_accident() -> None:
+    rows = _array_like(np.ones((10, 2)))
+    with pytest.raises(TypeError):
+        np.asarray(rows)
+    with pytest.raises(TypeError):
+        rows - np.zeros(2)  # type: ignore[operator]
+    with pytest.raises(IndexError):
+        rows[np.array([10])]
+    with pytest.raises(IndexError):
+        rows[np.ones(9, dtype=bool)]
+
+
+def _join_asof_reference(t: np.ndarray, t_enc: np.ndarray, q: np.ndarray, tol: int) -> np.ndarray:
+    """The encoder values of the design, as ``join_asof`` backward within ``tol`` and the next
+    encoder sample within ``tol`` give them (null → NaN)."""
+    enc = pl.DataFrame({"t_ns": t_enc, "i": np.arange(t_enc.size)})
+    prev = pl.DataFrame({"t_ns": t}).join_asof(enc, on="t_ns", strategy="backward", tolerance=tol)
+    i_prev = prev["i"].fill_null(-1).to_numpy()
+    out = np.full((t.size, q.shape[1]), np.nan)
+    for k in range(t.size):
+        i = i_prev[k]
+        if i < 0:
+            continue
+        if t_enc[i] == t[k]:
+            j = i
+        elif i + 1 < t_enc.size and t_enc[i + 1] - t[k] <= tol:
+            j = i + 1
+        else:
+            continue
+        span = t_enc[j] - t_enc[i]
+        w = (t[k] - t_enc[i]) / span if span > 0 else 0.0
+        out[k] = q[i] + (q[j] - q[i]) * w
+    return out
+
+
+def test_encoder_values_are_the_join_asof_ones() -> None:
+    """Interpolated on demand, the encoder values equal the design's join (gaps beyond the
+    tolerance, samples before and after the stream, stamps equal to an encoder's, and at the
+    tolerance's edge), bit for bit."""
+    rng = np.random.default_rng(3)
+    t_enc = np.sort(rng.choice(np.arange(0, 10_000_000, 1000), 4000, replace=False))
+    t_enc = np.delete(t_enc, np.s_[1500:1530])  # a gap longer than the tolerance
+    q = rng.normal(size=(t_enc.size, 3))
+    tol = 4000
+    t = np.sort(
+        np.concatenate(
+            [
+                rng.integers(-50_000, 10_050_000, 3000),
+                t_enc[::97],  # exactly at an encoder sample
+                t_enc[::89] + tol,  # at the tolerance's edge
+            ]
+        )
+    )
+    enc = Encoders(t_enc, tuple(np.ascontiguousarray(q[:, j]) for j in range(3)), tol)
+    got = enc.at(t)
+    want = _join_asof_reference(t, t_enc, q, tol)
+    np.testing.assert_array_equal(np.isnan(got), np.isnan(want))
+    np.testing.assert_array_equal(got[~np.isnan(got)], want[~np.isnan(want)])
+    np.testing.assert_array_equal(enc.at(t, [2])[:, 0], got[:, 2])
+
+
+def test_a_long_log_is_drawn_every_kth_sample(monkeypatch: pytest.MonkeyPatch) -> None:
+    """With more samples than the viewer shows (here 400), the validation keeps the residual
+    vectors of every k-th row only, the recording draws those, the result says how many; the
+    fit and the FK check still use every sample."""
+    path = SAMPLES / "kr5_0.01mm.mcap"
+    full = process_log(path)
+    monkeypatch.setattr(validate, "SHOWN_SAMPLES", 400)
+    result = process_log(path)
+    height = result.segmentation.height
+    every = validate.shown_stride(height)
+    assert every > 1
+    v, w = result.validation, full.validation
+    assert v is not None and w is not None
+    # the check's figures are every sample's, whatever is drawn
+    assert v.n_points == w.n_points and v.rms == pytest.approx(w.rms, rel=1e-12)
+    assert v.per_joint.keys() == w.per_joint.keys()
+    assert np.all(v.rows % every == 0) and set(v.rows) <= set(w.rows)
+    assert v.rows.size == np.count_nonzero(w.rows % every == 0)
+    # the kept vectors are the FK residuals at those rows
+    ex = result.extraction
+    assert ex is not None
+    seg = result.segmentation
+    Q = seg.table.select([f"q_{i + 1}" for i in range(6)]).to_numpy()[v.rows]
+    P = seg.xyz(v.rows)
+    fk = fk_point(ex.standard, Q, ex.tool_point, T_base=ex.T_measurement_base)
+    np.testing.assert_allclose(P - fk, v.vectors, atol=1e-12)
+    for part in residual_parts(result):
+        assert np.all(part.rows % every == 0)
+    doc = result_document(result)["segmentation"]
+    assert doc["samples"] == height and doc["recording_every"] == every
+    assert doc["recording_samples"] == -(-height // every)
+    assert any(f"every {every}th sample" in note for note in result.info)
+    assert not any("every" in note and "th sample" in note for note in full.info)
