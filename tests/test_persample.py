@@ -132,3 +132,36 @@ def test_a_long_log_is_drawn_every_kth_sample(monkeypatch: pytest.MonkeyPatch) -
     assert doc["recording_samples"] == -(-height // every)
     assert any(f"every {every}th sample" in note for note in result.info)
     assert not any("every" in note and "th sample" in note for note in full.info)
+
+
+def test_joint_speeds_are_np_interp_of_the_differences() -> None:
+    """The joints' speeds, differenced where asked for, equal np.interp of the stream's finite
+    differences at their midpoints (0 outside), value for value: repeated stamps, samples
+    before, between and after, at a midpoint and at the last one."""
+    from dhlog.identify.timing import JointRates
+
+    rng = np.random.default_rng(5)
+    for _ in range(10):
+        k = int(rng.integers(3, 2000))
+        t = np.sort(rng.integers(0, 10**9, k)) * 2  # even: the midpoints are whole ns
+        t[4:7] = t[4]
+        q = tuple(np.cumsum(rng.normal(size=k)) for _ in range(3))
+        rates = JointRates(Encoders(t, q, 10**6))
+        tf = t.astype(np.float64)
+        dt = np.diff(tf) * 1e-9
+        ok = dt > 0
+        mid = (tf[1:] + tf[:-1])[ok] / 2.0
+        speeds = [np.diff(c)[ok] / dt[ok] for c in q]
+        x = np.concatenate(
+            [
+                rng.integers(-(10**7), 21 * 10**8, 3000),
+                t[:40],
+                mid[:40].astype(np.int64),
+                [int(mid[-1])],
+            ]
+        )
+        want = np.column_stack(
+            [np.interp(x.astype(np.float64), mid, s, left=0.0, right=0.0) for s in speeds]
+        )
+        np.testing.assert_array_equal(rates.at(x), want)
+        np.testing.assert_array_equal(rates.at(x, [2])[:, 0], want[:, 2])

@@ -238,7 +238,11 @@ def _moving(
     """(m, n) mask: joint k moves by more than ``tol`` across ``[t - w, t + w]`` at each sample."""
     lo = np.searchsorted(t, t - window_ns, side="left")
     hi = np.maximum(np.searchsorted(t, t + window_ns, side="right") - 1, lo)
-    return np.asarray(np.abs(q[hi] - q[lo]) > tol)
+    out = np.empty(q.shape, dtype=bool)
+    for j in range(q.shape[1]):  # a joint at a time: no (m, n) float temporaries
+        column = q[:, j]
+        out[:, j] = np.abs(column[hi] - column[lo]) > tol
+    return out
 
 
 def _runs(state: NDArray[np.int64]) -> list[tuple[int, int, int]]:

@@ -75,26 +75,47 @@ class Timing:
 
 class JointRates:
     """Each joint's speed from the encoder stream (its finite differences at their midpoints),
-    prepared once per log and interpolated at any times (0 outside the stream)."""
+    interpolated linearly at any times (0 outside the stream) — as ``np.interp`` does, value for
+    value, but with the differences taken where they are needed: nothing of the size of the
+    stream is kept beyond its midpoints and steps."""
 
     def __init__(self, encoders: Encoders) -> None:
         t = encoders.log_t_ns.astype(np.float64)
         dt = np.diff(t) * 1e-9
         ok = dt > 0
         self.mid = (t[1:] + t[:-1])[ok] / 2.0
-        # (n, k): each joint's row contiguous, as np.interp reads it (a column would be copied
-        # whole at every call, and the passes call once a block)
-        self.speeds = np.stack([np.diff(q)[ok] / dt[ok] for q in encoders.q])
+        self.dt = dt[ok]
+        #: the first encoder sample of each difference (None: every pair)
+        self.first = None if bool(np.all(ok)) else np.flatnonzero(ok)
+        self.q = encoders.q
+
+    def _speeds(self, i: int, j: NDArray[np.intp]) -> FloatArray:
+        """Joint ``i``'s finite differences number ``j``."""
+        k = j if self.first is None else self.first[j]
+        column = self.q[i]
+        return np.asarray((column[k + 1] - column[k]) / self.dt[j], dtype=np.float64)
 
     def at(self, t_ns: NDArray[np.int64], joints: list[int] | None = None) -> FloatArray:
         """Speeds (m, len(joints)) at ``t_ns`` of ``joints`` (0-based; default all)."""
-        cols = range(self.speeds.shape[0]) if joints is None else joints
+        cols = range(len(self.q)) if joints is None else joints
         out = np.zeros((t_ns.size, len(cols)))
-        if self.mid.size < 2:
+        mid = self.mid
+        if mid.size < 2:
             return out
         x = t_ns.astype(np.float64)
+        j = np.searchsorted(mid, x, side="right") - 1
+        inside = np.flatnonzero((j >= 0) & (j < mid.size - 1))
+        last = np.flatnonzero(x == mid[-1])
+        ji, xi = j[inside], x[inside]
         for k, i in enumerate(cols):
-            out[:, k] = np.interp(x, self.mid, self.speeds[i], left=0.0, right=0.0)
+            f0, f1 = self._speeds(i, ji), self._speeds(i, ji + 1)
+            slope = (f1 - f0) / (mid[ji + 1] - mid[ji])
+            value = slope * (xi - mid[ji]) + f0
+            bad = np.isnan(value)  # np.interp tries the other end
+            value[bad] = slope[bad] * (xi[bad] - mid[ji[bad] + 1]) + f1[bad]
+            out[inside, k] = value
+            if last.size:
+                out[last, k] = self._speeds(i, np.array([mid.size - 1]))[0]
         return out
 
 
