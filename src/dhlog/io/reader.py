@@ -2,9 +2,11 @@
 
 Two paths give identical tables: the fast path walks the file with numpy
 (:mod:`dhlog.io.mcapscan`) and decodes the fixed-layout ROS 2 messages in bulk
-(:mod:`dhlog.io.ros2`); the general path reads every message through the mcap library's decoders
-(``mcap_ros2``, protobuf, JSON). JSON and protobuf messages are decoded one by one on both paths,
-by the same field extractors. Time is the message's own stamp where it has one, else log time.
+(:mod:`dhlog.io.ros2`), chunk by chunk as the walk meets them, so their payloads are never all
+held (:mod:`dhlog.io.decode.columns`); the general path reads every message through the mcap
+library's decoders (``mcap_ros2``, protobuf, JSON). JSON and protobuf messages are decoded one
+by one on both paths, by the same field extractors. Time is the message's own stamp where it has
+one, else log time.
 
 Here: the pipeline's choice, each stream's channels found and checked, the streams assembled
 into :class:`LogData`, a rosbag2 bag folder read as one log, per-message zstd payloads; the
@@ -22,7 +24,8 @@ import numpy as np
 import polars as pl
 
 from dhlog.errors import InputError, MissingTopicError, PipelineError
-from dhlog.io.decode.blocks import Block, decode_stream
+from dhlog.io.decode.blocks import Block, bulk_layout, decode_stream
+from dhlog.io.decode.columns import ColumnSink, layout_plan
 from dhlog.io.decode.frames import (
     COVARIANCE_COLUMNS,
     ORIENTATION_COLUMNS,
@@ -32,7 +35,8 @@ from dhlog.io.decode.frames import (
     points_frame,
 )
 from dhlog.io.decode.messages import json_decoder, phase_value
-from dhlog.io.mcapscan import ZSTD_MAGIC, ChannelInfo, McapScan, RawMessages, scan_mcap
+from dhlog.io.mcapscan import ZSTD_MAGIC, McapScan, scan_mcap
+from dhlog.io.mcapwalk import ChannelInfo, RawMessages
 from dhlog.io.pipeline import Pipeline, shipped_pipelines
 
 #: What the rest of dhlog reads from here (the columns of the point table among them).
@@ -156,24 +160,19 @@ def read_log(
     name = str(path)
     if Path(path).is_dir():
         return _read_bag(Path(path), pipeline, fast=fast, progress=progress)
-    scan = scan_mcap(
-        path,
-        topics=None
+    topics = (
+        None
         if pipeline is None
-        else [t for s in pipeline.streams.values() for t in (s.topic, *s.extra_topics)],
-        progress=progress,
+        else [t for s in pipeline.streams.values() for t in (s.topic, *s.extra_topics)]
     )
+    # the fixed-layout ROS 2 messages decoded chunk by chunk as the walk meets them (their
+    # payloads never all held); the rest kept for decoding below
+    sink = None
+    if fast and not unzstd:
+        sink = ColumnSink(layout_plan([pipeline] if pipeline else shipped_pipelines()))
+    scan = scan_mcap(path, topics=topics, progress=progress, sink=sink)
     warnings = list(scan.warnings)
-    # payloads compressed one by one (rosbag2 --compression-mode message): said by the bag's
-    # metadata, or seen in the payloads themselves (no CDR, JSON or protobuf message starts
-    # with zstd's magic number)
-    squeezed = {
-        cid: raw
-        for cid, raw in scan.messages.items()
-        if unzstd or (len(raw) and raw.payload(0)[:4] == ZSTD_MAGIC)
-    }
-    if squeezed:
-        scan.messages.update(_unzstd_messages(squeezed, name))
+    _unzstd_squeezed(scan.messages, name, unzstd)
     reason = None
     if pipeline is None:
         try:
@@ -225,6 +224,9 @@ def read_log(
         if not found:
             raise MissingTopicError(name, f"point (target {k + 2})", topic, present)
         targets.append(found)
+    decoded: dict[int, list[Block]] = {}
+    if sink is not None:
+        decoded = _decoded_columns(sink, scan, infos, targets, pipeline, topics)
     general: dict[int, list[tuple[int, Any]]] | None = None
     if not fast:
         wanted = [c for cs in infos.values() for c in cs] + [c for cs in targets for c in cs]
@@ -247,6 +249,7 @@ def read_log(
             pipeline.streams[stream].child_frame,
             warnings,
             pipeline.streams[stream].pose_index,
+            decoded,
         )
 
     def points_of(channels: list[ChannelInfo] | None = None) -> pl.DataFrame:
@@ -385,6 +388,54 @@ def _read_bag(
         else f"{first.pipeline_reason}; a rosbag2 bag of {len(parts)} file(s)"
         + (", messages zstd-compressed" if per_message else ""),
     )
+
+
+def _decoded_columns(
+    sink: ColumnSink,
+    scan: McapScan,
+    infos: dict[str, list[ChannelInfo]],
+    targets: list[list[ChannelInfo]],
+    pipeline: Pipeline,
+    topics: list[str] | None,
+) -> dict[int, list[Block]]:
+    """The blocks of the streams' channels the walk decoded as the streams read them. A channel
+    decoded otherwise (its layout planned before the pipeline was chosen, or its definition
+    changed after) or refused part-way (a message that does not fit the bulk decode) has its
+    payloads read again, into ``scan.messages``: the per-message path decides on them."""
+    orientation = pipeline.streams["point"].orientation
+    needs: dict[int, set[str | None]] = {}
+    for stream, channels in [*infos.items(), *(("point", c) for c in targets)]:
+        fields = pipeline.streams[stream].fields
+        for info in channels:
+            needs.setdefault(info.id, set()).add(bulk_layout(stream, info, fields, orientation))
+    out: dict[int, list[Block]] = {}
+    again: set[int] = set()
+    for cid, layouts in needs.items():
+        done = sink.decoded(cid)
+        fits = done is not None and done[0] == scan.channels[cid] and layouts == {done[1]}
+        if cid in sink.refused or (done is not None and not fits):
+            again.add(cid)
+        elif fits:
+            out[cid] = sink.blocks(cid)
+    if again:
+        rescan = scan_mcap(scan.path, topics=topics, sink=lambda cid, _, __: cid not in again)
+        kept = {cid: raw for cid, raw in rescan.messages.items() if cid in again}
+        _unzstd_squeezed(kept, scan.path, False)
+        scan.messages.update(kept)
+    return out
+
+
+def _unzstd_squeezed(messages: dict[int, RawMessages], path: str, unzstd: bool) -> None:
+    """Payloads compressed one by one (rosbag2 --compression-mode message), decompressed in
+    place: said by the bag's metadata (``unzstd``), or seen in the payloads themselves (no CDR,
+    JSON or protobuf message starts with zstd's magic number)."""
+    squeezed = {
+        cid: raw
+        for cid, raw in messages.items()
+        if unzstd or (len(raw) and raw.payload(0)[:4] == ZSTD_MAGIC)
+    }
+    if squeezed:
+        messages.update(_unzstd_messages(squeezed, path))
 
 
 def _unzstd_messages(messages: dict[int, RawMessages], path: str) -> dict[int, RawMessages]:

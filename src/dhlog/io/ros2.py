@@ -1,6 +1,6 @@
 """ROS 2 CDR for the message types of the input contract, in bulk with numpy.
 
-Decoding works on :class:`~dhlog.io.mcapscan.RawMessages` without a Python step per message:
+Decoding works on :class:`~dhlog.io.mcapwalk.RawMessages` without a Python step per message:
 ``geometry_msgs/msg/PointStamped`` and ``PoseStamped`` have a fixed layout once the length of the
 ``frame_id`` is known; ``sensor_msgs/msg/JointState`` has a fixed layout per distinct name list,
 which is parsed once per distinct header. Encoding builds the same layouts for the simulator.
@@ -14,11 +14,12 @@ from __future__ import annotations
 
 import struct
 from collections.abc import Sequence
+from typing import NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
 
-from dhlog.io.mcapscan import RawMessages, gather, gather_rows
+from dhlog.io.mcapwalk import RawMessages, gather, gather_rows
 
 CDR_LE = b"\x00\x01\x00\x00"
 
@@ -134,22 +135,32 @@ def _parse_joint_layout(buf: bytes) -> tuple[list[str], int, int]:
     return names, n_pos, p
 
 
-def decode_joint_state_bulk(
-    raw: RawMessages,
-) -> list[tuple[NDArray[np.int64], list[str], NDArray[np.float64]]]:
-    """JointState messages as blocks of (header stamps (ns), names, positions (k, len(names))).
+class JointGroup(NamedTuple):
+    """JointState messages of one layout: header stamps (ns), names, positions (k, len(names));
+    the layout's payload ``length``, the bytes that fix it (``layout``: frame id and names,
+    between stamp and positions), the index of its ``first`` message and the ``width`` read
+    of each payload."""
 
-    Messages are grouped by payload length and by the bytes between stamp and positions (frame
-    id and names): each distinct layout is parsed once and its messages copied out in one row
-    gather.
-    """
-    blocks: list[tuple[NDArray[np.int64], list[str], NDArray[np.float64]]] = []
+    stamps: NDArray[np.int64]
+    names: list[str]
+    positions: NDArray[np.float64]
+    length: int
+    layout: bytes
+    first: int
+    width: int
+
+
+def joint_state_groups(raw: RawMessages) -> list[JointGroup]:
+    """JointState messages grouped by payload length (ascending, when they differ) and by the
+    bytes between stamp and positions (in order of first appearance): each distinct layout is
+    parsed once and its messages copied out in one row gather."""
+    groups: list[JointGroup] = []
     same_length = bool(np.all(raw.lengths == raw.lengths[0])) if len(raw) else True
     for length in raw.lengths[:1] if same_length else np.unique(raw.lengths):
         remaining = np.arange(len(raw)) if same_length else np.flatnonzero(raw.lengths == length)
         while remaining.size:
-            first = raw.payload(int(remaining[0]))[4:]
-            names, n_pos, offset = _parse_joint_layout(first)
+            first = int(remaining[0])
+            names, n_pos, offset = _parse_joint_layout(raw.payload(first)[4:])
             n_use = min(n_pos, len(names))
             width = 4 + offset + 8 * n_use
             rows = gather_rows(raw.data, raw.starts[remaining], width)
@@ -158,8 +169,18 @@ def decode_joint_state_bulk(
             remaining = remaining[~same]
             rows = rows[same]
             vals = rows[:, 4 + offset :].copy().view("<f8").reshape(-1, n_use)
-            blocks.append((_block_stamps(rows), names[:n_use], np.asarray(vals, dtype=np.float64)))
-    return blocks
+            groups.append(
+                JointGroup(
+                    _block_stamps(rows),
+                    names[:n_use],
+                    np.asarray(vals, dtype=np.float64),
+                    int(length),
+                    rows[0, 12 : 4 + offset].tobytes(),
+                    first,
+                    width,
+                )
+            )
+    return groups
 
 
 # ---------------------------------------------------------------------------------------------

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 import struct
+from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
@@ -24,21 +25,57 @@ from dhlog.io.decode.messages import (
     extractor,
     message_decoder,
 )
-from dhlog.io.mcapscan import ChannelInfo, RawMessages
+from dhlog.io.mcapwalk import ChannelInfo, RawMessages
 
 #: A stream's samples from one channel (or one joint-name layout): times (ns) and values.
 Block = tuple[NDArray[np.int64], Any]
 
 
-def _bulk_ok(
-    raw: RawMessages, info: ChannelInfo, schemas: tuple[str, ...], fields: dict[str, str]
-) -> bool:
-    return (
-        info.message_encoding == "cdr"
-        and info.schema_name in schemas
-        and not fields
-        and bool(np.all(ros2.little_endian(raw)))
-    )
+#: The bulk decodes: the target's position (PointStamped, PoseStamped) with its covariance's
+#: position block (``_cov``: PoseWithCovarianceStamped) and with its orientation (``pose``);
+#: joint states.
+BULK_LAYOUTS = ("point", "point_cov", "pose", "pose_cov", "joints")
+#: What a bulk decode raises on a payload that lies about its layout.
+BULK_ERRORS = (ValueError, IndexError, struct.error, UnicodeDecodeError, OverflowError)
+
+
+def bulk_layout(
+    stream: str, info: ChannelInfo, fields: dict[str, str], orientation: bool
+) -> str | None:
+    """The bulk decode (one of ``BULK_LAYOUTS``) that reads ``stream`` from the channel's
+    messages, told by its schema and encoding alone; None where they are read one by one.
+    (Bulk also needs every message little-endian: :func:`bulk_decode` does not check.)"""
+    if info.message_encoding != "cdr" or fields:
+        return None
+    schema = info.schema_name
+    if orientation and stream == "point":
+        return {ros2.POSE_STAMPED: "pose", ros2.POSE_WITH_COVARIANCE: "pose_cov"}.get(schema)
+    if stream in ("point", "base") and schema in (ros2.POINT_STAMPED, ros2.POSE_STAMPED):
+        return "point"
+    if stream in ("point", "base") and schema == ros2.POSE_WITH_COVARIANCE:
+        return "point_cov"
+    if stream == "joints" and schema == ros2.JOINT_STATE:
+        return "joints"
+    return None
+
+
+def bulk_decode(layout: str, raw: RawMessages) -> list[Block]:
+    """The messages of ``raw`` decoded in bulk as ``layout`` says (one of ``BULK_ERRORS`` on a
+    payload that lies about its layout). Point values: ``x, y, z``, then the orientation
+    quaternion (``pose``), then the covariance's position block (``_cov``); a zero stamp is
+    replaced by the log time. Joint states: one block of (names, positions) per layout."""
+    if layout == "joints":
+        return [(g.stamps, (g.names, g.positions)) for g in ros2.joint_state_groups(raw)]
+    if layout == "pose_cov":
+        # the pose's orientation sits where PoseStamped's does: x, y, z, q (4), cov (6)
+        stamps, rot = ros2.decode_point_bulk(raw, orientation=True)
+        _, cov = ros2.decode_point_bulk(raw, covariance=True)
+        xyz = np.hstack([rot, cov[:, 3:]])
+    else:
+        stamps, xyz = ros2.decode_point_bulk(
+            raw, covariance=layout == "point_cov", orientation=layout == "pose"
+        )
+    return [(np.where(stamps != 0, stamps, raw.log_time), xyz)]
 
 
 #: What a damaged payload can make a decoder raise (struct, UTF-8, JSON, protobuf, CDR parsers,
@@ -58,6 +95,7 @@ def decode_stream(
     child_frame: str = "",
     notes: list[str] | None = None,
     pose_index: int = 0,
+    decoded: Mapping[int, list[Block]] | None = None,
 ) -> list[Block]:
     """Blocks of (times, values) of one stream over all its channels.
 
@@ -66,6 +104,7 @@ def decode_stream(
     layout allows, per-message decoding otherwise); ``general`` the mcap library's messages.
     Messages that cannot be decoded are skipped and reported in ``damaged`` as (topic, count,
     total, first reason); when none of a channel's messages can be read, that is an error.
+    ``decoded``: on the fast path, channels already decoded in bulk (while the log was walked).
     """
     blocks: list[Block] = []
     for info in infos:
@@ -83,6 +122,9 @@ def decode_stream(
             )
         bad, first_bad = 0, ""
         if raw_by_channel is not None:
+            if decoded is not None and info.id in decoded:
+                blocks.extend(decoded[info.id])
+                continue
             raw = raw_by_channel.get(info.id)
             if raw is None or len(raw) == 0:
                 continue
@@ -206,33 +248,12 @@ def _bulk_blocks(
     """The bulk CDR decode of a channel where its type and layout allow, else None (also when
     the bulk decode meets a payload that lies about its layout: the per-message path then reads
     what can be read and counts the rest)."""
-    with_rot = orientation and stream == "point"
-    try:
-        if with_rot and _bulk_ok(raw, info, (ros2.POSE_STAMPED,), fields):
-            stamps, xyz = ros2.decode_point_bulk(raw, orientation=True)
-            return [(np.where(stamps != 0, stamps, raw.log_time), xyz)]
-        if with_rot and _bulk_ok(raw, info, (ros2.POSE_WITH_COVARIANCE,), fields):
-            # the pose's orientation sits where PoseStamped's does: x, y, z, q (4), cov (6)
-            stamps, rot = ros2.decode_point_bulk(raw, orientation=True)
-            _, cov = ros2.decode_point_bulk(raw, covariance=True)
-            xyz = np.hstack([rot, cov[:, 3:]])
-            return [(np.where(stamps != 0, stamps, raw.log_time), xyz)]
-        if (
-            not with_rot
-            and stream in ("point", "base")
-            and _bulk_ok(raw, info, (ros2.POINT_STAMPED, ros2.POSE_STAMPED), fields)
-        ):
-            stamps, xyz = ros2.decode_point_bulk(raw)
-            return [(np.where(stamps != 0, stamps, raw.log_time), xyz)]
-        if (
-            not with_rot
-            and stream in ("point", "base")
-            and _bulk_ok(raw, info, (ros2.POSE_WITH_COVARIANCE,), fields)
-        ):
-            stamps, xyz = ros2.decode_point_bulk(raw, covariance=True)
-            return [(np.where(stamps != 0, stamps, raw.log_time), xyz)]
-        if stream == "joints" and _bulk_ok(raw, info, (ros2.JOINT_STATE,), fields):
-            return [(stamps, (names, q)) for stamps, names, q in ros2.decode_joint_state_bulk(raw)]
-    except (ValueError, IndexError, struct.error, UnicodeDecodeError, OverflowError):
+    layout = bulk_layout(stream, info, fields, orientation)
+    if layout is None:
         return None
-    return None
+    try:
+        if not np.all(ros2.little_endian(raw)):
+            return None
+        return bulk_decode(layout, raw)
+    except BULK_ERRORS:
+        return None

@@ -25,34 +25,50 @@ ORIENTATION_COLUMNS = ("rot_x", "rot_y", "rot_z", "rot_w")
 MAX_VALUE = 1e5
 
 
+def _width(values: Any) -> int:
+    """Values per sample of a block's values: an (m, k) array or a tuple of k columns."""
+    return len(values) if isinstance(values, tuple) else int(values.shape[1])
+
+
+def _column(values: Any, j: int) -> NDArray[np.float64]:
+    column: NDArray[np.float64] = values[j] if isinstance(values, tuple) else values[:, j]
+    return column
+
+
+def _joined(parts: list[NDArray[Any]], dtype: type[np.generic]) -> NDArray[Any]:
+    """``parts`` end to end (one part as it is: no copy)."""
+    if len(parts) == 1:
+        return np.asarray(parts[0], dtype=dtype)
+    return np.concatenate(parts).astype(dtype, copy=False) if parts else np.zeros(0, dtype=dtype)
+
+
 def points_frame(blocks: list[Block], scale: float, orientation: bool = False) -> pl.DataFrame:
     """``t_ns, x, y, z`` (m), with ``orientation`` the target frame's orientation
     (``ORIENTATION_COLUMNS``, a unit quaternion), and the position covariance (m²,
     ``COVARIANCE_COLUMNS``) when any channel carries one (null for samples of channels that do
-    not). Block values: ``x, y, z``, then with ``orientation`` the quaternion (4), then the
-    covariance (6) where the channel has one."""
-    t = np.concatenate([b[0] for b in blocks]) if blocks else np.zeros(0, dtype=np.int64)
+    not). Block values (an (m, k) array or a tuple of k columns): ``x, y, z``, then with
+    ``orientation`` the quaternion (4), then the covariance (6) where the channel has one."""
+    t = _joined([b[0] for b in blocks], np.int64)
     first_cov = 7 if orientation else 3
-    with_cov = any(b[1].shape[1] == first_cov + 6 for b in blocks)
-    width = first_cov + 6 if with_cov else first_cov
-    parts = []
-    for b in blocks:
-        v = b[1]
-        if v.shape[1] < width:
-            v = np.hstack([v, np.full((v.shape[0], width - v.shape[1]), np.nan)])
-        parts.append(v)
-    arr = np.concatenate(parts) if parts else np.zeros((0, width))
-    cols: dict[str, Any] = {
-        "t_ns": t.astype(np.int64),
-        "x": arr[:, 0] * scale,
-        "y": arr[:, 1] * scale,
-        "z": arr[:, 2] * scale,
-    }
+    with_cov = any(_width(b[1]) == first_cov + 6 for b in blocks)
+
+    def column(j: int) -> NDArray[np.float64]:
+        """Value ``j`` of every block (NaN where a block has none)."""
+        return _joined(
+            [_column(v, j) if j < _width(v) else np.full(t_.shape[0], np.nan) for t_, v in blocks],
+            np.float64,
+        )
+
+    def scaled(j: int) -> NDArray[np.float64]:
+        values = column(j)  # (× 1 changes no value that clean keeps: no copy)
+        return values if scale == 1.0 else values * scale
+
+    cols: dict[str, Any] = {"t_ns": t, "x": scaled(0), "y": scaled(1), "z": scaled(2)}
     if with_cov:
         for k, name in enumerate(COVARIANCE_COLUMNS):
-            cols[name] = pl.Series(name, arr[:, first_cov + k] * scale**2, nan_to_null=True)
+            cols[name] = pl.Series(name, column(first_cov + k) * scale**2, nan_to_null=True)
     if orientation:
-        quat = arr[:, 3:7]
+        quat = np.column_stack([column(3 + k) for k in range(4)]) if blocks else np.zeros((0, 4))
         quat = quat / np.linalg.norm(quat, axis=1, keepdims=True)
         for k, name in enumerate(ORIENTATION_COLUMNS):
             cols[name] = quat[:, k]
@@ -98,7 +114,11 @@ def clean(frame: pl.DataFrame, stream: str, set_aside: dict[str, int]) -> pl.Dat
     # values no measurement has (beyond 100 km, or 10⁶ rad of encoder travel) and stamps
     # outside 1970-2262 are damage, not data: set aside before any arithmetic overflows
     ranged = [c for c in value_cols if c in ("x", "y", "z") or c.startswith("q_")]
-    sane = pl.all_horizontal([pl.col(c).abs() < MAX_VALUE for c in ranged]) if ranged else True
+    sane = (
+        pl.all_horizontal([pl.col(c).is_between(-MAX_VALUE, MAX_VALUE, "none") for c in ranged])
+        if ranged
+        else True
+    )
     before = kept.height
     mask = kept.select(sane & (pl.col("t_ns") >= 0)).to_series()
     if not mask.all(ignore_nulls=False):
@@ -121,14 +141,19 @@ def joints_frame(
     if missing or not expected:
         raise JointNamesError(path, topic, expected, seen)
     column = {n: i for i, n in enumerate(expected)}
-    t = np.concatenate([b[0] for b in blocks]).astype(np.int64)
-    q = np.full((t.size, len(expected)), np.nan)
-    row = 0
-    for times, (names, values) in blocks:
-        src = [k for k, n in enumerate(names) if n in column]
-        dst = [column[names[k]] for k in src]
-        q[row : row + times.size, dst] = values[:, src]
-        row += times.size
+    t = _joined([b[0] for b in blocks], np.int64)
+    if len(blocks) == 1 and list(blocks[0][1][0]) == expected:  # one layout, in chain order
+        q = [_column(blocks[0][1][1], j) for j in range(len(expected))]
+        fresh = False
+    else:
+        q = [np.full(t.size, np.nan) for _ in expected]
+        row = 0
+        for times, (names, values) in blocks:
+            for k, n in enumerate(names):
+                if n in column:
+                    q[column[n]][row : row + times.size] = _column(values, k)
+            row += times.size
+        fresh = True
     types = pipeline.joint_types or (None,) * len(expected)
     if len(types) != len(expected):
         raise PipelineError(
@@ -137,8 +162,12 @@ def joints_frame(
             f"{topic} ({', '.join(expected)}); give one type per joint.",
         )
     for j, jt in enumerate(types):  # prismatic in the length unit, the rest in the angle unit
-        q[:, j] *= pipeline.length_scale if jt is JointType.PRISMATIC else pipeline.angle_scale
+        scale = pipeline.length_scale if jt is JointType.PRISMATIC else pipeline.angle_scale
+        if fresh:
+            q[j] *= scale
+        elif scale != 1.0:  # (× 1 changes no value that clean keeps: no copy)
+            q[j] = q[j] * scale
     offset_ns = round(pipeline.segmentation.clock_offset * 1e9)
-    data: dict[str, Any] = {"t_ns": t + offset_ns}
-    data.update({f"q_{j + 1}": q[:, j] for j in range(len(expected))})
+    data: dict[str, Any] = {"t_ns": t + offset_ns if offset_ns else t}
+    data.update({f"q_{j + 1}": q[j] for j in range(len(expected))})
     return pl.DataFrame(data), expected

@@ -16,7 +16,7 @@ from collections.abc import Callable, Iterable
 from typing import Any
 
 from dhlog.io import ros2
-from dhlog.io.mcapscan import ChannelInfo
+from dhlog.io.mcapwalk import ChannelInfo
 
 #: Point schemas and where the position sits in them.
 POINT_SCHEMAS = {
