@@ -110,14 +110,14 @@ def pose_groups(Q: SampleArray) -> NDArray[np.int64]:
     """A pose index (0, 1, …) per sample of ``Q`` (m, n) in time order: a new pose wherever a
     joint value moves by :data:`SAME_POSE` or more from the previous sample."""
     out = np.empty(Q.shape[0], dtype=np.int64)
-    for sl, poses in pose_blocks(Q):
+    for sl, poses, _ in pose_blocks(Q):
         out[sl] = poses
     return out
 
 
-def pose_blocks(Q: SampleArray) -> Iterator[tuple[slice, NDArray[np.int64]]]:
-    """:func:`pose_groups` a block of :data:`POSE_CHUNK` samples at a time: the block and its
-    samples' poses."""
+def pose_blocks(Q: SampleArray) -> Iterator[tuple[slice, NDArray[np.int64], FloatArray]]:
+    """:func:`pose_groups` a block of :data:`POSE_CHUNK` samples at a time: the block, its
+    samples' poses and their joint values."""
     offset, previous = 0, None
     for sl in blocks(Q.shape[0], POSE_CHUNK):
         q = Q[sl]
@@ -128,7 +128,7 @@ def pose_blocks(Q: SampleArray) -> Iterator[tuple[slice, NDArray[np.int64]]]:
             step[1:] = np.max(np.abs(q[1:] - q[:-1]), axis=1) >= SAME_POSE
         poses = offset + np.cumsum(step)
         offset, previous = int(poses[-1]), q[-1]
-        yield sl, poses
+        yield sl, poses, q
 
 
 #: Samples a chunk in :func:`pose_groups`.

@@ -118,6 +118,25 @@ def _chain(
     return pre_R, pre_t, sins, coss
 
 
+def _carried_inward(model: AxisModel, dq: FloatArray, target: FloatArray) -> FloatArray:
+    """The target (3, m) moved by the joints' moves ``dq`` (n, m), the last joint first:
+    ``x ← c + R_i (x − c)`` (Rodrigues on the vector: ``r + sin δ ω×r + (1 − cos δ) ω×(ω×r)``)
+    or ``x ← x + d_i δ`` — the position alone, without the prefix motions' (3, 3, m) rotations
+    the Jacobian needs (equal to them to rounding)."""
+    x = np.array(target, dtype=np.float64)
+    for i in range(model.n - 1, -1, -1):
+        axis = model.axes[i]
+        wx, wy, wz = (float(v) for v in axis.direction)
+        if model.types[i] is JointType.PRISMATIC:
+            x += axis.direction[:, None] * dq[i]
+            continue
+        r = x - axis.point[:, None]
+        a = np.stack([wy * r[2] - wz * r[1], wz * r[0] - wx * r[2], wx * r[1] - wy * r[0]])
+        b = np.stack([wy * a[2] - wz * a[1], wz * a[0] - wx * a[2], wx * a[1] - wy * a[0]])
+        x += a * np.sin(dq[i]) + b * (1.0 - np.cos(dq[i]))
+    return x
+
+
 def _tilt_move(
     axis: Line, w: FloatArray, s: FloatArray, c1: FloatArray, R0: FloatArray | None
 ) -> FloatArray:
@@ -200,12 +219,14 @@ def predict_columns(
     ``b_w`` itself (:func:`_tilt_move`). ``prefix``: the prefix motions at ``Q`` when already
     computed."""
     m = Q.shape[0]
-    dq, pre_R, pre_t, sins, coss, B = prefix_motions(model, Q, rates) if prefix is None else prefix
-    R_all, t_all = pre_R[-1], pre_t[-1]
     if which is None or not len(model.extra_targets):
         tgt = np.broadcast_to(model.target[:, None], (3, m))
     else:
         tgt = np.ascontiguousarray(model.targets()[which].T)
+    if layout is None and prefix is None and (model.terms is None or not model.terms.size):
+        return _carried_inward(model, (model.moves(Q, rates) * model.scales).T, tgt), None
+    dq, pre_R, pre_t, sins, coss, B = prefix_motions(model, Q, rates) if prefix is None else prefix
+    R_all, t_all = pre_R[-1], pre_t[-1]
     p = (tgt if R_all is None else rotate(R_all, tgt)) + t_all
     p = np.ascontiguousarray(np.broadcast_to(p, (3, m)))
     if layout is None:

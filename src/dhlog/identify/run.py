@@ -568,8 +568,10 @@ def _identify_whole(
         whole, Q, P, sample_cov, result.noise, which, rates, rotations, notes
     )
     whiten = whitening(result.noise, sample_cov, sigma)
+    squares = None  # the whitened cost of the fit's inliers, where the design effect found it
     if rotations is None:
-        whole = pose_clustered(whole, Q, P, whiten, which, rates, result.info)
+        whole, squares = pose_clustered(whole, Q, P, whiten, which, rates, result.info)
+    clustered = whole
     nominal_table = nominal.table if nominal is not None else None
     tolerances = relation_tolerances(
         whole, nominal, kwargs["angle_tol"], kwargs["distance_tol"], parallel_sigma=parallel_sigma
@@ -577,7 +579,9 @@ def _identify_whole(
 
     def cost(fit: WholeFit) -> float:
         """The whitened sum of squares of ``whole``'s inliers under ``fit`` (positions)."""
-        return whitened_cost(fit, whole.inliers, Q, P, whiten, which=which, rates=rates)
+        if fit is clustered and squares is not None:
+            return squares
+        return whitened_cost(fit, clustered.inliers, Q, P, whiten, which=which, rates=rates)
 
     whole, tolerances = with_fixed_relations(whole, tolerances, cost, result.info)
     kw = {**kwargs, "pair_tolerances": tolerances}

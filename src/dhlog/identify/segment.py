@@ -233,19 +233,19 @@ def check_settings(settings: SegmentationSettings, where: str) -> None:
 
 
 def _moving(
-    t: NDArray[np.int64], q: NDArray[np.float64], window_ns: int, tol: float
+    t: NDArray[np.int64], q: tuple[NDArray[np.float64], ...], window_ns: int, tol: float
 ) -> NDArray[np.bool_]:
-    """(m, n) mask: joint k moves by more than ``tol`` across ``[t - w, t + w]`` at each sample."""
+    """(m, n) mask: joint k moves by more than ``tol`` across ``[t - w, t + w]`` at each sample
+    (``q``: each joint's column)."""
     lo = np.searchsorted(t, t - window_ns, side="left")
     hi = np.maximum(np.searchsorted(t, t + window_ns, side="right") - 1, lo)
-    out = np.empty(q.shape, dtype=bool)
-    for j in range(q.shape[1]):  # a joint at a time: no (m, n) float temporaries
-        column = q[:, j]
+    out = np.empty((t.size, len(q)), dtype=bool)
+    for j, column in enumerate(q):  # a joint at a time: no (m, n) float temporaries
         out[:, j] = np.abs(column[hi] - column[lo]) > tol
     return out
 
 
-def _runs(state: NDArray[np.int64]) -> list[tuple[int, int, int]]:
+def _runs(state: NDArray[np.integer]) -> list[tuple[int, int, int]]:
     """Run-length encoding: (state, first index, last index + 1)."""
     if state.size == 0:
         return []
@@ -256,24 +256,30 @@ def _runs(state: NDArray[np.int64]) -> list[tuple[int, int, int]]:
 
 
 def _label_encoder_samples(
-    t: NDArray[np.int64], q: NDArray[np.float64], settings: SegmentationSettings
-) -> tuple[NDArray[np.int64], list[tuple[int, int, int, NDArray[np.float64]]]]:
+    t: NDArray[np.int64], encoders: Encoders, settings: SegmentationSettings
+) -> tuple[NDArray[np.int32], list[tuple[int, int, int, NDArray[np.float64]]]]:
     """Segment label per encoder sample (id ≥ 0, or TRANSITION / IDLE) and the segments as
     (joint index 0-based, first, last + 1, locked pose)."""
-    m, n = q.shape
+    m, n = t.size, len(encoders.q)
     window = int(settings.motion_window * 1e9)
     tol = settings.lock_tolerance
-    moving = _moving(t, q, window, tol)
-    count = moving.sum(axis=1)
-    state = np.where(count >= 2, TRANSITION, np.where(count == 1, np.argmax(moving, axis=1), IDLE))
-    labels = np.full(m, TRANSITION, dtype=np.int64)
+    moving = _moving(t, encoders.q, window, tol)
+    count = moving.sum(axis=1, dtype=np.int16)
+    state = np.where(
+        count >= 2, TRANSITION, np.where(count == 1, np.argmax(moving, axis=1), IDLE)
+    ).astype(np.int16)
+    del moving, count
+    labels = np.full(m, TRANSITION, dtype=np.int32)
     segments: list[tuple[int, int, int, NDArray[np.float64]]] = []
     current: list[int | NDArray[np.float64]] | None = None  # [joint, start, end, lock]
     pending_idle: tuple[int, int] | None = None
 
     def compatible(start: int, end: int, joint: int, lock: NDArray[np.float64]) -> bool:
-        others = np.arange(n) != joint
-        return bool(np.all(np.abs(q[start:end][:, others] - lock[others]) <= tol))
+        return all(
+            bool(np.all(np.abs(encoders.q[j][start:end] - lock[j]) <= tol))
+            for j in range(n)
+            if j != joint
+        )
 
     def close() -> None:
         nonlocal current
@@ -310,7 +316,7 @@ def _label_encoder_samples(
                 continue
             close()
         first = start
-        lock = q[start].copy()
+        lock = np.array([column[start] for column in encoders.q], dtype=np.float64)
         if (
             pending_idle is not None
             and pending_idle[1] == start
@@ -381,8 +387,8 @@ def _segment_with_encoders(
     # the reader gives the stream sorted by time: the encoders are views of its columns
     joints = log.joints if log.joints["t_ns"].is_sorted() else log.joints.sort("t_ns")
     encoders = Encoders.of(joints, n, int(settings.join_tolerance * 1e9))
-    t_enc, q_enc = encoders.t_ns, encoders.values(slice(None))
-    labels, found = _label_encoder_samples(t_enc, q_enc, settings)
+    t_enc = encoders.t_ns
+    labels, found = _label_encoder_samples(t_enc, encoders, settings)
     points = log.points
     t = np.asarray(points["t_ns"].to_numpy(), dtype=np.int64)
     # a target sample takes the label of the encoder samples on both sides, if they agree;
@@ -400,7 +406,7 @@ def _segment_with_encoders(
         lo = int(np.searchsorted(t, t_enc[start], side="left"))
         hi = int(np.searchsorted(t, t_enc[end - 1], side="right"))
         members = lo + np.flatnonzero(label[lo:hi] == k)
-        q_joint = q_enc[start:end, joint]
+        q_joint = encoders.q[joint][start:end]
         jt = joint_types[joint] if joint_types and joint < len(joint_types) else None
         minimum = settings.min_travel if jt is JointType.PRISMATIC else settings.min_sweep
         if jt is None:
@@ -419,7 +425,7 @@ def _segment_with_encoders(
             continue
         sid = len(seg_rows) + 1
         seg_id[members] = sid
-        lock_pose = np.median(q_enc[start:end], axis=0)
+        lock_pose = np.median(encoders.values(slice(start, end)), axis=0)
         seg_rows.append(
             {
                 "segment": sid,

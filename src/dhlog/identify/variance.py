@@ -168,11 +168,13 @@ def _whitened(
     whiten: Whiten,
     which: NDArray[np.int64] | None,
     rates: SampleArray | None,
+    q: FloatArray | None = None,
 ) -> FloatArray:
-    """The whitened position residuals of the samples ``at`` (indices) under ``fit``."""
+    """The whitened position residuals of the samples ``at`` (indices) under ``fit`` (``q``:
+    their joint values where already at hand)."""
     pred, _ = predict(
         fit.model,
-        Q[at],
+        Q[at] if q is None else q,
         which=None if which is None else which[at],
         rates=None if rates is None else rates[at],
     )
@@ -205,12 +207,14 @@ def whitened_cost(
 
 @dataclass(frozen=True)
 class DesignEffect:
-    """``effect`` = 1 + (k̄ − 1) ρ of ``samples`` at ``poses`` (``per_pose`` = k̄), ``rho``."""
+    """``effect`` = 1 + (k̄ − 1) ρ of ``samples`` at ``poses`` (``per_pose`` = k̄), ``rho``;
+    ``squares``: the whitened sum of squares of those samples (the fit's inliers)."""
 
     effect: float
     rho: float
     samples: int
     poses: int
+    squares: float
 
     @property
     def per_pose(self) -> float:
@@ -225,60 +229,53 @@ def design_effect(
     *,
     which: NDArray[np.int64] | None = None,
     rates: SampleArray | None = None,
-) -> DesignEffect | None:
-    """The design effect of the fit's inliers grouped by pose (module docstring); None where
-    poses hold fewer than two samples on average or the effect is below :data:`SMALL_EFFECT`.
-    ``whiten(points, rows)``: the whitening of the samples ``rows`` (a scalar or (m, 3, 3))."""
-    inl = whole.inliers
-    m, g = _inlier_poses(Q, inl, None)
-    if g == 0 or m < 2 * g or m - g < 3:  # sweeps: about a pose a sample, nothing to scale
-        return None
-    # per pose the sum of the whitened residuals, and their sum of squares, a block at a time:
-    # within-pose Σ|r − r̄|² = Σ|r|² − Σ_pose n |r̄|²
-    sums = np.zeros((g, 3))
-    count = np.zeros(g)
-    squares = 0.0
-
-    def add(at: NDArray[np.intp], pose: NDArray[np.int64]) -> None:
-        nonlocal squares
-        rw = _whitened(whole, at, Q, P, whiten, which, rates)
-        for k in range(3):
-            sums[:, k] += np.bincount(pose, weights=rw[:, k], minlength=g)
-        count[:] += np.bincount(pose, minlength=g)
-        squares += float(np.sum(rw**2))
-
-    _inlier_poses(Q, inl, add)
-    count = count[:, None]
-    within = (squares - float(np.sum(sums**2 / count))) / (3 * (m - g))
-    total = squares / max(3 * m - whole.layout.size, 1)
-    rho = min(max(1.0 - within / total, 0.0), 1.0) if total > 0 else 0.0
-    effect = 1.0 + (m / g - 1.0) * rho
-    return DesignEffect(effect, rho, m, g) if effect >= SMALL_EFFECT else None
-
-
-def _inlier_poses(
-    Q: SampleArray,
-    inliers: NDArray[np.bool_],
-    visit: Callable[[NDArray[np.intp], NDArray[np.int64]], None] | None,
-) -> tuple[int, int]:
-    """The inliers and their poses counted (m, g), each inlier's pose numbered 0, 1, … among
-    the inliers in time order (a pose's samples are consecutive); ``visit(rows, poses)`` is
-    called with them at most ``CHUNK`` at a time."""
+) -> DesignEffect:
+    """The design effect of the fit's inliers grouped by pose (module docstring), in one pass
+    over the samples: a pose's samples are consecutive, so each pose's sum of whitened
+    residuals is complete when the next pose starts (only the one open at a block's end is
+    carried). ``whiten(points, rows)``: the whitening of the samples ``rows`` (a scalar or
+    (m, 3, 3)). The effect is 1 where poses hold fewer than two samples on average (sweeps:
+    about a pose a sample, nothing to scale)."""
     m, g, last = 0, 0, -1
-    for sl, poses in pose_blocks(Q):
-        use = np.flatnonzero(inliers[sl])
-        mine = poses[use]
-        if not mine.size:
+    squares = between = 0.0  # Σ|r|², Σ_pose |Σ r|² / n
+    carry_sum, carry_n = np.zeros(3), 0
+    for sl, poses, q in pose_blocks(Q):
+        use = np.flatnonzero(whole.inliers[sl])
+        if not use.size:
             continue
+        mine = poses[use]
         new = np.empty(mine.size, dtype=bool)
         new[0] = mine[0] != last
         new[1:] = mine[1:] != mine[:-1]
-        numbered = g - 1 + np.cumsum(new)
-        if visit is not None:
-            for part in blocks(mine.size, CHUNK):
-                visit(sl.start + use[part], numbered[part])
-        g, m, last = int(numbered[-1]) + 1, m + mine.size, int(mine[-1])
-    return m, g
+        local = np.cumsum(new) - int(new[0])  # 0: the carried pose, where new[0] is False
+        size = int(local[-1]) + 1
+        rw = np.empty((use.size, 3))
+        for part in blocks(use.size, CHUNK):
+            at = use[part]
+            rw[part] = _whitened(whole, sl.start + at, Q, P, whiten, which, rates, q[at])
+        sums = np.column_stack(
+            [np.bincount(local, weights=rw[:, k], minlength=size) for k in range(3)]
+        )
+        count = np.bincount(local, minlength=size).astype(np.float64)
+        if not new[0]:
+            sums[0] += carry_sum
+            count[0] += carry_n
+        elif carry_n:
+            between += float(carry_sum @ carry_sum) / carry_n
+        between += float(np.sum(sums[:-1] ** 2 / count[:-1, None]))
+        carry_sum, carry_n = sums[-1], int(count[-1])
+        squares += float(np.sum(rw**2))
+        g += int(np.count_nonzero(new))
+        m, last = m + use.size, int(mine[-1])
+    if carry_n:
+        between += float(carry_sum @ carry_sum) / carry_n
+    if g == 0 or m < 2 * g or m - g < 3:
+        return DesignEffect(1.0, 0.0, m, max(g, 1), squares)
+    # within-pose Σ|r − r̄|² = Σ|r|² − Σ_pose n |r̄|²
+    within = (squares - between) / (3 * (m - g))
+    total = squares / max(3 * m - whole.layout.size, 1)
+    rho = min(max(1.0 - within / total, 0.0), 1.0) if total > 0 else 0.0
+    return DesignEffect(1.0 + (m / g - 1.0) * rho, rho, m, g, squares)
 
 
 def with_model_error(
@@ -341,15 +338,16 @@ def pose_clustered(
     which: NDArray[np.int64] | None,
     rates: SampleArray | None,
     info: list[str],
-) -> WholeFit:
-    """The covariance times the design effect of several samples a pose (:func:`design_effect`),
-    said in a note."""
+) -> tuple[WholeFit, float]:
+    """The covariance times the design effect of several samples a pose (:func:`design_effect`)
+    where it reaches :data:`SMALL_EFFECT`, said in a note; and the whitened sum of squares of
+    the fit's inliers, found on the way."""
     d = design_effect(whole, Q, P, whiten, which=which, rates=rates)
-    if d is None:
-        return whole
+    if d.effect < SMALL_EFFECT:
+        return whole, d.squares
     info.append(
         f"{d.samples} samples at {d.poses} poses ({d.per_pose:.1f} a pose) share their pose's "
         f"error ({d.rho:.0%} of the residual variance): the uncertainty is scaled by the "
         f"design effect, σ x{math.sqrt(d.effect):.2f}."
     )
-    return replace(whole, covariance=whole.covariance * d.effect)
+    return replace(whole, covariance=whole.covariance * d.effect), d.squares
