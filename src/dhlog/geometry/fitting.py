@@ -183,7 +183,6 @@ def fit_axis_robust(
     threshold: float = 5.0,
     max_rounds: int = 5,
     min_sweep: float = MIN_SWEEP,
-    max_points: int | None = None,
     what: str = "axis fit",
 ) -> tuple[AxisFit, NDArray[np.bool_]]:
     """A circle or line fit with iterative rejection of gross outliers.
@@ -191,19 +190,11 @@ def fit_axis_robust(
     After each fit, samples whose orthogonal distance from the circle (or line) exceeds
     ``threshold`` times the robust noise scale (median distance / 1.1774, the median of a 2-dof
     chi variable) are set aside and the fit repeated, until nothing changes. Returns the fit on
-    the inliers and the inlier mask over the input samples.
-
-    ``max_points``: fit an evenly strided subset of at most this many samples (a start for the
-    whole-model fit needs no more); the inlier mask still covers every sample, judged against
-    that fit.
+    the inliers and the inlier mask over the input samples (a start fit on a subset judges
+    the rest with :func:`inlier_limit` and :func:`within`).
     """
-    pts_all = check_points(f"{what} points", points)
-    q_all = None if encoder is None else np.asarray(encoder, dtype=np.float64).reshape(-1)
-    stride = 1
-    if max_points is not None and pts_all.shape[0] > max_points:
-        stride = -(-pts_all.shape[0] // max_points)
-    pts = pts_all[::stride]
-    q = None if q_all is None else q_all[::stride]
+    pts = check_points(f"{what} points", points)
+    q = None if encoder is None else np.asarray(encoder, dtype=np.float64).reshape(-1)
     keep = np.ones(pts.shape[0], dtype=bool)
 
     def run(mask: NDArray[np.bool_]) -> AxisFit:
@@ -222,10 +213,19 @@ def fit_axis_robust(
             break
         keep = new_keep
         fit = run(keep)
-    if stride > 1:
-        scale = float(np.median(orthogonal_distances(fit, pts[keep]))) / 1.1774
-        keep = orthogonal_distances(fit, pts_all) <= threshold * max(scale, 1e-12)
     return fit, keep
+
+
+def inlier_limit(fit: AxisFit, inliers: FloatArray, threshold: float = 5.0) -> float:
+    """The largest orthogonal distance an inlier of ``fit`` may have: ``threshold`` times the
+    robust noise scale of its ``inliers`` (their median distance / 1.1774)."""
+    scale = float(np.median(orthogonal_distances(fit, inliers))) / 1.1774
+    return threshold * max(scale, 1e-12)
+
+
+def within(fit: AxisFit, pts: FloatArray, limit: float) -> NDArray[np.bool_]:
+    """Whether each sample of ``pts`` lies within ``limit`` of ``fit`` (NaN: no)."""
+    return np.asarray(orthogonal_distances(fit, pts) <= limit)
 
 
 def orthogonal_distances(fit: AxisFit, pts: FloatArray) -> NDArray[np.float64]:

@@ -12,7 +12,7 @@ from numpy.typing import NDArray
 from dhlog.errors import GeometryError
 from dhlog.geometry._checks import FloatArray
 from dhlog.geometry.axisfit import AxisFit
-from dhlog.geometry.fitting import detect_joint_type, fit_axis_robust
+from dhlog.geometry.fitting import detect_joint_type, fit_axis_robust, inlier_limit, within
 from dhlog.geometry.lines import Line
 from dhlog.identify.persample import PerSample, blocks, compact_rows
 from dhlog.identify.segment import Segmentation
@@ -134,24 +134,29 @@ def fit_joint(
     in_sweep = np.isin(seg.segment, np.asarray(chosen, dtype=np.int32))
     if "target" in seg.points.columns:  # the per-joint fits use the primary target's circles
         in_sweep &= seg.points["target"].to_numpy() == 0
-    report.rows = compact_rows(np.flatnonzero(in_sweep), seg.height)
+    rows = report.rows = compact_rows(np.flatnonzero(in_sweep), seg.height)
     del in_sweep
-    points = seg.xyz(report.rows)
-    encoder = seg.q(report.rows, [k - 1])[:, 0] if seg.has_encoders else None
+    # the start fits take an evenly strided subset; every sample is judged against them in
+    # blocks (a sweep of millions of samples is never whole in memory)
+    m = rows.size
+    every = 1 if max_points is None or m <= max_points else -(-m // max_points)
+    fitted = rows[::every]
     try:
-        stride = 1 if max_points is None else max(1, points.shape[0] // max_points)
-        jt, source = _joint_type(k, name, points[::stride], log, nominal, notes)
+        typed = rows[:: 1 if max_points is None else max(1, m // max_points)]
+        jt, source = _joint_type(k, name, seg.xyz(typed), log, nominal, notes)
         report.type, report.type_source = jt, source
         settings = log.pipeline.segmentation
         fit, inliers = fit_axis_robust(
-            points,
+            seg.xyz(fitted),
             kind="line" if jt is JointType.PRISMATIC else "circle",
-            encoder=encoder,
+            encoder=seg.q(fitted, [k - 1])[:, 0] if seg.has_encoders else None,
             method=fit_method,  # type: ignore[arg-type]
             min_sweep=settings.min_sweep,
-            max_points=max_points,
             what=what,
         )
+        if every > 1:
+            limit = inlier_limit(fit, seg.xyz(fitted[inliers]))
+            inliers = np.concatenate([within(fit, seg.xyz(rows[sl]), limit) for sl in blocks(m)])
     except GeometryError as exc:
         report.reason = str(exc).removeprefix(f"{what}: ")
         return

@@ -169,8 +169,8 @@ def sweep_phases(seg: Segmentation, log: LogData) -> list[SweepPhase]:
     out = []
     for sid, j1 in zip(seg.segments["segment"], seg.segments["joint"], strict=True):
         rows = np.flatnonzero(seg.segment == sid)
-        Q = seg.q(rows)
-        rows = rows[np.isfinite(Q).all(axis=1)]
+        finite = [np.isfinite(seg.q(rows[b])).all(axis=1) for b in blocks(rows.size, BLOCK)]
+        rows = rows[np.concatenate(finite)] if finite else rows
         if rows.size < 4:
             continue
         if rows.size > START_POINTS:
