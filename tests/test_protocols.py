@@ -273,6 +273,44 @@ def test_samples_of_one_pose_share_its_error_and_the_uncertainty_says_so() -> No
     assert not any("design effect" in n for n in once.info)
 
 
+def test_the_design_effect_in_one_pass_is_the_direct_one(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The design effect is found in one pass, each pose's sums carried across blocks until
+    the next pose starts: with blocks of 7 and 3 samples (every pose of 5 straddles one) it is
+    the same as with whole blocks, and both equal the direct computation from every inlier's
+    whitened residual grouped by :func:`pose_groups`."""
+    import dhlog.identify.holdout as holdout
+    import dhlog.identify.variance as variance
+    from dhlog.identify.sweeps import samples_with_encoders
+
+    robot, session = random_poses(7, model_error=6e-5, tracker_rate=10.0)
+    result = process_data(log_data_from_session(session), nominal=nominal_of(robot))
+    assert result.whole is not None
+    _, Q, P = samples_with_encoders(result.segmentation)
+    inliers = result.whole.inliers
+
+    def whiten(points: np.ndarray, rows: np.ndarray) -> float:
+        return 1.0 / 1e-5
+
+    rw = variance.whitened_residuals(result.whole, inliers, Q, P, whiten)
+    groups = pose_groups(Q)[inliers]
+    _, pose = np.unique(groups, return_inverse=True)
+    m, g = rw.shape[0], int(pose.max()) + 1
+    sums = np.stack([np.bincount(pose, weights=rw[:, k]) for k in range(3)], axis=1)
+    squares = float(np.sum(rw**2))
+    within = (squares - float(np.sum(sums**2 / np.bincount(pose)[:, None]))) / (3 * (m - g))
+    rho = 1.0 - within / (squares / (3 * m - result.whole.layout.size))
+    whole = variance.design_effect(result.whole, Q, P, whiten)
+    monkeypatch.setattr(holdout, "POSE_CHUNK", 7)
+    monkeypatch.setattr(variance, "CHUNK", 3)
+    small = variance.design_effect(result.whole, Q, P, whiten)
+    assert (whole.samples, whole.poses) == (small.samples, small.poses) == (m, g) == (200, 40)
+    for d in (whole, small):
+        assert d.squares == pytest.approx(squares, rel=1e-12)
+        assert d.rho == pytest.approx(rho, rel=1e-9)
+        assert d.effect == pytest.approx(1.0 + (m / g - 1.0) * rho, rel=1e-9)
+    assert whole.effect > 2.0  # the pose's error dominates: the case the effect is for
+
+
 def test_the_readme_random_poses_walkthrough(tmp_path: Path) -> None:
     """README "Random poses": the bundled tracker export (6-DoF probe, U95 rounded, one read
     0.000) imported unchanged and processed with --nominal kr5 --holdout 5: exit 0, the
