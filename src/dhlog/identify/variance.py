@@ -101,17 +101,31 @@ def residuals(
     done = 0
     for sl in blocks(Q.shape[0], CHUNK):
         at = sl.start + np.flatnonzero(rows[sl])
-        if not at.size:
-            continue
-        pred, _ = predict(
-            model,
-            Q[at],
-            which=None if which is None else which[at],
-            rates=None if rates is None else rates[at],
-        )
-        out[done : done + at.size] = P[at] - pred
-        done += at.size
+        if at.size:
+            out[done : done + at.size] = _residuals_at(model, at, Q, P, which, rates)[0]
+            done += at.size
     return out
+
+
+def _residuals_at(
+    model: AxisModel,
+    at: NDArray[np.intp] | slice,
+    Q: SampleArray,
+    P: SampleArray,
+    which: NDArray[np.int64] | None,
+    rates: SampleArray | None,
+    q: FloatArray | None = None,
+) -> tuple[FloatArray, FloatArray]:
+    """The position residuals ``P − model`` (k, 3) of the samples ``at`` and their points
+    (``q``: their joint values where already at hand)."""
+    pred, _ = predict(
+        model,
+        Q[at] if q is None else q,
+        which=None if which is None else which[at],
+        rates=None if rates is None else rates[at],
+    )
+    points = P[at]
+    return points - pred, points
 
 
 def residual_norms(
@@ -125,13 +139,7 @@ def residual_norms(
     """The length of every sample's position residual under ``model`` (m,), a block at a time."""
     out = np.empty(Q.shape[0])
     for sl in blocks(Q.shape[0], CHUNK):
-        pred, _ = predict(
-            model,
-            Q[sl],
-            which=None if which is None else which[sl],
-            rates=None if rates is None else rates[sl],
-        )
-        out[sl] = np.linalg.norm(P[sl] - pred, axis=1)
+        out[sl] = np.linalg.norm(_residuals_at(model, sl, Q, P, which, rates)[0], axis=1)
     return out
 
 
@@ -172,15 +180,8 @@ def _whitened(
 ) -> FloatArray:
     """The whitened position residuals of the samples ``at`` (indices) under ``fit`` (``q``:
     their joint values where already at hand)."""
-    pred, _ = predict(
-        fit.model,
-        Q[at] if q is None else q,
-        which=None if which is None else which[at],
-        rates=None if rates is None else rates[at],
-    )
-    Pa = P[at]
-    r = Pa - pred
-    W = whiten(Pa, at)
+    r, points = _residuals_at(fit.model, at, Q, P, which, rates, q)
+    W = whiten(points, at)
     return r * W if isinstance(W, float) else np.einsum("mij,mj->mi", W, r)
 
 
