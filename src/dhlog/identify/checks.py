@@ -6,12 +6,13 @@ model does not explain."""
 from __future__ import annotations
 
 import math
+import warnings
 
 import numpy as np
 
 from dhlog.errors import InputError
 from dhlog.geometry._checks import FloatArray
-from dhlog.identify.segment import Segmentation
+from dhlog.identify.segment import BLOCK, Segmentation
 from dhlog.identify.sweeps import JointReport
 from dhlog.identify.timing import SweepPhase
 from dhlog.io.dhfile import DHModel
@@ -48,6 +49,17 @@ def check_fit_noise(joints: list[JointReport], notes: list[str]) -> None:
             )
 
 
+def _span(column: FloatArray) -> float:
+    """``nanmax - nanmin`` of a column, a block at a time (NaN when all are NaN)."""
+    lo, hi = math.inf, -math.inf
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN blocks
+        for start in range(0, column.size, BLOCK):
+            part = column[start : start + BLOCK]
+            lo, hi = min(lo, float(np.nanmin(part))), max(hi, float(np.nanmax(part)))
+    return hi - lo if lo <= hi else math.nan
+
+
 def check_units(
     seg: Segmentation, log: LogData, phases: list[SweepPhase], notes: list[str]
 ) -> None:
@@ -57,9 +69,7 @@ def check_units(
     per encoder unit; warn on any other encoder slope far from 1."""
     pipe = log.pipeline
     columns = seg.xyz_columns
-    extent = (
-        float(np.linalg.norm([np.nanmax(c) - np.nanmin(c) for c in columns])) if seg.height else 0
-    )
+    extent = float(np.linalg.norm([_span(c) for c in columns])) if seg.height else 0
     where = f"{log.path}: the target's samples span {extent:.4g} m"
     if extent > LARGEST_ROBOT:
         fits = "mm" if pipe.length_unit == "m" else "a unit 1000x smaller than mm"

@@ -29,6 +29,7 @@ from dhlog.identify.persample import SampleArray, blocks
 from dhlog.identify.prediction import predict
 from dhlog.identify.register import register_nominal
 from dhlog.identify.whole import WholeFit, fit_whole_model
+from dhlog.io import scratch
 from dhlog.model.dh import StandardDH
 from dhlog.model.fk import fk_point
 
@@ -109,7 +110,7 @@ class Holdout:
 def pose_groups(Q: SampleArray) -> NDArray[np.int64]:
     """A pose index (0, 1, …) per sample of ``Q`` (m, n) in time order: a new pose wherever a
     joint value moves by :data:`SAME_POSE` or more from the previous sample."""
-    out = np.empty(Q.shape[0], dtype=np.int64)
+    out = scratch.empty(Q.shape[0], np.int64)
     for sl, poses, _ in pose_blocks(Q):
         out[sl] = poses
     return out

@@ -16,6 +16,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from dhlog.io import scratch
+
 #: Rows (into the samples) a PerSample is asked for: a slice or an index array.
 Index = slice | NDArray[np.intp]
 
@@ -89,10 +91,10 @@ class PerSample:
         return PerSample(shape, lambda index: f(self[index]))
 
 
-def compact_rows(rows: NDArray[np.intp], height: int) -> NDArray[np.intp]:
-    """Row numbers into a table of ``height`` rows as int32 where they fit (half the memory of
-    a long log's index arrays)."""
-    return rows.astype(np.int32) if height < 2**31 else rows
+def rows_where(mask: NDArray[np.bool_]) -> NDArray[np.intp]:
+    """The row numbers where ``mask`` holds, as int32 where they fit (half the memory of a
+    long log's index arrays), found a block at a time (a long log's in a scratch file)."""
+    return scratch.flatnonzero(mask, np.int32 if mask.size < 2**31 else np.intp)
 
 
 #: What the passes over the samples read: an array, or a PerSample read a block at a time.

@@ -23,6 +23,8 @@ import polars as pl
 from numpy.typing import NDArray
 
 from dhlog.errors import InputError, TooFewSamplesError
+from dhlog.identify.persample import rows_where
+from dhlog.io import scratch
 from dhlog.io.pipeline import SEGMENTATION_RANGES, SegmentationSettings
 from dhlog.io.reader import LogData
 from dhlog.model.dh import JointType
@@ -56,7 +58,8 @@ class Encoders:
     @property
     def log_t_ns(self) -> NDArray[np.int64]:
         """The stamps as the log has them."""
-        return self.t_ns if self.shift_ns == 0 else self.t_ns - self.shift_ns
+        shift = self.shift_ns
+        return self.t_ns if shift == 0 else scratch.mapped(self.t_ns, lambda t: t - shift)
 
     def values(self, rows: slice | NDArray[np.intp]) -> NDArray[np.float64]:
         """The encoder samples ``rows`` (c, n)."""
@@ -64,7 +67,9 @@ class Encoders:
 
     def shifted(self, shift_ns: int) -> Encoders:
         """The stream with its stamps moved by ``shift_ns`` from the log's."""
-        return Encoders(self.t_ns + (shift_ns - self.shift_ns), self.q, self.tol_ns, shift_ns)
+        step = shift_ns - self.shift_ns
+        t_ns = scratch.mapped(self.t_ns, lambda t: t + step)
+        return Encoders(t_ns, self.q, self.tol_ns, shift_ns)
 
     def neighbours(self, t: NDArray[np.int64]) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
         """The encoder samples before and after each time ``t`` (-1 where missing: then both)."""
@@ -155,36 +160,48 @@ class Segmentation:
     def xyz(self, rows: NDArray[np.integer] | slice) -> NDArray[np.float64]:
         """The target samples ``rows`` (c, 3)."""
         x, y, z = self.xyz_columns
-        return np.column_stack([x[rows], y[rows], z[rows]])
+        return scratch.in_spans(rows, lambda r: np.column_stack([x[r], y[r], z[r]]))
 
     def q(
         self, rows: NDArray[np.integer] | slice, cols: list[int] | None = None
     ) -> NDArray[np.float64]:
         """The encoder values (c, n), or of joints ``cols`` (0-based), at the samples ``rows``;
         NaN where a sample has none (and everywhere without encoders)."""
-        t = self.t_ns[rows]
         if self.encoders is None:
-            return np.full((t.size, self.n_joints if cols is None else len(cols)), np.nan)
-        return self.encoders.at(t, cols)
+            size = self.t_ns[rows].size
+            return np.full((size, self.n_joints if cols is None else len(cols)), np.nan)
+        encoders = self.encoders
+        return scratch.in_spans(rows, lambda r: encoders.at(self.t_ns[r], cols))
+
+    def rows_in(self, ids: NDArray[np.int32] | list[int]) -> NDArray[np.intp]:
+        """The samples in the sweeps ``ids`` (found a block at a time)."""
+        wanted = np.asarray(ids, dtype=np.int32)
+        mask = scratch.empty(self.height, np.bool_)
+        for start in range(0, self.height, BLOCK):
+            part = self.segment[start : start + BLOCK]
+            mask[start : start + part.size] = np.isin(part, wanted)
+        return rows_where(mask)
 
     def column(self, name: str, rows: NDArray[np.integer] | slice) -> NDArray[np.generic]:
         """A further column of the point stream (``target``, orientation, covariance) at
         ``rows``."""
-        return np.asarray(self.points[name].to_numpy()[rows])
+        column = self.points[name].to_numpy()
+        return scratch.in_spans(rows, lambda r: np.asarray(column[r]))
 
     @cached_property
     def joint_of_segment(self) -> NDArray[np.int32]:
         """The joint (1-based) of each sweep id (0: none), indexable by ``segment``."""
         ids = self.segments["segment"].to_numpy()
         out = np.zeros(
-            int(max(ids.max(), self.segment.max(initial=0))) + 1 if ids.size else 1, dtype=np.int32
+            int(max(ids.max(), _largest(self.segment))) + 1 if ids.size else 1, dtype=np.int32
         )
         out[ids] = self.segments["joint"].to_numpy()
         return out
 
     def joint(self, rows: NDArray[np.integer] | slice) -> NDArray[np.int32]:
         """The joint (1-based) whose sweep each sample ``rows`` is in (0: none)."""
-        return np.asarray(self.joint_of_segment[self.segment[rows]], dtype=np.int32)
+        of = self.joint_of_segment
+        return scratch.in_spans(rows, lambda r: np.asarray(of[self.segment[r]], dtype=np.int32))
 
     @cached_property
     def table(self) -> pl.DataFrame:
@@ -216,8 +233,13 @@ class Segmentation:
         """Whether each sample ``rows`` has encoder values (an encoder sample each side)."""
         if self.encoders is None:
             return np.zeros(self.t_ns[rows].size, dtype=bool)
-        lo, _ = self.encoders.neighbours(self.t_ns[rows])
-        return np.asarray(lo >= 0)
+        encoders = self.encoders
+        return scratch.in_spans(rows, lambda r: encoders.neighbours(self.t_ns[r])[0] >= 0)
+
+
+def _largest(values: NDArray[np.int32]) -> int:
+    """The largest of ``values`` (0 when empty), a block at a time."""
+    return max((int(values[b : b + BLOCK].max()) for b in range(0, values.size, BLOCK)), default=0)
 
 
 def check_settings(settings: SegmentationSettings, where: str) -> None:
@@ -233,26 +255,45 @@ def check_settings(settings: SegmentationSettings, where: str) -> None:
 
 
 def _moving(
-    t: NDArray[np.int64], q: tuple[NDArray[np.float64], ...], window_ns: int, tol: float
+    t: NDArray[np.int64],
+    q: tuple[NDArray[np.float64], ...],
+    window_ns: int,
+    tol: float,
+    rows: slice,
 ) -> NDArray[np.bool_]:
-    """(m, n) mask: joint k moves by more than ``tol`` across ``[t - w, t + w]`` at each sample
-    (``q``: each joint's column)."""
-    lo = np.searchsorted(t, t - window_ns, side="left")
-    hi = np.maximum(np.searchsorted(t, t + window_ns, side="right") - 1, lo)
-    out = np.empty((t.size, len(q)), dtype=bool)
-    for j, column in enumerate(q):  # a joint at a time: no (m, n) float temporaries
+    """(b, n) mask: joint k moves by more than ``tol`` across ``[t - w, t + w]`` at each sample
+    ``rows`` (``q``: each joint's column)."""
+    here = t[rows]
+    lo = np.searchsorted(t, here - window_ns, side="left")
+    hi = np.maximum(np.searchsorted(t, here + window_ns, side="right") - 1, lo)
+    out = np.empty((here.size, len(q)), dtype=bool)
+    for j, column in enumerate(q):  # a joint at a time: no (b, n) float temporaries
         out[:, j] = np.abs(column[hi] - column[lo]) > tol
     return out
 
 
 def _runs(state: NDArray[np.integer]) -> list[tuple[int, int, int]]:
-    """Run-length encoding: (state, first index, last index + 1)."""
+    """Run-length encoding: (state, first index, last index + 1); the edges found a block at a
+    time."""
     if state.size == 0:
         return []
-    edges = np.flatnonzero(np.diff(state)) + 1
-    starts = np.concatenate([[0], edges])
-    ends = np.concatenate([edges, [state.size]])
+    last = state.size - 1
+    edges = [
+        start + 1 + np.flatnonzero(state[start + 1 : stop + 1] != state[start:stop])
+        for start in range(0, last, BLOCK)
+        for stop in (min(start + BLOCK, last),)
+    ]
+    starts = np.concatenate([[0], *edges])
+    ends = np.concatenate([starts[1:], [state.size]])
     return [(int(state[s]), int(s), int(e)) for s, e in zip(starts, ends, strict=True)]
+
+
+def _within(column: NDArray[np.float64], start: int, end: int, value: float, tol: float) -> bool:
+    """Whether ``column[start:end]`` stays within ``tol`` of ``value`` (a block at a time)."""
+    return all(
+        bool(np.all(np.abs(column[b : min(b + BLOCK, end)] - value) <= tol))
+        for b in range(start, end, BLOCK)
+    )
 
 
 def _label_encoder_samples(
@@ -263,22 +304,23 @@ def _label_encoder_samples(
     m, n = t.size, len(encoders.q)
     window = int(settings.motion_window * 1e9)
     tol = settings.lock_tolerance
-    moving = _moving(t, encoders.q, window, tol)
-    count = moving.sum(axis=1, dtype=np.int16)
-    state = np.where(
-        count >= 2, TRANSITION, np.where(count == 1, np.argmax(moving, axis=1), IDLE)
-    ).astype(np.int16)
+    state = scratch.empty(m, np.int16)
+    for start in range(0, m, BLOCK):
+        sl = slice(start, min(start + BLOCK, m))
+        moving = _moving(t, encoders.q, window, tol, sl)
+        count = moving.sum(axis=1, dtype=np.int16)
+        state[sl] = np.where(
+            count >= 2, TRANSITION, np.where(count == 1, np.argmax(moving, axis=1), IDLE)
+        )
     del moving, count
-    labels = np.full(m, TRANSITION, dtype=np.int32)
+    labels = scratch.full(m, TRANSITION, np.int32)
     segments: list[tuple[int, int, int, NDArray[np.float64]]] = []
     current: list[int | NDArray[np.float64]] | None = None  # [joint, start, end, lock]
     pending_idle: tuple[int, int] | None = None
 
     def compatible(start: int, end: int, joint: int, lock: NDArray[np.float64]) -> bool:
         return all(
-            bool(np.all(np.abs(encoders.q[j][start:end] - lock[j]) <= tol))
-            for j in range(n)
-            if j != joint
+            _within(encoders.q[j], start, end, float(lock[j]), tol) for j in range(n) if j != joint
         )
 
     def close() -> None:
@@ -393,19 +435,19 @@ def _segment_with_encoders(
     t = np.asarray(points["t_ns"].to_numpy(), dtype=np.int64)
     # a target sample takes the label of the encoder samples on both sides, if they agree;
     # without an encoder sample on each side within the join tolerance it has no encoder values
-    label = np.empty(t.size, dtype=np.int32)
+    label = scratch.empty(t.size, np.int32)
     for start in range(0, t.size, BLOCK):
         sl = slice(start, min(start + BLOCK, t.size))
         i_prev, i_next = encoders.neighbours(t[sl])
         here = np.where(labels[i_prev] == labels[i_next], labels[i_prev], TRANSITION)
         label[sl] = np.where((i_prev < 0) | (i_next < 0), IDLE - 1, here)
     seg_rows: list[dict[str, float | int]] = []
-    seg_id = np.zeros(t.size, dtype=np.int32)
+    seg_id = scratch.zeros(t.size, np.int32)
     for k, (joint, start, end, _lock) in enumerate(found):
         # its target samples lie between its first and last encoder samples
         lo = int(np.searchsorted(t, t_enc[start], side="left"))
         hi = int(np.searchsorted(t, t_enc[end - 1], side="right"))
-        members = lo + np.flatnonzero(label[lo:hi] == k)
+        count, first, last = _members(label, k, lo, hi)
         q_joint = encoders.q[joint][start:end]
         jt = joint_types[joint] if joint_types and joint < len(joint_types) else None
         minimum = settings.min_travel if jt is JointType.PRISMATIC else settings.min_sweep
@@ -414,39 +456,59 @@ def _segment_with_encoders(
         sweep = float(q_joint.max() - q_joint.min())
         name = log.joint_names[joint]
         if sweep < minimum:
-            set_aside["short_sweep"] = set_aside.get("short_sweep", 0) + members.size
+            set_aside["short_sweep"] = set_aside.get("short_sweep", 0) + count
             continue
-        if members.size < settings.min_samples:
-            set_aside["too_few_samples"] = set_aside.get("too_few_samples", 0) + members.size
+        if count < settings.min_samples:
+            set_aside["too_few_samples"] = set_aside.get("too_few_samples", 0) + count
             notes.append(
-                f"joint {joint + 1} ({name}): a sweep with only {members.size} target sample(s) "
+                f"joint {joint + 1} ({name}): a sweep with only {count} target sample(s) "
                 f"(minimum {settings.min_samples}) was set aside."
             )
             continue
         sid = len(seg_rows) + 1
-        seg_id[members] = sid
-        lock_pose = np.median(encoders.values(slice(start, end)), axis=0)
+        for b in range(lo, hi, BLOCK):
+            part = slice(b, min(b + BLOCK, hi))
+            seg_id[part][label[part] == k] = sid
+        lock_pose = [float(np.median(column[start:end])) for column in encoders.q]
         seg_rows.append(
             {
                 "segment": sid,
                 "joint": joint + 1,
-                "n": int(members.size),
+                "n": count,
                 "q_start": float(q_joint[0]),
                 "q_end": float(q_joint[-1]),
                 "sweep": sweep,
-                "t_start_ns": int(t[members].min()),
-                "t_end_ns": int(t[members].max()),
+                "t_start_ns": int(t[first]),  # the stamps are in order
+                "t_end_ns": int(t[last]),
                 **{
-                    f"lock_q_{j + 1}": (float(lock_pose[j]) if j != joint else float("nan"))
+                    f"lock_q_{j + 1}": (lock_pose[j] if j != joint else float("nan"))
                     for j in range(n)
                 },
             }
         )
-    _count(set_aside, "transition", int(np.count_nonzero(label == TRANSITION)))
-    _count(set_aside, "idle", int(np.count_nonzero(label == IDLE)))
-    _count(set_aside, "no_encoder", int(np.count_nonzero(label == IDLE - 1)))
+    for key, value in (("transition", TRANSITION), ("idle", IDLE), ("no_encoder", IDLE - 1)):
+        _count(set_aside, key, _tally(label, value))
     del label
     return points, seg_id, _segments_frame(seg_rows, n), n, list(log.joint_names), encoders
+
+
+def _members(label: NDArray[np.int32], k: int, lo: int, hi: int) -> tuple[int, int, int]:
+    """How many of ``label[lo:hi]`` are ``k``, the first and the last (-1 when none)."""
+    count, first, last = 0, -1, -1
+    for b in range(lo, hi, BLOCK):
+        found = np.flatnonzero(label[b : min(b + BLOCK, hi)] == k)
+        if found.size:
+            first = b + int(found[0]) if first < 0 else first
+            last = b + int(found[-1])
+            count += found.size
+    return count, first, last
+
+
+def _tally(label: NDArray[np.int32], value: int) -> int:
+    """How many labels are ``value`` (counted a block at a time)."""
+    return sum(
+        int(np.count_nonzero(label[b : b + BLOCK] == value)) for b in range(0, label.size, BLOCK)
+    )
 
 
 def _count(set_aside: dict[str, int], key: str, value: int) -> None:

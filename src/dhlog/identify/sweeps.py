@@ -14,8 +14,9 @@ from dhlog.geometry._checks import FloatArray
 from dhlog.geometry.axisfit import AxisFit
 from dhlog.geometry.fitting import detect_joint_type, fit_axis_robust, inlier_limit, within
 from dhlog.geometry.lines import Line
-from dhlog.identify.persample import PerSample, blocks, compact_rows
+from dhlog.identify.persample import PerSample, blocks, rows_where
 from dhlog.identify.segment import Segmentation
+from dhlog.io import scratch
 from dhlog.io.dhfile import DHModel
 from dhlog.io.reader import LogData
 from dhlog.model.dh import JointType
@@ -131,10 +132,15 @@ def fit_joint(
         .to_numpy()[0]
     )
     report.segments = chosen
-    in_sweep = np.isin(seg.segment, np.asarray(chosen, dtype=np.int32))
-    if "target" in seg.points.columns:  # the per-joint fits use the primary target's circles
-        in_sweep &= seg.points["target"].to_numpy() == 0
-    rows = report.rows = compact_rows(np.flatnonzero(in_sweep), seg.height)
+    ids = np.asarray(chosen, dtype=np.int32)
+    # the per-joint fits use the primary target's circles
+    target = seg.points["target"].to_numpy() if "target" in seg.points.columns else None
+    in_sweep = scratch.empty(seg.height, np.bool_)
+    for sl in blocks(seg.height):
+        in_sweep[sl] = np.isin(seg.segment[sl], ids)
+        if target is not None:
+            in_sweep[sl] &= target[sl] == 0
+    rows = report.rows = rows_where(in_sweep)
     del in_sweep
     # the start fits take an evenly strided subset; every sample is judged against them in
     # blocks (a sweep of millions of samples is never whole in memory)
@@ -156,7 +162,9 @@ def fit_joint(
         )
         if every > 1:
             limit = inlier_limit(fit, seg.xyz(fitted[inliers]))
-            inliers = np.concatenate([within(fit, seg.xyz(rows[sl]), limit) for sl in blocks(m)])
+            inliers = scratch.empty(m, np.bool_)
+            for sl in blocks(m):
+                inliers[sl] = within(fit, seg.xyz(rows[sl]), limit)
     except GeometryError as exc:
         report.reason = str(exc).removeprefix(f"{what}: ")
         return
@@ -258,14 +266,14 @@ def _common_point_of_circles(fits: list[AxisFit]) -> FloatArray:
 def samples_with_encoders(seg: Segmentation) -> tuple[NDArray[np.intp], PerSample, PerSample]:
     """Rows of the measurement table with every encoder value (sweeps, coupled moves, still
     poses), and their encoder values (m, n) and points (m, 3), read a block at a time."""
-    ok = np.empty(seg.height, dtype=bool)
+    ok = scratch.empty(seg.height, np.bool_)
     for sl in blocks(seg.height):
         ok[sl] = np.isfinite(seg.q(sl)).all(axis=1) & np.isfinite(seg.xyz(sl)).all(axis=1)
-    rows = compact_rows(np.flatnonzero(ok), seg.height)
+    rows = rows_where(ok)
     del ok
     n = seg.n_joints
-    Q = PerSample((rows.size, n), lambda index: seg.q(rows[index]))
-    P = PerSample((rows.size, 3), lambda index: seg.xyz(rows[index]))
+    Q = PerSample((rows.size, n), lambda index: scratch.in_spans(index, lambda i: seg.q(rows[i])))
+    P = PerSample((rows.size, 3), lambda index: scratch.in_spans(index, lambda i: seg.xyz(rows[i])))
     return rows, Q, P
 
 

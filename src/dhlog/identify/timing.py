@@ -34,8 +34,9 @@ from dhlog.errors import DhlogError
 from dhlog.geometry._checks import FloatArray
 from dhlog.geometry.circles import fit_circle_algebraic
 from dhlog.geometry.fitting import fit_line
-from dhlog.identify.persample import blocks
+from dhlog.identify.persample import blocks, rows_where
 from dhlog.identify.segment import BLOCK, Encoders, Segmentation
+from dhlog.io import scratch
 from dhlog.io.reader import LogData
 
 #: Fewest moving samples a sweep needs to estimate the lag from.
@@ -80,13 +81,25 @@ class JointRates:
     stream is kept beyond its midpoints and steps."""
 
     def __init__(self, encoders: Encoders) -> None:
-        t = encoders.log_t_ns.astype(np.float64)
-        dt = np.diff(t) * 1e-9
-        ok = dt > 0
-        self.mid = (t[1:] + t[:-1])[ok] / 2.0
-        self.dt = dt[ok]
+        t_ns = encoders.log_t_ns
+        pairs = max(t_ns.size - 1, 0)
+        ok = scratch.empty(pairs, np.bool_)
+        for sl in blocks(pairs):
+            ok[sl] = np.diff(t_ns[sl.start : sl.stop + 1].astype(np.float64)) > 0
         #: the first encoder sample of each difference (None: every pair)
-        self.first = None if bool(np.all(ok)) else np.flatnonzero(ok)
+        self.first = None if bool(all(np.all(ok[sl]) for sl in blocks(pairs))) else rows_where(ok)
+        del ok
+        count = pairs if self.first is None else self.first.size
+        self.mid, self.dt = scratch.empty(count), scratch.empty(count)
+        for sl in blocks(count):
+            if self.first is None:
+                t0 = t_ns[sl].astype(np.float64)
+                t1 = t_ns[sl.start + 1 : sl.stop + 1].astype(np.float64)
+            else:
+                k = self.first[sl]
+                t0, t1 = t_ns[k].astype(np.float64), t_ns[k + 1].astype(np.float64)
+            self.mid[sl] = (t1 + t0) / 2.0
+            self.dt[sl] = (t1 - t0) * 1e-9
         self.q = encoders.q
 
     def _speeds(self, i: int, j: NDArray[np.intp]) -> FloatArray:
@@ -136,7 +149,7 @@ def rejoin(seg: Segmentation, log: LogData, extra: float) -> Segmentation:
             lost = np.concatenate([lost, at[~moved.has_q(at)]])
     if not lost.size:  # moved off the joint stream's ends: out of their sweeps
         return moved
-    segment = segment.copy()
+    segment = scratch.moved(segment, copy=True)
     segment[lost] = 0
     aside = dict(seg.set_aside)
     aside["no_encoder"] = aside.get("no_encoder", 0) + int(lost.size)
@@ -168,9 +181,11 @@ def sweep_phases(seg: Segmentation, log: LogData) -> list[SweepPhase]:
     rates = JointRates(seg.encoders)
     out = []
     for sid, j1 in zip(seg.segments["segment"], seg.segments["joint"], strict=True):
-        rows = np.flatnonzero(seg.segment == sid)
-        finite = [np.isfinite(seg.q(rows[b])).all(axis=1) for b in blocks(rows.size, BLOCK)]
-        rows = rows[np.concatenate(finite)] if finite else rows
+        rows = seg.rows_in([sid])
+        finite = scratch.empty(rows.size, np.bool_)
+        for b in blocks(rows.size, BLOCK):
+            finite[b] = np.isfinite(seg.q(rows[b])).all(axis=1)
+        rows = scratch.gathered(rows, rows_where(finite))
         if rows.size < 4:
             continue
         if rows.size > START_POINTS:

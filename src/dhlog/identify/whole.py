@@ -22,8 +22,9 @@ from dhlog.errors import DegenerateGeometryError
 from dhlog.geometry._checks import FloatArray
 from dhlog.identify.axismodel import AxisModel, ParameterLayout
 from dhlog.identify.passes import Samples, accumulate, gradient
-from dhlog.identify.persample import SampleArray
+from dhlog.identify.persample import SampleArray, blocks
 from dhlog.identify.prediction import orientation_residual, predict_orientation
+from dhlog.io import scratch
 from dhlog.model.noise import NoiseModel
 
 #: Median of a 3-dof chi variable (|r|/σ of an isotropic 3-D residual).
@@ -154,7 +155,7 @@ def _levenberg_marquardt(
     """Levenberg–Marquardt from ``model`` over ``data`` with the truncation ``limit``."""
     m = data.Q.shape[0]
     bases = model.bases()
-    norms = np.zeros(m)
+    norms = scratch.zeros(m)
     st = _State(model, bases, *accumulate(model, layout, bases, data, limit, norms), norms)
     if data.per_sample * st.count <= layout.size:
         raise DegenerateGeometryError(
@@ -180,7 +181,7 @@ def _levenberg_marquardt(
             break
         trial = st.model.moved(delta, layout, st.bases)
         trial_bases = trial.bases()
-        tnorms = np.zeros(m)
+        tnorms = scratch.zeros(m)
         H, g, cost, count, chi2 = accumulate(trial, layout, trial_bases, data, limit, tnorms)
         if cost <= st.cost + 1e-12 * max(st.cost, 1.0):
             converged = st.cost - cost < 1e-12 * st.cost
@@ -227,7 +228,7 @@ def _finish_on_all(
     the full ``JᵀWJ`` is accumulated (and, for the latter, the fit goes on by
     Levenberg–Marquardt over every sample). Returns the state and the χ² at the optimum.
     """
-    norms = np.zeros(data.Q.shape[0])
+    norms = scratch.zeros(data.Q.shape[0])
     if data.R is None and layout.terms_at is None:
         g, cost, count, chi2 = gradient(sub.model, layout, sub.bases, data, limit, norms, progress)
         H = sub.H * (count / max(sub.count, 1))
@@ -296,7 +297,7 @@ def fit_whole_model(
     data = Samples(
         Q,
         P,
-        np.ones(m, dtype=bool) if keep is None else keep.copy(),
+        scratch.full(m, True, np.bool_) if keep is None else scratch.moved(keep, copy=True),
         None if sample_cov is None else whitening_from_std(sample_cov),
         whiten,
         which,
@@ -334,7 +335,9 @@ def fit_whole_model(
             f"the samples determine none of the whole model's {layout.size} parameters: "
             "measure more poses, moving every joint."
         )
-    inliers = data.keep & (st.norms <= limit)
+    inliers = scratch.empty(data.keep.size, np.bool_)
+    for sl in blocks(inliers.size):
+        inliers[sl] = data.keep[sl] & (st.norms[sl] <= limit)
     dof = max(data.per_sample * st.count - determined.basis.shape[1], 1)
     chi2_dof = chi2 / dof
     covariance = determined.inverse(st.H) * chi2_dof

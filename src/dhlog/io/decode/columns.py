@@ -14,7 +14,6 @@ columns are dropped and the reader reads its payloads again.
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -24,6 +23,7 @@ from dhlog.io.decode.blocks import BULK_ERRORS, Block, bulk_decode, bulk_layout
 from dhlog.io.mcapscan import ZSTD_MAGIC
 from dhlog.io.mcapwalk import ChannelInfo, RawMessages
 from dhlog.io.pipeline import Pipeline
+from dhlog.io.scratch import Growing
 
 #: What ``plan`` answers for a channel no stream reads: its messages are dropped unread.
 SKIP = "skip"
@@ -32,34 +32,13 @@ SKIP = "skip"
 Plan = Callable[[ChannelInfo], str | None]
 
 
-class _Column:
-    """A 1-D array grown at its end (reallocated in place: a large one is remapped by the
-    system, not copied, so growing it costs no second copy)."""
-
-    def __init__(self, dtype: type[np.generic]) -> None:
-        self._array: NDArray[Any] = np.empty(0, dtype=dtype)
-        self._size = 0
-
-    def extend(self, values: NDArray[Any]) -> None:
-        end = self._size + values.shape[0]
-        if end > self._array.shape[0]:
-            self._array.resize(max(end, self._array.shape[0] * 9 // 8, 4096), refcheck=False)
-        self._array[self._size : end] = values
-        self._size = end
-
-    def done(self) -> NDArray[Any]:
-        """The values (the column is not extended after)."""
-        self._array.resize(self._size, refcheck=False)
-        return self._array
-
-
 class _Group:
     """One block's columns: times and one column per value (point coordinates, or a joint-state
     layout's positions)."""
 
     def __init__(self, width: int, order: tuple[int, int, int] = (0, 0, 0)) -> None:
-        self.t = _Column(np.int64)
-        self.values = [_Column(np.float64) for _ in range(width)]
+        self.t = Growing(np.int64)
+        self.values = [Growing(np.float64) for _ in range(width)]
         #: where the block's first message is: (payload length, offer, index in the offer)
         self.order = order
 

@@ -13,6 +13,7 @@ import polars as pl
 from numpy.typing import NDArray
 
 from dhlog.errors import JointNamesError, PipelineError
+from dhlog.io import scratch
 from dhlog.io.decode.blocks import Block
 from dhlog.io.pipeline import Pipeline
 from dhlog.model.dh import JointType
@@ -94,39 +95,75 @@ def cartesian(values: NDArray[np.float64], pipeline: Pipeline) -> NDArray[np.flo
 def clean(frame: pl.DataFrame, stream: str, set_aside: dict[str, int]) -> pl.DataFrame:
     """``frame`` without its non-finite samples (a missing covariance kept), values no
     measurement has and stamps before 1970, each counted in ``set_aside`` by reason; sorted by
-    time."""
+    time. Judged a block at a time; a long table's kept rows go to scratch files
+    (:mod:`dhlog.io.scratch`)."""
     value_cols = [c for c in frame.columns if c != "t_ns"]
-    finite = (
-        pl.all_horizontal(
-            [
-                pl.col(c).is_finite().fill_null(c in COVARIANCE_COLUMNS)  # no covariance: kept
-                for c in value_cols
-            ]
-        )
-        if value_cols
-        else pl.lit(True)
-    )
-    mask = frame.select(finite).to_series()
-    kept = frame if mask.all(ignore_nulls=False) else frame.filter(mask)  # a clean log: no copy
-    dropped = frame.height - kept.height
-    if dropped:
-        set_aside[f"non_finite_{stream}"] = dropped
     # values no measurement has (beyond 100 km, or 10⁶ rad of encoder travel) and stamps
     # outside 1970-2262 are damage, not data: set aside before any arithmetic overflows
-    ranged = [c for c in value_cols if c in ("x", "y", "z") or c.startswith("q_")]
-    sane = (
-        pl.all_horizontal([pl.col(c).is_between(-MAX_VALUE, MAX_VALUE, "none") for c in ranged])
-        if ranged
-        else True
-    )
-    before = kept.height
-    mask = kept.select(sane & (pl.col("t_ns") >= 0)).to_series()
-    if not mask.all(ignore_nulls=False):
-        kept = kept.filter(mask)
-        set_aside[f"out_of_range_{stream}"] = before - kept.height
-    if kept["t_ns"].is_sorted():
-        return kept
-    return kept.sort("t_ns", maintain_order=True)
+    ranged = {c for c in value_cols if c in ("x", "y", "z") or c.startswith("q_")}
+    keep = scratch.empty(frame.height, np.bool_)
+    non_finite = out_of_range = 0
+    for start in range(0, frame.height, scratch.BLOCK):
+        part = frame.slice(start, scratch.BLOCK)
+        finite = np.ones(part.height, dtype=bool)
+        sane = np.asarray(part["t_ns"].to_numpy()) >= 0
+        for c in value_cols:
+            series = part[c]
+            values = np.asarray(series.to_numpy())
+            ok = np.isfinite(values) if values.dtype.kind == "f" else np.ones(values.size, bool)
+            if series.null_count():  # no covariance: kept
+                ok = np.where(np.asarray(series.is_null().to_numpy()), c in COVARIANCE_COLUMNS, ok)
+            finite &= ok
+            if c in ranged:
+                with np.errstate(invalid="ignore"):
+                    sane &= (values > -MAX_VALUE) & (values < MAX_VALUE)
+        keep[start : start + part.height] = finite & sane
+        non_finite += int(np.count_nonzero(~finite))
+        out_of_range += int(np.count_nonzero(finite & ~sane))
+    if non_finite:
+        set_aside[f"non_finite_{stream}"] = non_finite
+    if out_of_range:
+        set_aside[f"out_of_range_{stream}"] = out_of_range
+    t = np.asarray(frame["t_ns"].to_numpy())
+    if not (non_finite or out_of_range):
+        if _in_order(t):
+            return frame  # a clean log: no copy
+        rows = None
+    else:
+        rows = scratch.flatnonzero(keep)
+    del keep
+    if rows is None or not _in_order(t[rows]):
+        kept_t = t if rows is None else t[rows]
+        order = np.argsort(kept_t, kind="stable")
+        rows = order if rows is None else rows[order]
+    return taken(frame, rows)
+
+
+def _in_order(t: NDArray[np.int64]) -> bool:
+    """Whether the stamps ``t`` never decrease (checked a block at a time)."""
+    for start in range(0, t.size, scratch.BLOCK):
+        part = t[max(start - 1, 0) : start + scratch.BLOCK]
+        if np.any(part[1:] < part[:-1]):
+            return False
+    return True
+
+
+def taken(frame: pl.DataFrame, rows: NDArray[np.integer]) -> pl.DataFrame:
+    """The rows ``rows`` of ``frame``: each column without nulls gathered into an array (a
+    scratch file when long) a block at a time; a column with nulls by polars."""
+    index = pl.Series(rows)
+    columns: list[pl.Series] = []
+    for c in frame.columns:
+        series = frame[c]
+        if series.null_count() or not series.dtype.is_numeric():
+            columns.append(series.gather(index))
+            continue
+        source = np.asarray(series.to_numpy())
+        out = scratch.empty(rows.size, source.dtype)
+        for start in range(0, rows.size, scratch.BLOCK):
+            out[start : start + scratch.BLOCK] = source[rows[start : start + scratch.BLOCK]]
+        columns.append(pl.Series(c, out, dtype=series.dtype))
+    return pl.DataFrame(columns)
 
 
 def joints_frame(
