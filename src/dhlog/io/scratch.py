@@ -33,8 +33,11 @@ from dhlog.errors import InputError
 
 #: Arrays larger than this (bytes) live in scratch files; smaller ones in memory.
 SPILL_BYTES = 8 << 20
-#: How often (s) the pager hands the mapped pages back.
+#: How often (s) the pager looks at the pages resident.
 PAGER_PERIOD = 0.002
+#: Bytes of file pages read or written since the last hand-back that make the pager hand them
+#: back.
+PAGER_BUDGET = 16 << 20
 #: Where the scratch files go, when set.
 SCRATCH_ENV = "DHLOG_SCRATCH"
 #: The spill limit (bytes) instead of ``SPILL_BYTES``, when set (0: every array spills).
@@ -92,16 +95,49 @@ class _Pager:
         del mappings
 
     def _run(self) -> None:
+        statm = _Statm()
+        floor = statm.shared()
         while True:
             time.sleep(PAGER_PERIOD)
-            self.release()
+            # a look at the resident file pages is one read; the hand-back (a system call per
+            # mapping) only once the pages read since the last exceed the budget
+            if statm.missing or statm.shared() - floor > PAGER_BUDGET:
+                self.release()
+                floor = statm.shared()
             with self._lock:
+                self._maps = [r for r in self._maps if r() is not None]
                 if not self._maps:
                     self._thread = None
+                    statm.close()
                     return
 
     def after_fork(self) -> None:
         self._maps, self._lock, self._thread = [], threading.Lock(), None
+
+
+class _Statm:
+    """The process's resident file-backed pages, from ``/proc/self/statm`` (0 where there is
+    none: the pager then hands the pages back every period)."""
+
+    def __init__(self) -> None:
+        try:
+            self._fd: int | None = os.open("/proc/self/statm", os.O_RDONLY)
+        except OSError:
+            self._fd = None
+
+    @property
+    def missing(self) -> bool:
+        return self._fd is None
+
+    def shared(self) -> int:
+        if self._fd is None:
+            return 0
+        return int(os.pread(self._fd, 128, 0).split()[2]) * mmap.PAGESIZE
+
+    def close(self) -> None:
+        if self._fd is not None:
+            os.close(self._fd)
+            self._fd = None
 
 
 _pager = _Pager()
