@@ -158,3 +158,39 @@ def test_a_log_processed_out_of_memory_gives_the_in_memory_result() -> None:
     with scratch.spill_above(0):
         spilled = document()
     assert spilled == in_memory
+
+
+def test_a_frame_of_several_blocks_in_mm_with_orientation_is_the_in_memory_one() -> None:
+    """Blocks joined, lengths scaled from mm, quaternions made unit and joint states of two
+    layouts with a clock offset: the same tables with every column spilled as in memory."""
+    from dataclasses import replace
+
+    from dhlog.io.decode.frames import joints_frame, points_frame
+    from dhlog.io.pipeline import pipeline_by_name
+
+    rng = np.random.default_rng(8)
+    blocks = [
+        (np.arange(k, dtype=np.int64) + 1000 * b, rng.normal(size=(k, 7)))
+        for b, k in enumerate((50, 70, 30))
+    ]
+    pipeline = pipeline_by_name("ros2_tracker")
+    segmentation = replace(pipeline.segmentation, clock_offset=0.002)
+    pipeline = replace(pipeline, segmentation=segmentation, joint_names=("a", "b"))
+    joints = [
+        (np.arange(40, dtype=np.int64), (["a", "b"], rng.normal(size=(40, 2)))),
+        (np.arange(40, 90, dtype=np.int64), (["b", "a"], rng.normal(size=(50, 2)))),
+    ]
+
+    def frames() -> tuple[pl.DataFrame, pl.DataFrame]:
+        points = points_frame(blocks, 1e-3, orientation=True)
+        table, _ = joints_frame("log", "/joint_states", joints, pipeline)
+        return points, table
+
+    in_memory = frames()
+    with scratch.spill_above(0):
+        spilled = frames()
+    assert spilled[0].equals(in_memory[0]) and spilled[1].equals(in_memory[1])
+    quat = in_memory[0].select(["rot_x", "rot_y", "rot_z", "rot_w"]).to_numpy()
+    np.testing.assert_allclose(np.linalg.norm(quat, axis=1), 1.0, atol=1e-15)
+    np.testing.assert_allclose(in_memory[0]["x"].to_numpy()[:50], blocks[0][1][:, 0] * 1e-3)
+    assert in_memory[1]["t_ns"][0] == 2_000_000

@@ -40,7 +40,12 @@ def _joined(parts: list[NDArray[Any]], dtype: type[np.generic]) -> NDArray[Any]:
     """``parts`` end to end (one part as it is: no copy)."""
     if len(parts) == 1:
         return np.asarray(parts[0], dtype=dtype)
-    return np.concatenate(parts).astype(dtype, copy=False) if parts else np.zeros(0, dtype=dtype)
+    out = scratch.empty(sum(p.shape[0] for p in parts), dtype)
+    at = 0
+    for part in parts:
+        out[at : at + part.shape[0]] = part
+        at += part.shape[0]
+    return out
 
 
 def points_frame(blocks: list[Block], scale: float, orientation: bool = False) -> pl.DataFrame:
@@ -62,17 +67,22 @@ def points_frame(blocks: list[Block], scale: float, orientation: bool = False) -
 
     def scaled(j: int) -> NDArray[np.float64]:
         values = column(j)  # (× 1 changes no value that clean keeps: no copy)
-        return values if scale == 1.0 else values * scale
+        return values if scale == 1.0 else scratch.mapped(values, lambda v: v * scale)
 
     cols: dict[str, Any] = {"t_ns": t, "x": scaled(0), "y": scaled(1), "z": scaled(2)}
     if with_cov:
         for k, name in enumerate(COVARIANCE_COLUMNS):
             cols[name] = pl.Series(name, column(first_cov + k) * scale**2, nan_to_null=True)
     if orientation:
-        quat = np.column_stack([column(3 + k) for k in range(4)]) if blocks else np.zeros((0, 4))
-        quat = quat / np.linalg.norm(quat, axis=1, keepdims=True)
+        parts = [column(3 + k) for k in range(4)]
+        unit = [scratch.empty(t.shape[0]) for _ in range(4)]
+        for start in range(0, t.shape[0], scratch.BLOCK):
+            sl = slice(start, start + scratch.BLOCK)
+            norm = np.sqrt(sum(p[sl] * p[sl] for p in parts))
+            for k in range(4):
+                unit[k][sl] = parts[k][sl] / norm
         for k, name in enumerate(ORIENTATION_COLUMNS):
-            cols[name] = quat[:, k]
+            cols[name] = unit[k]
     return pl.DataFrame(cols)
 
 
@@ -183,7 +193,7 @@ def joints_frame(
         q = [_column(blocks[0][1][1], j) for j in range(len(expected))]
         fresh = False
     else:
-        q = [np.full(t.size, np.nan) for _ in expected]
+        q = [scratch.full(t.size, np.nan, np.float64) for _ in expected]
         row = 0
         for times, (names, values) in blocks:
             for k, n in enumerate(names):
@@ -203,8 +213,8 @@ def joints_frame(
         if fresh:
             q[j] *= scale
         elif scale != 1.0:  # (× 1 changes no value that clean keeps: no copy)
-            q[j] = q[j] * scale
+            q[j] = scratch.mapped(q[j], lambda v, s=scale: v * s)
     offset_ns = round(pipeline.segmentation.clock_offset * 1e9)
-    data: dict[str, Any] = {"t_ns": t + offset_ns if offset_ns else t}
+    data: dict[str, Any] = {"t_ns": scratch.mapped(t, lambda v: v + offset_ns) if offset_ns else t}
     data.update({f"q_{j + 1}": q[j] for j in range(len(expected))})
     return pl.DataFrame(data), expected
