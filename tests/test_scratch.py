@@ -194,3 +194,30 @@ def test_a_frame_of_several_blocks_in_mm_with_orientation_is_the_in_memory_one()
     np.testing.assert_allclose(np.linalg.norm(quat, axis=1), 1.0, atol=1e-15)
     np.testing.assert_allclose(in_memory[0]["x"].to_numpy()[:50], blocks[0][1][:, 0] * 1e-3)
     assert in_memory[1]["t_ns"][0] == 2_000_000
+
+
+def test_a_spread_gather_goes_a_span_at_a_time(monkeypatch: pytest.MonkeyPatch) -> None:
+    """With scratch arrays live, rows spread over more than SPAN samples are gathered in
+    pieces of at most SPAN samples (ascending rows) or 1024 rows (any order), the pages handed
+    back after each; the result is the gather at once."""
+    monkeypatch.setattr(scratch, "SPAN", 100)
+    with scratch.spill_above(0):
+        source = scratch.empty(5000)
+    source[:] = np.arange(5000.0)
+    spans: list[int] = []
+    released: list[int] = []
+    monkeypatch.setattr(scratch, "release", lambda: released.append(1))
+
+    def gather(r: np.ndarray) -> np.ndarray:
+        spans.append(int(r.max() - r.min()) if r.size else 0)
+        return np.asarray(source[r])
+
+    rows = np.arange(0, 5000, 7)
+    np.testing.assert_array_equal(scratch.in_spans(rows, gather), source[rows])
+    assert len(spans) > 1 and max(spans) <= 100 and len(released) == len(spans)
+    shuffled = np.random.default_rng(9).permutation(5000)[:3000]
+    spans.clear()
+    np.testing.assert_array_equal(scratch.in_spans(shuffled, gather), source[shuffled])
+    assert len(spans) == 3  # 1024 rows a piece
+    spans.clear()
+    assert scratch.in_spans(np.arange(10, 90), gather).size == 80 and spans == [79]  # one piece

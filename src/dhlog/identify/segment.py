@@ -173,13 +173,19 @@ class Segmentation:
         encoders = self.encoders
         return scratch.in_spans(rows, lambda r: encoders.at(self.t_ns[r], cols))
 
-    def rows_in(self, ids: NDArray[np.int32] | list[int]) -> NDArray[np.intp]:
-        """The samples in the sweeps ``ids`` (found a block at a time)."""
+    def rows_in(
+        self, ids: NDArray[np.int32] | list[int], *, primary: bool = False
+    ) -> NDArray[np.intp]:
+        """The samples in the sweeps ``ids`` (with ``primary``, of the primary target only),
+        found a block at a time."""
         wanted = np.asarray(ids, dtype=np.int32)
+        target = self.points["target"].to_numpy() if "target" in self.points.columns else None
         mask = scratch.empty(self.height, np.bool_)
         for start in range(0, self.height, BLOCK):
-            part = self.segment[start : start + BLOCK]
-            mask[start : start + part.size] = np.isin(part, wanted)
+            sl = slice(start, min(start + BLOCK, self.height))
+            mask[sl] = np.isin(self.segment[sl], wanted)
+            if primary and target is not None:
+                mask[sl] &= target[sl] == 0
         return rows_where(mask)
 
     def column(self, name: str, rows: NDArray[np.integer] | slice) -> NDArray[np.generic]:
@@ -277,12 +283,10 @@ def _runs(state: NDArray[np.integer]) -> list[tuple[int, int, int]]:
     time."""
     if state.size == 0:
         return []
-    last = state.size - 1
-    edges = [
-        start + 1 + np.flatnonzero(state[start + 1 : stop + 1] != state[start:stop])
-        for start in range(0, last, BLOCK)
-        for stop in (min(start + BLOCK, last),)
-    ]
+    edges = []
+    for start in range(0, state.size - 1, BLOCK):
+        stop = min(start + BLOCK, state.size - 1)
+        edges.append(start + 1 + np.flatnonzero(state[start + 1 : stop + 1] != state[start:stop]))
     starts = np.concatenate([[0], *edges])
     ends = np.concatenate([starts[1:], [state.size]])
     return [(int(state[s]), int(s), int(e)) for s, e in zip(starts, ends, strict=True)]

@@ -132,16 +132,8 @@ def fit_joint(
         .to_numpy()[0]
     )
     report.segments = chosen
-    ids = np.asarray(chosen, dtype=np.int32)
     # the per-joint fits use the primary target's circles
-    target = seg.points["target"].to_numpy() if "target" in seg.points.columns else None
-    in_sweep = scratch.empty(seg.height, np.bool_)
-    for sl in blocks(seg.height):
-        in_sweep[sl] = np.isin(seg.segment[sl], ids)
-        if target is not None:
-            in_sweep[sl] &= target[sl] == 0
-    rows = report.rows = rows_where(in_sweep)
-    del in_sweep
+    rows = report.rows = seg.rows_in(chosen, primary=True)
     # the start fits take an evenly strided subset; every sample is judged against them in
     # blocks (a sweep of millions of samples is never whole in memory)
     m = rows.size

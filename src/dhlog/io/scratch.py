@@ -6,9 +6,10 @@ not by the log's length.
 An array here is a plain numpy array (a view of a shared file mapping), so polars wraps it
 without a copy and every pass reads it as before. The file is unlinked as soon as it is made: the
 system frees its disk when the last array on it is gone, whatever ends the process. A pager thread
-gives the mapped pages back (``madvise(MADV_DONTNEED)``) every :data:`PAGER_PERIOD` s; what was
-written stays in the file (the system's page cache writes it back, and drops it under memory
-pressure), and a page read again is brought back from the cache or the file.
+looks at the resident file pages every :data:`PAGER_PERIOD` s and gives the mapped pages back
+(``madvise(MADV_DONTNEED)``) once more than :data:`PAGER_BUDGET` were read; what was written
+stays in the file (the system's page cache writes it back, and drops it under memory pressure),
+and a page read again is brought back from the cache or the file.
 
 The files go to ``$DHLOG_SCRATCH``, else the system's temporary directory. On a tmpfs (``/tmp``
 in RAM) they save no memory: point ``DHLOG_SCRATCH`` at a disk.
@@ -22,7 +23,7 @@ import tempfile
 import threading
 import time
 import weakref
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from typing import Any
 
@@ -63,7 +64,7 @@ def directory() -> str:
 
 
 class _Pager:
-    """The thread that hands the pages of every live mapping back, every ``PAGER_PERIOD``."""
+    """The thread that hands the pages of every live mapping back, past ``PAGER_BUDGET``."""
 
     def __init__(self) -> None:
         self._maps: list[weakref.ref[mmap.mmap]] = []
@@ -219,11 +220,10 @@ def empty(shape: int | tuple[int, ...], dtype: Any = np.float64) -> NDArray[Any]
 
 def zeros(shape: int | tuple[int, ...], dtype: Any = np.float64) -> NDArray[Any]:
     """``np.zeros``: a scratch file reads as zeros until written."""
-    dt = np.dtype(dtype)
-    dims = (shape,) if isinstance(shape, int) else tuple(shape)
-    if not spills(int(np.prod(dims, dtype=np.int64)) * dt.itemsize):
-        return np.zeros(dims, dtype=dt)
-    return empty(dims, dt)
+    out = empty(shape, dtype)
+    if not _mapped_view(out):
+        out.fill(0)
+    return out
 
 
 def full(shape: int | tuple[int, ...], value: Any, dtype: Any) -> NDArray[Any]:
@@ -235,7 +235,9 @@ def full(shape: int | tuple[int, ...], value: Any, dtype: Any) -> NDArray[Any]:
     return out
 
 
-def mapped(array: NDArray[Any], f: Any, dtype: Any = None) -> NDArray[Any]:
+def mapped(
+    array: NDArray[Any], f: Callable[[NDArray[Any]], Any], dtype: Any = None
+) -> NDArray[Any]:
     """``f(array)`` for an elementwise ``f``, computed a block at a time (into a scratch file
     when large)."""
     out = empty(array.shape, array.dtype if dtype is None else dtype)
@@ -259,11 +261,7 @@ def moved(array: NDArray[Any], *, copy: bool = False) -> NDArray[Any]:
         return array.copy() if copy else array
     if not copy and _mapped_view(array):
         return array
-    out = empty(array.shape, array.dtype)
-    flat_in, flat_out = array.reshape(-1), out.reshape(-1)
-    for start in range(0, flat_in.size, BLOCK):
-        flat_out[start : start + BLOCK] = flat_in[start : start + BLOCK]
-    return out
+    return mapped(array, lambda part: part)
 
 
 def _mapped_view(array: NDArray[Any]) -> bool:
@@ -284,20 +282,17 @@ BLOCK = 1 << 20
 SPAN = 1 << 19
 
 
-def in_spans(rows: Any, f: Any) -> NDArray[Any]:
+def in_spans(rows: Any, f: Callable[[Any], NDArray[Any]]) -> NDArray[Any]:
     """``f(rows)`` for a gather at ``rows`` (a slice or an index array), a piece at a time
     where scratch arrays are live and the rows spread over more than :data:`SPAN` samples,
     the mapped pages handed back after each piece: a strided subset of a long log never maps
     its columns whole (each read page of a column would otherwise stay in the process until
     the pager runs)."""
-    whole: NDArray[Any]
     if isinstance(rows, slice) or rows.size < 2 or not _pager.live():
-        whole = f(rows)
-        return whole
+        return f(rows)
     first, last = int(rows[0]), int(rows[-1])
     if abs(last - first) <= SPAN:
-        whole = f(rows)
-        return whole
+        return f(rows)
     if last > first and bool(np.all(rows[1:] >= rows[:-1])):
         cuts = np.searchsorted(rows, np.arange(first + SPAN, last + 1, SPAN))
     else:
@@ -307,8 +302,7 @@ def in_spans(rows: Any, f: Any) -> NDArray[Any]:
         if piece.size:
             parts.append(f(piece))
             release()
-    whole = np.concatenate(parts) if parts else f(rows[:0])
-    return whole
+    return np.concatenate(parts) if parts else f(rows[:0])
 
 
 def flatnonzero(mask: NDArray[np.bool_], dtype: Any = np.intp) -> NDArray[Any]:

@@ -5,6 +5,7 @@ and out-of-range samples (counted by reason)."""
 
 from __future__ import annotations
 
+import functools
 import math
 from typing import Any
 
@@ -213,7 +214,7 @@ def joints_frame(
         if fresh:
             q[j] *= scale
         elif scale != 1.0:  # (× 1 changes no value that clean keeps: no copy)
-            q[j] = scratch.mapped(q[j], lambda v, s=scale: v * s)
+            q[j] = scratch.mapped(q[j], functools.partial(np.multiply, scale))
     offset_ns = round(pipeline.segmentation.clock_offset * 1e9)
     data: dict[str, Any] = {"t_ns": scratch.mapped(t, lambda v: v + offset_ns) if offset_ns else t}
     data.update({f"q_{j + 1}": q[j] for j in range(len(expected))})
