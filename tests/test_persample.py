@@ -14,6 +14,7 @@ import dhlog.identify.validate as validate
 from dhlog.identify.persample import PerSample, blocks
 from dhlog.identify.run import process_log
 from dhlog.identify.segment import Encoders
+from dhlog.io import scratch
 from dhlog.model.fk import fk_point
 from dhlog.present.recording import residual_parts
 from dhlog.result.document import result_document
@@ -48,6 +49,59 @@ def test_a_persample_is_never_made_whole_by_accident() -> None:
         rows[np.array([10])]
     with pytest.raises(IndexError):
         rows[np.ones(9, dtype=bool)]
+
+
+def test_a_filled_persample_computes_each_row_once_and_reads_as_before() -> None:
+    """Filled, the rows are computed once (a block at a time) and every later read — slices,
+    strides, index arrays, masks — gives what the source gives, from an array that cannot be
+    written to; spilled, that array is a scratch file's."""
+    values = np.arange(3000.0).reshape(1000, 3)
+    asked: list[int] = []
+
+    def fetch(index: slice | np.ndarray) -> np.ndarray:
+        out = values[index].copy()
+        asked.append(out.shape[0])
+        return out
+
+    source = PerSample(values.shape, fetch)
+    mask = values[:, 0] % 7 == 0
+    with scratch.spill_above(0):
+        rows = source.filled()
+        assert sum(asked) == 1000
+        for index in (slice(3, 911), slice(None, None, 40), np.array([4, -1, 0, 999]), mask):
+            np.testing.assert_array_equal(rows[index], values[index])
+        assert sum(asked) == 1000  # read from the array, not computed again
+        view = rows[10:20]
+        with pytest.raises(ValueError, match="read-only"):
+            view[0, 0] = -1.0
+        assert np.shares_memory(view, rows[0:1000])
+
+
+def test_the_encoder_values_of_the_samples_are_interpolated_once(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """``samples_with_encoders`` interpolates the encoder stream once, at every target sample;
+    the passes over the samples read those values afterwards (as the interpolation gives them)."""
+    from dhlog.identify.segment import segment_log
+    from dhlog.identify.sweeps import samples_with_encoders
+    from dhlog.io.reader import read_log
+
+    seg = segment_log(read_log(SAMPLES / "kr5_0.01mm.mcap"))
+    assert seg.encoders is not None
+    calls: list[int] = []
+    at = Encoders.at
+
+    def counted(self: Encoders, t: np.ndarray, cols: list[int] | None = None) -> np.ndarray:
+        calls.append(np.asarray(t).size)
+        return at(self, t, cols)
+
+    monkeypatch.setattr(Encoders, "at", counted)
+    rows, Q, _ = samples_with_encoders(seg)
+    assert sum(calls) == seg.height
+    for _ in range(3):
+        got = np.concatenate([Q[sl] for sl in blocks(Q.shape[0], 5000)])
+    assert sum(calls) == seg.height
+    np.testing.assert_array_equal(got, at(seg.encoders, seg.t_ns[rows]))
 
 
 def _join_asof_reference(t: np.ndarray, t_enc: np.ndarray, q: np.ndarray, tol: int) -> np.ndarray:

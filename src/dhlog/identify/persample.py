@@ -90,6 +90,15 @@ class PerSample:
         """``f`` applied to the rows as they are read (``shape``: the result's)."""
         return PerSample(shape, lambda index: f(self[index]))
 
+    def filled(self) -> PerSample:
+        """The same rows computed once, a block at a time, into an array (a scratch file when
+        large) and read from there, read-only, in place of computing them at every pass."""
+        kept = scratch.empty(self._shape)
+        for sl in blocks(self._shape[0]):
+            kept[sl] = self._fetch(sl)
+        kept.flags.writeable = False
+        return PerSample(self._shape, lambda index: scratch.in_spans(index, lambda r: kept[r]))
+
 
 def rows_where(mask: NDArray[np.bool_]) -> NDArray[np.intp]:
     """The row numbers where ``mask`` holds, as int32 where they fit (half the memory of a

@@ -695,7 +695,9 @@ def _validate_log(
 
 def _rates(speeds: JointRates, seg: Segmentation, rows: NDArray[np.intp]) -> PerSample:
     """The joints' speeds (m, n) at the samples ``rows``, read a block at a time."""
-    return PerSample((rows.size, seg.n_joints), lambda index: speeds.at(seg.t_ns[rows[index]]))
+    return PerSample(
+        (rows.size, seg.n_joints), lambda index: speeds.at(seg.t_ns[rows[index]])
+    ).filled()
 
 
 def table_values(result: ProcessResult, Q: FloatArray, *, deflected: bool = True) -> FloatArray:

@@ -257,14 +257,25 @@ def _common_point_of_circles(fits: list[AxisFit]) -> FloatArray:
 
 def samples_with_encoders(seg: Segmentation) -> tuple[NDArray[np.intp], PerSample, PerSample]:
     """Rows of the measurement table with every encoder value (sweeps, coupled moves, still
-    poses), and their encoder values (m, n) and points (m, 3), read a block at a time."""
+    poses), and their encoder values (m, n) and points (m, 3), read a block at a time. The
+    encoder values are interpolated once, into an array (a scratch file when large) every later
+    pass reads, rather than at each pass."""
+    n = seg.n_joints
+    q_all = scratch.empty((seg.height, n))
     ok = scratch.empty(seg.height, np.bool_)
     for sl in blocks(seg.height):
-        ok[sl] = np.isfinite(seg.q(sl)).all(axis=1) & np.isfinite(seg.xyz(sl)).all(axis=1)
+        q_all[sl] = seg.q(sl)
+        ok[sl] = np.isfinite(q_all[sl]).all(axis=1) & np.isfinite(seg.xyz(sl)).all(axis=1)
     rows = rows_where(ok)
     del ok
-    n = seg.n_joints
-    Q = PerSample((rows.size, n), lambda index: scratch.in_spans(index, lambda i: seg.q(rows[i])))
+    if rows.size == seg.height:
+        q_all.flags.writeable = False
+        Q = PerSample((rows.size, n), lambda index: scratch.in_spans(index, lambda i: q_all[i]))
+    else:
+        Q = PerSample(
+            (rows.size, n), lambda index: scratch.in_spans(index, lambda i: q_all[rows[i]])
+        ).filled()
+        del q_all
     P = PerSample((rows.size, 3), lambda index: scratch.in_spans(index, lambda i: seg.xyz(rows[i])))
     return rows, Q, P
 
