@@ -77,17 +77,22 @@ def test_a_filled_persample_computes_each_row_once_and_reads_as_before() -> None
         assert np.shares_memory(view, rows[0:1000])
 
 
+@pytest.mark.parametrize("kept", [True, False])
 def test_the_encoder_values_of_the_samples_are_interpolated_once(
-    monkeypatch: pytest.MonkeyPatch,
+    monkeypatch: pytest.MonkeyPatch, kept: bool
 ) -> None:
-    """``samples_with_encoders`` interpolates the encoder stream once, at every target sample;
-    the passes over the samples read those values afterwards (as the interpolation gives them)."""
+    """``samples_with_encoders`` interpolates the encoder stream once, at every target sample,
+    and the passes over the samples read those values afterwards; beyond ``FILL_BYTES`` (here
+    made small) each pass interpolates its blocks again. The values are the interpolation's."""
+    from dhlog.identify import persample
     from dhlog.identify.segment import segment_log
     from dhlog.identify.sweeps import samples_with_encoders
     from dhlog.io.reader import read_log
 
     seg = segment_log(read_log(SAMPLES / "kr5_0.01mm.mcap"))
     assert seg.encoders is not None
+    if not kept:
+        monkeypatch.setattr(persample, "FILL_BYTES", 8 * 6 * 100)
     calls: list[int] = []
     at = Encoders.at
 
@@ -100,7 +105,7 @@ def test_the_encoder_values_of_the_samples_are_interpolated_once(
     assert sum(calls) == seg.height
     for _ in range(3):
         got = np.concatenate([Q[sl] for sl in blocks(Q.shape[0], 5000)])
-    assert sum(calls) == seg.height
+    assert sum(calls) == seg.height + (0 if kept else 3 * rows.size)
     np.testing.assert_array_equal(got, at(seg.encoders, seg.t_ns[rows]))
 
 

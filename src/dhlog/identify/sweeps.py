@@ -14,7 +14,7 @@ from dhlog.geometry._checks import FloatArray
 from dhlog.geometry.axisfit import AxisFit
 from dhlog.geometry.fitting import detect_joint_type, fit_axis_robust, inlier_limit, within
 from dhlog.geometry.lines import Line
-from dhlog.identify.persample import PerSample, blocks, rows_where
+from dhlog.identify.persample import PerSample, blocks, fills, rows_where
 from dhlog.identify.segment import Segmentation
 from dhlog.io import scratch
 from dhlog.io.dhfile import DHModel
@@ -257,25 +257,29 @@ def _common_point_of_circles(fits: list[AxisFit]) -> FloatArray:
 
 def samples_with_encoders(seg: Segmentation) -> tuple[NDArray[np.intp], PerSample, PerSample]:
     """Rows of the measurement table with every encoder value (sweeps, coupled moves, still
-    poses), and their encoder values (m, n) and points (m, 3), read a block at a time. The
-    encoder values are interpolated once, into an array (a scratch file when large) every later
-    pass reads, rather than at each pass."""
+    poses), and their encoder values (m, n) and points (m, 3), read a block at a time. Up to
+    :data:`~dhlog.identify.persample.FILL_BYTES` the encoder values are interpolated once, into
+    an array (a scratch file when large) every later pass reads; beyond, at each pass."""
     n = seg.n_joints
-    q_all = scratch.empty((seg.height, n))
+    q_all = scratch.empty((seg.height, n)) if fills((seg.height, n)) else None
     ok = scratch.empty(seg.height, np.bool_)
     for sl in blocks(seg.height):
-        q_all[sl] = seg.q(sl)
-        ok[sl] = np.isfinite(q_all[sl]).all(axis=1) & np.isfinite(seg.xyz(sl)).all(axis=1)
+        q = seg.q(sl)
+        if q_all is not None:
+            q_all[sl] = q
+        ok[sl] = np.isfinite(q).all(axis=1) & np.isfinite(seg.xyz(sl)).all(axis=1)
     rows = rows_where(ok)
     del ok
-    if rows.size == seg.height:
-        q_all.flags.writeable = False
-        Q = PerSample((rows.size, n), lambda index: scratch.in_spans(index, lambda i: q_all[i]))
+    if q_all is not None and rows.size == seg.height:
+        kept = q_all
+        kept.flags.writeable = False
+        Q = PerSample((rows.size, n), lambda index: scratch.in_spans(index, lambda i: kept[i]))
     else:
+        source = seg.q if q_all is None else q_all.__getitem__
         Q = PerSample(
-            (rows.size, n), lambda index: scratch.in_spans(index, lambda i: q_all[rows[i]])
+            (rows.size, n), lambda index: scratch.in_spans(index, lambda i: source(rows[i]))
         ).filled()
-        del q_all
+    del q_all
     P = PerSample((rows.size, 3), lambda index: scratch.in_spans(index, lambda i: seg.xyz(rows[i])))
     return rows, Q, P
 
