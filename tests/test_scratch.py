@@ -13,7 +13,7 @@ import pytest
 from dhlog.errors import InputError
 from dhlog.identify.run import process_log
 from dhlog.io import scratch
-from dhlog.io.decode.frames import COVARIANCE_COLUMNS, clean
+from dhlog.io.decode.frames import COVARIANCE_COLUMNS, clean, merged
 from dhlog.result.document import result_document
 
 SAMPLES = Path(__file__).parents[1] / "sample_logs"
@@ -221,3 +221,38 @@ def test_a_spread_gather_goes_a_span_at_a_time(monkeypatch: pytest.MonkeyPatch) 
     assert len(spans) == 3  # 1024 rows a piece
     spans.clear()
     assert scratch.in_spans(np.arange(10, 90), gather).size == 80 and spans == [79]  # one piece
+
+
+@pytest.mark.parametrize("limit", [None, 0])
+def test_frames_merged_a_block_at_a_time_are_polars_concat_and_stable_sort(
+    limit: int | None, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Several targets' frames interleaved in time (equal stamps across frames, a frame with a
+    covariance column with nulls the others lack, an empty frame) merge as polars' diagonal
+    concatenation sorted stably by time, labelled by frame; a bag's split files, one after the
+    other, end to end — in memory and with every column spilled."""
+    monkeypatch.setattr(scratch, "BLOCK", 64)
+    rng = np.random.default_rng(8)
+
+    def frame(m: int, cov: bool = False, start: int = 0) -> pl.DataFrame:
+        t = start + np.sort(rng.integers(0, 2000, m))  # ties within and across frames
+        out = pl.DataFrame({"t_ns": t, "x": rng.normal(size=m), "y": rng.normal(size=m)})
+        if cov:
+            cxx = np.where(rng.random(m) < 0.3, np.nan, 1e-10)
+            out = out.with_columns(pl.Series("cxx", cxx, nan_to_null=True))
+        return out
+
+    targets = [frame(700), frame(500, cov=True), frame(0), frame(300)]
+    splits = [frame(400, start=0), frame(400, start=2000), frame(400, start=4000)]
+    with scratch.spill_above(limit):
+        got = merged(targets, label="target")
+        ends = merged(splits)
+        alone = merged(targets[:1])
+    labelled = [
+        f.with_columns(pl.lit(k, dtype=pl.Int32).alias("target")) for k, f in enumerate(targets)
+    ]
+    want = pl.concat(labelled, how="diagonal").sort("t_ns", maintain_order=True)
+    assert got.equals(want)
+    assert got.columns == want.columns and got.dtypes == want.dtypes
+    assert ends.equals(pl.concat(splits, how="diagonal").sort("t_ns", maintain_order=True))
+    assert alone is targets[0]

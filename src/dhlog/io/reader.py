@@ -32,6 +32,7 @@ from dhlog.io.decode.frames import (
     cartesian,
     clean,
     joints_frame,
+    merged,
     points_frame,
 )
 from dhlog.io.decode.messages import json_decoder, phase_value
@@ -270,11 +271,7 @@ def read_log(
 
     points = points_of()
     if targets:  # one frame per target, labelled 0 (the primary one), 1, 2, …
-        frames = [points.with_columns(pl.lit(0, dtype=pl.Int32).alias("target"))]
-        for k, channels in enumerate(targets):
-            frame = points_of(channels)
-            frames.append(frame.with_columns(pl.lit(k + 1, dtype=pl.Int32).alias("target")))
-        points = pl.concat(frames, how="diagonal").sort("t_ns", maintain_order=True)
+        points = merged([points, *(points_of(channels) for channels in targets)], "target")
     release("base", "joints", "phase")
     base = None
     if "base" in infos:
@@ -365,7 +362,7 @@ def _read_bag(
 
     def joined(frames: list[pl.DataFrame | None]) -> pl.DataFrame | None:
         present = [f for f in frames if f is not None]
-        return pl.concat(present, how="diagonal").sort("t_ns") if present else None
+        return merged(present) if present else None
 
     set_aside: dict[str, int] = {}
     for log in parts:
