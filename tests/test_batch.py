@@ -154,3 +154,35 @@ def test_a_summary_of_different_robots_has_no_trend(tmp_path: Path) -> None:
     frame.write_csv(tmp_path / "s.csv")
     done = runner.invoke(app, ["compare", str(tmp_path / "s.csv")])
     assert done.exit_code == 2 and "different robots" in done.output
+
+
+def test_a_ctrl_c_another_thread_takes_while_workers_start_waits_for_the_block() -> None:
+    """While the pool starts its workers (SIGINT held in the main thread), a Ctrl-C the kernel
+    gives another thread is noted, not raised in the middle of a worker's start (which left the
+    worker an empty pipe and a traceback): it is raised as KeyboardInterrupt when the block
+    ends, and the handler before it is back."""
+    import signal
+    import threading
+
+    from dhlog.fleet.executors import sigint_held
+
+    outer = signal.signal(signal.SIGINT, signal.default_int_handler)  # as dhlog runs
+    before = signal.getsignal(signal.SIGINT)
+    go = threading.Event()
+
+    def ctrl_c() -> None:  # a thread begun before the block (as the progress bar's is)
+        go.wait(10.0)
+        signal.raise_signal(signal.SIGINT)  # taken by this thread, which does not hold it
+
+    other = threading.Thread(target=ctrl_c)
+    other.start()
+    steps = []
+    with pytest.raises(KeyboardInterrupt):
+        with sigint_held():
+            go.set()
+            other.join()
+            for k in range(50):  # Python steps in which a handler would have run
+                steps.append(k)
+    after = signal.signal(signal.SIGINT, outer)
+    assert steps == list(range(50))
+    assert after is before

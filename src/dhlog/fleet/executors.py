@@ -115,15 +115,32 @@ def sigint_held() -> Iterator[None]:
     """SIGINT held (blocked, not lost: delivered after the block) in this thread: processes
     and threads started in the block begin with it held, so the terminal's Ctrl-C, sent to
     every process of the foreground group, never reaches a worker (a worker importing its
-    modules would print a traceback)."""
+    modules would print a traceback).
+
+    The kernel may still give a Ctrl-C to another thread of this process (one that does not
+    block it), and Python then runs the handler in the main thread at its next step — which,
+    in the block, may be between a worker's start and the writing of its set-up to it (the
+    worker then reads an empty pipe and prints a traceback). So, in the main thread, a SIGINT
+    in the block is only noted, and acted on as the handler before it would when the block
+    ends."""
     if not hasattr(signal, "pthread_sigmask"):  # pragma: no cover - not POSIX
         yield
         return
+    noted: list[int] = []
+    main = threading.current_thread() is threading.main_thread()
+    handler = signal.signal(signal.SIGINT, lambda s, f: noted.append(s)) if main else None
     before = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
     try:
         yield
     finally:
+        if main:
+            signal.signal(signal.SIGINT, handler)
         signal.pthread_sigmask(signal.SIG_SETMASK, before)
+    if noted:
+        if callable(handler):
+            handler(signal.SIGINT, None)
+        elif handler != signal.SIG_IGN:
+            raise KeyboardInterrupt
 
 
 class _WorkerStopped(BaseException):
