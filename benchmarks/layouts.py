@@ -2,7 +2,8 @@
 files (``ros2 bag record --max-bag-size``) and a session measuring several targets at once.
 
     .venv/bin/python benchmarks/layouts.py [--samples 5000000] [--files 5] [--targets 3]
-                                           [--runs 3] [--vs-src OLD/src]
+                                           [--target-samples 2000000] [--runs 3]
+                                           [--vs-src OLD/src]
 
 For ``--samples`` target samples of the KR5 sweeps ``benchmarks/process.py`` times (1 kHz
 tracker, 250 Hz joint states, σ 10 µm), written once and cached in ``$TMPDIR/dhlog-bench`` by a
@@ -10,8 +11,9 @@ separate process:
 
 * ``split``: the session cut by time into ``--files`` MCAP files as rosbag2 writes them, in a bag
   folder whose ``metadata.yaml`` lists them (as ``ros2 bag record --max-bag-size`` leaves it);
-* ``targets``: one file in which ``--targets`` SMRs on the flange are measured at every tracker
-  sample (``/tracker/point``, ``/tracker/point_2``, …).
+* ``targets``: one file of ``--target-samples`` tracker samples in which ``--targets`` SMRs on
+  the flange are each measured (``/tracker/point``, ``/tracker/point_2``, …), read with a
+  pipeline naming the further targets' topics (``extra_topics``).
 
 Each is timed as a whole process (``dhlog process LOG --no-rrd``; ``farm-bench`` when on the
 PATH: median, min, max of wall time and peak RSS), paired run by run with ``--vs-src``: the
@@ -165,19 +167,46 @@ def _made(kind: str, samples: int, count: int) -> Path:
     return Path(out.stdout.strip().splitlines()[-1])
 
 
+#: The shipped ROS 2 pipeline with the further targets' topics.
+PIPELINE = """name = "ros2_targets"
+encoding = "cdr"
+
+[streams.point]
+topic = "/tracker/point"
+extra_topics = [{extra}]
+
+[streams.joints]
+topic = "/joint_states"
+required = true
+
+[streams.base]
+topic = "/tracker/base_plane"
+"""
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--samples", type=int, default=5_000_000)
     parser.add_argument("--files", type=int, default=5)
     parser.add_argument("--targets", type=int, default=3)
+    parser.add_argument("--target-samples", type=int, default=2_000_000)
     parser.add_argument("--runs", type=int, default=3)
     parser.add_argument("--vs-src", help="another source tree, run through PYTHONPATH")
     args = parser.parse_args()
     out_dir = Path(tempfile.mkdtemp(prefix="dhlog-layouts-"))
     farm = shutil.which("farm-bench")
-    for kind, count in (("split", args.files), ("targets", args.targets)):
-        path = _made(kind, args.samples, count)
-        dhlog = [DHLOG, "process", str(path), "--no-rrd", "--force", "--out", str(out_dir / "a")]
+    pipeline = out_dir / "targets.toml"
+    extra = ", ".join(f'"/tracker/point_{k}"' for k in range(2, args.targets + 1))
+    pipeline.write_text(PIPELINE.format(extra=extra))
+    for kind, count, samples in (
+        ("split", args.files, args.samples),
+        ("targets", args.targets, args.target_samples),
+    ):
+        path = _made(kind, samples, count)
+        dhlog = [DHLOG, "process", str(path), "--no-rrd", "--force"]
+        if kind == "targets":
+            dhlog += ["--pipeline", str(pipeline)]
+        dhlog += ["--out", str(out_dir / "a")]
         print(f"## {kind}: {path.name}\n", flush=True)
         if farm:
             cmd = [farm, "-n", str(args.runs), "--timeout", "3600"]

@@ -627,6 +627,13 @@ def test_a_split_rosbag2_bag_is_read_as_one_log(tmp_path: Path) -> None:
     np.testing.assert_array_equal(log.points.select(["x", "y", "z"]).to_numpy(), xyz)
     assert log.joints is not None
     np.testing.assert_array_equal(log.joints.drop("t_ns").to_numpy(), q)
+    # a long bag: each file's tables wait for the join in scratch files, the log the same
+    from dhlog.io import scratch
+
+    with scratch.spill_above(0):
+        spilled = read_log(split)
+    assert spilled.points.equals(log.points) and spilled.joints is not None
+    assert spilled.joints.equals(log.joints)
 
 
 def _write_points_and_joints(

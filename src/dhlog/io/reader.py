@@ -24,6 +24,7 @@ import numpy as np
 import polars as pl
 
 from dhlog.errors import InputError, MissingTopicError, PipelineError
+from dhlog.io import scratch
 from dhlog.io.decode.blocks import Block, bulk_layout, decode_stream
 from dhlog.io.decode.columns import ColumnSink, layout_plan
 from dhlog.io.decode.frames import (
@@ -34,6 +35,7 @@ from dhlog.io.decode.frames import (
     joints_frame,
     merged,
     points_frame,
+    spilled,
 )
 from dhlog.io.decode.messages import json_decoder, phase_value
 from dhlog.io.mcapscan import ZSTD_MAGIC, McapScan, scan_mcap
@@ -341,6 +343,9 @@ def _read_bag(
         with Reader(folder) as bag:
             paths = [Path(s.path) for s in bag.storage.storages]  # type: ignore[attr-defined]
             per_message = bag.compression_mode == "message"
+            # a long bag's files, each perhaps under the spill limit, wait for the join in
+            # scratch files rather than all in memory
+            spill = len(paths) > 1 and scratch.spills(sum(_size(p) for p in paths))
             parts = []
             for k, part in enumerate(paths):
 
@@ -350,6 +355,13 @@ def _read_bag(
 
                 log = read_log(part, pipeline, fast=fast, progress=step, unzstd=per_message)
                 pipeline = log.pipeline
+                if spill:
+                    log = replace(
+                        log,
+                        points=spilled(log.points),
+                        joints=None if log.joints is None else spilled(log.joints),
+                        base=None if log.base is None else spilled(log.base),
+                    )
                 parts.append(log)
     except (ReaderError, FileNotFoundError, KeyError, ValueError) as exc:
         raise InputError(
@@ -385,6 +397,14 @@ def _read_bag(
         else f"{first.pipeline_reason}; a rosbag2 bag of {len(parts)} file(s)"
         + (", messages zstd-compressed" if per_message else ""),
     )
+
+
+def _size(path: Path) -> int:
+    """The bytes of the file at ``path`` (0 when it cannot be read: the read says why)."""
+    try:
+        return path.stat().st_size
+    except OSError:
+        return 0
 
 
 def _decoded_columns(

@@ -207,10 +207,15 @@ def empty(shape: int | tuple[int, ...], dtype: Any = np.float64) -> NDArray[Any]
     """``np.empty(shape, dtype)``: in a scratch file when larger than the spill limit."""
     dt = np.dtype(dtype)
     dims = (shape,) if isinstance(shape, int) else tuple(shape)
+    if not spills(int(np.prod(dims, dtype=np.int64)) * dt.itemsize):
+        return np.empty(dims, dtype=dt)
+    return _forced(dims, dt)
+
+
+def _forced(dims: tuple[int, ...], dt: np.dtype[Any]) -> NDArray[Any]:
+    """An array of ``dims`` in a scratch file, whatever its size."""
     count = int(np.prod(dims, dtype=np.int64))
     nbytes = count * dt.itemsize
-    if not spills(nbytes):
-        return np.empty(dims, dtype=dt)
     fd = _file(nbytes)
     try:
         return _mapped(fd, nbytes, dt, count).reshape(dims)
@@ -254,9 +259,15 @@ def gathered(source: NDArray[Any], index: NDArray[np.integer]) -> NDArray[Any]:
     return out
 
 
-def moved(array: NDArray[Any], *, copy: bool = False) -> NDArray[Any]:
-    """``array`` in a scratch file when larger than the spill limit (copied a block at a time,
-    unless already in one and no ``copy`` is asked), else ``array`` (or its copy)."""
+def moved(array: NDArray[Any], *, copy: bool = False, always: bool = False) -> NDArray[Any]:
+    """``array`` in a scratch file when larger than the spill limit, or whatever its size with
+    ``always`` (copied a block at a time, unless already in one and no ``copy`` is asked), else
+    ``array`` (or its copy)."""
+    if always and array.nbytes and (copy or not _mapped_view(array)):
+        out = _forced(array.shape, array.dtype)
+        for start in range(0, array.shape[0], BLOCK):
+            out[start : start + BLOCK] = array[start : start + BLOCK]
+        return out
     if not spills(array.nbytes):
         return array.copy() if copy else array
     if not copy and _mapped_view(array):

@@ -179,6 +179,19 @@ def taken(frame: pl.DataFrame, rows: NDArray[np.integer]) -> pl.DataFrame:
     return pl.DataFrame(columns)
 
 
+def spilled(frame: pl.DataFrame) -> pl.DataFrame:
+    """``frame`` with its numeric columns without nulls in scratch files whatever their size (a
+    bag's split files, each under the spill limit, would otherwise all stay in memory until they
+    are joined); the others as they are."""
+    columns = []
+    for series in frame.get_columns():
+        if series.dtype.is_numeric() and not series.null_count() and series.len():
+            values = scratch.moved(np.asarray(series.to_numpy()), always=True)
+            series = pl.Series(series.name, values, dtype=series.dtype)
+        columns.append(series)
+    return pl.DataFrame(columns)
+
+
 def _rows_of(parts: list[NDArray[Any]], f: int, rows: slice) -> NDArray[Any]:
     return parts[f][rows]
 
