@@ -224,3 +224,45 @@ def test_joint_speeds_are_np_interp_of_the_differences() -> None:
         )
         np.testing.assert_array_equal(rates.at(x), want)
         np.testing.assert_array_equal(rates.at(x, [2])[:, 0], want[:, 2])
+
+
+def test_the_start_reads_only_the_further_targets_samples_it_moves_back(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """The whole model's start moves at most ``START_TARGET_POINTS`` samples of each further
+    target back to the reference pose: it reads those rows only (it gathered every sample of
+    the target before), and gives the mean of the evenly strided ones as before."""
+    from dhlog.geometry.lines import Line
+    from dhlog.identify import samples
+    from dhlog.model.dh import JointType
+    from dhlog.model.screws import points_at_reference
+
+    monkeypatch.setattr(samples, "START_TARGET_POINTS", 50)
+    rng = np.random.default_rng(9)
+    m = 3000
+    Q = rng.uniform(-1.0, 1.0, (m, 2))
+    P = rng.normal(size=(m, 3))
+    which = rng.integers(0, 3, m).astype(np.int64)
+    axes = [
+        Line(np.zeros(3), np.array([0.0, 0.0, 1.0])),
+        Line(np.ones(3), np.array([1.0, 0.0, 0.0])),
+    ]
+    types = (JointType.REVOLUTE, JointType.REVOLUTE)
+    ref = np.zeros(2)
+    read: list[int] = []
+
+    def counted(values: np.ndarray) -> PerSample:
+        def fetch(index: slice | np.ndarray) -> np.ndarray:
+            out = values[index]
+            read.append(out.shape[0])
+            return out
+
+        return PerSample(values.shape, fetch)
+
+    model = samples.start_model(axes, types, np.zeros(3), ref, counted(Q), counted(P), which, None)
+    assert sum(read) < 2 * 2 * 100  # Q and P, two further targets, under 2 x 50 each (of ~1000)
+    for k in (1, 2):
+        Qk, Pk = Q[which == k], P[which == k]
+        stride = max(1, Qk.shape[0] // 50)
+        want = points_at_reference(axes, types, Qk[::stride], Pk[::stride], ref).mean(axis=0)
+        np.testing.assert_array_equal(model.extra_targets[k - 1], want)

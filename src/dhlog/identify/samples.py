@@ -12,6 +12,7 @@ from dhlog.errors import DegenerateGeometryError
 from dhlog.geometry._checks import FloatArray, nearest_rotation
 from dhlog.geometry.lines import Line
 from dhlog.identify.axismodel import AxisModel
+from dhlog.identify.persample import SampleArray, rows_where
 from dhlog.identify.segment import Segmentation
 from dhlog.model.dh import JointType
 from dhlog.model.screws import motions_back, points_at_reference
@@ -34,7 +35,7 @@ def measured_rotations(seg: Segmentation, rows: NDArray[np.int64]) -> FloatArray
 
 
 def rotation_at_reference(
-    axes: list[Line], types: tuple[JointType, ...], Q: FloatArray, R: FloatArray, ref: FloatArray
+    axes: list[Line], types: tuple[JointType, ...], Q: SampleArray, R: FloatArray, ref: FloatArray
 ) -> FloatArray:
     """The target frame's orientation at the reference pose: every measured orientation moved
     back through the axes (at most 20 000, evenly strided), their chordal mean."""
@@ -44,14 +45,20 @@ def rotation_at_reference(
 
 
 def mean_at_reference(
-    axes: list[Line], types: tuple[JointType, ...], Q: FloatArray, P: FloatArray, ref: FloatArray
+    axes: list[Line],
+    types: tuple[JointType, ...],
+    Q: SampleArray,
+    P: SampleArray,
+    rows: NDArray[np.integer],
+    ref: FloatArray,
 ) -> FloatArray:
-    """A target's position at the reference pose: its samples (at most 20 000, evenly strided)
-    moved back through the axes and averaged."""
-    if Q.shape[0] == 0:
+    """A target's position at the reference pose: its samples ``rows`` of ``Q``, ``P`` (at most
+    20 000 of them, evenly strided, the only ones read) moved back through the axes and
+    averaged."""
+    if rows.size == 0:
         raise DegenerateGeometryError("a further target has no sample with encoder values.")
-    stride = max(1, Q.shape[0] // START_TARGET_POINTS)
-    back = points_at_reference(axes, types, Q[::stride], P[::stride], ref)
+    pick = rows[:: max(1, rows.size // START_TARGET_POINTS)]
+    back = points_at_reference(axes, types, Q[pick], P[pick], ref)
     return np.asarray(back.mean(axis=0), dtype=np.float64)
 
 
@@ -79,8 +86,8 @@ def start_model(
     types: tuple[JointType, ...],
     target: FloatArray,
     ref: FloatArray,
-    Q: FloatArray,
-    P: FloatArray,
+    Q: SampleArray,
+    P: SampleArray,
     which: NDArray[np.int64] | None,
     rotations: FloatArray | None,
 ) -> AxisModel:
@@ -91,7 +98,7 @@ def start_model(
     if which is not None:  # further targets: their samples moved back to the reference pose
         extra = np.array(
             [
-                mean_at_reference(axes, types, Q[which == k], P[which == k], ref)
+                mean_at_reference(axes, types, Q, P, rows_where(which == k), ref)
                 for k in range(1, int(which.max()) + 1)
             ]
         ).reshape(-1, 3)

@@ -288,4 +288,8 @@ def target_labels(seg: Segmentation, rows: NDArray[np.intp]) -> NDArray[np.int64
     """Which target each of ``rows`` measured (0 the primary one), or None with one target."""
     if "target" not in seg.points.columns:
         return None
-    return np.asarray(seg.column("target", rows), dtype=np.int64)
+    column = seg.points["target"].to_numpy()
+    out = scratch.empty(rows.size, np.int64)  # a scratch file when long
+    for sl in blocks(rows.size):
+        out[sl] = column[rows[sl]]
+    return out
