@@ -355,6 +355,10 @@ def test_several_targets_are_fitted_jointly(tmp_path) -> None:  # type: ignore[n
     pipeline = parse_pipeline(text, "two_smr.toml")
     both = process_log(path, pipeline=pipeline)
     one = process_log(path)
+    # read without the further target, the log says which topic was left and how to read it
+    left = [w for w in one.warnings if "extra_topics" in w]
+    assert len(left) == 1 and "/tracker/point_2 carries the target's message type" in left[0]
+    assert not any("extra_topics" in w for w in both.warnings)
     # mcap's own decoders read the further target into the same table
     general = process_log(path, pipeline=pipeline, fast=False).segmentation.table
     assert general.select("t_ns", "x", "target").equals(

@@ -227,6 +227,14 @@ def read_log(
         if not found:
             raise MissingTopicError(name, f"point (target {k + 2})", topic, present)
         targets.append(found)
+    unread = _unread_targets(scan.channels, infos, targets)
+    if unread:
+        warnings.append(
+            f"{name}: {', '.join(unread)} {'carries' if len(unread) == 1 else 'carry'} the "
+            f"target's message type but {'is' if len(unread) == 1 else 'are'} not read: "
+            "further targets on the end-effector are fitted when the pipeline names their "
+            "topics in extra_topics (README, Writing a pipeline file)."
+        )
     decoded: dict[int, list[Block]] = {}
     if sink is not None:
         decoded = _decoded_columns(sink, scan, infos, targets, pipeline, topics)
@@ -397,6 +405,18 @@ def _read_bag(
         else f"{first.pipeline_reason}; a rosbag2 bag of {len(parts)} file(s)"
         + (", messages zstd-compressed" if per_message else ""),
     )
+
+
+def _unread_targets(
+    channels: dict[int, ChannelInfo],
+    infos: dict[str, list[ChannelInfo]],
+    targets: list[list[ChannelInfo]],
+) -> list[str]:
+    """Topics of the log of the point stream's message type that no stream reads (a further
+    SMR the pipeline does not name, most often)."""
+    kinds = {c.schema_name for c in infos.get("point", []) if c.schema_name}
+    read = {c.topic for cs in (*infos.values(), *targets) for c in cs}
+    return sorted({c.topic for c in channels.values() if c.schema_name in kinds} - read)
 
 
 def _size(path: Path) -> int:
