@@ -186,3 +186,31 @@ def test_a_ctrl_c_another_thread_takes_while_workers_start_waits_for_the_block()
     after = signal.signal(signal.SIGINT, outer)
     assert steps == list(range(50))
     assert after is before
+
+
+def test_a_ctrl_c_noted_while_workers_start_is_not_lost_to_a_failure() -> None:
+    """A Ctrl-C noted in the block is raised even when the block fails (chained to the failure),
+    the mask and the handler restored."""
+    import signal
+    import threading
+
+    from dhlog.fleet.executors import sigint_held
+
+    outer = signal.signal(signal.SIGINT, signal.default_int_handler)
+    go = threading.Event()
+
+    def ctrl_c() -> None:  # begun before the block: it does not hold SIGINT
+        go.wait(10.0)
+        signal.raise_signal(signal.SIGINT)
+
+    taken = threading.Thread(target=ctrl_c)
+    taken.start()
+    with pytest.raises(KeyboardInterrupt) as caught:
+        with sigint_held():
+            go.set()
+            taken.join()
+            raise ValueError("a worker could not start")
+    after = signal.signal(signal.SIGINT, outer)
+    assert isinstance(caught.value.__cause__, ValueError)
+    assert after is signal.default_int_handler
+    assert signal.SIGINT not in signal.pthread_sigmask(signal.SIG_BLOCK, [])

@@ -766,3 +766,31 @@ def test_loose_messages_join_their_channels_chunked_ones(tmp_path: Path) -> None
     again = scan_mcap(mixed)
     assert len(again.messages[cid]) == before + 1
     assert again.messages[cid].log_time[-1] == 10**18
+
+
+def test_only_unread_topics_beside_the_target_of_its_type_are_named() -> None:
+    """The hint of a further target names topics of the point stream's message type in its
+    namespace that no stream reads — not a transform stream's other topics (``/tf_static``),
+    not a point type elsewhere (RViz's ``/clicked_point``), not the base plane read."""
+    from dhlog.io.mcapwalk import ChannelInfo
+    from dhlog.io.reader import _unread_targets
+
+    def channel(k: int, topic: str, kind: str) -> ChannelInfo:
+        return ChannelInfo(k, topic, "cdr", kind, "ros2msg", b"")
+
+    point = "geometry_msgs/msg/PointStamped"
+    found = [
+        channel(1, "/tracker/point", point),
+        channel(2, "/tracker/point_2", point),
+        channel(3, "/tracker/base_plane", point),
+        channel(4, "/clicked_point", point),
+        channel(5, "/tracker/smr_b", point),
+        channel(6, "/joint_states", "sensor_msgs/msg/JointState"),
+    ]
+    channels = {c.id: c for c in found}
+    infos = {"point": [found[0]], "base": [found[2]], "joints": [found[5]]}
+    assert _unread_targets(channels, infos, []) == ["/tracker/point_2", "/tracker/smr_b"]
+    assert _unread_targets(channels, infos, [[found[1]], [found[4]]]) == []
+    tf = "tf2_msgs/msg/TFMessage"
+    transforms = [channel(1, "/tf", tf), channel(2, "/tf_static", tf)]
+    assert _unread_targets({c.id: c for c in transforms}, {"point": transforms[:1]}, []) == []

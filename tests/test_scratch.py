@@ -256,3 +256,8 @@ def test_frames_merged_a_block_at_a_time_are_polars_concat_and_stable_sort(
     assert got.columns == want.columns and got.dtypes == want.dtypes
     assert ends.equals(pl.concat(splits, how="diagonal").sort("t_ns", maintain_order=True))
     assert alone is targets[0]
+    # a frame that already has the label's column: the label is the frame's, as with_columns
+    labelled_first = targets[0].with_columns(pl.lit(9, dtype=pl.Int32).alias("target"))
+    with scratch.spill_above(limit):
+        relabelled = merged([labelled_first, *targets[1:]], label="target")
+    assert relabelled.equals(got)

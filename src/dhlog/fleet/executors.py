@@ -129,13 +129,23 @@ def sigint_held() -> Iterator[None]:
     noted: list[int] = []
     main = threading.current_thread() is threading.main_thread()
     handler = signal.signal(signal.SIGINT, lambda s, f: noted.append(s)) if main else None
+
+    def restore() -> None:
+        # the mask first (a SIGINT held meanwhile is then only noted), then the handler (one
+        # set outside Python reads as None: the default then)
+        signal.pthread_sigmask(signal.SIG_SETMASK, before)
+        if main:
+            signal.signal(signal.SIGINT, signal.SIG_DFL if handler is None else handler)
+
     before = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
     try:
         yield
-    finally:
-        if main:
-            signal.signal(signal.SIGINT, handler)
-        signal.pthread_sigmask(signal.SIG_SETMASK, before)
+    except BaseException as exc:
+        restore()
+        if noted and not isinstance(exc, KeyboardInterrupt):
+            raise KeyboardInterrupt from exc  # the Ctrl-C is not lost to the failure
+        raise
+    restore()
     if noted:
         if callable(handler):
             handler(signal.SIGINT, None)

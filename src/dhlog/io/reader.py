@@ -37,7 +37,12 @@ from dhlog.io.decode.frames import (
     points_frame,
     spilled,
 )
-from dhlog.io.decode.messages import json_decoder, phase_value
+from dhlog.io.decode.messages import (
+    TRANSFORM_LISTS,
+    TRANSFORM_SCHEMAS,
+    json_decoder,
+    phase_value,
+)
 from dhlog.io.mcapscan import ZSTD_MAGIC, McapScan, scan_mcap
 from dhlog.io.mcapwalk import ChannelInfo, RawMessages
 from dhlog.io.pipeline import Pipeline, shipped_pipelines
@@ -149,6 +154,7 @@ def read_log(
     fast: bool = True,
     progress: Callable[[float], None] | None = None,
     unzstd: bool = False,
+    hint_unread: bool = True,
 ) -> LogData:
     """Decode the streams of the log at ``path`` with ``pipeline`` (chosen from the log if None).
 
@@ -156,6 +162,9 @@ def read_log(
     ``.mcap.zstd``; ``unzstd``: the payloads are compressed one by one.
 
     ``progress`` is called with the fraction of the file read so far.
+
+    ``hint_unread``: warn of topics beside the point stream's, of its type, that no stream reads
+    (a further target the pipeline does not name).
 
     ``fast=False`` reads through the mcap library's per-message decoders (the reference path).
     Non-finite samples are set aside and counted; a truncated file keeps what precedes the damage.
@@ -227,7 +236,7 @@ def read_log(
         if not found:
             raise MissingTopicError(name, f"point (target {k + 2})", topic, present)
         targets.append(found)
-    unread = _unread_targets(scan.channels, infos, targets)
+    unread = _unread_targets(scan.channels, infos, targets) if hint_unread else []
     if unread:
         warnings.append(
             f"{name}: {', '.join(unread)} {'carries' if len(unread) == 1 else 'carry'} the "
@@ -361,7 +370,14 @@ def _read_bag(
                     if progress is not None:
                         progress((k + f) / len(paths))
 
-                log = read_log(part, pipeline, fast=fast, progress=step, unzstd=per_message)
+                log = read_log(
+                    part,
+                    pipeline,
+                    fast=fast,
+                    progress=step,
+                    unzstd=per_message,
+                    hint_unread=k == 0,  # said once for the bag
+                )
                 pipeline = log.pipeline
                 if spill:
                     log = replace(
@@ -412,11 +428,21 @@ def _unread_targets(
     infos: dict[str, list[ChannelInfo]],
     targets: list[list[ChannelInfo]],
 ) -> list[str]:
-    """Topics of the log of the point stream's message type that no stream reads (a further
-    SMR the pipeline does not name, most often)."""
-    kinds = {c.schema_name for c in infos.get("point", []) if c.schema_name}
+    """Topics of the log of the point stream's message type, beside its topic (the same
+    namespace), that no stream reads: a further SMR the pipeline does not name, most often.
+    Transforms are left out (a transform stream carries many frames: ``child_frame`` picks
+    one, and ``/tf_static`` is not a target)."""
+    points = infos.get("point", [])
+    kinds = {c.schema_name for c in points if c.schema_name}
+    kinds -= {*TRANSFORM_SCHEMAS, *TRANSFORM_LISTS}
+    spaces = {c.topic.rpartition("/")[0] for c in points}
     read = {c.topic for cs in (*infos.values(), *targets) for c in cs}
-    return sorted({c.topic for c in channels.values() if c.schema_name in kinds} - read)
+    beside = {
+        c.topic
+        for c in channels.values()
+        if c.schema_name in kinds and c.topic.rpartition("/")[0] in spaces
+    }
+    return sorted(beside - read)
 
 
 def _size(path: Path) -> int:

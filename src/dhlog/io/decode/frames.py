@@ -182,12 +182,16 @@ def taken(frame: pl.DataFrame, rows: NDArray[np.integer]) -> pl.DataFrame:
 def spilled(frame: pl.DataFrame) -> pl.DataFrame:
     """``frame`` with its numeric columns without nulls in scratch files whatever their size (a
     bag's split files, each under the spill limit, would otherwise all stay in memory until they
-    are joined); the others as they are."""
+    are joined); the others, and those beyond the limit (the reader put them in scratch files
+    already), as they are."""
     columns = []
     for series in frame.get_columns():
-        if series.dtype.is_numeric() and not series.null_count() and series.len():
-            values = scratch.moved(np.asarray(series.to_numpy()), always=True)
-            series = pl.Series(series.name, values, dtype=series.dtype)
+        plain = series.dtype.is_numeric() and series.dtype != pl.Decimal
+        if plain and not series.null_count() and series.len():
+            values = np.asarray(series.to_numpy())
+            if not scratch.spills(values.nbytes):
+                moved = scratch.moved(values, always=True)
+                series = pl.Series(series.name, moved, dtype=series.dtype)
         columns.append(series)
     return pl.DataFrame(columns)
 
@@ -241,7 +245,9 @@ def merged(frames: list[pl.DataFrame], label: str | None = None) -> pl.DataFrame
 
     names: list[str] = []  # in the order of a concatenation of the frames, each labelled
     for frame in frames:
-        names += [c for c in (*frame.columns, label) if c is not None and c not in names]
+        for c in (*frame.columns, label):
+            if c is not None and c not in names:
+                names.append(c)
     source: pl.Series | None = None  # each merged row's row among the frames end to end
     columns: list[pl.Series] = []
     for c in names:
@@ -256,6 +262,7 @@ def merged(frames: list[pl.DataFrame], label: str | None = None) -> pl.DataFrame
         if (
             len(series) == len(frames)
             and dtype.is_numeric()
+            and dtype != pl.Decimal
             and all(s.dtype == dtype and not s.null_count() for s in series)
         ):
             parts = [np.asarray(s.to_numpy()) for s in series]
