@@ -794,3 +794,52 @@ def test_only_unread_topics_beside_the_target_of_its_type_are_named() -> None:
     tf = "tf2_msgs/msg/TFMessage"
     transforms = [channel(1, "/tf", tf), channel(2, "/tf_static", tf)]
     assert _unread_targets({c.id: c for c in transforms}, {"point": transforms[:1]}, []) == []
+
+
+def test_a_zstd_compressed_log_is_decompressed_to_a_scratch_file(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A ``.mcap.zstd`` (rosbag2's file compression) reads as its plain file, decompressed a
+    block at a time into a scratch file, not into memory; one cut short keeps what precedes the
+    damage (as before); one that is not zstd past its magic, or decompressing to more than
+    MAX_RATIO times its size, is one line naming the file."""
+    import io
+
+    import zstandard
+
+    from dhlog.errors import InputError
+    from dhlog.io import mcapscan
+
+    plain = Path(__file__).parents[1] / "sample_logs" / "kr5_0.01mm.mcap"
+    packed = tmp_path / "kr5.mcap.zstd"
+    packed.write_bytes(zstandard.ZstdCompressor().compress(plain.read_bytes()))
+    import tracemalloc
+
+    tracemalloc.start()
+    log = mcapscan._Log(packed)
+    held = tracemalloc.get_traced_memory()[1]
+    tracemalloc.stop()
+    # a block at a time (it asked for a buffer of MAX_RATIO x the file: a MemoryError and a
+    # traceback for any file beyond a few tens of MB)
+    assert held < 4 * mcapscan.READ_AHEAD
+    try:
+        assert not isinstance(log.file, io.BytesIO) and log.file.fileno() >= 0
+        assert log.size == plain.stat().st_size
+        assert log.read(0, log.size) == plain.read_bytes()
+    finally:
+        log.close()
+    a, b = read_log(packed), read_log(plain)
+    assert a.points.equals(b.points) and a.joints is not None and b.joints is not None
+    assert a.joints.equals(b.joints)
+    cut = tmp_path / "cut.mcap.zstd"  # what precedes the cut is read, the damage said
+    cut.write_bytes(packed.read_bytes()[: packed.stat().st_size // 2])
+    part = read_log(cut)
+    assert 0 < part.points.height < b.points.height
+    assert any("cut short" in w for w in part.warnings)
+    bad = tmp_path / "bad.mcap.zstd"
+    bad.write_bytes(mcapscan.ZSTD_MAGIC + bytes(range(256)) * 64)
+    with pytest.raises(InputError, match=r"bad\.mcap\.zstd: a zstd file that cannot be"):
+        read_log(bad)
+    monkeypatch.setattr(mcapscan, "MAX_RATIO", 1)
+    with pytest.raises(InputError, match=r"decompresses to more than 1x its size"):
+        read_log(packed)

@@ -8,7 +8,6 @@ says how many messages were recovered.
 
 from __future__ import annotations
 
-import io
 import os
 import re
 import struct
@@ -108,24 +107,39 @@ IN_FLIGHT = 4
 READ_AHEAD = 1 << 20
 
 
-def _unzstd_file(blob: bytes, name: str) -> bytes:
-    """A whole zstd-compressed log, decompressed (at most MAX_RATIO times its size)."""
+def _unzstd_file(source: BinaryIO, compressed: int, name: str) -> tuple[BinaryIO, int]:
+    """A zstd-compressed log, decompressed a block at a time into a scratch file (at most
+    MAX_RATIO times its ``compressed`` size): the file, at its start, and its size."""
     import zstandard
 
+    from dhlog.io import scratch
+
+    limit = MAX_RATIO * compressed
+    out = scratch.spool()
+    total = 0
     try:
-        reader = zstandard.ZstdDecompressor().stream_reader(blob)
-        out = reader.read(MAX_RATIO * len(blob) + 1)
+        with zstandard.ZstdDecompressor().stream_reader(source, closefd=False) as reader:
+            while block := reader.read(READ_AHEAD):
+                total += len(block)
+                if total > limit:
+                    raise InputError(
+                        f"{name}: decompresses to more than {MAX_RATIO}x its size; damaged?"
+                    )
+                out.write(block)
+        out.seek(0)
     except zstandard.ZstdError as exc:
+        out.close()
         raise InputError(f"{name}: a zstd file that cannot be decompressed ({exc}).") from None
-    if len(out) > MAX_RATIO * len(blob):
-        raise InputError(f"{name}: decompresses to more than {MAX_RATIO}x its size; damaged?")
-    return out
+    except BaseException:
+        out.close()
+        raise
+    return out, total
 
 
 class _Log:
     """The log's bytes, read a block at a time as the walk goes, so the whole file is never
-    held (a record's bytes are dropped once walked); a ``.mcap.zstd`` is decompressed whole
-    first. (Mapped
+    held (a record's bytes are dropped once walked); a ``.mcap.zstd`` is decompressed first,
+    a block at a time, into a scratch file read the same way. (Mapped
     instead, a log cut short or failing to read while it is walked — another process truncating
     it, a network file system's error — ended the process with SIGBUS and no word; read, it is
     an error naming the file, or the part read.)"""
@@ -140,9 +154,10 @@ class _Log:
             self.size = os.fstat(self.file.fileno()).st_size
             self.at = 0
             if self.read(0, 4) == ZSTD_MAGIC:  # a file-compressed log (rosbag2 file mode)
-                logged = _unzstd_file(ZSTD_MAGIC + self.read(4, self.size), self.name)
+                self.file.seek(0)
+                logged, size = _unzstd_file(self.file, self.size, self.name)
                 self.file.close()
-                self.file, self.size, self.at = io.BytesIO(logged), len(logged), 0
+                self.file, self.size, self.at = logged, size, 0
         except BaseException:
             self.file.close()
             raise

@@ -25,7 +25,7 @@ import time
 import weakref
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
-from typing import Any
+from typing import Any, BinaryIO
 
 import numpy as np
 from numpy.typing import NDArray
@@ -170,6 +170,14 @@ def _file(nbytes: int) -> int:
             f"{SCRATCH_ENV} to a directory with room."
         ) from None
     return fd
+
+
+def spool() -> BinaryIO:
+    """An empty unlinked scratch file, open to write a stream into and read it back (a
+    compressed log decompressed: on disk, not in memory)."""
+    fd = _file(0)
+    os.ftruncate(fd, 0)
+    return os.fdopen(fd, "w+b")
 
 
 def _mapped(fd: int, nbytes: int, dtype: np.dtype[Any], count: int) -> NDArray[Any]:
