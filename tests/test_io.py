@@ -628,10 +628,20 @@ def test_a_split_rosbag2_bag_is_read_as_one_log(tmp_path: Path) -> None:
     assert log.joints is not None
     np.testing.assert_array_equal(log.joints.drop("t_ns").to_numpy(), q)
     # a long bag: each file's tables wait for the join in scratch files, the log the same
+    import dhlog.io.reader as reader
     from dhlog.io import scratch
 
-    with scratch.spill_above(0):
+    moved: list[int] = []
+
+    def counted(frame: pl.DataFrame) -> pl.DataFrame:
+        moved.append(frame.height)
+        return spill(frame)
+
+    spill = reader.spilled
+    with scratch.spill_above(0), pytest.MonkeyPatch.context() as patch:
+        patch.setattr(reader, "spilled", counted)
         spilled = read_log(split)
+    assert sorted(moved) == sorted([25, 25, *(int(np.sum(t_q < cut)), int(np.sum(t_q >= cut)))])
     assert spilled.points.equals(log.points) and spilled.joints is not None
     assert spilled.joints.equals(log.joints)
 

@@ -103,11 +103,17 @@ class PerSample:
         beyond :data:`FILL_BYTES`."""
         if not fills(self._shape):
             return self
-        kept = scratch.empty(self._shape)
+        values = scratch.empty(self._shape)
         for sl in blocks(self._shape[0]):
-            kept[sl] = self._fetch(sl)
-        kept.flags.writeable = False
-        return PerSample(self._shape, lambda index: scratch.in_spans(index, lambda r: kept[r]))
+            values[sl] = self._fetch(sl)
+        return PerSample.kept(values)
+
+    @staticmethod
+    def kept(values: NDArray[Any]) -> PerSample:
+        """``values`` (m, …) read by rows, read-only (a gather spread over a long log a piece
+        at a time: :func:`~dhlog.io.scratch.in_spans`)."""
+        values.flags.writeable = False
+        return PerSample(values.shape, lambda index: scratch.in_spans(index, lambda r: values[r]))
 
 
 def fills(shape: tuple[int, ...]) -> bool:

@@ -61,10 +61,6 @@ class Encoders:
         shift = self.shift_ns
         return self.t_ns if shift == 0 else scratch.mapped(self.t_ns, lambda t: t - shift)
 
-    def values(self, rows: slice | NDArray[np.intp]) -> NDArray[np.float64]:
-        """The encoder samples ``rows`` (c, n)."""
-        return np.column_stack([column[rows] for column in self.q])
-
     def shifted(self, shift_ns: int) -> Encoders:
         """The stream with its stamps moved by ``shift_ns`` from the log's."""
         step = shift_ns - self.shift_ns

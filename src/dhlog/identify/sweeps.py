@@ -271,16 +271,16 @@ def samples_with_encoders(seg: Segmentation) -> tuple[NDArray[np.intp], PerSampl
     rows = rows_where(ok)
     del ok
     if q_all is not None and rows.size == seg.height:
+        Q = PerSample.kept(q_all)
+    elif q_all is not None:
         kept = q_all
-        kept.flags.writeable = False
-        Q = PerSample((rows.size, n), lambda index: scratch.in_spans(index, lambda i: kept[i]))
-    else:
-        source = seg.q if q_all is None else q_all.__getitem__
         Q = PerSample(
-            (rows.size, n), lambda index: scratch.in_spans(index, lambda i: source(rows[i]))
+            (rows.size, n), lambda index: scratch.in_spans(index, lambda i: kept[rows[i]])
         ).filled()
+    else:  # Segmentation.q and .xyz gather a piece at a time themselves
+        Q = PerSample((rows.size, n), lambda index: seg.q(rows[index]))
     del q_all
-    P = PerSample((rows.size, 3), lambda index: scratch.in_spans(index, lambda i: seg.xyz(rows[i])))
+    P = PerSample((rows.size, 3), lambda index: seg.xyz(rows[index]))
     return rows, Q, P
 
 
@@ -288,8 +288,4 @@ def target_labels(seg: Segmentation, rows: NDArray[np.intp]) -> NDArray[np.int64
     """Which target each of ``rows`` measured (0 the primary one), or None with one target."""
     if "target" not in seg.points.columns:
         return None
-    column = seg.points["target"].to_numpy()
-    out = scratch.empty(rows.size, np.int64)  # a scratch file when long
-    for sl in blocks(rows.size):
-        out[sl] = column[rows[sl]]
-    return out
+    return scratch.gathered(seg.points["target"].to_numpy(), rows, np.int64)

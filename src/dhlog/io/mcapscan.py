@@ -127,11 +127,10 @@ def _unzstd_file(source: BinaryIO, compressed: int, name: str) -> tuple[BinaryIO
                     )
                 out.write(block)
         out.seek(0)
-    except zstandard.ZstdError as exc:
+    except BaseException as exc:
         out.close()
-        raise InputError(f"{name}: a zstd file that cannot be decompressed ({exc}).") from None
-    except BaseException:
-        out.close()
+        if isinstance(exc, zstandard.ZstdError):
+            raise InputError(f"{name}: a zstd file that cannot be decompressed ({exc}).") from None
         raise
     return out, total
 

@@ -211,19 +211,17 @@ def spills(nbytes: int) -> bool:
     return nbytes > spill_limit()
 
 
-def empty(shape: int | tuple[int, ...], dtype: Any = np.float64) -> NDArray[Any]:
-    """``np.empty(shape, dtype)``: in a scratch file when larger than the spill limit."""
+def empty(
+    shape: int | tuple[int, ...], dtype: Any = np.float64, *, always: bool = False
+) -> NDArray[Any]:
+    """``np.empty(shape, dtype)``: in a scratch file when larger than the spill limit, or
+    whatever its size with ``always``."""
     dt = np.dtype(dtype)
     dims = (shape,) if isinstance(shape, int) else tuple(shape)
-    if not spills(int(np.prod(dims, dtype=np.int64)) * dt.itemsize):
-        return np.empty(dims, dtype=dt)
-    return _forced(dims, dt)
-
-
-def _forced(dims: tuple[int, ...], dt: np.dtype[Any]) -> NDArray[Any]:
-    """An array of ``dims`` in a scratch file, whatever its size."""
     count = int(np.prod(dims, dtype=np.int64))
     nbytes = count * dt.itemsize
+    if not (always or spills(nbytes)):
+        return np.empty(dims, dtype=dt)
     fd = _file(nbytes)
     try:
         return _mapped(fd, nbytes, dt, count).reshape(dims)
@@ -249,19 +247,24 @@ def full(shape: int | tuple[int, ...], value: Any, dtype: Any) -> NDArray[Any]:
 
 
 def mapped(
-    array: NDArray[Any], f: Callable[[NDArray[Any]], Any], dtype: Any = None
+    array: NDArray[Any],
+    f: Callable[[NDArray[Any]], Any],
+    dtype: Any = None,
+    *,
+    always: bool = False,
 ) -> NDArray[Any]:
     """``f(array)`` for an elementwise ``f``, computed a block at a time (into a scratch file
-    when large)."""
-    out = empty(array.shape, array.dtype if dtype is None else dtype)
+    when large, or whatever its size with ``always``)."""
+    out = empty(array.shape, array.dtype if dtype is None else dtype, always=always)
     for start in range(0, array.shape[0], BLOCK):
         out[start : start + BLOCK] = f(array[start : start + BLOCK])
     return out
 
 
-def gathered(source: NDArray[Any], index: NDArray[np.integer]) -> NDArray[Any]:
-    """``source[index]`` gathered a block at a time (into a scratch file when large)."""
-    out = empty((index.shape[0], *source.shape[1:]), source.dtype)
+def gathered(source: NDArray[Any], index: NDArray[np.integer], dtype: Any = None) -> NDArray[Any]:
+    """``source[index]`` (as ``dtype``) gathered a block at a time (into a scratch file when
+    large)."""
+    out = empty((index.shape[0], *source.shape[1:]), source.dtype if dtype is None else dtype)
     for start in range(0, index.shape[0], BLOCK):
         out[start : start + BLOCK] = source[index[start : start + BLOCK]]
     return out
@@ -271,16 +274,11 @@ def moved(array: NDArray[Any], *, copy: bool = False, always: bool = False) -> N
     """``array`` in a scratch file when larger than the spill limit, or whatever its size with
     ``always`` (copied a block at a time, unless already in one and no ``copy`` is asked), else
     ``array`` (or its copy)."""
-    if always and array.nbytes and (copy or not _mapped_view(array)):
-        out = _forced(array.shape, array.dtype)
-        for start in range(0, array.shape[0], BLOCK):
-            out[start : start + BLOCK] = array[start : start + BLOCK]
-        return out
-    if not spills(array.nbytes):
+    if not (always or spills(array.nbytes)):
         return array.copy() if copy else array
     if not copy and _mapped_view(array):
         return array
-    return mapped(array, lambda part: part)
+    return mapped(array, lambda part: part, always=always)
 
 
 def _mapped_view(array: NDArray[Any]) -> bool:

@@ -168,7 +168,7 @@ def taken(frame: pl.DataFrame, rows: NDArray[np.integer]) -> pl.DataFrame:
     columns: list[pl.Series] = []
     for c in frame.columns:
         series = frame[c]
-        if series.null_count() or not series.dtype.is_numeric():
+        if not _plain(series):
             columns.append(series.gather(index))
             continue
         source = np.asarray(series.to_numpy())
@@ -186,14 +186,20 @@ def spilled(frame: pl.DataFrame) -> pl.DataFrame:
     already), as they are."""
     columns = []
     for series in frame.get_columns():
-        plain = series.dtype.is_numeric() and series.dtype != pl.Decimal
-        if plain and not series.null_count() and series.len():
+        if _plain(series) and series.len():
             values = np.asarray(series.to_numpy())
             if not scratch.spills(values.nbytes):
                 moved = scratch.moved(values, always=True)
                 series = pl.Series(series.name, moved, dtype=series.dtype)
         columns.append(series)
     return pl.DataFrame(columns)
+
+
+def _plain(series: pl.Series) -> bool:
+    """Whether ``series`` is a numpy array of numbers as it is: numeric (not Decimal), without
+    nulls — what the block-at-a-time copies take; the others go through polars."""
+    dtype = series.dtype
+    return dtype.is_numeric() and dtype != pl.Decimal and not series.null_count()
 
 
 def _rows_of(parts: list[NDArray[Any]], f: int, rows: slice) -> NDArray[Any]:
@@ -259,12 +265,7 @@ def merged(frames: list[pl.DataFrame], label: str | None = None) -> pl.DataFrame
             continue
         series = [f[c] for f in frames if c in f.columns]
         dtype = series[0].dtype
-        if (
-            len(series) == len(frames)
-            and dtype.is_numeric()
-            and dtype != pl.Decimal
-            and all(s.dtype == dtype and not s.null_count() for s in series)
-        ):
+        if len(series) == len(frames) and all(s.dtype == dtype and _plain(s) for s in series):
             parts = [np.asarray(s.to_numpy()) for s in series]
             values = scattered(functools.partial(_rows_of, parts), parts[0].dtype)
             columns.append(pl.Series(c, values, dtype=dtype))
