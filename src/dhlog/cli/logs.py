@@ -94,8 +94,15 @@ def import_(
     angle_unit: Annotated[
         str | None,
         typer.Option(
-            help="rad, deg or gon: revolute joints and rotation angles, where the header "
-            "states no unit (default deg)."
+            help="rad, deg or gon: rotation angles (and revolute joints unless "
+            "--joint-angle-unit is given), where the header states no unit (default deg)."
+        ),
+    ] = None,
+    joint_angle_unit: Annotated[
+        str | None,
+        typer.Option(
+            help="rad, deg or gon: revolute joints, where the header states no unit (default: "
+            "--angle-unit, else deg)."
         ),
     ] = None,
     orientation_columns: Annotated[
@@ -146,6 +153,7 @@ def import_(
         name_column=name_column,
         length_unit=length_unit,
         angle_unit=angle_unit,
+        joint_angle_unit=joint_angle_unit,
         orientation_columns=listed(orientation_columns),
         euler=euler,
         no_u95=no_u95,
@@ -162,7 +170,13 @@ def import_(
     for note in imported.notes:
         stdout.print(f"note: {plain(note)}", soft_wrap=True)
     kind = "stops (step and measure)" if imported.stepped else "timed samples"
-    u95 = ", with per-point U95 as covariance" if imported.covariance is not None else ""
+    u95 = (
+        ""
+        if imported.covariance is None
+        else ", with per-point σ as covariance"
+        if "sigma_columns" in imported.provenance
+        else ", with per-point U95 as covariance"
+    )
     rot = (
         f", with the target's orientation from {plain(imported.provenance['orientation_columns'])}"
         if imported.orientation is not None

@@ -47,6 +47,7 @@ from dhlog.io.exports.source import EPOCH_NS, Source, from_table
 from dhlog.io.exports.spatialanalyzer import is_table, spatialanalyzer_points
 from dhlog.io.exports.table import DEFAULT_LENGTH_UNIT, read_table
 from dhlog.io.paths import same_file
+from dhlog.model.dh import JointType
 
 #: The import's entry, as the command line takes it.
 __all__ = [
@@ -101,6 +102,7 @@ def import_source(source: str | Path, opts: ImportOptions) -> Imported:
     if opts.joints_file is not None:
         src = with_joints_file(src, opts)
     assert src.q is not None
+    src.unit_slips([JointType.parse(t) for t in opts.joint_types] or None)
     xyz, q = src.xyz, src.q
     if src.t_ns is not None:
         point_t, joint_t, joint_q, stepped = src.t_ns, src.t_ns, q, False

@@ -8,7 +8,13 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
-from dhlog.io.exports.layout import JOINT_HEADER, NAME_HEADERS, claim, joints_by_number
+from dhlog.io.exports.layout import (
+    JOINT_HEADER,
+    NAME_HEADERS,
+    claim,
+    joints_by_number,
+    named_joints,
+)
 from dhlog.io.exports.options import ImportOptions
 from dhlog.io.exports.source import Source, joint_values
 from dhlog.io.exports.table import ConversionError, Table, read_table
@@ -47,14 +53,14 @@ def with_joints_file(src: Source, opts: ImportOptions) -> Source:
             joints,
             [k for k, h in enumerate(joints.heads) if k != nk and JOINT_HEADER.match(h.key)],
             src.notes,
-        )
+        ) or named_joints(joints, claims, src.notes)
     if not cols:
         raise ConversionError(
             joints.path,
             "has no joint columns (q1…, j1…, A1…, joint_1…, axis1…); its columns are "
             f"{', '.join(joints.header)}; name them with --joint-columns.",
         )
-    names, q = joint_values(joints, cols, opts)
+    names, q = joint_values(joints, cols, opts, src.warnings)
     by_name = nk is not None and src.names is not None
     if nk is not None and src.names is not None:
         p_idx, r_idx = _match_by_name(src, joints, nk)

@@ -1,9 +1,12 @@
-"""What each column of an export holds, read from its header: the point name, x, y, z, U95, the
-orientation of a 6-DoF target (quaternion ``Q0 Q1 Q2 Q3`` scalar first as Leica writes it,
-``Qw Qx Qy Qz`` in any order, or rotation angles ``Rx Ry Rz`` in the ``--euler`` sequence), the
-time, and the joints (``q1…``, ``j1…``, ``A1…``, ``joint_1…``, ``axis1…``; or
-``--joint-columns``). A column the header names (orientation, U95, time) is never taken as a
-joint; a column two options name is refused.
+"""What each column of an export holds, read from its header: the point name, x, y, z (or a
+prefixed triple such as ``measurement_x … measurement_z`` when the header has no plain x), U95 or
+standard deviations (``std x``, ``sigma_x``, ``measurement_std_x``), the orientation of a 6-DoF
+target (quaternion ``Q0 Q1 Q2 Q3`` scalar first as Leica writes it, ``Qw Qx Qy Qz`` in any
+order, or rotation angles ``Rx Ry Rz`` in the ``--euler`` sequence, with the position's prefix
+or without), the time, and the joints (``q1…``, ``j1…``, ``A1…``, ``joint_1…``, ``axis1…``, a
+Universal Robots arm's ``shoulder_pan_joint … wrist_3_joint``; or ``--joint-columns``). A column
+the header names (orientation, U95, σ, time) is never taken as a joint; a column two options
+name is refused.
 """
 
 from __future__ import annotations
@@ -26,6 +29,37 @@ ANGLE_HEADERS = (
 NAME_HEADERS = ("pointname", "name", "pointid", "point", "id", "ptid", "target", "label")
 #: A joint column by its (normalised) header, with the joint's number.
 JOINT_HEADER = re.compile(r"^(?:q|j|a|joint|axis)(\d{1,3})$")
+#: Joint columns by name, in chain order (normalised headers): a Universal Robots arm's as ROS
+#: names them, with and without ``_joint``.
+NAMED_JOINTS = (
+    (
+        "shoulderpanjoint",
+        "shoulderliftjoint",
+        "elbowjoint",
+        "wrist1joint",
+        "wrist2joint",
+        "wrist3joint",
+    ),
+    ("shoulderpan", "shoulderlift", "elbow", "wrist1", "wrist2", "wrist3"),
+)
+#: A standard deviation per coordinate, by its (normalised) header: ``{p}`` the position's
+#: prefix (``measurement`` of ``measurement_x``, or none), ``{a}`` the axis.
+SIGMA_HEADERS = (
+    "{p}std{a}",
+    "{p}sigma{a}",
+    "{p}stddev{a}",
+    "{p}{a}std",
+    "{p}{a}sigma",
+    "std{a}",
+    "sigma{a}",
+    "stddev{a}",
+    "{a}std",
+    "{a}sigma",
+)
+#: Words that mark a column as an uncertainty (never a position, joint or orientation).
+UNCERTAINTY_WORDS = ("std", "sigma", "u95", "stddev", "uncert", "dev", "err", "rms")
+#: What turns a position's prefix into an orientation's (``measurement`` → ``measurementr``).
+_ROTATION_TAILS = ("r", "rot", "rotation", "q", "angle")
 
 
 @dataclass
@@ -35,11 +69,13 @@ class Layout:
     xyz: list[int]
     name: list[int]
     time: int | None
-    u95: tuple[str, list[int]] | None  # ("axes", [x, y, z]) or ("sphere", [k])
+    u95: tuple[str, list[int]] | None  # ("axes", [x, y, z]), ("sphere", [k]) or ("std", [x, y, z])
     orientation: tuple[str, list[int]] | None  # ("quaternion", [w, x, y, z]) or ("angles", …)
     joints: list[int]
     recognised: dict[int, str]  # every column the header says is not a joint, and what it is
     notes: list[str] = field(default_factory=list)
+    #: uncertainty columns (σ, U95) that are not read: the orientation's, or beside others
+    unread: list[int] = field(default_factory=list)
 
 
 def claim(table: Table, claims: dict[int, str], k: int, option: str) -> None:
@@ -97,6 +133,111 @@ def joints_by_number(table: Table, candidates: list[int], notes: list[str]) -> l
     return ordered
 
 
+def named_joints(table: Table, taken: dict[int, str], notes: list[str]) -> list[int]:
+    """The joint columns named as :data:`NAMED_JOINTS` (a UR arm's ``shoulder_pan_joint …``),
+    in chain order, said in a note; empty when the header holds none of those sets whole."""
+    for keys in NAMED_JOINTS:
+        hits = [table.key(key) for key in keys]
+        cols = [k for k in hits if k is not None and k not in taken]
+        if len(cols) == len(keys):
+            notes.append(
+                f"{table.path}: the joints were taken in chain order from "
+                f"{', '.join(table.header[k] for k in cols)} (a Universal Robots arm's names; "
+                "--joint-columns names others)."
+            )
+            return cols
+    return []
+
+
+def position_prefixes(table: Table) -> list[str]:
+    """The prefixes ``p`` (normalised) for which the header holds ``p x``, ``p y``, ``p z``
+    (``measurement`` of ``measurement_x``): neither an uncertainty's (``std``, ``U95``…) nor an
+    orientation's (``measurement_rx`` beside ``measurement_x``; ``rx`` alone)."""
+    keys = {h.key for h in table.heads}
+    found = [
+        key[:-1]
+        for key in sorted(keys)
+        if key.endswith("x")
+        and key[:-1] + "y" in keys
+        and key[:-1] + "z" in keys
+        and not any(w in key[:-1] for w in UNCERTAINTY_WORDS)
+    ]
+    return [
+        p for p in found if not any(p == q + tail for q in ["", *found] for tail in _ROTATION_TAILS)
+    ]
+
+
+def _xyz_names(table: Table, opts: ImportOptions, notes: list[str]) -> tuple[str, str, str]:
+    """The columns of x, y, z: the options', or, when they are the defaults and the header has
+    no x, the one prefixed triple it holds (``measurement_x …``, said in a note); several
+    triples are refused, naming them and the options."""
+    names = (opts.x, opts.y, opts.z)
+    if names != ("x", "y", "z") or table.find("x") is not None:
+        return names
+    found = position_prefixes(table)
+    if not found:
+        return names
+    triples = [
+        tuple(table.header[k] for k in (table.key(p + a) for a in "xyz") if k is not None)
+        for p in found
+    ]
+    if len(found) > 1:
+        shown = "; ".join(", ".join(t) for t in triples)
+        raise ConversionError(
+            table.path,
+            f"has no column x but several triples that may be the target's position ({shown}); "
+            "name the right one with --x, --y, --z.",
+        )
+    x, y, z = triples[0]
+    notes.append(f"{table.path}: the target's position was read from {x}, {y}, {z}.")
+    return x, y, z
+
+
+def _uncertainty(
+    table: Table, opts: ImportOptions, prefix: str, recognised: dict[int, str]
+) -> tuple[tuple[str, list[int]] | None, list[int]]:
+    """The position's uncertainty columns — U95 per axis (``U95 X``), a 3D U95, or σ per axis
+    (:data:`SIGMA_HEADERS`), the first the header holds — and the uncertainty columns left
+    unread (the orientation's σ, σ beside a U95, any other column whose header says
+    uncertainty); every one of them recognised (never a joint)."""
+    heads = [prefix, ""] if prefix else [""]
+    axes = [table.key(*[f"{p}u95{a}" for p in heads]) for a in "xyz"]
+    sphere = table.key(*[f"{p}u95" for p in heads])
+
+    def sigma_keys(a: str) -> list[str]:
+        return list(dict.fromkeys(h.format(p=prefix, a=a) for h in SIGMA_HEADERS))
+
+    sigmas = [table.key(*sigma_keys(a)) for a in "xyz"]
+    u95: tuple[str, list[int]] | None = None
+    if all(k is not None for k in axes):
+        u95 = ("axes", [k for k in axes if k is not None])
+    elif sphere is not None:
+        u95 = ("sphere", [sphere])
+    elif all(k is not None for k in sigmas):
+        u95 = ("std", [k for k in sigmas if k is not None])
+    for u in [*axes, sphere]:
+        if u is not None:
+            recognised[u] = f"the U95 '{table.header[u]}'"
+    for u in sigmas:
+        if u is not None:
+            recognised[u] = f"the σ '{table.header[u]}'"
+    for tail in ("r", "rot", "rotation"):
+        for a in "xyz":
+            u = table.key(*sigma_keys(tail + a))
+            if u is not None:
+                recognised[u] = f"the orientation's σ '{table.header[u]}'"
+    for k, h in enumerate(table.heads):
+        if k not in recognised and any(w in h.key for w in UNCERTAINTY_WORDS[:5]):
+            recognised[k] = f"an uncertainty '{table.header[k]}'"
+    used = set(u95[1]) if u95 is not None and not opts.no_u95 else set()
+    unread = [
+        k
+        for k, what in recognised.items()
+        if k not in used and what.startswith(("the U95", "the σ", "the orientation's σ", "an "))
+    ]
+    return u95, sorted(unread)
+
+
 def _name_columns(table: Table, opts: ImportOptions, *, required: bool) -> list[int]:
     """The point-name column(s): ``--name-column`` (which may name the joints file's instead,
     unless ``required``), else by the header (collection, group, point joined, or a name)."""
@@ -110,13 +251,15 @@ def _name_columns(table: Table, opts: ImportOptions, *, required: bool) -> list[
 
 
 def _orientation_columns(
-    table: Table, opts: ImportOptions, recognised: dict[int, str]
+    table: Table, opts: ImportOptions, recognised: dict[int, str], prefix: str = ""
 ) -> tuple[str, list[int]] | None:
     """The orientation's columns (and ``recognised`` completed with every orientation set the
-    header holds, used or not)."""
+    header holds, used or not); ``prefix``: the position's (``measurement_rx`` beside
+    ``measurement_x``), tried first."""
     found: list[tuple[str, list[int]]] = []
     for kind, sets in (("quaternion", QUATERNION_HEADERS), ("angles", ANGLE_HEADERS)):
-        for keys in sets:
+        prefixed = [tuple(prefix + key for key in keys) for keys in sets] if prefix else []
+        for keys in [*prefixed, *sets]:
             hits = [table.key(key) for key in keys]
             if all(c is not None for c in hits):
                 found.append((kind, [c for c in hits if c is not None]))
@@ -168,7 +311,8 @@ def column_layout(table: Table, opts: ImportOptions, *, joints: bool) -> Layout:
     recognised: dict[int, str] = {}
     claims: dict[int, str] = {}
     xyz = []
-    for name, axis in zip((opts.x, opts.y, opts.z), "xyz", strict=True):
+    notes: list[str] = []
+    for name, axis in zip(_xyz_names(table, opts, notes), "xyz", strict=True):
         k = table.column(name, f"the target's {axis}", f"--{axis}")
         claim(table, claims, k, f"--{axis}")
         xyz.append(k)
@@ -182,26 +326,20 @@ def column_layout(table: Table, opts: ImportOptions, *, joints: bool) -> Layout:
     for k in names:
         claim(table, claims, k, "--name-column" if opts.name_column else "the point name")
         recognised[k] = "the point name"
-    axes = [table.key(f"u95{a}") for a in "xyz"]
-    sphere = table.key("u95")
-    u95: tuple[str, list[int]] | None = None
-    if all(k is not None for k in axes):
-        u95 = ("axes", [k for k in axes if k is not None])
-    elif sphere is not None:
-        u95 = ("sphere", [sphere])
+    keys = [table.heads[k].key for k in xyz]
+    prefix = keys[0][:-1] if [k[-1:] for k in keys] == list("xyz") else ""
+    if any(k[:-1] != prefix for k in keys):
+        prefix = ""
+    u95, unread = _uncertainty(table, opts, prefix, recognised)
     if u95 is not None and not opts.no_u95:
         for k in u95[1]:
-            claim(table, claims, k, f"the U95 '{table.header[k]}'")
-    for u in [*axes, sphere]:
-        if u is not None:
-            recognised[u] = f"the U95 '{table.header[u]}'"
-    orientation = _orientation_columns(table, opts, recognised)
+            claim(table, claims, k, recognised[k])
+    orientation = _orientation_columns(table, opts, recognised, prefix)
     if orientation is not None:
         option = "--orientation-columns" if opts.orientation_columns else "the orientation"
         for k in orientation[1]:
             claim(table, claims, k, option)
     cols: list[int] = []
-    notes: list[str] = []
     if joints and opts.joint_columns:
         for c in opts.joint_columns:
             k = table.column(c, "a joint", "--joint-columns")
@@ -222,5 +360,6 @@ def column_layout(table: Table, opts: ImportOptions, *, joints: bool) -> Layout:
                 if k not in recognised and JOINT_HEADER.match(h.key)
             ],
             notes,
-        )
-    return Layout(xyz, names, time, u95, orientation, cols, recognised, notes)
+        ) or named_joints(table, recognised, notes)
+    unread = [k for k in unread if k not in cols]
+    return Layout(xyz, names, time, u95, orientation, cols, recognised, notes, unread)

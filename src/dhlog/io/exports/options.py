@@ -20,9 +20,11 @@ class ImportOptions:
     """How to read the source: column names, units, joint types (see ``dhlog import --help``).
 
     ``length_unit`` and ``angle_unit`` are None when not given: the header's unit, else mm and
-    degrees. ``orientation_columns``: four (a quaternion, scalar first) or three (rotation angles
-    in the ``euler`` sequence) columns, ``["none"]`` to leave the orientation out, or empty to
-    recognise it from the header."""
+    degrees. ``joint_angle_unit``: the revolute joints' unit where the header states none
+    (``--joint-angle-unit``); when not given, ``angle_unit`` covers the joints and the rotation
+    angles alike (:func:`joint_angle_unit`). ``orientation_columns``: four (a quaternion,
+    scalar first) or three (rotation angles in the ``euler`` sequence) columns, ``["none"]`` to
+    leave the orientation out, or empty to recognise it from the header."""
 
     format: str = "csv"
     joints_file: Path | None = None
@@ -37,6 +39,7 @@ class ImportOptions:
     name_column: str | None = None
     length_unit: str | None = None
     angle_unit: str | None = None
+    joint_angle_unit: str | None = None
     orientation_columns: list[str] = field(default_factory=list)
     euler: str = EULER_DEFAULT
     no_u95: bool = False
@@ -50,6 +53,7 @@ def checked_options(opts: ImportOptions) -> None:
     for option, value, kind in (
         ("--length-unit", opts.length_unit, "length"),
         ("--angle-unit", opts.angle_unit, "angle"),
+        ("--joint-angle-unit", opts.joint_angle_unit, "angle"),
     ):
         if value is None:
             continue
@@ -60,9 +64,20 @@ def checked_options(opts: ImportOptions) -> None:
             raise InputError(f"{option} must be one of {known}, not '{value}'.") from None
         if kind == "length":
             opts.length_unit = unit
-        else:
+        elif option == "--angle-unit":
             opts.angle_unit = unit
+        else:
+            opts.joint_angle_unit = unit
     if opts.time_unit not in TIME_UNITS:
         raise InputError(
             f"--time-unit must be one of {', '.join(TIME_UNITS)}, not '{opts.time_unit}'."
         )
+
+
+def joint_angle_unit(opts: ImportOptions) -> tuple[str | None, str]:
+    """The revolute joints' unit given by an option (None: the header's, else degrees) and the
+    option that gives it: ``--joint-angle-unit``, else ``--angle-unit`` (which then covers the
+    joints and the rotation angles alike, as before the joints had their own)."""
+    if opts.joint_angle_unit is not None:
+        return opts.joint_angle_unit, "--joint-angle-unit"
+    return opts.angle_unit, "--angle-unit"

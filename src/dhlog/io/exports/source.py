@@ -1,10 +1,13 @@
 """An export's points in SI units (:class:`Source`): coordinates in their header's unit, U95
-columns as each point's covariance, the orientation as unit quaternions, the time, and the joint
-values when the export holds them.
+or standard-deviation columns as each point's covariance, the orientation as unit quaternions,
+the time, and the joint values when the export holds them.
 
 U95 to σ: a per-coordinate U95 is 1.96 σ; a single (3D) U95 is the radius of the 95 % sphere
-of an isotropic normal distribution, 2.796 σ (√χ²₃(0.95)). A U95 the export rounded to 0 is
-floored at the export's resolution (the last decimal written), and said in a note.
+of an isotropic normal distribution, 2.796 σ (√χ²₃(0.95)); a standard deviation per coordinate
+(``std x``, ``sigma_x``, ``measurement_std_x``) is σ. A value the export rounded to 0 is
+floored at the export's resolution (the last decimal written), and said in a note. Uncertainty
+columns that cannot be used (an orientation's σ: the log carries the position's covariance
+only; σ beside a U95) are named in a warning as left out.
 """
 
 from __future__ import annotations
@@ -17,11 +20,13 @@ import numpy as np
 from numpy.typing import NDArray
 
 from dhlog.io.exports.layout import JOINT_HEADER, Layout, column_layout
-from dhlog.io.exports.options import ImportOptions
+from dhlog.io.exports.options import ImportOptions, joint_angle_unit
+from dhlog.io.exports.slips import joint_unit_slip, orientation_unit_slip
 from dhlog.io.exports.table import (
     ANGLE_UNITS,
     DEFAULT_ANGLE_UNIT,
     DEFAULT_LENGTH_UNIT,
+    DIMENSIONLESS,
     LENGTH_UNITS,
     TIME_UNITS,
     ConversionError,
@@ -49,9 +54,12 @@ U95_RANGE_M = (1e-9, 1.0)
 
 
 def joint_values(
-    table: Table, columns: list[int], opts: ImportOptions
+    table: Table, columns: list[int], opts: ImportOptions, warnings: list[str] | None = None
 ) -> tuple[list[str], NDArray[np.float64]]:
-    """Joint names and values in SI units (rad, m), each column in its header's unit."""
+    """Joint names and values in SI units (rad, m), each column in its header's unit, else
+    ``--joint-angle-unit`` / ``--angle-unit`` (revolute) or ``--length-unit`` (prismatic). A
+    unit slip the revolute values show (:func:`~dhlog.io.exports.slips.joint_unit_slip`) is
+    refused, or appended to ``warnings`` where the header stated the unit."""
     n = len(columns)
     names = opts.joint_names or [without_unit(table.heads[k]) for k in columns]
     if len(names) != n:
@@ -74,9 +82,11 @@ def joint_values(
         )
     revolute = [k for k, t in zip(columns, types, strict=True) if t is JointType.REVOLUTE]
     prismatic = [k for k, t in zip(columns, types, strict=True) if t is JointType.PRISMATIC]
-    stated_alike(table, revolute, "angle", opts.angle_unit, "revolute joint column")
+    angle_unit, angle_option = joint_angle_unit(opts)
+    stated_alike(table, revolute, "angle", angle_unit, "revolute joint column", option=angle_option)
     stated_alike(table, prismatic, "length", opts.length_unit, "prismatic joint column")
     q = np.empty((len(table.rows), n))
+    read: dict[tuple[str, str], list[int]] = {}  # revolute columns by (unit, where it came from)
     for j, (k, t) in enumerate(zip(columns, types, strict=True)):
         what = f"joint {names[j]}"
         q[:, j] = table.numbers(k, what, "is it a joint column (--joint-columns)?")
@@ -85,9 +95,28 @@ def joint_values(
             q[:, j] *= LENGTH_UNITS[unit]
             table.in_range(k, q[:, j], what, -MAX_TRAVEL_M, MAX_TRAVEL_M, "m")
         else:
-            unit = column_unit(table, k, "angle", opts.angle_unit, DEFAULT_ANGLE_UNIT)
+            unit = column_unit(
+                table, k, "angle", angle_unit, DEFAULT_ANGLE_UNIT, option=angle_option
+            )
+            where = (
+                "the header"
+                if table.heads[k].unit not in (None, *DIMENSIONLESS)
+                else angle_option
+                if angle_unit is not None
+                else "the default"
+            )
+            read.setdefault((unit, where), []).append(j)
             q[:, j] *= ANGLE_UNITS[unit]
             table.in_range(k, q[:, j], what, -MAX_ANGLE_RAD, MAX_ANGLE_RAD, "rad")
+    for (unit, where), js in read.items():
+        as_read = q[:, js] / ANGLE_UNITS[unit]
+        slip = joint_unit_slip([names[j] for j in js], as_read, unit, where)
+        if slip is not None:
+            message, refuse = slip
+            if refuse:
+                raise ConversionError(table.path, message)
+            if warnings is not None:
+                warnings.append(f"{table.path}: {message}")
     return names, q
 
 
@@ -110,6 +139,10 @@ class Source:
     warnings: list[str] = field(default_factory=list)
     provenance: dict[str, str] = field(default_factory=dict)
     named_by_option: bool = False
+    #: rotation angles as written (m, 3), and their columns, unit and where the unit came from
+    #: (``"the header"``, ``"--angle-unit"``, ``"--angle-unit (shared)"``, ``"the default"``)
+    angles: NDArray[np.float64] | None = None
+    angles_read: tuple[str, str, str] | None = None
 
     def take(self, rows: NDArray[np.int64]) -> Source:
         """The points at ``rows``, in that order."""
@@ -123,17 +156,41 @@ class Source:
             quat=None if self.quat is None else self.quat[rows],
             t_ns=None if self.t_ns is None else self.t_ns[rows],
             q=None if self.q is None else self.q[rows],
+            angles=None if self.angles is None else self.angles[rows],
         )
+
+    def unit_slips(self, types: list[JointType] | None = None) -> None:
+        """Refuse (or warn of) rotation angles read in the wrong unit, judged against the
+        revolute joints (:func:`~dhlog.io.exports.slips.orientation_unit_slip`); ``types``:
+        the joints' (default revolute)."""
+        if self.angles is None or self.angles_read is None or self.quat is None or self.q is None:
+            return
+        revolute = [
+            j
+            for j in range(self.q.shape[1])
+            if types is None or j >= len(types) or types[j] is JointType.REVOLUTE
+        ]
+        columns, unit, where = self.angles_read
+        slip = orientation_unit_slip(
+            columns, self.angles, unit, where, self.quat, self.q[:, revolute]
+        )
+        if slip is not None:
+            message, refuse = slip
+            if refuse:
+                raise ConversionError(self.path, message)
+            self.warnings.append(f"{self.path}: {message}")
 
 
 def _u95_sigma(
     table: Table, layout: Layout, xyz_unit: str, opts: ImportOptions
 ) -> tuple[NDArray[np.float64], str | None]:
-    """σ per coordinate (m, 3) from the U95 columns, and the note on values floored: a U95 the
-    export rounded to 0 is floored at the column's resolution (its last decimal as written)."""
+    """σ per coordinate (m, 3) from the U95 (or σ) columns, and the note on values floored: a
+    value the export rounded to 0 is floored at the column's resolution (its last decimal as
+    written)."""
     assert layout.u95 is not None
     kind, cols = layout.u95
     hint = "fix the export, or leave U95 out with --no-u95."
+    name = "a standard deviation" if kind == "std" else "a U95"
     values, floored = [], []
     for k in cols:
         what = table.header[k]
@@ -143,7 +200,7 @@ def _u95_sigma(
             i = int(negative[0])
             raise ConversionError(
                 table.path,
-                f"{what} is {table.texts(k)[i]}: a U95 cannot be negative; {hint}",
+                f"{what} is {table.texts(k)[i]}: {name} cannot be negative; {hint}",
                 table.lines[i],
             )
         zero = v == 0
@@ -161,7 +218,9 @@ def _u95_sigma(
         v = v * LENGTH_UNITS[unit]
         table.in_range(k, v, what, *U95_RANGE_M, "m")
         values.append(v)
-    if kind == "axes":
+    if kind == "std":
+        sd = np.column_stack(values)
+    elif kind == "axes":
         sd = np.column_stack(values) / U95_PER_COORDINATE
     else:
         sd = np.repeat(values[0][:, None], 3, axis=1) / U95_SPHERE
@@ -171,7 +230,8 @@ def _u95_sigma(
         steps = sorted({f"{step:g} {unit}" for _, step, unit, _ in floored})
         columns = ", ".join(what for *_, what in floored)
         note = (
-            f"{table.path}: {count} U95 value(s) read 0 (rounded by the export) and were floored "
+            f"{table.path}: {count} {'σ' if kind == 'std' else 'U95'} value(s) read 0 (rounded by "
+            "the export) and were floored "
             f"at the export's resolution, {' / '.join(steps)} (the last decimal written in "
             f"{columns})."
         )
@@ -179,10 +239,11 @@ def _u95_sigma(
 
 
 def _orientation(
-    table: Table, layout: Layout, opts: ImportOptions
+    table: Table, layout: Layout, opts: ImportOptions, src: Source
 ) -> tuple[NDArray[np.float64], str]:
     """The target frame's orientation in the measurement frame as unit quaternions (m, 4:
-    x, y, z, w), and how it was read."""
+    x, y, z, w), and how it was read; rotation angles as written go to ``src.angles`` (their
+    unit and where it came from to ``src.angles_read``), for :meth:`Source.unit_slips`."""
     assert layout.orientation is not None
     kind, cols = layout.orientation
     hint = "is it an orientation column (--orientation-columns)?"
@@ -215,6 +276,17 @@ def _orientation(
     stated_alike(table, cols, "angle", opts.angle_unit, "rotation angle")
     units = [column_unit(table, k, "angle", opts.angle_unit, DEFAULT_ANGLE_UNIT) for k in cols]
     radians = values * np.array([ANGLE_UNITS[u] for u in units])
+    stated = table.heads[cols[0]].unit not in (None, *DIMENSIONLESS)
+    where = (
+        "the header"
+        if stated
+        else "the default"
+        if opts.angle_unit is None
+        else "--angle-unit"
+        if opts.joint_angle_unit is not None
+        else "--angle-unit (shared)"
+    )
+    src.angles, src.angles_read = values, (named, units[0], where)
     for c, k in enumerate(cols):
         table.in_range(k, radians[:, c], table.header[k], -MAX_ANGLE_RAD, MAX_ANGLE_RAD, "rad")
     quat = Rotation.from_euler(seq, radians).as_quat()  # x, y, z, w
@@ -267,7 +339,8 @@ def from_table(table: Table, opts: ImportOptions) -> Source:
         sd, note = _u95_sigma(table, layout, units[0], opts)
         src.cov = np.zeros((len(sd), 6))
         src.cov[:, 0], src.cov[:, 3], src.cov[:, 5] = sd[:, 0] ** 2, sd[:, 1] ** 2, sd[:, 2] ** 2
-        src.provenance["u95_columns"] = ", ".join(table.header[k] for k in layout.u95[1])
+        read = "sigma_columns" if layout.u95[0] == "std" else "u95_columns"
+        src.provenance[read] = ", ".join(table.header[k] for k in layout.u95[1])
         if note:
             src.notes.append(note)
     elif opts.format == "leica" and not opts.no_u95:
@@ -277,8 +350,17 @@ def from_table(table: Table, opts: ImportOptions) -> Source:
             f"columns are {', '.join(table.header)}; export the U95, or import it without "
             "with --no-u95 (or --format csv).",
         )
+    if layout.unread and not opts.no_u95:
+        unread = ", ".join(table.header[k] for k in layout.unread)
+        src.warnings.append(
+            f"{table.path}: the uncertainty column(s) {unread} were left out: dhlog reads "
+            "the position's uncertainty per coordinate (U95 X/Y/Z, a 3D U95, or σ: std "
+            "x/y/z, sigma_x…) into each sample's covariance; an orientation's σ "
+            "is not carried (its noise is estimated from the data, or the pipeline's [noise] "
+            "orientation)."
+        )
     if layout.orientation is not None:
-        src.quat, how = _orientation(table, layout, opts)
+        src.quat, how = _orientation(table, layout, opts, src)
         src.provenance["orientation"] = "true"
         src.provenance["orientation_columns"] = how
     if layout.time is not None:
@@ -291,7 +373,7 @@ def from_table(table: Table, opts: ImportOptions) -> Source:
                 f"{', '.join(table.header)}; name them with --joint-columns, or give the "
                 "joint values in a file with --joints-file.",
             )
-        src.joint_names, src.q = joint_values(table, layout.joints, opts)
+        src.joint_names, src.q = joint_values(table, layout.joints, opts, src.warnings)
     else:
         own = [
             h.text

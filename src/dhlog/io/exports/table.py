@@ -349,10 +349,13 @@ def unit_name(text: str, kind: str) -> str:
     return name
 
 
-def column_unit(table: Table, k: int, kind: str, given: str | None, fallback: str) -> str:
+def column_unit(
+    table: Table, k: int, kind: str, given: str | None, fallback: str, *, option: str | None = None
+) -> str:
     """The unit of column ``k``: its header's, else the option's (``given``), else ``fallback``;
-    a header that contradicts the option is an error naming both."""
-    option = "--length-unit" if kind == "length" else "--angle-unit"
+    a header that contradicts the option is an error naming both (``option``: the option's
+    name, by default ``--length-unit`` or ``--angle-unit``)."""
+    option = option or ("--length-unit" if kind == "length" else "--angle-unit")
     written = table.heads[k].unit
     if written is None or written in DIMENSIONLESS:
         return given or fallback
@@ -383,7 +386,15 @@ def without_unit(head: Header) -> str:
     return m["name"].strip() if m else head.text
 
 
-def stated_alike(table: Table, columns: list[int], kind: str, given: str | None, what: str) -> None:
+def stated_alike(
+    table: Table,
+    columns: list[int],
+    kind: str,
+    given: str | None,
+    what: str,
+    *,
+    option: str | None = None,
+) -> None:
     """Refuse a header that states the unit of some of ``columns`` (``X [m]``) and not of the
     others (``Y``, ``Z``), when no option gives it: the others would be read in the default."""
     if given is not None:
@@ -393,7 +404,7 @@ def stated_alike(table: Table, columns: list[int], kind: str, given: str | None,
         column_unit(table, k, kind, None, DEFAULT_LENGTH_UNIT)
     silent = [table.header[k] for k in columns if k not in stated]
     if stated and silent:
-        option = "--length-unit" if kind == "length" else "--angle-unit"
+        option = option or ("--length-unit" if kind == "length" else "--angle-unit")
         raise ConversionError(
             table.path,
             f"the header states the unit of '{table.header[stated[0]]}' but not of "
