@@ -240,6 +240,10 @@ def propagate(
         fixed[4 * i + 3] = True
         if kind == "collinear":
             fixed[4 * i + 2] = True
+    affected = set(rows) | {i + 1 for i in rows}
+    for k in fit.held:  # not determined within the physical bound (identify.hold)
+        if k // 4 not in affected:  # the standard row is the shown one
+            fixed[k] = True
     cov_state = cov[:n_state, :n_state].copy()
     cov_state[fixed, :] = 0.0
     cov_state[:, fixed] = 0.0
@@ -252,10 +256,11 @@ def propagate(
         mixed_undetermined = loose[n_h:n_m] & ~mixed_fixed
         mixed_fixed |= mixed_undetermined
         mixed_fixed |= np.sqrt(np.clip(np.diag(cov)[n_h:n_m], 0.0, None)) < 1e-10
-        affected = set(rows) | {i + 1 for i in rows}
         for i in range(n):  # rows the Hayati form leaves as they were: as the standard table
             if i not in affected:
                 mixed_fixed[4 * i : 4 * i + 4] = fixed[4 * i : 4 * i + 4]
+        for k in fit.held:
+            mixed_fixed[k] = True
         mixed_cov = cov[n_h:n_m, n_h:n_m].copy()
         mixed_cov[mixed_fixed, :] = 0.0
         mixed_cov[:, mixed_fixed] = 0.0
@@ -290,16 +295,21 @@ def fixed_reasons(
     nominal: bool,
     constrained: dict[int, str] | None = None,
     undetermined: NDArray[np.bool_] | None = None,
+    unseen: dict[int, str] | None = None,
 ) -> dict[int, str]:
     """Why each fixed entry of :func:`state_vector` is held (index → one sentence);
     ``constrained`` maps the 0-based first joint of a pair held parallel / collinear;
-    ``undetermined`` marks the entries the samples do not determine."""
+    ``undetermined`` marks the entries the samples do not determine; ``unseen`` those they
+    determine only beyond a physical bound (:mod:`dhlog.identify.hold`), with the reason."""
     held = constrained or {}
     n = ex.standard.n
     types = ex.standard.joint_types
     kinds = {r.joints[0]: r.relation.kind for r in ex.relations}
     out: dict[int, str] = {}
     for idx in (int(k) for k in np.flatnonzero(fixed)):
+        if unseen is not None and idx in unseen:
+            out[idx] = unseen[idx]
+            continue
         if undetermined is not None and undetermined[idx]:
             out[idx] = NOT_DETERMINED + (" (held at the nominal)" if nominal else "")
             continue

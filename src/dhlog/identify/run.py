@@ -34,12 +34,18 @@ from dhlog.errors import GeometryError, InputError
 from dhlog.geometry._checks import FloatArray
 from dhlog.geometry.fitting import PlaneFit, fit_plane
 from dhlog.geometry.lines import ANGLE_TOL, DISTANCE_TOL, Line, Plane
-from dhlog.identify.analytic import AIC_SIGMA_2D, pair_tolerances, partial_extraction
+from dhlog.identify.analytic import (
+    AIC_SIGMA_2D,
+    hayati_rows,
+    pair_tolerances,
+    partial_extraction,
+)
 from dhlog.identify.beyond import beyond_geometry, deflections
 from dhlog.identify.checks import check_fit_noise, check_noise_model, check_sizes, check_units
-from dhlog.identify.conditioning import Conditioned, identifiability_notes
+from dhlog.identify.conditioning import Conditioned, identifiability_notes, nominal_rows
 from dhlog.identify.extract import Extraction, extract_dh
 from dhlog.identify.hayati import HayatiRow
+from dhlog.identify.hold import hold_unseen
 from dhlog.identify.holdout import Holdout, cross_validate, score_poses
 from dhlog.identify.persample import PerSample
 from dhlog.identify.register import Registration
@@ -598,7 +604,22 @@ def _identify_whole(
         )
 
     stage("uncertainty", 0.0)
-    ex = extract(list(whole.model.axes), whole.model.target, None if base is None else base.plane)
+    plane = None if base is None else base.plane
+    ex = extract(list(whole.model.axes), whole.model.target, plane)
+    # what the samples determine only beyond a physical bound: held at the nominal
+    h_rows = hayati_rows(ex)
+    nominal_h = nominal_rows(nominal_table, ref, h_rows)
+
+    def refit(model: Any, within: FloatArray) -> Any:
+        """The fit again from ``model`` along ``within`` only, weighted as the final fit."""
+        again = {**options, "noise": result.noise, "sample_cov": sample_cov}
+        return fit_whole_model(model, Q, P, sigma=sigma, within=within, **again).model
+
+    whole, _ = hold_unseen(
+        whole, extract, plane, h_rows, nominal_table, nominal_h, cost, notes, refit
+    )
+    if whole.held:
+        ex = extract(list(whole.model.axes), whole.model.target, plane)
     found = whole_uncertainty(whole, base, extract, ex, ref, nominal_table, result.info)
     result.method = "whole-model maximum likelihood"
     result.extraction, result.analytic, result.whole = ex, analytic, whole

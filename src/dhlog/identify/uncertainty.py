@@ -126,6 +126,7 @@ def whole_uncertainty(
         nominal=nominal is not None,
         constrained=whole.constrained,
         undetermined=prop.undetermined,
+        unseen=whole.held,
     )
     hayati = near_parallel(list(ex.axes), ex, std, info)
     hayati_std = [
@@ -136,7 +137,13 @@ def whole_uncertainty(
     if prop.mixed_covariance is not None and prop.mixed_fixed is not None:
         mixed_std = np.sqrt(np.clip(np.diag(prop.mixed_covariance), 0.0, None))
         held = conditioned(
-            ex, h_rows, nominal_h, mixed_std, prop.mixed_fixed, reasons, prop.mixed_undetermined
+            ex,
+            h_rows,
+            nominal_h,
+            mixed_std,
+            prop.mixed_fixed,
+            {**reasons, **whole.held},
+            prop.mixed_undetermined,
         )
     extra_std = np.sqrt(np.clip(np.diag(prop.extra_tool_covariance), 0.0, None)).reshape(-1, 3)
     info.extend(correlation_notes(prop.covariance, prop.fixed, ex.standard.n))

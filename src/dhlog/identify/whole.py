@@ -57,11 +57,20 @@ class Determined:
     weakest: FloatArray
 
     @classmethod
-    def of(cls, H: FloatArray) -> Determined:
+    def of(cls, H: FloatArray, within: FloatArray | None = None) -> Determined:
+        """``within`` (size, r; parameter units): the directions the fit may move along (a
+        constrained fit: :mod:`dhlog.identify.hold`); the others are neither determined nor
+        undetermined but held, in neither ``basis`` nor ``null``."""
         diag = np.diag(H)
         scale = np.where(diag > 0, np.sqrt(np.abs(diag)), 1.0)
         Hs = H / np.outer(scale, scale)
-        lam, V = np.linalg.eigh((Hs + Hs.T) / 2)
+        if within is None:
+            lam, V = np.linalg.eigh((Hs + Hs.T) / 2)
+        else:
+            U, sv, _ = np.linalg.svd(within * scale[:, None], full_matrices=False)
+            N = U[:, sv > 1e-9 * max(float(sv[0]), 1e-300)] if sv.size else U[:, :0]
+            lam, Vn = np.linalg.eigh(N.T @ ((Hs + Hs.T) / 2) @ N)
+            V = N @ Vn
         top = max(float(lam[-1]), 1e-300)
         keep = lam > UNDETERMINED * top
         kept = lam[keep]
@@ -129,6 +138,10 @@ class WholeFit:
     sigma_rotation: float | None = None
     #: what the samples determine (None: not computed)
     determined: Determined | None = None
+    #: entries of the shown DH table (4 per row: θ, d or β, a, α) the samples do not determine
+    #: within a physical bound, held at the nominal or marked so (:mod:`dhlog.identify.hold`):
+    #: index → the reason
+    held: dict[int, str] = field(default_factory=dict)
 
 
 @dataclass
@@ -151,8 +164,10 @@ def _levenberg_marquardt(
     limit: float,
     max_iterations: int,
     progress: Callable[[float], None] | None = None,
+    within: FloatArray | None = None,
 ) -> _State:
-    """Levenberg–Marquardt from ``model`` over ``data`` with the truncation ``limit``."""
+    """Levenberg–Marquardt from ``model`` over ``data`` with the truncation ``limit`` (steps
+    along ``within`` only, when given)."""
     m = data.Q.shape[0]
     bases = model.bases()
     norms = scratch.zeros(m)
@@ -164,7 +179,7 @@ def _levenberg_marquardt(
             f"{layout.size} parameters."
         )
     lam = 1e-6
-    determined = Determined.of(st.H)  # the samples' symmetries: the same along the way
+    determined = Determined.of(st.H, within)  # the samples' symmetries: the same along the way
     for it in range(1, max_iterations + 1):
         st.iterations = it
         if progress is not None:
@@ -214,6 +229,7 @@ def _finish_on_all(
     limit: float,
     max_iterations: int,
     progress: Callable[[float], None] | None = None,
+    within: FloatArray | None = None,
 ) -> tuple[_State, float]:
     """From the optimum ``sub`` of a strided subset to the optimum of every sample.
 
@@ -237,7 +253,7 @@ def _finish_on_all(
             sub.model, layout, sub.bases, data, limit, norms, progress
         )
     try:
-        delta = Determined.of(H).solve(H, g)
+        delta = Determined.of(H, within).solve(H, g)
     except np.linalg.LinAlgError:
         delta = None
     if delta is not None and float(delta @ sub.H @ delta) <= 100.0 * layout.size:
@@ -245,7 +261,7 @@ def _finish_on_all(
         decrease = float(-(g @ delta))  # the quadratic model's decrease: exact to first order
         state = _State(model, model.bases(), H, g, cost - decrease, count, chi2, norms, 1)
         return state, max(chi2 - decrease, 0.0)
-    st = _levenberg_marquardt(sub.model, layout, data, limit, max_iterations)
+    st = _levenberg_marquardt(sub.model, layout, data, limit, max_iterations, within=within)
     return st, st.chi2
 
 
@@ -267,6 +283,7 @@ def fit_whole_model(
     max_iterations: int = 30,
     subsample: int = 40000,
     progress: Callable[[float], None] | None = None,
+    within: FloatArray | None = None,
 ) -> WholeFit:
     """Levenberg–Marquardt fit of ``start`` to the samples ``P`` (m, 3) at encoder values ``Q``
     (m, n), weighted by ``noise`` (isotropic σ = ``sigma`` unless the model names its own), or by
@@ -278,7 +295,9 @@ def fit_whole_model(
     clock offset is fitted too (``model.clock``).
 
     With more than ``subsample`` samples the fit first converges on an evenly strided subset and
-    then finishes on every sample (usually one pass: the step left is far below σ)."""
+    then finishes on every sample (usually one pass: the step left is far below σ). With
+    ``within`` (size, r) the fit moves along those directions only (parameter units): the
+    constrained fit of :mod:`dhlog.identify.hold`."""
     from dhlog.model.noise import whitening_from_std
 
     m = Q.shape[0]
@@ -316,20 +335,20 @@ def fit_whole_model(
     # the noise model is off by more than 2x: judge outliers on the data's own scale
     limit = threshold * scale if not 0.5 < scale < 2.0 else threshold
     on_subset = None if progress is None else (lambda f: progress(0.3 * f))
-    st = _levenberg_marquardt(start, layout, first, limit, max_iterations, on_subset)
+    st = _levenberg_marquardt(start, layout, first, limit, max_iterations, on_subset, within)
     if data.R is not None and sigma_rotation is None:
         # the start's orientation scale includes the start's own error: judge it again at the
         # optimum of the subset and fit once more with it
         data = replace(data, sigma_rot=_orientation_scale(st.model, layout, data, stride))
         first = data.strided(stride) if stride > 1 else data
-        st = _levenberg_marquardt(st.model, layout, first, limit, max_iterations, on_subset)
+        st = _levenberg_marquardt(st.model, layout, first, limit, max_iterations, on_subset, within)
     iterations = st.iterations
     chi2 = st.chi2
     if stride > 1:
         on_all = None if progress is None else (lambda f: progress(0.3 + 0.7 * f))
-        st, chi2 = _finish_on_all(st, layout, data, limit, max_iterations, on_all)
+        st, chi2 = _finish_on_all(st, layout, data, limit, max_iterations, on_all, within)
         iterations += st.iterations
-    determined = Determined.of(st.H)
+    determined = Determined.of(st.H, within)
     if determined.basis.shape[1] == 0:
         raise DegenerateGeometryError(
             f"the samples determine none of the whole model's {layout.size} parameters: "
