@@ -219,3 +219,63 @@ def test_the_statistics_on_their_own(measured: tuple[np.ndarray, np.ndarray, np.
     slip = joint_unit_slip(list(UR_JOINTS), np.degrees(q), "rad", "--angle-unit")
     assert slip is not None and slip[1] and "--joint-angle-unit deg" in slip[0]
     assert joint_unit_slip(list(UR_JOINTS), q, "rad", "--angle-unit") is None
+
+
+def test_process_warns_on_a_log_read_in_the_wrong_unit(
+    measured: tuple[np.ndarray, np.ndarray, np.ndarray], tmp_path: Path
+) -> None:
+    """The joints' radians forced through as degrees (``--joint-angle-unit deg``: said, so the
+    import lets it pass): ``dhlog process`` still exits 0, but a warning says the nominal and
+    the calibrated model miss the points by centimetres and names the joints' unit; the same
+    export read right gets no such warning (its FK RMS ≈ √3 · 0.03 mm)."""
+    q, xyz, angles = measured
+    src = write_export(tmp_path / "ur10.csv", q, xyz, angles)
+    for unit, slipped in (("deg", True), ("rad", False)):
+        log = tmp_path / f"{unit}.mcap"
+        code, out = imported(str(src), "--joint-angle-unit", unit, "-o", str(log))
+        assert code == 0, out
+        args = ["process", str(log), "--nominal", "ur5", "--model", "geometric", "--no-rrd"]
+        done = runner.invoke(app, [*args, "--out", str(tmp_path / unit)])
+        assert done.exit_code == 0, done.output
+        text = " ".join(done.output.split())
+        assert ("the inputs are likely read wrong" in text) == slipped, text
+        if slipped:
+            assert "--joint-angle-unit" in text and "misses them by" in text
+
+
+def test_the_process_side_thresholds() -> None:
+    """Hand-computed cases: a heavy robot's nominal 8 mm off and its calibration 0.5 mm (the
+    FANUC R-2000iC of ../shared/realdata) gets no warning; a calibration 2.5 mm off, a
+    model-error σ of 1.2 mm, or a nominal 25 mm off each get one naming the slips."""
+    from dhlog.identify.checks import check_slips
+
+    notes: list[str] = []
+    check_slips(8e-3, 5e-4, 3e-4, notes)
+    check_slips(None, 5e-5, None, notes)
+    assert notes == []
+    for case in ((None, 2.5e-3, None), (1e-3, 5e-4, 1.2e-3), (25e-3, 5e-4, None)):
+        check_slips(*case, notes)
+        assert len(notes) == 1 and "joints in the wrong order or of the wrong sign" in notes[0]
+        notes.clear()
+
+
+def test_a_spherical_pipeline_on_cartesian_points_is_one_line(tmp_path: Path) -> None:
+    """The hostile run of issue 31: ``coordinates = "spherical"`` under the point stream of the
+    shipped ROS 2 pipeline, on a log of PointStamped (x, y, z): a TypeError in
+    ``io/decode/frames.py`` before; now exit 2 and one line naming the stream, the topic and
+    what to do."""
+    root = Path(__file__).parents[1]
+    shipped = (root / "pipelines" / "ros2_tracker.toml").read_text()
+    spherical = shipped.replace(
+        'topic = "/tracker/point"\n', 'topic = "/tracker/point"\ncoordinates = "spherical"\n', 1
+    )
+    assert spherical != shipped
+    (tmp_path / "sph.toml").write_text(spherical)
+    args = ["process", str(root / "sample_logs" / "kr5_0.1mm.mcap"), "--no-rrd"]
+    done = runner.invoke(
+        app, [*args, "--pipeline", str(tmp_path / "sph.toml"), "--out", str(tmp_path)]
+    )
+    assert done.exit_code == 2, done.output
+    assert len(done.output.strip().splitlines()) == 1 and "Traceback" not in done.output
+    assert "[streams.point]" in done.output and "/tracker/point" in done.output
+    assert "leave coordinates out" in " ".join(done.output.split())

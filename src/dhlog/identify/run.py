@@ -41,7 +41,13 @@ from dhlog.identify.analytic import (
     partial_extraction,
 )
 from dhlog.identify.beyond import beyond_geometry, deflections
-from dhlog.identify.checks import check_fit_noise, check_noise_model, check_sizes, check_units
+from dhlog.identify.checks import (
+    check_fit_noise,
+    check_noise_model,
+    check_sizes,
+    check_slips,
+    check_units,
+)
 from dhlog.identify.conditioning import Conditioned, identifiability_notes, nominal_rows
 from dhlog.identify.extract import Extraction, extract_dh
 from dhlog.identify.hayati import HayatiRow
@@ -654,6 +660,9 @@ def _identify_whole(
             "relations and the FK check."
         )
     check_residual(result.validation, sigma, notes)
+    reg = result.registration
+    nominal_rms = None if reg is None else reg.rms
+    check_slips(nominal_rms, result.validation.rms, result.noise.model_error, notes)
     if result.folds > 1:
         stage("cross-validating", 0.0)
         result.holdout.append(
