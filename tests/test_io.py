@@ -571,14 +571,22 @@ types = ["revolute", "revolute", "revolute", "prismatic"]  # the units differ by
 
 
 def test_spherical_pipeline_rules() -> None:
+    """A spherical stream names its angles' fields, and fields naming angles are spherical: a
+    ``coordinates = "spherical"`` over a PointStamped stream (a TypeError in
+    ``decode.frames.cartesian`` before, issue 31) and angles read as x, y, z are refused."""
+    fields = 'fields = { horizontal = "hz", vertical = "v", distance = "d" }\n'
     with pytest.raises(PipelineError, match="station is its origin"):
         parse_pipeline(
-            '[streams.point]\ncoordinates = "spherical"\n[noise]\nmodel = "tracker"\n'
+            f'[streams.point]\ncoordinates = "spherical"\n{fields}[noise]\nmodel = "tracker"\n'
             "station = [1.0, 0.0, 0.0]\n",
             "s.toml",
         )
     with pytest.raises(PipelineError, match="coordinates must be one of"):
         parse_pipeline('[streams.point]\ncoordinates = "polar"\n', "s.toml")
+    with pytest.raises(PipelineError, match=r"/tracker/point carry x, y, z.*leave coordinates out"):
+        parse_pipeline('[streams.point]\ncoordinates = "spherical"\n', "s.toml")
+    with pytest.raises(PipelineError, match='would be read as x, y, z; set coordinates = "sph'):
+        parse_pipeline(f"[streams.point]\n{fields}", "s.toml")
 
 
 def test_a_split_rosbag2_bag_is_read_as_one_log(tmp_path: Path) -> None:

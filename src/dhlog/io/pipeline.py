@@ -343,6 +343,24 @@ def _parse(data: dict[str, Any], source: str) -> Pipeline:
             raise PipelineError(
                 source, "[streams.point] a spherical point stream has no orientation."
             )
+        angles = [k for k in ("horizontal", "vertical", "distance") if k in fields]
+        if coordinates == "spherical" and not angles:
+            raise PipelineError(
+                source,
+                f'[streams.point] coordinates = "spherical" but its fields name no '
+                "horizontal angle, vertical angle and distance: the messages of "
+                f"{spec.get('topic', DEFAULT_TOPICS[stream])!s} carry x, y, z (a PointStamped "
+                "or PoseStamped is Cartesian); leave coordinates out, or name the fields of a "
+                'spherical stream: fields = { horizontal = "hz", vertical = "v", distance = '
+                '"d" }.',
+            )
+        if angles and coordinates != "spherical":
+            raise PipelineError(
+                source,
+                f"[streams.point] fields name {', '.join(angles)} (a tracker's angles and "
+                'distance) but coordinates is not "spherical": they would be read as x, y, z; '
+                'set coordinates = "spherical".',
+            )
         streams[stream] = StreamSpec(
             _text(source, f"{where} topic", spec.get("topic", DEFAULT_TOPICS[stream])),
             required,
