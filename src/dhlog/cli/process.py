@@ -254,7 +254,11 @@ def process(
     stdout.print("wrote " + ", ".join(plain(p) for p in outputs))
     if not no_rrd:
         stdout.print(f"open the recording with: {plain(viewer())} {plain(outputs[2])}")
-    if (holdout or validate) and not result.holdout:
+    if (
+        (holdout or validate)
+        and not result.holdout
+        and (result.whole is None or not result.complete)
+    ):
         stderr.print(
             "held-out error: not computed (it needs the whole-model fit of a complete result)."
         )

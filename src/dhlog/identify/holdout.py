@@ -9,9 +9,9 @@ vectors (measured − predicted).
   the whole model is fitted again to the other folds (from the full fit, which the fold's
   optimum lies close to), and the nominal placed on the same poses (its base and tool point
   registered, :func:`dhlog.identify.register.register_nominal`); both predict the fold.
-* :func:`score_poses` (``--validate LOG``): a calibrated model and the nominal at the poses of
-  another session, as they are (the tracker stayed) or each placed on a third of them first
-  (the tracker moved: the base re-registered, the remaining poses scored).
+* another session's log (``--validate LOG``) is scored by
+  :func:`dhlog.identify.footing.score_poses`, on one footing for the nominal and the calibrated
+  model.
 
 Pure numpy/scipy.
 """
@@ -217,81 +217,4 @@ def cross_validate(
         calibrated_vectors=cal,
         folds=folds,
         notes=notes,
-    )
-
-
-#: The tracker counts as moved when the model's error at a session's poses as they are exceeds
-#: this many times its error after placing the base again on a third of them.
-MOVED_RATIO = 2.0
-
-
-def score_poses(
-    calibrated: tuple[StandardDH, FloatArray, FloatArray],
-    Q: FloatArray,
-    P: FloatArray,
-    *,
-    path: str,
-    nominal: tuple[StandardDH, FloatArray, FloatArray] | None = None,
-    table_values: FloatArray | None = None,
-) -> Holdout:
-    """The calibrated model (table, T_measurement_base, tool point) and the nominal at the poses
-    of another session (``Q``, ``P``: its samples of the primary target). When the model misses
-    the poses by more than :data:`MOVED_RATIO` times what it does once its base is placed on a
-    third of them (every third pose), the tracker moved: the base is placed on that third (for
-    the nominal: base and tool point) and the other poses are scored; else every pose is scored
-    as it is (the nominal's base and tool point are then placed on every pose: the error the
-    nominal leaves at best). ``table_values`` (m, n): the calibrated table's joint values at
-    ``Q`` when they are not ``Q`` (fitted encoder scales, joints deflected by the terms beyond
-    the geometry)."""
-    from dhlog.errors import InputError
-
-    groups = pose_groups(Q)
-    poses = np.unique(groups)
-    if poses.size < MIN_POSES:
-        raise InputError(
-            f"{path}: has {poses.size} distinct poses with encoder values; a held-out check needs "
-            f"at least {MIN_POSES}."
-        )
-    table, T, tool = calibrated
-    Qt = Q if table_values is None else table_values
-    subset = np.isin(groups, poses[::3])
-    rest = ~subset
-    as_is = fk_point(table, Qt, tool, T_base=T)
-    moved_reg = register_nominal(
-        table, Qt[subset], P[subset], tool_point=tool, T_base=T, fit_tool=False
-    )
-    placed = fk_point(table, Qt, tool, T_base=moved_reg.T_measurement_base)
-    err_as_is = float(np.sqrt(np.mean(np.sum((P[rest] - as_is[rest]) ** 2, axis=1))))
-    err_placed = float(np.sqrt(np.mean(np.sum((P[rest] - placed[rest]) ** 2, axis=1))))
-    moved = err_as_is > MOVED_RATIO * err_placed
-    scored = rest if moved else np.ones(Q.shape[0], dtype=bool)
-    pred = placed if moved else as_is
-    pos, cal = _pose_errors(groups, scored, P, pred[scored])
-    nom = None
-    notes = []
-    if moved:
-        notes.append(
-            f"the tracker moved (the model misses these poses by {err_as_is * 1e3:.4f} mm RMS as "
-            f"they are, {err_placed * 1e3:.4f} mm with its base placed on a third of them): the "
-            f"base was placed on {int(np.unique(groups[subset]).size)} poses and the other "
-            f"{int(np.unique(groups[rest]).size)} scored."
-        )
-    if nominal is not None:
-        ntable, nT, ntool = nominal
-        fit_on = subset if moved else np.ones(Q.shape[0], dtype=bool)
-        reg = register_nominal(ntable, Q[fit_on], P[fit_on], tool_point=ntool, T_base=nT)
-        pn = fk_point(ntable, Q[scored], reg.tool_point, T_base=reg.T_measurement_base)
-        nom = _pose_errors(groups, scored, P, pn)[1]
-    return Holdout(
-        kind="log",
-        nominal=None if nom is None else ErrorStats.of(np.linalg.norm(nom, axis=1)),
-        calibrated=ErrorStats.of(np.linalg.norm(cal, axis=1)),
-        positions=pos,
-        nominal_vectors=nom,
-        calibrated_vectors=cal,
-        path=path,
-        registered=bool(moved),
-        n_registration_poses=int(np.unique(groups[subset]).size) if moved else 0,
-        notes=notes,
-        T_measurement_base=moved_reg.T_measurement_base if moved else None,
     )

@@ -30,7 +30,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from dhlog.errors import GeometryError, InputError
+from dhlog.errors import DhlogError, GeometryError, InputError
 from dhlog.geometry._checks import FloatArray
 from dhlog.geometry.fitting import PlaneFit, fit_plane
 from dhlog.geometry.lines import ANGLE_TOL, DISTANCE_TOL, Line, Plane
@@ -50,9 +50,10 @@ from dhlog.identify.checks import (
 )
 from dhlog.identify.conditioning import Conditioned, identifiability_notes, nominal_rows
 from dhlog.identify.extract import Extraction, extract_dh
+from dhlog.identify.footing import Placed, nominal_on_session, score_poses
 from dhlog.identify.hayati import HayatiRow
 from dhlog.identify.hold import hold_unseen
-from dhlog.identify.holdout import Holdout, cross_validate, score_poses
+from dhlog.identify.holdout import Holdout, cross_validate
 from dhlog.identify.persample import PerSample
 from dhlog.identify.register import Registration
 from dhlog.identify.relations import relation_tolerances, with_fixed_relations
@@ -199,9 +200,9 @@ def process_log(
     """Run the whole identification on the log at ``path`` (see the module docstring).
 
     ``holdout`` K > 1: K-fold cross-validation over the session's poses; ``validate``: further
-    logs (other sessions of the same robot) whose poses score the result, each placed on its
-    own when the tracker moved (:mod:`dhlog.identify.holdout`). ``progress(stage, fraction)``
-    is called as each stage advances."""
+    logs (other sessions of the same robot) whose poses score the result and the nominal on one
+    footing (:mod:`dhlog.identify.footing`; a log that cannot be scored is a warning).
+    ``progress(stage, fraction)`` is called as each stage advances."""
     log = read_log(
         path,
         pipeline,
@@ -222,8 +223,13 @@ def process_log(
         model=model,
         progress=progress,
     )
+    placed: list[Placed | None] = []  # the nominal on this session, placed once
     for other in validate or []:
-        _validate_log(result, other, pipeline, fast)  # each log's own pipeline unless named
+        try:  # each log's own pipeline unless named
+            _validate_log(result, other, pipeline, fast, placed)
+        except DhlogError as exc:  # the calibration stands: the log is one line
+            said = str(exc) if str(other) in str(exc) else f"{other}: {exc}"
+            result.warnings.append(f"held-out log not scored: {said}")
     return result
 
 
@@ -689,9 +695,15 @@ def _identify_whole(
 
 
 def _validate_log(
-    result: ProcessResult, path: str | Path, pipeline: Pipeline | None, fast: bool
+    result: ProcessResult,
+    path: str | Path,
+    pipeline: Pipeline | None,
+    fast: bool,
+    placed: list[Placed | None],
 ) -> None:
-    """Score ``result`` at the poses of the log at ``path`` (``--validate``)."""
+    """Score ``result`` at the poses of the log at ``path`` (``--validate``), the nominal and
+    the calibrated model on one footing (:mod:`dhlog.identify.footing`); ``placed`` keeps the
+    nominal as placed on this session once it is (one item)."""
     ex = result.extraction
     if ex is None or not result.complete:
         result.warnings.append(f"{path}: not scored: the result is not complete.")
@@ -706,21 +718,61 @@ def _validate_log(
         )
     rows, Qs, Ps = samples_with_encoders(seg)
     which = target_labels(seg, rows)
+    rotations = measured_rotations(seg, rows)
     primary = slice(None) if which is None else which == 0
     Q, P = Qs[primary], Ps[primary]  # a session scored: its own poses, whole
+    if not placed:
+        placed.append(_nominal_on_session(result))
     nominal = result.nominal
     result.holdout.append(
         score_poses(
-            (ex.standard, ex.T_measurement_base, ex.tool_point),
+            Placed(ex.standard, ex.T_measurement_base, ex.tool_point, result.tool_orientation),
             Q,
             P,
             path=str(path),
-            nominal=None
-            if nominal is None
-            else (nominal.table, nominal.T_base, nominal.tool_point),
+            nominal=placed[0],
+            rotations=None if rotations is None else rotations[primary],
             table_values=table_values(result, Q),
+            nominal_values=None if nominal is None else nominal.joint_values(Q),
         )
     )
+
+
+#: Largest number of the session's samples the nominal is placed on for ``--validate``.
+NOMINAL_SAMPLES = 20000
+
+
+def _nominal_on_session(result: ProcessResult) -> Placed | None:
+    """The nominal placed on the session's samples (the fit's inliers of the primary target, at
+    most :data:`NOMINAL_SAMPLES`, evenly strided): the "before" a held-out log scores. None
+    without a nominal or a whole-model fit, or when it cannot be placed (said)."""
+    nominal, whole, seg = result.nominal, result.whole, result.segmentation
+    if nominal is None or whole is None:
+        return None
+    rows, Q, P = samples_with_encoders(seg)
+    keep = np.ones(rows.size, dtype=bool)
+    if whole.inliers.shape[0] == rows.size:
+        keep &= np.asarray(whole.inliers, dtype=bool)
+    which = target_labels(seg, rows)
+    if which is not None:
+        keep &= which == 0
+    pick = np.flatnonzero(keep)
+    pick = pick[:: max(1, pick.size // NOMINAL_SAMPLES)]
+    try:
+        return nominal_on_session(
+            nominal.table,
+            nominal.joint_values(Q[pick]),
+            P[pick],
+            measured_rotations(seg, rows[pick]),
+            tool_point=nominal.tool_point,
+            T_base=nominal.T_base,
+        )
+    except GeometryError as exc:
+        result.warnings.append(
+            f"the nominal could not be placed on this session ({exc}): held-out logs score "
+            "the calibrated model alone."
+        )
+        return None
 
 
 def _rates(speeds: JointRates, seg: Segmentation, rows: NDArray[np.intp]) -> PerSample:
