@@ -6,9 +6,9 @@ by dhlog's own writer — and through ``dhlog process`` with the right nominal; 
 held-out error at poses not used to fit, against bounds argued from physics and the data's README
 in the comments, set before the result was looked at. Not tuned to the data.
 
-``--model geometric`` throughout: the default ``--model auto`` takes 51 s on the UR5 grid alone
-(issue 31 item 5) and the bounds below are those of a geometric calibration. docs/accuracy.md
-("Real data") gives the figures of both and the commands.
+``--model geometric`` throughout: the default ``--model auto`` takes 36-56 s on the UR5 grid
+alone against 4 s (issue 31 item 5), and the bounds below are those of a geometric calibration.
+docs/accuracy.md ("Real data") gives the figures of both and the commands.
 """
 
 from __future__ import annotations
