@@ -48,9 +48,11 @@ TURN = math.radians(1.6) * np.array([0.0, 0.6, 0.8])  # … and 1.6°
 #: the calibrated held-out RMS the noise allows (see the module docstring)
 AT_NOISE = 4e-5
 Q0 = np.array([0.1, -0.3, 0.4, 0.2, 0.5, 0.3])
+Checked = tuple[ProcessResult, dict[str, LogHoldout]]
+Plan = tuple[tuple[float, ...], ...]
 
 
-def _ik(session: Session, tool: np.ndarray, targets: list[tuple[np.ndarray, np.ndarray]]) -> tuple:
+def _ik(session: Session, tool: np.ndarray, targets: list[tuple[np.ndarray, np.ndarray]]) -> Plan:
     """Joint vectors putting ``tool`` at each (position, flange rotation) of ``targets``."""
     q, out = Q0, []
     for p, R in targets:
@@ -65,7 +67,7 @@ def _ik(session: Session, tool: np.ndarray, targets: list[tuple[np.ndarray, np.n
     return tuple(out)
 
 
-def line_poses(cal: Session, robot: Robot) -> tuple:
+def line_poses(cal: Session, robot: Robot) -> Plan:
     """30 joint vectors moving the target along a 0.3 m straight line, the flange's
     orientation held (a linear move)."""
     F0 = fk_frames(cal.table, Q0)[-1]
@@ -75,7 +77,7 @@ def line_poses(cal: Session, robot: Robot) -> tuple:
     return _ik(cal, robot.tool_point, targets)
 
 
-def point_poses(cal: Session, robot: Robot) -> tuple:
+def point_poses(cal: Session, robot: Robot) -> Plan:
     """8 joint vectors putting the target at one point, the flange turned differently."""
     F0 = fk_frames(cal.table, Q0)[-1]
     p0 = fk_point(cal.table, Q0, robot.tool_point)
@@ -122,7 +124,7 @@ def nominal_of(robot: Robot) -> DHModel:
     return DHModel(robot.table, robot.T_base, robot.tool_point, names, robot.name)
 
 
-def calibrated(six_dof: bool, folder: Path) -> tuple[ProcessResult, dict[str, LogHoldout]]:
+def calibrated(six_dof: bool, folder: Path) -> Checked:
     robot, _, paths = sessions(six_dof, folder)
     result = process_log(
         folder / "cal.mcap",
@@ -139,16 +141,16 @@ def calibrated(six_dof: bool, folder: Path) -> tuple[ProcessResult, dict[str, Lo
 
 
 @pytest.fixture(scope="module")
-def points(tmp_path_factory: pytest.TempPathFactory) -> tuple[ProcessResult, dict[str, LogHoldout]]:
+def points(tmp_path_factory: pytest.TempPathFactory) -> Checked:
     return calibrated(False, tmp_path_factory.mktemp("points"))
 
 
 @pytest.fixture(scope="module")
-def six(tmp_path_factory: pytest.TempPathFactory) -> tuple[ProcessResult, dict[str, LogHoldout]]:
+def six(tmp_path_factory: pytest.TempPathFactory) -> Checked:
     return calibrated(True, tmp_path_factory.mktemp("six"))
 
 
-def test_a_line_with_orientation_is_scored_in_3d(six: tuple) -> None:
+def test_a_line_with_orientation_is_scored_in_3d(six: Checked) -> None:
     """A linear move (30 poses within µm of one line) measured after the tracker moved, with a
     6-DoF probe: the measured orientation places the base (the line alone cannot: it ended the
     run with exit 2 before), every component is scored, the calibrated model at the noise."""
@@ -163,7 +165,7 @@ def test_a_line_with_orientation_is_scored_in_3d(six: tuple) -> None:
     assert np.sqrt(np.mean((line.calibrated_vectors @ u) ** 2)) > 2e-6
 
 
-def test_a_line_without_orientation_is_scored_across_it_and_says_so(points: tuple) -> None:
+def test_a_line_without_orientation_is_scored_across_it_and_says_so(points: Checked) -> None:
     """The same linear move, position-only: the base is placed (the tracker moved: the
     calibrated model misses these poses by ~0.3 m as they stand) with its rotation about the
     line held, only the errors across the line are scored, and the note says so."""
@@ -203,7 +205,7 @@ def test_a_remounted_probe_is_placed_for_both_models_and_said(
         assert abs(turn - 1.6) < 0.02  # 0.2 mrad over 10 poses: ~0.004°
 
 
-def test_a_tracker_that_moved_places_the_base_of_both_models(points: tuple) -> None:
+def test_a_tracker_that_moved_places_the_base_of_both_models(points: Checked) -> None:
     """After the tracker moved 0.5 m the base is placed again once, for both models on the same
     10 poses, and both are scored at the same 20: the nominal's error stays at its millimetre
     (0.5 m had its base stayed), the calibrated model's at the noise."""
@@ -218,7 +220,7 @@ def test_a_tracker_that_moved_places_the_base_of_both_models(points: tuple) -> N
     assert any(n.startswith("before: the nominal") for n in check.notes)
 
 
-def test_one_point_with_orientation_is_scored(six: tuple) -> None:
+def test_one_point_with_orientation_is_scored(six: Checked) -> None:
     """Eight poses at one point, the flange turned: with the measured orientation they are a
     held-out check (here nothing moved: both models scored as they stand)."""
     _, checks = six
@@ -228,7 +230,7 @@ def test_one_point_with_orientation_is_scored(six: tuple) -> None:
 
 
 def test_a_log_that_cannot_be_scored_is_one_line_and_the_result_is_written(
-    points: tuple, tmp_path: Path
+    points: Checked, tmp_path: Path
 ) -> None:
     """Through the CLI: three poses, and eight position-only poses at one point, cannot be
     scored: each is one warning line in the result and on the console, the calibration is
@@ -267,3 +269,21 @@ def test_a_log_that_cannot_be_scored_is_one_line_and_the_result_is_written(
     (check,) = doc["validation"]["holdout"]
     assert check["path"].endswith("moved.mcap") and check["registered"] is True
     assert check["components"] == "3-D" and check["tool_replaced"] is False
+    assert "moved.mcap" in r.output and "(placed)" in r.output  # the cell may wrap
+
+
+def test_a_remounted_probe_is_marked_placed_on_the_console(points: Checked, tmp_path: Path) -> None:
+    """The console's held-out table marks a log whose tool was placed again, as one whose base
+    was: its figures are not those of the model as it stands."""
+    result, _ = points
+    folder = Path(result.path).parent
+    r = CliRunner().invoke(
+        app,
+        [
+            "process", str(folder / "cal.mcap"), "--nominal", "kr5", "--model", "geometric",
+            "--no-rrd", "--out", str(tmp_path), "--validate", str(folder / "remounted.mcap"),
+        ],
+    )  # fmt: skip
+    assert r.exit_code == 0, r.output
+    assert "remounted.mcap" in r.output and "(placed)" in r.output  # the cell may wrap
+    assert "re-mounted" in " ".join(r.output.split())

@@ -211,7 +211,7 @@ def _print_holdout(console: Console, result: ProcessResult, units: str) -> None:
         t.add_column(head, justify="left" if head in ("check", "model") else "right")
     for h in result.holdout:
         what = f"{h.folds}-fold" if h.kind == "cross-validation" else Path(h.path or "").name
-        if h.registered:
+        if h.registered or getattr(h, "tool_replaced", False):
             what += " (placed)"
         for label, stats in (("nominal", h.nominal), ("calibrated", h.calibrated)):
             if stats is None:
