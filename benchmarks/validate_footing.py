@@ -10,9 +10,9 @@ its table, whose nominal misses by a few tenths of a millimetre) calibrated from
 poses (tracker σ 10 µm), position-only and then with a 6-DoF probe (its orientation too, σ 0.2
 mrad, read with ``orientation = true``); the same robot measured again at 30 other poses with
 the probe re-mounted (its point moved 0.95 mm on the flange, its frame turned 1.6°), and at 30
-after the tracker moved (0.5 m). Each session
-is written as MCAP and calibrated with ``process_log(..., validate=[...])`` as ``dhlog process
-LOG --nominal kr5 --validate OTHER.mcap`` does. Printed per case and seed: the nominal's and the
+after the tracker moved (0.5 m). Each session is written as MCAP and calibrated with
+``process_log(..., validate=[...])`` as ``dhlog process LOG --nominal kr5 --validate OTHER.mcap``
+does. Printed per case and seed: the nominal's and the
 calibrated model's held-out RMS (mm), the poses scored, and what was placed again.
 """
 
