@@ -45,12 +45,14 @@ def beyond_geometry(
     names: Sequence[str],
     warnings: list[str],
     info: list[str],
+    outer: NDArray[np.int64] | None = None,
 ) -> tuple[WholeFit, Selection | None]:
     """The terms beyond the geometry that ``--model`` (``request``) asks for or the session
     proves (:func:`select_model`), fitted to every sample, and the candidates tried (None with
     ``--model geometric``). ``options``: the whole-model fit's; ``folds``: the run's K-fold
     cross-validation (else :data:`SELECT_FOLDS`); ``names``: the joints' (a URDF's masses are
-    matched by them)."""
+    matched by them); ``outer``: each sample's fold of ``--holdout K``, in which ``auto`` chooses
+    again from the fold's training poses (:func:`select_model`)."""
     if request.mode == "geometric":
         return whole, None
     gravity = (
@@ -94,6 +96,7 @@ def beyond_geometry(
         folds=folds if folds > 1 else SELECT_FOLDS,
         masses=masses,
         reuse=weighed is options,
+        outer=outer,
     )
     chosen = selection.chosen
     terms = selected_terms(selection)

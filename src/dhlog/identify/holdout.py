@@ -18,13 +18,15 @@ Pure numpy/scipy.
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
 
 from dhlog.geometry._checks import FloatArray
+from dhlog.identify.axismodel import AxisModel
+from dhlog.identify.leaveout import fold_of_poses
 from dhlog.identify.persample import SampleArray, blocks
 from dhlog.identify.prediction import predict
 from dhlog.identify.register import register_nominal
@@ -161,11 +163,16 @@ def cross_validate(
     nominal: tuple[StandardDH, FloatArray, FloatArray] | None = None,
     which: NDArray[np.int64] | None = None,
     seed: int = 0,
+    fold: NDArray[np.int64] | None = None,
+    starts: Sequence[AxisModel] = (),
 ) -> Holdout:
     """K-fold cross-validation over poses (see the module docstring). ``fit_options`` are the
     keyword arguments of the full fit (noise, σ, per-sample covariance, orientations, …);
     ``nominal`` = (table, T_base, tool point) to place on each fold's fitted poses. Only the
-    full fit's inliers are used; with several targets only the primary one is scored."""
+    full fit's inliers are used; with several targets only the primary one is scored.
+    ``fold`` (m,): each sample's fold (default: :func:`fold_of_poses` of its pose, seeded);
+    ``starts``: per fold, the model to fit to its training poses (default ``whole``'s) — the
+    model ``--model auto`` chose from those poses alone."""
     from dhlog.errors import InputError
 
     groups = pose_groups(Q)
@@ -178,19 +185,15 @@ def cross_validate(
             f"--holdout {folds}: the session has {poses.size} distinct poses; hold out fewer "
             "folds or measure more poses."
         )
-    rng = np.random.default_rng(seed)
-    fold_of_pose = np.empty(poses.size, dtype=np.int64)
-    fold_of_pose[rng.permutation(poses.size)] = np.arange(poses.size) % folds
-    fold = np.full(Q.shape[0], -1, dtype=np.int64)
-    fold[np.isin(groups, poses)] = fold_of_pose[
-        np.searchsorted(poses, groups[np.isin(groups, poses)])
-    ]
+    if fold is None:
+        fold = fold_of_poses(groups, folds, seed)
     positions, cal_vecs, nom_vecs = [], [], []
     notes: list[str] = []
     for k in range(folds):
         test = usable & (fold == k)
         train = whole.inliers & (fold != k)
-        fit = fit_whole_model(whole.model, Q, P, keep=train, which=which, **fit_options)  # type: ignore[arg-type]
+        start = starts[k] if starts else whole.model
+        fit = fit_whole_model(start, Q, P, keep=train, which=which, **fit_options)  # type: ignore[arg-type]
         pred, _ = predict(fit.model, Q[test])
         pos, vec = _pose_errors(groups, test, P, pred)
         positions.append(pos)

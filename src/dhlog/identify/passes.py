@@ -86,6 +86,62 @@ def _truncated(
     return nrm, use, float(np.sum(np.minimum(nrm[keep], limit) ** 2))
 
 
+@dataclass(frozen=True)
+class Rows:
+    """One block of samples at a model: the prediction's residuals ``r`` (3, c: predicted −
+    measured, m) and Jacobian ``J`` (size, 3, c), their whitened forms ``rw``, ``Jw`` (``Jw`` is
+    ``J`` unscaled when ``folded`` ≠ 1: a scalar weight left for the caller to apply), and with a
+    6-DoF target the orientation residuals ``ro`` (3, c) and their Jacobian ``Jr`` (size, 3, c),
+    both already in units of ``sigma_rot``."""
+
+    r: FloatArray
+    J: FloatArray
+    rw: FloatArray
+    Jw: FloatArray
+    folded: float
+    ro: FloatArray | None
+    Jr: FloatArray | None
+
+
+def whitened_rows(
+    model: AxisModel,
+    layout: ParameterLayout,
+    bases: list[tuple[FloatArray, FloatArray]],
+    data: Samples,
+    sl: slice,
+    *,
+    fold: bool = False,
+) -> Rows:
+    """The residuals and Jacobian of the samples ``sl`` of ``data`` at ``model``, whitened
+    (``fold``: a scalar whitening of a positions-only pass is returned as ``folded`` instead of
+    applied to ``Jw``, which saves a pass over it)."""
+    rates = None if data.Qd is None else data.Qd[sl]
+    Q, P = data.Q[sl], data.P[sl]
+    prefix = prefix_motions(model, Q, rates)
+    which = None if data.which is None else data.which[sl]
+    pred, J = predict_columns(model, Q, layout, bases, which, prefix, rates)
+    assert J is not None
+    r = pred - P.T  # (3, c)
+    W = data.whiten(P, None if data.W is None else data.W[sl])
+    folded = 1.0  # a scalar weight of J applied to H and g instead of to every entry
+    if isinstance(W, float):
+        rw, Jw = r * W, J
+        if data.R is None and fold:
+            folded = W
+        else:
+            Jw = J * W
+    else:
+        Wt = np.transpose(W, (1, 2, 0))  # (3, 3, c)
+        rw = rotate(Wt, r)
+        Jw = np.moveaxis(rotate(Wt, np.moveaxis(J, 0, 1)), 1, 0)
+    ro = Jr = None
+    if data.R is not None:  # the target frame's orientation, weighted by 1/σ_rot
+        R_pred, Jo = predict_orientation(model, Q, layout, bases, prefix, rates)
+        ro = orientation_residual(R_pred, np.moveaxis(data.R[sl], 0, 2)) / data.sigma_rot
+        Jr = Jo / data.sigma_rot
+    return Rows(r, J, rw, Jw, folded, ro, Jr)
+
+
 def accumulate(
     model: AxisModel,
     layout: ParameterLayout,
@@ -103,38 +159,19 @@ def accumulate(
 
     def chunk(start: int) -> tuple[FloatArray, FloatArray, float, int, float]:
         sl = slice(start, min(start + CHUNK, m))
-        rates = None if data.Qd is None else data.Qd[sl]
-        Q, P = data.Q[sl], data.P[sl]
-        prefix = prefix_motions(model, Q, rates)
-        which = None if data.which is None else data.which[sl]
-        pred, J = predict_columns(model, Q, layout, bases, which, prefix, rates)
-        assert J is not None
-        r = pred - P.T  # (3, c)
-        W = data.whiten(P, None if data.W is None else data.W[sl])
-        folded = 1.0  # a scalar weight of J applied to H and g instead of to every entry
-        if isinstance(W, float):
-            rw, Jw = r * W, J
-            if data.R is None:
-                folded = W
-            else:
-                Jw = J * W
-        else:
-            Wt = np.transpose(W, (1, 2, 0))  # (3, 3, c)
-            rw = rotate(Wt, r)
-            Jw = np.moveaxis(rotate(Wt, np.moveaxis(J, 0, 1)), 1, 0)
-        keep = data.keep[sl]
-        nrm, use, cost = _truncated(rw, keep, limit)
+        rows = whitened_rows(model, layout, bases, data, sl, fold=True)
+        Jw, rw = rows.Jw, rows.rw
+        nrm, use, cost = _truncated(rw, data.keep[sl], limit)
         norms[sl] = nrm
-        if data.R is not None:  # the target frame's orientation, weighted by 1/σ_rot
-            R_pred, Jr = predict_orientation(model, Q, layout, bases, prefix, rates)
-            ro = orientation_residual(R_pred, np.moveaxis(data.R[sl], 0, 2)) / data.sigma_rot
+        if rows.ro is not None and rows.Jr is not None:
             # σ_rot is the orientations' own scale (or declared): judged on theirs, not on
             # a position limit that declared covariances far above the residuals make tiny
-            _, use_o, part = _truncated(ro, keep, max(limit, ROTATION_LIMIT))
+            _, use_o, part = _truncated(rows.ro, data.keep[sl], max(limit, ROTATION_LIMIT))
             use &= use_o
             cost += part
-            rw = np.concatenate([rw, ro])
-            Jw = np.concatenate([Jw, Jr / data.sigma_rot], axis=1)
+            rw = np.concatenate([rw, rows.ro])
+            Jw = np.concatenate([Jw, rows.Jr], axis=1)
+        folded = rows.folded
         if not np.all(use):
             Jw, rw = Jw[:, :, use], rw[:, use]
         Ju = Jw.reshape(layout.size, -1)

@@ -53,7 +53,8 @@ from dhlog.identify.extract import Extraction, extract_dh
 from dhlog.identify.footing import Placed, nominal_on_session, score_poses
 from dhlog.identify.hayati import HayatiRow
 from dhlog.identify.hold import hold_unseen
-from dhlog.identify.holdout import Holdout, cross_validate
+from dhlog.identify.holdout import Holdout, cross_validate, pose_groups
+from dhlog.identify.leaveout import fold_of_poses
 from dhlog.identify.persample import PerSample
 from dhlog.identify.register import Registration
 from dhlog.identify.relations import relation_tolerances, with_fixed_relations
@@ -570,6 +571,9 @@ def _identify_whole(
         start = replace(whole.model, clock=0.0)
         result.segmentation = seg
     result.timing = timing
+    outer = None  # --holdout K: each sample's fold, the same for the selection and the check
+    if result.folds > 1:
+        outer = fold_of_poses(pose_groups(Q), result.folds, 0)
     whole, result.selection = beyond_geometry(
         result.model_request,
         whole,
@@ -581,6 +585,7 @@ def _identify_whole(
         names=[j.name for j in joints],
         warnings=notes,
         info=result.info,
+        outer=outer,
     )
     whole, sample_cov, result.noise = with_model_error(
         whole, Q, P, sample_cov, result.noise, which, rates, rotations, notes
@@ -690,8 +695,19 @@ def _identify_whole(
                 if nominal is None
                 else (nominal.table, nominal.T_base, nominal.tool_point),
                 which=which,
+                fold=outer,
+                starts=() if result.selection is None else result.selection.fold_starts,
             )
         )
+        nested = [] if result.selection is None else result.selection.fold_choices
+        if nested:
+            counts = {c: nested.count(c) for c in dict.fromkeys(nested)}
+            result.holdout[-1].notes.append(
+                "--model auto chose again in each fold from its training poses alone (nested "
+                "cross-validation): "
+                + ", ".join(f"{c} in {k} of {len(nested)}" for c, k in counts.items())
+                + "; the held-out error is that of the whole procedure."
+            )
 
 
 def _validate_log(

@@ -27,20 +27,20 @@ rejected without it.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
-from dhlog.errors import DhlogError
 from dhlog.geometry._checks import FloatArray
-from dhlog.identify.holdout import cross_validate
+from dhlog.identify.axismodel import AxisModel
+from dhlog.identify.holdout import pose_groups
+from dhlog.identify.leaveout import Linear, fold_of_poses, linearise, pose_means
 from dhlog.identify.persample import PerSample, SampleArray
-from dhlog.identify.prediction import predict
 from dhlog.identify.whole import WholeFit, fit_whole_model
 from dhlog.model.dh import JointType
-from dhlog.model.terms import Lump, Terms, design
+from dhlog.model.terms import Lump, Term, Terms, design
 
 #: The ``--model`` choices and the families each forces (``auto`` tries them in this order).
 MODELS = {
@@ -137,6 +137,10 @@ class Selection:
     candidates: list[Candidate]
     folds: int
     n_samples: int
+    #: with ``--holdout K``: per fold, the candidate ``auto`` chose from that fold's training
+    #: poses alone, and its model to start the fold's fit from (nested cross-validation)
+    fold_choices: list[str] = field(default_factory=list)
+    fold_starts: list[AxisModel] = field(default_factory=list)
 
     @property
     def chosen(self) -> Candidate:
@@ -204,11 +208,14 @@ def select_model(
     folds: int = SELECT_FOLDS,
     masses: tuple[Lump, ...] = (),
     reuse: bool = False,
+    outer: NDArray[np.int64] | None = None,
 ) -> Selection:
     """Score the candidates of ``mode`` (see the module docstring) on ``whole``'s inliers.
     ``options``: the whole fit's keyword arguments (per-sample arrays over all samples);
     ``reuse``: ``whole`` was fitted with exactly these options, so that on every sample it is
-    the geometric candidate itself (no fit again)."""
+    the geometric candidate itself (no fit again); ``outer`` (m,): each sample's fold of the
+    run's ``--holdout K`` — the choice of ``auto`` is then made again inside each fold from its
+    training poses alone (``Selection.fold_starts``: nested cross-validation)."""
     m = Q.shape[0]
     stride = -(-m // SELECT_SAMPLES) if m > SELECT_SAMPLES else 1
     pick = np.arange(0, m, stride)
@@ -216,151 +223,236 @@ def select_model(
         k: (v[pick] if isinstance(v, np.ndarray | PerSample) and v.shape[:1] == (m,) else v)
         for k, v in options.items()
     }
-    keep = whole.inliers[pick]
+    keep = np.asarray(whole.inliers[pick], dtype=bool)
     Qs, Ps = Q[pick], P[pick]
     used = Qs[keep] if np.any(keep) else Qs
     box = np.random.default_rng(0).uniform(
         used.min(axis=0), used.max(axis=0), (RANGE_POINTS, Q.shape[1])
     )
+    groups = pose_groups(Qs)
+    which = sub.get("which")
+    primary = np.ones(pick.size, dtype=bool) if which is None else np.asarray(which) == 0
+    per = 3 if sub.get("rotations") is None else 6
+    parents: dict[tuple[str, ...], tuple[WholeFit, Linear]] = {}
 
-    def fitted(
-        families: tuple[str, ...], dropped: frozenset[tuple[str, int]] = frozenset()
+    def parent(families: tuple[str, ...]) -> tuple[WholeFit, Linear]:
+        """The candidate of ``families`` with every joint's terms, fitted to the samples, and
+        linearised at its optimum."""
+        if families not in parents:
+            terms = terms_for(whole, families, gravity, harmonic_joints, masses)
+            if terms is None and reuse and stride == 1:
+                fit = whole  # its optimum over its inliers is the candidate's
+            else:
+                start = replace(whole.model, terms=terms)
+                fit = fit_whole_model(
+                    start, Qs, Ps, sigma=sigma, keep=keep, threshold=math.inf, **sub
+                )
+            parents[families] = (fit, linearise(fit, Qs, Ps, box, sigma=sigma, **sub))
+        return parents[families]
+
+    def held(fit: WholeFit, lin: Linear, dropped: frozenset[tuple[str, int]]) -> Constraint:
+        """``dropped``'s terms held at zero, as a constraint on ``lin``'s ``z``."""
+        terms, k = fit.model.terms, fit.layout.terms_at
+        if not dropped or terms is None or k is None:
+            return None
+        at = [k + i for i, t in enumerate(terms.terms) if (family_of(t.kind), t.joint) in dropped]
+        return lin.B[at], -lin.values[at]
+
+    def scored(
+        families: tuple[str, ...], dropped: frozenset[tuple[str, int]], train: NDArray[np.bool_]
     ) -> Candidate:
-        terms = terms_for(whole, families, gravity, harmonic_joints, masses, dropped)
-        if terms is None and reuse and stride == 1:
-            fit = whole  # its optimum over its inliers is the candidate's
-        else:
-            start = replace(whole.model, terms=terms)
-            fit = fit_whole_model(start, Qs, Ps, sigma=sigma, keep=keep, threshold=math.inf, **sub)
-        d = fit.determined
-        p = d.basis.shape[1] if d is not None else fit.layout.size
-        per = 3 if sub.get("rotations") is None else 6
-        n_res = per * fit.n_points
-        rss = fit.chi2_dof * max(n_res - p, 1)
-        bic = n_res * math.log(max(rss, 1e-300) / n_res) + p * math.log(n_res)
-        _, J = predict(fit.model, box, fit.layout, fit.bases)
-        assert J is not None
-        var = np.einsum("mij,jk,mik->m", J, fit.covariance, J)
-        range_sd = math.sqrt(max(float(np.mean(var)), 0.0))
-        which, rates = sub.get("which"), sub.get("rates")
-        pred, _ = predict(
-            fit.model,
-            Qs[keep],
-            which=None if which is None else which[keep],
-            rates=None if rates is None else rates[keep],
-        )
-        residual_ms = float(np.mean(np.sum((pred - Ps[keep]) ** 2, axis=1)))
+        """The candidate fitted to the samples ``train`` (linearised), with its BIC, predicted
+        σ over the ranges and in-sample mean squared error there."""
+        fit, lin = parent(families)
+        constraint = held(fit, lin, dropped)
+        A, g, count = lin.normal(train)
+        z, Ainv = lin.step(A, g, constraint)
+        held_count = 0 if constraint is None else int(np.linalg.matrix_rank(constraint[0]))
+        p = lin.rank - held_count
+        n_res = per * count
+        rss = lin.rss(z, train)
+        bic = n_res * math.log(max(rss, 1e-300) / n_res) + p * math.log(max(n_res, 1))
+        chi2_dof = rss / max(n_res - p, 1)
+        res = lin.residuals(z, train & lin.use)
+        n_terms = 0 if fit.model.terms is None else fit.model.terms.size
         return Candidate(
             families,
-            0 if terms is None else terms.size,
+            n_terms - sum(1 for t in _terms_of(fit) if (family_of(t.kind), t.joint) in dropped),
             p,
             bic,
-            fit=fit,
-            range_sd=range_sd,
+            range_sd=lin.range_sd(Ainv * chi2_dof),
             dropped=dropped,
-            residual_ms=residual_ms,
+            residual_ms=float(np.mean(np.sum(res**2, axis=1))) if res.size else math.nan,
         )
 
-    def pruned(cand: Candidate, family: str) -> Candidate:
-        """``cand`` without the joints of ``family`` the poses do not determine over the
-        ranges: one joint's terms at a time, while dropping them lowers the in-sample mean
-        squared error plus the predicted variance over the ranges."""
-        while True:
-            terms = None if cand.fit is None else cand.fit.model.terms
-            joints = sorted(
-                {t.joint for t in (terms.terms if terms else ()) if family_of(t.kind) == family}
-            )
-            if len(joints) <= 1:
-                return cand
-            trials = [fitted(cand.families, cand.dropped | {(family, j)}) for j in joints]
-            best = min(trials, key=lambda c: c.residual_ms + c.range_sd**2)
-            if best.residual_ms + best.range_sd**2 >= cand.residual_ms + cand.range_sd**2:
-                return cand
-            cand = best
-
-    def held_out(c: Candidate) -> None:
-        if c.holdout_rms is not None or c.fit is None:
+    def cross_validated(c: Candidate, train: NDArray[np.bool_], fold: NDArray[np.int64]) -> None:
+        """``c``'s held-out RMS and squared errors per pose over the folds ``fold`` of the
+        samples ``train`` (each fold predicted by the candidate fitted to the others)."""
+        if c.holdout_rms is not None:
             return
-        try:
-            h = cross_validate(
-                replace(c.fit, inliers=keep),
-                Qs,
-                Ps,
-                folds,
-                fit_options={"sigma": sigma, **{k: v for k, v in sub.items() if k != "which"}},
-                which=sub.get("which"),
-            )
-        except DhlogError as exc:
-            c.why = f"not cross-validated: {exc}"
+        fit, lin = parent(c.families)
+        constraint = held(fit, lin, c.dropped)
+        k_folds = int(fold[train].max(initial=-1)) + 1
+        squared = []
+        for k in range(k_folds):
+            test = train & primary & (fold == k)
+            if not np.any(test):
+                continue
+            A, g, _ = lin.normal(train & (fold != k))
+            z, _ = lin.step(A, g, constraint)
+            _, vec = pose_means(groups[test], lin.residuals(z, test))
+            squared.append(np.sum(vec**2, axis=1))
+        if not squared:
+            c.why = "not cross-validated: no poses to hold out"
             return
-        c.holdout_rms = h.calibrated.rms
-        c.squared = np.sum(h.calibrated_vectors**2, axis=1)
+        c.squared = np.concatenate(squared)
+        c.holdout_rms = math.sqrt(float(np.mean(c.squared)))
 
-    families = MODELS[mode]
-    base = fitted(())
-    candidates = [base]
-    if mode == "geometric":
-        base.chosen = True
-        return Selection(mode, candidates, folds, int(np.count_nonzero(keep)))
-    if mode != "auto":
-        forced = fitted(families)
-        held_out(base)
-        held_out(forced)
-        forced.chosen = True
-        forced.why = f"forced by --model {mode}"
-        candidates.append(forced)
-        return Selection(mode, candidates, folds, int(np.count_nonzero(keep)))
+    def chosen_on(
+        train: NDArray[np.bool_], fold: NDArray[np.int64], shown: list[Candidate] | None = None
+    ) -> Candidate:
+        """The candidate ``mode`` chooses from the samples ``train`` (inner folds ``fold``);
+        every candidate tried is appended to ``shown``."""
+        cache: dict[tuple[tuple[str, ...], frozenset[tuple[str, int]]], Candidate] = {}
 
-    def proves(cand: Candidate, over: Candidate) -> bool:
-        """Whether ``cand`` lowers both the BIC and the held-out error of ``over`` (its
-        ``why`` says how it fared)."""
-        if cand.bic >= over.bic:
-            cand.why = f"BIC {cand.bic - over.bic:+.1f} against {over.name}"
-            return False
-        held_out(over)
-        held_out(cand)
-        if over.holdout_rms is None or cand.holdout_rms is None:
-            cand.why = cand.why or "not cross-validated"
-            return False
-        gain, spread = _paired_gain(over, cand)
-        held = (
-            f"held-out RMS {over.holdout_rms * 1e3:.4f} → {cand.holdout_rms * 1e3:.4f} mm "
-            f"(mean squared error {gain * 1e6:+.4g} ± {spread * 1e6:.2g} mm² a pose)"
+        def fitted(
+            families: tuple[str, ...], dropped: frozenset[tuple[str, int]] = frozenset()
+        ) -> Candidate:
+            key = (families, dropped)
+            if key not in cache:
+                cache[key] = scored(families, dropped, train)
+            return cache[key]
+
+        def pruned(cand: Candidate, family: str) -> Candidate:
+            """``cand`` without the joints of ``family`` the poses do not determine over the
+            ranges: one joint's terms at a time, while dropping them lowers the in-sample mean
+            squared error plus the predicted variance over the ranges."""
+            while True:
+                fit, _ = parent(cand.families)
+                joints = sorted(
+                    {
+                        t.joint
+                        for t in _terms_of(fit)
+                        if family_of(t.kind) == family and (family, t.joint) not in cand.dropped
+                    }
+                )
+                if len(joints) <= 1:
+                    return cand
+                trials = [fitted(cand.families, cand.dropped | {(family, j)}) for j in joints]
+                best = min(trials, key=lambda c: c.residual_ms + c.range_sd**2)
+                if best.residual_ms + best.range_sd**2 >= cand.residual_ms + cand.range_sd**2:
+                    return cand
+                cand = best
+
+        def proves(cand: Candidate, over: Candidate) -> bool:
+            """Whether ``cand`` lowers both the BIC and the held-out error of ``over`` (its
+            ``why`` says how it fared)."""
+            if cand.bic >= over.bic:
+                cand.why = f"BIC {cand.bic - over.bic:+.1f} against {over.name}"
+                return False
+            cross_validated(over, train, fold)
+            cross_validated(cand, train, fold)
+            if over.holdout_rms is None or cand.holdout_rms is None:
+                cand.why = cand.why or "not cross-validated"
+                return False
+            gain, spread = _paired_gain(over, cand)
+            held_text = (
+                f"held-out RMS {over.holdout_rms * 1e3:.4f} → {cand.holdout_rms * 1e3:.4f} mm "
+                f"(mean squared error {gain * 1e6:+.4g} ± {spread * 1e6:.2g} mm² a pose)"
+            )
+            if gain + HELD_OUT_SIGMA * spread >= 0.0:
+                cand.why = (
+                    f"BIC {cand.bic - over.bic:+.1f} but {held_text}: not lower beyond its spread"
+                )
+                return False
+            if cand.expected >= over.expected:
+                cand.why = (
+                    f"BIC {cand.bic - over.bic:+.1f}, {held_text}, but its σ over the session's "
+                    f"joint ranges is {cand.range_sd * 1e3:.4f} mm ({over.range_sd * 1e3:.4f} mm "
+                    f"for {over.name}): the poses do not determine it where they did not go"
+                )
+                return False
+            cand.why = f"BIC {cand.bic - over.bic:+.1f} against {over.name}, {held_text}"
+            return True
+
+        base = fitted(())
+        candidates = [base]
+        if mode == "geometric":
+            current = base
+        elif mode != "auto":
+            current = fitted(MODELS[mode])
+            cross_validated(base, train, fold)
+            cross_validated(current, train, fold)
+            current.why = f"forced by --model {mode}"
+            candidates.append(current)
+        else:
+            # forward selection: each family alone, the best proven one kept, then the rest
+            # added to it (compliance and a joint's first harmonic can look alike: cos of the
+            # arm's angle)
+            current, left = base, list(MODELS[mode])
+            while left:
+                tried = []
+                for family in left:
+                    cand = fitted((*current.families, family))
+                    if cand.bic < current.bic:  # worth its best form: joints it cannot carry
+                        cand = pruned(cand, family)  # dropped
+                    tried.append(cand)
+                candidates += tried
+                proven = [c for c in tried if proves(c, current)]
+                if not proven:
+                    break
+                best = min(proven, key=lambda c: (c.expected, c.bic))
+                left = [f for f in left if f not in best.families]
+                current = best
+            if current is base:
+                base.why = "no family lowered both the BIC and the held-out error"
+        if shown is not None:
+            shown += candidates
+        return current
+
+    everything = keep.copy()
+    fold = fold_of_poses(groups, folds, 0)
+    candidates: list[Candidate] = []
+    chosen = chosen_on(everything, fold, candidates)
+    chosen.chosen = True
+    for c in candidates:  # the exact fits of the candidates shown (the chosen one's for its terms)
+        if not c.dropped:
+            c.fit = parent(c.families)[0]
+    if chosen.dropped:
+        fit, _ = parent(chosen.families)
+        start = replace(fit.model, terms=_kept_terms(fit, chosen.dropped))
+        chosen.fit = fit_whole_model(
+            start, Qs, Ps, sigma=sigma, keep=keep, threshold=math.inf, **sub
         )
-        if gain + HELD_OUT_SIGMA * spread >= 0.0:
-            cand.why = f"BIC {cand.bic - over.bic:+.1f} but {held}: not lower beyond its spread"
-            return False
-        if cand.expected >= over.expected:
-            cand.why = (
-                f"BIC {cand.bic - over.bic:+.1f}, {held}, but its σ over the session's joint "
-                f"ranges is {cand.range_sd * 1e3:.4f} mm ({over.range_sd * 1e3:.4f} mm for "
-                f"{over.name}): the poses do not determine it where they did not go"
-            )
-            return False
-        cand.why = f"BIC {cand.bic - over.bic:+.1f} against {over.name}, {held}"
-        return True
+    selection = Selection(mode, candidates, folds, int(np.count_nonzero(keep)))
+    if outer is not None and mode == "auto":
+        outer_pick = np.asarray(outer, dtype=np.int64)[pick]
+        for k in range(int(outer_pick.max(initial=-1)) + 1):
+            train = keep & (outer_pick != k)
+            inner = np.full(pick.size, -1, dtype=np.int64)
+            inner[train] = fold_of_poses(groups[train], SELECT_FOLDS, 1 + k)
+            c = chosen_on(train, inner)
+            fit, _ = parent(c.families)
+            selection.fold_choices.append(c.name)
+            selection.fold_starts.append(replace(fit.model, terms=_kept_terms(fit, c.dropped)))
+    return selection
 
-    # forward selection: each family alone, the best proven one kept, then the rest added to it
-    # (compliance and a joint's first harmonic can look alike: cos of the arm's angle)
-    current, left = base, list(families)
-    while left:
-        tried = []
-        for family in left:
-            cand = fitted((*current.families, family))
-            if cand.bic < current.bic:  # worth its best form: joints it cannot carry dropped
-                cand = pruned(cand, family)
-            tried.append(cand)
-        candidates += tried
-        proven = [c for c in tried if proves(c, current)]
-        if not proven:
-            break
-        best = min(proven, key=lambda c: (c.expected, c.bic))
-        left = [f for f in left if f not in best.families]
-        current = best
-    current.chosen = True
-    if current is base:
-        base.why = "no family lowered both the BIC and the held-out error"
-    return Selection(mode, candidates, folds, int(np.count_nonzero(keep)))
+
+#: A constraint on a linearised fit's ``z``: (C, d) for ``C z = d``, or None.
+Constraint = tuple[FloatArray, FloatArray] | None
+
+
+def _terms_of(fit: WholeFit) -> tuple[Term, ...]:
+    return () if fit.model.terms is None else fit.model.terms.terms
+
+
+def _kept_terms(fit: WholeFit, dropped: frozenset[tuple[str, int]]) -> Terms | None:
+    """``fit``'s terms less those of the (family, joint) ``dropped`` (None for none left)."""
+    terms = fit.model.terms
+    if terms is None:
+        return None
+    kept = terms.without(lambda t: (family_of(t.kind), t.joint) in dropped)
+    return kept if kept.size else None
 
 
 #: A family is added only when its held-out mean squared error is lower by more than this many
