@@ -151,3 +151,17 @@ def test_a_rigid_robot_is_scored_geometric_in_its_folds() -> None:
     assert sel.fold_choices.count("geometric") >= 4, sel.fold_choices
     (check,) = result.holdout
     assert check.calibrated.rms < 2.0 * math.sqrt(3) * NOISE
+
+
+def test_a_sweeps_session_says_its_held_out_poses_lie_on_the_sweeps(bending) -> None:  # type: ignore[no-untyped-def]
+    """Sweeps hold out samples of the swept arcs: the note says an error of the joints
+    together is not in the figure; random poses (the fixture) are not told so."""
+    robot = load_robot("kr5")
+    session = simulate_session(robot, SimulationConfig(seed=0, tracker_rate=20.0))
+    names = tuple(f"joint_{i + 1}" for i in range(robot.n))
+    nominal = DHModel(robot.table, robot.T_base, robot.tool_point, names, "kr5")
+    swept = process_data(log_data_from_session(session), nominal=nominal, holdout=5)
+    (check,) = swept.holdout
+    assert any("swept arcs" in n for n in check.notes), check.notes
+    _, _, random_poses = bending
+    assert not any("swept arcs" in n for n in random_poses.holdout[0].notes)

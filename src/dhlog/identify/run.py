@@ -55,7 +55,7 @@ from dhlog.identify.hayati import HayatiRow
 from dhlog.identify.hold import hold_unseen
 from dhlog.identify.holdout import Holdout, cross_validate, pose_groups
 from dhlog.identify.leaveout import fold_of_poses
-from dhlog.identify.persample import PerSample
+from dhlog.identify.persample import PerSample, blocks
 from dhlog.identify.register import Registration
 from dhlog.identify.relations import relation_tolerances, with_fixed_relations
 from dhlog.identify.samples import (
@@ -708,6 +708,27 @@ def _identify_whole(
                 + ", ".join(f"{c} in {k} of {len(nested)}" for c, k in counts.items())
                 + "; the held-out error is that of the whole procedure."
             )
+        swept = swept_share(seg, rows)
+        if swept >= SWEPT_SHARE:
+            result.holdout[-1].notes.append(
+                f"{swept:.0%} of the samples are in sweeps of one joint alone: the held-out "
+                "poses lie on the swept arcs, so an error of the joints together — at poses "
+                "the session never went to — is not in this figure; --validate a log of "
+                "random poses to see it."
+            )
+
+
+#: Share of the fitted samples in single-joint sweeps above which the cross-validation's note
+#: says its poses lie on the sweeps.
+SWEPT_SHARE = 0.5
+
+
+def swept_share(seg: Segmentation, rows: NDArray[np.intp]) -> float:
+    """The share of the samples ``rows`` that lie in a sweep of one joint alone."""
+    inside = 0
+    for sl in blocks(rows.size):
+        inside += int(np.count_nonzero(seg.joint(rows[sl]) > 0))
+    return inside / max(rows.size, 1)
 
 
 def _validate_log(
