@@ -1,6 +1,8 @@
 """The pair relations of the whole-model fit: each axis's covariance and the variance of the
-angle between consecutive axes (the pairs' tolerances), and the fit held to the relations the
-data cannot reject (parallel, collinear: :func:`with_fixed_relations`).
+angle between consecutive axes (the pairs' tolerances), the relations' linearised constraints
+(:func:`pair_constraints`), and the fit held to the relations the data cannot reject (parallel,
+collinear: :func:`with_fixed_relations`; which pairs, the held-out poses decide:
+:mod:`dhlog.identify.pairs`).
 """
 
 from __future__ import annotations
@@ -92,16 +94,12 @@ def relation_tolerances(
     )
 
 
-def constrain_pairs(fit: WholeFit, parallel: list[int], collinear: list[int]) -> WholeFit:
-    """The fit under the constraint that axes ``i, i+1`` (0-based ``i``) are exactly parallel
-    (``parallel``) or the same line (``collinear``): the relations a classification fixes when
-    the data cannot reject them.
-
-    To first order the constrained optimum and its covariance follow from the unconstrained
-    ones without another pass over the samples (the model is linear far beyond these moves):
-    ``x = −C Aᵀ (A C Aᵀ)⁻¹ c₀`` and ``C' = C − C Aᵀ (A C Aᵀ)⁻¹ A C`` for the linearised
-    constraints ``c₀ + A x = 0``; then the constrained axes are made exactly parallel (or
-    coincident), a change of second order."""
+def pair_constraints(
+    fit: WholeFit, parallel: list[int], collinear: list[int]
+) -> tuple[FloatArray, FloatArray]:
+    """The linearised constraints ``c₀ + A x = 0`` (``A`` (k, ``layout.size``), ``c₀`` (k,)) in
+    ``fit``'s local parameters ``x`` that axes ``i, i+1`` are parallel (``parallel``: two rows,
+    the relative tilt) or the same line (``collinear``: two more, the offset between them)."""
     model, layout, bases = fit.model, fit.layout, fit.bases
     rows: list[FloatArray] = []
     c0: list[float] = []
@@ -120,9 +118,43 @@ def constrain_pairs(fit: WholeFit, parallel: list[int], collinear: list[int]) ->
                 row[k1 + 2], row[k1 + 3] = -(e @ u1), -(e @ v1)
                 rows.append(row)
                 c0.append(float(e @ (c2 - c1)))
-    if not rows:
+    return np.array(rows).reshape(len(rows), layout.size), np.array(c0)
+
+
+def pairs_within(
+    fit: WholeFit, tolerances: list[tuple[float, float]]
+) -> tuple[list[int], list[int]]:
+    """The consecutive pairs (0-based ``i`` for axes i, i+1) within their ``tolerances`` of
+    parallel and of the same line: (parallel, collinear); a pair with a prismatic axis is only
+    ever parallel (it has only a direction to hold)."""
+    axes, types = fit.model.axes, fit.model.types
+    parallel, collinear = [], []
+    for i, (a_tol, d_tol) in enumerate(tolerances):
+        kind = classify_lines(axes[i], axes[i + 1], angle_tol=a_tol, distance_tol=d_tol).kind
+        if JointType.PRISMATIC in (types[i], types[i + 1]):
+            if kind.is_parallel:
+                parallel.append(i)
+        elif kind is RelationKind.COLLINEAR:
+            collinear.append(i)
+        elif kind.is_parallel:
+            parallel.append(i)
+    return parallel, collinear
+
+
+def constrain_pairs(fit: WholeFit, parallel: list[int], collinear: list[int]) -> WholeFit:
+    """The fit under the constraint that axes ``i, i+1`` (0-based ``i``) are exactly parallel
+    (``parallel``) or the same line (``collinear``): the relations a classification fixes when
+    the data cannot reject them.
+
+    To first order the constrained optimum and its covariance follow from the unconstrained
+    ones without another pass over the samples (the model is linear far beyond these moves):
+    ``x = −C Aᵀ (A C Aᵀ)⁻¹ c₀`` and ``C' = C − C Aᵀ (A C Aᵀ)⁻¹ A C`` for the linearised
+    constraints ``c₀ + A x = 0``; then the constrained axes are made exactly parallel (or
+    coincident), a change of second order."""
+    model, layout, bases = fit.model, fit.layout, fit.bases
+    A, c = pair_constraints(fit, parallel, collinear)
+    if not A.shape[0]:
         return fit
-    A, c = np.array(rows), np.array(c0)
     C = fit.covariance
     CA = C @ A.T
     S = A @ CA
@@ -167,17 +199,7 @@ def with_fixed_relations(
     either (said in a note). Returns the fit and the tolerances."""
     if tolerances is None:
         return whole, tolerances
-    axes, types = whole.model.axes, whole.model.types
-    parallel, collinear = [], []
-    for i, (a_tol, d_tol) in enumerate(tolerances):
-        kind = classify_lines(axes[i], axes[i + 1], angle_tol=a_tol, distance_tol=d_tol).kind
-        if JointType.PRISMATIC in (types[i], types[i + 1]):
-            if kind.is_parallel:  # a prismatic axis has only a direction to hold
-                parallel.append(i)
-        elif kind is RelationKind.COLLINEAR:
-            collinear.append(i)
-        elif kind.is_parallel:
-            parallel.append(i)
+    parallel, collinear = pairs_within(whole, tolerances)
     held = constrain_pairs(whole, parallel, collinear)
     if held is whole:
         return whole, tolerances

@@ -35,7 +35,6 @@ from dhlog.geometry._checks import FloatArray
 from dhlog.geometry.fitting import PlaneFit, fit_plane
 from dhlog.geometry.lines import ANGLE_TOL, DISTANCE_TOL, Line, Plane
 from dhlog.identify.analytic import (
-    AIC_SIGMA_2D,
     hayati_rows,
     pair_tolerances,
     partial_extraction,
@@ -55,9 +54,10 @@ from dhlog.identify.hayati import HayatiRow
 from dhlog.identify.hold import hold_unseen
 from dhlog.identify.holdout import Holdout, cross_validate, pose_groups
 from dhlog.identify.leaveout import fold_of_poses
+from dhlog.identify.pairs import decided_tolerances
 from dhlog.identify.persample import PerSample, blocks
 from dhlog.identify.register import Registration
-from dhlog.identify.relations import relation_tolerances, with_fixed_relations
+from dhlog.identify.relations import with_fixed_relations
 from dhlog.identify.samples import (
     START_TARGET_POINTS,
     measured_rotations,
@@ -245,7 +245,7 @@ def process_data(
     distance_tol: float = DISTANCE_TOL,
     analytic_only: bool = False,
     fit_scales: bool = False,
-    parallel_sigma: float = AIC_SIGMA_2D,
+    parallel_sigma: float | None = None,
     holdout: int = 0,
     model: ModelRequest = AUTO,
     progress: Stage | None = None,
@@ -256,9 +256,10 @@ def process_data(
     Default: the maximum-likelihood fit of the whole model to every sample with encoder
     values, started from the analytic result (per-joint fits + line geometry). With
     ``analytic_only`` (or without encoders), the analytic result with its propagated covariance.
-    ``parallel_sigma``: pairs within this many σ (2-D) of parallel are held parallel in the
-    whole-model fit, whatever the nominal says (0: never). ``holdout`` K > 1: K-fold
-    cross-validation of the whole-model fit over the session's poses (``result.holdout``).
+    ``parallel_sigma``: None, nearly parallel pairs are held parallel in the whole-model fit
+    where that does not raise the error at held-out poses (:mod:`dhlog.identify.pairs`); K,
+    those within K σ (2-D) of parallel, whatever the nominal says (0: never). ``holdout`` K > 1:
+    K-fold cross-validation of the whole-model fit over the session's poses (``result.holdout``).
     ``model``: the terms beyond the geometry to try or force (:mod:`dhlog.identify.select`).
     ``known_noise``: the tracker's σ (m) where it is known rather than measured (a plan): the
     base plane's covariance from it.
@@ -502,7 +503,7 @@ def _identify_whole(
     kwargs: dict[str, Any],
     fit_scales: bool,
     stage: Stage,
-    parallel_sigma: float = AIC_SIGMA_2D,
+    parallel_sigma: float | None = None,
 ) -> None:
     """The maximum-likelihood fit of the whole model, its DH model, covariance and check."""
     seg, joints, ref = result.segmentation, result.joints, result.reference_pose
@@ -596,8 +597,17 @@ def _identify_whole(
         whole, squares = pose_clustered(whole, Q, P, whiten, which, rates, result.info)
     clustered = whole
     nominal_table = nominal.table if nominal is not None else None
-    tolerances = relation_tolerances(
-        whole, nominal, kwargs["angle_tol"], kwargs["distance_tol"], parallel_sigma=parallel_sigma
+    tolerances = decided_tolerances(
+        whole,
+        nominal,
+        kwargs["angle_tol"],
+        kwargs["distance_tol"],
+        Q,
+        P,
+        parallel_sigma=parallel_sigma,
+        sigma=sigma,
+        options={**options, "noise": result.noise, "sample_cov": sample_cov},
+        info=result.info,
     )
 
     def cost(fit: WholeFit) -> float:
