@@ -39,7 +39,13 @@ from dhlog.identify.analytic import (
     pair_tolerances,
     partial_extraction,
 )
-from dhlog.identify.beyond import beyond_geometry, deflections
+from dhlog.identify.axismodel import AxisModel
+from dhlog.identify.beyond import (
+    beyond_geometry,
+    deflections,
+    merge_cancelling,
+    term_covariance,
+)
 from dhlog.identify.checks import (
     check_fit_noise,
     check_noise_model,
@@ -160,6 +166,9 @@ class ProcessResult:
     #: the terms' largest deflection per joint (rad or m) and of the target (m) at the samples
     deflection_max: FloatArray = field(default_factory=lambda: np.zeros(0))
     deflection_target: float = 0.0
+    #: their σ at the sample where each is largest (NaN: a term it needs is undetermined)
+    deflection_max_std: FloatArray = field(default_factory=lambda: np.zeros(0))
+    deflection_target_std: float = 0.0
     #: up to 2000 samples: the target where the model puts it and the terms' share of that
     #: (k, 6: position, displacement; m, in M)
     deflection_vectors: FloatArray = field(default_factory=lambda: np.zeros((0, 6)))
@@ -595,6 +604,19 @@ def _identify_whole(
     squares = None  # the whitened cost of the fit's inliers, where the design effect found it
     if rotations is None:
         whole, squares = pose_clustered(whole, Q, P, whiten, which, rates, result.info)
+
+    def refit_terms(model: AxisModel) -> WholeFit:
+        """The fit again from ``model`` (lumps merged), weighted and scaled as the final fit."""
+        again = {**options, "noise": result.noise, "sample_cov": sample_cov}
+        fit = fit_whole_model(model, Q, P, sigma=sigma, **again)
+        if rotations is None:
+            fit, _ = pose_clustered(fit, Q, P, whiten, which, rates, [])
+        return fit
+
+    # lumps of one joint the poses cannot tell apart (a cancelling pair): merged, said
+    merged = merge_cancelling(whole, Q, refit_terms, notes)
+    if merged is not whole:
+        whole, squares = merged, None
     clustered = whole
     nominal_table = nominal.table if nominal is not None else None
     tolerances = decided_tolerances(
@@ -669,9 +691,12 @@ def _identify_whole(
     Q_table = Q.map(lambda q: table_values(result, q), Q.shape)
     if result.terms is not None:  # what the terms move, at the samples
         bare = Q.map(lambda q: table_values(result, q, deflected=False), Q.shape)
-        result.deflection_max, result.deflection_target, result.deflection_vectors = deflections(
-            ex, Q_table, bare
+        moved = deflections(
+            ex, Q, Q_table, bare, result.terms, term_covariance(whole), result.terms_std
         )
+        result.deflection_max, result.deflection_target = moved.joints, moved.target
+        result.deflection_max_std, result.deflection_target_std = moved.joints_std, moved.target_std
+        result.deflection_vectors = moved.vectors
     result.validation = validate_samples(seg, rows, Q_table, P, ex, whole.inliers, tools, which)
     gap = table_gap(whole, ex, Q, Q_table)
     if gap > 1e-6:

@@ -471,6 +471,8 @@ def nongeometric_document(result: ProcessResult) -> dict[str, Any]:
             t["std"] = _num_or_none(t["std"])
         doc["max_deflection"] = [float(v) for v in result.deflection_max]
         doc["max_target_displacement"] = result.deflection_target
+        doc["max_deflection_std"] = [_num_or_none(float(v)) for v in result.deflection_max_std]
+        doc["max_target_displacement_std"] = _num_or_none(result.deflection_target_std)
     return doc
 
 

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import math
 
+from dhlog.identify.beyond import determined
 from dhlog.identify.run import ProcessResult
 from dhlog.present.console.layout import decimals, scales, table_title, value_cells
 from dhlog.present.console.notes import clock_line, held_lines, method_line
@@ -37,10 +38,12 @@ def _terms_markdown(result: ProcessResult, length: float, lu: str) -> list[str]:
             sd = item["std"]
             shown = "not determined" if sd is None or not math.isfinite(sd) else f"{sd:.3g}"
             lines.append(f"| {item['name']} | {item['value']:.4g} | {shown} | {item['unit']} |")
+        target, sd = result.deflection_target, result.deflection_target_std
+        said = f"{target * length:.4f}" + (f" ± {sd * length:.4f}" if math.isfinite(sd) else "")
         lines += [
             "",
-            f"The terms move the target by up to {result.deflection_target * length:.4f} {lu} "
-            "at the session's samples.",
+            f"The terms move the target by up to {said} {lu} at the session's samples"
+            + ("." if determined(target, sd) else ": not determined (within 2σ of zero)."),
         ]
     return lines
 

@@ -15,6 +15,7 @@ from rich.markup import escape
 from rich.table import Table
 
 from dhlog.geometry._checks import FloatArray, roll_pitch_yaw
+from dhlog.identify.beyond import determined
 from dhlog.identify.run import ProcessResult
 from dhlog.present.console.layout import (
     NAME_WIDTH,
@@ -238,6 +239,50 @@ def _print_holdout(console: Console, result: ProcessResult, units: str) -> None:
     prose(console, [("Held out", n) for n in dict.fromkeys(notes)])
 
 
+def deflection_lines(
+    result: ProcessResult, length: float, lu: str, digits: int
+) -> list[tuple[str, str]]:
+    """The "Deflection" line: the terms' largest move per joint and of the target at the
+    samples, each with its σ there; one within 2σ of zero (or depending on an undetermined
+    term) is said not to be determined, not printed as a measurement
+    (:func:`dhlog.identify.beyond.determined`)."""
+    stds = result.deflection_max_std
+    moved: list[str] = []
+    unseen: list[str] = []
+    for i, v in enumerate(result.deflection_max):
+        if v <= 0:
+            continue
+        sd = float(stds[i]) if i < stds.size else math.nan
+        arc = math.degrees(v) * 3600
+        shown = (
+            f"{arc:.1f}″"
+            if not math.isfinite(sd)
+            else f"{arc:.1f} ± {math.degrees(sd) * 3600:.1f}″"
+        )
+        (moved if determined(v, sd) else unseen).append(f"joint {i + 1} {shown}")
+    target, sd = result.deflection_target, result.deflection_target_std
+    said = f"{target * length:.{digits}f}" + (
+        f" ± {sd * length:.{digits}f}" if math.isfinite(sd) else ""
+    )
+    parts = [
+        f"largest at the samples (σ where each is largest): {', '.join(moved) or 'none determined'}"
+    ]
+    if unseen:
+        parts.append(f"not determined (within 2σ of zero): {', '.join(unseen)}")
+    if determined(target, sd):
+        parts.append(f"the target {said} {lu}")
+    else:
+        parts.append(
+            f"the target's move is not determined ({said} {lu}, within 2σ of zero or of an "
+            "undetermined term: the poses do not tell it from the geometry)"
+        )
+    text = "; ".join(parts) + (
+        " (DH tables, URDF and the UR file cannot carry these terms: the JSON's nongeometric "
+        "block does)"
+    )
+    return [("Deflection", text)]
+
+
 def _print_terms(console: Console, result: ProcessResult, units: str) -> None:
     """The models tried beyond the geometry (``--model``): terms, parameters, BIC, held-out
     RMS, which was chosen and why; then the chosen terms with σ and what they move."""
@@ -277,17 +322,5 @@ def _print_terms(console: Console, result: ProcessResult, units: str) -> None:
             sd = item["std"]
             shown = "not determined" if sd is None or not math.isfinite(sd) else f"± {sd:.3g}"
             lines.append(("Term", f"{item['name']} = {item['value']:.4g} {shown} {item['unit']}"))
-        moved = ", ".join(
-            f"joint {i + 1} {math.degrees(v) * 3600:.1f}″"
-            for i, v in enumerate(result.deflection_max)
-            if v > 0
-        )
-        lines.append(
-            (
-                "Deflection",
-                f"largest at the samples: {moved}; the target "
-                f"{result.deflection_target * length:.{digits}f} {lu} (DH tables, URDF and the UR "
-                "file cannot carry these terms: the JSON's nongeometric block does)",
-            )
-        )
+        lines += deflection_lines(result, length, lu, digits)
     prose(console, lines)
