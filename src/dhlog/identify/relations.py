@@ -85,11 +85,12 @@ def relation_tolerances(
         angle_tol,
         distance_tol,
         k_parallel=parallel_sigma,
-        # the whole-model fit holds a pair parallel by Akaike's rule also where the nominal says
-        # parallel, not by the nominal's 5σ: a held pair's tilt is a bias the FK error carries
-        # in full. With random static poses and 60 µm unmodelled error, 5σ held KR5's axes 2–3
-        # (0.05° apart) parallel at 1.5–1.9x the FK error; with per-joint sweeps (UR5 0.05° off,
-        # 100 Hz tracker, σ 15–20 µm) it held axes 2–3 or 3–4 in 2 of 10 sessions at 1.2–3.1x
+        # the whole-model fit judges a pair by its σ (the candidates of dhlog.identify.pairs,
+        # or the K σ rule) also where the nominal says parallel, not by the nominal's 5σ: a
+        # held pair's tilt is a bias the FK error carries in full. With random static poses and
+        # 60 µm unmodelled error, 5σ held KR5's axes 2–3 (0.05° apart) parallel at 1.5–1.9x the
+        # FK error; with per-joint sweeps (UR5 0.05° off, 100 Hz tracker, σ 15–20 µm) it held
+        # axes 2–3 or 3–4 in 2 of 10 sessions at 1.2–3.1x
         direction_variances=relative_tilt_variances(fit),
     )
 
