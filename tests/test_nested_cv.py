@@ -165,3 +165,19 @@ def test_a_sweeps_session_says_its_held_out_poses_lie_on_the_sweeps(bending) -> 
     assert any("swept arcs" in n for n in check.notes), check.notes
     _, _, random_poses = bending
     assert not any("swept arcs" in n for n in random_poses.holdout[0].notes)
+
+
+def test_each_fold_holds_the_pairs_its_own_poses_hold() -> None:
+    """A UR5 at its nominal (axes 2, 3, 4 parallel): each fold of ``--holdout 5`` decides the
+    pairs again from its training poses, and its fit is held to them, as the run's is."""
+    robot = load_robot("ur5")
+    session = simulate_session(robot, SimulationConfig(seed=2, tracker_rate=20.0, noise=NOISE))
+    names = tuple(f"joint_{i + 1}" for i in range(robot.n))
+    nominal = DHModel(robot.table, robot.T_base, robot.tool_point, names, "ur5")
+    result = process_data(
+        log_data_from_session(session), nominal=nominal, model=ModelRequest("geometric"), holdout=5
+    )
+    assert result.whole is not None and result.whole.constrained, "the run holds pairs"
+    (check,) = result.holdout
+    (said,) = [n for n in check.notes if "decided again in each fold" in n]
+    assert "2–3" in said and "of 5" in said, said

@@ -18,7 +18,7 @@ Pure numpy/scipy.
 
 from __future__ import annotations
 
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -165,6 +165,7 @@ def cross_validate(
     seed: int = 0,
     fold: NDArray[np.int64] | None = None,
     starts: Sequence[AxisModel] = (),
+    refine: Callable[[WholeFit, int], WholeFit] | None = None,
 ) -> Holdout:
     """K-fold cross-validation over poses (see the module docstring). ``fit_options`` are the
     keyword arguments of the full fit (noise, σ, per-sample covariance, orientations, …);
@@ -172,7 +173,8 @@ def cross_validate(
     full fit's inliers are used; with several targets only the primary one is scored.
     ``fold`` (m,): each sample's fold (default: :func:`fold_of_poses` of its pose, seeded);
     ``starts``: per fold, the model to fit to its training poses (default ``whole``'s) — the
-    model ``--model auto`` chose from those poses alone."""
+    model ``--model auto`` chose from those poses alone; ``refine(fit, k)``: fold k's fit as the
+    run would finish it from those poses (its pairs held parallel)."""
     from dhlog.errors import InputError
 
     groups = pose_groups(Q)
@@ -194,6 +196,8 @@ def cross_validate(
         train = whole.inliers & (fold != k)
         start = starts[k] if starts else whole.model
         fit = fit_whole_model(start, Q, P, keep=train, which=which, **fit_options)  # type: ignore[arg-type]
+        if refine is not None:
+            fit = refine(fit, k)
         pred, _ = predict(fit.model, Q[test])
         pos, vec = _pose_errors(groups, test, P, pred)
         positions.append(pos)

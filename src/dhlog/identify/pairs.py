@@ -285,3 +285,34 @@ def _said(t: PairTrial) -> str:
         f"{pair}: within {CANDIDATE_SIGMA:g}σ of {t.kind} but left free: holding them raises the "
         f"held-out error at {PAIR_FOLDS}-fold poses (mean squared error {change})."
     )
+
+
+def fold_holds(
+    whole: WholeFit,
+    nominal: DHModel | None,
+    angle_tol: float,
+    distance_tol: float,
+    Q: SampleArray,
+    P: SampleArray,
+    *,
+    outer: NDArray[np.int64],
+    folds: int,
+    sigma: float,
+    options: dict[str, Any],
+) -> list[dict[int, str]]:
+    """Per fold of ``--holdout K`` (``outer``: each sample's fold), the pairs the held-out
+    criterion holds when it sees that fold's training poses alone (the candidates those within
+    :data:`CANDIDATE_SIGMA` of the full fit): what the fold's fit is held to, as the run's is
+    (nested cross-validation)."""
+    tolerances = relation_tolerances(
+        whole, nominal, angle_tol, distance_tol, parallel_sigma=CANDIDATE_SIGMA
+    )
+    candidates = candidate_pairs(whole, tolerances)
+    if not candidates:
+        return [{} for _ in range(folds)]
+    d = linearised(whole, Q, P, sigma=sigma, options=options)
+    at = np.asarray(outer, dtype=np.int64)[d.pick]
+    return [
+        {t.pair: t.kind for t in decide_pairs(d, candidates, at != k, seed=1 + k) if t.held}
+        for k in range(folds)
+    ]

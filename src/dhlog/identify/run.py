@@ -60,10 +60,10 @@ from dhlog.identify.hayati import HayatiRow
 from dhlog.identify.hold import hold_unseen
 from dhlog.identify.holdout import Holdout, cross_validate, pose_groups
 from dhlog.identify.leaveout import fold_of_poses
-from dhlog.identify.pairs import decided_tolerances
+from dhlog.identify.pairs import decided_tolerances, fold_holds
 from dhlog.identify.persample import PerSample, blocks
 from dhlog.identify.register import Registration
-from dhlog.identify.relations import with_fixed_relations
+from dhlog.identify.relations import constrain_pairs, with_fixed_relations
 from dhlog.identify.samples import (
     START_TARGET_POINTS,
     measured_rotations,
@@ -711,6 +711,29 @@ def _identify_whole(
     check_slips(nominal_rms, result.validation.rms, result.noise.model_error, notes)
     if result.folds > 1:
         stage("cross-validating", 0.0)
+        held_in_fold: list[dict[int, str]] = []  # the pairs each fold holds, from its poses
+        if parallel_sigma is None and outer is not None:
+            held_in_fold = fold_holds(
+                clustered,
+                nominal,
+                kwargs["angle_tol"],
+                kwargs["distance_tol"],
+                Q,
+                P,
+                outer=outer,
+                folds=result.folds,
+                sigma=sigma,
+                options={**options, "noise": result.noise, "sample_cov": sample_cov},
+            )
+
+        def refine(fit: WholeFit, k: int) -> WholeFit:
+            """Fold ``k``'s fit held to the pairs its own poses hold."""
+            held = held_in_fold[k] if held_in_fold else {}
+            if not held:
+                return fit
+            parallel = [i for i, kind in held.items() if kind == "parallel"]
+            return constrain_pairs(fit, parallel, [i for i in held if i not in parallel])
+
         result.holdout.append(
             cross_validate(
                 whole,
@@ -732,8 +755,20 @@ def _identify_whole(
                 which=which,
                 fold=outer,
                 starts=() if result.selection is None else result.selection.fold_starts,
+                refine=refine,
             )
         )
+        if any(held_in_fold):
+            said = [
+                ", ".join(f"{i + 1}–{i + 2}" for i in sorted(h)) or "none" for h in held_in_fold
+            ]
+            counts_held = {c: said.count(c) for c in dict.fromkeys(said)}
+            result.holdout[-1].notes.append(
+                "the pairs held parallel were decided again in each fold from its training "
+                "poses: "
+                + "; ".join(f"{c} in {k} of {len(said)}" for c, k in counts_held.items())
+                + "."
+            )
         nested = [] if result.selection is None else result.selection.fold_choices
         if nested:
             counts = {c: nested.count(c) for c in dict.fromkeys(nested)}
