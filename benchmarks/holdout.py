@@ -28,7 +28,10 @@ reported held-out RMS, the RMS of (a), (b) and (c) pooled over sessions and poin
 ratios reported / (b) — the issue's criterion, 0.85–1.15 —, reported / (a) and reported / (c),
 each the quadratic mean of the reported RMS over sessions (each session weighs the same, as in
 the pooled figures) over the pooled RMS, and the median over sessions of the per-session ratio
-reported / (b). ``--cases`` runs the cases whose name contains the text; ``--folds`` the K.
+reported / (b), and expected / (b): the run's "error to expect over the session's joint ranges"
+(``Holdout.expected_rms``: the held-out RMS with the model's own FK σ over every combination of
+the ranges added in quadrature) against (b). ``--cases`` runs the cases whose name contains the
+text; ``--folds`` the K.
 
 Before (issue 31): the code at 72bf3a5 (2026-11-26; its ``src`` and ``pipelines`` from ``git
 archive`` first on PYTHONPATH), ``nice -n 10 ... --sessions 20 --workers 1``; every case ran
@@ -182,6 +185,7 @@ def one(job: tuple[str, str, int, int, int]) -> dict[str, object]:
     if not check:
         raise RuntimeError(f"{case}, seed {seed}: no cross-validation in the result")
     reported = check[0].calibrated.rms
+    expected = check[0].expected_rms  # with the model's σ over the ranges (None before it)
     # new joint vectors within the session's own per-joint ranges
     rng = np.random.default_rng([seed, 1])
     lo, hi = session.joint_q.min(axis=0), session.joint_q.max(axis=0)
@@ -200,6 +204,7 @@ def one(job: tuple[str, str, int, int, int]) -> dict[str, object]:
     chosen = result.selection.chosen.name if result.selection is not None else "none"
     return {
         "reported": reported,
+        "expected": reported if expected is None else expected,
         "a": np.sum((got - want) ** 2, axis=1),
         "b": np.sum((got + noise - want) ** 2, axis=1),
         "c": np.sum(on_path**2, axis=1),
@@ -222,9 +227,9 @@ def main() -> None:
     print(
         "| case | sessions | auto chose | reported [µm] | (a) truth [µm] | (b) + noise [µm] | "
         "(c) path + noise [µm] | reported / (b) | reported / (a) | reported / (c) | "
-        "median reported / (b) |"
+        "median reported / (b) | expected / (b) |"
     )
-    print("|---|---|---|---|---|---|---|---|---|---|---|")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|")
     with ProcessPoolExecutor(args.workers, mp_context=context) as pool:
         for case, (robot, _) in CASES.items():
             if args.cases not in case:
@@ -237,6 +242,8 @@ def main() -> None:
             b_s = np.array([float(np.mean(o["b"])) for o in out])  # type: ignore[arg-type]
             c_s = np.array([float(np.mean(o["c"])) for o in out])  # type: ignore[arg-type]
             rep_q = math.sqrt(float(np.mean(reported**2)))
+            expected = np.array([float(o["expected"]) for o in out])  # type: ignore[arg-type]
+            exp_q = math.sqrt(float(np.mean(expected**2)))
             a, b = math.sqrt(float(np.mean(a_s))), math.sqrt(float(np.mean(b_s)))
             c = math.sqrt(float(np.mean(c_s)))
             chosen: dict[str, int] = {}
@@ -248,7 +255,7 @@ def main() -> None:
                 f"| {case} | {len(out)} | {shown} | {reported.mean() * 1e6:.1f} | {a * 1e6:.1f} | "
                 f"{b * 1e6:.1f} | {c * 1e6:.1f} | {rep_q / b:.3f} | {rep_q / a:.3f} | "
                 f"{rep_q / c:.3f} | "
-                f"{float(np.median(reported / np.sqrt(b_s))):.3f} |",
+                f"{float(np.median(reported / np.sqrt(b_s))):.3f} | {exp_q / b:.3f} |",
                 flush=True,
             )
             samples = np.mean([float(o["samples"]) for o in out])  # type: ignore[arg-type]

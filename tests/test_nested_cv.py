@@ -181,3 +181,30 @@ def test_each_fold_holds_the_pairs_its_own_poses_hold() -> None:
     (check,) = result.holdout
     (said,) = [n for n in check.notes if "decided again in each fold" in n]
     assert "2–3" in said and "of 5" in said, said
+
+
+def test_the_error_over_the_ranges_is_given_where_the_poses_do_not_span_them() -> None:
+    """The coupled protocol moves joint 2 only with joint 3: the held-out poses lie on that
+    path, while the model's own σ over every combination of the joint ranges is far above the
+    held-out error; the check gives it and the error to expect there, in the note and the
+    JSON."""
+    robot = load_robot("kr5")
+    cfg = SimulationConfig(
+        seed=0,
+        protocol="coupled",
+        tracker_rate=10.0,
+        noise=1e-5,
+        perturb_length=5e-4,
+        perturb_angle=math.radians(0.05),
+    )
+    names = tuple(f"joint_{i + 1}" for i in range(robot.n))
+    nominal = DHModel(robot.table, robot.T_base, robot.tool_point, names, "kr5")
+    log = log_data_from_session(simulate_session(robot, cfg))
+    result = process_data(log, nominal=nominal, model=ModelRequest("geometric"), holdout=5)
+    (check,) = result.holdout
+    assert check.range_sd is not None and check.range_sd > 2 * check.calibrated.rms
+    assert check.expected_rms is not None
+    assert check.expected_rms == pytest.approx(math.hypot(check.calibrated.rms, check.range_sd))
+    assert any("error to expect there" in n for n in check.notes), check.notes
+    doc = check.document()
+    assert doc["expected_rms"] == check.expected_rms and doc["range_sd"] == check.range_sd

@@ -18,6 +18,7 @@ Pure numpy/scipy.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 
@@ -93,6 +94,17 @@ class Holdout:
     #: where the positions' frame M stands (its ``T_measurement_base``) when it is not the
     #: result's own: another log measured after the tracker moved
     T_measurement_base: FloatArray | None = None
+    #: the calibrated model's RMS predicted FK σ (m) over every combination of the session's
+    #: joint ranges (a cross-validation: poses the session may never have visited among them)
+    range_sd: float | None = None
+
+    @property
+    def expected_rms(self) -> float | None:
+        """The error expected over the session's joint ranges (m): the held-out RMS with the
+        model's own σ there added in quadrature."""
+        if self.range_sd is None:
+            return None
+        return math.sqrt(self.calibrated.rms**2 + self.range_sd**2)
 
     def document(self) -> dict[str, object]:
         doc: dict[str, object] = {"kind": self.kind}
@@ -105,6 +117,9 @@ class Holdout:
         doc["n_poses"] = self.calibrated.n_poses
         doc["nominal"] = None if self.nominal is None else self.nominal.document()
         doc["calibrated"] = self.calibrated.document()
+        if self.range_sd is not None:
+            doc["range_sd"] = self.range_sd
+            doc["expected_rms"] = self.expected_rms
         doc["notes"] = list(self.notes)
         return doc
 

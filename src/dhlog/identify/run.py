@@ -61,7 +61,8 @@ from dhlog.identify.hold import hold_unseen
 from dhlog.identify.holdout import Holdout, cross_validate, pose_groups
 from dhlog.identify.leaveout import fold_of_poses
 from dhlog.identify.pairs import decided_tolerances, fold_holds
-from dhlog.identify.persample import PerSample, blocks
+from dhlog.identify.persample import PerSample, SampleArray, blocks
+from dhlog.identify.prediction import predict
 from dhlog.identify.register import Registration
 from dhlog.identify.relations import constrain_pairs, with_fixed_relations
 from dhlog.identify.samples import (
@@ -71,7 +72,7 @@ from dhlog.identify.samples import (
     start_model,
 )
 from dhlog.identify.segment import Segmentation, segment_log
-from dhlog.identify.select import AUTO, ModelRequest, Selection, term_std
+from dhlog.identify.select import AUTO, RANGE_POINTS, ModelRequest, Selection, term_std
 from dhlog.identify.start import Start, start_unswept
 from dhlog.identify.sweeps import (
     JointReport,
@@ -769,6 +770,14 @@ def _identify_whole(
                 + "; ".join(f"{c} in {k} of {len(said)}" for c, k in counts_held.items())
                 + "."
             )
+        check = result.holdout[-1]
+        check.range_sd = range_sd(whole, Q)
+        if check.expected_rms is not None and check.range_sd > 0.5 * check.calibrated.rms:
+            check.notes.append(
+                f"over every combination of the session's joint ranges, poses it may never have "
+                f"visited among them, the model's own FK σ is {check.range_sd * 1e3:.4f} mm RMS: "
+                f"the error to expect there is about {check.expected_rms * 1e3:.4f} mm."
+            )
         nested = [] if result.selection is None else result.selection.fold_choices
         if nested:
             counts = {c: nested.count(c) for c in dict.fromkeys(nested)}
@@ -786,6 +795,20 @@ def _identify_whole(
                 "the session never went to — is not in this figure; --validate a log of "
                 "random poses to see it."
             )
+
+
+def range_sd(whole: WholeFit, Q: SampleArray) -> float:
+    """The RMS predicted FK σ (m) of ``whole`` at :data:`select.RANGE_POINTS` seeded joint
+    vectors uniform in the box of the joint ranges of ``Q`` (m, n)."""
+    lo, hi = np.full(Q.shape[1], np.inf), np.full(Q.shape[1], -np.inf)
+    for sl in blocks(Q.shape[0]):
+        q = Q[sl]
+        lo, hi = np.minimum(lo, q.min(axis=0)), np.maximum(hi, q.max(axis=0))
+    box = np.random.default_rng(0).uniform(lo, hi, (RANGE_POINTS, Q.shape[1]))
+    _, J = predict(whole.model, box, whole.layout, whole.bases)
+    assert J is not None
+    var = np.einsum("mij,jk,mik->m", J, whole.covariance, J)
+    return math.sqrt(max(float(np.mean(var)), 0.0))
 
 
 #: Share of the fitted samples in single-joint sweeps above which the cross-validation's note
