@@ -61,6 +61,31 @@ reported / (a) is the sharper test of the model's own error. Where the 300 new j
 leave the session's path — sweeps with an unmodelled error, the coupled protocol's joint 2 — the
 figure misses the error by 2.6× and 13×, while along the path (c) it holds (1.02, 1.04): no
 split of the session's own poses sees joint combinations it never visited.
+
+After (issue 31: --model auto chosen again in each fold, nested; the pairs too; the error to
+expect over the ranges), 2026-11-26, ``OPENBLAS_NUM_THREADS=1 nice -n 5 ... --sessions 20
+--workers 2``; reported / (b), and the run's ``expected_rms`` / (b):
+
+case (20 sessions each)           auto chose   rep.    (b)  rep/b  exp/b
+KR5, compliance, 40 poses         C 18, H 2    22.7   20.9  1.091  1.198
+KR5, compliance, 200 poses        C 20         17.9   17.7  1.015  1.042
+KR5, no compliance, 40 poses      G 20         20.7   19.6  1.056  1.154
+KR5, no compliance, 200 poses     G 20         17.7   17.5  1.011  1.033
+KR5, 0.05 mm error, 40 poses      G 20        103.3   97.9  1.057  1.157
+KR5, 0.05 mm error + compl., 40   G 20        108.2  100.8  1.075  1.176
+KR5, 0.05 mm error + compl., 200  G 14, C 6    93.4   91.7  1.019  1.042
+KR5, sweeps                       G 20         17.4   17.5  0.995  1.018
+KR5, 0.05 mm error, sweeps        H 20         17.9   46.3  0.386  0.400
+UR5, sweeps                       G 20         17.4   17.4  0.996  1.017
+KR5, coupled                      G 20         10.8  146.6  0.074  0.993
+
+Every random-pose case and the plain sweeps within 0.85–1.15 (the 40-pose compliance case
+1.025 → 1.091: a nested choice differs between folds, so its figure is the procedure's); the
+coupled protocol's figure at its own poses says nothing of the joint combinations it never
+visited (0.074), its expected error over the ranges does (0.993). Sweeps with an unmodelled
+error stay at 0.39: harmonics absorb it along the arcs (chosen in 20 of 20), and neither the
+held-out arcs nor the model's σ can see it between them (the note says so; only poses off the
+arcs, --validate, can).
 """
 
 from __future__ import annotations
