@@ -178,9 +178,12 @@ def accuracy_section(result: Result) -> str:
         '<p class="caption">3-D distance [mm] between the measured target and the model\'s '
         "prediction at poses not used to fit it (held out), before (the nominal, its base and "
         "tool placed on the poses the calibration was fitted on, never on the poses scored) and "
-        "after calibration; at another session's log both models are then given the same "
-        "freedom, placed on the same poses (the base where the tracker moved, the tool where the "
-        "probe was re-mounted, as its note says); the in-sample row is the FK "
+        "after calibration; in a K-fold check each fold's calibration is made again from its "
+        "training poses alone, the model's choice of terms and the pairs held parallel "
+        "included, and the nominal placed on the same poses; at another session's log both "
+        "models are then given the same freedom, placed on the same poses (the base where the "
+        "tracker moved, the tool where the probe was re-mounted, as its note says); the "
+        "in-sample row is the FK "
         "residual at the fitted samples. A held-out error far above the in-sample one means the "
         "model fits the session better than it predicts the robot.</p>"
     )
