@@ -208,3 +208,20 @@ def test_the_error_over_the_ranges_is_given_where_the_poses_do_not_span_them() -
     assert any("error to expect there" in n for n in check.notes), check.notes
     doc = check.document()
     assert doc["expected_rms"] == check.expected_rms and doc["range_sd"] == check.range_sd
+
+
+def test_the_folds_of_a_long_log_are_those_of_np_unique() -> None:
+    """A long log's poses, numbered in time order, are dealt a block at a time into a scratch
+    array: the same folds as the sort of every pose would give, balanced to one pose."""
+    from dhlog.identify import leaveout
+
+    steps = np.random.default_rng(0).random(leaveout.DENSE_ABOVE + 5000) < 0.3
+    steps[0] = False
+    groups = np.cumsum(steps).astype(np.int64)
+    got = fold_of_poses(groups, 5, 7)
+    poses, inverse = np.unique(groups, return_inverse=True)
+    by_pose = np.empty(poses.size, dtype=np.int64)
+    by_pose[np.random.default_rng(7).permutation(poses.size)] = np.arange(poses.size) % 5
+    assert np.array_equal(np.asarray(got), by_pose[inverse])
+    counts = np.bincount(by_pose, minlength=5)
+    assert counts.max() - counts.min() <= 1

@@ -221,7 +221,10 @@ def hold_at(
         delta = -CA @ np.linalg.pinv(A @ CA) @ c
         model = model.moved(np.asarray(delta, dtype=np.float64), fit.layout, model.bases())
     else:
-        raise DhlogError("holding the undetermined parameters at the nominal did not converge.")
+        ex = extract(list(model.axes), model.target, plane)
+        c = _difference(shown_vector(ex, rows, nominal_rows)[idx], values, angular[idx])
+        if float(np.max(np.abs(c))) > MET:
+            raise DhlogError("holding the undetermined parameters at the nominal did not converge.")
     return replace(fit, model=model, bases=model.bases(), covariance=_project(C, A))
 
 

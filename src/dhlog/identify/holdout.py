@@ -7,8 +7,10 @@ vectors (measured − predicted).
 
 * :func:`cross_validate` (``--holdout K``): the poses split into K folds (seeded); for each fold
   the whole model is fitted again to the other folds (from the full fit, which the fold's
-  optimum lies close to), and the nominal placed on the same poses (its base and tool point
-  registered, :func:`dhlog.identify.register.register_nominal`); both predict the fold.
+  optimum lies close to, or from the model ``--model auto`` chose from that fold's poses: see
+  :mod:`dhlog.identify.select`), held to the pairs the fold holds parallel, and the nominal
+  placed on the same poses (its base and tool point registered,
+  :func:`dhlog.identify.register.register_nominal`); both predict the fold.
 * another session's log (``--validate LOG``) is scored by
   :func:`dhlog.identify.footing.score_poses`, on one footing for the nominal and the calibrated
   model.
@@ -209,7 +211,7 @@ def cross_validate(
     for k in range(folds):
         test = usable & (fold == k)
         train = whole.inliers & (fold != k)
-        start = starts[k] if starts else whole.model
+        start = starts[k] if k < len(starts) else whole.model
         fit = fit_whole_model(start, Q, P, keep=train, which=which, **fit_options)  # type: ignore[arg-type]
         if refine is not None:
             fit = refine(fit, k)

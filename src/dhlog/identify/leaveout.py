@@ -28,10 +28,11 @@ import numpy as np
 from numpy.typing import NDArray
 
 from dhlog.geometry._checks import FloatArray
-from dhlog.identify.passes import Samples, whitened_rows
-from dhlog.identify.persample import SampleArray
+from dhlog.identify.passes import ROTATION_LIMIT, Samples, whitened_rows
+from dhlog.identify.persample import SampleArray, blocks
 from dhlog.identify.prediction import predict
 from dhlog.identify.whole import WholeFit
+from dhlog.io import scratch
 from dhlog.model.noise import NoiseModel
 
 
@@ -162,9 +163,12 @@ def linearise(
     )
     rows = whitened_rows(model, layout, bases, data, slice(0, m))
     Jw, rw = rows.Jw, rows.rw  # (size, 3, m), (3, m)
+    use = np.asarray(fit.inliers, dtype=bool).copy()
     if rows.ro is not None and rows.Jr is not None:
         Jw = np.concatenate([Jw, rows.Jr], axis=1)
         rw = np.concatenate([rw, rows.ro])
+        # the fit held out the orientations beyond its limit too (passes.accumulate)
+        use &= np.sqrt(np.sum(rows.ro**2, axis=0)) <= max(fit.limit, ROTATION_LIMIT)
     Jz = np.einsum("pkm,pr->mkr", Jw, B)
     F = np.einsum("pkm,pr->mkr", rows.J, B)
     _, Jb = predict(model, box, layout, bases)
@@ -175,7 +179,7 @@ def linearise(
         rw=np.ascontiguousarray(rw.T),
         F=np.ascontiguousarray(F),
         e=np.ascontiguousarray(rows.r.T),
-        use=np.asarray(fit.inliers, dtype=bool).copy(),
+        use=use,
         B=B,
         box_gram=np.einsum("mki,mkj->ij", Jbz, Jbz),
         box_count=int(box.shape[0]),
@@ -205,11 +209,32 @@ def pose_means(
     return ids, out / count
 
 
+#: Samples above which :func:`fold_of_poses` maps poses numbered in time order a block at a
+#: time (no sort of the whole log).
+DENSE_ABOVE = 1 << 20
+
+
 def fold_of_poses(groups: NDArray[np.int64], folds: int, seed: int) -> NDArray[np.int64]:
     """A fold (0 … folds−1) per sample: its pose's, the poses dealt to the folds in a seeded
-    random order (every fold gets ⌊P/K⌋ or ⌈P/K⌉ poses)."""
-    poses, inverse = np.unique(groups, return_inverse=True)
+    random order (every fold gets ⌊P/K⌋ or ⌈P/K⌉ poses). Poses numbered 0 … P−1 in time order
+    (:func:`dhlog.identify.holdout.pose_groups` of a log of more than :data:`DENSE_ABOVE`
+    samples) are mapped a block at a time into a scratch array, the same folds as
+    ``np.unique`` would give them; any other numbering (a subset's) through ``np.unique``."""
     rng = np.random.default_rng(seed)
-    fold_of_pose = np.empty(poses.size, dtype=np.int64)
-    fold_of_pose[rng.permutation(poses.size)] = np.arange(poses.size) % folds
-    return np.asarray(fold_of_pose[inverse], dtype=np.int64)
+    m = groups.shape[0]
+    dense = m > DENSE_ABOVE and int(groups[0]) == 0
+    dense = dense and bool(np.all(np.diff(groups[: 1 << 16]) >= 0))
+    if dense:
+        top = int(groups[m - 1]) + 1
+        dense = top <= m and bool(np.all(groups[-(1 << 16) :] < top))
+    if not dense:
+        poses, inverse = np.unique(groups, return_inverse=True)
+        fold_of_pose = np.empty(poses.size, dtype=np.int64)
+        fold_of_pose[rng.permutation(poses.size)] = np.arange(poses.size) % folds
+        return np.asarray(fold_of_pose[inverse], dtype=np.int64)
+    fold_of_pose = np.empty(top, dtype=np.int64)
+    fold_of_pose[rng.permutation(top)] = np.arange(top) % folds
+    out = scratch.empty(m, np.int64)
+    for sl in blocks(m):
+        out[sl] = fold_of_pose[groups[sl]]
+    return out

@@ -880,13 +880,15 @@ def _nominal_on_session(result: ProcessResult) -> Placed | None:
     if nominal is None or whole is None:
         return None
     rows, Q, P = samples_with_encoders(seg)
-    keep = np.ones(rows.size, dtype=bool)
-    if whole.inliers.shape[0] == rows.size:
-        keep &= np.asarray(whole.inliers, dtype=bool)
+    m = rows.size  # strided first: no array of every sample
+    first = np.arange(0, m, max(1, m // (4 * NOMINAL_SAMPLES)))
+    keep = np.ones(first.size, dtype=bool)
+    if whole.inliers.shape[0] == m:
+        keep &= np.asarray(whole.inliers[first], dtype=bool)
     which = target_labels(seg, rows)
     if which is not None:
-        keep &= which == 0
-    pick = np.flatnonzero(keep)
+        keep &= which[first] == 0
+    pick = first[keep]
     pick = pick[:: max(1, pick.size // NOMINAL_SAMPLES)]
     try:
         return nominal_on_session(

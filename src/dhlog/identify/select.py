@@ -1,14 +1,17 @@
 """Which terms beyond the geometry a session supports (``--model``): gravity compliance and
 transmission harmonics (:mod:`dhlog.model.terms`), kept only where held-out poses prove them.
 
-Each candidate model (the geometric one, then with a family of terms added) is fitted by the
-whole-model maximum likelihood to the same samples (the geometric fit's inliers, at most
-:data:`SELECT_SAMPLES` of them, evenly strided) and scored two ways:
+Each family's candidate model (the geometric one, then with a family of terms added) is fitted
+by the whole-model maximum likelihood to the same samples (the geometric fit's inliers, at most
+:data:`SELECT_SAMPLES` of them, evenly strided) and linearised at its optimum
+(:mod:`dhlog.identify.leaveout`); a candidate with some joints' terms dropped is its family's
+with those terms held at zero (constrained least squares), and the fit to a subset of the
+samples a small solve. Each is scored three ways:
 
 * the Bayesian information criterion ``N ln(RSS/N) + p ln N`` (``N`` whitened residual
   components, ``RSS`` their sum of squares, ``p`` the parameters the samples determine);
 * the RMS error at held-out poses of a K-fold cross-validation over poses (the same folds for
-  every candidate; :func:`dhlog.identify.holdout.cross_validate`);
+  every candidate; each fold's fit the linearised one);
 * the RMS FK σ its covariance predicts over the joint vectors the session's ranges span (every
   combination of the joints' ranges): held-out poses lie among the fitted ones, and a model the
   poses determine only there (many lumped terms fitted to sweeps from one pose) would miss the
@@ -22,6 +25,11 @@ gain within the folds' own scatter is no proof), and the error expected over the
 cross-validation runs only for a candidate the criterion prefers: a family it rejects is
 rejected without it.
 ``compliance``, ``harmonic`` and ``full`` force their families; ``geometric`` tries nothing.
+
+With ``--holdout K`` the whole choice is made again inside each of its folds from that fold's
+training poses alone (its own inner K-fold test), so that the run's held-out error is that of
+the procedure (nested cross-validation). A direction a fold's poses do not determine keeps the
+value the full fit gave it (as a fold's Levenberg–Marquardt fit from the full fit would).
 """
 
 from __future__ import annotations
@@ -427,10 +435,10 @@ def select_model(
     selection = Selection(mode, candidates, folds, int(np.count_nonzero(keep)))
     if outer is not None and mode == "auto":
         outer_pick = np.asarray(outer, dtype=np.int64)[pick]
-        for k in range(int(outer_pick.max(initial=-1)) + 1):
+        for k in range(folds):
             train = keep & (outer_pick != k)
             inner = np.full(pick.size, -1, dtype=np.int64)
-            inner[train] = fold_of_poses(groups[train], SELECT_FOLDS, 1 + k)
+            inner[train] = fold_of_poses(groups[train], folds, 1 + k)
             c = chosen_on(train, inner)
             fit, _ = parent(c.families)
             selection.fold_choices.append(c.name)

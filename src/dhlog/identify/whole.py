@@ -142,6 +142,8 @@ class WholeFit:
     #: within a physical bound, held at the nominal or marked so (:mod:`dhlog.identify.hold`):
     #: index → the reason
     held: dict[int, str] = field(default_factory=dict)
+    #: the whitened residual norm beyond which a sample was an outlier of the fit (inf: none)
+    limit: float = math.inf
 
 
 @dataclass
@@ -371,4 +373,5 @@ def fit_whole_model(
         bases=st.bases,
         sigma_rotation=None if data.R is None else data.sigma_rot * math.sqrt(chi2_dof),
         determined=determined,
+        limit=float(limit),
     )
