@@ -261,6 +261,18 @@ def _refitted(
     return hold_at(again, indices, values, extract, plane, rows, nominal_rows)
 
 
+def may_hold(shown_std: FloatArray | None, rows: frozenset[int]) -> bool:
+    """Whether any entry of the shown table has a σ (``shown_std``, 4n; NaN where fixed) beyond
+    its bound: only then can :func:`hold_unseen` hold something (the same σ, from the whole
+    covariance), so the run skips its Jacobian otherwise."""
+    if shown_std is None:
+        return True
+    n = shown_std.size // 4
+    angular = mixed_angles(n, rows) if rows else np.tile([True, False, False, True], n)
+    bound = np.where(angular, BOUND_ANGLE, BOUND_LENGTH)
+    return bool(np.any(np.nan_to_num(shown_std, nan=0.0) > bound))
+
+
 def hold_unseen(
     fit: WholeFit,
     extract: Extractor,

@@ -57,7 +57,7 @@ from dhlog.identify.conditioning import Conditioned, identifiability_notes, nomi
 from dhlog.identify.extract import Extraction, extract_dh
 from dhlog.identify.footing import Placed, nominal_on_session, score_poses
 from dhlog.identify.hayati import HayatiRow
-from dhlog.identify.hold import hold_unseen
+from dhlog.identify.hold import hold_unseen, may_hold
 from dhlog.identify.holdout import Holdout, cross_validate, pose_groups
 from dhlog.identify.leaveout import fold_of_poses
 from dhlog.identify.pairs import decided_tolerances, fold_holds
@@ -665,12 +665,17 @@ def _identify_whole(
         again = {**options, "noise": result.noise, "sample_cov": sample_cov}
         return fit_whole_model(model, Q, P, sigma=sigma, within=within, **again).model
 
-    whole, _ = hold_unseen(
-        whole, extract, plane, h_rows, nominal_table, nominal_h, cost, notes, refit
-    )
-    if whole.held:
-        ex = extract(list(whole.model.axes), whole.model.target, plane)
-    found = whole_uncertainty(whole, base, extract, ex, ref, nominal_table, result.info)
+    said: list[str] = []  # the uncertainty's notes, of the fit finally kept
+    found = whole_uncertainty(whole, base, extract, ex, ref, nominal_table, said)
+    if may_hold(found.shown_std, h_rows):
+        whole, _ = hold_unseen(
+            whole, extract, plane, h_rows, nominal_table, nominal_h, cost, notes, refit
+        )
+        if whole.held:
+            ex = extract(list(whole.model.axes), whole.model.target, plane)
+            said = []
+            found = whole_uncertainty(whole, base, extract, ex, ref, nominal_table, said)
+    result.info.extend(said)
     result.method = "whole-model maximum likelihood"
     result.extraction, result.analytic, result.whole = ex, analytic, whole
     result.covariance, result.std, result.fixed = found.covariance, found.std, found.fixed

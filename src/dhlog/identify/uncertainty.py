@@ -53,6 +53,8 @@ class Uncertainty:
     tool_orientation_std: FloatArray | None = None
     extra_tool_points: FloatArray = field(default_factory=lambda: np.zeros((0, 3)))
     extra_tool_std: FloatArray = field(default_factory=lambda: np.zeros((0, 3)))
+    #: the σ of the shown table (4n: θ, d or β, a, α; NaN where fixed), from the whole-model fit
+    shown_std: FloatArray | None = None
 
 
 def analytic_uncertainty(
@@ -145,6 +147,11 @@ def whole_uncertainty(
             {**reasons, **whole.held},
             prop.mixed_undetermined,
         )
+    shown_std = std[: 4 * ex.standard.n]
+    if prop.mixed_covariance is not None:
+        shown_std = np.sqrt(np.clip(np.diag(prop.mixed_covariance), 0.0, None))
+        if prop.mixed_fixed is not None:
+            shown_std = np.where(prop.mixed_fixed, np.nan, shown_std)
     extra_std = np.sqrt(np.clip(np.diag(prop.extra_tool_covariance), 0.0, None)).reshape(-1, 3)
     info.extend(correlation_notes(prop.covariance, prop.fixed, ex.standard.n))
     return Uncertainty(
@@ -158,4 +165,5 @@ def whole_uncertainty(
         prop.tool_orientation_std,
         prop.extra_tool_points,
         extra_std,
+        shown_std,
     )
