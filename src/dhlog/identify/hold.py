@@ -209,9 +209,14 @@ def hold_at(
     C = fit.covariance
     model = fit.model
     A = np.zeros((0, fit.layout.size))
-    for _ in range(MAX_STEPS):
+
+    def missed(model: AxisModel) -> FloatArray:
+        """How far the held entries are from their values at ``model``."""
         ex = extract(list(model.axes), model.target, plane)
-        c = _difference(shown_vector(ex, rows, nominal_rows)[idx], values, angular[idx])
+        return _difference(shown_vector(ex, rows, nominal_rows)[idx], values, angular[idx])
+
+    for _ in range(MAX_STEPS):
+        c = missed(model)
         if float(np.max(np.abs(c))) <= MET and A.shape[0]:
             break  # the last step's Jacobian: the constraints' rows to first order
         A = shown_jacobian(fit, model, extract, plane, rows, nominal_rows)[idx]
@@ -221,9 +226,7 @@ def hold_at(
         delta = -CA @ np.linalg.pinv(A @ CA) @ c
         model = model.moved(np.asarray(delta, dtype=np.float64), fit.layout, model.bases())
     else:
-        ex = extract(list(model.axes), model.target, plane)
-        c = _difference(shown_vector(ex, rows, nominal_rows)[idx], values, angular[idx])
-        if float(np.max(np.abs(c))) > MET:
+        if float(np.max(np.abs(missed(model)))) > MET:
             raise DhlogError("holding the undetermined parameters at the nominal did not converge.")
     return replace(fit, model=model, bases=model.bases(), covariance=_project(C, A))
 

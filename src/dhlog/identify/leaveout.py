@@ -23,13 +23,14 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from dhlog.geometry._checks import FloatArray
 from dhlog.identify.passes import ROTATION_LIMIT, Samples, whitened_rows
-from dhlog.identify.persample import SampleArray, blocks
+from dhlog.identify.persample import PerSample, SampleArray, blocks
 from dhlog.identify.prediction import predict
 from dhlog.identify.whole import WholeFit
 from dhlog.io import scratch
@@ -186,6 +187,18 @@ def linearise(
         chi2_dof=fit.chi2_dof,
         values=model_values(fit),
     )
+
+
+def strided(m: int, most: int, options: dict[str, Any]) -> tuple[NDArray[np.int64], dict[str, Any]]:
+    """At most ``most`` of ``m`` samples, evenly strided, and the fit's keyword arguments
+    ``options`` with their per-sample arrays (over all ``m`` samples) cut to them."""
+    stride = -(-m // most) if m > most else 1
+    pick = np.arange(0, m, stride)
+    sub = {
+        k: (v[pick] if isinstance(v, np.ndarray | PerSample) and v.shape[:1] == (m,) else v)
+        for k, v in options.items()
+    }
+    return pick, sub
 
 
 def model_values(fit: WholeFit) -> FloatArray:

@@ -53,8 +53,8 @@ from numpy.typing import NDArray
 
 from dhlog.geometry._checks import FloatArray
 from dhlog.identify.holdout import pose_groups
-from dhlog.identify.leaveout import Linear, fold_of_poses, linearise, pose_means
-from dhlog.identify.persample import PerSample, SampleArray
+from dhlog.identify.leaveout import Linear, fold_of_poses, linearise, pose_means, strided
+from dhlog.identify.persample import SampleArray
 from dhlog.identify.relations import pair_constraints, pairs_within, relation_tolerances
 from dhlog.identify.whole import WholeFit
 from dhlog.io.dhfile import DHModel
@@ -107,13 +107,7 @@ def linearised(
 ) -> PairDecision:
     """``fit`` linearised over at most :data:`PAIR_SAMPLES` of its samples (evenly strided):
     ``options`` are its keyword arguments (per-sample arrays over all samples)."""
-    m = Q.shape[0]
-    stride = -(-m // PAIR_SAMPLES) if m > PAIR_SAMPLES else 1
-    pick = np.arange(0, m, stride)
-    sub: dict[str, Any] = {
-        k: (v[pick] if isinstance(v, np.ndarray | PerSample) and v.shape[:1] == (m,) else v)
-        for k, v in options.items()
-    }
+    pick, sub = strided(Q.shape[0], PAIR_SAMPLES, options)
     Qs, Ps = Q[pick], P[pick]
     part = replace(fit, inliers=np.asarray(fit.inliers[pick], dtype=bool))
     box = np.asarray(Qs[:1], dtype=np.float64)  # the range term is not used here
@@ -227,6 +221,16 @@ def candidate_pairs(fit: WholeFit, tolerances: list[tuple[float, float]] | None)
     return {**{i: "parallel" for i in parallel}, **{i: "collinear" for i in collinear}}
 
 
+def _candidates(
+    whole: WholeFit, nominal: DHModel | None, angle_tol: float, distance_tol: float
+) -> tuple[list[tuple[float, float]] | None, dict[int, str]]:
+    """The pairs' tolerances within :data:`CANDIDATE_SIGMA` and the pairs within them."""
+    tolerances = relation_tolerances(
+        whole, nominal, angle_tol, distance_tol, parallel_sigma=CANDIDATE_SIGMA
+    )
+    return tolerances, candidate_pairs(whole, tolerances)
+
+
 def decided_tolerances(
     whole: WholeFit,
     nominal: DHModel | None,
@@ -250,10 +254,7 @@ def decided_tolerances(
         return relation_tolerances(
             whole, nominal, angle_tol, distance_tol, parallel_sigma=parallel_sigma
         )
-    tolerances = relation_tolerances(
-        whole, nominal, angle_tol, distance_tol, parallel_sigma=CANDIDATE_SIGMA
-    )
-    candidates = candidate_pairs(whole, tolerances)
+    tolerances, candidates = _candidates(whole, nominal, angle_tol, distance_tol)
     if tolerances is None or not candidates:
         return tolerances
     d = linearised(whole, Q, P, sigma=sigma, options=options)
@@ -304,10 +305,7 @@ def fold_holds(
     criterion holds when it sees that fold's training poses alone (the candidates those within
     :data:`CANDIDATE_SIGMA` of the full fit): what the fold's fit is held to, as the run's is
     (nested cross-validation)."""
-    tolerances = relation_tolerances(
-        whole, nominal, angle_tol, distance_tol, parallel_sigma=CANDIDATE_SIGMA
-    )
-    candidates = candidate_pairs(whole, tolerances)
+    _, candidates = _candidates(whole, nominal, angle_tol, distance_tol)
     if not candidates:
         return [{} for _ in range(folds)]
     d = linearised(whole, Q, P, sigma=sigma, options=options)

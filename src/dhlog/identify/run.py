@@ -768,12 +768,9 @@ def _identify_whole(
             said = [
                 ", ".join(f"{i + 1}–{i + 2}" for i in sorted(h)) or "none" for h in held_in_fold
             ]
-            counts_held = {c: said.count(c) for c in dict.fromkeys(said)}
             result.holdout[-1].notes.append(
                 "the pairs held parallel were decided again in each fold from its training "
-                "poses: "
-                + "; ".join(f"{c} in {k} of {len(said)}" for c, k in counts_held.items())
-                + "."
+                f"poses: {_tally(said, '; ')}."
             )
         check = result.holdout[-1]
         check.range_sd = range_sd(whole, Q)
@@ -785,12 +782,10 @@ def _identify_whole(
             )
         nested = [] if result.selection is None else result.selection.fold_choices
         if nested:
-            counts = {c: nested.count(c) for c in dict.fromkeys(nested)}
             result.holdout[-1].notes.append(
                 "--model auto chose again in each fold from its training poses alone (nested "
-                "cross-validation): "
-                + ", ".join(f"{c} in {k} of {len(nested)}" for c, k in counts.items())
-                + "; the held-out error is that of the whole procedure."
+                f"cross-validation): {_tally(nested, ', ')}; the held-out error is that of the "
+                "whole procedure."
             )
         swept = swept_share(seg, rows)
         if swept >= SWEPT_SHARE:
@@ -800,6 +795,12 @@ def _identify_whole(
                 "the session never went to — is not in this figure; --validate a log of "
                 "random poses to see it."
             )
+
+
+def _tally(labels: list[str], sep: str) -> str:
+    """Each label with how many of ``labels`` it is, in the order met: "a in 4 of 5"."""
+    counts = {c: labels.count(c) for c in dict.fromkeys(labels)}
+    return sep.join(f"{c} in {k} of {len(labels)}" for c, k in counts.items())
 
 
 def range_sd(whole: WholeFit, Q: SampleArray) -> float:

@@ -44,8 +44,8 @@ from numpy.typing import NDArray
 from dhlog.geometry._checks import FloatArray
 from dhlog.identify.axismodel import AxisModel
 from dhlog.identify.holdout import pose_groups
-from dhlog.identify.leaveout import Linear, fold_of_poses, linearise, pose_means
-from dhlog.identify.persample import PerSample, SampleArray
+from dhlog.identify.leaveout import Linear, fold_of_poses, linearise, pose_means, strided
+from dhlog.identify.persample import SampleArray
 from dhlog.identify.whole import WholeFit, fit_whole_model
 from dhlog.model.dh import JointType
 from dhlog.model.terms import Lump, Term, Terms, design
@@ -225,12 +225,8 @@ def select_model(
     run's ``--holdout K`` — the choice of ``auto`` is then made again inside each fold from its
     training poses alone (``Selection.fold_starts``: nested cross-validation)."""
     m = Q.shape[0]
-    stride = -(-m // SELECT_SAMPLES) if m > SELECT_SAMPLES else 1
-    pick = np.arange(0, m, stride)
-    sub: dict[str, Any] = {
-        k: (v[pick] if isinstance(v, np.ndarray | PerSample) and v.shape[:1] == (m,) else v)
-        for k, v in options.items()
-    }
+    pick, sub = strided(m, SELECT_SAMPLES, options)
+    stride = int(pick[1] - pick[0]) if pick.size > 1 else 1
     keep = np.asarray(whole.inliers[pick], dtype=bool)
     Qs, Ps = Q[pick], P[pick]
     used = Qs[keep] if np.any(keep) else Qs
