@@ -209,7 +209,10 @@ def scan_mcap(
     the payloads it takes are left out of the scan."""
     log = _Log(path)
     try:
-        return _scan(log, set(topics) if topics is not None else None, progress, sink)
+        # the pool is shut down however the walk ends (a sink or progress that raises: its
+        # worker threads do not outlive the call)
+        with ThreadPoolExecutor(max_workers=os.cpu_count() or 1) as pool:
+            return _scan(log, set(topics) if topics is not None else None, progress, sink, pool)
     finally:
         log.close()
 
@@ -219,6 +222,7 @@ def _scan(
     wanted: set[str] | None,
     progress: Callable[[float], None] | None,
     sink: Sink | None,
+    decompressed: ThreadPoolExecutor,
 ) -> McapScan:
     name = log.name
     if log.read(0, len(MAGIC)) != MAGIC:
@@ -229,8 +233,7 @@ def _scan(
     truncated_at: int | None = None
     pending: tuple[Future[bytes], dict[int, NDArray[np.uint64]], int] | None = None
     chunks: deque[tuple[Future[bytes], dict[int, NDArray[np.uint64]], int]] = deque()
-    workers = os.cpu_count() or 1
-    decompressed = ThreadPoolExecutor(max_workers=workers)
+    workers = os.cpu_count() or 1  # as many as the pool has
     done = 0
 
     def walk_oldest() -> None:

@@ -28,6 +28,9 @@ POSE_STAMPED = "geometry_msgs/msg/PoseStamped"
 POSE_WITH_COVARIANCE = "geometry_msgs/msg/PoseWithCovarianceStamped"
 JOINT_STATE = "sensor_msgs/msg/JointState"
 STRING = "std_msgs/msg/String"
+IMAGE = "sensor_msgs/msg/Image"
+COMPRESSED_IMAGE = "sensor_msgs/msg/CompressedImage"
+CAMERA_INFO = "sensor_msgs/msg/CameraInfo"
 
 _SEP = "=" * 80 + "\n"
 _HEADER_DEFS = (
@@ -59,6 +62,17 @@ MSGDEFS = {
     + "float64[] velocity\nfloat64[] effort\n"
     + _HEADER_DEFS,
     STRING: "string data\n",
+    IMAGE: "std_msgs/Header header\nuint32 height\nuint32 width\nstring encoding\n"
+    + "uint8 is_bigendian\nuint32 step\nuint8[] data\n"
+    + _HEADER_DEFS,
+    COMPRESSED_IMAGE: "std_msgs/Header header\nstring format\nuint8[] data\n" + _HEADER_DEFS,
+    CAMERA_INFO: "std_msgs/Header header\nuint32 height\nuint32 width\n"
+    + "string distortion_model\nfloat64[] d\nfloat64[9] k\nfloat64[9] r\nfloat64[12] p\n"
+    + "uint32 binning_x\nuint32 binning_y\nsensor_msgs/RegionOfInterest roi\n"
+    + _HEADER_DEFS
+    + _SEP
+    + "MSG: sensor_msgs/RegionOfInterest\nuint32 x_offset\nuint32 y_offset\nuint32 height\n"
+    + "uint32 width\nbool do_rectify\n",
 }
 
 
@@ -263,3 +277,80 @@ def encode_string(text: str) -> bytes:
     """CDR payload of a std_msgs/msg/String."""
     data = text.encode() + b"\x00"
     return CDR_LE + struct.pack("<I", len(data)) + data
+
+
+def _pad(body: bytearray, k: int) -> None:
+    body += b"\x00" * (_align(len(body), k) - len(body))
+
+
+def _cdr_string(body: bytearray, text: str) -> None:
+    raw = text.encode() + b"\x00"
+    _pad(body, 4)
+    body += struct.pack("<I", len(raw)) + raw
+
+
+def encode_image(
+    t_ns: int, frame_id: str, pixels: NDArray[np.generic], encoding: str, *, step: int = 0
+) -> bytes:
+    """CDR payload of a sensor_msgs/msg/Image: ``pixels`` (h, w) or (h, w, c), uint8 or uint16,
+    written little-endian row after row as ``encoding`` names them (the caller's channel
+    order: ``rgb8`` pixels are R, G, B); ``step`` (bytes a row, 0: packed) pads each row."""
+    img = np.ascontiguousarray(pixels)
+    if img.dtype.itemsize > 1:
+        img = img.astype(img.dtype.newbyteorder("<"))
+    h, w = img.shape[:2]
+    row = img.reshape(h, -1).view(np.uint8).reshape(h, -1)
+    step = step or row.shape[1]
+    rows = np.zeros((h, step), dtype=np.uint8)
+    rows[:, : row.shape[1]] = row
+    body = bytearray(_header(t_ns, frame_id))
+    _pad(body, 4)
+    body += struct.pack("<II", h, w)
+    _cdr_string(body, encoding)
+    body += struct.pack("<B", 0)  # is_bigendian
+    _pad(body, 4)
+    body += struct.pack("<II", step, rows.size) + rows.tobytes()
+    return CDR_LE + bytes(body)
+
+
+def encode_compressed_image(t_ns: int, frame_id: str, data: bytes, fmt: str) -> bytes:
+    """CDR payload of a sensor_msgs/msg/CompressedImage (``data`` as encoded, e.g. by
+    ``cv2.imencode``; ``fmt`` ``jpeg``, ``png``, ``rgb8; jpeg compressed bgr8``)."""
+    body = bytearray(_header(t_ns, frame_id))
+    _cdr_string(body, fmt)
+    _pad(body, 4)
+    body += struct.pack("<I", len(data)) + bytes(data)
+    return CDR_LE + bytes(body)
+
+
+def encode_camera_info(
+    t_ns: int,
+    frame_id: str,
+    width: int,
+    height: int,
+    distortion_model: str,
+    d: Sequence[float],
+    k: Sequence[float] | NDArray[np.float64],
+    r: Sequence[float] | NDArray[np.float64] | None = None,
+    p: Sequence[float] | NDArray[np.float64] | None = None,
+) -> bytes:
+    """CDR payload of a sensor_msgs/msg/CameraInfo: ``k`` the 3×3 camera matrix (row-major, 9
+    values), ``r`` the rectification (identity when None), ``p`` the 3×4 projection (``[k | 0]``
+    when None); binning 0 and an empty region of interest, as an unrectified camera writes."""
+    k9 = np.asarray(k, dtype="<f8").reshape(9)
+    r9 = np.eye(3, dtype="<f8").reshape(9) if r is None else np.asarray(r, "<f8").reshape(9)
+    p12 = (
+        np.hstack([k9.reshape(3, 3), np.zeros((3, 1))]).astype("<f8").reshape(12)
+        if p is None
+        else np.asarray(p, "<f8").reshape(12)
+    )
+    body = bytearray(_header(t_ns, frame_id))
+    _pad(body, 4)
+    body += struct.pack("<II", height, width)
+    _cdr_string(body, distortion_model)
+    _pad(body, 4)
+    body += struct.pack("<I", len(d))
+    _pad(body, 8)
+    body += np.asarray(d, dtype="<f8").tobytes() + k9.tobytes() + r9.tobytes() + p12.tobytes()
+    body += struct.pack("<IIIIIIB", 0, 0, 0, 0, 0, 0, 0)  # binning x, y; roi; do_rectify
+    return CDR_LE + bytes(body)
