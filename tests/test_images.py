@@ -429,3 +429,19 @@ def test_not_an_mcap_is_the_readers_error(tmp_path: Path) -> None:
     path.write_bytes(b"not an mcap at all")
     with pytest.raises(NotMcapError):
         list(ImageStream(path, "/cam"))
+
+
+def test_payloads_compressed_one_by_one(tmp_path: Path) -> None:
+    """rosbag2 ``--compression-mode message``: each payload zstd-compressed on its own."""
+    import zstandard
+
+    bgr = scene()
+    png = cv2.imencode(".png", bgr)[1].tobytes()
+    plain = ros2.encode_compressed_image(S, "cam", png, "png")
+    squeezed = zstandard.ZstdCompressor().compress(plain)
+    path = tmp_path / "squeezed.mcap"
+    write_log(path, {"/c": (ros2.COMPRESSED_IMAGE, [squeezed, squeezed[:-9], plain])})
+    frames, stream = read(path, "/c")
+    assert [f.index for f in frames] == [0, 2]
+    np.testing.assert_array_equal(frames[0].pixels, bgr)
+    assert stream.faults.by_reason == {"zstd payload that cannot be decompressed": [1]}

@@ -7,7 +7,10 @@ image's bytes are never copied through a generic decoder); ``foxglove.RawImage``
 ``foxglove.CompressedImage`` in JSON or protobuf (through :mod:`dhlog.io.decode.messages`);
 ``sensor_msgs/msg/CameraInfo`` and ``foxglove.CameraCalibration`` as :class:`CameraInfo`.
 Pixels come as OpenCV has them: (h, w) grey or (h, w, 3) **BGR**, uint8 or uint16 (alpha
-dropped, Bayer and YUV converted with ``cv2.cvtColor``).
+dropped, Bayer and YUV converted with ``cv2.cvtColor``). A payload compressed on its own
+(rosbag2 ``--compression-mode message``) is decompressed first; a ``.mcap.zstd`` is read as
+:mod:`dhlog.io.mcapscan` reads it. A bag folder's split files are walked one by one (their
+paths, in order: this module does not read ``metadata.yaml``).
 
 A whole topic: :class:`ImageStream` walks the MCAP with :func:`dhlog.io.mcapscan.scan_mcap` in
 a thread, its sink decoding each chunk's images as the walk meets them and dropping the chunk's
@@ -75,6 +78,10 @@ ENCODINGS: dict[str, tuple[int, int, int | None]] = {
 #: Decoded bytes in one batch handed on, and batches waiting: the stream's memory bound.
 BATCH_BYTES = 64 << 20
 QUEUED = 2
+#: A payload compressed on its own (rosbag2 ``--compression-mode message``) may decompress to
+#: at most this many bytes (a 7680x4320 16-bit RGB frame is 199 MB).
+MAX_PAYLOAD = 512 << 20
+ZSTD_MAGIC = b"\x28\xb5\x2f\xfd"
 
 
 class ImageFaultError(Exception):
@@ -273,6 +280,29 @@ def camera_info_cdr(payload: bytes | bytearray | memoryview | NDArray[np.uint8])
     )  # fmt: skip
 
 
+def unzstd_payload(buf: NDArray[np.uint8]) -> NDArray[np.uint8]:
+    """A payload compressed on its own with zstd (rosbag2 ``--compression-mode message``),
+    decompressed (at most ``MAX_PAYLOAD`` bytes); any other payload as it is."""
+    if buf[:4].tobytes() != ZSTD_MAGIC:
+        return buf
+    import zstandard
+
+    parts, total, data = [], 0, buf.tobytes()
+    try:
+        size = zstandard.frame_content_size(data)  # -1: not stated
+        with zstandard.ZstdDecompressor().stream_reader(data) as reader:
+            while block := reader.read(1 << 22):
+                total += len(block)
+                if total > MAX_PAYLOAD:
+                    raise ImageFaultError(f"zstd payload beyond {MAX_PAYLOAD >> 20} MiB")
+                parts.append(block)
+    except zstandard.ZstdError:
+        total, size = -1, 0
+    if size >= 0 and total != size:  # (a frame cut short decompresses without an error)
+        raise ImageFaultError("zstd payload that cannot be decompressed")
+    return np.frombuffer(b"".join(parts), dtype=np.uint8)
+
+
 def _foxglove_stamp(msg: Any) -> int:
     from dhlog.io.decode.messages import _stamp_ns
 
@@ -406,7 +436,7 @@ class ImageStream:
             try:
                 if decode is None or (info.schema_name in INFO_SCHEMAS) == is_image:
                     raise ImageFaultError(f"not an image schema ('{info.schema_name[:60]}')")
-                stamp, frame_id, value = decode(buf)
+                stamp, frame_id, value = decode(unzstd_payload(buf))
             except ImageFaultError as exc:
                 if is_image:
                     self.faults.add(str(exc), index)
