@@ -445,3 +445,45 @@ def test_payloads_compressed_one_by_one(tmp_path: Path) -> None:
     assert [f.index for f in frames] == [0, 2]
     np.testing.assert_array_equal(frames[0].pixels, bgr)
     assert stream.faults.by_reason == {"zstd payload that cannot be decompressed": [1]}
+
+
+def test_damaged_payloads_are_faults_never_exceptions(tmp_path: Path) -> None:
+    """Every kind of message with bytes overwritten, cut or grown at random: each frame is
+    either decoded or counted as a fault, and the walk never raises."""
+    bgr = scene(16, 24)
+    jpeg = cv2.imencode(".jpg", bgr)[1].tobytes()
+    rng = np.random.default_rng(32)
+    valid = {
+        "/raw": (ros2.IMAGE, ros2.encode_image(S, "cam", bgr, "bgr8")),
+        "/yuv": (ros2.IMAGE, ros2.encode_image(S, "cam", bgr[:, :, :2], "uyvy")),
+        "/c": (ros2.COMPRESSED_IMAGE, ros2.encode_compressed_image(S, "cam", jpeg, "jpeg")),
+        "/i": (ros2.CAMERA_INFO, ros2.encode_camera_info(S, "c", 24, 16, "plumb_bob", D, K)),
+    }
+    topics = {}
+    for topic, (schema, payload) in valid.items():
+        damaged = []
+        for _ in range(150):
+            data = bytearray(payload)
+            kind = rng.integers(3)
+            if kind == 0:  # bytes overwritten (more often in the header)
+                at = rng.integers(0, min(len(data), 80 if rng.random() < 0.7 else len(data)), 3)
+                data[at[0]] = rng.integers(256)
+                data[at[1]] = 0xFF
+            elif kind == 1:
+                data = data[: rng.integers(0, len(data))]
+            else:
+                data += bytes(rng.integers(0, 256, rng.integers(1, 40), np.uint8))
+            damaged.append(bytes(data))
+        topics[topic] = (schema, damaged)
+    path = tmp_path / "fuzz.mcap"
+    write_log(path, topics)
+    for topic in ("/raw", "/yuv", "/c"):
+        frames, stream = read(path, topic)
+        assert stream.count == 150 and len(frames) + len(stream.faults) == 150
+        assert len(stream.faults) > 0
+        line = stream.warning()
+        assert line is not None and "\n" not in line and len(line) < 600
+        faulted = [i for indices in stream.faults.by_reason.values() for i in indices]
+        assert sorted([f.index for f in frames] + faulted) == list(range(150))
+    infos = read_camera_infos(path, "/i")  # those that can be read; no exception
+    assert all(i.k.shape == (3, 3) for i in infos)

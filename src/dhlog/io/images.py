@@ -37,6 +37,7 @@ from numpy.typing import NDArray
 
 from dhlog.io import ros2
 from dhlog.io.mcapwalk import ChannelInfo, RawMessages
+from dhlog.io.safetext import printable
 
 #: (h, w) grey or (h, w, 3) BGR, uint8 or uint16
 Pixels = NDArray[Any]
@@ -160,7 +161,7 @@ class _Cdr:
     def octets(self) -> NDArray[np.uint8]:
         n = self.u32()
         if self.pos + n > self.buf.shape[0]:
-            raise ImageFaultError(f"data of {n} bytes runs past the payload")
+            raise ImageFaultError("data runs past the payload")
         out = self.buf[self.pos : self.pos + n]
         self.pos += n
         return out
@@ -187,7 +188,7 @@ def raw_pixels(
     """Pixels of a raw image's ``data`` (grey or BGR, a copy owning its memory)."""
     layout = ENCODINGS.get(encoding)
     if layout is None:
-        raise ImageFaultError(f"unknown encoding '{encoding[:40]}'")
+        raise ImageFaultError(f"unknown encoding '{printable(encoding[:40])}'")
     channels, depth, code = layout
     row = width * channels * depth
     step = step or row
@@ -310,6 +311,8 @@ def _foxglove_stamp(msg: Any) -> int:
 
 
 def _foxglove_bytes(value: Any) -> NDArray[np.uint8]:
+    if not isinstance(value, str | bytes | bytearray | memoryview):
+        raise ImageFaultError("data is not bytes (or base64 text)")
     if isinstance(value, str):  # JSON: base64
         try:
             value = base64.b64decode(value, validate=True)
@@ -435,13 +438,18 @@ class ImageStream:
             buf = raw.data[start : start + int(raw.lengths[i])]
             try:
                 if decode is None or (info.schema_name in INFO_SCHEMAS) == is_image:
-                    raise ImageFaultError(f"not an image schema ('{info.schema_name[:60]}')")
+                    raise ImageFaultError(
+                        f"not an image schema ('{printable(info.schema_name[:60])}')"
+                    )
                 stamp, frame_id, value = decode(unzstd_payload(buf))
             except ImageFaultError as exc:
                 if is_image:
                     self.faults.add(str(exc), index)
                 continue
-            except (ValueError, cv2.error, struct.error, TypeError, OverflowError) as exc:
+            except (
+                ValueError, cv2.error, struct.error, TypeError, OverflowError, AttributeError,
+                KeyError, IndexError,
+            ) as exc:  # fmt: skip
                 if is_image:
                     self.faults.add(f"unreadable ({type(exc).__name__})", index)
                 continue
@@ -533,13 +541,19 @@ class ImageStream:
         if not self.faults.by_reason:
             return None
         parts = []
-        for reason, indices in sorted(self.faults.by_reason.items(), key=lambda kv: -len(kv[1])):
+        reasons = sorted(self.faults.by_reason.items(), key=lambda kv: -len(kv[1]))
+        for reason, indices in reasons[:4]:
             shown = ", ".join(str(i) for i in indices[:5])
             more = f" and {len(indices) - 5} more" if len(indices) > 5 else ""
             parts.append(f"{reason}: {len(indices)} (frame {shown}{more})")
+        if len(reasons) > 4:
+            parts.append(
+                f"{sum(len(v) for _, v in reasons[4:])} for {len(reasons) - 4} other reasons"
+            )
+        topic = printable(self.topic)
         return (
-            f"{self.path}: {len(self.faults)} of {self.count} frame(s) on {self.topic} not "
-            f"decoded, skipped — {'; '.join(parts)}."
+            f"{self.path}: {len(self.faults)} of {self.count} frame(s) on {topic} not decoded, "
+            f"skipped — {'; '.join(parts)}."
         )
 
 
