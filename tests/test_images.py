@@ -18,7 +18,7 @@ import pytest
 from mcap.writer import CompressionType, Writer
 from numpy.typing import NDArray
 
-from dhlog.errors import NotMcapError
+from dhlog.errors import InputError, MissingTopicError, NotMcapError
 from dhlog.io import ros2
 from dhlog.io.images import CameraImage, ImageStream, camera_info_cdr, read_camera_infos
 
@@ -487,3 +487,33 @@ def test_damaged_payloads_are_faults_never_exceptions(tmp_path: Path) -> None:
         assert sorted([f.index for f in frames] + faulted) == list(range(150))
     infos = read_camera_infos(path, "/i")  # those that can be read; no exception
     assert all(i.k.shape == (3, 3) for i in infos)
+
+
+def test_a_missing_or_wrong_topic_is_one_line_naming_it(tmp_path: Path) -> None:
+    path = tmp_path / "js.mcap"
+    joints = ros2.encode_joint_state([S], ["a1"], np.zeros((1, 1)))
+    info = ros2.encode_camera_info(S, "c", 24, 16, "plumb_bob", D, K)
+    write_log(
+        path, {"/joint_states": (ros2.JOINT_STATE, joints), "/info": (ros2.CAMERA_INFO, [info])}
+    )
+    with pytest.raises(
+        MissingTopicError, match=r"no topic /cam .*topics present: /info, /joint_states"
+    ):
+        list(ImageStream(path, "/cam"))
+    with pytest.raises(
+        InputError, match=r"carries 'sensor_msgs/msg/JointState' \(cdr\), not images"
+    ):
+        list(ImageStream(path, "/joint_states"))
+    with pytest.raises(
+        InputError, match=r"carries 'sensor_msgs/msg/CameraInfo' \(cdr\), not images"
+    ):
+        list(ImageStream(path, "/info"))
+    with pytest.raises(MissingTopicError, match="camera info"):
+        read_camera_infos(path, "/camera_info")
+
+
+def test_an_unset_stamp_is_the_log_time(tmp_path: Path) -> None:
+    path = tmp_path / "unset.mcap"
+    write_log(path, {"/cam": (ros2.IMAGE, [ros2.encode_image(0, "cam", scene(), "bgr8")])})
+    (frame,), _ = read(path, "/cam")
+    assert frame.stamp_ns == 10 * S  # write_log's log time of message 0

@@ -35,7 +35,9 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
+from dhlog.errors import InputError, MissingTopicError
 from dhlog.io import ros2
+from dhlog.io.mcapscan import McapScan, scan_mcap
 from dhlog.io.mcapwalk import ChannelInfo, RawMessages
 from dhlog.io.safetext import printable
 
@@ -46,6 +48,11 @@ RAW_SCHEMAS = (ros2.IMAGE, "foxglove.RawImage")
 COMPRESSED_SCHEMAS = (ros2.COMPRESSED_IMAGE, "foxglove.CompressedImage")
 IMAGE_SCHEMAS = RAW_SCHEMAS + COMPRESSED_SCHEMAS
 INFO_SCHEMAS = (ros2.CAMERA_INFO, "foxglove.CameraCalibration")
+ACCEPTED_IMAGES = (
+    "sensor_msgs/msg/Image, sensor_msgs/msg/CompressedImage (cdr), foxglove.RawImage, "
+    "foxglove.CompressedImage (json, protobuf)"
+)
+ACCEPTED_INFOS = "sensor_msgs/msg/CameraInfo (cdr), foxglove.CameraCalibration (json, protobuf)"
 
 #: Raw encodings: channels in the message, bytes a channel, the conversion to grey/BGR.
 ENCODINGS: dict[str, tuple[int, int, int | None]] = {
@@ -406,7 +413,9 @@ class ImageStream:
 
     ``info_topic`` (optional) is read in the same walk: its intrinsics in :attr:`infos`. After
     the walk: :attr:`count` (messages on the topic), :attr:`faults`, :attr:`warnings` (the
-    scan's: damage, truncation) and :meth:`warning`."""
+    scan's: damage, truncation) and :meth:`warning`. The iteration raises the reader's errors
+    (``InputError``: not an MCAP, unreadable; ``MissingTopicError``; a topic of another
+    type), never one for a single frame."""
 
     def __init__(
         self, path: str | Path, topic: str, info_topic: str | None = None, *, batch_bytes: int = 0
@@ -423,10 +432,18 @@ class ImageStream:
     def _decode(self, cid: int, info: ChannelInfo, raw: RawMessages) -> list[Any]:
         """The decoded messages of one offer: frames of the image topic (faults counted),
         camera infos kept."""
+        is_image = info.topic == self.topic
         if cid not in self._decoders:
             self._decoders[cid] = payload_decoder(info)
+            if self._decoders[cid] is None or (info.schema_name in INFO_SCHEMAS) == is_image:
+                raise InputError(
+                    f"{self.path}: topic {printable(info.topic)} carries "
+                    f"'{printable(info.schema_name[:80])}' ({printable(info.message_encoding)}), "
+                    f"not {'images' if is_image else 'camera intrinsics'}; accepted: "
+                    f"{ACCEPTED_IMAGES if is_image else ACCEPTED_INFOS}. Give the camera's "
+                    f"{'image' if is_image else 'camera-info'} topic."
+                )
         decode = self._decoders[cid]
-        is_image = info.topic == self.topic
         if is_image:
             self.schema = info.schema_name
         out: list[Any] = []
@@ -437,10 +454,7 @@ class ImageStream:
             start = int(raw.starts[i])
             buf = raw.data[start : start + int(raw.lengths[i])]
             try:
-                if decode is None or (info.schema_name in INFO_SCHEMAS) == is_image:
-                    raise ImageFaultError(
-                        f"not an image schema ('{printable(info.schema_name[:60])}')"
-                    )
+                assert decode is not None  # (checked at the channel's first offer)
                 stamp, frame_id, value = decode(unzstd_payload(buf))
             except ImageFaultError as exc:
                 if is_image:
@@ -453,7 +467,7 @@ class ImageStream:
                 if is_image:
                     self.faults.add(f"unreadable ({type(exc).__name__})", index)
                 continue
-            stamp = stamp or int(raw.log_time[i])
+            stamp = stamp if stamp > 0 else int(raw.log_time[i])  # unset: the log time
             if is_image:
                 out.append(CameraImage(stamp, frame_id, value, index))
             else:
@@ -463,8 +477,6 @@ class ImageStream:
     def batches(self) -> Iterator[list[CameraImage]]:
         """The frames, in batches of at most ``batch_bytes`` decoded bytes (a single frame
         larger than that alone)."""
-        from dhlog.io.mcapscan import scan_mcap
-
         hand: queue.Queue[list[CameraImage] | BaseException | None] = queue.Queue(QUEUED)
         stop = threading.Event()
 
@@ -508,6 +520,7 @@ class ImageStream:
                     info = scan.channels.get(cid)
                     if info is not None:
                         offer(self._decode(cid, info, raw))
+                _check_topics(scan, [("image", self.topic), ("camera info", self.info_topic)])
                 self.warnings.extend(scan.warnings)
                 put(None)
             except _StoppedError:
@@ -557,13 +570,19 @@ class ImageStream:
         )
 
 
+def _check_topics(scan: McapScan, wanted: list[tuple[str, str | None]]) -> None:
+    present = scan.topics()
+    for what, topic in wanted:
+        if topic and topic not in present:
+            raise MissingTopicError(scan.path, what, topic, present)
+
+
 def read_camera_infos(path: str | Path, topic: str) -> list[CameraInfo]:
     """Every ``CameraInfo`` / ``CameraCalibration`` on ``topic`` (the walk reads no other
     topic's payloads; messages that cannot be read are left out)."""
-    from dhlog.io.mcapscan import scan_mcap
-
     stream = ImageStream(path, "", topic)
     scan = scan_mcap(path, [topic])
+    _check_topics(scan, [("camera info", topic)])
     for cid, raw in scan.messages.items():
         info = scan.channels.get(cid)
         if info is not None:
