@@ -517,3 +517,42 @@ def test_an_unset_stamp_is_the_log_time(tmp_path: Path) -> None:
     write_log(path, {"/cam": (ros2.IMAGE, [ros2.encode_image(0, "cam", scene(), "bgr8")])})
     (frame,), _ = read(path, "/cam")
     assert frame.stamp_ns == 10 * S  # write_log's log time of message 0
+
+
+def test_a_rosbag2_bag_written_by_rosbags(tmp_path: Path) -> None:
+    """A bag folder from an independent writer (rosbags' rosbag2 MCAP storage, each message
+    zstd-compressed on its own): JPEG frames and the camera info read back."""
+    from rosbags.rosbag2 import CompressionFormat, CompressionMode, StoragePlugin
+    from rosbags.rosbag2 import Writer as BagWriter
+    from rosbags.typesys import Stores, get_typestore
+
+    store = get_typestore(Stores.ROS2_HUMBLE)
+    T = store.types
+    bgr = scene()
+    jpeg = cv2.imencode(".jpg", bgr, [cv2.IMWRITE_JPEG_QUALITY, 95])[1]
+    bag = tmp_path / "bag"
+    writer = BagWriter(bag, version=9, storage_plugin=StoragePlugin.MCAP)
+    writer.set_compression(CompressionMode.MESSAGE, CompressionFormat.ZSTD)
+    with writer:
+        ic = writer.add_connection("/cam/compressed", ros2.COMPRESSED_IMAGE, typestore=store)
+        cc = writer.add_connection("/cam/camera_info", ros2.CAMERA_INFO, typestore=store)
+        for i in range(5):
+            t = 20 * S + i * S // 30
+            header = T["std_msgs/msg/Header"](
+                stamp=T["builtin_interfaces/msg/Time"](sec=t // S, nanosec=t % S), frame_id="cam"
+            )
+            msg = T[ros2.COMPRESSED_IMAGE](header=header, format="jpeg", data=jpeg)
+            writer.write(ic, t, store.serialize_cdr(msg, ros2.COMPRESSED_IMAGE))
+        info = store.deserialize_cdr(
+            ros2.encode_camera_info(20 * S, "cam", 64, 48, "plumb_bob", D, K), ros2.CAMERA_INFO
+        )
+        writer.write(cc, 20 * S, store.serialize_cdr(info, ros2.CAMERA_INFO))
+    stream = ImageStream(bag, "/cam/compressed", "/cam/camera_info")
+    frames = list(stream)
+    assert stream.warning() is None and len(frames) == 5
+    assert [f.stamp_ns for f in frames] == [20 * S + i * S // 30 for i in range(5)]
+    assert all(psnr(f.pixels, bgr) > 35 for f in frames)
+    (found,) = stream.infos
+    assert found.d == tuple(D) and found.width == 64
+    with pytest.raises(InputError, match="not a rosbag2 bag"):
+        list(ImageStream(tmp_path, "/cam/compressed"))

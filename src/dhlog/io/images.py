@@ -9,8 +9,8 @@ image's bytes are never copied through a generic decoder); ``foxglove.RawImage``
 Pixels come as OpenCV has them: (h, w) grey or (h, w, 3) **BGR**, uint8 or uint16 (alpha
 dropped, Bayer and YUV converted with ``cv2.cvtColor``). A payload compressed on its own
 (rosbag2 ``--compression-mode message``) is decompressed first; a ``.mcap.zstd`` is read as
-:mod:`dhlog.io.mcapscan` reads it. A bag folder's split files are walked one by one (their
-paths, in order: this module does not read ``metadata.yaml``).
+:mod:`dhlog.io.mcapscan` reads it; a rosbag2 bag folder's split files are walked in order as
+one log (its ``metadata.yaml`` read by the rosbags library).
 
 A whole topic: :class:`ImageStream` walks the MCAP with :func:`dhlog.io.mcapscan.scan_mcap` in
 a thread, its sink decoding each chunk's images as the walk meets them and dropping the chunk's
@@ -23,6 +23,7 @@ named by its index on the topic, never an exception (:meth:`ImageStream.warning`
 from __future__ import annotations
 
 import base64
+import contextlib
 import queue
 import struct
 import threading
@@ -37,7 +38,7 @@ from numpy.typing import NDArray
 
 from dhlog.errors import InputError, MissingTopicError
 from dhlog.io import ros2
-from dhlog.io.mcapscan import McapScan, scan_mcap
+from dhlog.io.mcapscan import scan_mcap
 from dhlog.io.mcapwalk import ChannelInfo, RawMessages
 from dhlog.io.safetext import printable
 
@@ -515,13 +516,19 @@ class ImageStream:
         def walk() -> None:
             try:
                 topics = [self.topic] + ([self.info_topic] if self.info_topic else [])
-                scan = scan_mcap(self.path, topics, progress=check, sink=sink)
-                for cid, raw in scan.messages.items():  # channels defined after their messages
-                    info = scan.channels.get(cid)
-                    if info is not None:
-                        offer(self._decode(cid, info, raw))
-                _check_topics(scan, [("image", self.topic), ("camera info", self.info_topic)])
-                self.warnings.extend(scan.warnings)
+                present: set[str] = set()
+                with contextlib.ExitStack() as stack:
+                    for path in _log_files(self.path, stack):
+                        self._decoders = {}  # channel ids are the file's own
+                        scan = scan_mcap(path, topics, progress=check, sink=sink)
+                        for cid, raw in scan.messages.items():  # channels defined late
+                            info = scan.channels.get(cid)
+                            if info is not None:
+                                offer(self._decode(cid, info, raw))
+                        present.update(scan.topics())
+                        self.warnings.extend(scan.warnings)
+                wanted = [("image", self.topic), ("camera info", self.info_topic)]
+                _check_topics(self.path, sorted(present), wanted)
                 put(None)
             except _StoppedError:
                 pass
@@ -570,11 +577,32 @@ class ImageStream:
         )
 
 
-def _check_topics(scan: McapScan, wanted: list[tuple[str, str | None]]) -> None:
-    present = scan.topics()
+def _check_topics(path: str, present: list[str], wanted: list[tuple[str, str | None]]) -> None:
     for what, topic in wanted:
         if topic and topic not in present:
-            raise MissingTopicError(scan.path, what, topic, present)
+            raise MissingTopicError(path, what, topic, present)
+
+
+def _log_files(path: str, stack: contextlib.ExitStack) -> list[Path]:
+    """The MCAP files of a log: the file itself, or a rosbag2 bag folder's split files in
+    order (its ``metadata.yaml`` read by the rosbags library, open on ``stack`` while the
+    files are walked)."""
+    folder = Path(path)
+    if not folder.is_dir():
+        return [folder]
+    from rosbags.rosbag2 import Reader, ReaderError
+
+    try:
+        bag = stack.enter_context(Reader(folder))
+        files = [Path(s.path) for s in bag.storage.storages]  # type: ignore[attr-defined]
+    except (ReaderError, FileNotFoundError, KeyError, ValueError, AttributeError) as exc:
+        raise InputError(
+            f"{path}: a folder, but not a rosbag2 bag dhlog can read ({exc}); give the bag "
+            "folder (with metadata.yaml) or one .mcap file."
+        ) from None
+    if not files:
+        raise InputError(f"{path}: the bag lists no storage files.")
+    return files
 
 
 def read_camera_infos(path: str | Path, topic: str) -> list[CameraInfo]:
@@ -582,7 +610,7 @@ def read_camera_infos(path: str | Path, topic: str) -> list[CameraInfo]:
     topic's payloads; messages that cannot be read are left out)."""
     stream = ImageStream(path, "", topic)
     scan = scan_mcap(path, [topic])
-    _check_topics(scan, [("camera info", topic)])
+    _check_topics(str(path), scan.topics(), [("camera info", topic)])
     for cid, raw in scan.messages.items():
         info = scan.channels.get(cid)
         if info is not None:
