@@ -413,6 +413,7 @@ def test_a_long_topic_a_batch_at_a_time(tmp_path: Path) -> None:
     batches = list(stream.batches())
     assert len(batches) >= 20 and max(len(b) for b in batches) <= 3
     got = [f for b in batches for f in b]
+    assert len(list(stream)) == 60 and stream.count == 60  # walked again, counted afresh
     assert [f.index for f in got] == list(range(60))
     assert [f.stamp_ns for f in got] == [S + i for i in range(60)]
     for frame, img in zip(got, frames_in, strict=True):

@@ -410,7 +410,7 @@ class _StoppedError(Exception):
 
 class ImageStream:
     """The frames of one image topic of an MCAP, in the order of the file, decoded a chunk at a
-    time while the walk goes on in a thread (iterate it once: :meth:`batches` or the frames).
+    time while the walk goes on in a thread (:meth:`batches`, or the frames one by one).
 
     ``info_topic`` (optional) is read in the same walk: its intrinsics in :attr:`infos`. After
     the walk: :attr:`count` (messages on the topic), :attr:`faults`, :attr:`warnings` (the
@@ -477,7 +477,8 @@ class ImageStream:
 
     def batches(self) -> Iterator[list[CameraImage]]:
         """The frames, in batches of at most ``batch_bytes`` decoded bytes (a single frame
-        larger than that alone)."""
+        larger than that alone). Each iteration walks the log again, its tallies afresh."""
+        self.count, self.faults, self.infos, self.warnings = 0, Faults(), [], []
         hand: queue.Queue[list[CameraImage] | BaseException | None] = queue.Queue(QUEUED)
         stop = threading.Event()
 
