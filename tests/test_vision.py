@@ -346,6 +346,26 @@ def test_board_image_maps_board_points_to_pixels(kind: str) -> None:
     np.testing.assert_allclose(found.corners_px, xy1[:, :2] / xy1[:, 2:], atol=atol)
 
 
+def test_board_image_by_width_and_camera_info_from_the_reader() -> None:
+    board = BOARDS["charuco"]
+    drawn = board.image(width_px=7 * 57 + 40)  # squares of 57 px, a margin of 20
+    assert drawn.pixels.shape == (5 * 57 + 40, 7 * 57 + 40)
+    np.testing.assert_allclose(drawn.image_from_board[0, 0], 57 / 0.04)
+    with pytest.raises(BoardError, match="needs px_per_m or width_px"):
+        board.image()
+    # The reader's CameraInfo (dhlog.io.images) carries the fields from_camera_info takes.
+    from dhlog.io.images import CameraInfo
+
+    k = np.array([[810.0, 0, 330], [0, 812.0, 242], [0, 0, 1]])
+    info = CameraInfo(
+        0, "cam", 640, 480, "plumb_bob", (0.1, 0, 0, 0, 0), k, np.eye(3), np.eye(3, 4)
+    )
+    cam = Intrinsics.from_camera_info(
+        info.width, info.height, info.distortion_model, info.d, info.k
+    )
+    np.testing.assert_array_equal(cam.K, k)
+
+
 # --- Detection ----------------------------------------------------------------------------
 
 # The tolerances come from the measured floor of OpenCV's corner refinement on these renders:

@@ -16,7 +16,7 @@ y down). Each kind's corners carry ids:
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any, Literal, cast
 
 import cv2
@@ -87,7 +87,7 @@ class BoardSpec:
     first_id: int = 0
     ids: tuple[int, ...] | None = None
     legacy_pattern: bool = False
-    where: str = "target"
+    where: str = field(default="target", compare=False)
 
     def __post_init__(self) -> None:
         w = self.where
@@ -132,7 +132,7 @@ class BoardSpec:
                 f"is {self.marker_m:g} m, not below square_m {self.square_m:g} m",
                 "give the marker's side, smaller than the square (the pitch for aruco_grid)",
             )
-        if isinstance(self.legacy_pattern, bool) is False:
+        if not isinstance(self.legacy_pattern, bool):
             raise BoardError(
                 w, "legacy_pattern", f"is {self.legacy_pattern!r}", "give true or false"
             )
@@ -278,8 +278,11 @@ class BoardSpec:
         xy = np.stack([i.ravel(), j.ravel()], axis=1) * self.square_m
         return np.column_stack([xy, np.zeros(len(xy))])
 
-    def image(self, px_per_m: float, *, margin_px: int = 20) -> BoardImage:
-        """The board drawn flat at ``px_per_m`` pixels a metre with a white margin (px).
+    def image(
+        self, px_per_m: float | None = None, *, width_px: int | None = None, margin_px: int = 20
+    ) -> BoardImage:
+        """The board drawn flat at ``px_per_m`` pixels a metre, or ``width_px`` pixels wide in
+        all, with a white margin of ``margin_px`` on every side.
 
         ChArUco and ArUco boards are drawn by OpenCV (``Board.generateImage``); a
         checkerboard, which OpenCV does not draw, by filling its squares. The scale is rounded
@@ -287,6 +290,13 @@ class BoardSpec:
         used (a board point (x, y) m lands at pixel ``margin + x·scale − ½``: pixel centres
         are whole numbers).
         """
+        if (px_per_m is None) == (width_px is None):
+            raise BoardError(self.where, "image", "needs px_per_m or width_px", "give one of them")
+        if not isinstance(margin_px, int) or not 0 <= margin_px <= 10_000:
+            raise BoardError(self.where, "margin_px", f"is {margin_px!r}", "give whole pixels")
+        if width_px is not None:
+            px_per_m = (width_px - 2 * margin_px) / self.size_m[0]
+        assert px_per_m is not None
         if not (math.isfinite(px_per_m) and px_per_m > 0):
             raise BoardError(self.where, "px_per_m", f"is {px_per_m!r}", "give a positive scale")
         square_px = max(1, round(self.square_m * px_per_m))
