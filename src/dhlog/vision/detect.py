@@ -11,7 +11,7 @@ from __future__ import annotations
 import functools
 from collections.abc import Iterable
 from dataclasses import dataclass, field
-from typing import Any, Literal
+from typing import Any, Literal, NamedTuple
 
 import cv2
 import numpy as np
@@ -65,6 +65,19 @@ MIN_CANDIDATES = 4
 #: How many markers of another dictionary make a frame "wrong dictionary" rather than
 #: "no target" (one can be a pattern in the scene that happens to decode).
 WRONG_DICTIONARY_MARKERS = 2
+
+#: The smallest marker side OpenCV looks for (px) on a large image. OpenCV's default
+#: (``minMarkerPerimeterRate`` 0.03 of the image's larger side) asks for 14 px on a full-HD
+#: frame, which issue 32's benchmark board (0.3 m at 2 m: 22 mm markers of about 17 px,
+#: foreshortened by its tilt) fails in 2 frames of 6 (benchmarks/vision_detect.py); 10 px (7
+#: cells of 1.4 px) finds them all at the same cost. Smaller images keep OpenCV's default, and
+#: no marker smaller than this is looked for: on a frame of noise every speck is a candidate
+#: (2 479 on 320×240 at 0.01, half a second a dictionary).
+MIN_MARKER_SIDE_PX = 10.0
+
+#: Beyond this many undecoded candidates a frame is noise or clutter, not a board of another
+#: dictionary, and the other dictionaries are not searched.
+MAX_CANDIDATES = 1000
 
 #: The largest image side accepted (px); beyond it the image is "unreadable".
 MAX_SIDE = 20_000
@@ -150,14 +163,15 @@ def detect(
                 f"edges rise over {rise:.1f} px (blurred beyond {blur_rise_px:g} px); {few}",
             )
         return Rejected("too few corners", few)
-    markers = found
-    if markers == 0 and board.kind != "checkerboard":
+    markers = found.markers
+    contrast = _contrast(gray)
+    if contrast < MIN_CONTRAST:
+        return Rejected("no target", f"a blank image (grey levels spread over {contrast:.0f})")
+    if markers == 0 and MIN_CANDIDATES <= found.candidates <= MAX_CANDIDATES:
         other = _other_dictionary(gray, board)
         if other is not None:
             return other
-    rise, contrast = edge_rise_px(gray)
-    if contrast < MIN_CONTRAST:
-        return Rejected("no target", f"a blank image (grey levels spread over {contrast:.0f})")
+    rise, _ = edge_rise_px(gray)
     if rise > blur_rise_px:
         return Rejected(
             "blurred",
@@ -181,18 +195,28 @@ def edge_rise_px(gray: NDArray[np.uint8]) -> tuple[float, float]:
     (a few thousandths of a frame). The widest direction's rise is returned. Noise only
     steepens slopes, so a noisy image is never called blurred for its noise.
     """
-    hist = cv2.calcHist([gray], [0], None, [256], [0, 256]).ravel()
-    cdf = np.cumsum(hist) / max(float(hist.sum()), 1.0)
-    contrast = float(np.searchsorted(cdf, 0.99) - np.searchsorted(cdf, 0.01))
-    gx = cv2.Sobel(gray, cv2.CV_32F, 1, 0, ksize=3).ravel() / 8.0  # the 3×3 Sobel weighs by 8
-    gy = cv2.Sobel(gray, cv2.CV_32F, 0, 1, ksize=3).ravel() / 8.0
-    k = min(gx.size - 1, int(0.999 * gx.size))
+    contrast = _contrast(gray)
+    gx = cv2.Sobel(gray, cv2.CV_32F, 1, 0, ksize=3, scale=1 / 8)  # the 3×3 Sobel weighs by 8
+    gy = cv2.Sobel(gray, cv2.CV_32F, 0, 1, ksize=3, scale=1 / 8)
     slopes = []
     for c, s in ((1.0, 0.0), (0.5**0.5, 0.5**0.5), (0.0, 1.0), (-(0.5**0.5), 0.5**0.5)):
-        along = np.abs(c * gx + s * gy)
-        slopes.append(float(np.partition(along, k)[k]))
+        along = np.abs(cv2.addWeighted(gx, c, gy, s, 0.0))
+        slopes.append(_percentile(along, 0.999, 256.0))
     slope = min(slopes)
     return (contrast / slope if slope > 0 else float("inf")), contrast
+
+
+def _contrast(gray: NDArray[np.uint8]) -> float:
+    """The spread of grey levels from the 1st to the 99th percentile."""
+    return _percentile(gray, 0.99, 256.0) - _percentile(gray, 0.01, 256.0)
+
+
+def _percentile(values: NDArray[Any], q: float, top: float) -> float:
+    """The q-quantile of an image's values in [0, top), to top/1024 (a histogram: no sort)."""
+    bins = 256 if values.dtype == np.uint8 else 1024
+    hist = cv2.calcHist([values], [0], None, [bins], [0.0, top]).ravel()
+    cdf = np.cumsum(hist) / max(float(hist.sum()), 1.0)
+    return float(np.searchsorted(cdf, q)) * top / bins
 
 
 @dataclass
@@ -268,10 +292,29 @@ def _what(board: BoardSpec) -> str:
     return f"{board.kind} board of {board.dictionary} ({cols}×{rows})"
 
 
-@functools.lru_cache(maxsize=16)
-def _marker_detector(dictionary: str) -> cv2.aruco.ArucoDetector:
+class _Seen(NamedTuple):
+    """What a search that found no corners saw: markers of the board, and marker-like squares
+    its dictionary did not decode."""
+
+    markers: int
+    candidates: int
+
+
+def _marker_detector(
+    dictionary: str, gray: NDArray[np.uint8], *, refine: bool = False
+) -> cv2.aruco.ArucoDetector:
+    """OpenCV's marker detector for ``dictionary``, looking for markers down to
+    :data:`MIN_MARKER_SIDE_PX` on an image of ``gray``'s size."""
+    rate = min(0.03, round(4 * MIN_MARKER_SIDE_PX / max(gray.shape), 4))
+    return _marker_detector_at(dictionary, rate, refine)
+
+
+@functools.lru_cache(maxsize=64)
+def _marker_detector_at(dictionary: str, rate: float, refine: bool) -> cv2.aruco.ArucoDetector:
     params = cv2.aruco.DetectorParameters()
-    params.cornerRefinementMethod = cv2.aruco.CORNER_REFINE_SUBPIX
+    params.minMarkerPerimeterRate = rate
+    if refine:
+        params.cornerRefinementMethod = cv2.aruco.CORNER_REFINE_SUBPIX
     return cv2.aruco.ArucoDetector(
         cv2.aruco.getPredefinedDictionary(DICTIONARIES[dictionary]), params
     )
@@ -298,12 +341,20 @@ def _grid(board: BoardSpec) -> tuple[cv2.aruco.Board, dict[int, int], FloatArray
 
 def _charuco(
     gray: NDArray[np.uint8], board: BoardSpec, camera: Intrinsics | None
-) -> Detection | int:
+) -> Detection | _Seen:
+    # The markers first (their undecoded candidates tell "wrong dictionary" apart), then
+    # OpenCV's ChArUco step on them: the chessboard corners between, refined to sub-pixel.
+    marker_corners, marker_ids, rejected = _marker_detector(board.dictionary, gray).detectMarkers(
+        gray
+    )
+    if marker_ids is None or len(marker_ids) == 0:
+        return _Seen(0, 0 if rejected is None else len(rejected))
     detector, points = _charuco_detector(board, camera)
-    corners, ids, _, marker_ids = detector.detectBoard(gray)
-    markers = 0 if marker_ids is None else len(marker_ids)
+    corners, ids, _, _ = detector.detectBoard(
+        gray, markerCorners=marker_corners, markerIds=marker_ids
+    )
     if ids is None or len(ids) == 0:
-        return markers
+        return _Seen(len(marker_ids), 0)
     ids = np.asarray(ids, dtype=np.int64).ravel()
     uv = np.asarray(corners, dtype=np.float64).reshape(-1, 2)
     order = np.argsort(ids)
@@ -312,9 +363,9 @@ def _charuco(
 
 def _aruco_grid(
     gray: NDArray[np.uint8], board: BoardSpec, camera: Intrinsics | None
-) -> Detection | int:
+) -> Detection | _Seen:
     cv_board, index, points = _grid(board)
-    detector = _marker_detector(board.dictionary)
+    detector = _marker_detector(board.dictionary, gray, refine=True)
     corners, ids, rejected = detector.detectMarkers(gray)
     if ids is not None and len(ids):
         if camera is None:
@@ -326,25 +377,25 @@ def _aruco_grid(
                 gray, cv_board, corners, ids, rejected, camera.K, camera.coefficients
             )
     if ids is None or len(ids) == 0:
-        return 0
+        return _Seen(0, 0 if rejected is None else len(rejected))
     found = np.asarray(ids, dtype=np.int64).ravel()
     unique, counts = np.unique(found, return_counts=True)
     once = set(unique[counts == 1].tolist()) & index.keys()  # a marker seen twice is ambiguous
     rows = [i for i, marker in enumerate(found) if int(marker) in once]
     if not rows:
-        return 0
+        return _Seen(0, len(found))
     corner_ids = np.concatenate([4 * index[int(found[i])] + np.arange(4) for i in rows])
     uv = np.concatenate([np.asarray(corners[i], dtype=np.float64).reshape(4, 2) for i in rows])
     order = np.argsort(corner_ids)
     return Detection(corner_ids[order], uv[order], points[corner_ids[order]])
 
 
-def _checkerboard(gray: NDArray[np.uint8], board: BoardSpec) -> Detection | int:
+def _checkerboard(gray: NDArray[np.uint8], board: BoardSpec) -> Detection | _Seen:
     cols, rows = board.squares
     flags = cv2.CALIB_CB_NORMALIZE_IMAGE | cv2.CALIB_CB_ACCURACY
     ok, corners = cv2.findChessboardCornersSB(gray, (cols - 1, rows - 1), flags=flags)
     if not ok or corners is None:
-        return 0
+        return _Seen(0, 0)
     grid = np.asarray(corners, dtype=np.float64).reshape(rows - 1, cols - 1, 2)
     # OpenCV's order may start at any corner of the grid: put the rows the board's way round.
     ex = grid[0, 1] - grid[0, 0]
@@ -378,15 +429,12 @@ def _dark_first(gray: NDArray[np.uint8], grid: FloatArray) -> bool:
 
 
 def _other_dictionary(gray: NDArray[np.uint8], board: BoardSpec) -> Rejected | None:
-    """Markers of another dictionary, when the image holds square candidates the board's own
-    dictionary could not decode (none: a frame without such squares costs no more passes)."""
-    _, _, candidates = _marker_detector(board.dictionary).detectMarkers(gray)
-    if candidates is None or len(candidates) < MIN_CANDIDATES:
-        return None
+    """Markers of another dictionary (called when the image holds square candidates the
+    board's own dictionary could not decode: a frame without them costs no more passes)."""
     for name in OTHER_DICTIONARIES:
         if name == board.dictionary or name not in DICTIONARIES:
             continue
-        _, ids, _ = _marker_detector(name).detectMarkers(gray)
+        _, ids, _ = _marker_detector(name, gray).detectMarkers(gray)
         if ids is not None and len(ids) >= WRONG_DICTIONARY_MARKERS:
             break
     else:
