@@ -231,6 +231,13 @@ def test_calibration_files_ros_and_opencv() -> None:
     fs.write("camera_matrix", ros.K)
     fs.write("distortion_coefficients", ros.coefficients.reshape(1, -1))
     assert Intrinsics.from_yaml_text(fs.releaseAndGetString(), "calib.yml") == ros
+    fs = cv2.FileStorage("calib.xml", cv2.FILE_STORAGE_WRITE | cv2.FILE_STORAGE_MEMORY)
+    for key, value in (("image_width", 640), ("image_height", 480), ("camera_matrix", ros.K)):
+        fs.write(key, value)
+    fs.write("distortion_model", "rational_polynomial")
+    fs.write("distortion_coefficients", np.arange(8.0).reshape(1, -1) / 100)
+    xml = Intrinsics.from_yaml_text(fs.releaseAndGetString(), "calib.xml")  # OpenCV's XML
+    assert xml.model == "rational_polynomial" and xml.coefficients[7] == 0.07
     fisheye = ROS_YAML.replace("plumb_bob", "equidistant").replace(", 0.01]", "]")
     assert Intrinsics.from_yaml_text(fisheye, "f.yaml").model == "equidistant"
 
@@ -447,6 +454,18 @@ def test_a_partial_view_keeps_the_ids_it_sees() -> None:
     found = detect(image, board)
     assert isinstance(found, Detection) and 6 <= len(found) < 24
     assert errors(cam, found, R, t, board).max() < 0.4
+
+
+def test_small_markers_on_a_full_hd_frame() -> None:
+    """14 px markers (2 px a cell) on a 1920×1080 frame: below OpenCV's default smallest marker
+    there (0.03 of 1920 px of perimeter: 14.4 px a side), found with MIN_MARKER_SIDE_PX."""
+    board = BoardSpec(squares=(10, 7), square_m=0.019, marker_m=0.014)
+    drawn = board.image(1000.0, margin_px=10)
+    frame = np.full((1080, 1920), 128, np.uint8)
+    h, w = drawn.pixels.shape
+    frame[500 : 500 + h, 900 : 900 + w] = drawn.pixels
+    found = detect(frame, board)
+    assert isinstance(found, Detection) and len(found) == 54, found
 
 
 def test_grey16_and_colour_images_give_the_same_corners() -> None:

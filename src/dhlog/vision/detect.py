@@ -67,12 +67,13 @@ MIN_CANDIDATES = 4
 WRONG_DICTIONARY_MARKERS = 2
 
 #: The smallest marker side OpenCV looks for (px) on a large image. OpenCV's default
-#: (``minMarkerPerimeterRate`` 0.03 of the image's larger side) asks for 14 px on a full-HD
+#: (``minMarkerPerimeterRate`` 0.03 of the image's larger side) asks for 14.4 px on a full-HD
 #: frame, which issue 32's benchmark board (0.3 m at 2 m: 22 mm markers of about 17 px,
-#: foreshortened by its tilt) fails in 2 frames of 6 (benchmarks/vision_detect.py); 10 px (7
-#: cells of 1.4 px) finds them all at the same cost. Smaller images keep OpenCV's default, and
-#: no marker smaller than this is looked for: on a frame of noise every speck is a candidate
-#: (2 479 on 320×240 at 0.01, half a second a dictionary).
+#: foreshortened by its tilt) fails in 2 frames of 6 (benchmarks/vision_detect.py), and a flat
+#: board of 14 px markers entirely (tests/test_vision.py). 10 px lies below the 13.5 px (2 px a
+#: cell) at which OpenCV decodes a 5×5 marker at all, so the decoding decides, at the same cost.
+#: Smaller images keep OpenCV's default, and no smaller marker is looked for: on a frame of
+#: noise every speck is a candidate (2 479 on 320×240 at a rate of 0.01, 0.5 s a dictionary).
 MIN_MARKER_SIDE_PX = 10.0
 
 #: Beyond this many undecoded candidates a frame is noise or clutter, not a board of another
