@@ -47,7 +47,7 @@ MIN_CONTRAST = 16.0
 #: The dictionaries tried, in this order, when the board's own finds no marker, to tell "wrong
 #: dictionary" from "no target": each family's of 100 markers (their first markers are the
 #: smaller ones'; the 1000-marker ones cost 6–8 times as much to search), then the others.
-#: The search stops at the first that finds markers; on a full-HD frame each costs 10–60 ms.
+#: The search stops at the first that finds markers; on a full-HD frame each costs 15–110 ms.
 OTHER_DICTIONARIES: tuple[str, ...] = (
     "DICT_4X4_100",
     "DICT_5X5_100",
@@ -82,8 +82,6 @@ MAX_CANDIDATES = 1000
 
 #: The largest image side accepted (px); beyond it the image is "unreadable".
 MAX_SIDE = 20_000
-
-ImageArray = NDArray[Any]
 
 
 @dataclass(frozen=True)
