@@ -157,6 +157,33 @@ def simulate(
         float,
         typer.Option(help="Days after 2025-11-21 04:40 UTC the session starts (a series)."),
     ] = 0.0,
+    instrument: Annotated[
+        str,
+        typer.Option(
+            metavar="tracker|camera",
+            help="tracker (a laser tracker's points), or camera: a vision log, a ChArUco board "
+            "rendered through a pinhole camera with lens distortion, blur and noise at each "
+            "still pose where it is seen (--protocol random-poses), with CameraInfo and the "
+            "joint states; the truth gains the camera's pose, the board's mount and the "
+            "intrinsics.",
+        ),
+    ] = "tracker",
+    camera_setup: Annotated[
+        str,
+        typer.Option(
+            metavar="eye-to-hand|eye-in-hand",
+            help="--instrument camera: the camera fixed in the cell and the board on the "
+            "flange, or the camera on the flange and the board fixed.",
+        ),
+    ] = "eye-to-hand",
+    image_format: Annotated[
+        str,
+        typer.Option(
+            metavar="jpeg|png|raw",
+            help="--instrument camera: CompressedImage (JPEG, PNG) on "
+            "/camera/image_raw/compressed, or Image (mono8) on /camera/image_raw.",
+        ),
+    ] = "jpeg",
     seed: Annotated[int, typer.Option(help="Random seed.")] = 0,
     force: Annotated[bool, typer.Option("--force", help="Overwrite existing outputs.")] = False,
 ) -> None:
@@ -181,6 +208,9 @@ def simulate(
         "point-type": (point_type, ("point", "pose")),
         "protocol": (protocol, PROTOCOLS),
         "angle-unit": (angle_unit, ("rad", "deg")),
+        "instrument": (instrument, ("tracker", "camera")),
+        "camera-setup": (camera_setup, ("eye-to-hand", "eye-in-hand")),
+        "image-format": (image_format, ("jpeg", "png", "raw")),
     }
     for option, (value, allowed) in choices.items():
         if value not in allowed:
@@ -237,12 +267,21 @@ def simulate(
             compliance=tuple(compliant),
             payload=payload_kg,
             harmonic=tuple(harmonics),
+            instrument=instrument,  # type: ignore[arg-type]
+            camera_setup=camera_setup,  # type: ignore[arg-type]
+            image_format=image_format,  # type: ignore[arg-type]
             seed=seed,
         )
         problems = config_problems(rob, cfg)
         if problems:
             stderr.print(f"error: {plain(problems[0])}.")
             raise typer.Exit(EXIT_USAGE)
+        if cfg.instrument == "camera":
+            if encoding != "ros2":
+                stderr.print("error: a vision log is written in ros2 encoding only, so far.")
+                raise typer.Exit(EXIT_USAGE)
+            _simulate_vision(rob, cfg, output, truth_path)
+            return
         session = simulate_session(rob, cfg)
         swept = swept_joints(rob, cfg)
         for k, (got, jt) in enumerate(zip(session.sweeps, rob.table.joint_types, strict=True)):
@@ -301,6 +340,30 @@ def simulate(
             "[streams.point].",
             markup=False,
         )
+
+
+def _simulate_vision(robot: Any, cfg: Any, output: Path, truth_path: Path) -> None:
+    """``--instrument camera``: the vision log and its truth (see :mod:`dhlog.simulate.camera`)."""
+    from dhlog.io.writer import sha256_of, write_truth
+    from dhlog.simulate.camera import simulate_vision, vision_truth, write_vision_log
+
+    vision = simulate_vision(robot, cfg, cfg.camera_setup, cfg.image_format)
+    write_vision_log(vision, output, cfg.seed)
+    doc = vision_truth(
+        vision,
+        source_path=output.name,
+        sha256=sha256_of(output),
+        pipeline="none (a vision log)",
+        version=__version__,
+    )
+    write_truth(doc, truth_path)
+    kind = "Image" if cfg.image_format == "raw" else f"CompressedImage ({cfg.image_format})"
+    stdout.print(
+        f"wrote {plain(output)} ({vision.frame_t_ns.size} {kind} frames of a ChArUco board, "
+        f"{cfg.camera_setup}, {vision.session.joint_t_ns.size} joint states) and "
+        f"{plain(truth_path)}",
+        markup=False,
+    )
 
 
 def _pose_file(path: Path, robot: Any, angle_unit: str) -> tuple[tuple[float, ...], ...]:

@@ -85,6 +85,17 @@ class LogData:
     pipeline_reason: str | None = None
 
 
+#: the schemas of camera images (those of :mod:`dhlog.io.images`, named here without its cv2)
+_IMAGE_SCHEMAS = frozenset(
+    {
+        "sensor_msgs/msg/Image",
+        "sensor_msgs/msg/CompressedImage",
+        "foxglove.RawImage",
+        "foxglove.CompressedImage",
+    }
+)
+
+
 def _channels_for(scan_channels: dict[int, ChannelInfo], topic: str) -> list[ChannelInfo]:
     return [c for c in scan_channels.values() if c.topic == topic]
 
@@ -108,6 +119,13 @@ def choose_pipeline(path: str, channels: dict[int, ChannelInfo]) -> tuple[Pipeli
         if fits and (best is None or score > best[0]):
             best = (score, pipeline)
     if best is None:
+        images = sorted({c.topic for c in channels.values() if c.schema_name in _IMAGE_SCHEMAS})
+        if images:  # a vision log (issue 32): said so, not taken for a tracker log without one
+            raise PipelineError(
+                path,
+                f"a vision log (camera images on {', '.join(images)}): dhlog process does not "
+                "calibrate from camera images yet (issue 32); give a tracker log.",
+            )
         listed = ", ".join(
             sorted(
                 {f"{c.topic} ({c.schema_name or c.message_encoding})" for c in channels.values()}

@@ -80,6 +80,14 @@ class SimulationConfig:
     #: ``noise``: (radial, transverse, transverse per metre of distance) σ, m and m/m (the
     #: ``tracker`` noise model of :mod:`dhlog.model.noise`)
     tracker_model: tuple[float, float, float] | None = None
+    #: the instrument: a laser ``tracker`` (the default), or a ``camera`` and a ChArUco board
+    #: (a vision log: :mod:`dhlog.simulate.camera`, the ``random-poses`` protocol only)
+    instrument: Literal["tracker", "camera"] = "tracker"
+    #: the camera's set-up: fixed in the cell, the board on the flange (``eye-to-hand``), or
+    #: on the flange, the board fixed (``eye-in-hand``)
+    camera_setup: Literal["eye-to-hand", "eye-in-hand"] = "eye-to-hand"
+    #: the images as written: ``jpeg`` or ``png`` (CompressedImage) or ``raw`` (Image, mono8)
+    image_format: Literal["jpeg", "png", "raw"] = "jpeg"
     seed: int = 0
 
 
@@ -136,6 +144,7 @@ def config_problems(robot: Robot, cfg: SimulationConfig) -> list[str]:
     ]
     out += [why for ok, why in checks if not ok]
     out += _protocol_problems(robot, cfg)
+    out += _camera_problems(cfg)
     bad = [j for j in cfg.skip_joints if not 1 <= j <= robot.n]
     if bad:
         out.append(f"--skip-joints names joint(s) {bad}; {robot.name} has joints 1-{robot.n}")
@@ -199,6 +208,38 @@ def _protocol_problems(robot: Robot, cfg: SimulationConfig) -> list[str]:
             if cfg.dwell > 0
             else "the dwell must be > 0 for a step-and-measure protocol"
         )
+    return out
+
+
+def _camera_problems(cfg: SimulationConfig) -> list[str]:
+    """What is wrong with a vision log's settings (none for a tracker's): the set-up, the
+    image format, and what the camera's simulation does not do yet."""
+    if cfg.instrument == "tracker":
+        return []
+    if cfg.instrument != "camera":
+        return [f"the instrument must be tracker or camera, not '{cfg.instrument}'"]
+    out = []
+    if cfg.camera_setup not in ("eye-to-hand", "eye-in-hand"):
+        out.append(
+            f"the camera set-up must be eye-to-hand or eye-in-hand, not '{cfg.camera_setup}'"
+        )
+    if cfg.image_format not in ("jpeg", "png", "raw"):
+        out.append(f"the image format must be jpeg, png or raw, not '{cfg.image_format}'")
+    if cfg.protocol != "random-poses" or cfg.pose_list:
+        out.append("a camera is simulated with --protocol random-poses and --poses N only, so far")
+    elif not 1 <= cfg.poses <= 10_000:
+        out.append(f"a vision log's poses must be in [1, 10 000] (got {cfg.poses})")
+    unsupported = [
+        (cfg.model_error > 0, "--model-error-mm"),
+        (bool(cfg.compliance or cfg.harmonic), "--compliance/--harmonic"),
+        (bool(cfg.extra_tools) or cfg.tool_rotation is not None, "further or 6-DoF targets"),
+        (not cfg.encoders, "--no-encoders"),
+    ]
+    out += [
+        f"{what} is for tracker logs; a camera is simulated without it"
+        for bad, what in unsupported
+        if bad
+    ]
     return out
 
 
