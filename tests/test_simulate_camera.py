@@ -4,11 +4,11 @@ rosbags' CDR decoder — its board detected by ``vision.detect`` in every frame,
 found where the truth puts it: the truth's DH table at the joint states of the frame, the
 camera's pose, the board's mount and the intrinsics, projected by ``Intrinsics.project``.
 
-The tolerance: the rendering adds Gaussian noise of 2 grey levels and a blur of 0.6 px to a
-board of 0.25 contrast a grey level; OpenCV's corners on such views (tests/test_vision.py) are
-within 0.15 px RMS, and 0.04–0.08 px RMS were measured here; 0.25 px RMS and 1 px at most
-leave room for JPEG and still fail on a wrong pose, mount or lens (a 1 mm error of the mount
-is 1–2 px at these distances).
+The tolerance: the rendering adds Gaussian noise of 2 grey levels (of a board's 255) and a
+blur of 0.6 px; OpenCV's corners on such views (tests/test_vision.py) are within 0.15 px RMS,
+and 0.04–0.08 px RMS (at most 0.39 px) were measured here (benchmarks/vision_simulate.py);
+0.25 px RMS and 1 px at most leave room for JPEG and still fail on a wrong pose, mount or lens
+(a mount 1 mm off along x gives 0.77 px RMS on the eye-to-hand KR5 log).
 """
 
 from __future__ import annotations

@@ -306,7 +306,9 @@ def simulate_vision(
     stamps = []
     for pose in session.poses:
         still = np.flatnonzero(np.all(np.abs(q - pose) < 1e-12, axis=1))
-        stamps.append(int(t[still[still.size // 2]]) if still.size else int(t[0]))
+        if not still.size:  # every still is sampled: the dwell is longer than a joint period
+            raise DhlogError(f"{robot.name}: a still pose has no joint state; raise --joint-rate")
+        stamps.append(int(t[still[still.size // 2]]))
     T_cb = rig.board_in_camera(flange_poses(robot, session.table, session.poses))
     return VisionSession(session, rig, np.array(stamps, dtype=np.int64), T_cb, image_format)
 
