@@ -6,7 +6,9 @@ from graphlib import TopologicalSorter
 from pathlib import Path
 
 SRC = Path(__file__).parents[1] / "src"
-FLOORS = "errors geometry model vision io identify result simulate present fleet cell cli entry __main__"
+FLOORS = (
+    "errors geometry model vision io identify result simulate present fleet cell cli entry __main__"
+)
 MODULES = {
     ".".join(path.relative_to(SRC).with_suffix("").parts).removesuffix(".__init__"): path
     for path in (SRC / "dhlog").rglob("*.py")
