@@ -30,9 +30,13 @@ def pipelines() -> None:
         "file of your own):"
     )
     for p in shipped_pipelines():
+        topic = (
+            f"image topic {plain(p.image.topic)}"
+            if p.image is not None
+            else f"point topic {plain(p.streams['point'].topic)}"
+        )
         stdout.print(
-            f"  {plain(p.name)} ({', '.join(p.encodings)}; point topic "
-            f"{plain(p.streams['point'].topic)}): {plain(p.description)}"
+            f"  {plain(p.name)} ({', '.join(p.encodings)}; {topic}): {plain(p.description)}"
         )
 
 

@@ -2,7 +2,10 @@
 
 A pipeline names, per stream (``point``, ``joints``, ``base``, ``phase``), the topic and, for JSON
 messages of other shapes, the field paths; the length unit; the joints in chain order and their
-types; and the segmentation tolerances. Shipped pipelines live in ``pipelines/`` and are chosen
+types; and the segmentation tolerances. A camera pipeline reads ``[streams.image]`` instead of
+``[streams.point]``, with its ``[target]`` (the board, :class:`dhlog.vision.boards.BoardSpec`)
+and ``[camera]`` (the camera-info topic, or a calibration file read as
+:class:`dhlog.vision.camera.Intrinsics`). Shipped pipelines live in ``pipelines/`` and are chosen
 from the schemas a log holds when none is named.
 """
 
@@ -20,6 +23,8 @@ from typing import Any
 from dhlog.errors import DhlogError, PipelineError
 from dhlog.model.dh import JointType
 from dhlog.model.noise import NoiseModel
+from dhlog.vision.boards import BoardError, BoardSpec
+from dhlog.vision.camera import CameraError, Intrinsics
 
 STREAMS = ("point", "joints", "base", "phase")
 DEFAULT_TOPICS = {
@@ -40,6 +45,8 @@ TOP_KEYS = (
     "joints",
     "segmentation",
     "noise",
+    "target",
+    "camera",
 )
 STREAM_KEYS = (
     "topic",
@@ -65,6 +72,19 @@ FIELD_KEYS = {
     "phase": ("joint",),
 }
 JOINT_KEYS = ("names", "types")
+#: A camera pipeline's image stream: its topic, whether it is needed, and the topics read
+#: instead where the log lacks ``topic`` (a raw stream where the compressed one is absent).
+IMAGE_KEYS = ("topic", "required", "alternatives")
+#: ``[camera]``: the camera-info topic (``CameraInfo`` / ``CameraCalibration``), or a
+#: calibration file (ROS camera_info YAML, OpenCV YAML/XML) held instead.
+CAMERA_KEYS = ("info_topic", "calibration")
+DEFAULT_IMAGE_TOPIC = "/camera/image_raw/compressed"
+DEFAULT_INFO_TOPIC = "/camera/camera_info"
+#: The largest camera calibration file read (bytes), and the most alternative image topics.
+MAX_CALIBRATION_BYTES = 1 * 2**20
+MAX_ALTERNATIVES = 16
+#: The most entries of a list in ``[target]`` (no marker dictionary holds more ids).
+MAX_TARGET_LIST = 1024
 NOISE_KEYS = (
     "model",
     "sigma",
@@ -213,6 +233,27 @@ class SegmentationSettings:
 
 
 @dataclass(frozen=True)
+class ImageStreamSpec:
+    """A camera pipeline's image stream: ``topic``, and ``alternatives`` read instead of it
+    (in order) where the log lacks it."""
+
+    topic: str = DEFAULT_IMAGE_TOPIC
+    required: bool = True
+    alternatives: tuple[str, ...] = ()
+
+
+@dataclass(frozen=True)
+class CameraSpec:
+    """Where a camera pipeline's intrinsics come from: ``info_topic`` (the log's
+    ``CameraInfo``), or ``intrinsics`` read from the calibration file ``calibration`` (the
+    path as resolved against the pipeline's folder)."""
+
+    info_topic: str | None = DEFAULT_INFO_TOPIC
+    calibration: str | None = None
+    intrinsics: Intrinsics | None = None
+
+
+@dataclass(frozen=True)
 class Pipeline:
     """A parsed pipeline file."""
 
@@ -227,6 +268,14 @@ class Pipeline:
     segmentation: SegmentationSettings
     noise: NoiseModel = field(default_factory=NoiseModel)
     angle_unit: str = "rad"
+    image: ImageStreamSpec | None = None
+    camera: CameraSpec | None = None
+    target: BoardSpec | None = None
+
+    @property
+    def is_camera(self) -> bool:
+        """Whether the pipeline reads camera images (``[streams.image]``), not a tracker."""
+        return self.image is not None
 
     @property
     def length_scale(self) -> float:
@@ -246,9 +295,10 @@ def _table(where: str, data: dict[str, Any], key: str) -> dict[str, Any]:
     return value
 
 
-def parse_pipeline(text: str, source: str) -> Pipeline:
+def parse_pipeline(text: str, source: str, *, folder: str | Path | None = None) -> Pipeline:
     """Parse pipeline TOML ``text``; ``source`` names the file in error messages. Every value
-    is checked for its type and range, each failure one :class:`PipelineError` naming the key."""
+    is checked for its type and range, each failure one :class:`PipelineError` naming the key.
+    ``folder`` (default: ``source``'s) is where a relative ``[camera] calibration`` path is."""
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
@@ -264,12 +314,12 @@ def parse_pipeline(text: str, source: str) -> Pipeline:
             "pipeline: check what the file holds.",
         ) from None
     try:
-        return _parse(data, source)
+        return _parse(data, source, Path(source).parent if folder is None else Path(folder))
     except RecursionError:
         raise PipelineError(source, "is nested too deeply to be a pipeline.") from None
 
 
-def _parse(data: dict[str, Any], source: str) -> Pipeline:
+def _parse(data: dict[str, Any], source: str, folder: Path) -> Pipeline:
     _check_keys(source, "top level", data, TOP_KEYS)
     name = _text(source, "name", data.get("name", Path(source).stem))
     description = _text(source, "description", data.get("description", ""))
@@ -289,9 +339,12 @@ def _parse(data: dict[str, Any], source: str) -> Pipeline:
             source, f"angle_unit '{angle_unit}' unknown; use 'rad', 'deg' or 'gon'."
         )
     streams_table = _table(source, data, "streams")
-    unknown = sorted(set(streams_table) - set(STREAMS))
+    unknown = sorted(set(streams_table) - {*STREAMS, "image"})
     if unknown:
-        raise PipelineError(source, f"unknown stream(s) {unknown}; streams are {list(STREAMS)}.")
+        raise PipelineError(
+            source, f"unknown stream(s) {unknown}; streams are {[*STREAMS, 'image']}."
+        )
+    image = _image_stream(source, streams_table.get("image"))
     streams: dict[str, StreamSpec] = {}
     for stream in STREAMS:
         spec = streams_table.get(stream)
@@ -372,8 +425,19 @@ def _parse(data: dict[str, Any], source: str) -> Pipeline:
             str(coordinates),
             str(vertical),
         )
-    if "point" not in streams:
-        raise PipelineError(source, "it has no [streams.point]; the target stream is required.")
+    if image is not None and "point" in streams:
+        raise PipelineError(
+            source,
+            "it has both [streams.point] and [streams.image]; a pipeline reads a tracker's "
+            "target or a camera's images: give one of them.",
+        )
+    if image is None and "point" not in streams:
+        raise PipelineError(
+            source,
+            "it has no [streams.point]; the target stream is required ([streams.image] for a "
+            "camera).",
+        )
+    target, camera = _camera_tables(data, source, folder, image is not None)
     joints = _table(source, data, "joints")
     _check_keys(source, "[joints]", joints, JOINT_KEYS)
     names = None if "names" not in joints else _texts(source, "[joints] names", joints["names"])
@@ -424,7 +488,7 @@ def _parse(data: dict[str, Any], source: str) -> Pipeline:
         noise = NoiseModel(**kwargs)
     except DhlogError as exc:
         raise PipelineError(source, f"[noise]: {exc}") from None
-    if streams["point"].coordinates == "spherical" and any(noise.station):
+    if "point" in streams and streams["point"].coordinates == "spherical" and any(noise.station):
         raise PipelineError(
             source,
             "[noise] station: a spherical point stream is in the tracker's own frame, so the "
@@ -442,7 +506,116 @@ def _parse(data: dict[str, Any], source: str) -> Pipeline:
         joint_types=types,
         segmentation=seg,
         noise=noise,
+        image=image,
+        camera=camera,
+        target=target,
     )
+
+
+def _image_stream(source: str, spec: object) -> ImageStreamSpec | None:
+    """``[streams.image]``, checked (None where the pipeline has none)."""
+    if spec is None:
+        return None
+    where = "[streams.image]"
+    if not isinstance(spec, dict):
+        raise PipelineError(source, f"{where} must be a table.")
+    _check_keys(source, where, spec, IMAGE_KEYS)
+    alternatives = _texts(source, f"{where} alternatives", spec.get("alternatives", []))
+    if len(alternatives) > MAX_ALTERNATIVES:
+        raise PipelineError(
+            source,
+            f"{where} alternatives has {len(alternatives)} topics (at most {MAX_ALTERNATIVES}).",
+        )
+    return ImageStreamSpec(
+        _text(source, f"{where} topic", spec.get("topic", DEFAULT_IMAGE_TOPIC)),
+        _flag(source, f"{where} required", spec.get("required", True)),
+        tuple(alternatives),
+    )
+
+
+def _camera_tables(
+    data: dict[str, Any], source: str, folder: Path, camera_pipeline: bool
+) -> tuple[BoardSpec | None, CameraSpec | None]:
+    """``[target]`` and ``[camera]`` of a camera pipeline (refused in any other)."""
+    if not camera_pipeline:
+        for key in ("target", "camera"):
+            if key in data:
+                raise PipelineError(
+                    source,
+                    f"[{key}] is for a camera pipeline, which reads [streams.image]; add that "
+                    f"stream or leave [{key}] out.",
+                )
+        return None, None
+    if "target" not in data:
+        raise PipelineError(
+            source,
+            "a camera pipeline needs a [target] table: the board's kind, dictionary, squares, "
+            "square_m and marker_m (README: Writing a pipeline file).",
+        )
+    target_table = _table(source, data, "target")
+    for key, value in target_table.items():
+        where = f"[target] {key}"
+        if isinstance(value, str):
+            _text(source, where, value)
+        elif isinstance(value, list):
+            if len(value) > MAX_TARGET_LIST:
+                raise PipelineError(
+                    source, f"{where} has {len(value)} entries (at most {MAX_TARGET_LIST})."
+                )
+            for k, v in enumerate(value):
+                if isinstance(v, bool) or not isinstance(v, int) or abs(v) > 10**9:
+                    raise PipelineError(
+                        source, f"{where}[{k}] must be a whole number, not {_shown(v)}."
+                    )
+        elif isinstance(value, int) and not isinstance(value, bool) and abs(value) > 10**9:
+            raise PipelineError(source, f"{where} is {_shown(value)}, out of any board's range.")
+    try:
+        target = BoardSpec.from_table(target_table, "[target]")
+    except BoardError as exc:
+        raise PipelineError(source, str(exc)) from None
+    camera_table = _table(source, data, "camera")
+    _check_keys(source, "[camera]", camera_table, CAMERA_KEYS)
+    if "info_topic" in camera_table and "calibration" in camera_table:
+        raise PipelineError(
+            source,
+            "[camera] gives both info_topic and calibration; give the calibration file to hold "
+            "its intrinsics, or the camera-info topic to read the log's.",
+        )
+    if "calibration" not in camera_table:
+        topic = _text(
+            source, "[camera] info_topic", camera_table.get("info_topic", DEFAULT_INFO_TOPIC)
+        )
+        return target, CameraSpec(info_topic=topic)
+    given = _text(source, "[camera] calibration", camera_table["calibration"])
+    path = Path(given)
+    if not path.is_absolute():
+        path = folder / path
+    intrinsics = load_calibration(path, source)
+    return target, CameraSpec(info_topic=None, calibration=str(path), intrinsics=intrinsics)
+
+
+def load_calibration(path: str | Path, pipeline: str) -> Intrinsics:
+    """A camera calibration file named by ``pipeline``'s ``[camera] calibration``: at most
+    :data:`MAX_CALIBRATION_BYTES`, UTF-8, read by :meth:`Intrinsics.from_yaml_text`; every
+    failure one :class:`PipelineError` naming the pipeline, the key and the file."""
+    from dhlog.io.textfile import decode_utf8, read_capped
+
+    def fail(problem: str) -> PipelineError:
+        return PipelineError(pipeline, f"[camera] calibration: {path} {problem}")
+
+    data = read_capped(
+        path,
+        MAX_CALIBRATION_BYTES,
+        fail,
+        what="calibration file",
+        hint="give the camera's calibration file (ROS camera_info YAML or OpenCV YAML/XML).",
+        check="check the path (a relative one is taken from the pipeline file's folder).",
+    )
+    text = decode_utf8(data, fail, what="calibration file")
+    try:
+        return Intrinsics.from_yaml_text(text, str(path))
+    except CameraError as exc:
+        raise PipelineError(pipeline, f"[camera] calibration: {exc}") from None
 
 
 def load_pipeline(path: str | Path) -> Pipeline:
@@ -453,7 +626,9 @@ def load_pipeline(path: str | Path) -> Pipeline:
         return PipelineError(str(path), problem)
 
     data = read_capped(path, MAX_BYTES, fail, what="pipeline", hint="give the pipeline file.")
-    return parse_pipeline(decode_utf8(data, fail, what="pipeline file"), str(path))
+    return parse_pipeline(
+        decode_utf8(data, fail, what="pipeline file"), str(path), folder=Path(path).parent
+    )
 
 
 def shipped_pipelines() -> list[Pipeline]:

@@ -104,6 +104,8 @@ def choose_pipeline(path: str, channels: dict[int, ChannelInfo]) -> tuple[Pipeli
     """The shipped pipeline that fits the log's topics and encodings best, and why."""
     best: tuple[int, Pipeline] | None = None
     for pipeline in shipped_pipelines():
+        if pipeline.is_camera:  # dhlog process reads tracker logs only, so far (issue 32)
+            continue
         score = 0
         fits = True
         for spec in pipeline.streams.values():
@@ -121,10 +123,16 @@ def choose_pipeline(path: str, channels: dict[int, ChannelInfo]) -> tuple[Pipeli
     if best is None:
         images = sorted({c.topic for c in channels.values() if c.schema_name in _IMAGE_SCHEMAS})
         if images:  # a vision log (issue 32): said so, not taken for a tracker log without one
+            described = [
+                p.name
+                for p in shipped_pipelines()
+                if p.image is not None and {p.image.topic, *p.image.alternatives} & set(images)
+            ]
+            named = f" (the shipped pipeline {described[0]} describes it)" if described else ""
             raise PipelineError(
                 path,
-                f"a vision log (camera images on {', '.join(images)}): dhlog process does not "
-                "calibrate from camera images yet (issue 32); give a tracker log.",
+                f"a vision log (camera images on {', '.join(images)}){named}: dhlog process "
+                "does not calibrate from camera images yet (issue 32); give a tracker log.",
             )
         listed = ", ".join(
             sorted(
@@ -188,6 +196,13 @@ def read_log(
     Non-finite samples are set aside and counted; a truncated file keeps what precedes the damage.
     """
     name = str(path)
+    if pipeline is not None and pipeline.image is not None:
+        raise PipelineError(
+            pipeline.source,
+            f"is a camera pipeline ({pipeline.name}: images on {pipeline.image.topic}); "
+            "dhlog process does not calibrate from camera images yet (issue 32): give a tracker "
+            "log and a tracker pipeline.",
+        )
     if Path(path).is_dir():
         return _read_bag(Path(path), pipeline, fast=fast, progress=progress)
     topics = (

@@ -149,6 +149,8 @@ def layout_plan(pipelines: Sequence[Pipeline]) -> Plan:
     def plan(info: ChannelInfo) -> str | None:
         layouts = set()
         for pipeline in pipelines:
+            if pipeline.is_camera:  # no tracker streams to lay out
+                continue
             orientation = pipeline.streams["point"].orientation
             for stream, spec in pipeline.streams.items():
                 if info.topic in (spec.topic, *spec.extra_topics):
