@@ -18,13 +18,15 @@ import tomllib
 from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from dhlog.errors import DhlogError, PipelineError
 from dhlog.model.dh import JointType
 from dhlog.model.noise import NoiseModel
-from dhlog.vision.boards import BoardError, BoardSpec
-from dhlog.vision.camera import CameraError, Intrinsics
+
+if TYPE_CHECKING:  # OpenCV imported only when a camera pipeline is read
+    from dhlog.vision.boards import BoardSpec
+    from dhlog.vision.camera import Intrinsics
 
 STREAMS = ("point", "joints", "base", "phase")
 DEFAULT_TOPICS = {
@@ -537,6 +539,8 @@ def _camera_tables(
     data: dict[str, Any], source: str, folder: Path, camera_pipeline: bool
 ) -> tuple[BoardSpec | None, CameraSpec | None]:
     """``[target]`` and ``[camera]`` of a camera pipeline (refused in any other)."""
+    from dhlog.vision.boards import BoardError, BoardSpec
+
     if not camera_pipeline:
         for key in ("target", "camera"):
             if key in data:
@@ -599,6 +603,7 @@ def load_calibration(path: str | Path, pipeline: str) -> Intrinsics:
     :data:`MAX_CALIBRATION_BYTES`, UTF-8, read by :meth:`Intrinsics.from_yaml_text`; every
     failure one :class:`PipelineError` naming the pipeline, the key and the file."""
     from dhlog.io.textfile import decode_utf8, read_capped
+    from dhlog.vision.camera import CameraError, Intrinsics
 
     def fail(problem: str) -> PipelineError:
         return PipelineError(pipeline, f"[camera] calibration: {path} {problem}")
