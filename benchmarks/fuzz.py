@@ -1,6 +1,6 @@
 """The long fuzz runs: many hostile inputs through the real commands, each in its own process.
 
-    .venv/bin/python benchmarks/fuzz.py [--kind logs|inputs|results] [--cases 10000]
+    .venv/bin/python benchmarks/fuzz.py [--kind logs|inputs|results|images] [--cases 10000]
                                         [--workers 2] [--seed 0] [--timeout 60]
                                         [--out fuzz-failures]
 
@@ -9,7 +9,10 @@ bytes, records, payloads, odd) through ``dhlog process LOG --no-rrd --out DIR``.
 ``--kind inputs``: ``tests/fuzz_inputs.py``'s DH files, pipelines and tracker exports (``fk``,
 ``process --nominal``, ``process --pipeline``, ``import``). ``--kind results``:
 ``tests/fuzz_results.py``'s result JSONs, batch summaries, URDF templates, names and output
-paths (``compare``, ``export``, ``batch``).
+paths (``compare``, ``export``, ``batch``). ``--kind images``: ``tests/fuzz_images.py``'s
+damaged vision logs (bytes, records, payloads, and image messages rewritten field by field),
+each read frame by frame by ``ImageStream`` and ``detect`` and then run through ``dhlog
+process`` (exit 2, one line).
 
 Each case runs in a child forked from a warm parent (dhlog imported once, the real inputs the
 cases start from made once), with a time limit; the child's peak RSS comes from ``wait4``.
@@ -55,6 +58,16 @@ def harness(kind: str, count: int, seed: int, work: Path) -> Harness:
     if kind == "logs":
         return Harness(
             fuzzing.FAMILIES, fuzzing.cases(count, seed, work / "base"), fuzzing.run_in_process
+        )
+    if kind == "images":
+        import fuzz_images
+
+        return Harness(
+            fuzz_images.FAMILIES,
+            from_child(
+                lambda: fuzz_images.cases(count, seed, fuzz_images.make_base(work / "base"))
+            ),
+            lambda case, folder: fuzz_images.run_case(case, folder, timeout=1e9),
         )
     import fuzz_inputs
     import fuzz_results
@@ -117,7 +130,7 @@ def start(run: Callable[[Any, Path], Any], case: Any, folder: Path) -> tuple[int
 
 def main() -> None:
     parser = argparse.ArgumentParser()
-    parser.add_argument("--kind", choices=("logs", "inputs", "results"), default="logs")
+    parser.add_argument("--kind", choices=("logs", "inputs", "results", "images"), default="logs")
     parser.add_argument("--cases", type=int, default=10000)
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--seed", type=int, default=0)
