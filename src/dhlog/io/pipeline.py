@@ -297,10 +297,14 @@ def _table(where: str, data: dict[str, Any], key: str) -> dict[str, Any]:
     return value
 
 
-def parse_pipeline(text: str, source: str, *, folder: str | Path | None = None) -> Pipeline:
+def parse_pipeline(
+    text: str, source: str, *, folder: str | Path | None = None, boards: bool = True
+) -> Pipeline:
     """Parse pipeline TOML ``text``; ``source`` names the file in error messages. Every value
     is checked for its type and range, each failure one :class:`PipelineError` naming the key.
-    ``folder`` (default: ``source``'s) is where a relative ``[camera] calibration`` path is."""
+    ``folder`` (default: ``source``'s) is where a relative ``[camera] calibration`` path is.
+    ``boards`` False leaves a camera pipeline's ``[target]`` and ``[camera]`` unread (None):
+    the shipped pipelines listed to choose a tracker log's (no OpenCV imported for it)."""
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
@@ -316,12 +320,12 @@ def parse_pipeline(text: str, source: str, *, folder: str | Path | None = None) 
             "pipeline: check what the file holds.",
         ) from None
     try:
-        return _parse(data, source, Path(source).parent if folder is None else Path(folder))
+        return _parse(data, source, Path(source).parent if folder is None else Path(folder), boards)
     except RecursionError:
         raise PipelineError(source, "is nested too deeply to be a pipeline.") from None
 
 
-def _parse(data: dict[str, Any], source: str, folder: Path) -> Pipeline:
+def _parse(data: dict[str, Any], source: str, folder: Path, boards: bool = True) -> Pipeline:
     _check_keys(source, "top level", data, TOP_KEYS)
     name = _text(source, "name", data.get("name", Path(source).stem))
     description = _text(source, "description", data.get("description", ""))
@@ -439,7 +443,10 @@ def _parse(data: dict[str, Any], source: str, folder: Path) -> Pipeline:
             "it has no [streams.point]; the target stream is required ([streams.image] for a "
             "camera).",
         )
-    target, camera = _camera_tables(data, source, folder, image is not None)
+    target: BoardSpec | None = None
+    camera: CameraSpec | None = None
+    if boards or image is None:
+        target, camera = _camera_tables(data, source, folder, image is not None)
     joints = _table(source, data, "joints")
     _check_keys(source, "[joints]", joints, JOINT_KEYS)
     names = None if "names" not in joints else _texts(source, "[joints] names", joints["names"])
@@ -539,8 +546,6 @@ def _camera_tables(
     data: dict[str, Any], source: str, folder: Path, camera_pipeline: bool
 ) -> tuple[BoardSpec | None, CameraSpec | None]:
     """``[target]`` and ``[camera]`` of a camera pipeline (refused in any other)."""
-    from dhlog.vision.boards import BoardError, BoardSpec
-
     if not camera_pipeline:
         for key in ("target", "camera"):
             if key in data:
@@ -550,6 +555,8 @@ def _camera_tables(
                     f"stream or leave [{key}] out.",
                 )
         return None, None
+    from dhlog.vision.boards import BoardError, BoardSpec  # OpenCV: for a camera pipeline only
+
     if "target" not in data:
         raise PipelineError(
             source,
@@ -636,26 +643,34 @@ def load_pipeline(path: str | Path) -> Pipeline:
     )
 
 
-def shipped_pipelines() -> list[Pipeline]:
-    """The pipelines shipped with dhlog, in order of preference."""
+def _shipped_files() -> list[tuple[str, str, Path | None]]:
+    """The shipped pipelines' texts, names for messages and folders (None: a package's)."""
     folder = resources.files("dhlog").joinpath("pipelines")
     if not folder.is_dir():  # a source checkout: pipelines/ at the top level
         repo = Path(__file__).resolve().parents[3] / "pipelines"
-        files = sorted(repo.glob("*.toml"))
-        found = [parse_pipeline(f.read_text(encoding="utf-8"), str(f)) for f in files]
-    else:
-        found = [
-            parse_pipeline(f.read_text(encoding="utf-8"), f"pipelines/{f.name}")
-            for f in sorted(folder.iterdir(), key=lambda f: f.name)
-            if f.name.endswith(".toml")
-        ]
+        return [(f.read_text(encoding="utf-8"), str(f), None) for f in sorted(repo.glob("*.toml"))]
+    return [
+        (f.read_text(encoding="utf-8"), f"pipelines/{f.name}", None)
+        for f in sorted(folder.iterdir(), key=lambda f: f.name)
+        if f.name.endswith(".toml")
+    ]
+
+
+def shipped_pipelines(*, boards: bool = False) -> list[Pipeline]:
+    """The pipelines shipped with dhlog, in order of preference; a camera pipeline's board and
+    camera read only with ``boards`` (:func:`pipeline_by_name` reads them)."""
+    found = [parse_pipeline(text, source, boards=boards) for text, source, _ in _shipped_files()]
     order = {"ros2_tracker": 0, "foxglove_json": 1, "foxglove_protobuf": 2}
     return sorted(found, key=lambda p: (order.get(p.name, 9), p.name))
 
 
 def pipeline_by_name(name: str) -> Pipeline | None:
-    """The shipped pipeline called ``name``, or None."""
-    return next((p for p in shipped_pipelines() if p.name == name), None)
+    """The shipped pipeline called ``name`` (a camera pipeline with its board), or None."""
+    found = next((p for p in shipped_pipelines() if p.name == name), None)
+    if found is None or not found.is_camera:
+        return found
+    text, source, _ = next(f for f in _shipped_files() if f[1] == found.source)
+    return parse_pipeline(text, source)
 
 
 def pipeline_from(spec: str) -> Pipeline:
