@@ -1,7 +1,7 @@
 """Damaged vision logs: every frame read, counted as a fault or refused in one line.
 
 Seeded mutations (``tests/fuzz_images.py``) of a small simulated vision log (the KR5, four
-still poses, 640×400 JPEG and raw mono8 frames of the simulator's ChArUco board) — the log
+still poses, 640×400 JPEG, PNG and raw mono8 frames of the simulator's ChArUco board) — the log
 fuzzer's byte, record and payload families and the image family (an Image's header fields and
 data, a JPEG's bytes, frame header and format, a CameraInfo's size and coefficients) — read by
 ``ImageStream`` and ``detect`` and run through ``dhlog process``. The long run is
