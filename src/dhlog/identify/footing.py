@@ -19,7 +19,7 @@ calibrated model is the sharpest instrument to see it with (a millimetre's shift
 0.05 mm error, not of the nominal's 1 mm); being taken once, it is the same for both models
 whatever they would each have preferred, so two results scored on one log are comparable.
 
-**What the log determines** (:func:`pose_means`, :class:`Shape`). The measured orientation
+**What the log determines** (:func:`poses_of`, :class:`Shape`). The measured orientation
 (6-DoF probe, where the calibration also measured it, so both models have a tool frame) places the
 base from a line or a single point: everything is scored in 3-D. Without it, points spread over a
 plane or a volume place the base; points on one line do not fix the base's rotation about the
@@ -47,6 +47,7 @@ from numpy.typing import NDArray
 from dhlog.errors import InputError
 from dhlog.geometry._checks import FloatArray, nearest_rotation, rotation_from_vector
 from dhlog.identify.holdout import MIN_POSES, ErrorStats, Holdout, pose_groups
+from dhlog.identify.leaveout import pose_means
 from dhlog.identify.register import (
     OUTLIER_SCALE,
     ROBUST_SCALE,
@@ -162,7 +163,7 @@ class Footing:
         return self.base or self.tool
 
 
-def pose_means(
+def poses_of(
     groups: NDArray[np.int64],
     Q: FloatArray,
     Qn: FloatArray,
@@ -170,18 +171,14 @@ def pose_means(
     R: FloatArray | None,
 ) -> Poses:
     """Each pose's mean joint values, position and (chordal mean) orientation."""
-    ids, inverse = np.unique(groups, return_inverse=True)
-    count = np.bincount(inverse, minlength=ids.size).astype(np.float64)
 
     def mean(values: FloatArray) -> FloatArray:
-        out = np.zeros((ids.size, *values.shape[1:]))
-        np.add.at(out, inverse, values)
-        return out / count.reshape(-1, *([1] * (values.ndim - 1)))
+        return pose_means(groups, values)[1]
 
     rotations = None
     if R is not None:
         U, _, Vt = np.linalg.svd(mean(R))
-        D = np.ones((ids.size, 3))
+        D = np.ones((U.shape[0], 3))
         D[:, 2] = np.sign(np.linalg.det(U @ Vt))
         rotations = np.einsum("kij,kj,kjl->kil", U, D, Vt)
     return Poses(mean(Q), mean(Qn), mean(P), rotations)
@@ -412,7 +409,7 @@ def score_poses(
         and calibrated.R_tool is not None
         and (nominal is None or nominal.R_tool is not None)
     )
-    poses = pose_means(groups, Qc, Qn, P, rotations if oriented else None)
+    poses = poses_of(groups, Qc, Qn, P, rotations if oriented else None)
     k = poses.P.shape[0]
     if k < MIN_POSES:
         raise NotScoredError(
@@ -442,7 +439,7 @@ def score_poses(
             model, flange, poses.P[footing.placing], Rp, base=footing.base, tool=footing.tool
         )
         pred = fk_point(model.table, Qs[rows], moved.tool, T_base=moved.T)
-        return moved, shape.scored(_pose_residuals(pose_of[rows], P[rows], pred))
+        return moved, shape.scored(pose_means(pose_of[rows], P[rows] - pred)[1])
 
     cal_moved, cal = scored_vectors(calibrated, poses.Q, Qc)
     nom = None
@@ -464,15 +461,6 @@ def score_poses(
         tool_replaced=footing.tool,
         components="across the line" if shape.across else "3-D",
     )
-
-
-def _pose_residuals(groups: NDArray[np.int64], P: FloatArray, pred: FloatArray) -> FloatArray:
-    """Per pose (in pose order), the mean residual (measured − predicted) of its samples."""
-    _, inverse = np.unique(groups, return_inverse=True)
-    count = np.bincount(inverse).astype(np.float64)[:, None]
-    vec = np.zeros((count.shape[0], 3))
-    np.add.at(vec, inverse, P - pred)
-    return np.asarray(vec / count, dtype=np.float64)
 
 
 def _notes(

@@ -29,7 +29,7 @@ from numpy.typing import NDArray
 
 from dhlog.geometry._checks import FloatArray
 from dhlog.identify.axismodel import AxisModel
-from dhlog.identify.leaveout import fold_of_poses
+from dhlog.identify.leaveout import fold_of_poses, pose_means
 from dhlog.identify.persample import SampleArray, blocks
 from dhlog.identify.prediction import predict
 from dhlog.identify.register import register_nominal
@@ -160,14 +160,8 @@ def _pose_errors(
 ) -> tuple[FloatArray, FloatArray]:
     """Per pose with samples in ``mask``: the mean measured position and the mean residual
     (``pred``: the prediction at the samples in ``mask``)."""
-    g = groups[mask]
-    ids, inverse = np.unique(g, return_inverse=True)
-    count = np.bincount(inverse, minlength=ids.size)[:, None]
-    pos = np.zeros((ids.size, 3))
-    vec = np.zeros((ids.size, 3))
-    np.add.at(pos, inverse, P[mask])
-    np.add.at(vec, inverse, P[mask] - pred)
-    return pos / count, vec / count
+    g, measured = groups[mask], P[mask]
+    return pose_means(g, measured)[1], pose_means(g, measured - pred)[1]
 
 
 def cross_validate(

@@ -212,14 +212,14 @@ def model_values(fit: WholeFit) -> FloatArray:
 
 
 def pose_means(
-    groups: NDArray[np.int64], vectors: FloatArray
+    groups: NDArray[np.int64], values: FloatArray
 ) -> tuple[NDArray[np.int64], FloatArray]:
-    """The poses of ``groups`` (sorted) and the mean of ``vectors`` (m, 3) over each."""
+    """The poses of ``groups`` (m,), sorted, and the mean of ``values`` (m, …) over each."""
     ids, inverse = np.unique(groups, return_inverse=True)
-    count = np.bincount(inverse, minlength=ids.size)[:, None]
-    out = np.zeros((ids.size, vectors.shape[1]))
-    np.add.at(out, inverse, vectors)
-    return ids, out / count
+    count = np.bincount(inverse, minlength=ids.size).astype(np.float64)
+    out = np.zeros((ids.size, *values.shape[1:]))
+    np.add.at(out, inverse, values)
+    return ids, out / count.reshape(-1, *([1] * (values.ndim - 1)))
 
 
 #: Samples above which :func:`fold_of_poses` maps poses numbered in time order a block at a
