@@ -215,6 +215,11 @@ def test_the_statistics_on_their_own(measured: tuple[np.ndarray, np.ndarray, np.
     assert slip is not None and not slip[1]
     assert joint_unit_slip(list(UR_JOINTS), q, "deg", "--joint-angle-unit") is None
     assert joint_unit_slip(list(UR_JOINTS), np.degrees(q), "deg", "the default") is None
+    # a UR's joints run ±2π rad: a wrist at -3.5 rad is radians all the same
+    wide = q.copy()
+    wide[:, 5] = np.linspace(-3.5, 4.0, q.shape[0])
+    slip = joint_unit_slip(list(UR_JOINTS), wide, "deg", "the default")
+    assert slip is not None and slip[1] and "--joint-angle-unit rad" in slip[0]
     # degrees read as radians: beyond a turn
     slip = joint_unit_slip(list(UR_JOINTS), np.degrees(q), "rad", "--angle-unit")
     assert slip is not None and slip[1] and "--joint-angle-unit deg" in slip[0]

@@ -37,7 +37,9 @@ from numpy.typing import NDArray
 #: A revolute session whose joints all stay within this (in the unit read) looks like radians
 #: read as degrees, when some joint moved at least :data:`MIN_SPAN` (in the unit read: a
 #: calibration turns some joint by more than 0.5 rad) over at least :data:`MIN_ROWS` samples.
-SMALL = math.pi
+#: A full turn either way: UR joints run ±2π rad, and no calibration keeps every joint within
+#: ±6.3° (±π missed a UR log with one wrist at −3.5 rad).
+SMALL = 2.0 * math.pi
 MIN_SPAN = 0.5
 MIN_ROWS = 10
 #: Pairs of samples whose joints turned less than this (rad, summed) are not judged.
