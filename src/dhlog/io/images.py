@@ -27,7 +27,7 @@ import contextlib
 import queue
 import struct
 import threading
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -430,9 +430,10 @@ class ImageStream:
         self.schema = ""
         self._decoders: dict[int, Decoder | None] = {}
 
-    def _decode(self, cid: int, info: ChannelInfo, raw: RawMessages) -> list[Any]:
-        """The decoded messages of one offer: frames of the image topic (faults counted),
-        camera infos kept."""
+    def _decode(self, cid: int, info: ChannelInfo, raw: RawMessages) -> Iterator[CameraImage]:
+        """The frames of one offer of the image topic, decoded one at a time as they are
+        taken (faults counted; a chunk's frames are never all decoded at once), and the camera
+        infos kept."""
         is_image = info.topic == self.topic
         if cid not in self._decoders:
             self._decoders[cid] = payload_decoder(info)
@@ -447,7 +448,6 @@ class ImageStream:
         decode = self._decoders[cid]
         if is_image:
             self.schema = info.schema_name
-        out: list[Any] = []
         for i in range(len(raw)):
             index = self.count
             if is_image:
@@ -470,10 +470,9 @@ class ImageStream:
                 continue
             stamp = stamp if stamp > 0 else int(raw.log_time[i])  # unset: the log time
             if is_image:
-                out.append(CameraImage(stamp, frame_id, value, index))
+                yield CameraImage(stamp, frame_id, value, index)
             else:
                 self.infos.append(value)
-        return out
 
     def batches(self) -> Iterator[list[CameraImage]]:
         """The frames, in batches of at most ``batch_bytes`` decoded bytes (a single frame
@@ -492,7 +491,7 @@ class ImageStream:
                 except queue.Full:
                     continue
 
-        def offer(frames: list[CameraImage]) -> None:
+        def offer(frames: Iterable[CameraImage]) -> None:
             batch: list[CameraImage] = []
             size = 0
             for frame in frames:
@@ -615,5 +614,6 @@ def read_camera_infos(path: str | Path, topic: str) -> list[CameraInfo]:
     for cid, raw in scan.messages.items():
         info = scan.channels.get(cid)
         if info is not None:
-            stream._decode(cid, info, raw)
+            for _ in stream._decode(cid, info, raw):
+                pass
     return stream.infos
