@@ -170,3 +170,13 @@ class OutputError(DhlogError):
             f"cannot write the results in {folder} ({why}); nothing was written there — free "
             "space or choose another folder with --out."
         )
+
+
+class FieldError(InputError):
+    """One field of an untrusted description (a camera's intrinsics, a target board) that
+    cannot be right: the message names where, the field, the problem and what to do."""
+
+    def __init__(self, where: str, field_name: str, problem: str, todo: str) -> None:
+        self.where = where
+        self.field_name = field_name
+        super().__init__(f"{where}: {field_name} {problem}; {todo}.")

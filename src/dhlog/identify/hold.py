@@ -132,7 +132,7 @@ def shown_jacobian(
     zero column."""
     layout, bases = fit.layout, model.bases()
     n = model.n
-    angular = mixed_angles(n, rows) if rows else np.tile([True, False, False, True], n)
+    angular = mixed_angles(n, rows)
     h = 1e-7
     J = np.zeros((4 * n, layout.size))
     here = shown_vector(extract(list(model.axes), model.target, plane), rows, nominal_rows)
@@ -166,7 +166,7 @@ def unseen(
     if it were held, until none exceeds. Entries fixed by a convention (no sensitivity), by a
     relation, or along an undetermined direction are not candidates; nor are ``fixed``."""
     n = fit.model.n
-    angular = mixed_angles(n, rows) if rows else np.tile([True, False, False, True], n)
+    angular = mixed_angles(n, rows)
     bound = np.where(angular, BOUND_ANGLE, BOUND_LENGTH)
     free = np.max(np.abs(J), axis=1) >= FIXED_BELOW
     free &= ~undetermined_rows(J, fit)
@@ -204,7 +204,7 @@ def hold_at(
     meets them to first order, the extraction's Jacobian taken again at every step (the moves
     may be degrees); the covariance projected onto the constraints at the end."""
     n = fit.model.n
-    angular = mixed_angles(n, rows) if rows else np.tile([True, False, False, True], n)
+    angular = mixed_angles(n, rows)
     idx = np.asarray(indices, dtype=np.int64)
     C = fit.covariance
     model = fit.model
@@ -271,7 +271,7 @@ def may_hold(shown_std: FloatArray | None, rows: frozenset[int]) -> bool:
     if shown_std is None:
         return True
     n = shown_std.size // 4
-    angular = mixed_angles(n, rows) if rows else np.tile([True, False, False, True], n)
+    angular = mixed_angles(n, rows)
     bound = np.where(angular, BOUND_ANGLE, BOUND_LENGTH)
     return bool(np.any(np.nan_to_num(shown_std, nan=0.0) > bound))
 
@@ -304,7 +304,7 @@ def hold_unseen(
     if not chosen:
         return fit, []
     names = _names(n, rows)
-    angular = mixed_angles(n, rows) if rows else np.tile([True, False, False, True], n)
+    angular = mixed_angles(n, rows)
     target = nominal_vector(nominal, rows, nominal_rows)
     at = [k for k, _ in chosen if target is not None and math.isfinite(float(target[k]))]
     held_fit, why = fit, ""

@@ -38,7 +38,7 @@ from numpy.typing import NDArray
 
 from dhlog.errors import InputError, MissingTopicError
 from dhlog.io import ros2
-from dhlog.io.mcapscan import scan_mcap
+from dhlog.io.mcapscan import ZSTD_MAGIC, scan_mcap
 from dhlog.io.mcapwalk import ChannelInfo, RawMessages
 from dhlog.io.safetext import printable
 
@@ -90,7 +90,6 @@ QUEUED = 2
 #: A payload compressed on its own (rosbag2 ``--compression-mode message``) may decompress to
 #: at most this many bytes (a 7680x4320 16-bit RGB frame is 199 MB).
 MAX_PAYLOAD = 512 << 20
-ZSTD_MAGIC = b"\x28\xb5\x2f\xfd"
 
 
 class ImageFaultError(Exception):

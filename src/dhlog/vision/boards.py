@@ -23,7 +23,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from dhlog.errors import DhlogError
+from dhlog.errors import FieldError
 from dhlog.geometry._checks import FloatArray
 
 BoardKind = Literal["charuco", "aruco_grid", "checkerboard"]
@@ -50,13 +50,8 @@ TABLE_KEYS: dict[str, str] = {
 }
 
 
-class BoardError(DhlogError):
+class BoardError(FieldError):
     """A target description that does not describe a board OpenCV can detect."""
-
-    def __init__(self, where: str, field_name: str, problem: str, todo: str) -> None:
-        self.where = where
-        self.field_name = field_name
-        super().__init__(f"{where}: {field_name} {problem}; {todo}.")
 
 
 @dataclass(frozen=True)

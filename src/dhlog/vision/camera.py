@@ -18,7 +18,7 @@ import cv2
 import numpy as np
 from numpy.typing import ArrayLike
 
-from dhlog.errors import DhlogError
+from dhlog.errors import FieldError
 from dhlog.geometry._checks import FloatArray
 
 DistortionModel = Literal["plumb_bob", "rational_polynomial", "equidistant"]
@@ -35,13 +35,8 @@ COEFFICIENTS: dict[str, tuple[str, ...]] = {
 ALIASES: dict[str, str] = {"kannala_brandt": "equidistant", "fisheye": "equidistant"}
 
 
-class CameraError(DhlogError):
+class CameraError(FieldError):
     """Intrinsics that cannot describe a camera (a field missing, of the wrong size or value)."""
-
-    def __init__(self, where: str, field_name: str, problem: str, todo: str) -> None:
-        self.where = where
-        self.field_name = field_name
-        super().__init__(f"{where}: {field_name} {problem}; {todo}.")
 
 
 @dataclass(frozen=True)
