@@ -242,6 +242,8 @@ def cancelling(
             for b in lumps[x + 1 :]:
                 if a in held or b in held or terms.terms[a].joint != terms.terms[b].joint:
                     continue
+                if sd[a] <= 0.0 or sd[b] <= 0.0:  # a term the conditioning fixed: no pair
+                    continue
                 rho = float(C[a, b] / (sd[a] * sd[b]))
                 if abs(rho) <= CANCEL_CORRELATION or theta[a] * theta[b] * rho <= 0.0:
                     continue
