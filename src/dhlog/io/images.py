@@ -18,19 +18,22 @@ bytes, and hands the frames on through a queue of at most ``QUEUED`` batches of 
 ``BATCH_BYTES`` decoded bytes: the log is never held whole. A frame that cannot be decoded
 (a size that does not match its layout, a corrupt JPEG, an unknown encoding) is a counted fault
 named by its index on the topic, never an exception (:meth:`ImageStream.warning`).
+:meth:`ImageStream.payload_batches` hands on the payloads as recorded instead, for decoding in
+worker processes (:func:`payload_decoder`, :func:`decode_payload`; :mod:`dhlog.io.observe`).
 """
 
 from __future__ import annotations
 
 import base64
 import contextlib
+import functools
 import queue
 import struct
 import threading
 from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 import cv2
 import numpy as np
@@ -38,7 +41,7 @@ from numpy.typing import NDArray
 
 from dhlog.errors import InputError, MissingTopicError
 from dhlog.io import ros2
-from dhlog.io.mcapscan import ZSTD_MAGIC, scan_mcap
+from dhlog.io.mcapscan import ZSTD_MAGIC, McapScan, scan_mcap
 from dhlog.io.mcapwalk import ChannelInfo, RawMessages
 from dhlog.io.safetext import printable
 
@@ -346,6 +349,22 @@ def _foxglove_image(schema: str, msg: Any) -> tuple[int, str, Pixels]:
 
 Decoder = Callable[[NDArray[np.uint8]], tuple[int, str, Any]]
 
+#: What a damaged payload can make a decoder raise besides ImageFaultError: one fault each.
+_FAULTS = (
+    ValueError, cv2.error, struct.error, TypeError, OverflowError, AttributeError, KeyError,
+    IndexError,
+)  # fmt: skip
+
+
+def decode_payload(decode: Decoder, buf: NDArray[np.uint8]) -> tuple[int, str, Any]:
+    """``decode`` (of :func:`payload_decoder`) on one payload, decompressed first where it was
+    compressed on its own; every fault of the payload an :class:`ImageFaultError` (its message
+    the reason counted)."""
+    try:
+        return decode(unzstd_payload(buf))
+    except _FAULTS as exc:
+        raise ImageFaultError(f"unreadable ({type(exc).__name__})") from None
+
 
 def payload_decoder(info: ChannelInfo) -> Decoder | None:
     """For a channel of an image or camera-info schema: payload → (stamp, frame id, pixels or
@@ -403,6 +422,21 @@ class Faults:
         return sum(len(v) for v in self.by_reason.values())
 
 
+@dataclass(frozen=True)
+class ImagePayload:
+    """One image message as recorded (:meth:`ImageStream.payload_batches`): its index among the
+    topic's messages, log time (ns: the stamp where the header's is unset), channel (its
+    schema decides the decoding) and payload bytes."""
+
+    index: int
+    log_time: int
+    channel: ChannelInfo
+    data: bytes
+
+
+_T = TypeVar("_T")
+
+
 class _StoppedError(Exception):
     """The consumer stopped reading: the walk ends."""
 
@@ -427,16 +461,17 @@ class ImageStream:
         self.infos: list[CameraInfo] = []
         self.warnings: list[str] = []
         self.schema = ""
-        self._decoders: dict[int, Decoder | None] = {}
+        #: how far the last walk has read the log (0 to 1; set in the walk's thread)
+        self.fraction = 0.0
+        self._decoders: dict[int, Decoder] = {}
 
-    def _decode(self, cid: int, info: ChannelInfo, raw: RawMessages) -> Iterator[CameraImage]:
-        """The frames of one offer of the image topic, decoded one at a time as they are
-        taken (faults counted; a chunk's frames are never all decoded at once), and the camera
-        infos kept."""
-        is_image = info.topic == self.topic
+    def _decoder(self, cid: int, info: ChannelInfo) -> Decoder:
+        """The decoder of channel ``cid`` (made at its first offer); a channel of another type
+        than its topic's stream is an InputError."""
         if cid not in self._decoders:
-            self._decoders[cid] = payload_decoder(info)
-            if self._decoders[cid] is None or (info.schema_name in INFO_SCHEMAS) == is_image:
+            is_image = info.topic == self.topic
+            made = payload_decoder(info)
+            if made is None or (info.schema_name in INFO_SCHEMAS) == is_image:
                 raise InputError(
                     f"{self.path}: topic {printable(info.topic)} carries "
                     f"'{printable(info.schema_name[:80])}' ({printable(info.message_encoding)}), "
@@ -444,7 +479,15 @@ class ImageStream:
                     f"{ACCEPTED_IMAGES if is_image else ACCEPTED_INFOS}. Give the camera's "
                     f"{'image' if is_image else 'camera-info'} topic."
                 )
-        decode = self._decoders[cid]
+            self._decoders[cid] = made
+        return self._decoders[cid]
+
+    def _decode(self, cid: int, info: ChannelInfo, raw: RawMessages) -> Iterator[CameraImage]:
+        """The frames of one offer of the image topic, decoded one at a time as they are
+        taken (faults counted; a chunk's frames are never all decoded at once), and the camera
+        infos kept."""
+        is_image = info.topic == self.topic
+        decode = self._decoder(cid, info)
         if is_image:
             self.schema = info.schema_name
         for i in range(len(raw)):
@@ -454,18 +497,10 @@ class ImageStream:
             start = int(raw.starts[i])
             buf = raw.data[start : start + int(raw.lengths[i])]
             try:
-                assert decode is not None  # (checked at the channel's first offer)
-                stamp, frame_id, value = decode(unzstd_payload(buf))
+                stamp, frame_id, value = decode_payload(decode, buf)
             except ImageFaultError as exc:
                 if is_image:
                     self.faults.add(str(exc), index)
-                continue
-            except (
-                ValueError, cv2.error, struct.error, TypeError, OverflowError, AttributeError,
-                KeyError, IndexError,
-            ) as exc:  # fmt: skip
-                if is_image:
-                    self.faults.add(f"unreadable ({type(exc).__name__})", index)
                 continue
             stamp = stamp if stamp > 0 else int(raw.log_time[i])  # unset: the log time
             if is_image:
@@ -476,11 +511,40 @@ class ImageStream:
     def batches(self) -> Iterator[list[CameraImage]]:
         """The frames, in batches of at most ``batch_bytes`` decoded bytes (a single frame
         larger than that alone). Each iteration walks the log again, its tallies afresh."""
+        return self._batches(self._decode, lambda frame: frame.pixels.nbytes)
+
+    def payload_batches(self) -> Iterator[list[ImagePayload]]:
+        """The image topic's payloads as recorded, not decoded (each copied out of its chunk),
+        in batches of at most ``batch_bytes`` payload bytes: for decoding elsewhere (in worker
+        processes, with :func:`payload_decoder` of the payload's channel and
+        :func:`decode_payload`; its faults are then the decoder's to count). The camera infos
+        are read as :meth:`batches` reads them."""
+        return self._batches(self._payloads, lambda payload: len(payload.data))
+
+    def _payloads(self, cid: int, info: ChannelInfo, raw: RawMessages) -> Iterator[ImagePayload]:
+        if info.topic != self.topic:
+            for _ in self._decode(cid, info, raw):  # camera infos: kept in self.infos
+                pass
+            return
+        self._decoder(cid, info)  # (a channel of another type refused)
+        self.schema = info.schema_name
+        for i in range(len(raw)):
+            start = int(raw.starts[i])
+            data = raw.data[start : start + int(raw.lengths[i])].tobytes()
+            yield ImagePayload(self.count, int(raw.log_time[i]), info, data)
+            self.count += 1
+
+    def _batches(
+        self,
+        produce: Callable[[int, ChannelInfo, RawMessages], Iterable[_T]],
+        size_of: Callable[[_T], int],
+    ) -> Iterator[list[_T]]:
         self.count, self.faults, self.infos, self.warnings = 0, Faults(), [], []
-        hand: queue.Queue[list[CameraImage] | BaseException | None] = queue.Queue(QUEUED)
+        self.fraction = 0.0
+        hand: queue.Queue[list[_T] | BaseException | None] = queue.Queue(QUEUED)
         stop = threading.Event()
 
-        def put(item: list[CameraImage] | BaseException | None) -> None:
+        def put(item: list[_T] | BaseException | None) -> None:
             while True:
                 if stop.is_set():
                     raise _StoppedError
@@ -490,25 +554,27 @@ class ImageStream:
                 except queue.Full:
                     continue
 
-        def offer(frames: Iterable[CameraImage]) -> None:
-            batch: list[CameraImage] = []
+        def offer(frames: Iterable[_T]) -> None:
+            batch: list[_T] = []
             size = 0
             for frame in frames:
-                if batch and size + frame.pixels.nbytes > self.batch_bytes:
+                if batch and size + size_of(frame) > self.batch_bytes:
                     put(batch)
                     batch, size = [], 0
                 batch.append(frame)
-                size += frame.pixels.nbytes
+                size += size_of(frame)
             if batch:
                 put(batch)
 
         def sink(cid: int, info: ChannelInfo | None, raw: RawMessages) -> bool:
             if info is None:
                 return False  # defined later: decoded from the scan's kept payloads
-            offer(self._decode(cid, info, raw))
+            offer(produce(cid, info, raw))
             return True
 
-        def check(_: float) -> None:  # every few chunks: has the consumer stopped?
+        def check(done: float, file: int = 0, files: int = 1) -> None:
+            # every few chunks: has the consumer stopped? (and how far the walk is)
+            self.fraction = (file + min(max(done, 0.0), 1.0)) / files
             if stop.is_set():
                 raise _StoppedError
 
@@ -517,13 +583,15 @@ class ImageStream:
                 topics = [self.topic] + ([self.info_topic] if self.info_topic else [])
                 present: set[str] = set()
                 with contextlib.ExitStack() as stack:
-                    for path in _log_files(self.path, stack):
+                    paths = _log_files(self.path, stack)
+                    for k, path in enumerate(paths):
                         self._decoders = {}  # channel ids are the file's own
-                        scan = scan_mcap(path, topics, progress=check, sink=sink)
+                        step = functools.partial(check, file=k, files=len(paths))
+                        scan = scan_mcap(path, topics, progress=step, sink=sink)
                         for cid, raw in scan.messages.items():  # channels defined late
                             info = scan.channels.get(cid)
                             if info is not None:
-                                offer(self._decode(cid, info, raw))
+                                offer(produce(cid, info, raw))
                         present.update(scan.topics())
                         self.warnings.extend(scan.warnings)
                 wanted = [("image", self.topic), ("camera info", self.info_topic)]
@@ -604,11 +672,15 @@ def _log_files(path: str, stack: contextlib.ExitStack) -> list[Path]:
     return files
 
 
-def read_camera_infos(path: str | Path, topic: str) -> list[CameraInfo]:
+def read_camera_infos(
+    path: str | Path, topic: str, scan: McapScan | None = None
+) -> list[CameraInfo]:
     """Every ``CameraInfo`` / ``CameraCalibration`` on ``topic`` (the walk reads no other
-    topic's payloads; messages that cannot be read are left out)."""
+    topic's payloads; messages that cannot be read are left out). ``scan``: a walk of ``path``
+    already made that kept ``topic``'s payloads (read from it, not walked again)."""
     stream = ImageStream(path, "", topic)
-    scan = scan_mcap(path, [topic])
+    if scan is None:
+        scan = scan_mcap(path, [topic])
     _check_topics(str(path), scan.topics(), [("camera info", topic)])
     for cid, raw in scan.messages.items():
         info = scan.channels.get(cid)
