@@ -176,6 +176,11 @@ class ProcessResult:
     #: what a reader should know but need not act on (the method chosen, forms shown); the
     #: ``warnings`` are for what may need action
     info: list[str] = field(default_factory=list)
+    #: a camera calibration's product (:class:`dhlog.identify.vision.CameraResult`: the set-up,
+    #: the camera's and the board's poses with σ, the corners' σ, the held-out check in pixels)
+    #: and what the recording shows of each camera; None and empty for a tracker log
+    camera: Any = None
+    cameras: list[Any] = field(default_factory=list)
 
     @property
     def complete(self) -> bool:

@@ -1,0 +1,702 @@
+"""A camera calibration: from a camera's detected board corners to the DH model, the camera's
+pose (the hand-eye calibration) and the error at held-out frames (issue 32).
+
+1. Each frame's board pose in the camera by OpenCV's PnP (:func:`board_poses`).
+2. Those poses are a 6-DoF target's samples: the board's centre and orientation in the camera
+   (eye-to-hand), or the camera's in the board's frame (eye-in-hand). The tracker's run
+   (:func:`dhlog.identify.run.process_data`, the geometric model) makes its start from them:
+   the seed method where joints were swept alone, the nominal placed on them otherwise.
+3. The whole model is fitted again to every corner in pixels (:mod:`dhlog.identify.pixels`):
+   the maximum likelihood of the detections. Its DH table, covariance and fixed parameters are
+   read off as for a tracker.
+4. The camera's and the board's poses with their σ (:func:`hand_eye`), the FK check against
+   the PnP poses (mm), and with ``holdout`` K the error at held-out frames in pixels and in mm
+   (:func:`cross_validate_pixels`), the nominal placed on the same training frames.
+
+The set-up (``eye-to-hand`` / ``eye-in-hand``) is the caller's, or decided by which one places
+the nominal on the poses better.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field, replace
+from typing import Any
+
+import cv2
+import numpy as np
+import polars as pl
+from numpy.typing import NDArray
+from scipy.spatial.transform import Rotation
+
+from dhlog.errors import DhlogError, InputError
+from dhlog.geometry._checks import FloatArray
+from dhlog.geometry.lines import Line
+from dhlog.identify.axismodel import AxisModel
+from dhlog.identify.extract import Extraction, extract_dh
+from dhlog.identify.leaveout import fold_of_poses
+from dhlog.identify.pixels import Corners, PixelFit, PixelModel, fit_pixels, rigid_directions
+from dhlog.identify.select import ModelRequest
+from dhlog.identify.uncertainty import whole_uncertainty
+from dhlog.io.dhfile import DHModel
+from dhlog.io.pipeline import pipeline_by_name
+from dhlog.io.reader import LogData
+from dhlog.vision.camera import Intrinsics
+from dhlog.vision.observe import Observations
+from dhlog.vision.view import CameraView, FrameView
+
+#: the fewest frames with the board for a calibration
+MIN_FRAMES = 8
+#: the largest PnP reprojection RMS (px) a frame's pose may have to enter the start
+PNP_RMS = 5.0
+
+
+@dataclass
+class PixelHoldout:
+    """The error at frames not used to fit (K-fold over the frames' poses): reprojection RMS
+    (px, per corner: the 2-D norm) of the nominal placed on the training frames and of the
+    result; and the 3-D RMS (mm) of the board's corners in the camera between the model and
+    the held-out frame's own PnP pose (the result's triangulation)."""
+
+    folds: int
+    frames: int
+    nominal_px: float | None
+    calibrated_px: float
+    nominal_mm: float | None
+    calibrated_mm: float
+    fit_px: float
+    #: the RMS the held-out frames' own PnP poses are expected to miss the corners by (their
+    #: noise at the corners' σ, mm): the floor of the mm figures
+    pnp_noise_mm: float = math.nan
+    notes: list[str] = field(default_factory=list)
+
+    @property
+    def model_mm(self) -> float:
+        """The calibrated mm figure with the PnP noise taken out (quadrature; 0 when within it)."""
+        return math.sqrt(max(self.calibrated_mm**2 - self.pnp_noise_mm**2, 0.0))
+
+    def document(self) -> dict[str, object]:
+        return {
+            "folds": self.folds,
+            "frames": self.frames,
+            "reprojection_rms_px": {"nominal": self.nominal_px, "calibrated": self.calibrated_px},
+            "target_rms_mm": {
+                "nominal": self.nominal_mm,
+                "calibrated": self.calibrated_mm,
+                "pnp_noise": self.pnp_noise_mm,
+                "calibrated_beyond_noise": self.model_mm,
+            },
+            "in_sample_rms_px": self.fit_px,
+            "notes": list(self.notes),
+        }
+
+
+@dataclass
+class CameraResult:
+    """One camera's product: the set-up, the intrinsics (held or refined, with σ), the fixed
+    part's pose in the robot's base frame and the mounted part's on the flange (4×4, m) with
+    their σ (rotation vector rad, translation m; 6 each), the corners' σ and RMS (px), the
+    frames' tally, and the held-out check."""
+
+    name: str
+    setup: str
+    intrinsics: Intrinsics
+    intrinsics_refined: bool
+    intrinsics_std: FloatArray | None
+    T_base_fixed: FloatArray
+    fixed_std: FloatArray
+    T_flange_mounted: FloatArray
+    mounted_std: FloatArray
+    sigma_px: float
+    rms_px: float
+    frames: int
+    corners: int
+    inlier_corners: int
+    tally: str
+    setup_reason: str
+    holdout: PixelHoldout | None = None
+
+    @property
+    def fixed_name(self) -> str:
+        return "T_base_camera" if self.setup == "eye-to-hand" else "T_base_board"
+
+    @property
+    def mounted_name(self) -> str:
+        return "T_flange_board" if self.setup == "eye-to-hand" else "T_flange_camera"
+
+    def document(self) -> dict[str, object]:
+        c = self.intrinsics
+        return {
+            "topic": self.name,
+            "setup": self.setup,
+            "setup_reason": self.setup_reason,
+            self.fixed_name: self.T_base_fixed.tolist(),
+            f"{self.fixed_name}_std": _std_doc(self.fixed_std),
+            self.mounted_name: self.T_flange_mounted.tolist(),
+            f"{self.mounted_name}_std": _std_doc(self.mounted_std),
+            "intrinsics": {
+                "width": c.width,
+                "height": c.height,
+                "K": c.K.tolist(),
+                "distortion_model": c.model,
+                "D": c.coefficients.tolist(),
+                "refined": self.intrinsics_refined,
+                "std": None if self.intrinsics_std is None else self.intrinsics_std.tolist(),
+            },
+            "corner_sigma_px": self.sigma_px,
+            "reprojection_rms_px": self.rms_px,
+            "frames": self.frames,
+            "corners": self.corners,
+            "inlier_corners": self.inlier_corners,
+            "detections": self.tally,
+            "holdout": None if self.holdout is None else self.holdout.document(),
+        }
+
+
+def _std_doc(std: FloatArray) -> dict[str, list[float]]:
+    return {"rotation_rad": std[:3].tolist(), "translation_m": std[3:].tolist()}
+
+
+def _transform(R: FloatArray, t: FloatArray) -> FloatArray:
+    T = np.eye(4)
+    T[:3, :3], T[:3, 3] = R, t
+    return T
+
+
+def _shift(o: FloatArray) -> FloatArray:
+    return _transform(np.eye(3), o)
+
+
+# ---------------------------------------------------------------------------------------------
+# PnP
+
+
+def board_poses(obs: Observations, intrinsics: Intrinsics) -> tuple[FloatArray, FloatArray]:
+    """Each frame's board pose in the camera (f, 4, 4) by OpenCV's PnP (IPPE for a planar
+    board, refined by Levenberg–Marquardt), and its reprojection RMS (f,) px (NaN: failed)."""
+    points = obs.board.object_points()
+    f = obs.frames
+    T = np.tile(np.eye(4), (f, 1, 1))
+    rms = np.full(f, np.nan)
+    fisheye = intrinsics.model == "equidistant"
+    for k in range(f):
+        obj = points[obs.ids[k]].astype(np.float64)
+        uv = obs.uv[k].astype(np.float64).reshape(-1, 1, 2)
+        if obj.shape[0] < 4:
+            continue
+        if fisheye:
+            norm = cv2.fisheye.undistortPoints(uv, intrinsics.K, intrinsics.coefficients)
+            K, D = np.eye(3), np.zeros(5)
+            img = norm
+        else:
+            K, D, img = intrinsics.K, intrinsics.coefficients, uv
+        try:
+            ok, rvec, tvec = cv2.solvePnP(obj, img, K, D, flags=cv2.SOLVEPNP_IPPE)
+            if not ok:
+                continue
+            rvec, tvec = cv2.solvePnPRefineLM(obj, img, K, D, rvec, tvec)
+        except cv2.error:
+            continue
+        R = np.asarray(cv2.Rodrigues(rvec)[0], dtype=np.float64)
+        T[k] = _transform(R, np.asarray(tvec, dtype=np.float64).ravel())
+        X = obj @ R.T + tvec.ravel()
+        pred = intrinsics.project(X)
+        rms[k] = float(np.sqrt(np.nanmean(np.sum((pred - obs.uv[k]) ** 2, axis=1))))
+    return T, rms
+
+
+def _pose_log(
+    obs: Observations, T_cam_board: FloatArray, setup: str, use: NDArray[np.bool_]
+) -> LogData:
+    """The frames' poses as a 6-DoF target's log (the tracker run's input): the board's centre
+    in the camera (eye-to-hand) or the camera in the board's centred frame (eye-in-hand)."""
+    from dhlog.io.decode.frames import ORIENTATION_COLUMNS
+
+    o = _centre(obs)
+    T = T_cam_board[use] @ _shift(o)
+    if setup == "eye-in-hand":
+        T = np.asarray(np.linalg.inv(T), dtype=np.float64)
+    quat = Rotation.from_matrix(T[:, :3, :3]).as_quat(canonical=True)
+    t = obs.t_ns[use]
+    points = pl.DataFrame({"t_ns": t, "x": T[:, 0, 3], "y": T[:, 1, 3], "z": T[:, 2, 3]})
+    points = points.with_columns(
+        pl.Series(name, quat[:, k]) for k, name in enumerate(ORIENTATION_COLUMNS)
+    )
+    # the joint values at each frame, as the encoders' stream: one sample at each frame's stamp
+    q = obs.q[use]
+    joints = pl.DataFrame({"t_ns": t, **{f"q_{j + 1}": q[:, j] for j in range(q.shape[1])}})
+    base = pipeline_by_name("ros2_tracker")
+    assert base is not None
+    point = replace(base.streams["point"], orientation=True)
+    pipe = replace(base, streams={**base.streams, "point": point})
+    return LogData(obs.path, pipe, points, joints, list(obs.joint_names), None, None)
+
+
+def _centre(obs: Observations) -> FloatArray:
+    """The board's centre in its frame (the carried frame's origin: better conditioned than
+    a corner of the board)."""
+    pts = obs.board.object_points()
+    centre: FloatArray = np.asarray((pts.min(axis=0) + pts.max(axis=0)) / 2.0, dtype=np.float64)
+    return centre
+
+
+def corners_of(obs: Observations, use: NDArray[np.bool_]) -> Corners:
+    """The pixel observations of the frames ``use``, the corners from the board's centre."""
+    points = obs.board.object_points() - _centre(obs)
+    frames = np.flatnonzero(use)
+    ids = [obs.ids[k] for k in frames]
+    counts = np.array([i.size for i in ids], dtype=np.intp)
+    return Corners(
+        obs.q[use],
+        np.repeat(np.arange(frames.size, dtype=np.intp), counts),
+        points[np.concatenate(ids)] if ids else np.zeros((0, 3)),
+        np.vstack([obs.uv[k] for k in frames]) if ids else np.zeros((0, 2)),
+    )
+
+
+# ---------------------------------------------------------------------------------------------
+# the run
+
+
+def process_observations(
+    observations: list[Observations],
+    *,
+    sha256: str = "",
+    nominal: DHModel | None = None,
+    reference_pose: FloatArray | None = None,
+    setup: str | None = None,
+    refine_intrinsics: bool = False,
+    holdout: int = 0,
+    progress: Callable[[str, float], None] | None = None,
+) -> Any:
+    """The calibration of the module docstring from one camera's observations; returns the
+    :class:`~dhlog.identify.run.ProcessResult` with its ``camera`` and ``cameras`` filled."""
+    from dhlog.identify.run import process_data
+
+    if not observations:
+        raise InputError("the log holds no camera with detections.")
+    obs = observations[0]
+    extra_cameras = [o.camera for o in observations[1:]]
+    if obs.frames < MIN_FRAMES:
+        raise InputError(
+            f"{obs.path}: {obs.frames} frame(s) of {obs.camera} have the board and joint values "
+            f"({obs.tally.summary()}); a calibration needs at least {MIN_FRAMES}: record more "
+            "poses with the board in view."
+        )
+    T_cb, pnp_rms = board_poses(obs, obs.intrinsics)
+    use = np.isfinite(pnp_rms) & (pnp_rms <= PNP_RMS)
+    dropped = int(obs.frames - np.count_nonzero(use))
+    notes: list[str] = list(obs.warnings)
+    if dropped:
+        bad = ", ".join(str(int(obs.frame[k])) for k in np.flatnonzero(~use)[:3])
+        notes.append(
+            f"{dropped} frame(s) left out of the start: the board's pose (PnP) misses its own "
+            f"corners by more than {PNP_RMS} px there (frames {bad}"
+            f"{', …' if dropped > 3 else ''}): false detections or wrong intrinsics."
+        )
+    if np.count_nonzero(use) < MIN_FRAMES:
+        raise InputError(
+            f"{obs.path}: only {int(np.count_nonzero(use))} frame(s) of {obs.camera} give the "
+            f"board's pose within {PNP_RMS} px (median {np.nanmedian(pnp_rms):.2f} px): check the "
+            "intrinsics (the CameraInfo topic or the pipeline's [camera] calibration) and the "
+            "pipeline's [target] sizes."
+        )
+    model_request = ModelRequest(mode="geometric")
+    candidates = [setup] if setup else ["eye-to-hand", "eye-in-hand"]
+    if not setup and nominal is None:
+        raise InputError(
+            f"{obs.path}: the camera's set-up cannot be told without a nominal: pass "
+            "--camera-setup eye-to-hand (the camera fixed, the board on the flange) or "
+            "eye-in-hand (the camera on the flange), or --nominal."
+        )
+    starts: dict[str, Any] = {}
+    for s in candidates:
+        log = _pose_log(obs, T_cb, s, use)
+        try:
+            starts[s] = process_data(
+                log,
+                sha256=sha256,
+                nominal=nominal,
+                reference_pose=reference_pose,
+                model=model_request,
+                progress=progress,
+            )
+        except DhlogError as exc:
+            if len(candidates) == 1:
+                raise
+            starts[s] = exc
+    usable = {
+        s: r
+        for s, r in starts.items()
+        if not isinstance(r, Exception) and r.whole is not None and r.validation is not None
+    }
+    if not usable:
+        why = "; ".join(f"{s}: {r}" for s, r in starts.items() if isinstance(r, Exception))
+        raise InputError(
+            f"{obs.path}: no start for the pixel fit from the board's poses "
+            f"({why or 'the whole-model fit failed'}): check --camera-setup and --nominal."
+        )
+    chosen = min(usable, key=lambda s: usable[s].validation.rms)
+    if setup:
+        reason = "given"
+    else:
+        other = [s for s in usable if s != chosen]
+        worse = f"; {other[0]} {usable[other[0]].validation.rms * 1e3:.3f} mm" if other else ""
+        reason = (
+            f"decided from the data: the poses fit {chosen} at "
+            f"{usable[chosen].validation.rms * 1e3:.3f} mm{worse}"
+        )
+    result = usable[chosen]
+    result.warnings[:0] = notes
+    if extra_cameras:
+        result.warnings.append(
+            f"the log has {len(observations)} cameras; this calibration used {obs.camera} alone "
+            f"({', '.join(extra_cameras)} not used): several cameras in one fit are not done yet."
+        )
+    _pixel_stage(result, obs, T_cb, use, chosen, reason, refine_intrinsics, holdout, progress)
+    return result
+
+
+def _pixel_stage(
+    result: Any,
+    obs: Observations,
+    T_cb: FloatArray,
+    use: NDArray[np.bool_],
+    setup: str,
+    reason: str,
+    refine_intrinsics: bool,
+    holdout: int,
+    progress: Callable[[str, float], None] | None,
+) -> None:
+    """Refit ``result``'s whole model in pixels and put the DH model, σ and camera in it."""
+    from dhlog.identify.run import table_values
+    from dhlog.identify.sweeps import samples_with_encoders
+    from dhlog.identify.validate import validate_samples
+
+    assert result.whole is not None
+    if progress is not None:
+        progress("fitting pixels", 0.0)
+    data = corners_of(obs, np.ones(obs.frames, dtype=bool))
+    measurement = PixelModel(setup, obs.intrinsics, refine=refine_intrinsics)
+    fit = fit_pixels(result.whole.model, measurement, data)
+    whole = fit.whole
+    nominal = result.nominal
+    nominal_table = nominal.table if nominal is not None else None
+    ref = result.reference_pose
+    types = tuple(whole.model.types)
+
+    def extract(axes: list[Line], target: FloatArray, plane: Any) -> Extraction:
+        return extract_dh(
+            axes, types, target=target, reference_pose=ref, base_plane=plane, nominal=nominal_table
+        )
+
+    ex = extract(list(whole.model.axes), whole.model.target, None)
+    said: list[str] = []
+    found = whole_uncertainty(whole, None, extract, ex, ref, nominal_table, said)
+    result.info.extend(said)
+    result.method = "whole-model maximum likelihood in pixels"
+    result.extraction, result.whole = ex, whole
+    result.covariance, result.std, result.fixed = found.covariance, found.std, found.fixed
+    result.hayati, result.hayati_std = found.hayati, found.hayati_std
+    result.conditioned = found.conditioned
+    result.tool_orientation = found.tool_orientation
+    result.tool_orientation_std = found.tool_orientation_std
+    result.target = whole.model.target
+    result.selection = None
+    seg = result.segmentation
+    rows, Q, P = samples_with_encoders(seg)
+    Q_table = Q.map(lambda q: table_values(result, q), Q.shape)
+    inl = np.ones(len(rows), dtype=bool)
+    result.validation = validate_samples(seg, rows, Q_table, P, ex, inl, ex.tool_point[None])
+    T_fixed, T_mounted, fixed_std, mounted_std = hand_eye(fit, extract, setup, _centre(obs))
+    check = None
+    if holdout > 1:
+        if progress is not None:
+            progress("cross-validating", 0.0)
+        check = cross_validate_pixels(fit, data, obs, T_cb, holdout, nominal, ref)
+    sigma_i = None
+    if fit.intrinsics_covariance is not None:
+        sigma_i = np.sqrt(np.clip(np.diag(fit.intrinsics_covariance), 0.0, None))
+    cam = CameraResult(
+        name=obs.camera,
+        setup=setup,
+        intrinsics=fit.measurement.intrinsics,
+        intrinsics_refined=refine_intrinsics,
+        intrinsics_std=sigma_i,
+        T_base_fixed=T_fixed,
+        fixed_std=fixed_std,
+        T_flange_mounted=T_mounted,
+        mounted_std=mounted_std,
+        sigma_px=fit.sigma_px,
+        rms_px=fit.rms_px,
+        frames=obs.frames,
+        corners=int(data.uv.shape[0]),
+        inlier_corners=int(np.count_nonzero(fit.inliers)),
+        tally=obs.tally.summary(),
+        setup_reason=reason,
+        holdout=check,
+    )
+    result.camera = cam
+    result.sigma = None
+    result.info.append(
+        f"camera {obs.camera} ({setup}, {reason}): {cam.frames} frames, {cam.corners} corners "
+        f"({cam.corners - cam.inlier_corners} held out as false detections); the whole model "
+        f"fitted to the corners in pixels: σ {cam.sigma_px:.3f} px per coordinate. The FK "
+        "check below is against the board's poses from PnP (mm), the fit's own is in pixels."
+    )
+    result.cameras = [camera_view(fit, data, obs, cam, check)]
+
+
+def hand_eye(
+    fit: PixelFit,
+    extract: Callable[[list[Line], FloatArray, Any], Extraction],
+    setup: str,
+    centre: FloatArray,
+) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+    """The fixed part's pose in the robot's base frame (the camera eye-to-hand, the board
+    eye-in-hand) and the mounted part's on the flange, with their σ (rotation vector, rad;
+    translation, m) propagated from the fit's covariance by central differences."""
+    whole = fit.whole
+    layout, model = whole.layout, whole.model
+
+    def poses(m: AxisModel) -> tuple[FloatArray, FloatArray]:
+        ex = extract(list(m.axes), m.target, None)
+        T_base_M = np.linalg.inv(ex.T_measurement_base)
+        T_M_flange = ex.frames[-1]
+        assert m.tool_rotation is not None
+        T_M_carried = _transform(m.tool_rotation, m.target)
+        T_flange_carried = np.linalg.inv(T_M_flange) @ T_M_carried
+        if setup == "eye-to-hand":  # M is the camera; the carried frame the board's centre
+            return np.asarray(T_base_M, dtype=np.float64), T_flange_carried @ _shift(-centre)
+        return T_base_M @ _shift(-centre), np.asarray(T_flange_carried, dtype=np.float64)
+
+    T_fixed, T_mounted = poses(model)
+    bases = model.bases()
+
+    def vec(T1: FloatArray, T2: FloatArray) -> FloatArray:
+        out = []
+        for T, T0 in ((T1, T_fixed), (T2, T_mounted)):
+            dR = T[:3, :3] @ T0[:3, :3].T
+            out.append(Rotation.from_matrix(dR).as_rotvec())
+            out.append(T[:3, 3] - T0[:3, 3])
+        return np.concatenate(out)
+
+    size = layout.size
+    J = np.zeros((12, size))
+    scale = np.sqrt(np.clip(np.diag(whole.covariance), 0.0, None))
+    for k in range(size):
+        h = max(float(scale[k]), 1e-9)
+        d = np.zeros(size)
+        d[k] = h
+        plus = vec(*poses(model.moved(d, layout, bases)))
+        minus = vec(*poses(model.moved(-d, layout, bases)))
+        J[:, k] = (plus - minus) / (2 * h)
+    cov = J @ whole.covariance @ J.T
+    std = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+    return T_fixed, T_mounted, std[:6], std[6:]
+
+
+def _pnp_points(
+    obs: Observations, T_cb: FloatArray, data: Corners, sigma_px: float
+) -> tuple[FloatArray, FloatArray]:
+    """Each corner where its frame's PnP pose puts it in the camera (N, 3), and the variance
+    (N,: the trace of its 3×3 covariance, m²) the pose's own noise gives it: the pose's
+    covariance ``σ² (JᵀJ)⁻¹`` from OpenCV's projection Jacobian at the corners' σ."""
+    X = np.empty((data.uv.shape[0], 3))
+    var = np.full(data.uv.shape[0], np.nan)
+    points = data.points + _centre(obs)
+    c = obs.intrinsics
+    for f in range(data.frames):
+        at = data.frame == f
+        T = T_cb[f]
+        X[at] = points[at] @ T[:3, :3].T + T[:3, 3]
+        rvec = cv2.Rodrigues(T[:3, :3])[0]
+        try:
+            if c.model == "equidistant":
+                _, J = cv2.fisheye.projectPoints(
+                    points[at].reshape(1, -1, 3), rvec, T[:3, 3], c.K, c.coefficients
+                )
+                J = np.asarray(J).reshape(-1, 15)[:, 8:14]
+            else:
+                _, J = cv2.projectPoints(points[at], rvec, T[:3, 3], c.K, c.coefficients)
+                J = np.asarray(J)[:, :6]
+            cov = np.linalg.inv(J.T @ J) * sigma_px**2  # (rvec, t)
+        except (cv2.error, np.linalg.LinAlgError):
+            continue
+        # a corner moves by −[R x]× δr (to first order, δr about the rotation vector) + δt
+        for k in np.flatnonzero(at):
+            Rx = T[:3, :3] @ points[k]
+            A = np.hstack([-_skew(Rx) @ _rodrigues_jacobian(rvec.ravel()), np.eye(3)])
+            var[k] = float(np.trace(A @ cov @ A.T))
+    return X, var
+
+
+def _skew(v: FloatArray) -> FloatArray:
+    return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
+
+
+def _rodrigues_jacobian(r: FloatArray) -> FloatArray:
+    """The small rotation (in the rotated frame's parent) per change of the rotation vector
+    ``r``: the left Jacobian of SO(3)."""
+    theta = float(np.linalg.norm(r))
+    if theta < 1e-9:
+        return np.eye(3)
+    K = _skew(r / theta)
+    return np.asarray(
+        np.eye(3) + (1 - math.cos(theta)) / theta * K + (theta - math.sin(theta)) / theta * (K @ K),
+        dtype=np.float64,
+    )
+
+
+def cross_validate_pixels(
+    fit: PixelFit,
+    data: Corners,
+    obs: Observations,
+    T_cb: FloatArray,
+    folds: int,
+    nominal: DHModel | None,
+    ref: FloatArray,
+) -> PixelHoldout:
+    """K-fold over the frames' poses: each fold refits the whole model in pixels on the other
+    folds' frames (and places the nominal there: its camera pose and board mount, its geometry
+    held), and both are scored at the fold's frames in pixels and, against each held-out
+    frame's own PnP pose, in mm."""
+    from dhlog.identify.holdout import pose_groups
+
+    groups = pose_groups(data.Q)
+    fold = fold_of_poses(groups, folds, 0)
+    nominal_model = None
+    if nominal is not None:
+        nominal_model = _nominal_model(fit, nominal, ref)
+    X_pnp, var_pnp = _pnp_points(obs, T_cb, data, fit.sigma_px)
+    err_px: dict[str, list[FloatArray]] = {"calibrated": [], "nominal": []}
+    err_mm: dict[str, list[FloatArray]] = {"calibrated": [], "nominal": []}
+    for k in range(folds):
+        test = fold == k
+        if not test.any() or test.all():
+            continue
+        train_c = data.of_frames(~test)
+        test_c = data.of_frames(test)
+        at = test[data.frame]
+        fits = {"calibrated": fit_pixels(fit.whole.model, fit.measurement, train_c)}
+        if nominal_model is not None:
+            W = rigid_directions(nominal_model, fit.whole.layout)
+            fits["nominal"] = fit_pixels(nominal_model, fit.measurement, train_c, within=W)
+        for name, f in fits.items():
+            uv, _ = f.measurement.predict(f.whole.model, None, None, test_c, slice(None))
+            err_px[name].append(np.sum((uv - test_c.uv) ** 2, axis=1))
+            X, _ = f.measurement.in_camera(f.whole.model, None, None, test_c, slice(None))
+            err_mm[name].append(np.sum((X - X_pnp[at]) ** 2, axis=1))
+
+    def rms(parts: list[FloatArray]) -> float | None:
+        if not parts:
+            return None
+        v = np.concatenate(parts)
+        v = v[np.isfinite(v)]
+        return float(np.sqrt(np.mean(v))) if v.size else None
+
+    cal_px, cal_mm = rms(err_px["calibrated"]), rms(err_mm["calibrated"])
+    assert cal_px is not None and cal_mm is not None
+    finite = var_pnp[np.isfinite(var_pnp)]
+    floor = float(np.sqrt(np.mean(finite))) if finite.size else math.nan
+    nom_mm = rms(err_mm["nominal"])
+    check = PixelHoldout(
+        folds=folds,
+        frames=data.frames,
+        nominal_px=rms(err_px["nominal"]),
+        calibrated_px=cal_px,
+        nominal_mm=None if nom_mm is None else nom_mm * 1e3,
+        calibrated_mm=cal_mm * 1e3,
+        fit_px=fit.rms_px,
+        pnp_noise_mm=floor * 1e3,
+    )
+    check.notes.append(
+        "each fold refits the whole model in pixels on the other folds' frames; the nominal is "
+        "placed on the same frames (the camera's pose and the board's mount fitted, its "
+        "geometry held). Pixels: the corners' reprojection (2-D norm); mm: the board's corners "
+        "in the camera against each held-out frame's own PnP pose, whose depth noise is in it."
+    )
+    return check
+
+
+def _nominal_model(fit: PixelFit, nominal: DHModel, ref: FloatArray) -> AxisModel:
+    """The nominal's axes where the fitted model's place puts them (its base in M and the
+    carried frame on the flange taken from the fit): the start of its placement."""
+    whole = fit.whole
+    ex = extract_dh(
+        list(whole.model.axes),
+        tuple(whole.model.types),
+        target=whole.model.target,
+        reference_pose=ref,
+        nominal=nominal.table,
+    )
+    assert whole.model.tool_rotation is not None
+    T_M_flange = ex.frames[-1]
+    R_flange_tool = T_M_flange[:3, :3].T @ whole.model.tool_rotation
+    return AxisModel.of_table(
+        nominal.table,
+        ref,
+        ex.tool_point,
+        ex.T_measurement_base,
+        tool_rotation=R_flange_tool,
+    )
+
+
+def camera_view(
+    fit: PixelFit,
+    data: Corners,
+    obs: Observations,
+    cam: CameraResult,
+    check: PixelHoldout | None,
+) -> CameraView:
+    """What the recording shows: the kept frames with their corners and reprojections, the
+    camera and the board in the base frame at each frame."""
+    from dhlog.identify.prediction import predict as predict_points
+    from dhlog.identify.prediction import predict_orientation
+
+    model = fit.whole.model
+    kept = {index: (fmt, blob) for index, fmt, blob in obs.kept}
+    frames: list[FrameView] = []
+    centre = _centre(obs)
+    # the carried frame in M at each frame, then in the base
+    from dhlog.identify.axismodel import ParameterLayout
+
+    layout = ParameterLayout.of(model.types, rotation=True)
+    p, _ = predict_points(model, data.Q)
+    R, _ = predict_orientation(model, data.Q, layout, model.bases())
+    T_base_M = cam.T_base_fixed if cam.setup == "eye-to-hand" else cam.T_base_fixed @ _shift(centre)
+    uv_pred = data.uv + fit.residuals
+    for f in range(data.frames):
+        index = int(obs.frame[f])
+        at = data.frame == f
+        T_M_carried = _transform(R[:, :, f], p[f])
+        if cam.setup == "eye-to-hand":
+            T_base_camera = T_base_M
+            T_base_board = T_base_M @ T_M_carried @ _shift(-centre)
+        else:
+            T_base_camera = T_base_M @ T_M_carried
+            T_base_board = cam.T_base_fixed
+        fmt, blob = kept.get(index, ("jpeg", None))
+        frames.append(
+            FrameView(
+                t_ns=int(obs.t_ns[f]),
+                index=index,
+                image=blob,
+                image_format=fmt,
+                ids=obs.ids[f],
+                detected_px=data.uv[at],
+                reprojected_px=uv_pred[at],
+                held_out=False,
+                T_base_camera=T_base_camera,
+                T_base_board=T_base_board,
+            )
+        )
+    return CameraView(
+        name=obs.camera,
+        setup=cam.setup,
+        intrinsics=cam.intrinsics,
+        board_points=obs.board.object_points(),
+        rms_px=cam.rms_px,
+        frames=frames,
+    )
