@@ -4,9 +4,13 @@ data, side panels closed."""
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+from typing import TYPE_CHECKING
+
 import rerun.blueprint as rrb
 
 from dhlog.model.dh import JointType
+from dhlog.present.recording.camera import camera_tabs
 from dhlog.present.recording.residuals import Residuals
 from dhlog.present.recording.scene import (
     JOINT_TIMELINE,
@@ -16,10 +20,18 @@ from dhlog.present.recording.scene import (
     holdout_magnification,
 )
 
+if TYPE_CHECKING:
+    from dhlog.vision.view import CameraView
 
-def process_blueprint(shown: Shown, k: float, found: list[Residuals]) -> rrb.Blueprint:
+
+def process_blueprint(
+    shown: Shown, k: float, found: list[Residuals], cameras: Sequence[CameraView] = ()
+) -> rrb.Blueprint:
     """The default layout: the 3D evidence (samples and fits; FK residuals magnified) on the
-    left, the DH table above the per-joint residual plots on the right, side panels closed."""
+    left, the DH table above the per-joint residual plots on the right, side panels closed.
+    With ``cameras``, a tab per camera after the first (``camera.camera_tabs``: its frames on
+    the ``sensor_time`` line, which the time panel then shows) and the main 3D view without
+    them (it shows every time at once)."""
     result = shown.result
     eye = shown.eye()
     everything = [
@@ -64,10 +76,12 @@ def process_blueprint(shown: Shown, k: float, found: list[Residuals]) -> rrb.Blu
                         "- $origin/m/magnified/**",
                         "- $origin/m/holdout/**",
                         "- $origin/m/deflection/**",
+                        *(["- $origin/base/cameras/**"] if cameras else []),
                     ],
                     time_ranges=everything,
                     eye_controls=eye,
                 ),
+                *camera_tabs(cameras),
                 *(
                     [
                         rrb.Spatial3DView(
@@ -128,5 +142,5 @@ def process_blueprint(shown: Shown, k: float, found: list[Residuals]) -> rrb.Blu
         ),
         rrb.BlueprintPanel(state="collapsed"),
         rrb.SelectionPanel(state="collapsed"),
-        rrb.TimePanel(state="collapsed", timeline=JOINT_TIMELINE),
+        rrb.TimePanel(state="collapsed", timeline=TIMELINE if cameras else JOINT_TIMELINE),
     )

@@ -53,8 +53,9 @@ def write_process_recording(
     nominal = result.nominal.source if result.nominal is not None else None
     title = f"{Path(result.path).name} — {when}" + (f" — nominal {nominal}" if nominal else "")
     found = residual_parts(result, shown)
+    cameras = list(getattr(result, "cameras", None) or [])  # a camera calibration's views
     with recording_file(
-        path, "dhlog process", process_blueprint(shown, k, found), str(uuid.uuid4())
+        path, "dhlog process", process_blueprint(shown, k, found, cameras), str(uuid.uuid4())
     ) as rec:
         rec.send_recording_name(title)
         rec.send_property(
@@ -84,6 +85,11 @@ def write_process_recording(
         log_residuals(rec, shown, found, k)
         log_holdout(rec, shown)
         log_deflection(rec, shown)
+        if cameras:
+            from dhlog.present.recording.camera import log_cameras
+
+            ex = result.extraction  # the base in M, then M in the 3D views' world
+            log_cameras(rec, cameras, T_world_base=shown.T @ ex.T_measurement_base if ex else None)
         rec.log(
             "report/dh_table",
             rr.TextDocument(result_markdown(result), media_type=rr.MediaType.MARKDOWN),
