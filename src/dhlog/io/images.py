@@ -684,7 +684,7 @@ def read_camera_infos(
     _check_topics(str(path), scan.topics(), [("camera info", topic)])
     for cid, raw in scan.messages.items():
         info = scan.channels.get(cid)
-        if info is not None:
+        if info is not None and info.topic == topic:
             for _ in stream._decode(cid, info, raw):
                 pass
     return stream.infos
