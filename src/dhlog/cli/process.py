@@ -157,6 +157,30 @@ def process(
         ),
     ] = False,
     force: Annotated[bool, typer.Option("--force", help="Overwrite existing results.")] = False,
+    camera_setup: Annotated[
+        str | None,
+        typer.Option(
+            "--camera-setup",
+            metavar="eye-to-hand|eye-in-hand",
+            help="A vision log: the camera fixed in the cell and the board on the flange "
+            "(eye-to-hand), or the camera on the flange (eye-in-hand). Default: decided from "
+            "the data (with --nominal).",
+        ),
+    ] = None,
+    refine_intrinsics: Annotated[
+        bool,
+        typer.Option(
+            "--refine-intrinsics",
+            help="A vision log: fit the camera's intrinsics with the model (held as recorded "
+            "by default).",
+        ),
+    ] = False,
+    jobs: Annotated[
+        int,
+        typer.Option(
+            "--jobs", "-j", min=1, max=256, help="A vision log: processes decoding and detecting."
+        ),
+    ] = 1,
 ) -> None:
     """Identify the DH parameters from a calibration log and write <stem>.dh.json, .dh.csv, .rrd."""
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
@@ -170,6 +194,12 @@ def process(
         raise typer.Exit(EXIT_USAGE)
     if angle_unit not in (None, "rad", "deg"):
         stderr.print(f"error: --angle-unit must be rad or deg, not '{plain(angle_unit)}'.")
+        raise typer.Exit(EXIT_USAGE)
+    if camera_setup not in (None, "eye-to-hand", "eye-in-hand"):
+        stderr.print(
+            f"error: --camera-setup must be eye-to-hand or eye-in-hand, not "
+            f"'{plain(camera_setup)}'."
+        )
         raise typer.Exit(EXIT_USAGE)
     if holdout == 1 or not 0 <= holdout <= 1000:
         stderr.print(
@@ -233,6 +263,9 @@ def process(
                 validate=list(validate or []),
                 model=request,
                 progress=advance,
+                camera_setup=camera_setup,
+                refine_intrinsics=refine_intrinsics,
+                jobs=jobs,
             )
             if refine:
                 result.info.append(

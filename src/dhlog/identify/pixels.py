@@ -36,10 +36,11 @@ import numpy as np
 from numpy.typing import NDArray
 
 from dhlog.errors import DegenerateGeometryError
-from dhlog.geometry._checks import FloatArray
+from dhlog.geometry._checks import FloatArray, rotation_from_vector
 from dhlog.identify.axismodel import AxisModel, ParameterLayout
 from dhlog.identify.prediction import predict_columns, predict_orientation, prefix_motions
 from dhlog.identify.whole import Determined, WholeFit
+from dhlog.model.dh import StandardDH
 from dhlog.vision.camera import Intrinsics
 
 #: Median of a 2-dof chi variable (|r|/σ of an isotropic 2-D residual).
@@ -371,6 +372,75 @@ def fit_pixels(
         np.asarray(cov[k:, k:], dtype=np.float64) if meas.extra else None,
         np.asarray(cov, dtype=np.float64),
     )
+
+
+def place(
+    table: StandardDH,
+    reference_pose: FloatArray,
+    T_measurement_base: FloatArray,
+    tool_point: FloatArray,
+    tool_rotation: FloatArray,
+    measurement: PixelModel,
+    data: Corners,
+    *,
+    threshold: float = 5.0,
+    max_iterations: int = 50,
+) -> AxisModel:
+    """``table`` placed on the corners, its geometry held: the base's pose in M and the
+    carried frame (``tool_point``, ``tool_rotation``) on the flange — the camera's pose and the
+    board's mount — by Levenberg–Marquardt in pixels along :func:`rigid_directions`, the model
+    rebuilt exactly from the table at each step (so the table never drifts); first on every
+    corner, then with the corners beyond ``threshold`` times the robust scale held out. How a
+    nominal is scored on one footing with the calibration."""
+    from dhlog.model.fk import fk_frames
+
+    meas = replace(measurement, refine=False)
+    state = (T_measurement_base, tool_point, tool_rotation)
+
+    def build(st: tuple[FloatArray, FloatArray, FloatArray]) -> AxisModel:
+        return AxisModel.of_table(table, reference_pose, st[1], st[0], tool_rotation=st[2])
+
+    def step(
+        st: tuple[FloatArray, FloatArray, FloatArray], d: FloatArray
+    ) -> tuple[FloatArray, FloatArray, FloatArray]:
+        G = np.eye(4)
+        G[:3, :3], G[:3, 3] = rotation_from_vector(d[:3]), d[3:6]
+        T = G @ st[0]
+        F = fk_frames(table, reference_pose, T_base=T)[-1][:3, :3]
+        return T, st[1] + F.T @ d[6:9], F.T @ rotation_from_vector(d[9:12]) @ F @ st[2]
+
+    model = build(state)
+    layout = ParameterLayout.of(model.types, rotation=True)
+    limit = math.inf
+    for _ in range(2):
+        normal = _normal(model, layout, meas, data, limit)
+        lam = 1e-4
+        for _ in range(max_iterations):
+            H, g, cost = normal[0], normal[1], normal[2]
+            W = rigid_directions(model, layout)
+            Hw, gw = W.T @ H @ W, W.T @ g
+            try:
+                d = np.linalg.solve(Hw + lam * np.diag(np.maximum(np.diag(Hw), 1e-30)), -gw)
+            except np.linalg.LinAlgError:
+                lam *= 10.0
+                continue
+            trial_state = step(state, np.asarray(d, dtype=np.float64))
+            trial = build(trial_state)
+            tn = _normal(trial, layout, meas, data, limit)
+            if tn[2] <= cost:
+                done = cost - tn[2] < 1e-10 * max(cost, 1e-30)
+                state, model, normal = trial_state, trial, tn
+                lam = max(lam / 10.0, 1e-12)
+                if done:
+                    break
+            else:
+                lam *= 10.0
+                if lam > 1e8:
+                    break
+        norms = normal[5]
+        finite = norms[np.isfinite(norms)]
+        limit = threshold * max(float(np.median(finite)) / CHI2_MEDIAN, 1e-6)
+    return model
 
 
 def rigid_directions(model: AxisModel, layout: ParameterLayout) -> FloatArray:

@@ -25,7 +25,7 @@ import math
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 from numpy.typing import NDArray
@@ -110,7 +110,7 @@ from dhlog.identify.variance import (
 from dhlog.identify.whole import CHI3_MEDIAN, WholeFit, fit_whole_model
 from dhlog.io.dhfile import DHModel
 from dhlog.io.pipeline import Pipeline
-from dhlog.io.reader import LogData, read_log
+from dhlog.io.reader import LogData, camera_pipeline, read_log
 from dhlog.io.writer import sha256_of
 from dhlog.model.fk import fk_frames
 from dhlog.model.noise import NoiseModel
@@ -212,13 +212,44 @@ def process_log(
     validate: list[str | Path] | None = None,
     model: ModelRequest = AUTO,
     progress: Stage | None = None,
+    camera_setup: str | None = None,
+    refine_intrinsics: bool = False,
+    jobs: int = 1,
 ) -> ProcessResult:
     """Run the whole identification on the log at ``path`` (see the module docstring).
+
+    A vision log (camera images; a camera pipeline) is calibrated from its detected board
+    corners (:mod:`dhlog.identify.vision`): ``camera_setup`` eye-to-hand / eye-in-hand (None:
+    decided from the data), ``refine_intrinsics``, ``jobs`` processes decoding and detecting.
 
     ``holdout`` K > 1: K-fold cross-validation over the session's poses; ``validate``: further
     logs (other sessions of the same robot) whose poses score the result and the nominal on one
     footing (:mod:`dhlog.identify.footing`; a log that cannot be scored is a warning).
     ``progress(stage, fraction)`` is called as each stage advances."""
+    camera = camera_pipeline(path, pipeline)
+    if camera is not None:
+        from dhlog.identify.vision import process_observations
+        from dhlog.vision.observe import observe
+
+        observations = observe(
+            path,
+            camera,
+            jobs=jobs,
+            progress=None if progress is None else (lambda f: progress("detecting", f)),
+        )
+        return cast(
+            ProcessResult,
+            process_observations(
+                observations,
+                sha256=sha256_of(path),
+                nominal=nominal,
+                reference_pose=reference_pose,
+                setup=camera_setup,
+                refine_intrinsics=refine_intrinsics,
+                holdout=holdout,
+                progress=progress,
+            ),
+        )
     log = read_log(
         path,
         pipeline,

@@ -36,7 +36,7 @@ from dhlog.geometry.lines import Line
 from dhlog.identify.axismodel import AxisModel
 from dhlog.identify.extract import Extraction, extract_dh
 from dhlog.identify.leaveout import fold_of_poses
-from dhlog.identify.pixels import Corners, PixelFit, PixelModel, fit_pixels, rigid_directions
+from dhlog.identify.pixels import Corners, PixelFit, PixelModel, fit_pixels, place
 from dhlog.identify.select import ModelRequest
 from dhlog.identify.uncertainty import whole_uncertainty
 from dhlog.io.dhfile import DHModel
@@ -348,7 +348,20 @@ def process_observations(
             f"{usable[chosen].validation.rms * 1e3:.3f} mm{worse}"
         )
     result = usable[chosen]
-    result.warnings[:0] = notes
+    # what the start's run said is of the poses' fit (its noise, its pairs, its registration in
+    # mm), not of the calibration: one line says how the start was made, the rest is the
+    # pixel fit's
+    swept = [j.index for j in result.joints if j.fit is not None]
+    how = (
+        f"the seed method on the sweeps of joint(s) {', '.join(map(str, swept))}"
+        if swept
+        else "the nominal placed on them"
+    )
+    result.info = [
+        f"start: each frame's board pose (OpenCV PnP) as a 6-DoF target, the model from {how}; "
+        "then the whole model fitted to every corner in pixels."
+    ]
+    result.warnings = [*notes, *(w for w in result.warnings if "never moved alone" in w)]
     if extra_cameras:
         result.warnings.append(
             f"the log has {len(observations)} cameras; this calibration used {obs.camera} alone "
@@ -566,9 +579,9 @@ def cross_validate_pixels(
 
     groups = pose_groups(data.Q)
     fold = fold_of_poses(groups, folds, 0)
-    nominal_model = None
+    nominal_start = None
     if nominal is not None:
-        nominal_model = _nominal_model(fit, nominal, ref)
+        nominal_start = _nominal_start(fit, nominal, ref)
     X_pnp, var_pnp = _pnp_points(obs, T_cb, data, fit.sigma_px)
     err_px: dict[str, list[FloatArray]] = {"calibrated": [], "nominal": []}
     err_mm: dict[str, list[FloatArray]] = {"calibrated": [], "nominal": []}
@@ -580,13 +593,14 @@ def cross_validate_pixels(
         test_c = data.of_frames(test)
         at = test[data.frame]
         fits = {"calibrated": fit_pixels(fit.whole.model, fit.measurement, train_c)}
-        if nominal_model is not None:
-            W = rigid_directions(nominal_model, fit.whole.layout)
-            fits["nominal"] = fit_pixels(nominal_model, fit.measurement, train_c, within=W)
-        for name, f in fits.items():
-            uv, _ = f.measurement.predict(f.whole.model, None, None, test_c, slice(None))
+        models = {"calibrated": (fits["calibrated"].whole.model, fits["calibrated"].measurement)}
+        if nominal_start is not None:
+            placed = place(*nominal_start, fit.measurement, train_c)
+            models["nominal"] = (placed, fit.measurement)
+        for name, (m, meas) in models.items():
+            uv, _ = meas.predict(m, None, None, test_c, slice(None))
             err_px[name].append(np.sum((uv - test_c.uv) ** 2, axis=1))
-            X, _ = f.measurement.in_camera(f.whole.model, None, None, test_c, slice(None))
+            X, _ = meas.in_camera(m, None, None, test_c, slice(None))
             err_mm[name].append(np.sum((X - X_pnp[at]) ** 2, axis=1))
 
     def rms(parts: list[FloatArray]) -> float | None:
@@ -620,9 +634,12 @@ def cross_validate_pixels(
     return check
 
 
-def _nominal_model(fit: PixelFit, nominal: DHModel, ref: FloatArray) -> AxisModel:
-    """The nominal's axes where the fitted model's place puts them (its base in M and the
-    carried frame on the flange taken from the fit): the start of its placement."""
+def _nominal_start(
+    fit: PixelFit, nominal: DHModel, ref: FloatArray
+) -> tuple[Any, FloatArray, FloatArray, FloatArray, FloatArray]:
+    """Where the nominal's placement starts: the table with the fitted model's base in M and
+    carried frame on the flange (:func:`~dhlog.identify.pixels.place`'s first five
+    arguments)."""
     whole = fit.whole
     ex = extract_dh(
         list(whole.model.axes),
@@ -632,15 +649,8 @@ def _nominal_model(fit: PixelFit, nominal: DHModel, ref: FloatArray) -> AxisMode
         nominal=nominal.table,
     )
     assert whole.model.tool_rotation is not None
-    T_M_flange = ex.frames[-1]
-    R_flange_tool = T_M_flange[:3, :3].T @ whole.model.tool_rotation
-    return AxisModel.of_table(
-        nominal.table,
-        ref,
-        ex.tool_point,
-        ex.T_measurement_base,
-        tool_rotation=R_flange_tool,
-    )
+    R_flange_tool = ex.frames[-1][:3, :3].T @ whole.model.tool_rotation
+    return nominal.table, ref, ex.T_measurement_base, ex.tool_point, R_flange_tool
 
 
 def camera_view(

@@ -96,6 +96,71 @@ _IMAGE_SCHEMAS = frozenset(
 )
 
 
+def camera_pipeline(path: str | Path, pipeline: Pipeline | None) -> Pipeline | None:
+    """The camera pipeline to read ``path`` with, or None for a tracker log: ``pipeline``
+    when it is a camera's; without one, the shipped camera pipeline whose image topic the log
+    has, when its channels (the summary's, else those before its first messages) carry camera
+    images. A vision log no shipped pipeline describes is a ``PipelineError``."""
+    if pipeline is not None:
+        return pipeline if pipeline.is_camera else None
+    topics = _image_topics(Path(path))
+    if not topics:
+        return None
+    for p in shipped_pipelines():
+        if p.image is not None and {p.image.topic, *p.image.alternatives} & topics:
+            return p
+    raise PipelineError(
+        str(path),
+        f"a vision log (camera images on {', '.join(sorted(topics))}) that no shipped camera "
+        "pipeline describes: copy pipelines/ros2_camera.toml, name its image and camera-info "
+        "topics and its [target], and pass it with --pipeline.",
+    )
+
+
+def _image_topics(path: Path) -> set[str]:
+    """The topics of ``path`` (an MCAP file or a bag folder's first file) carrying camera
+    images, read from its summary or, without one, from the records before the 200th message;
+    an unreadable file gives none (the tracker reader then says what is wrong)."""
+    from mcap.exceptions import McapError
+    from mcap.reader import make_reader
+    from mcap.records import Channel, Message, Schema
+    from mcap.stream_reader import StreamReader
+
+    if path.is_dir():
+        files = sorted(path.glob("*.mcap"))
+        if not files:
+            return set()
+        path = files[0]
+    try:
+        with open(path, "rb") as f:
+            summary = make_reader(f).get_summary()
+            if summary is not None:
+                return {
+                    c.topic
+                    for c in summary.channels.values()
+                    if c.schema_id in summary.schemas
+                    and summary.schemas[c.schema_id].name in _IMAGE_SCHEMAS
+                }
+            f.seek(0)
+            schemas: dict[int, str] = {}
+            found: set[str] = set()
+            seen = 0
+            for record in StreamReader(f, skip_magic=False).records:
+                if isinstance(record, Schema):
+                    schemas[record.id] = record.name
+                elif isinstance(record, Channel) and schemas.get(record.schema_id) in (
+                    _IMAGE_SCHEMAS
+                ):
+                    found.add(record.topic)
+                elif isinstance(record, Message):
+                    seen += 1
+                    if seen >= 200:
+                        break
+            return found
+    except (McapError, OSError, ValueError, KeyError, EOFError, AssertionError):
+        return set()
+
+
 def _channels_for(scan_channels: dict[int, ChannelInfo], topic: str) -> list[ChannelInfo]:
     return [c for c in scan_channels.values() if c.topic == topic]
 

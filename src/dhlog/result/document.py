@@ -105,6 +105,8 @@ def result_document(result: ProcessResult) -> dict[str, Any]:
     }
     if result.selection is not None:
         doc["nongeometric"] = nongeometric_document(result)
+    if result.camera is not None:  # a camera calibration (issue 32): the hand-eye product
+        doc["camera"] = result.camera.document()
     if ex is not None and result.complete:
         doc["modified_dh_tool"] = {"T_n_tool": ex.T_modified_tool.tolist()}
         if std is not None:

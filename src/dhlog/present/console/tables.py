@@ -55,6 +55,7 @@ def print_result(console: Console, result: ProcessResult, *, units: str = "mm") 
     _print_fits(console, result, units)
     _print_tool_and_base(console, result, units)
     _print_holdout(console, result, units)
+    _print_camera(console, result, units)
     _print_terms(console, result, units)
     lines = [("Method", method_line(result, length, lu))]
     if result.extraction is not None:
@@ -192,6 +193,58 @@ def _print_tool_and_base(console: Console, result: ProcessResult, units: str) ->
         angle,
         ab,
     )
+    console.print(t)
+
+
+def _print_camera(console: Console, result: ProcessResult, units: str) -> None:
+    """A camera calibration's product: the camera's (or board's) pose in the base frame and
+    the mounted part's on the flange with σ, the corners' σ, and the held-out check in pixels
+    and in the unit of length."""
+    cam = result.camera
+    if cam is None:
+        return
+    length, _, lu, _ = scales(units)
+    t = Table(
+        title=escape(f"Camera {cam.name} ({cam.setup}): poses [{lu}, deg] ±1σ"),
+        title_justify="left",
+        box=box.SIMPLE_HEAD,
+        pad_edge=False,
+    )
+    for head in ("frame", "x", "y", "z", "rx", "ry", "rz"):
+        t.add_column(head, justify="left" if head == "frame" else "right")
+    for name, T, std in (
+        (cam.fixed_name, cam.T_base_fixed, cam.fixed_std),
+        (cam.mounted_name, cam.T_flange_mounted, cam.mounted_std),
+    ):
+        from scipy.spatial.transform import Rotation
+
+        rot = Rotation.from_matrix(T[:3, :3]).as_euler("xyz", degrees=True)
+        cells = [f"{T[k, 3] * length:.4f}\n±{std[3 + k] * length:.4f}" for k in range(3)]
+        cells += [f"{rot[k]:.4f}\n±{math.degrees(std[k]):.4f}" for k in range(3)]
+        t.add_row(name, *cells)
+    console.print(t)
+    console.print(
+        f"corners: σ {cam.sigma_px:.3f} px per coordinate, reprojection RMS {cam.rms_px:.3f} px "
+        f"over {cam.inlier_corners} of {cam.corners} corners in {cam.frames} frames; "
+        f"{escape(cam.tally)}"
+    )
+    h = cam.holdout
+    if h is None:
+        return
+    t = Table(
+        title=escape(
+            f"Held-out error of the camera calibration ({h.folds}-fold over {h.frames} frames)"
+        ),
+        title_justify="left",
+        box=box.SIMPLE_HEAD,
+        pad_edge=False,
+    )
+    for head in ("model", "reprojection RMS [px]", f"board corners RMS [{lu}]"):
+        t.add_column(head, justify="left" if head == "model" else "right")
+    if h.nominal_px is not None and h.nominal_mm is not None:
+        t.add_row("nominal", f"{h.nominal_px:.4f}", f"{h.nominal_mm * 1e-3 * length:.4f}")
+    t.add_row("calibrated", f"{h.calibrated_px:.4f}", f"{h.calibrated_mm * 1e-3 * length:.4f}")
+    t.add_row("(PnP noise)", "", f"{h.pnp_noise_mm * 1e-3 * length:.4f}")
     console.print(t)
 
 
