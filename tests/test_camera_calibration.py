@@ -16,7 +16,8 @@ import pytest
 
 from dhlog.identify.axismodel import AxisModel
 from dhlog.identify.extract import extract_dh
-from dhlog.identify.pixels import Corners, PixelModel, fit_pixels, place, residuals
+from dhlog.identify.measure import place, residuals
+from dhlog.identify.pixels import Corners, PixelModel, fit_pixels
 from dhlog.identify.prediction import predict
 from dhlog.identify.vision import process_observations
 from dhlog.io.dhfile import DHModel
@@ -137,7 +138,7 @@ def test_pixel_fit_is_the_maximum_likelihood(setup: str) -> None:
     nominal_err = _fk_rms(_model(rig, robot.table, robot.n), truth, Qr)
     assert _fk_rms(fit.whole.model, from_truth.whole.model, Qr) < 1e-6
     assert err < 0.5 * nominal_err
-    assert abs(fit.sigma_px / SIGMA_PX - 1.0) < 0.1
+    assert abs(fit.sigma / SIGMA_PX - 1.0) < 0.1
 
 
 def test_reported_sigma_matches_the_spread() -> None:
@@ -189,7 +190,7 @@ def test_nominal_placed_keeps_its_geometry() -> None:
     # placement at random joint vectors (the nominal's own error is ~1 mm; placement absorbs
     # part of it), far from the 10 mm start
     assert _fk_rms(placed, exact, Qr) < 2e-3
-    assert nominal_rms > 1.5 * calibrated.rms_px
+    assert nominal_rms > 1.5 * calibrated.rms
 
 
 @pytest.mark.parametrize("setup", ["eye-to-hand", "eye-in-hand"])

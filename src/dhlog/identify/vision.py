@@ -36,7 +36,8 @@ from dhlog.geometry.lines import Line
 from dhlog.identify.axismodel import AxisModel
 from dhlog.identify.extract import Extraction, extract_dh
 from dhlog.identify.leaveout import fold_of_poses
-from dhlog.identify.pixels import Corners, PixelFit, PixelModel, fit_pixels, place
+from dhlog.identify.measure import place
+from dhlog.identify.pixels import Corners, PixelFit, PixelModel, fit_pixels
 from dhlog.identify.select import ModelRequest
 from dhlog.identify.uncertainty import whole_uncertainty
 from dhlog.io.dhfile import DHModel
@@ -429,8 +430,8 @@ def _pixel_stage(
             progress("cross-validating", 0.0)
         check = cross_validate_pixels(fit, data, obs, T_cb, holdout, nominal, ref)
     sigma_i = None
-    if fit.intrinsics_covariance is not None:
-        sigma_i = np.sqrt(np.clip(np.diag(fit.intrinsics_covariance), 0.0, None))
+    if fit.own_covariance is not None:
+        sigma_i = np.sqrt(np.clip(np.diag(fit.own_covariance), 0.0, None))
     cam = CameraResult(
         name=obs.camera,
         setup=setup,
@@ -441,8 +442,8 @@ def _pixel_stage(
         fixed_std=fixed_std,
         T_flange_mounted=T_mounted,
         mounted_std=mounted_std,
-        sigma_px=fit.sigma_px,
-        rms_px=fit.rms_px,
+        sigma_px=fit.sigma,
+        rms_px=fit.rms,
         frames=obs.frames,
         corners=int(data.uv.shape[0]),
         inlier_corners=int(np.count_nonzero(fit.inliers)),
@@ -582,7 +583,7 @@ def cross_validate_pixels(
     nominal_start = None
     if nominal is not None:
         nominal_start = _nominal_start(fit, nominal, ref)
-    X_pnp, var_pnp = _pnp_points(obs, T_cb, data, fit.sigma_px)
+    X_pnp, var_pnp = _pnp_points(obs, T_cb, data, fit.sigma)
     err_px: dict[str, list[FloatArray]] = {"calibrated": [], "nominal": []}
     err_mm: dict[str, list[FloatArray]] = {"calibrated": [], "nominal": []}
     for k in range(folds):
@@ -622,7 +623,7 @@ def cross_validate_pixels(
         calibrated_px=cal_px,
         nominal_mm=None if nom_mm is None else nom_mm * 1e3,
         calibrated_mm=cal_mm * 1e3,
-        fit_px=fit.rms_px,
+        fit_px=fit.rms,
         pnp_noise_mm=floor * 1e3,
     )
     check.notes.append(
