@@ -25,7 +25,7 @@ from collections.abc import Callable, Iterator
 from concurrent.futures import Future, ProcessPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import cv2
 import numpy as np
@@ -33,8 +33,6 @@ from numpy.typing import NDArray
 
 from dhlog.errors import InputError, MissingTopicError, PipelineError
 from dhlog.io import ros2
-from dhlog.io.decode.blocks import Block, decode_stream
-from dhlog.io.decode.frames import clean, joints_frame
 from dhlog.io.images import (
     CameraInfo,
     Decoder,
@@ -54,7 +52,6 @@ from dhlog.io.images import (
 from dhlog.io.mcapscan import scan_mcap
 from dhlog.io.mcapwalk import ChannelInfo
 from dhlog.io.pipeline import DEFAULT_TOPICS, Pipeline, StreamSpec
-from dhlog.io.reader import _unzstd_squeezed
 from dhlog.io.safetext import printable
 from dhlog.model.dh import JointType
 from dhlog.vision.boards import BoardSpec
@@ -67,6 +64,9 @@ from dhlog.vision.observe import (
     Observations,
     joint_values_at,
 )
+
+if TYPE_CHECKING:
+    from dhlog.io.decode.blocks import Block
 
 #: Frames a task carries to a worker, and tasks a worker may have waiting: the bound on the
 #: payloads in flight (a full-HD JPEG is 0.2–0.5 MB, a raw bgr8 frame 6.2 MB).
@@ -212,6 +212,11 @@ def _joints_spec(pipeline: Pipeline) -> StreamSpec:
 def _first_walk(
     name: str, pipeline: Pipeline, info_topic: str | None, progress: Callable[[float], None]
 ) -> _Small:
+    # polars (the joints' table) imported here, not by the workers: 0.15 s a worker
+    from dhlog.io.decode.blocks import decode_stream
+    from dhlog.io.decode.frames import clean, joints_frame
+    from dhlog.io.reader import _unzstd_squeezed
+
     spec = _joints_spec(pipeline)
     topics = [spec.topic] + ([info_topic] if info_topic else [])
     present: set[str] = set()
@@ -430,7 +435,7 @@ def observe(
     stream = ImageStream(name, topic, batch_bytes=PAYLOAD_BATCH_BYTES)
     decimation = Decimation(keep_frames)
     tally, faults = Tally(), Faults()
-    found: list[tuple[int, int, Detection]] = []
+    found: list[tuple[int, int, NDArray[np.int64], NDArray[np.float64]]] = []
     first_detail: dict[str, str] = {}
     for seen in _looked(stream, setup, jobs, decimation):
         wrong = [s for s in seen if s.size is not None]
@@ -450,7 +455,7 @@ def observe(
             assert s.outcome is not None
             tally.add(s.index, s.outcome)
             if isinstance(s.outcome, Detection):
-                found.append((s.index, s.stamp_ns, s.outcome))
+                found.append((s.index, s.stamp_ns, s.outcome.ids, s.outcome.corners_px))
             else:
                 first_detail.setdefault(s.outcome.reason, s.outcome.detail)
             if s.kept is not None:
@@ -508,8 +513,8 @@ def observe(
             frame=np.array([found[k][0] for k in keep], dtype=np.int64),
             q=np.asarray(at.q[keep], dtype=np.float64),
             joint_names=list(small.joint_names),
-            ids=[found[k][2].ids.astype(np.int64) for k in keep],
-            uv=[np.asarray(found[k][2].corners_px, dtype=np.float64) for k in keep],
+            ids=[found[k][2].astype(np.int64) for k in keep],
+            uv=[np.asarray(found[k][3], dtype=np.float64) for k in keep],
             tally=tally,
             kept=decimation.frames(),
             warnings=warnings,
