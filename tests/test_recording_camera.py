@@ -23,6 +23,7 @@ from rerun.chunk import RrdReader
 from dhlog.identify.run import process_log
 from dhlog.model.robots import load_robot
 from dhlog.present.recording import write_process_recording
+from dhlog.present.recording.blueprint import process_blueprint
 from dhlog.present.recording.camera import (
     FITTED_COLOR,
     HELD_OUT_COLOR,
@@ -31,6 +32,7 @@ from dhlog.present.recording.camera import (
     log_cameras,
     pixel_magnification,
 )
+from dhlog.present.recording.scene import Shown
 from dhlog.present.recording.stream import recording_file
 from dhlog.simulate import camera as sim
 from dhlog.vision.detect import Detection, detect
@@ -204,13 +206,7 @@ def test_the_error_vectors_are_magnified_as_the_view_says(
     blue."""
     path_rrd = _written(tmp_path, views)
     rows = _rows(path_rrd)
-    names = [
-        n
-        for chunk in RrdReader(path_rrd).stream(store=RrdReader(path_rrd).blueprints()[0])
-        for c in ("ViewBlueprint:display_name",)
-        if c in chunk.to_record_batch().schema.names
-        for (n,) in chunk.to_record_batch().column(c).to_pylist()
-    ]
+    names = [n for (n,) in _layout(path_rrd)["ViewBlueprint:display_name"]]
     for view, path in zip(views, camera_paths(views), strict=True):
         k = pixel_magnification(view)
         diagonal = math.hypot(view.intrinsics.width, view.intrinsics.height)
@@ -287,14 +283,32 @@ def test_the_process_recording_draws_the_results_cameras(
     assert np.allclose(shift[0], T_world_base[:3, 3], atol=1e-5)
     for path_ in camera_paths(views):
         assert (f"/{path_}/image", "EncodedImage:blob") in rows
-    reader = RrdReader(path)
-    titles = [
-        n
-        for chunk in reader.stream(store=reader.blueprints()[0])
-        if "ContainerBlueprint:display_name" in chunk.to_record_batch().schema.names
-        for (n,) in chunk.to_record_batch().column("ContainerBlueprint:display_name").to_pylist()
-    ]
+    layout = _layout(path)
+    titles = [n for (n,) in layout["ContainerBlueprint:display_name"]]
     assert sum(t.startswith("Camera ") for t in titles) == len(views)
+    # scara has residual plots, ranged on joint_position: the time panel stays there
+    assert layout["TimePanelBlueprint:timeline"] == [["joint_position"]]
+    assert "ContainerBlueprint:active_tab" not in layout
     plain = tmp_path / "plain.rrd"
     write_process_recording(result, plain)
     assert not any(e.startswith("/world/base") for e, _ in _rows(plain))
+    # without residual plots the recording opens on sensor_time, on the first camera's tab
+    alone = tmp_path / "alone.rrd"
+    bp = process_blueprint(Shown.of(result), 1.0, [], views)
+    with recording_file(alone, "dhlog process", bp):
+        pass
+    layout = _layout(alone)
+    assert layout["TimePanelBlueprint:timeline"] == [["sensor_time"]]
+    assert len(layout["ContainerBlueprint:active_tab"]) == 1
+
+
+def _layout(path: Path) -> dict[str, list[object]]:
+    """The blueprint's component columns: column → its rows."""
+    reader = RrdReader(path)
+    out: dict[str, list[object]] = {}
+    for chunk in reader.stream(store=reader.blueprints()[0]):
+        batch = chunk.to_record_batch()
+        for name in batch.schema.names:
+            if ":" in name:  # components, not the row ids and blueprint times
+                out.setdefault(name, []).extend(batch.column(name).to_pylist())
+    return out

@@ -10,7 +10,7 @@ from typing import TYPE_CHECKING
 import rerun.blueprint as rrb
 
 from dhlog.model.dh import JointType
-from dhlog.present.recording.camera import camera_tabs
+from dhlog.present.recording.camera import base_in_world, camera_tabs
 from dhlog.present.recording.residuals import Residuals
 from dhlog.present.recording.scene import (
     JOINT_TIMELINE,
@@ -30,8 +30,9 @@ def process_blueprint(
     """The default layout: the 3D evidence (samples and fits; FK residuals magnified) on the
     left, the DH table above the per-joint residual plots on the right, side panels closed.
     With ``cameras``, a tab per camera after the first (``camera.camera_tabs``: its frames on
-    the ``sensor_time`` line, which the time panel then shows) and the main 3D view without
-    them (it shows every time at once)."""
+    the ``sensor_time`` line; unless there are residual plots, which are ranged on
+    ``joint_position``, the time panel then shows that line and the first camera's tab is
+    open) and the main 3D view without them (it shows every time at once)."""
     result = shown.result
     eye = shown.eye()
     everything = [
@@ -81,7 +82,7 @@ def process_blueprint(
                     time_ranges=everything,
                     eye_controls=eye,
                 ),
-                *camera_tabs(cameras),
+                *camera_tabs(cameras, base_in_world(shown)),
                 *(
                     [
                         rrb.Spatial3DView(
@@ -126,6 +127,7 @@ def process_blueprint(
                     ],
                     eye_controls=eye,
                 ),
+                active_tab=1 if cameras and not found else None,  # the first camera's
             ),
             rrb.Vertical(
                 rrb.TextDocumentView(name="DH parameters", origin="report/dh_table"),
@@ -142,5 +144,7 @@ def process_blueprint(
         ),
         rrb.BlueprintPanel(state="collapsed"),
         rrb.SelectionPanel(state="collapsed"),
-        rrb.TimePanel(state="collapsed", timeline=TIMELINE if cameras else JOINT_TIMELINE),
+        rrb.TimePanel(
+            state="collapsed", timeline=TIMELINE if cameras and not found else JOINT_TIMELINE
+        ),
     )

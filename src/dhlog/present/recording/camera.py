@@ -39,7 +39,7 @@ import rerun as rr
 import rerun.blueprint as rrb
 
 from dhlog.geometry._checks import FloatArray
-from dhlog.present.recording.scene import TIMELINE, _nice, time_column
+from dhlog.present.recording.scene import TIMELINE, Shown, _nice, time_column
 
 if TYPE_CHECKING:
     from dhlog.vision.view import CameraView, FrameView
@@ -73,6 +73,16 @@ def camera_paths(views: Sequence[CameraView]) -> list[str]:
             part = f"{base}_{k}"
         out.append(f"world/base/cameras/{part}")
     return out
+
+
+def base_in_world(shown: Shown) -> FloatArray:
+    """The robot's base frame in the recording's ``world`` (4, 4): ``Shown.T`` (M → world) after
+    ``T_measurement_base`` (base → M) — the identity, or the base turned over when the 3D views
+    stand the robot the other way up; the identity without an extraction."""
+    ex = shown.result.extraction
+    if ex is None:
+        return np.eye(4)
+    return np.asarray(shown.T @ ex.T_measurement_base, dtype=np.float64)
 
 
 def pixel_magnification(view: CameraView) -> float:
@@ -154,9 +164,8 @@ def log_cameras(
     T_world_base: FloatArray | None = None,
 ) -> None:
     """Draw each camera of ``views`` (see the module for the entities). ``T_world_base`` (4, 4)
-    places the robot's base frame in the recording's ``world`` (``Shown.T`` composed with the
-    base's place in M: the identity, or the base turned over when the 3D views stand the robot
-    the other way up); the identity when None."""
+    places the robot's base frame in the recording's ``world`` (:func:`base_in_world`); the
+    identity when None."""
     if not views:
         return
     T = np.eye(4) if T_world_base is None else np.asarray(T_world_base, dtype=np.float64)
@@ -188,6 +197,8 @@ def _log_camera(rec: rr.RecordingStream, view: CameraView, path: str) -> None:
         camera_xyz=rr.ViewCoordinates.RDF,
         image_plane_distance=plane,
     )
+    # the camera's axes (x red right, y green down, z blue along the optical axis), short
+    rec.log(path, rr.TransformAxes3D(0.15 * (plane or 1.0)), static=True)
     if not frames or _fixed(T_cam):
         if frames:
             Tc = T_cam[0]
@@ -300,11 +311,40 @@ def _summary(view: CameraView, drawn: _Drawn, k: float) -> str:
     return "\n\n".join(lines)
 
 
-def camera_tabs(views: Sequence[CameraView]) -> list[rrb.Container]:
+def _eye(view: CameraView, T_world_base: FloatArray) -> rrb.EyeControls3D | None:
+    """An eye behind the camera, above and to its side (0.35 of the median camera–board
+    distance each), looking at the board's median place: the frustum and the board both in the
+    picture."""
+    frames = view.frames
+    if not frames:
+        return None
+    T_cam = T_world_base @ _poses(frames, "T_base_camera")
+    T_board = T_world_base @ _poses(frames, "T_base_board")
+    board = np.asarray(view.board_points, dtype=np.float64).reshape(-1, 3)
+    centre = board.mean(axis=0) if board.size else np.zeros(3)
+    target = np.median(T_board[:, :3, 3] + T_board[:, :3, :3] @ centre, axis=0)
+    camera = np.median(T_cam[:, :3, 3], axis=0)
+    d = float(np.linalg.norm(target - camera))
+    if not (np.all(np.isfinite(target)) and np.all(np.isfinite(camera)) and d > 0):
+        return None
+    back = (camera - target) / d
+    side = np.cross([0.0, 0.0, 1.0], back)
+    side = side / n if (n := float(np.linalg.norm(side))) > 1e-6 else np.array([1.0, 0.0, 0.0])
+    eye = camera + 0.35 * d * (back + side + np.array([0.0, 0.0, 1.0]))
+    return rrb.EyeControls3D(
+        kind=rrb.Eye3DKind.Orbital, position=eye, look_target=target, eye_up=[0.0, 0.0, 1.0]
+    )
+
+
+def camera_tabs(
+    views: Sequence[CameraView], T_world_base: FloatArray | None = None
+) -> list[rrb.Container]:
     """One tab per camera: the image with its corners and magnified errors (2D) above the
     camera, its frustum and the board in the robot's base frame (3D, at the time cursor on
-    ``sensor_time``), the camera's summary below."""
+    ``sensor_time``; the eye behind the camera, :func:`_eye`), the camera's summary below.
+    ``T_world_base`` as for :func:`log_cameras`."""
     tabs: list[rrb.Container] = []
+    T = np.eye(4) if T_world_base is None else np.asarray(T_world_base, dtype=np.float64)
     for view, path in zip(views, camera_paths(views), strict=True):
         part = path.rsplit("/", 1)[1]
         k = pixel_magnification(view)
@@ -323,6 +363,7 @@ def camera_tabs(views: Sequence[CameraView]) -> list[rrb.Container]:
                         f"+ $origin/base/boards/{part}/**",
                         "+ $origin/m/dh/frame_1/**",
                     ],
+                    eye_controls=_eye(view, T),
                 ),
                 rrb.TextDocumentView(name="Camera", origin=f"report/cameras/{part}"),
                 row_shares=[5, 4, 1],

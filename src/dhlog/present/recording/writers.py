@@ -86,10 +86,9 @@ def write_process_recording(
         log_holdout(rec, shown)
         log_deflection(rec, shown)
         if cameras:
-            from dhlog.present.recording.camera import log_cameras
+            from dhlog.present.recording.camera import base_in_world, log_cameras
 
-            ex = result.extraction  # the base in M, then M in the 3D views' world
-            log_cameras(rec, cameras, T_world_base=shown.T @ ex.T_measurement_base if ex else None)
+            log_cameras(rec, cameras, T_world_base=base_in_world(shown))
         rec.log(
             "report/dh_table",
             rr.TextDocument(result_markdown(result), media_type=rr.MediaType.MARKDOWN),
