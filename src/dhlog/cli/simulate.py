@@ -163,9 +163,10 @@ def simulate(
             metavar="tracker|camera",
             help="tracker (a laser tracker's points), or camera: a vision log, a ChArUco board "
             "rendered through a pinhole camera with lens distortion, blur and noise at each "
-            "still pose where it is seen (--protocol random-poses), with CameraInfo and the "
-            "joint states; the truth gains the camera's pose, the board's mount and the "
-            "intrinsics.",
+            "still pose where it is seen (random-poses) or every 1/--frame-rate s where it is "
+            "seen (sweeps, coupled; each sweep limited to the part where it is seen), with "
+            "CameraInfo and the joint states; the truth gains the camera's pose, the board's "
+            "mount and the intrinsics.",
         ),
     ] = "tracker",
     camera_setup: Annotated[
@@ -184,6 +185,27 @@ def simulate(
             "/camera/image_raw/compressed, or Image (mono8) on /camera/image_raw.",
         ),
     ] = "jpeg",
+    camera: Annotated[
+        str,
+        typer.Option(
+            metavar="default|full-hd|small",
+            help="--instrument camera: default (1280x800, f 1800 px, a 7x5 ChArUco board of "
+            "40 mm squares, 1.5 m away eye-to-hand), full-hd (1920x1080, f 1600 px, a 10x7 "
+            "board of 30 mm squares, 0.3 m across, 2 m away) or small (640x400, the default's "
+            "view, a board of 60 mm squares).",
+        ),
+    ] = "default",
+    frame_rate: Annotated[
+        float,
+        typer.Option(help="--instrument camera, sweeps and coupled: frames per second."),
+    ] = 10.0,
+    cameras: Annotated[
+        int,
+        typer.Option(
+            help="--instrument camera, eye-to-hand: fixed cameras, each placed differently, on "
+            "/camera_1/..., /camera_2/..., ... (one: /camera/...)."
+        ),
+    ] = 1,
     seed: Annotated[int, typer.Option(help="Random seed.")] = 0,
     force: Annotated[bool, typer.Option("--force", help="Overwrite existing outputs.")] = False,
 ) -> None:
@@ -218,6 +240,9 @@ def simulate(
                 f"error: --{option} must be one of {', '.join(allowed)}, not '{plain(value)}'."
             )
             raise typer.Exit(EXIT_USAGE)
+    if instrument != "camera" and (camera != "default" or frame_rate != 10.0 or cameras != 1):
+        stderr.print("error: --camera, --frame-rate and --cameras are for --instrument camera.")
+        raise typer.Exit(EXIT_USAGE)
     extra_tools = triples(extra_targets, "--extra-targets")
     compliant = [(int(j), c) for j, c in tuples(compliance, "--compliance", 2)]
     harmonics = [(int(j), a, b) for j, a, b in tuples(harmonic, "--harmonic", 3)]
@@ -280,7 +305,7 @@ def simulate(
             if encoding != "ros2":
                 stderr.print("error: a vision log is written in ros2 encoding only, so far.")
                 raise typer.Exit(EXIT_USAGE)
-            _simulate_vision(rob, cfg, output, truth_path)
+            _simulate_vision(rob, cfg, output, truth_path, camera, frame_rate, cameras)
             return
         session = simulate_session(rob, cfg)
         swept = swept_joints(rob, cfg)
@@ -342,12 +367,46 @@ def simulate(
         )
 
 
-def _simulate_vision(robot: Any, cfg: Any, output: Path, truth_path: Path) -> None:
+def _simulate_vision(
+    robot: Any,
+    cfg: Any,
+    output: Path,
+    truth_path: Path,
+    preset: str,
+    frame_rate: float,
+    cameras: int,
+) -> None:
     """``--instrument camera``: the vision log and its truth (see :mod:`dhlog.simulate.camera`)."""
     from dhlog.io.writer import sha256_of, write_truth
-    from dhlog.simulate.camera import simulate_vision, vision_truth, write_vision_log
+    from dhlog.simulate.camera import (
+        simulate_vision,
+        vision_problems,
+        vision_truth,
+        write_vision_log,
+    )
 
-    vision = simulate_vision(robot, cfg, cfg.camera_setup, cfg.image_format)
+    problems = vision_problems(cfg.camera_setup, preset, frame_rate, cameras)
+    if problems:
+        stderr.print(f"error: {plain(problems[0])}.")
+        raise typer.Exit(EXIT_USAGE)
+    vision = simulate_vision(
+        robot,
+        cfg,
+        cfg.camera_setup,
+        cfg.image_format,
+        preset=preset,
+        frame_rate=frame_rate,
+        cameras=cameras,
+    )
+    if not vision.frame_t_ns.size:
+        raise DhlogError(
+            f"{robot.name}: the board is seen in no frame; try another --seed, --camera-setup "
+            "or --protocol"
+        )
+    for note in vision.notes:
+        stdout.print(f"note: {note}.", markup=False)
+    for warning in vision.warnings:
+        stderr.print(f"warning: {plain(warning)}.")
     write_vision_log(vision, output, cfg.seed)
     doc = vision_truth(
         vision,
@@ -358,10 +417,13 @@ def _simulate_vision(robot: Any, cfg: Any, output: Path, truth_path: Path) -> No
     )
     write_truth(doc, truth_path)
     kind = "Image" if cfg.image_format == "raw" else f"CompressedImage ({cfg.image_format})"
+    frames = " + ".join(str(view.frame_t_ns.size) for view in vision.cameras)
+    where = (
+        f"{cfg.camera_setup}, {len(vision.cameras)} cameras" if cameras > 1 else cfg.camera_setup
+    )
     stdout.print(
-        f"wrote {plain(output)} ({vision.frame_t_ns.size} {kind} frames of a ChArUco board, "
-        f"{cfg.camera_setup}, {vision.session.joint_t_ns.size} joint states) and "
-        f"{plain(truth_path)}",
+        f"wrote {plain(output)} ({frames} {kind} frames of a ChArUco board, {where}, "
+        f"{vision.session.joint_t_ns.size} joint states) and {plain(truth_path)}",
         markup=False,
     )
 

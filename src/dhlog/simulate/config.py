@@ -81,7 +81,7 @@ class SimulationConfig:
     #: ``tracker`` noise model of :mod:`dhlog.model.noise`)
     tracker_model: tuple[float, float, float] | None = None
     #: the instrument: a laser ``tracker`` (the default), or a ``camera`` and a ChArUco board
-    #: (a vision log: :mod:`dhlog.simulate.camera`, the ``random-poses`` protocol only)
+    #: (a vision log: :mod:`dhlog.simulate.camera`, every protocol)
     instrument: Literal["tracker", "camera"] = "tracker"
     #: the camera's set-up: fixed in the cell, the board on the flange (``eye-to-hand``), or
     #: on the flange, the board fixed (``eye-in-hand``)
@@ -225,9 +225,12 @@ def _camera_problems(cfg: SimulationConfig) -> list[str]:
         )
     if cfg.image_format not in ("jpeg", "png", "raw"):
         out.append(f"the image format must be jpeg, png or raw, not '{cfg.image_format}'")
-    if cfg.protocol != "random-poses" or cfg.pose_list:
-        out.append("a camera is simulated with --protocol random-poses and --poses N only, so far")
-    elif not 1 <= cfg.poses <= 10_000:
+    if cfg.pose_list:
+        out.append(
+            "a camera's still poses are drawn where the board is seen: give --poses N, "
+            "not a list of poses"
+        )
+    elif cfg.protocol == "random-poses" and not 1 <= cfg.poses <= 10_000:
         out.append(f"a vision log's poses must be in [1, 10 000] (got {cfg.poses})")
     unsupported = [
         (cfg.model_error > 0, "--model-error-mm"),
