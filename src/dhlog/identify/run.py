@@ -229,7 +229,7 @@ def process_log(
     camera = camera_pipeline(path, pipeline)
     if camera is not None:
         from dhlog.identify.vision import process_observations
-        from dhlog.vision.observe import observe
+        from dhlog.io.observe import observe
 
         observations = observe(
             path,

@@ -33,11 +33,13 @@ from scipy.spatial.transform import Rotation
 from dhlog.errors import DhlogError, InputError
 from dhlog.geometry._checks import FloatArray
 from dhlog.geometry.lines import Line
-from dhlog.identify.axismodel import AxisModel
+from dhlog.identify.axismodel import AxisModel, ParameterLayout
 from dhlog.identify.extract import Extraction, extract_dh
 from dhlog.identify.leaveout import fold_of_poses
 from dhlog.identify.measure import place
 from dhlog.identify.pixels import Corners, PixelFit, PixelModel, fit_pixels
+from dhlog.identify.prediction import predict as predict_points
+from dhlog.identify.prediction import predict_orientation
 from dhlog.identify.select import ModelRequest
 from dhlog.identify.uncertainty import whole_uncertainty
 from dhlog.io.dhfile import DHModel
@@ -68,8 +70,12 @@ class PixelHoldout:
     calibrated_mm: float
     fit_px: float
     #: the RMS the held-out frames' own PnP poses are expected to miss the corners by (their
-    #: noise at the corners' σ, mm): the floor of the mm figures
+    #: noise at the corners' σ, independent corners; mm): the floor of the mm figures
     pnp_noise_mm: float = math.nan
+    #: the same mm figure in sample: the model fitted to every frame against the frames' PnP
+    #: poses (what the PnP poses' own errors give when the model is not held out, correlated
+    #: corner errors included)
+    fit_mm: float = math.nan
     notes: list[str] = field(default_factory=list)
 
     @property
@@ -86,6 +92,7 @@ class PixelHoldout:
                 "nominal": self.nominal_mm,
                 "calibrated": self.calibrated_mm,
                 "pnp_noise": self.pnp_noise_mm,
+                "in_sample": self.fit_mm,
                 "calibrated_beyond_noise": self.model_mm,
             },
             "in_sample_rms_px": self.fit_px,
@@ -511,6 +518,52 @@ def hand_eye(
     return T_fixed, T_mounted, std[:6], std[6:]
 
 
+def _refined_poses(
+    obs: Observations, fit: PixelFit, data: Corners, use: NDArray[np.bool_]
+) -> FloatArray:
+    """Each frame's board pose in the camera (f, 4, 4) by PnP refined (OpenCV's
+    Levenberg–Marquardt) from where the fitted model puts the board: the frame's own pose in
+    the result's basin (a planar board's pose has a mirror solution of nearly the same
+    reprojection error at oblique views, which a PnP from scratch may take), from the corners
+    ``use`` (N,) only (the fit's inliers)."""
+    model = fit.whole.model
+    layout = ParameterLayout.of(model.types, rotation=True)
+    p, _ = predict_points(model, data.Q)
+    R, _ = predict_orientation(model, data.Q, layout, model.bases())
+    o = _centre(obs)
+    c = fit.measurement.intrinsics
+    points = obs.board.object_points()
+    T = np.tile(np.eye(4), (data.frames, 1, 1))
+    for f in range(data.frames):
+        carried = _transform(R[:, :, f], p[f])
+        if fit.measurement.setup == "eye-to-hand":
+            T0 = carried @ _shift(-o)
+        else:
+            T0 = np.linalg.inv(carried) @ _shift(-o)
+        mine = use[data.frame == f]
+        if np.count_nonzero(mine) < 4:
+            T[f] = T0
+            continue
+        obj = points[obs.ids[f]][mine]
+        uv = obs.uv[f][mine].reshape(-1, 1, 2).astype(np.float64)
+        if c.model == "equidistant":
+            img, K, D = cv2.fisheye.undistortPoints(uv, c.K, c.coefficients), np.eye(3), np.zeros(5)
+        else:
+            img, K, D = uv, c.K, c.coefficients
+        rvec0 = np.asarray(cv2.Rodrigues(T0[:3, :3])[0], dtype=np.float64).reshape(3, 1)
+        tvec0 = np.ascontiguousarray(T0[:3, 3], dtype=np.float64).reshape(3, 1)
+        try:  # (OpenCV takes a (3,) tvec without complaint and returns garbage rotations)
+            rvec, tvec = cv2.solvePnPRefineLM(obj, img, K, D, rvec0.copy(), tvec0.copy())
+        except cv2.error:
+            T[f] = T0
+            continue
+        T[f] = _transform(
+            np.asarray(cv2.Rodrigues(rvec)[0], dtype=np.float64),
+            np.asarray(tvec, dtype=np.float64).ravel(),
+        )
+    return T
+
+
 def _pnp_points(
     obs: Observations, T_cb: FloatArray, data: Corners, sigma_px: float
 ) -> tuple[FloatArray, FloatArray]:
@@ -583,7 +636,15 @@ def cross_validate_pixels(
     nominal_start = None
     if nominal is not None:
         nominal_start = _nominal_start(fit, nominal, ref)
-    X_pnp, var_pnp = _pnp_points(obs, T_cb, data, fit.sigma)
+    # the corners the fit held out as false detections, and every corner of a frame most of
+    # whose corners it held out (its ids mis-assigned: a pose the board never had), are not
+    # scored (decided on every frame, as the tracker's gross outliers are)
+    false = np.bincount(data.frame, weights=~fit.inliers, minlength=data.frames)
+    counted = np.bincount(data.frame, minlength=data.frames)
+    bad_frame = false > 0.5 * np.maximum(counted, 1)
+    scored = fit.inliers & ~bad_frame[data.frame]
+    X_pnp, var_pnp = _pnp_points(obs, _refined_poses(obs, fit, data, scored), data, fit.sigma)
+    var_pnp = np.where(scored, var_pnp, np.nan)
     err_px: dict[str, list[FloatArray]] = {"calibrated": [], "nominal": []}
     err_mm: dict[str, list[FloatArray]] = {"calibrated": [], "nominal": []}
     for k in range(folds):
@@ -598,11 +659,12 @@ def cross_validate_pixels(
         if nominal_start is not None:
             placed = place(*nominal_start, fit.measurement, train_c)
             models["nominal"] = (placed, fit.measurement)
+        keep = scored[at]
         for name, (m, meas) in models.items():
             uv, _ = meas.predict(m, None, None, test_c, slice(None))
-            err_px[name].append(np.sum((uv - test_c.uv) ** 2, axis=1))
+            err_px[name].append(np.sum((uv - test_c.uv) ** 2, axis=1)[keep])
             X, _ = meas.in_camera(m, None, None, test_c, slice(None))
-            err_mm[name].append(np.sum((X - X_pnp[at]) ** 2, axis=1))
+            err_mm[name].append(np.sum((X - X_pnp[at]) ** 2, axis=1)[keep])
 
     def rms(parts: list[FloatArray]) -> float | None:
         if not parts:
@@ -611,6 +673,8 @@ def cross_validate_pixels(
         v = v[np.isfinite(v)]
         return float(np.sqrt(np.mean(v))) if v.size else None
 
+    X_fit, _ = fit.measurement.in_camera(fit.whole.model, None, None, data, slice(None))
+    in_mm = rms([np.sum((X_fit - X_pnp) ** 2, axis=1)[scored]])
     cal_px, cal_mm = rms(err_px["calibrated"]), rms(err_mm["calibrated"])
     assert cal_px is not None and cal_mm is not None
     finite = var_pnp[np.isfinite(var_pnp)]
@@ -625,12 +689,29 @@ def cross_validate_pixels(
         calibrated_mm=cal_mm * 1e3,
         fit_px=fit.rms,
         pnp_noise_mm=floor * 1e3,
+        fit_mm=math.nan if in_mm is None else in_mm * 1e3,
     )
+    if np.any(~scored):
+        frames = ", ".join(str(int(obs.frame[f])) for f in np.flatnonzero(bad_frame)[:5])
+        check.notes.append(
+            f"{int(np.count_nonzero(~scored))} corner(s) not scored: false detections the fit "
+            "held out"
+            + (
+                f", with every corner of {int(np.count_nonzero(bad_frame))} frame(s) most of "
+                f"whose corners it held out (frames {frames})"
+                if bad_frame.any()
+                else ""
+            )
+            + "."
+        )
     check.notes.append(
         "each fold refits the whole model in pixels on the other folds' frames; the nominal is "
         "placed on the same frames (the camera's pose and the board's mount fitted, its "
         "geometry held). Pixels: the corners' reprojection (2-D norm); mm: the board's corners "
-        "in the camera against each held-out frame's own PnP pose, whose depth noise is in it."
+        "in the camera against each held-out frame's own PnP pose (from the fit's inlier "
+        "corners), whose depth noise is in it: the PnP noise is that of independent corner "
+        "errors, the in-sample figure what the frames' PnP poses give against the model "
+        "fitted to them."
     )
     return check
 
@@ -671,8 +752,6 @@ def camera_view(
     frames: list[FrameView] = []
     centre = _centre(obs)
     # the carried frame in M at each frame, then in the base
-    from dhlog.identify.axismodel import ParameterLayout
-
     layout = ParameterLayout.of(model.types, rotation=True)
     p, _ = predict_points(model, data.Q)
     R, _ = predict_orientation(model, data.Q, layout, model.bases())

@@ -45,7 +45,7 @@ from dhlog.io.decode.messages import (
 )
 from dhlog.io.mcapscan import ZSTD_MAGIC, McapScan, scan_mcap
 from dhlog.io.mcapwalk import ChannelInfo, RawMessages
-from dhlog.io.pipeline import Pipeline, shipped_pipelines
+from dhlog.io.pipeline import Pipeline, pipeline_by_name, shipped_pipelines
 
 #: What the rest of dhlog reads from here (the columns of the point table among them).
 __all__ = [
@@ -108,7 +108,7 @@ def camera_pipeline(path: str | Path, pipeline: Pipeline | None) -> Pipeline | N
         return None
     for p in shipped_pipelines():
         if p.image is not None and {p.image.topic, *p.image.alternatives} & topics:
-            return p
+            return pipeline_by_name(p.name)  # read whole: its [target] and [camera]
     raise PipelineError(
         str(path),
         f"a vision log (camera images on {', '.join(sorted(topics))}) that no shipped camera "

@@ -210,18 +210,23 @@ def _print_camera(console: Console, result: ProcessResult, units: str) -> None:
         box=box.SIMPLE_HEAD,
         pad_edge=False,
     )
-    for head in ("frame", "x", "y", "z", "rx", "ry", "rz"):
-        t.add_column(head, justify="left" if head == "frame" else "right")
+    from scipy.spatial.transform import Rotation
+
+    t.add_column("")
+    cols = []
     for name, T, std in (
         (cam.fixed_name, cam.T_base_fixed, cam.fixed_std),
         (cam.mounted_name, cam.T_flange_mounted, cam.mounted_std),
     ):
-        from scipy.spatial.transform import Rotation
-
+        t.add_column(name, justify="right", no_wrap=True)
         rot = Rotation.from_matrix(T[:3, :3]).as_euler("xyz", degrees=True)
-        cells = [f"{T[k, 3] * length:.4f}\n±{std[3 + k] * length:.4f}" for k in range(3)]
-        cells += [f"{rot[k]:.4f}\n±{math.degrees(std[k]):.4f}" for k in range(3)]
-        t.add_row(name, *cells)
+        cells = [f"{T[k, 3] * length:.4f} ± {std[3 + k] * length:.4f}" for k in range(3)]
+        cells += [f"{rot[k]:.4f} ± {math.degrees(std[k]):.4f}" for k in range(3)]
+        cols.append(cells)
+    for k, label in enumerate(
+        (f"x [{lu}]", f"y [{lu}]", f"z [{lu}]", "roll [°]", "pitch [°]", "yaw [°]")
+    ):
+        t.add_row(escape(label), *(c[k] for c in cols))
     console.print(t)
     console.print(
         f"corners: σ {cam.sigma_px:.3f} px per coordinate, reprojection RMS {cam.rms_px:.3f} px "
@@ -244,6 +249,7 @@ def _print_camera(console: Console, result: ProcessResult, units: str) -> None:
     if h.nominal_px is not None and h.nominal_mm is not None:
         t.add_row("nominal", f"{h.nominal_px:.4f}", f"{h.nominal_mm * 1e-3 * length:.4f}")
     t.add_row("calibrated", f"{h.calibrated_px:.4f}", f"{h.calibrated_mm * 1e-3 * length:.4f}")
+    t.add_row("(in sample)", f"{h.fit_px:.4f}", f"{h.fit_mm * 1e-3 * length:.4f}")
     t.add_row("(PnP noise)", "", f"{h.pnp_noise_mm * 1e-3 * length:.4f}")
     console.print(t)
 
