@@ -27,6 +27,7 @@ from dhlog.present.recording.blueprint import process_blueprint
 from dhlog.present.recording.camera import (
     FITTED_COLOR,
     HELD_OUT_COLOR,
+    REPROJECTED_COLOR,
     camera_paths,
     camera_tabs,
     log_cameras,
@@ -34,6 +35,7 @@ from dhlog.present.recording.camera import (
 )
 from dhlog.present.recording.scene import Shown
 from dhlog.present.recording.stream import recording_file
+from dhlog.present.render import missing, screenshot
 from dhlog.simulate import camera as sim
 from dhlog.vision.detect import Detection, detect
 from dhlog.vision.view import CameraView, FrameView
@@ -312,3 +314,38 @@ def _layout(path: Path) -> dict[str, list[object]]:
             if ":" in name:  # components, not the row ids and blueprint times
                 out.setdefault(name, []).extend(batch.column(name).to_pylist())
     return out
+
+
+@pytest.mark.skipif(missing() is not None, reason=f"cannot render here: {missing()}")
+def test_the_viewer_draws_the_image_and_its_corners(
+    views: list[CameraView], tmp_path: Path
+) -> None:
+    """The Rerun viewer itself (``present.render.screenshot``, under Xvfb) draws the camera's
+    tab: in the 2D view (the picture's upper half) the decoded JPEG's white board paper, the
+    detected corners in their blue (amber: held out) and the reprojected ones in magenta. A
+    recording whose image the viewer cannot decode shows no white there; one without corners
+    no blue, amber or magenta."""
+    from PIL import Image
+
+    path = tmp_path / "camera.rrd"
+    bp = rrb.Blueprint(
+        rrb.Tabs(*camera_tabs(views[:1])),
+        rrb.BlueprintPanel(state="collapsed"),
+        rrb.SelectionPanel(state="collapsed"),
+        rrb.TimePanel(state="collapsed", timeline="sensor_time"),
+    )
+    with recording_file(path, "dhlog process", bp) as rec:
+        log_cameras(rec, views[:1])
+    png = tmp_path / "camera.png"
+    screenshot(path, png)
+    image = np.asarray(Image.open(png).convert("RGB"), dtype=np.int64)
+    h = image.shape[0]
+    top = image[int(0.06 * h) : int(0.5 * h)].reshape(-1, 3)
+
+    def near(color: list[int]) -> int:
+        return int(np.count_nonzero(np.all(np.abs(top - color) <= 40, axis=1)))
+
+    assert np.count_nonzero(np.all(top > 215, axis=1)) > 0.002 * len(top)
+    # the frame at the viewer's first time: fitted (blue) or held out (amber)
+    assert near(FITTED_COLOR) + near(HELD_OUT_COLOR) > 100, near(HELD_OUT_COLOR)
+    assert near(REPROJECTED_COLOR) > 50, near(REPROJECTED_COLOR)
