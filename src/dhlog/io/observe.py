@@ -20,8 +20,9 @@ from __future__ import annotations
 
 import contextlib
 import multiprocessing
+import signal
 from collections import deque
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Generator, Iterator
 from concurrent.futures import Future, ProcessPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
@@ -112,9 +113,13 @@ _DECODERS: dict[ChannelInfo, Decoder | None] = {}
 
 
 def _worker_start(setup: _Setup) -> None:
+    """A worker's set-up: what it looks with; one OpenCV thread (``jobs`` workers use ``jobs``
+    cores); SIGINT ignored (Ctrl-C stops the parent, which stops the workers: no traceback
+    from each)."""
     global _WORKER_SETUP
     _WORKER_SETUP = setup
-    cv2.setNumThreads(1)  # one core a worker: `jobs` workers use `jobs` cores
+    cv2.setNumThreads(1)
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
 def _look_in_worker(frames: list[tuple[ImagePayload, bool]]) -> list[_Seen]:
@@ -341,7 +346,7 @@ def _tasks(
 
 def _looked(
     stream: ImageStream, setup: _Setup, jobs: int, decimation: Decimation
-) -> Iterator[list[_Seen]]:
+) -> Generator[list[_Seen], None, None]:
     """Each task's frames looked at, in the frames' order: in ``jobs`` worker processes, or
     here when ``jobs`` is 1."""
     if jobs <= 1:
@@ -437,30 +442,25 @@ def observe(
     tally, faults = Tally(), Faults()
     found: list[tuple[int, int, NDArray[np.int64], NDArray[np.float64]]] = []
     first_detail: dict[str, str] = {}
-    for seen in _looked(stream, setup, jobs, decimation):
-        wrong = [s for s in seen if s.size is not None]
-        if wrong:
-            w, h = wrong[0].size or (0, 0)
-            raise VisionLogError(
-                f"{name}: {_frames([s.index for s in wrong])} on {topic} "
-                f"{'are' if len(wrong) > 1 else 'is'} {w}×{h} px, but the intrinsics "
-                f"({source}) are for {camera.width}×{camera.height} px; give the calibration "
-                "of the camera at the images' resolution ([camera] calibration in the pipeline) "
-                "or the camera-info topic recorded with these images ([camera] info_topic)."
-            )
-        for s in seen:
-            if s.fault is not None:
-                faults.add(s.fault, s.index)
-                continue
-            assert s.outcome is not None
-            tally.add(s.index, s.outcome)
-            if isinstance(s.outcome, Detection):
-                found.append((s.index, s.stamp_ns, s.outcome.ids, s.outcome.corners_px))
-            else:
-                first_detail.setdefault(s.outcome.reason, s.outcome.detail)
-            if s.kept is not None:
-                decimation.add(s.index, *s.kept)
-        report(FIRST_WALK + (1.0 - FIRST_WALK) * stream.fraction)
+    with contextlib.closing(_looked(stream, setup, jobs, decimation)) as looked:
+        for seen in looked:
+            wrong = [s for s in seen if s.size is not None]
+            if wrong:
+                where = f"{name}: {_frames([s.index for s in wrong])} on {topic}"
+                raise _size_error(where, len(wrong), wrong[0].size or (0, 0), camera, source)
+            for s in seen:
+                if s.fault is not None:
+                    faults.add(s.fault, s.index)
+                    continue
+                assert s.outcome is not None
+                tally.add(s.index, s.outcome)
+                if isinstance(s.outcome, Detection):
+                    found.append((s.index, s.stamp_ns, s.outcome.ids, s.outcome.corners_px))
+                else:
+                    first_detail.setdefault(s.outcome.reason, s.outcome.detail)
+                if s.kept is not None:
+                    decimation.add(s.index, *s.kept)
+            report(FIRST_WALK + (1.0 - FIRST_WALK) * stream.fraction)
     warnings.extend(stream.warnings)
     stream.faults = faults
     fault_line = stream.warning()
@@ -502,6 +502,8 @@ def observe(
             "still poses."
         )
     keep = np.flatnonzero(at.ok)
+    # in time order: the headers' stamps need not be in the file's order
+    keep = keep[np.argsort(t[keep], kind="stable")]
     report(1.0)
     return [
         Observations(
@@ -520,6 +522,18 @@ def observe(
             warnings=warnings,
         )
     ]
+
+
+def _size_error(
+    frames: str, count: int, size: tuple[int, int], camera: Intrinsics, source: str
+) -> VisionLogError:
+    w, h = size
+    return VisionLogError(
+        f"{frames} {'are' if count > 1 else 'is'} {w}×{h} px, but the intrinsics "
+        f"({source}) are for {camera.width}×{camera.height} px; give the calibration of the "
+        "camera at the images' resolution ([camera] calibration in the pipeline) or the "
+        "camera-info topic recorded with these images ([camera] info_topic)."
+    )
 
 
 def _speed_unit(pipeline: Pipeline, names: list[str]) -> str:
