@@ -8,8 +8,10 @@ on the 3D view and the DH table, the per-joint residual plots below the table, s
 closed; ``dhlog.present.render`` draws it headless to check it.
 
 By concern: ``scene`` (colours, time lines, sizes, :class:`Shown`, magnifications), ``spatial``
-(the ``log_*`` of the 3D view), ``residuals`` (the residual plots), ``blueprint`` (the layout),
-``stream`` (a recording written atomically), ``writers`` (the two recordings).
+(the ``log_*`` of the 3D view), ``residuals`` (the residual plots), ``camera`` (a camera
+calibration's frames, corners, pinhole and board: ``log_cameras``, ``camera_tabs``; imported
+only when a result has cameras), ``blueprint`` (the layout), ``stream`` (a recording written
+atomically), ``writers`` (the two recordings).
 
 Entities (``world`` is the robot's base frame, DH frame 1, z up; ``world/m`` carries the
 measurement frame M into it, so everything below is logged in M):
@@ -26,7 +28,12 @@ measurement frame M into it, so everything below is logged in M):
   errors; ``world/m/deflection`` the target's displacement by the terms beyond the geometry;
 * ``sweeps`` one text line per sweep on the sensor time line;
 * ``residuals/{fk,fit}/j<k>/{radial,axial,tangential}`` signed residual components (mm);
-* ``report/dh_table`` the DH tables, fits, set-aside counts and nominal as Markdown.
+* ``report/dh_table`` the DH tables, fits, set-aside counts and nominal as Markdown;
+* a camera calibration's (``result.cameras``): ``world/base`` the robot's base frame,
+  ``world/base/cameras/<cam>`` each camera (``.../image`` its pinhole and frames, compressed, on
+  ``sensor_time``; ``.../image/{detected,reprojected,errors}`` in pixels),
+  ``world/base/boards/<cam>`` the board's corners, ``report/cameras/<cam>`` its summary (see
+  :mod:`~dhlog.present.recording.camera`).
 """
 
 from dhlog.present.recording.residuals import Residuals, residual_parts
