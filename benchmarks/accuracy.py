@@ -289,7 +289,23 @@ def main() -> None:
     parser.add_argument("--parallel-sigma", type=float, default=None)
     parser.add_argument("--compare-sigma", type=float, nargs="?", const=AIC_SIGMA_2D, default=None)
     parser.add_argument("--beyond", action="store_true")
+    parser.add_argument(
+        "--vision",
+        action="store_true",
+        help="the camera calibration's cases (benchmarks/vision_accuracy.py; --cases there are "
+        "robot:set-up:protocol)",
+    )
+    parser.add_argument("--poses", type=int, default=40)
     args = parser.parse_args()
+    if args.vision:
+        import sys
+        from pathlib import Path
+
+        sys.path.insert(0, str(Path(__file__).parent))
+        import vision_accuracy
+
+        vision_accuracy.main(args)
+        return
     if args.beyond:
         main_beyond(args)
         return
