@@ -349,3 +349,25 @@ def test_the_viewer_draws_the_image_and_its_corners(
     # the frame at the viewer's first time: fitted (blue) or held out (amber)
     assert near(FITTED_COLOR) + near(HELD_OUT_COLOR) > 100, near(HELD_OUT_COLOR)
     assert near(REPROJECTED_COLOR) > 50, near(REPROJECTED_COLOR)
+
+
+def test_images_sent_in_batches_arrive_whole_and_in_order(
+    views: list[CameraView], tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Images handed to the SDK a batch at a time (here one frame a batch: the bound set to a
+    byte) arrive as they do in one: every blob at its stamp, in order."""
+    from dhlog.present.recording import camera
+
+    monkeypatch.setattr(camera, "IMAGE_BATCH_BYTES", 1)
+    rows = _rows(_written(tmp_path, views))
+    chunks = [
+        c
+        for c in RrdReader(tmp_path / "cameras.rrd").stream()
+        if "EncodedImage:blob" in c.to_record_batch().schema.names
+    ]
+    assert len(chunks) >= sum(1 for v in views for f in v.frames if f.image)
+    for view, path in zip(views, camera_paths(views), strict=True):
+        kept = sorted((f for f in view.frames if f.image), key=lambda f: f.t_ns)
+        image = f"/{path}/image"
+        assert rows[(image, "EncodedImage:sensor_time")] == [f.t_ns for f in kept]
+        assert [bytes(b) for (b,) in rows[(image, "EncodedImage:blob")]] == [f.image for f in kept]

@@ -56,6 +56,8 @@ SAME_POSE = 1e-9
 #: FK-residual tab's 2 % of the robot's extent, in pixels).
 ERROR_SHARE = 0.02
 
+#: The images are handed to the SDK in batches of about this many bytes.
+IMAGE_BATCH_BYTES = 16 << 20
 #: The media types by the images' first bytes.
 _MAGIC = ((b"\xff\xd8\xff", "image/jpeg"), (b"\x89PNG\r\n\x1a\n", "image/png"))
 
@@ -221,21 +223,7 @@ def _log_camera(rec: rr.RecordingStream, view: CameraView, path: str) -> None:
                 image_plane_distance=np.full(F, plane if plane is not None else 1.0),
             ),
         )
-    blobs: list[bytes] = []
-    kinds: list[str] = []
-    rows: list[int] = []
-    for i, f in enumerate(frames):
-        kind = media_type(f)
-        if f.image and kind is not None:
-            blobs.append(f.image)
-            kinds.append(kind)
-            rows.append(i)
-    if rows:
-        rec.send_columns(
-            f"{path}/image",
-            indexes=[time_column(drawn.t_ns[rows])],
-            columns=rr.EncodedImage.columns(blob=blobs, media_type=kinds),
-        )
+    _send_images(rec, f"{path}/image", frames, drawn.t_ns)
     k = pixel_magnification(view)
     if frames:
         colors = np.where(drawn.held_out[:, None], HELD_OUT_COLOR, FITTED_COLOR).astype(np.uint8)
@@ -291,6 +279,39 @@ def _log_camera(rec: rr.RecordingStream, view: CameraView, path: str) -> None:
         rr.TextDocument(_summary(view, drawn, k), media_type=rr.MediaType.MARKDOWN),
         static=True,
     )
+
+
+def _send_images(
+    rec: rr.RecordingStream, entity: str, frames: list[FrameView], t_ns: np.ndarray
+) -> None:
+    """The frames' images (JPEG or PNG by their bytes; others left out) as columns, sent
+    :data:`IMAGE_BATCH_BYTES` at a time: the copy the SDK makes of a batch stays bounded however
+    many frames were kept."""
+    blobs: list[bytes] = []
+    kinds: list[str] = []
+    rows: list[int] = []
+    size = 0
+
+    def send() -> None:
+        rec.send_columns(
+            entity,
+            indexes=[time_column(t_ns[rows])],
+            columns=rr.EncodedImage.columns(blob=blobs, media_type=kinds),
+        )
+
+    for i, f in enumerate(frames):
+        kind = media_type(f)
+        if not f.image or kind is None:
+            continue
+        blobs.append(f.image)
+        kinds.append(kind)
+        rows.append(i)
+        size += len(f.image)
+        if size >= IMAGE_BATCH_BYTES:
+            send()
+            blobs, kinds, rows, size = [], [], [], 0
+    if rows:
+        send()
 
 
 def _summary(view: CameraView, drawn: _Drawn, k: float) -> str:
