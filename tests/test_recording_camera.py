@@ -185,6 +185,8 @@ def test_the_camera_and_board_logged_reproject_onto_the_detected_corners(
         assert len(boards) == (1 if moving_camera else len(kept))
         assert ((f"/{path}", "Transform3D:sensor_time") in rows) == moving_camera
         assert ((f"/{path}/image", "Pinhole:sensor_time") in rows) == moving_camera
+        axes = rows[(f"/{path}", "TransformAxes3D:axis_length")]
+        assert len(axes) == (len(kept) if moving_camera else 1)  # with the camera, never alone
         distances = []
         for k, f in enumerate(kept):
             R = _matrix(turns[k if moving_camera else 0][0])
@@ -239,7 +241,7 @@ def test_a_view_without_images_draws_every_frame_and_no_image(
 ) -> None:
     """Frames whose images were not kept: every frame's corners are drawn (nothing to be out
     of step with), no image; bytes that are neither JPEG nor PNG are not drawn and the
-    camera's text says how many."""
+    camera's text says how many; a camera without frames is not placed anywhere."""
     bare = dataclasses.replace(
         views[0],
         name="bare",
@@ -250,7 +252,11 @@ def test_a_view_without_images_draws_every_frame_and_no_image(
         name="odd",
         frames=[dataclasses.replace(f, image=b"GIF89a...") for f in views[0].frames],
     )
-    rows = _rows(_written(tmp_path, [bare, odd]))
+    empty = dataclasses.replace(views[0], name="empty", frames=[])
+    rows = _rows(_written(tmp_path, [bare, odd, empty]))
+    # a camera without frames: its text only, nothing placed at the base's origin
+    assert not any(e.startswith("/world/base/cameras/empty") for e, _ in rows)
+    assert ("/report/cameras/empty", "TextDocument:text") in rows
     for name in ("bare", "odd"):
         image = f"/world/base/cameras/{name}/image"
         assert (image, "EncodedImage:blob") not in rows

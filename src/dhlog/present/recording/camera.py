@@ -185,11 +185,17 @@ def _log_camera(rec: rr.RecordingStream, view: CameraView, path: str) -> None:
     T_cam = _poses(frames, "T_base_camera")
     T_board = _poses(frames, "T_base_board")
     board = np.asarray(view.board_points, dtype=np.float64).reshape(-1, 3)
+    k = pixel_magnification(view)
+    summary = rr.TextDocument(_summary(view, drawn, k), media_type=rr.MediaType.MARKDOWN)
+    rec.log(f"report/cameras/{part}", summary, static=True)
+    if not frames:  # nothing places the camera or the board
+        return
     # the image plane at the board's median distance along the optical axis
+    centre = board.mean(axis=0) if len(board) else np.zeros(3)
     depth = np.einsum(
         "fi,fi->f",
         T_cam[:, :3, 2],
-        T_board[:, :3, 3] + (T_board[:, :3, :3] @ board.mean(axis=0)) - T_cam[:, :3, 3],
+        T_board[:, :3, 3] + T_board[:, :3, :3] @ centre - T_cam[:, :3, 3],
     )
     depth = depth[np.isfinite(depth) & (depth > 0)]
     plane = float(np.median(depth)) if depth.size else None
@@ -200,19 +206,22 @@ def _log_camera(rec: rr.RecordingStream, view: CameraView, path: str) -> None:
         image_plane_distance=plane,
     )
     # the camera's axes (x red right, y green down, z blue along the optical axis), short
-    rec.log(path, rr.TransformAxes3D(0.15 * (plane or 1.0)), static=True)
-    if not frames or _fixed(T_cam):
-        if frames:
-            Tc = T_cam[0]
-            rec.log(path, rr.Transform3D(translation=Tc[:3, 3], mat3x3=Tc[:3, :3]), static=True)
+    axes = 0.15 * (plane or 1.0)
+    F = len(frames)
+    if _fixed(T_cam):
+        Tc = T_cam[0]
+        rec.log(path, rr.Transform3D(translation=Tc[:3, 3], mat3x3=Tc[:3, :3]), static=True)
+        rec.log(path, rr.TransformAxes3D(axes), static=True)
         rec.log(f"{path}/image", pinhole, static=True)
-    else:  # on the flange: the camera and its pinhole only where a frame places them
+    else:  # on the flange: the camera, its axes and pinhole only where a frame places them
         rec.send_columns(
             path,
             indexes=index,
-            columns=rr.Transform3D.columns(translation=T_cam[:, :3, 3], mat3x3=T_cam[:, :3, :3]),
+            columns=[
+                *rr.Transform3D.columns(translation=T_cam[:, :3, 3], mat3x3=T_cam[:, :3, :3]),
+                *rr.TransformAxes3D.columns(axis_length=np.full(F, axes)),
+            ],
         )
-        F = len(frames)
         rec.send_columns(
             f"{path}/image",
             indexes=index,
@@ -224,39 +233,37 @@ def _log_camera(rec: rr.RecordingStream, view: CameraView, path: str) -> None:
             ),
         )
     _send_images(rec, f"{path}/image", frames, drawn.t_ns)
-    k = pixel_magnification(view)
-    if frames:
-        colors = np.where(drawn.held_out[:, None], HELD_OUT_COLOR, FITTED_COLOR).astype(np.uint8)
-        rec.log(f"{path}/image/detected", rr.Points2D.from_fields(radii=-2.5), static=True)
-        rec.send_columns(
-            f"{path}/image/detected",
-            indexes=index,
-            columns=rr.Points2D.columns(positions=drawn.detected, colors=colors).partition(
-                drawn.counts
-            ),
-        )
-        rec.log(
-            f"{path}/image/reprojected",
-            rr.Points2D.from_fields(radii=-1.5, colors=[REPROJECTED_COLOR]),
-            static=True,
-        )
-        rec.send_columns(
-            f"{path}/image/reprojected",
-            indexes=index,
-            columns=rr.Points2D.columns(positions=drawn.reprojected).partition(drawn.counts),
-        )
-        rec.log(f"{path}/image/errors", rr.Arrows2D.from_fields(radii=-1.0), static=True)
-        rec.send_columns(
-            f"{path}/image/errors",
-            indexes=index,
-            columns=rr.Arrows2D.columns(
-                origins=drawn.detected,
-                vectors=k * (drawn.reprojected - drawn.detected),
-                colors=colors,
-            ).partition(drawn.counts),
-        )
+    colors = np.where(drawn.held_out[:, None], HELD_OUT_COLOR, FITTED_COLOR).astype(np.uint8)
+    rec.log(f"{path}/image/detected", rr.Points2D.from_fields(radii=-2.5), static=True)
+    rec.send_columns(
+        f"{path}/image/detected",
+        indexes=index,
+        columns=rr.Points2D.columns(positions=drawn.detected, colors=colors).partition(
+            drawn.counts
+        ),
+    )
+    rec.log(
+        f"{path}/image/reprojected",
+        rr.Points2D.from_fields(radii=-1.5, colors=[REPROJECTED_COLOR]),
+        static=True,
+    )
+    rec.send_columns(
+        f"{path}/image/reprojected",
+        indexes=index,
+        columns=rr.Points2D.columns(positions=drawn.reprojected).partition(drawn.counts),
+    )
+    rec.log(f"{path}/image/errors", rr.Arrows2D.from_fields(radii=-1.0), static=True)
+    rec.send_columns(
+        f"{path}/image/errors",
+        indexes=index,
+        columns=rr.Arrows2D.columns(
+            origins=drawn.detected,
+            vectors=k * (drawn.reprojected - drawn.detected),
+            colors=colors,
+        ).partition(drawn.counts),
+    )
     boards = f"world/base/boards/{part}"
-    if board.size and frames:
+    if board.size:
         if _fixed(T_board):
             Tb = T_board[0]
             rec.log(
@@ -274,11 +281,6 @@ def _log_camera(rec: rr.RecordingStream, view: CameraView, path: str) -> None:
                     [len(board)] * len(frames)
                 ),
             )
-    rec.log(
-        f"report/cameras/{part}",
-        rr.TextDocument(_summary(view, drawn, k), media_type=rr.MediaType.MARKDOWN),
-        static=True,
-    )
 
 
 def _send_images(
