@@ -34,9 +34,11 @@ What each protocol gives a camera:
   Each frame is labelled with the move it was taken in (``joint k``, ``joints a+b`` for the
   coupled move, ``transition``, ``still``).
 
-Still poses are kept only when the board is seen: at least :data:`MIN_IN_VIEW` of its corners
-inside the image and its face tilted less than :data:`MAX_TILT` from the line of sight
-(:func:`seen`).
+Still poses and frames are kept only when the board is seen: at least :data:`MIN_IN_VIEW` of
+its corners inside the image and its face tilted less than :data:`MAX_TILT` from the line of
+sight (:func:`seen`); with the ``full-hd`` and ``small`` presets also every square imaged at
+least 20 px a side (markers of 14.7 px and more, which OpenCV decodes: the 0.3 m board 2.8 m
+away at 60° has squares of 8 px, and half of such frames were lost).
 
 Each image is rendered by :func:`render`: every camera pixel's ray (undistorted by OpenCV once
 per camera) cut with the board's plane, the board's flat drawing (``BoardSpec.image``) looked up
@@ -119,6 +121,9 @@ class CameraPreset:
     board: BoardSpec
     camera_distance: float
     board_distance: float
+    #: the smallest side (px) of a square as imaged for a pose to be kept: markers OpenCV can
+    #: decode (0: the default's test alone)
+    min_square_px: float = 0.0
 
 
 def board_on_flange(board: BoardSpec) -> FloatArray:
@@ -156,6 +161,7 @@ PRESETS = {
         ),
         2.0,
         2.0,
+        20.0,
     ),
     "small": CameraPreset(
         "small",
@@ -175,6 +181,7 @@ PRESETS = {
         ),
         CAMERA_DISTANCE,
         1.5 * BOARD_DISTANCE,
+        20.0,
     ),
 }
 CAMERA_PRESETS = tuple(PRESETS)
@@ -226,6 +233,8 @@ class Rig:
     T_mounted: FloatArray
     board: BoardSpec = BOARD
     camera: Intrinsics = CAMERA
+    #: the smallest side (px) of the board's squares as imaged for a pose to be kept (0: any)
+    min_square_px: float = 0.0
 
     def board_in_camera(self, T_base_flange: FloatArray) -> FloatArray:
         """The board's frame in the camera's (…, 4, 4) at flange poses (…, 4, 4) in the base."""
@@ -271,7 +280,8 @@ def flange_poses(robot: Robot, session_table: object, q: FloatArray) -> FloatArr
 def seen(rig: Rig, T_cam_board: FloatArray) -> NDArray[np.bool_]:
     """Which board poses (m, 4, 4) in the camera the pose test keeps: at least
     ``MIN_IN_VIEW`` of the corners inside the image (a pixel's margin) and the face tilted
-    less than ``MAX_TILT`` from the line of sight to its centre."""
+    less than ``MAX_TILT`` from the line of sight to its centre; for a ChArUco board, every
+    square imaged at least ``rig.min_square_px`` a side (where that is set)."""
     P = rig.board.object_points()
     pts = np.einsum("mij,kj->mki", T_cam_board[:, :3, :3], P) + T_cam_board[:, None, :3, 3]
     uv = rig.camera.project(pts.reshape(-1, 3)).reshape(len(pts), -1, 2)
@@ -281,7 +291,16 @@ def seen(rig: Rig, T_cam_board: FloatArray) -> NDArray[np.bool_]:
     sight = centre / np.linalg.norm(centre, axis=1, keepdims=True)
     # the printed face looks along the board's −z: towards the camera when z is along the sight
     facing = np.einsum("mi,mi->m", T_cam_board[:, :3, 2], sight)
-    return np.asarray((inside.mean(axis=1) >= MIN_IN_VIEW) & (facing > math.cos(MAX_TILT)))
+    ok = (inside.mean(axis=1) >= MIN_IN_VIEW) & (facing > math.cos(MAX_TILT))
+    if rig.min_square_px > 0 and rig.board.kind == "charuco":
+        cols, rows = rig.board.squares
+        grid = uv.reshape(len(pts), rows - 1, cols - 1, 2)  # corner ids run along x first
+        along_x = np.linalg.norm(np.diff(grid, axis=2), axis=-1).reshape(len(pts), -1)
+        along_y = np.linalg.norm(np.diff(grid, axis=1), axis=-1).reshape(len(pts), -1)
+        sides = np.concatenate([along_x, along_y], axis=1)
+        with np.errstate(invalid="ignore"):
+            ok &= np.all(sides >= rig.min_square_px, axis=1)  # NaN (behind the camera): not
+    return np.asarray(ok)
 
 
 def _directions() -> FloatArray:
@@ -316,7 +335,7 @@ def _workspace_centre(robot: Robot, table: object, seed: int) -> FloatArray:
 
 def _rig(setup: CameraSetup, T_fixed: FloatArray, preset: CameraPreset) -> Rig:
     mounted = board_on_flange(preset.board) if setup == "eye-to-hand" else CAMERA_ON_FLANGE
-    return Rig(setup, T_fixed, mounted, preset.board, preset.camera)
+    return Rig(setup, T_fixed, mounted, preset.board, preset.camera, preset.min_square_px)
 
 
 def place_rig(
