@@ -175,6 +175,15 @@ def process(
             "by default).",
         ),
     ] = False,
+    frames: Annotated[
+        str | None,
+        typer.Option(
+            "--frames",
+            metavar="FIRST:END",
+            help="A vision log: calibrate from the frames FIRST (included) to END (excluded) "
+            "of the image topic only, e.g. 0:212 or 230: (a camera that moved in between).",
+        ),
+    ] = None,
     jobs: Annotated[
         int,
         typer.Option(
@@ -201,6 +210,22 @@ def process(
             f"'{plain(camera_setup)}'."
         )
         raise typer.Exit(EXIT_USAGE)
+    frame_range = None
+    if frames is not None:
+        first, sep, end = frames.partition(":")
+        try:
+            if not sep:
+                raise ValueError
+            frame_range = (
+                int(first) if first.strip() else None,
+                int(end) if end.strip() else None,
+            )
+        except ValueError:
+            stderr.print(
+                f"error: --frames must be FIRST:END (frame indices, either may be empty), not "
+                f"'{plain(frames)}'."
+            )
+            raise typer.Exit(EXIT_USAGE) from None
     if holdout == 1 or not 0 <= holdout <= 1000:
         stderr.print(
             f"error: --holdout must be 0 (none) or a fold count of 2 to 1000, not {holdout}."
@@ -266,6 +291,7 @@ def process(
                 camera_setup=camera_setup,
                 refine_intrinsics=refine_intrinsics,
                 jobs=jobs,
+                frames=frame_range,
             )
             if refine:
                 result.info.append(

@@ -215,12 +215,14 @@ def process_log(
     camera_setup: str | None = None,
     refine_intrinsics: bool = False,
     jobs: int = 1,
+    frames: tuple[int | None, int | None] | None = None,
 ) -> ProcessResult:
     """Run the whole identification on the log at ``path`` (see the module docstring).
 
     A vision log (camera images; a camera pipeline) is calibrated from its detected board
     corners (:mod:`dhlog.identify.vision`): ``camera_setup`` eye-to-hand / eye-in-hand (None:
-    decided from the data), ``refine_intrinsics``, ``jobs`` processes decoding and detecting.
+    decided from the data), ``refine_intrinsics``, ``jobs`` processes decoding and detecting,
+    ``frames`` the range of frames (indices on the image topic, end excluded) calibrated from.
 
     ``holdout`` K > 1: K-fold cross-validation over the session's poses; ``validate``: further
     logs (other sessions of the same robot) whose poses score the result and the nominal on one
@@ -247,6 +249,7 @@ def process_log(
                 setup=camera_setup,
                 refine_intrinsics=refine_intrinsics,
                 holdout=holdout,
+                frames=frames,
                 progress=progress,
             ),
         )

@@ -276,6 +276,7 @@ def process_observations(
     setup: str | None = None,
     refine_intrinsics: bool = False,
     holdout: int = 0,
+    frames: tuple[int | None, int | None] | None = None,
     progress: Callable[[str, float], None] | None = None,
 ) -> Any:
     """The calibration of the module docstring from one camera's observations; returns the
@@ -285,6 +286,8 @@ def process_observations(
     if not observations:
         raise InputError("the log holds no camera with detections.")
     obs = observations[0]
+    if frames is not None:
+        obs = of_frames(obs, frames)
     extra_cameras = [o.camera for o in observations[1:]]
     if obs.frames < MIN_FRAMES:
         raise InputError(
@@ -379,6 +382,29 @@ def process_observations(
     return result
 
 
+def of_frames(obs: Observations, frames: tuple[int | None, int | None]) -> Observations:
+    """``obs`` with the frames whose index on the topic is in ``[first, end)`` only (None: from
+    the first, to the last); the tally and kept images as they were."""
+    first = -1 if frames[0] is None else frames[0]
+    end = np.iinfo(np.int64).max if frames[1] is None else frames[1]
+    keep = (obs.frame >= first) & (obs.frame < end)
+    chosen = np.flatnonzero(keep)
+    return replace(
+        obs,
+        t_ns=obs.t_ns[keep],
+        frame=obs.frame[keep],
+        q=obs.q[keep],
+        ids=[obs.ids[k] for k in chosen],
+        uv=[obs.uv[k] for k in chosen],
+        warnings=[
+            *obs.warnings,
+            f"--frames {'' if frames[0] is None else frames[0]}:"
+            f"{'' if frames[1] is None else frames[1]}: {chosen.size} of {obs.frames} frames "
+            "with the board kept.",
+        ],
+    )
+
+
 def _pixel_stage(
     result: Any,
     obs: Observations,
@@ -431,6 +457,9 @@ def _pixel_stage(
     inl = np.ones(len(rows), dtype=bool)
     result.validation = validate_samples(seg, rows, Q_table, P, ex, inl, ex.tool_point[None])
     T_fixed, T_mounted, fixed_std, mounted_std = hand_eye(fit, extract, setup, _centre(obs))
+    moved = camera_moved(fit, data, obs, ex, ref)
+    if moved is not None:
+        result.warnings.insert(0, moved)
     check = None
     if holdout > 1:
         if progress is not None:
@@ -467,6 +496,82 @@ def _pixel_stage(
         "check below is against the board's poses from PnP (mm), the fit's own is in pixels."
     )
     result.cameras = [camera_view(fit, data, obs, cam, check)]
+
+
+#: Splits of the frames (shares of them, in time order) the moved-camera test places the
+#: calibrated model on each side of, and the fewest frames a side needs.
+MOVED_SPLITS = (0.25, 0.5, 0.75)
+MOVED_MIN_FRAMES = 8
+#: The drop of the cost (in σ², over the corners) that placing the model separately on each
+#: side of a split must exceed to call the fixed part moved: 12 more parameters give a χ² of
+#: 12 ± 5 when nothing moved.
+MOVED_DROP = 100.0
+
+
+def camera_moved(
+    fit: PixelFit, data: Corners, obs: Observations, ex: Extraction, ref: FloatArray
+) -> str | None:
+    """A warning when the fixed part (the camera eye-to-hand, the board eye-in-hand) moved
+    during the session, else None: the calibrated table placed (:func:`place`: the fixed part's
+    pose and the mount) separately on the frames before and after a split (in time order)
+    explains the corners better than one placement by more than :data:`MOVED_DROP` σ². The
+    best of :data:`MOVED_SPLITS`, then narrowed by halving between its neighbours, names the
+    frames it moved between."""
+    from dhlog.identify.measure import residuals as measured
+
+    order = np.argsort(obs.t_ns, kind="stable")
+    f = data.frames
+    if f < 2 * MOVED_MIN_FRAMES:
+        return None
+    assert fit.whole.model.tool_rotation is not None
+    R_tool = ex.frames[-1][:3, :3].T @ fit.whole.model.tool_rotation
+    start = (ex.standard, ref, ex.T_measurement_base, ex.tool_point, R_tool)
+    sigma2 = fit.sigma**2
+    limit2 = fit.whole.limit**2
+
+    def cost(model: AxisModel, corners: Corners) -> float:
+        r = measured(model, fit.measurement, corners)
+        return float(np.sum(np.minimum(np.nan_to_num(np.sum(r**2, axis=1), nan=limit2), limit2)))
+
+    whole = float(np.sum(np.minimum(np.sum(fit.residuals**2, axis=1), limit2)))
+
+    def drop(k: int) -> float:
+        before = np.zeros(f, dtype=bool)
+        before[order[:k]] = True
+        sides = [data.of_frames(before), data.of_frames(~before)]
+        return (whole - sum(cost(place(*start, fit.measurement, c), c) for c in sides)) / sigma2
+
+    splits = sorted(
+        {round(q * f) for q in MOVED_SPLITS}
+        & set(range(MOVED_MIN_FRAMES, f - MOVED_MIN_FRAMES + 1))
+    )
+    if not splits:
+        return None
+    found = {k: drop(k) for k in splits}
+    best = max(found, key=lambda k: found[k])
+    if found[best] <= MOVED_DROP:
+        return None
+    lo = max([k for k in splits if k < best], default=MOVED_MIN_FRAMES)
+    hi = min([k for k in splits if k > best], default=f - MOVED_MIN_FRAMES)
+    while hi - lo > 2:  # the cost drop peaks at the move: halve towards the larger side
+        a, b = (lo + best) // 2, (best + hi) // 2
+        for k in (a, b):
+            if MOVED_MIN_FRAMES <= k <= f - MOVED_MIN_FRAMES and k not in found:
+                found[k] = drop(k)
+        if found.get(a, -math.inf) > found[best]:
+            hi, best = best, a
+        elif found.get(b, -math.inf) > found[best]:
+            lo, best = best, b
+        else:
+            lo, hi = a, b
+    first, after = int(obs.frame[order[best - 1]]), int(obs.frame[order[best]])
+    part = "camera" if fit.measurement.setup == "eye-to-hand" else "board"
+    return (
+        f"the {part} moved during the session, between frames {first} and {after} of "
+        f"{obs.camera} (placing the model apart on the frames before and after explains the "
+        f"corners better by {found[best]:.0f} σ²): the calibration mixes two set-ups; "
+        f"calibrate from one part with --frames :{after} or --frames {after}:."
+    )
 
 
 def hand_eye(
