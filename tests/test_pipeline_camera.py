@@ -215,7 +215,7 @@ def test_process_refuses_a_vision_log_naming_the_camera_pipeline(
     message = str(caught.value)
     assert f"a vision log (camera images on {topic})" in message
     assert "the shipped pipeline ros2_camera describes it" in message
-    assert "does not calibrate from camera images yet" in message and "\n" not in message
+    assert "calibrate from it with dhlog process" in message and "\n" not in message
     camera = pipeline_by_name("ros2_camera")
     with pytest.raises(PipelineError, match=r"is a camera pipeline \(ros2_camera") as named:
         read_log(log, camera)

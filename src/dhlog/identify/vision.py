@@ -45,6 +45,7 @@ from dhlog.identify.uncertainty import whole_uncertainty
 from dhlog.io.dhfile import DHModel
 from dhlog.io.pipeline import pipeline_by_name
 from dhlog.io.reader import LogData
+from dhlog.model.dh import StandardDH
 from dhlog.vision.camera import Intrinsics
 from dhlog.vision.observe import Observations
 from dhlog.vision.view import CameraView, FrameView
@@ -457,6 +458,9 @@ def _pixel_stage(
     inl = np.ones(len(rows), dtype=bool)
     result.validation = validate_samples(seg, rows, Q_table, P, ex, inl, ex.tool_point[None])
     T_fixed, T_mounted, fixed_std, mounted_std = hand_eye(fit, extract, setup, _centre(obs))
+    scaled = board_scale(ex, nominal_table, obs, set(found.fixed))
+    if scaled is not None:
+        result.warnings.insert(0, scaled)
     moved = camera_moved(fit, data, obs, ex, ref)
     if moved is not None:
         result.warnings.insert(0, moved)
@@ -496,6 +500,46 @@ def _pixel_stage(
         "check below is against the board's poses from PnP (mm), the fit's own is in pixels."
     )
     result.cameras = [camera_view(fit, data, obs, cam, check)]
+
+
+#: A camera measures lengths in units of the board's squares: the robot's lengths (d, a of at
+#: least :data:`SCALE_MIN_LENGTH`) coming out this far from the nominal's by one common factor
+#: mean the pipeline's board size is not the printed one's.
+SCALE_TOLERANCE = 0.01
+SCALE_MIN_LENGTH = 0.05
+
+
+def board_scale(
+    ex: Extraction, nominal: StandardDH | None, obs: Observations, fixed: set[int]
+) -> str | None:
+    """A warning when the calibrated lengths are the nominal's times one factor k ≠ 1 (by
+    more than :data:`SCALE_TOLERANCE`, each within a quarter of that of k): a camera cannot
+    tell a board k times larger seen k times further, so the pipeline's ``[target]`` size is
+    then most likely not the printed board's. ``fixed``: the table's entries (4 a row: θ, d,
+    a, α) held by convention, left out. None otherwise."""
+    if nominal is None:
+        return None
+    n = ex.standard.n
+    got = np.concatenate([ex.standard.d_offset, ex.standard.a])
+    ref = np.concatenate([nominal.d_offset, nominal.a])
+    free = np.array(
+        [4 * i + 1 not in fixed for i in range(n)] + [4 * i + 2 not in fixed for i in range(n)]
+    )
+    use = (np.abs(ref) >= SCALE_MIN_LENGTH) & free
+    if np.count_nonzero(use) < 2:
+        return None
+    ratio = got[use] / ref[use]
+    k = float(np.median(ratio))
+    if abs(k - 1.0) <= SCALE_TOLERANCE or np.max(np.abs(ratio - k)) > 0.25 * abs(k - 1.0):
+        return None
+    b = obs.board
+    return (
+        f"the robot's lengths come out {k:.4f} times the nominal's, all of them: a camera "
+        f"measures in units of the board, so the board is most likely not the "
+        f"{b.square_m * 1e3:g} mm squares the pipeline's [target] says but about "
+        f"{b.square_m * 1e3 / k:.1f} mm: measure the printed board and give its square_m "
+        "(and marker_m)."
+    )
 
 
 #: Splits of the frames (shares of them, in time order) the moved-camera test places the

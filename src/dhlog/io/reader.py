@@ -169,7 +169,7 @@ def choose_pipeline(path: str, channels: dict[int, ChannelInfo]) -> tuple[Pipeli
     """The shipped pipeline that fits the log's topics and encodings best, and why."""
     best: tuple[int, Pipeline] | None = None
     for pipeline in shipped_pipelines():
-        if pipeline.is_camera:  # dhlog process reads tracker logs only, so far (issue 32)
+        if pipeline.is_camera:  # a camera log is read by io.observe, not here
             continue
         score = 0
         fits = True
@@ -196,8 +196,8 @@ def choose_pipeline(path: str, channels: dict[int, ChannelInfo]) -> tuple[Pipeli
             named = f" (the shipped pipeline {described[0]} describes it)" if described else ""
             raise PipelineError(
                 path,
-                f"a vision log (camera images on {', '.join(images)}){named}: dhlog process "
-                "does not calibrate from camera images yet (issue 32); give a tracker log.",
+                f"a vision log (camera images on {', '.join(images)}){named}, not a tracker's: "
+                "calibrate from it with dhlog process; this reads tracker logs.",
             )
         listed = ", ".join(
             sorted(
@@ -264,9 +264,9 @@ def read_log(
     if pipeline is not None and pipeline.image is not None:
         raise PipelineError(
             pipeline.source,
-            f"is a camera pipeline ({pipeline.name}: images on {pipeline.image.topic}); "
-            "dhlog process does not calibrate from camera images yet (issue 32): give a tracker "
-            "log and a tracker pipeline.",
+            f"is a camera pipeline ({pipeline.name}: images on {pipeline.image.topic}), not a "
+            "tracker's: dhlog process calibrates from camera logs with it; this reads tracker "
+            "logs.",
         )
     if Path(path).is_dir():
         return _read_bag(Path(path), pipeline, fast=fast, progress=progress)
