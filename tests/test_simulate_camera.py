@@ -6,7 +6,7 @@ camera's pose, the board's mount and the intrinsics, projected by ``Intrinsics.p
 
 The tolerance: the rendering adds Gaussian noise of 2 grey levels (of a board's 255) and a
 blur of 0.6 px; OpenCV's corners on such views (tests/test_vision.py) are within 0.15 px RMS,
-and 0.04–0.08 px RMS (at most 0.39 px) were measured here (benchmarks/vision_simulate.py);
+and 0.02–0.06 px RMS (at most 0.23 px) were measured here (benchmarks/vision_simulate.py);
 0.25 px RMS and 1 px at most leave room for JPEG and still fail on a wrong pose, mount or lens
 (a mount 1 mm off along x gives 0.77 px RMS on the eye-to-hand KR5 log).
 
@@ -23,8 +23,10 @@ the stops leave 2e-3 rad).
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 from pathlib import Path
 
+import cv2
 import numpy as np
 import pytest
 from mcap.reader import make_reader
@@ -40,8 +42,11 @@ from dhlog.model.robots import load_robot
 from dhlog.simulate.camera import (
     MIN_SWEEP_FRAMES,
     MIN_SWEEP_SEEN,
+    MOTION_POSES,
     Rig,
     VisionSession,
+    motion_steps,
+    render,
     simulate_detections,
     simulate_vision,
     vision_truth,
@@ -216,6 +221,7 @@ def test_process_calibrates_a_vision_log(tmp_path: Path) -> None:
         (["--protocol", "sweeps", "--frame-rate", "0"], "the frame rate must be in (0, 1000]"),
         (["--cameras", "2", "--camera-setup", "eye-in-hand"], "eye-to-hand only"),
         (["--cameras", "0"], "the cameras must be 1 to 6"),
+        (["--protocol", "sweeps", "--exposure-ms", "200"], "the exposure must be in [0, 100] ms"),
         (["--protocol", "random-poses", "--model-error-mm", "0.1"], "--model-error-mm is for"),
         (["--protocol", "random-poses", "--camera-setup", "eye-on-hand"], "--camera-setup must"),
         (["--protocol", "random-poses", "--image-format", "bmp"], "--image-format must be"),
@@ -466,3 +472,30 @@ def test_several_cameras_each_on_its_topics(tmp_path: Path) -> None:
         assert np.all(T_cb[:, 2, 3] > 0.5)
     eyes_a = np.array(eyes)
     assert min(np.linalg.norm(eyes_a[i] - eyes_a[j]) for i in range(3) for j in range(i)) > 0.5
+
+
+def test_exposure_blurs_the_moving_frames(tmp_path: Path) -> None:
+    cfg = SimulationConfig(protocol="sweeps", instrument="camera", joint_rate=50.0)
+    robot = load_robot("kr5")
+    vision = simulate_vision(robot, cfg, "eye-to-hand", "png", preset="small", exposure=0.05)
+    T_exp = vision.T_exposure
+    assert T_exp is not None and T_exp.shape == (len(vision.T_cam_board), MOTION_POSES, 4, 4)
+    # the truth is the pose in the middle of the exposure, at the frame's stamp
+    assert np.allclose(T_exp[:, MOTION_POSES // 2], vision.T_cam_board, atol=1e-12)
+    steps = [motion_steps(vision.rig, T) for T in T_exp]
+    fast = int(np.argmax(steps))
+    assert steps[fast] > 4  # the board's corners move over 2 px in 50 ms there
+    sharp = render(vision.rig, vision.T_cam_board[fast], np.random.default_rng(0))
+    blurred = render(vision.rig, vision.T_cam_board[fast], np.random.default_rng(0), T_exp[fast])
+
+    def edges(image: np.ndarray) -> float:
+        return float(np.abs(cv2.Sobel(image.astype(np.float32), cv2.CV_32F, 1, 1)).mean())
+
+    assert edges(blurred) < 0.8 * edges(sharp), (edges(blurred), edges(sharp))
+    doc = vision_truth(vision, source_path="v.mcap", sha256="", pipeline="", version="")
+    assert doc["camera"]["exposure_s"] == 0.05
+    # a still protocol has no motion to blur
+    still = simulate_vision(
+        robot, replace(cfg, protocol="random-poses", poses=3), "eye-to-hand", "png"
+    )
+    assert still.T_exposure is None

@@ -199,6 +199,13 @@ def simulate(
         float,
         typer.Option(help="--instrument camera, sweeps and coupled: frames per second."),
     ] = 10.0,
+    exposure_ms: Annotated[
+        float,
+        typer.Option(
+            help="--instrument camera, sweeps and coupled: each frame blurred by the motion "
+            "over this exposure about its stamp, ms (0: none)."
+        ),
+    ] = 0.0,
     cameras: Annotated[
         int,
         typer.Option(
@@ -240,8 +247,12 @@ def simulate(
                 f"error: --{option} must be one of {', '.join(allowed)}, not '{plain(value)}'."
             )
             raise typer.Exit(EXIT_USAGE)
-    if instrument != "camera" and (camera != "default" or frame_rate != 10.0 or cameras != 1):
-        stderr.print("error: --camera, --frame-rate and --cameras are for --instrument camera.")
+    camera_options = (camera, frame_rate, cameras, exposure_ms) != ("default", 10.0, 1, 0.0)
+    if instrument != "camera" and camera_options:
+        stderr.print(
+            "error: --camera, --frame-rate, --exposure-ms and --cameras are for "
+            "--instrument camera."
+        )
         raise typer.Exit(EXIT_USAGE)
     extra_tools = triples(extra_targets, "--extra-targets")
     compliant = [(int(j), c) for j, c in tuples(compliance, "--compliance", 2)]
@@ -305,7 +316,9 @@ def simulate(
             if encoding != "ros2":
                 stderr.print("error: a vision log is written in ros2 encoding only, so far.")
                 raise typer.Exit(EXIT_USAGE)
-            _simulate_vision(rob, cfg, output, truth_path, camera, frame_rate, cameras)
+            _simulate_vision(
+                rob, cfg, output, truth_path, camera, frame_rate, cameras, exposure_ms * 1e-3
+            )
             return
         session = simulate_session(rob, cfg)
         swept = swept_joints(rob, cfg)
@@ -375,6 +388,7 @@ def _simulate_vision(
     preset: str,
     frame_rate: float,
     cameras: int,
+    exposure: float,
 ) -> None:
     """``--instrument camera``: the vision log and its truth (see :mod:`dhlog.simulate.camera`)."""
     from dhlog.io.writer import sha256_of, write_truth
@@ -385,7 +399,7 @@ def _simulate_vision(
         write_vision_log,
     )
 
-    problems = vision_problems(cfg.camera_setup, preset, frame_rate, cameras)
+    problems = vision_problems(cfg.camera_setup, preset, frame_rate, cameras, exposure)
     if problems:
         stderr.print(f"error: {plain(problems[0])}.")
         raise typer.Exit(EXIT_USAGE)
@@ -397,6 +411,7 @@ def _simulate_vision(
         preset=preset,
         frame_rate=frame_rate,
         cameras=cameras,
+        exposure=exposure,
     )
     if not vision.frame_t_ns.size:
         raise DhlogError(

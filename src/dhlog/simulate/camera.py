@@ -20,8 +20,11 @@ What each protocol gives a camera:
   most of :data:`PLACEMENT_PROBES` random joint vectors see the board; the poses are drawn
   uniformly within the limits and kept only where the board is seen (:func:`camera_poses`).
 - ``sweeps`` and ``coupled``: frames at the camera's frame rate (``frame_rate``, 10 Hz by
-  default) over the whole session, each rendered at the true pose at its stamp (no motion blur:
-  a global shutter of short exposure), and only the frames where the board is seen written. The
+  default) over the whole session, each rendered at the true pose at its stamp, and only the
+  frames where the board is seen written. Without an ``exposure`` a frame is an instant (a
+  global shutter, no motion blur); with one it is the mean of the board drawn at poses evenly
+  across the exposure, its stamp in the middle (one drawing for each :data:`MOTION_STEP_PX`
+  the corners move, at most :data:`MOTION_POSES`): motion blur, the truth the middle pose. The
   sweeps' home pose and the fixed part are chosen together (:func:`place_for_moves`): among the
   robot's zero pose and :data:`HOME_PROBES` random ones, the fixed part placed square to the
   board (the camera on the board's normal, or the board on the camera's axis) and level with or
@@ -201,6 +204,10 @@ MIN_SWEEP_TRAVEL = 0.005
 MIN_SWEEP_FRAMES = 5
 #: the camera's frame rate of the moving protocols, Hz
 FRAME_RATE = 10.0
+#: motion blur: the poses across an exposure taken (at most), and the image motion (px) each
+#: drawing of them stands for
+MOTION_POSES = 17
+MOTION_STEP_PX = 0.5
 #: several cameras (eye-to-hand): at most this many; the least angle between two cameras'
 #: directions for the still poses; the others' offsets (azimuth, elevation; degrees) from the
 #: first about the board's centre at the sweeps' home
@@ -471,8 +478,9 @@ def _drawing(board: BoardSpec, square_px: int) -> tuple[NDArray[np.uint8], Float
     return np.asarray(smooth, dtype=np.uint8), d.image_from_board
 
 
-def render(rig: Rig, T_cam_board: FloatArray, rng: np.random.Generator) -> NDArray[np.uint8]:
-    """The camera's grey image (h, w) of the board at ``T_cam_board`` (see the module)."""
+def _draw(rig: Rig, T_cam_board: FloatArray) -> NDArray[np.uint8]:
+    """The board at ``T_cam_board`` drawn through the lens on the background, before light,
+    blur and noise."""
     cam, board = rig.camera, rig.board
     R, t = T_cam_board[:3, :3], T_cam_board[:3, 3]
     # the drawing at TEXTURE_SCALE times the camera's scale at the board's distance (cached)
@@ -488,6 +496,41 @@ def render(rig: Rig, T_cam_board: FloatArray, rng: np.random.Generator) -> NDArr
     maps[~front] = -1e6
     # one CV_32FC2 map and no second one (which the stubs do not allow)
     image = cv2.remap(pixels, maps, None, cv2.INTER_LINEAR, borderValue=BACKGROUND)  # type: ignore[call-overload]
+    return np.asarray(image, dtype=np.uint8)
+
+
+def motion_steps(rig: Rig, T_exposure: FloatArray) -> int:
+    """How many of the poses (k, 4, 4) across an exposure to draw: one for each
+    ``MOTION_STEP_PX`` the board's corners move in the image between its ends (1 to k)."""
+    P = rig.board.object_points()
+    ends = T_exposure[[0, -1]]
+    pts = np.einsum("mij,kj->mki", ends[:, :3, :3], P) + ends[:, None, :3, 3]
+    uv = rig.camera.project(pts.reshape(-1, 3)).reshape(2, -1, 2)
+    moved = np.nanmax(np.linalg.norm(uv[1] - uv[0], axis=1), initial=0.0)
+    return int(min(len(T_exposure), max(1, math.ceil(moved / MOTION_STEP_PX) + 1)))
+
+
+def render(
+    rig: Rig,
+    T_cam_board: FloatArray,
+    rng: np.random.Generator,
+    T_exposure: FloatArray | None = None,
+) -> NDArray[np.uint8]:
+    """The camera's grey image (h, w) of the board at ``T_cam_board`` (see the module); with
+    ``T_exposure`` (k, 4, 4), the board's poses across the exposure, the mean of its drawings
+    at :func:`motion_steps` of them, evenly spread (motion blur)."""
+    cam = rig.camera
+    shape = (cam.height, cam.width)
+    if T_exposure is None or len(T_exposure) < 2:
+        image = _draw(rig, T_cam_board).astype(np.float32)
+    else:
+        k = motion_steps(rig, T_exposure)
+        picks = (
+            np.rint(np.linspace(0, len(T_exposure) - 1, k)).astype(int)
+            if k > 1
+            else [len(T_exposure) // 2]
+        )
+        image = np.mean([_draw(rig, T_exposure[i]).astype(np.float32) for i in picks], axis=0)
     gain = np.float32(rng.uniform(*EXPOSURE))
     lit = np.asarray(cv2.GaussianBlur(image.astype(np.float32) * gain, (0, 0), BLUR_SIGMA))
     lit = lit + rng.normal(0.0, PIXEL_NOISE, shape).astype(np.float32)
@@ -505,6 +548,9 @@ class CameraFrames:
     T_cam_board: FloatArray
     frame_q: FloatArray
     frame_move: tuple[str, ...]
+    #: the board's poses across each frame's exposure (f, k, 4, 4), evenly in time, the frame's
+    #: stamp in the middle (None: an instant, no motion blur)
+    T_exposure: FloatArray | None = None
 
 
 @dataclass
@@ -528,19 +574,35 @@ class VisionSession:
     others: list[CameraFrames] = field(default_factory=list)
     warnings: list[str] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)
+    #: the exposure (s) each frame is blurred over by the motion (0: none)
+    exposure: float = 0.0
+    #: the first camera's board poses across each frame's exposure (see CameraFrames)
+    T_exposure: FloatArray | None = None
 
     @property
     def cameras(self) -> list[CameraFrames]:
         """Every camera's frames, the first camera's first."""
         first = CameraFrames(
-            self.rig, self.frame_t_ns, self.T_cam_board, self.frame_q, self.frame_move
+            self.rig,
+            self.frame_t_ns,
+            self.T_cam_board,
+            self.frame_q,
+            self.frame_move,
+            self.T_exposure,
         )
         return [first, *self.others]
 
 
-def vision_problems(setup: str, preset: str, frame_rate: float, cameras: int) -> list[str]:
+def vision_problems(
+    setup: str, preset: str, frame_rate: float, cameras: int, exposure: float = 0.0
+) -> list[str]:
     """What is wrong with a vision log's camera options (empty when they can be simulated)."""
     out = []
+    if not (math.isfinite(exposure) and 0 <= exposure <= 1.0 / max(frame_rate, 1e-9)):
+        out.append(
+            f"the exposure must be in [0, {1e3 / max(frame_rate, 1e-9):g}] ms, a frame's period "
+            f"at {frame_rate:g} Hz (got {exposure * 1e3:g} ms)"
+        )
     if preset not in PRESETS:
         out.append(f"the camera must be one of {', '.join(CAMERA_PRESETS)}, not '{preset}'")
     if not (math.isfinite(frame_rate) and 0 < frame_rate <= 1000):
@@ -561,12 +623,14 @@ def simulate_vision(
     preset: str = "default",
     frame_rate: float = FRAME_RATE,
     cameras: int = 1,
+    exposure: float = 0.0,
 ) -> VisionSession:
     """The session of ``cfg`` seen by the camera of ``preset`` (see the module): for
     ``random-poses`` one frame in the middle of each still pose where the board is seen, for
     ``sweeps`` and ``coupled`` a frame every ``1 / frame_rate`` s where it is seen; ``cameras``
-    fixed cameras (eye-to-hand), each placed differently."""
-    problems = vision_problems(setup, preset, frame_rate, cameras)
+    fixed cameras (eye-to-hand), each placed differently; ``exposure`` (s): a moving protocol's
+    frames blurred by the motion over that time about their stamps."""
+    problems = vision_problems(setup, preset, frame_rate, cameras, exposure)
     if problems:
         raise DhlogError(problems[0])
     kit = PRESETS[preset]
@@ -578,7 +642,9 @@ def simulate_vision(
     )
     if cfg.protocol == "random-poses":
         return _still_vision(robot, table, cfg, setup, image_format, kit, cameras)
-    return _moving_vision(robot, table, cfg, setup, image_format, kit, frame_rate, cameras)
+    return _moving_vision(
+        robot, table, cfg, setup, image_format, kit, frame_rate, cameras, exposure
+    )
 
 
 def _still_vision(
@@ -812,8 +878,10 @@ def _moving_vision(
     kit: CameraPreset,
     frame_rate: float,
     cameras: int,
+    exposure: float = 0.0,
 ) -> VisionSession:
-    """``sweeps`` and ``coupled``: a frame every ``1 / frame_rate`` s where the board is seen."""
+    """``sweeps`` and ``coupled``: a frame every ``1 / frame_rate`` s where the board is seen,
+    with the poses across its ``exposure`` when that is > 0."""
     moves = protocol_moves(robot, cfg)
     rig, home, runs = place_for_moves(robot, table, cfg, setup, kit)
     moving = replace(robot, limits=_narrowed_limits(robot, home, moves, runs))
@@ -839,12 +907,20 @@ def _moving_vision(
     flanges = flange_poses(robot, session.table, q)
     stamps = start_ns + np.rint((t + base_time) * 1e9).astype(np.int64)
     rigs = [rig] if cameras == 1 else _spread_rigs_about(rig, kit, cameras)
+    sub = None
+    if exposure > 0:  # the flange across each frame's exposure, its stamp in the middle
+        offsets = np.linspace(-exposure / 2, exposure / 2, MOTION_POSES)
+        t_sub = np.clip(t[:, None] + offsets, 0.0, duration)
+        sub = flange_poses(robot, session.table, joints_at(frames, t_sub.ravel()))
     views = []
     for r in rigs:
         T_cb = r.board_in_camera(flanges)
         keep = seen(r, T_cb)
+        T_exp = None
+        if sub is not None:
+            T_exp = r.board_in_camera(sub).reshape(len(t), MOTION_POSES, 4, 4)[keep]
         views.append(
-            CameraFrames(r, stamps[keep], T_cb[keep], q[keep], tuple(map(str, labels[keep])))
+            CameraFrames(r, stamps[keep], T_cb[keep], q[keep], tuple(map(str, labels[keep])), T_exp)
         )
     first = views[0]
     warnings, notes = _sweep_report(moves, runs, home, views)
@@ -861,6 +937,8 @@ def _moving_vision(
         views[1:],
         warnings,
         notes,
+        exposure,
+        first.T_exposure,
     )
 
 
@@ -958,7 +1036,8 @@ def write_vision_log(vision: VisionSession, path: str | Path, seed: int) -> None
                 continue
             view, (ch_image, ch_info) = views[c], channels[c]
             frame_id = "camera" if len(views) == 1 else f"camera_{c + 1}"
-            pixels = render(view.rig, view.T_cam_board[i], rng)
+            T_exp = None if view.T_exposure is None else view.T_exposure[i]
+            pixels = render(view.rig, view.T_cam_board[i], rng, T_exp)
             if fmt == "raw":
                 payload = ros2.encode_image(t, frame_id, pixels, "mono8")
             else:
@@ -1047,7 +1126,7 @@ def vision_truth(vision: VisionSession, **source: str) -> dict[str, object]:
                 "frames": int(view.frame_t_ns.size),
                 "frames_per_move": moves,
                 "frame_rate_hz": vision.frame_rate,
-                "motion_blur": False,
+                "exposure_s": vision.exposure,
                 "pixel_noise": PIXEL_NOISE,
                 "blur_sigma_px": BLUR_SIGMA,
                 "exposure_gain": list(EXPOSURE),
