@@ -9,6 +9,7 @@ conventions."""
 
 from __future__ import annotations
 
+import json
 import math
 
 import numpy as np
@@ -230,6 +231,12 @@ def test_process_observations(setup: str) -> None:
     from dhlog.result.document import result_document
 
     doc = result_document(result)
+    from importlib import resources
+
+    import jsonschema
+
+    schema = json.loads(resources.files("dhlog").joinpath("schemas/result.schema.json").read_text())
+    jsonschema.validate(json.loads(json.dumps(doc, allow_nan=False)), schema)
     assert doc["camera"]["setup"] == setup
     assert doc["camera"][cam.fixed_name] == cam.T_base_fixed.tolist()
     assert len(result.cameras) == 1 and len(result.cameras[0].frames) == len(Q)

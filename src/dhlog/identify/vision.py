@@ -92,9 +92,9 @@ class PixelHoldout:
             "target_rms_mm": {
                 "nominal": self.nominal_mm,
                 "calibrated": self.calibrated_mm,
-                "pnp_noise": self.pnp_noise_mm,
-                "in_sample": self.fit_mm,
-                "calibrated_beyond_noise": self.model_mm,
+                "pnp_noise": _finite(self.pnp_noise_mm),
+                "in_sample": _finite(self.fit_mm),
+                "calibrated_beyond_noise": _finite(self.model_mm),
             },
             "in_sample_rms_px": self.fit_px,
             "notes": list(self.notes),
@@ -161,6 +161,10 @@ class CameraResult:
             "detections": self.tally,
             "holdout": None if self.holdout is None else self.holdout.document(),
         }
+
+
+def _finite(value: float) -> float | None:
+    return value if math.isfinite(value) else None
 
 
 def _std_doc(std: FloatArray) -> dict[str, list[float]]:
@@ -443,7 +447,7 @@ def _pixel_stage(
     said: list[str] = []
     found = whole_uncertainty(whole, None, extract, ex, ref, nominal_table, said)
     result.info.extend(said)
-    result.method = "whole-model maximum likelihood in pixels"
+    result.method = "whole-model maximum likelihood"  # in pixels: the camera block says so
     result.extraction, result.whole = ex, whole
     result.covariance, result.std, result.fixed = found.covariance, found.std, found.fixed
     result.hayati, result.hayati_std = found.hayati, found.hayati_std
