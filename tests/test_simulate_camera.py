@@ -40,6 +40,7 @@ from dhlog.model.dh import JointType, StandardDH
 from dhlog.model.fk import fk_frames
 from dhlog.model.robots import load_robot
 from dhlog.simulate.camera import (
+    CAMERA_SPREAD,
     MIN_SWEEP_FRAMES,
     MIN_SWEEP_SEEN,
     MOTION_POSES,
@@ -47,6 +48,7 @@ from dhlog.simulate.camera import (
     VisionSession,
     motion_steps,
     render,
+    seen,
     simulate_detections,
     simulate_vision,
     vision_truth,
@@ -499,3 +501,23 @@ def test_exposure_blurs_the_moving_frames(tmp_path: Path) -> None:
         robot, replace(cfg, protocol="random-poses", poses=3), "eye-to-hand", "png"
     )
     assert still.T_exposure is None
+
+
+def test_several_cameras_for_still_poses() -> None:
+    cfg = SimulationConfig(protocol="random-poses", poses=12, instrument="camera")
+    vision = simulate_vision(load_robot("ur5"), cfg, "eye-to-hand", "jpeg", cameras=2)
+    views = vision.cameras
+    assert len(views) == 2 and views[0].rig is vision.rig
+    poses = {tuple(q) for view in views for q in view.frame_q}
+    # every still pose is seen by one camera at least, and each camera's frames by it
+    assert len(poses) == 12 and all(view.frame_t_ns.size for view in views)
+    for view in views:
+        assert np.all(seen(view.rig, view.T_cam_board))
+        flange = fk_frames(vision.session.table, view.frame_q)[:, -1]
+        assert np.allclose(view.rig.board_in_camera(flange), view.T_cam_board, atol=1e-12)
+    # the two cameras look at the workspace from directions at least CAMERA_SPREAD apart
+    z = [view.rig.T_fixed[:3, 2] for view in views]
+    assert float(z[0] @ z[1]) < np.cos(CAMERA_SPREAD) + 1e-9
+    doc = vision_truth(vision, source_path="v.mcap", sha256="", pipeline="", version="")
+    assert [c["frames"] for c in doc["cameras"]] == [v.frame_t_ns.size for v in views]
+    assert doc["cameras"][1]["image_topic"] == "/camera_2/image_raw/compressed"
