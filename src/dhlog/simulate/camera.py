@@ -37,6 +37,12 @@ What each protocol gives a camera:
   Each frame is labelled with the move it was taken in (``joint k``, ``joints a+b`` for the
   coupled move, ``transition``, ``still``).
 
+Several cameras (eye-to-hand, ``cameras``; :func:`camera_topics`): for the still poses along the
+directions the most probes see the board from, at least :data:`CAMERA_SPREAD` apart, the poses
+kept where one camera at least sees the board; for the moving protocols the first placed as
+above and the others looking at the same point (the board's centre at the sweeps' home) from
+:data:`CAMERA_OFFSETS` about it. Each camera writes the frames where it sees the board.
+
 Still poses and frames are kept only when the board is seen: at least :data:`MIN_IN_VIEW` of
 its corners inside the image and its face tilted less than :data:`MAX_TILT` from the line of
 sight (:func:`seen`); with the ``full-hd`` and ``small`` presets also every square imaged at
