@@ -11,7 +11,9 @@ from __future__ import annotations
 
 import json
 import math
+from importlib import resources
 
+import jsonschema
 import numpy as np
 import pytest
 
@@ -182,7 +184,7 @@ def test_nominal_placed_keeps_its_geometry() -> None:
     off[:3, :3] = Rotation.from_rotvec([0.0, 0.01, 0.01]).as_matrix() @ off[:3, :3]
     off[:3, 3] += [0.01, -0.01, 0.005]
     ref = np.zeros(robot.n)
-    placed = place(robot.table, ref, off, mount[:3, 3], mount[:3, :3], measurement, data)
+    placed, _ = place(robot.table, ref, off, mount[:3, 3], mount[:3, :3], measurement, data)
     exact = AxisModel.of_table(robot.table, ref, mount[:3, 3], T0, tool_rotation=mount[:3, :3])
     Qr = np.random.default_rng(3).uniform(robot.limits[:, 0], robot.limits[:, 1], (200, robot.n))
     calibrated = fit_pixels(exact, measurement, data)
@@ -231,10 +233,6 @@ def test_process_observations(setup: str) -> None:
     from dhlog.result.document import result_document
 
     doc = result_document(result)
-    from importlib import resources
-
-    import jsonschema
-
     schema = json.loads(resources.files("dhlog").joinpath("schemas/result.schema.json").read_text())
     jsonschema.validate(json.loads(json.dumps(doc, allow_nan=False)), schema)
     assert doc["camera"]["setup"] == setup

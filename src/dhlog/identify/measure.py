@@ -339,12 +339,12 @@ def place(
     T_measurement_base: FloatArray,
     tool_point: FloatArray,
     tool_rotation: FloatArray,
-    measurement: Measurement,
+    measurement: M,
     data: Any,
     *,
     threshold: float = 5.0,
     max_iterations: int = 50,
-) -> AxisModel:
+) -> tuple[AxisModel, M]:
     """``table`` placed on the corners, its geometry held: the base's pose in M and the
     carried frame (``tool_point``, ``tool_rotation``) on the flange — the camera's pose and the
     board's mount — by Levenberg–Marquardt in pixels along :func:`rigid_directions`, the model
@@ -370,25 +370,29 @@ def place(
 
     model = build(state)
     layout = ParameterLayout.of(model.types, rotation=tool_rotation is not None)
+    k, extra = layout.size, meas.extra
     limit = math.inf
     for _ in range(2):
         normal = _normal(model, layout, meas, data, limit)
         lam = 1e-4
         for _ in range(max_iterations):
             H, g, cost = normal[0], normal[1], normal[2]
-            W = rigid_directions(model, layout)
+            W = np.zeros((k + extra, 12 + extra))  # the placement, then the measurement's own
+            W[:k, :12] = rigid_directions(model, layout)
+            W[k:, 12:] = np.eye(extra)
             Hw, gw = W.T @ H @ W, W.T @ g
             try:
                 d = np.linalg.solve(Hw + lam * np.diag(np.maximum(np.diag(Hw), 1e-30)), -gw)
             except np.linalg.LinAlgError:
                 lam *= 10.0
                 continue
-            trial_state = step(state, np.asarray(d, dtype=np.float64))
-            trial = build(trial_state)
-            tn = _normal(trial, layout, meas, data, limit)
+            dd: FloatArray = np.asarray(d, dtype=np.float64)
+            trial_state = step(state, dd[:12])
+            trial, trial_m = build(trial_state), meas.moved(dd[12:])
+            tn = _normal(trial, layout, trial_m, data, limit)
             if tn[2] <= cost:
                 done = cost - tn[2] < 1e-10 * max(cost, 1e-30)
-                state, model, normal = trial_state, trial, tn
+                state, model, meas, normal = trial_state, trial, trial_m, tn
                 lam = max(lam / 10.0, 1e-12)
                 if done:
                     break
@@ -402,7 +406,7 @@ def place(
             float(np.median(finite)) / CHI_MEDIAN.get(meas.dim, 1.0) if finite.size else 0.0,
             1e-12,
         )
-    return model
+    return model, meas
 
 
 def rigid_directions(model: AxisModel, layout: ParameterLayout) -> FloatArray:

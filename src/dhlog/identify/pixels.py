@@ -34,7 +34,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 from numpy.typing import NDArray
 
-from dhlog.geometry._checks import FloatArray
+from dhlog.geometry._checks import FloatArray, rotation_from_vector
 from dhlog.identify.axismodel import AxisModel, ParameterLayout
 from dhlog.identify.measure import MeasuredFit, fit_measured
 from dhlog.identify.prediction import predict_columns, predict_orientation, prefix_motions
@@ -53,6 +53,8 @@ class Corners:
     frame: NDArray[np.intp]
     points: FloatArray
     uv: FloatArray
+    #: with several cameras (:class:`CamerasModel`), each corner's camera (N,; 0 the first)
+    camera: NDArray[np.intp] | None = None
 
     @property
     def frames(self) -> int:
@@ -67,6 +69,7 @@ class Corners:
             index[self.frame[keep]].astype(np.intp),
             self.points[keep],
             self.uv[keep],
+            None if self.camera is None else self.camera[keep],
         )
 
 
@@ -159,6 +162,109 @@ class PixelModel:
         J = np.einsum("kab,sbk->kas", jp, JX)
         if self.refine:
             J = np.concatenate([J, ji], axis=2)
+        return uv, J
+
+
+@dataclass(frozen=True)
+class CamerasModel:
+    """Several fixed cameras seeing one board on the flange (eye-to-hand; issue 32 item 3), a
+    :class:`~dhlog.identify.measure.Measurement`: M is the first camera's frame; camera k ≥ 1
+    sits at ``poses[k]`` (4×4, in M), six parameters of its own each (a small rotation about
+    M's axes, then a shift), fitted with the model; each camera's intrinsics held. The data are
+    :class:`Corners` with ``camera`` set."""
+
+    intrinsics: tuple[Intrinsics, ...]
+    poses: tuple[FloatArray, ...]
+    dim: int = 2
+    setup: str = "eye-to-hand"
+
+    @property
+    def extra(self) -> int:
+        return 6 * (len(self.intrinsics) - 1)
+
+    def count(self, data: Corners) -> int:
+        return int(data.uv.shape[0])
+
+    def observed(self, data: Corners, sl: slice) -> FloatArray:
+        return data.uv[sl]
+
+    def moved(self, delta: FloatArray) -> CamerasModel:
+        poses = [self.poses[0]]
+        for k in range(1, len(self.poses)):
+            d = delta[6 * (k - 1) : 6 * k]
+            T = self.poses[k].copy()
+            T[:3, :3] = rotation_from_vector(d[:3]) @ T[:3, :3]
+            T[:3, 3] = T[:3, 3] + d[3:]
+            poses.append(T)
+        return replace(self, poses=tuple(poses))
+
+    def in_camera(
+        self,
+        model: AxisModel,
+        layout: ParameterLayout | None,
+        bases: list[tuple[FloatArray, FloatArray]] | None,
+        data: Corners,
+        sl: slice,
+    ) -> tuple[FloatArray, FloatArray | None]:
+        """The corners ``sl`` in their own camera's frame (c, 3), and their Jacobian
+        (size, 3, c) over the model's local parameters (the cameras' own not included)."""
+        X, J = PixelModel("eye-to-hand", self.intrinsics[0]).in_camera(
+            model, layout, bases, data, sl
+        )
+        assert data.camera is not None
+        cam = data.camera[sl]
+        out = X.copy()
+        Jout = None if J is None else J.copy()
+        for k in range(1, len(self.poses)):
+            at = cam == k
+            if not at.any():
+                continue
+            R, t = self.poses[k][:3, :3], self.poses[k][:3, 3]
+            out[at] = (X[at] - t) @ R
+            if Jout is not None and J is not None:
+                Jout[:, :, at] = np.einsum("ji,sjc->sic", R, J[:, :, at])
+        return out, Jout
+
+    def predict(
+        self,
+        model: AxisModel,
+        layout: ParameterLayout | None,
+        bases: list[tuple[FloatArray, FloatArray]] | None,
+        data: Corners,
+        sl: slice,
+    ) -> tuple[FloatArray, FloatArray | None]:
+        X_M, J_M = PixelModel("eye-to-hand", self.intrinsics[0]).in_camera(
+            model, layout, bases, data, sl
+        )
+        assert data.camera is not None
+        cam = data.camera[sl]
+        c = X_M.shape[0]
+        uv = np.full((c, 2), np.nan)
+        size = 0 if layout is None else layout.size
+        J = None if J_M is None else np.zeros((c, 2, size + self.extra))
+        for k in range(len(self.poses)):
+            at = cam == k
+            if not at.any():
+                continue
+            R, t = self.poses[k][:3, :3], self.poses[k][:3, 3]
+            v = X_M[at] - t
+            X = v @ R
+            if J is None or J_M is None:
+                uv[at] = self.intrinsics[k].project(X)
+                continue
+            uv_k, jp, _ = self.intrinsics[k].project_jacobian(X)
+            uv[at] = uv_k
+            JX = np.einsum("ji,sjc->sic", R, J_M[:, :, at])
+            J[at, :, :size] = np.einsum("kab,sbk->kas", jp, JX)
+            if k:
+                o = size + 6 * (k - 1)
+                # X_k = Rᵀ (X − t): a turn δω of the camera gives Rᵀ [X − t]× δω, a shift −Rᵀ δt
+                skew = np.zeros((v.shape[0], 3, 3))
+                skew[:, 0, 1], skew[:, 0, 2] = -v[:, 2], v[:, 1]
+                skew[:, 1, 0], skew[:, 1, 2] = v[:, 2], -v[:, 0]
+                skew[:, 2, 0], skew[:, 2, 1] = -v[:, 1], v[:, 0]
+                J[at, :, o : o + 3] = np.einsum("kab,cb,kcd->kad", jp, R, skew)
+                J[at, :, o + 3 : o + 6] = -np.einsum("kab,cb->kac", jp, R)
         return uv, J
 
 

@@ -577,8 +577,8 @@ def camera_moved(
     sigma2 = fit.sigma**2
     limit2 = fit.whole.limit**2
 
-    def cost(model: AxisModel, corners: Corners) -> float:
-        r = measured(model, fit.measurement, corners)
+    def cost(placed: tuple[AxisModel, Any], corners: Corners) -> float:
+        r = measured(placed[0], placed[1], corners)
         return float(np.sum(np.minimum(np.nan_to_num(np.sum(r**2, axis=1), nan=limit2), limit2)))
 
     whole = float(np.sum(np.minimum(np.sum(fit.residuals**2, axis=1), limit2)))
@@ -810,8 +810,7 @@ def cross_validate_pixels(
         fits = {"calibrated": fit_pixels(fit.whole.model, fit.measurement, train_c)}
         models = {"calibrated": (fits["calibrated"].whole.model, fits["calibrated"].measurement)}
         if nominal_start is not None:
-            placed = place(*nominal_start, fit.measurement, train_c)
-            models["nominal"] = (placed, fit.measurement)
+            models["nominal"] = place(*nominal_start, fit.measurement, train_c)
         keep = scored[at]
         for name, (m, meas) in models.items():
             uv, _ = meas.predict(m, None, None, test_c, slice(None))
