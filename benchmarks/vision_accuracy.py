@@ -68,6 +68,7 @@ def one_session(case: str, seed: int, poses: int) -> dict[str, float]:
     from dhlog.identify.extract import extract_dh
     from dhlog.identify.pixels import Corners, PixelModel, fit_pixels
     from dhlog.identify.prediction import predict
+    from dhlog.identify.run import process_data
     from dhlog.identify.vision import _centre, corners_of, process_observations
     from dhlog.io.dhfile import dh_model_from
     from dhlog.model.robots import load_robot
@@ -113,7 +114,9 @@ def one_session(case: str, seed: int, poses: int) -> dict[str, float]:
     )
     nominal = dh_model_from(robot_name)
     t0 = time.perf_counter()
-    result = process_observations([obs], nominal=nominal, holdout=5)
+    result = process_observations(
+        start=process_data, observations=[obs], nominal=nominal, holdout=5
+    )
     seconds = time.perf_counter() - t0
     cam = result.camera
     true_table = vision.session.table

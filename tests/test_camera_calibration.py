@@ -22,6 +22,7 @@ from dhlog.identify.extract import extract_dh
 from dhlog.identify.measure import place, residuals
 from dhlog.identify.pixels import Corners, PixelModel, fit_pixels
 from dhlog.identify.prediction import predict
+from dhlog.identify.run import process_data
 from dhlog.identify.vision import process_observations
 from dhlog.io.dhfile import DHModel
 from dhlog.model.robots import load_robot
@@ -207,7 +208,9 @@ def test_process_observations(setup: str) -> None:
     ids, uv = _corners(rig, true, robot, Q, np.random.default_rng(9))
     obs = _observations(robot, Q, ids, uv)
     nominal = DHModel(robot.table, np.eye(4), np.zeros(3), tuple(obs.joint_names), "library")
-    result = process_observations([obs], nominal=nominal, holdout=5)
+    result = process_observations(
+        start=process_data, observations=[obs], nominal=nominal, holdout=5
+    )
     cam = result.camera
     assert cam.setup == setup and cam.setup_reason.startswith("decided")
     # the truth in the same conventions: the true axes in M, extracted with the same nominal
@@ -256,11 +259,15 @@ def test_a_camera_that_moved_is_named() -> None:
     ids2, uv2 = _corners(moved, true, robot, Q[30:], rng)
     nominal = DHModel(robot.table, np.eye(4), np.zeros(3), tuple(f"j{k}" for k in range(6)), "lib")
     still = process_observations(
-        [_observations(robot, Q, ids, uv)], nominal=nominal, setup="eye-to-hand"
+        start=process_data,
+        observations=[_observations(robot, Q, ids, uv)],
+        nominal=nominal,
+        setup="eye-to-hand",
     )
     assert not any("moved during the session" in w for w in still.warnings)
     result = process_observations(
-        [_observations(robot, Q, ids[:30] + ids2, uv[:30] + uv2)],
+        start=process_data,
+        observations=[_observations(robot, Q, ids[:30] + ids2, uv[:30] + uv2)],
         nominal=nominal,
         setup="eye-to-hand",
     )
@@ -273,7 +280,8 @@ def test_a_camera_that_moved_is_named() -> None:
     assert "--frames" in said[0]
     # the option it names calibrates from the part before the move, which is still
     before = process_observations(
-        [_observations(robot, Q, ids[:30] + ids2, uv[:30] + uv2)],
+        start=process_data,
+        observations=[_observations(robot, Q, ids[:30] + ids2, uv[:30] + uv2)],
         nominal=nominal,
         setup="eye-to-hand",
         frames=(None, 30),

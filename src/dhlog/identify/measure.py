@@ -387,6 +387,11 @@ def place(
                 lam *= 10.0
                 continue
             dd: FloatArray = np.asarray(d, dtype=np.float64)
+            if not np.all(np.isfinite(dd)):
+                lam *= 10.0
+                if lam > 1e8:
+                    break
+                continue
             trial_state = step(state, dd[:12])
             trial, trial_m = build(trial_state), meas.moved(dd[12:])
             tn = _normal(trial, layout, trial_m, data, limit)

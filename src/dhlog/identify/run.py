@@ -251,6 +251,7 @@ def process_log(
                 holdout=holdout,
                 frames=frames,
                 progress=progress,
+                start=process_data,
             ),
         )
     log = read_log(

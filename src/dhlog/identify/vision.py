@@ -283,11 +283,15 @@ def process_observations(
     holdout: int = 0,
     frames: tuple[int | None, int | None] | None = None,
     progress: Callable[[str, float], None] | None = None,
+    start: Callable[..., Any] | None = None,
 ) -> Any:
     """The calibration of the module docstring from one camera's observations; returns the
-    :class:`~dhlog.identify.run.ProcessResult` with its ``camera`` and ``cameras`` filled."""
-    from dhlog.identify.run import process_data
-
+    :class:`~dhlog.identify.run.ProcessResult` with its ``camera`` and ``cameras`` filled.
+    ``start``: the tracker's run on the poses (:func:`dhlog.identify.run.process_data`, which
+    ``identify.run.process_log`` passes: this module is below the run and never imports it)."""
+    if start is None:  # the tracker's run makes the start (identify.run passes itself)
+        raise ValueError("process_observations needs start= (identify.run.process_data)")
+    process_data = start
     if not observations:
         raise InputError("the log holds no camera with detections.")
     obs = observations[0]
@@ -422,7 +426,6 @@ def _pixel_stage(
     progress: Callable[[str, float], None] | None,
 ) -> None:
     """Refit ``result``'s whole model in pixels and put the DH model, σ and camera in it."""
-    from dhlog.identify.run import table_values
     from dhlog.identify.sweeps import samples_with_encoders
     from dhlog.identify.validate import validate_samples
 
@@ -458,9 +461,9 @@ def _pixel_stage(
     result.selection = None
     seg = result.segmentation
     rows, Q, P = samples_with_encoders(seg)
-    Q_table = Q.map(lambda q: table_values(result, q), Q.shape)
+    # the table's joint values are the encoders' (no scales, no terms in a camera's fit)
     inl = np.ones(len(rows), dtype=bool)
-    result.validation = validate_samples(seg, rows, Q_table, P, ex, inl, ex.tool_point[None])
+    result.validation = validate_samples(seg, rows, Q, P, ex, inl, ex.tool_point[None])
     T_fixed, T_mounted, fixed_std, mounted_std = hand_eye(fit, extract, setup, _centre(obs))
     scaled = board_scale(ex, nominal_table, obs, set(found.fixed))
     if scaled is not None:
