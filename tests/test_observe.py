@@ -299,3 +299,44 @@ def test_a_tracker_pipeline_is_refused(base: Base) -> None:
     assert tracker is not None
     with pytest.raises(PipelineError, match="not a camera pipeline"):
         observe(base.path, tracker)
+
+
+def test_several_cameras_each_observed_and_one_without_intrinsics_left_out(
+    tmp_path: Path,
+) -> None:
+    from dhlog.model.robots import load_robot
+    from dhlog.simulate.camera import simulate_vision, write_vision_log
+    from dhlog.simulate.config import SimulationConfig
+
+    cfg = SimulationConfig(seed=3, poses=10, protocol="random-poses", joint_rate=20.0,
+                           instrument="camera", camera_setup="eye-to-hand")  # fmt: skip
+    vision = simulate_vision(
+        load_robot("kr5"), cfg, "eye-to-hand", "jpeg", preset="small", cameras=2
+    )
+    path = tmp_path / "two.mcap"
+    write_vision_log(vision, path, cfg.seed)
+    observed = observe(path, PIPELINE, jobs=2)
+    assert [o.camera for o in observed] == [f"/camera_{k}/image_raw/compressed" for k in (1, 2)]
+    for obs, cam in zip(observed, vision.cameras, strict=True):
+        assert obs.intrinsics == cam.rig.camera and obs.warnings == []
+        assert obs.t_ns.tolist() == cam.frame_t_ns.tolist() and obs.frames >= 4
+        np.testing.assert_allclose(obs.q, cam.frame_q, atol=1e-12)
+        every = []
+        for f, ids, uv in zip(obs.frame, obs.ids, obs.uv, strict=True):
+            T = cam.T_cam_board[int(f)]
+            P = cam.rig.board.object_points()[ids] @ T[:3, :3].T + T[:3, 3]
+            every.append(np.linalg.norm(uv - cam.rig.camera.project(P), axis=1))
+        e = np.concatenate(every)
+        assert np.sqrt(np.mean(e**2)) < 0.25 and e.max() < 1.0
+    # the second camera's intrinsics missing: it is left out, said on the first
+    with path.open("rb") as f:
+        messages = [
+            Message(c.topic, s.name if s else "", m.log_time, bytes(m.data))
+            for s, c, m in make_reader(f).iter_messages()
+            if c.topic != "/camera_2/camera_info"
+        ]
+    (first,) = observe(written(tmp_path, messages), PIPELINE)
+    assert first.camera == "/camera_1/image_raw/compressed" and first.frames == observed[0].frames
+    (line,) = first.warnings
+    assert "no camera intrinsics for /camera_2/image_raw/compressed" in line
+    assert line.endswith("That camera is left out.") and "\n" not in line

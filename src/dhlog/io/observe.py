@@ -1,11 +1,15 @@
 """A camera log observed (issue 32): the board's corners detected in every frame, the encoders
 joined at each frame's stamp, a few frames kept for the recording — :func:`observe`.
 
-The log is walked twice. First for the small streams — the joint states (decoded as
+The log is walked first for the small streams — the joint states (decoded as
 :func:`dhlog.io.reader.read_log` decodes them: :func:`dhlog.io.decode.blocks.decode_stream`,
-:func:`~dhlog.io.decode.frames.joints_frame`, :func:`~dhlog.io.decode.frames.clean`) and the
-camera infos — so that a log without intrinsics or encoders is refused before any image is
-decoded, and every frame is detected with the intrinsics. Then for the images: their payloads
+:func:`~dhlog.io.decode.frames.joints_frame`, :func:`~dhlog.io.decode.frames.clean`) and every
+camera info (the images' payloads offered to a sink that drops them) — so that a log without
+intrinsics or encoders is refused before any image is decoded, and every frame is detected with
+the intrinsics. The cameras are the pipeline's ``[streams.image]`` topic and the log's topics
+that differ from it only in their namespace (``/camera_1/image_raw/compressed``,
+``/camera_2/…``), each with its camera-info topic named likewise (:func:`_cameras`). Then the
+log is walked once a camera for its images: their payloads
 as recorded (:meth:`dhlog.io.images.ImageStream.payload_batches`, a few MiB at a time), handed
 in tasks of :data:`TASK_FRAMES` to ``jobs`` worker processes that decode each
 (:func:`dhlog.io.images.decode_payload`) and detect the board in it
@@ -35,6 +39,7 @@ from numpy.typing import NDArray
 from dhlog.errors import InputError, MissingTopicError, PipelineError
 from dhlog.io import ros2
 from dhlog.io.images import (
+    INFO_SCHEMAS,
     CameraInfo,
     Decoder,
     Faults,
@@ -51,7 +56,7 @@ from dhlog.io.images import (
     unzstd_payload,
 )
 from dhlog.io.mcapscan import scan_mcap
-from dhlog.io.mcapwalk import ChannelInfo
+from dhlog.io.mcapwalk import ChannelInfo, RawMessages
 from dhlog.io.pipeline import DEFAULT_TOPICS, Pipeline, StreamSpec
 from dhlog.io.safetext import printable
 from dhlog.model.dh import JointType
@@ -205,7 +210,7 @@ class _Small:
     joint_t: NDArray[np.int64]
     joint_q: NDArray[np.float64]
     joint_names: list[str]
-    infos: list[CameraInfo]
+    infos: dict[str, list[CameraInfo]]
     warnings: list[str]
 
 
@@ -214,19 +219,30 @@ def _joints_spec(pipeline: Pipeline) -> StreamSpec:
     return spec if spec is not None else StreamSpec(DEFAULT_TOPICS["joints"], True)
 
 
-def _first_walk(
-    name: str, pipeline: Pipeline, info_topic: str | None, progress: Callable[[float], None]
-) -> _Small:
+def _first_walk(name: str, pipeline: Pipeline, progress: Callable[[float], None]) -> _Small:
+    """The joint states and every camera info of the log (each camera's), walking it once:
+    the other channels' payloads (the images) are offered to a sink that drops them."""
     # polars (the joints' table) imported here, not by the workers: 0.15 s a worker
     from dhlog.io.decode.blocks import decode_stream
     from dhlog.io.decode.frames import clean, joints_frame
     from dhlog.io.reader import _unzstd_squeezed
 
     spec = _joints_spec(pipeline)
-    topics = [spec.topic] + ([info_topic] if info_topic else [])
     present: set[str] = set()
     blocks: list[Block] = []
-    infos: list[CameraInfo] = []
+    infos: dict[str, list[CameraInfo]] = {}
+    taken: dict[int, bool] = {}
+
+    def drop(cid: int, info: ChannelInfo | None, _: RawMessages) -> bool:
+        # the same answer for every offer of a channel (a channel not yet defined: kept)
+        if cid not in taken:
+            taken[cid] = (
+                info is not None
+                and info.topic != spec.topic
+                and (info.schema_name not in INFO_SCHEMAS)
+            )
+        return taken[cid]
+
     warnings: list[str] = []
     damaged: list[tuple[str, int, int, str]] = []
     joint_channels = 0
@@ -237,7 +253,8 @@ def _first_walk(
             def step(f: float, k: int = k) -> None:
                 progress((k + f) / len(paths))
 
-            scan = scan_mcap(path, topics, progress=step)
+            taken.clear()  # channel ids are the file's own
+            scan = scan_mcap(path, None, progress=step, sink=drop)
             present.update(scan.topics())
             warnings.extend(scan.warnings)
             _unzstd_squeezed(scan.messages, name, False)
@@ -248,8 +265,14 @@ def _first_walk(
                     "joints", channels, scan.messages, None, spec.fields, name,
                     damaged=damaged, notes=warnings,
                 )  # fmt: skip
-            if info_topic and info_topic in scan.topics():
-                infos += read_camera_infos(path, info_topic, scan)
+            for topic in sorted(
+                {
+                    c.topic
+                    for c in scan.channels.values()
+                    if c.schema_name in INFO_SCHEMAS and c.topic != spec.topic
+                }
+            ):
+                infos.setdefault(topic, []).extend(read_camera_infos(path, topic, scan))
             del scan
     if not joint_channels:
         raise MissingTopicError(name, "joints", spec.topic, sorted(present))
@@ -271,26 +294,67 @@ def _first_walk(
     return _Small(sorted(present), t, q.reshape(t.size, len(names)), names, infos, warnings)
 
 
-def _image_topic(name: str, pipeline: Pipeline, present: list[str]) -> str:
-    assert pipeline.image is not None
+@dataclass(frozen=True)
+class _Camera:
+    """A camera of the log: its image topic and camera-info topic (None: the pipeline's
+    calibration file holds its intrinsics)."""
+
+    image: str
+    info: str | None
+
+
+def _split(topic: str) -> tuple[str, str] | None:
+    """``/ns/rest`` → (ns, rest); None for a topic without a namespace."""
+    parts = topic.split("/", 2)
+    if len(parts) < 3 or parts[0] or not parts[1] or not parts[2]:
+        return None
+    return parts[1], parts[2]
+
+
+def _cameras(name: str, pipeline: Pipeline, present: list[str]) -> list[_Camera]:
+    """The cameras of the log: the pipeline's ``[streams.image]`` topic (or the first of its
+    alternatives the log has), and the log's topics that differ from one of those only in
+    their first part, the camera's namespace (``/camera_1/image_raw/compressed`` and
+    ``/camera_2/…`` for ``/camera/image_raw/compressed``), each with the camera-info topic
+    named likewise (``/camera_1/camera_info``). The pipeline's own camera first."""
+    assert pipeline.image is not None and pipeline.camera is not None
     wanted = [pipeline.image.topic, *pipeline.image.alternatives]
-    found = next((t for t in wanted if t in present), None)
-    if found is None:
+    info = pipeline.camera.info_topic
+    held = pipeline.camera.intrinsics is not None
+    found: list[_Camera] = []
+    own = next((t for t in wanted if t in present), None)
+    if own is not None:
+        found.append(_Camera(own, None if held else info))
+    own_ns = (_split(own) or ("", ""))[0] if own is not None else None
+    info_parts = _split(info) if info else None
+    for ns in sorted({parts[0] for t in present if (parts := _split(t)) is not None}):
+        if ns == own_ns:
+            continue
+        for topic in wanted:
+            parts = _split(topic)
+            if parts is None or parts[0] == ns or f"/{ns}/{parts[1]}" not in present:
+                continue
+            beside = info_parts is not None and info_parts[0] == parts[0]
+            info_rest = info_parts[1] if beside and info_parts is not None else "camera_info"
+            found.append(_Camera(f"/{ns}/{parts[1]}", f"/{ns}/{info_rest}"))
+            break
+    if not found:
         raise MissingTopicError(name, "image", " or ".join(wanted), present)
     return found
 
 
 def _intrinsics(
-    name: str, pipeline: Pipeline, small: _Small, warnings: list[str]
+    name: str, pipeline: Pipeline, camera: _Camera, small: _Small, warnings: list[str]
 ) -> tuple[Intrinsics, str]:
-    """The camera's intrinsics and where they come from (the calibration file, or the first
-    camera info on the pipeline's topic)."""
-    camera = pipeline.camera
-    assert camera is not None
-    if camera.intrinsics is not None:
-        return camera.intrinsics, f"[camera] calibration {camera.calibration}"
-    topic = camera.info_topic
-    if not small.infos:
+    """The camera's intrinsics and where they come from (the pipeline's calibration file, or
+    the first camera info on its topic)."""
+    assert pipeline.camera is not None
+    if camera.info is None:
+        assert pipeline.camera.intrinsics is not None
+        return pipeline.camera.intrinsics, f"[camera] calibration {pipeline.camera.calibration}"
+    topic = camera.info
+    infos = small.infos.get(topic, [])
+    if not infos:
         lacking = (
             "is not in the log"
             if topic not in small.topics
@@ -298,11 +362,12 @@ def _intrinsics(
         )
         listed = ", ".join(small.topics) or "none"
         raise VisionLogError(
-            f"{name}: no camera intrinsics: the camera-info topic {topic} {lacking} (topics "
-            f"present: {listed}); give the camera's calibration file as [camera] calibration "
-            "in the pipeline, or its camera-info topic as [camera] info_topic."
+            f"{name}: no camera intrinsics for {camera.image}: the camera-info topic {topic} "
+            f"{lacking} (topics present: {listed}); give the camera's calibration file as "
+            "[camera] calibration in the pipeline, or its camera-info topic as [camera] "
+            "info_topic."
         )
-    first = small.infos[0]
+    first = infos[0]
     where = f"{name}: {topic}"
     found = Intrinsics.from_camera_info(
         first.width, first.height, first.distortion_model, first.d, first.k.ravel(), where=where
@@ -310,7 +375,7 @@ def _intrinsics(
     changed = next(
         (
             k
-            for k, info in enumerate(small.infos)
+            for k, info in enumerate(infos)
             if (info.width, info.height, info.distortion_model, info.d)
             != (first.width, first.height, first.distortion_model, first.d)
             or not np.array_equal(info.k, first.k)
@@ -319,7 +384,7 @@ def _intrinsics(
     )
     if changed is not None:
         warnings.append(
-            f"{where}: the intrinsics change at camera info {changed} of {len(small.infos)}; "
+            f"{where}: the intrinsics change at camera info {changed} of {len(infos)}; "
             "the first are used for every frame (give a calibration file as [camera] "
             "calibration to choose them)."
         )
@@ -402,7 +467,9 @@ def observe(
 ) -> list[Observations]:
     """The board's corners in every frame of the camera log at ``path`` (an MCAP file or a
     rosbag2 bag folder) read with the camera ``pipeline``, with the encoders at each frame's
-    stamp: one :class:`Observations` per camera (the pipeline's ``[streams.image]``: one).
+    stamp: one :class:`Observations` per camera (the pipeline's ``[streams.image]`` topic
+    first, then the topics like it in other namespaces: see the module). The warnings of the
+    log (damaged joint states, cameras left out) are the first camera's.
 
     ``jobs``: worker processes decoding and detecting (1: this process). ``keep_frames``: the
     most frames kept compressed for the recording, evenly over the log. ``progress`` is called
@@ -410,7 +477,8 @@ def observe(
     ``InputError``): no intrinsics, images of another size than the intrinsics', no frame with
     the target (the tally and the likely fix), no frame with joint values; as warnings: frames
     not decoded, frames without joint values within ``[segmentation] join_tolerance``, frames
-    taken while the joints moved."""
+    taken while the joints moved. With several cameras a camera that fails so is left out (a
+    warning), and the error is raised only when every camera fails."""
     name = str(path)
     if pipeline.image is None or pipeline.target is None or pipeline.camera is None:
         raise PipelineError(
@@ -430,13 +498,45 @@ def observe(
             progress(done[0])
 
     report(0.0)
-    info_topic = pipeline.camera.info_topic if pipeline.camera.intrinsics is None else None
-    small = _first_walk(name, pipeline, info_topic, lambda f: report(FIRST_WALK * f))
-    warnings = list(small.warnings)
-    topic = _image_topic(name, pipeline, small.topics)
-    camera, source = _intrinsics(name, pipeline, small, warnings)
-    setup = _Setup(pipeline.target, camera)
+    small = _first_walk(name, pipeline, lambda f: report(FIRST_WALK * f))
+    cameras = _cameras(name, pipeline, small.topics)
+    share = (1.0 - FIRST_WALK) / len(cameras)
+    out: list[Observations] = []
+    failed: list[VisionLogError] = []
+    for k, cam in enumerate(cameras):
 
+        def step(f: float, k: int = k) -> None:
+            report(FIRST_WALK + share * (k + f))
+
+        try:
+            out.append(_observe_camera(name, pipeline, cam, small, jobs, keep_frames, step))
+        except VisionLogError as exc:
+            if len(cameras) == 1:
+                raise
+            failed.append(exc)
+    if not out:  # every camera failed: the first one's reason (the others' are alike)
+        more = f" ({len(failed) - 1} other camera(s) failed too)" if len(failed) > 1 else ""
+        raise VisionLogError(f"{failed[0]}{more}")
+    out[0].warnings[:0] = [*small.warnings, *(f"{exc} That camera is left out." for exc in failed)]
+    report(1.0)
+    return out
+
+
+def _observe_camera(
+    name: str,
+    pipeline: Pipeline,
+    cam: _Camera,
+    small: _Small,
+    jobs: int,
+    keep_frames: int,
+    report: Callable[[float], None],
+) -> Observations:
+    """One camera's observations (see :func:`observe`)."""
+    assert pipeline.target is not None
+    warnings: list[str] = []
+    topic = cam.image
+    camera, source = _intrinsics(name, pipeline, cam, small, warnings)
+    setup = _Setup(pipeline.target, camera)
     stream = ImageStream(name, topic, batch_bytes=PAYLOAD_BATCH_BYTES)
     decimation = Decimation(keep_frames)
     tally, faults = Tally(), Faults()
@@ -460,7 +560,7 @@ def observe(
                     first_detail.setdefault(s.outcome.reason, s.outcome.detail)
                 if s.kept is not None:
                     decimation.add(s.index, *s.kept)
-            report(FIRST_WALK + (1.0 - FIRST_WALK) * stream.fraction)
+            report(stream.fraction)
     warnings.extend(stream.warnings)
     stream.faults = faults
     fault_line = stream.warning()
@@ -504,24 +604,21 @@ def observe(
     keep = np.flatnonzero(at.ok)
     # in time order: the headers' stamps need not be in the file's order
     keep = keep[np.argsort(t[keep], kind="stable")]
-    report(1.0)
-    return [
-        Observations(
-            path=name,
-            camera=topic,
-            intrinsics=camera,
-            board=pipeline.target,
-            t_ns=t[keep],
-            frame=np.array([found[k][0] for k in keep], dtype=np.int64),
-            q=np.asarray(at.q[keep], dtype=np.float64),
-            joint_names=list(small.joint_names),
-            ids=[found[k][2].astype(np.int64) for k in keep],
-            uv=[np.asarray(found[k][3], dtype=np.float64) for k in keep],
-            tally=tally,
-            kept=decimation.frames(),
-            warnings=warnings,
-        )
-    ]
+    return Observations(
+        path=name,
+        camera=topic,
+        intrinsics=camera,
+        board=pipeline.target,
+        t_ns=t[keep],
+        frame=np.array([found[k][0] for k in keep], dtype=np.int64),
+        q=np.asarray(at.q[keep], dtype=np.float64),
+        joint_names=list(small.joint_names),
+        ids=[found[k][2].astype(np.int64) for k in keep],
+        uv=[np.asarray(found[k][3], dtype=np.float64) for k in keep],
+        tally=tally,
+        kept=decimation.frames(),
+        warnings=warnings,
+    )
 
 
 def _size_error(
