@@ -315,7 +315,8 @@ def test_several_cameras_each_observed_and_one_without_intrinsics_left_out(
     )
     path = tmp_path / "two.mcap"
     write_vision_log(vision, path, cfg.seed)
-    observed = observe(path, PIPELINE, jobs=2)
+    pipeline = dataclasses.replace(PIPELINE, target=vision.rig.board)  # the preset's board
+    observed = observe(path, pipeline, jobs=2)
     assert [o.camera for o in observed] == [f"/camera_{k}/image_raw/compressed" for k in (1, 2)]
     for obs, cam in zip(observed, vision.cameras, strict=True):
         assert obs.intrinsics == cam.rig.camera and obs.warnings == []
@@ -335,7 +336,7 @@ def test_several_cameras_each_observed_and_one_without_intrinsics_left_out(
             for s, c, m in make_reader(f).iter_messages()
             if c.topic != "/camera_2/camera_info"
         ]
-    (first,) = observe(written(tmp_path, messages), PIPELINE)
+    (first,) = observe(written(tmp_path, messages), pipeline)
     assert first.camera == "/camera_1/image_raw/compressed" and first.frames == observed[0].frames
     (line,) = first.warnings
     assert "no camera intrinsics for /camera_2/image_raw/compressed" in line
