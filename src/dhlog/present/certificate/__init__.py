@@ -6,7 +6,10 @@ finds and hashes the log it names and reads ``<stem>.holdout.csv`` beside it;
 (robot, dates, SHA-256 of the result and of the log), the tracker and noise model, the held-out
 error before and after with a histogram beside the in-sample fit, the DH parameters with ±1σ and
 measured − nominal (fixed ones marked with their reason, never shown as measurements), per-joint
-residuals, the terms beyond the geometry, and the result's warnings and notes.
+residuals, the terms beyond the geometry, and the result's warnings and notes. A camera
+calibration's result (its ``camera`` block) gets a camera section (:mod:`.camera_section`): the
+set-up, the detections, the hand-eye poses ±1σ, the intrinsics and the corners, its held-out
+check in pixels and mm in place of the tracker's.
 
 Every byte read is untrusted: a missing, mistyped or damaged field is a
 :class:`~.read.ResultFileError` naming the file and the field (:mod:`.read`, :mod:`.holdout`);

@@ -9,6 +9,12 @@ from datetime import UTC, datetime
 
 from dhlog import __version__
 from dhlog.errors import InputError
+from dhlog.present.certificate.camera_section import (
+    camera_accuracy,
+    camera_cards,
+    camera_frame_caption,
+    camera_section,
+)
 from dhlog.present.certificate.holdout import read_holdout_csv
 from dhlog.present.certificate.read import read_result
 from dhlog.present.certificate.sections import (
@@ -160,10 +166,12 @@ def certificate_html(
             " Measured − nominal is not shown: the result JSON does not record the nominal "
             "(pass --nominal to dhlog report)."
         )
+    camera = result.camera
+    instrument = "a laser-tracker log" if camera is None else "a camera log (a board's corners)"
     body = [
         '<main class="sheet">',
         "<header><div><h1>Robot calibration certificate</h1>"
-        '<p class="sub">Kinematic (Denavit–Hartenberg) calibration from a laser-tracker log, '
+        f'<p class="sub">Kinematic (Denavit–Hartenberg) calibration from {instrument}, '
         "identified by dhlog</p></div>"
         f'<div class="robot" id="robot">{escape(title)}<small>{result.n_joints} joints · report '
         f"{now.strftime('%Y-%m-%d')}</small></div></header>",
@@ -174,36 +182,60 @@ def certificate_html(
             + ", ".join(str(r.joint) for r in partial)
             + " could not be identified; see the per-joint section.</div>"
         )
+    # a camera calibration's held-out check is the camera's (pixels and mm), not validation's
+    held = camera.holdout if camera is not None and not result.checks else None
+    sections: list[tuple[str, str, list[str]]] = [
+        (
+            "identification",
+            "Identification",
+            [identification_table(sources, result, robot, nominal, now)],
+        ),
+        (
+            "accuracy",
+            "Accuracy at held-out poses" if held is None else "Accuracy at held-out frames",
+            [accuracy_section(result) if held is None else camera_accuracy(held)],
+        ),
+        (
+            "parameters",
+            "DH parameters",
+            [
+                f'<p class="caption">{escape(intro)}</p>',
+                parameter_table(rows, nominal)
+                if rows
+                else '<p class="alert">The result holds no DH parameters.</p>',
+                tool_table(result.tool, None if camera is None else camera_frame_caption(camera)),
+            ],
+        ),
+    ]
+    if camera is not None:
+        sections.append(("camera", "Camera and board", [camera_section(camera)]))
+    sections += [
+        (
+            "measurement",
+            "Tracker and noise model" if camera is None else "Noise model and fit",
+            [
+                kv_table([(k, escape(v)) for k, v in result.measurement], "measurement")
+                if result.measurement
+                else '<p class="muted">The result records no noise model.</p>'
+            ],
+        ),
+        ("joints", "Per-joint residuals", [residual_section(result)]),
+        ("terms", "Beyond the geometry", [terms_section(result.nongeometric)]),
+        (
+            "warnings",
+            "Warnings and notes",
+            [
+                bullet_list(result.warnings, "warnings", "No warnings."),
+                bullet_list(result.notes, "notes", "No notes."),
+            ],
+        ),
+    ]
+    body.append(summary_cards(result, None if camera is None else camera_cards(camera)))
+    for n, (key, heading, parts) in enumerate(sections, start=1):
+        body.append(f'<section id="s-{key}"><h2><span class="n">{n}</span>{heading}</h2>')
+        body += parts
+        body.append("</section>")
     body += [
-        summary_cards(result),
-        '<section id="s-identification"><h2><span class="n">1</span>Identification</h2>',
-        identification_table(sources, result, robot, nominal, now),
-        "</section>",
-        '<section id="s-accuracy"><h2><span class="n">2</span>Accuracy at held-out poses</h2>',
-        accuracy_section(result),
-        "</section>",
-        '<section id="s-parameters"><h2><span class="n">3</span>DH parameters</h2>',
-        f'<p class="caption">{escape(intro)}</p>',
-        parameter_table(rows, nominal)
-        if rows
-        else '<p class="alert">The result holds no DH parameters.</p>',
-        tool_table(result.tool),
-        "</section>",
-        '<section id="s-measurement"><h2><span class="n">4</span>Tracker and noise model</h2>',
-        kv_table([(k, escape(v)) for k, v in result.measurement], "measurement")
-        if result.measurement
-        else '<p class="muted">The result records no noise model.</p>',
-        "</section>",
-        '<section id="s-joints"><h2><span class="n">5</span>Per-joint residuals</h2>',
-        residual_section(result),
-        "</section>",
-        '<section id="s-terms"><h2><span class="n">6</span>Beyond the geometry</h2>',
-        terms_section(result.nongeometric),
-        "</section>",
-        '<section id="s-warnings"><h2><span class="n">7</span>Warnings and notes</h2>',
-        bullet_list(result.warnings, "warnings", "No warnings."),
-        bullet_list(result.notes, "notes", "No notes."),
-        "</section>",
         f"<footer><span>Written by dhlog {escape(__version__)} (dhlog report) from "
         f"<code>{escape(sources.result_path.name)}</code>. Lengths in mm, angles in degrees, "
         "±1σ.</span><span>SHA-256 "

@@ -13,6 +13,7 @@ import numpy as np
 
 from dhlog.errors import InputError
 from dhlog.geometry._checks import roll_pitch_yaw
+from dhlog.present.certificate.camera import read_camera
 from dhlog.present.certificate.shown import (
     Check,
     JointResidual,
@@ -472,4 +473,5 @@ def read_result(document: Any, path: str) -> Result:
         _measurement(f, doc),
         _tool(f, doc, len(rows)),
         _nongeometric(f, doc),
+        read_camera(f, doc),
     )

@@ -205,7 +205,9 @@ def accuracy_section(result: Result) -> str:
     return "\n".join(parts)
 
 
-def summary_cards(result: Result) -> str:
+def summary_cards(result: Result, held: list[tuple[str, str, str]] | None = None) -> str:
+    """The cards at the top; ``held``: the held-out cards of a result without
+    ``validation.holdout`` (a camera calibration's, in pixels and mm)."""
     cards = []
     if result.checks:
         c = result.checks[0]
@@ -216,6 +218,8 @@ def summary_cards(result: Result) -> str:
                 cards.append(
                     ("Improvement", f"{c.nominal.rms / c.calibrated.rms:.1f}× lower", "good")
                 )
+    elif held is not None:
+        cards += held
     else:
         cards.append(("Held-out validation", "none: run --holdout 5", "bad"))
     if result.fk_rms is not None:
@@ -232,7 +236,9 @@ def summary_cards(result: Result) -> str:
     )
 
 
-def tool_table(tool: list[Triple]) -> str:
+def tool_table(tool: list[Triple], frame: str | None = None) -> str:
+    """The tool point and frame 1 in M ±1σ; ``frame``: what M is (HTML), where not the tracker's
+    measurement frame (the caption's first sentences)."""
     if not tool:
         return ""
     rows = []
@@ -258,8 +264,14 @@ def tool_table(tool: list[Triple]) -> str:
         "<tr><th></th>"
         '<th class="num">x</th><th class="num">y</th><th class="num">z</th>'
         "</tr></thead><tbody>" + "".join(rows) + "</tbody></table>"
-        "<p class=\"caption\">M: the tracker's measurement frame. The rotation's σ is that of a "
-        "small rotation about x, y, z." + "".join(f" {escape(h)}." for h in held_by) + "</p></div>"
+        '<p class="caption">'
+        + (
+            frame
+            or "M: the tracker's measurement frame. The rotation's σ is that of a small rotation "
+            "about x, y, z."
+        )
+        + "".join(f" {escape(h)}." for h in held_by)
+        + "</p></div>"
     )
 
 

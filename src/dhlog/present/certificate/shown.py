@@ -14,6 +14,7 @@ from dhlog.errors import DhlogError
 
 if TYPE_CHECKING:
     from dhlog.model.dh import StandardDH
+    from dhlog.present.certificate.camera import CameraShown
 
 
 def mm(value: float) -> str:
@@ -127,6 +128,8 @@ class Result:
     measurement: list[tuple[str, str]]
     tool: list[Triple]
     nongeometric: dict[str, Any] | None
+    #: a camera calibration's ``camera`` block (None: a tracker's result)
+    camera: CameraShown | None = None
 
 
 def nominal_deltas(
