@@ -120,7 +120,7 @@ def _intrinsics(cam: CameraShown) -> list[tuple[str, str]]:
         "not fitted"
     )
     return [
-        ("Intrinsics", escape(how)),
+        ("Held or refined", escape(how)),
         ("Image", f"{cam.width} × {cam.height} px"),
         (
             "Focal length",
