@@ -242,7 +242,19 @@ def _pose_log(
     base = pipeline_by_name("ros2_tracker")
     assert base is not None
     point = replace(base.streams["point"], orientation=True)
-    pipe = replace(base, streams={**base.streams, "point": point})
+    # the encoders are known at the frames only: a joint's motion is judged over the frames
+    # around each (1.5 frame intervals each side), not the tracker's 50 ms
+    gaps = np.diff(t)
+    spacing = float(np.median(gaps)) * 1e-9 if gaps.size else 0.0
+    window = max(base.segmentation.motion_window, 1.5 * spacing)
+    # and they were joined at each frame's stamp already (io.observe): no clock offset to find
+    segmentation = replace(
+        base.segmentation,
+        motion_window=min(window, 3600.0),
+        clock_offset=0.0,
+        clock_offset_fixed=True,
+    )
+    pipe = replace(base, streams={**base.streams, "point": point}, segmentation=segmentation)
     return LogData(obs.path, pipe, points, joints, list(obs.joint_names), None, None)
 
 
@@ -342,6 +354,7 @@ def process_observations(
                 model=model_request,
                 progress=progress,
             )
+            starts[s].camera_setup = s
         except DhlogError as exc:
             if len(candidates) == 1:
                 raise
@@ -357,16 +370,23 @@ def process_observations(
             f"{obs.path}: no start for the pixel fit from the board's poses "
             f"({why or 'the whole-model fit failed'}): check --camera-setup and --nominal."
         )
-    chosen = min(usable, key=lambda s: usable[s].validation.rms)
+    # a set-up the poses cannot fit is out (its FK check far beyond the other's); of the rest,
+    # the one whose table is the nominal's: sweeps from one home pose fit either set-up (each
+    # move is one joint's turn, about a line fixed in both the camera's and the board's frame),
+    # but only the right one reads the nominal's table off them
+    gap = {
+        s: placed_nominal_px(r, nominal, obs) if len(usable) > 1 else math.nan
+        for s, r in usable.items()
+    }
+    chosen = min(usable, key=lambda s: (gap[s], usable[s].validation.rms))
     if setup:
         reason = "given"
     else:
-        other = [s for s in usable if s != chosen]
-        worse = f"; {other[0]} {usable[other[0]].validation.rms * 1e3:.3f} mm" if other else ""
-        reason = (
-            f"decided from the data: the poses fit {chosen} at "
-            f"{usable[chosen].validation.rms * 1e3:.3f} mm{worse}"
+        said = "; ".join(
+            f"{s}: the nominal placed on the corners misses them by {gap[s]:.3f} px RMS"
+            for s in usable
         )
+        reason = f"decided from the data ({said})"
     result = usable[chosen]
     # what the start's run said is of the poses' fit (its noise, its pairs, its registration in
     # mm), not of the calibration: one line says how the start was made, the rest is the
@@ -389,6 +409,40 @@ def process_observations(
         )
     _pixel_stage(result, obs, T_cb, use, chosen, reason, refine_intrinsics, holdout, progress)
     return result
+
+
+def placed_nominal_px(start: Any, nominal: DHModel | None, obs: Observations) -> float:
+    """How well the nominal, placed on the corners in pixels (:func:`~dhlog.identify.measure.place`:
+    the fixed part's pose and the mount, its geometry held) from ``start``'s placement for its
+    set-up, reproduces them: the RMS (px). The set-up a log was recorded in lets the nominal
+    fit to about its own error; the other needs the chain's mirror image, which no placement
+    gives (sweeps from one home pose fit either set-up by a free fit: each move is one joint's
+    turn, about a line fixed in both the camera's and the board's frame). inf without a
+    nominal or a start."""
+    from dhlog.identify.measure import rms
+
+    whole, ex = start.whole, start.extraction
+    if nominal is None or whole is None or ex is None or whole.model.tool_rotation is None:
+        return math.inf
+    setup = start.camera_setup
+    data = corners_of(obs, np.ones(obs.frames, dtype=bool))
+    R_tool = ex.frames[-1][:3, :3].T @ whole.model.tool_rotation
+    try:
+        model, meas = place(
+            nominal.table,
+            start.reference_pose,
+            ex.T_measurement_base,
+            ex.tool_point,
+            R_tool,
+            PixelModel(setup, obs.intrinsics),
+            data,
+        )
+    except (DhlogError, ValueError, np.linalg.LinAlgError):
+        return math.inf
+    from dhlog.identify.measure import residuals as measured
+
+    value = rms(measured(model, meas, data))
+    return value if math.isfinite(value) else math.inf
 
 
 def of_frames(obs: Observations, frames: tuple[int | None, int | None]) -> Observations:
