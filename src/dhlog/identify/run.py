@@ -252,6 +252,7 @@ def process_log(
                 frames=frames,
                 progress=progress,
                 start=process_data,
+                pipeline=camera.name,
             ),
         )
     log = read_log(

@@ -296,6 +296,7 @@ def process_observations(
     frames: tuple[int | None, int | None] | None = None,
     progress: Callable[[str, float], None] | None = None,
     start: Callable[..., Any] | None = None,
+    pipeline: str | None = None,
 ) -> Any:
     """The calibration of the module docstring from one camera's observations; returns the
     :class:`~dhlog.identify.run.ProcessResult` with its ``camera`` and ``cameras`` filled.
@@ -388,6 +389,8 @@ def process_observations(
         )
         reason = f"decided from the data ({said})"
     result = usable[chosen]
+    if pipeline is not None:  # the camera pipeline read, not the poses' internal one
+        result.log = replace(result.log, pipeline=replace(result.log.pipeline, name=pipeline))
     # what the start's run said is of the poses' fit (its noise, its pairs, its registration in
     # mm), not of the calibration: one line says how the start was made, the rest is the
     # pixel fit's
