@@ -319,7 +319,11 @@ def fit_measured(
         n_points=int(count),
         iterations=iterations,
         bases=model.bases(),
-        determined=Determined.of(H[:k, :k], None if within is None else within[:k]),
+        determined=(
+            Determined.of(H[:k, :k], None if within is None else within[:k])
+            if within is None or np.any(within[:k])
+            else None  # the model held: only the measurement's own parameters moved
+        ),
         limit=float(limit),
     )
     return MeasuredFit(

@@ -181,6 +181,8 @@ class ProcessResult:
     #: and what the recording shows of each camera; None and empty for a tracker log
     camera: Any = None
     cameras: list[Any] = field(default_factory=list)
+    #: with several cameras, each one's product (``camera`` is the first's)
+    camera_results: list[Any] = field(default_factory=list)
 
     @property
     def complete(self) -> bool:
@@ -229,7 +231,7 @@ def process_log(
     footing (:mod:`dhlog.identify.footing`; a log that cannot be scored is a warning).
     ``progress(stage, fraction)`` is called as each stage advances."""
     camera = camera_pipeline(path, pipeline)
-    if camera is not None:
+    if camera is not None:  # one Observations a camera
         from dhlog.identify.vision import process_observations
         from dhlog.io.observe import observe
 

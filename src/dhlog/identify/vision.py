@@ -37,7 +37,7 @@ from dhlog.identify.axismodel import AxisModel, ParameterLayout
 from dhlog.identify.extract import Extraction, extract_dh
 from dhlog.identify.leaveout import fold_of_poses
 from dhlog.identify.measure import place
-from dhlog.identify.pixels import Corners, PixelFit, PixelModel, fit_pixels
+from dhlog.identify.pixels import CamerasModel, Corners, PixelFit, PixelModel, fit_pixels
 from dhlog.identify.prediction import predict as predict_points
 from dhlog.identify.prediction import predict_orientation
 from dhlog.identify.select import ModelRequest
@@ -405,12 +405,16 @@ def process_observations(
         "then the whole model fitted to every corner in pixels."
     ]
     result.warnings = [*notes, *(w for w in result.warnings if "never moved alone" in w)]
-    if extra_cameras:
+    fit = _pixel_stage(result, obs, T_cb, use, chosen, reason, refine_intrinsics, holdout, progress)
+    if extra_cameras and chosen != "eye-to-hand":
         result.warnings.append(
-            f"the log has {len(observations)} cameras; this calibration used {obs.camera} alone "
-            f"({', '.join(extra_cameras)} not used): several cameras in one fit are not done yet."
+            f"the log has {len(observations)} cameras; several are fitted together fixed in the "
+            f"cell (eye-to-hand) only: this calibration used {obs.camera} alone "
+            f"({', '.join(extra_cameras)} not used)."
         )
-    _pixel_stage(result, obs, T_cb, use, chosen, reason, refine_intrinsics, holdout, progress)
+    elif extra_cameras:
+        rest = [o if frames is None else of_frames(o, frames) for o in observations[1:]]
+        _several_cameras(result, fit, [obs, *rest], holdout, progress)
     return result
 
 
@@ -471,28 +475,57 @@ def of_frames(obs: Observations, frames: tuple[int | None, int | None]) -> Obser
     )
 
 
-def _pixel_stage(
-    result: Any,
-    obs: Observations,
-    T_cb: FloatArray,
-    use: NDArray[np.bool_],
-    setup: str,
-    reason: str,
-    refine_intrinsics: bool,
-    holdout: int,
-    progress: Callable[[str, float], None] | None,
-) -> None:
-    """Refit ``result``'s whole model in pixels and put the DH model, σ and camera in it."""
+#: Below this design effect the corners of a frame are taken as independent (σ within 5 %).
+SMALL_EFFECT = 1.1
+
+
+def frame_clustered(fit: PixelFit, frame: NDArray[np.intp], info: list[str]) -> PixelFit:
+    """``fit`` with every covariance times the design effect of corners grouped by frame,
+    where it reaches :data:`SMALL_EFFECT` (said in ``info``): a frame's corners share part of
+    their error (the detector's, the image's: blur, exposure, a board's print), which the
+    corners' scatter about the model does not show as independent. ``effect`` =
+    1 + (k̄ − 1) ρ, k̄ the corners a frame, ρ the share of the residual variance common to a
+    frame's corners (as the tracker's design effect of samples a pose, identify.variance)."""
+    use = fit.inliers & np.all(np.isfinite(fit.residuals), axis=1)
+    r, f = fit.residuals[use], frame[use]
+    n = r.shape[0]
+    frames = np.unique(f)
+    g = frames.size
+    if g == 0 or n < 2 * g:
+        return fit
+    _, local = np.unique(f, return_inverse=True)
+    count = np.bincount(local).astype(np.float64)
+    sums = np.column_stack([np.bincount(local, weights=r[:, k]) for k in range(r.shape[1])])
+    squares = float(np.sum(r**2))
+    between = float(np.sum(np.sum(sums**2, axis=1) / count))
+    d = r.shape[1]
+    within = (squares - between) / (d * (n - g))
+    total = squares / max(d * n - fit.full_covariance.shape[0], 1)
+    rho = min(max(1.0 - within / total, 0.0), 1.0) if total > 0 else 0.0
+    effect = 1.0 + (n / g - 1.0) * rho
+    if effect < SMALL_EFFECT:
+        return fit
+    info.append(
+        f"{n} corners in {g} frames ({n / g:.1f} a frame) share their frame's error "
+        f"({rho:.0%} of the residual variance): the uncertainty is scaled by the design "
+        f"effect, σ ×{math.sqrt(effect):.2f}."
+    )
+    whole = replace(fit.whole, covariance=fit.whole.covariance * effect)
+    own = None if fit.own_covariance is None else fit.own_covariance * effect
+    return replace(
+        fit, whole=whole, own_covariance=own, full_covariance=fit.full_covariance * effect
+    )
+
+
+def _adopt(
+    result: Any, whole: Any
+) -> tuple[Extraction, Any, Callable[[list[Line], FloatArray, Any], Extraction]]:
+    """Put the pixel fit ``whole`` in ``result``: its DH model read off as for a tracker, the
+    covariance and what is fixed, the FK check against the PnP poses. Returns the extraction,
+    the uncertainty and the extraction's function."""
     from dhlog.identify.sweeps import samples_with_encoders
     from dhlog.identify.validate import validate_samples
 
-    assert result.whole is not None
-    if progress is not None:
-        progress("fitting pixels", 0.0)
-    data = corners_of(obs, np.ones(obs.frames, dtype=bool))
-    measurement = PixelModel(setup, obs.intrinsics, refine=refine_intrinsics)
-    fit = fit_pixels(result.whole.model, measurement, data)
-    whole = fit.whole
     nominal = result.nominal
     nominal_table = nominal.table if nominal is not None else None
     ref = result.reference_pose
@@ -521,6 +554,34 @@ def _pixel_stage(
     # the table's joint values are the encoders' (no scales, no terms in a camera's fit)
     inl = np.ones(len(rows), dtype=bool)
     result.validation = validate_samples(seg, rows, Q, P, ex, inl, ex.tool_point[None])
+    return ex, found, extract
+
+
+def _pixel_stage(
+    result: Any,
+    obs: Observations,
+    T_cb: FloatArray,
+    use: NDArray[np.bool_],
+    setup: str,
+    reason: str,
+    refine_intrinsics: bool,
+    holdout: int,
+    progress: Callable[[str, float], None] | None,
+) -> PixelFit:
+    """Refit ``result``'s whole model in pixels and put the DH model, σ and camera in it;
+    returns the fit."""
+    assert result.whole is not None
+    if progress is not None:
+        progress("fitting pixels", 0.0)
+    data = corners_of(obs, np.ones(obs.frames, dtype=bool))
+    measurement = PixelModel(setup, obs.intrinsics, refine=refine_intrinsics)
+    fit = frame_clustered(
+        fit_pixels(result.whole.model, measurement, data), data.frame, result.info
+    )
+    nominal = result.nominal
+    nominal_table = nominal.table if nominal is not None else None
+    ref = result.reference_pose
+    ex, found, extract = _adopt(result, fit.whole)
     T_fixed, T_mounted, fixed_std, mounted_std = hand_eye(fit, extract, setup, _centre(obs))
     scaled = board_scale(ex, nominal_table, obs, set(found.fixed))
     if scaled is not None:
@@ -564,6 +625,217 @@ def _pixel_stage(
         "check below is against the board's poses from PnP (mm), the fit's own is in pixels."
     )
     result.cameras = [camera_view(fit, data, obs, cam, check)]
+    result.camera_results = [cam]
+    return fit
+
+
+def _several_cameras(
+    result: Any,
+    first: PixelFit,
+    observations: list[Observations],
+    holdout: int,
+    progress: Callable[[str, float], None] | None,
+) -> None:
+    """Fit the whole model to every camera's corners at once (:class:`CamerasModel`: M the
+    first camera's frame, each further camera's pose fitted with it), starting from the first
+    camera's fit and each further camera placed by its frames' PnP poses against where that
+    fit puts the board; every camera's pose in the base frame with σ, the held-out check
+    over all frames, a view per camera."""
+    from dhlog.identify.measure import fit_measured
+
+    if progress is not None:
+        progress("fitting cameras together", 0.0)
+    model = first.whole.model
+    centre = _centre(observations[0])
+    layout = ParameterLayout.of(model.types, rotation=True)
+    poses: list[FloatArray] = [np.eye(4)]
+    for o in observations[1:]:
+        T, pnp = board_poses(o, o.intrinsics)
+        ok = np.isfinite(pnp) & (pnp <= PNP_RMS)
+        if np.count_nonzero(ok) < 3:
+            raise InputError(
+                f"{o.path}: {o.camera} gives the board's pose in {int(np.count_nonzero(ok))} "
+                "frame(s): too few to place it beside the first camera; record more frames it "
+                "sees, or calibrate from one camera (--pipeline naming its topic)."
+            )
+        p, _ = predict_points(model, o.q[ok])
+        R, _ = predict_orientation(model, o.q[ok], layout, model.bases())
+        found = [
+            _transform(R[:, :, f], p[f]) @ _shift(-centre) @ np.linalg.inv(T[ok][f])
+            for f in range(int(np.count_nonzero(ok)))
+        ]
+        mean = Rotation.from_matrix(np.array([c[:3, :3] for c in found])).mean().as_matrix()
+        poses.append(_transform(mean, np.median(np.array([c[:3, 3] for c in found]), axis=0)))
+    data = _stacked(observations)
+    measurement = CamerasModel(tuple(o.intrinsics for o in observations), tuple(poses))
+    # the further cameras placed first, the model held and every corner in (their PnP start
+    # misses by px, which the joint fit's outlier cut, judged mostly on the first camera's
+    # corners, would hold out whole), then everything together
+    held = np.zeros((ParameterLayout.of(model.types, rotation=True).size, 0))
+    placed = fit_measured(model, measurement, data, within=held, threshold=math.inf)
+    result.info = [line for line in result.info if "share their frame's error" not in line]
+    fit = frame_clustered(fit_measured(model, placed.measurement, data), data.frame, result.info)
+    ex, _, extract = _adopt(result, fit.whole)
+    _, T_mounted, _, mounted_std = hand_eye(first, extract, "eye-to-hand", centre)
+    cams_std = _cameras_std(fit, extract)
+    base: FloatArray = np.asarray(np.linalg.inv(ex.T_measurement_base), dtype=np.float64)
+    check = None
+    if holdout > 1:
+        if progress is not None:
+            progress("cross-validating", 0.0)
+        check = _cross_validate_cameras(fit, data, holdout, result.nominal, result.reference_pose)
+    results = []
+    views = []
+    for k, o in enumerate(observations):
+        at = data.camera == k
+        res = fit.residuals[at]
+        inl = fit.inliers[at]
+        T_k = fit.measurement.poses[k]
+        cam = CameraResult(
+            name=o.camera,
+            setup="eye-to-hand",
+            intrinsics=o.intrinsics,
+            intrinsics_refined=False,
+            intrinsics_std=None,
+            T_base_fixed=np.asarray(base @ T_k, dtype=np.float64),
+            fixed_std=cams_std[k],
+            T_flange_mounted=T_mounted,
+            mounted_std=mounted_std,
+            sigma_px=fit.sigma,
+            rms_px=float(np.sqrt(np.mean(np.sum(res[inl] ** 2, axis=1)))) if inl.any() else 0.0,
+            frames=o.frames,
+            corners=int(np.count_nonzero(at)),
+            inlier_corners=int(np.count_nonzero(inl)),
+            tally=o.tally.summary(),
+            setup_reason=result.camera.setup_reason if k == 0 else "the first camera's",
+            holdout=check,
+        )
+        results.append(cam)
+        own = corners_of(o, np.ones(o.frames, dtype=bool))
+        sub = replace(first, residuals=res, whole=replace(first.whole, model=fit.whole.model))
+        views.append(camera_view(sub, own, o, cam, check, T_base_M=base))
+    result.camera, result.camera_results, result.cameras = results[0], results, views
+    result.info.append(
+        f"{len(observations)} cameras fitted together ({', '.join(o.camera for o in observations)}"
+        f"): {int(data.uv.shape[0])} corners, σ {fit.sigma:.3f} px per coordinate; each "
+        "camera's pose in the base frame with its σ in the camera blocks."
+    )
+
+
+def _stacked(observations: list[Observations]) -> Corners:
+    """Every camera's corners in one :class:`Corners` (frames numbered across the cameras,
+    each corner's camera)."""
+    parts = [corners_of(o, np.ones(o.frames, dtype=bool)) for o in observations]
+    offsets = np.cumsum([0] + [c.frames for c in parts[:-1]])
+    return Corners(
+        np.vstack([c.Q for c in parts]),
+        np.concatenate([c.frame + off for c, off in zip(parts, offsets, strict=True)]).astype(
+            np.intp
+        ),
+        np.vstack([c.points for c in parts]),
+        np.vstack([c.uv for c in parts]),
+        np.concatenate([np.full(c.uv.shape[0], k, dtype=np.intp) for k, c in enumerate(parts)]),
+    )
+
+
+def _cameras_std(
+    fit: Any, extract: Callable[[list[Line], FloatArray, Any], Extraction]
+) -> list[FloatArray]:
+    """Each camera's pose in the base frame: its σ (rotation vector rad, translation m; 6) by
+    central differences over every fitted parameter (the model's and the cameras' own)."""
+    whole, meas = fit.whole, fit.measurement
+    layout, model = whole.layout, whole.model
+    k0 = layout.size
+    bases = model.bases()
+
+    def poses(d: FloatArray) -> list[FloatArray]:
+        m = model.moved(d[:k0], layout, bases)
+        T_base_M = np.linalg.inv(extract(list(m.axes), m.target, None).T_measurement_base)
+        return [T_base_M @ T for T in meas.moved(d[k0:]).poses]
+
+    zero = poses(np.zeros(fit.full_covariance.shape[0]))
+
+    def vec(Ts: list[FloatArray]) -> FloatArray:
+        out = []
+        for T, T0 in zip(Ts, zero, strict=True):
+            out.append(Rotation.from_matrix(T[:3, :3] @ T0[:3, :3].T).as_rotvec())
+            out.append(T[:3, 3] - T0[:3, 3])
+        return np.concatenate(out)
+
+    cov = fit.full_covariance
+    size = cov.shape[0]
+    J = np.zeros((6 * len(zero), size))
+    scale = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+    for k in range(size):
+        h = max(float(scale[k]), 1e-9)
+        d = np.zeros(size)
+        d[k] = h
+        J[:, k] = (vec(poses(d)) - vec(poses(-d))) / (2 * h)
+    std = np.sqrt(np.clip(np.diag(J @ cov @ J.T), 0.0, None))
+    return [std[6 * k : 6 * k + 6] for k in range(len(zero))]
+
+
+def _cross_validate_cameras(
+    fit: Any, data: Corners, folds: int, nominal: DHModel | None, ref: FloatArray
+) -> PixelHoldout:
+    """K-fold over the frames of every camera: the joint fit again on the other folds' frames,
+    the nominal placed there (with the further cameras' poses), both scored in pixels at the
+    fold's frames (no mm figure: the PnP floor is one camera's)."""
+    from dhlog.identify.holdout import pose_groups
+    from dhlog.identify.measure import fit_measured
+    from dhlog.identify.measure import residuals as measured
+
+    fold = fold_of_poses(pose_groups(data.Q), folds, 0)
+    nominal_start = None
+    if nominal is not None:
+        ex = extract_dh(
+            list(fit.whole.model.axes),
+            tuple(fit.whole.model.types),
+            target=fit.whole.model.target,
+            reference_pose=ref,
+            nominal=nominal.table,
+        )
+        R_tool = ex.frames[-1][:3, :3].T @ fit.whole.model.tool_rotation
+        nominal_start = (nominal.table, ref, ex.T_measurement_base, ex.tool_point, R_tool)
+    scored = fit.inliers
+    errs: dict[str, list[FloatArray]] = {"calibrated": [], "nominal": []}
+    for k in range(folds):
+        test = fold == k
+        if not test.any() or test.all():
+            continue
+        train_c, test_c = data.of_frames(~test), data.of_frames(test)
+        keep = scored[test[data.frame]]
+        again = fit_measured(fit.whole.model, fit.measurement, train_c)
+        errs["calibrated"].append(
+            np.sum(measured(again.whole.model, again.measurement, test_c) ** 2, axis=1)[keep]
+        )
+        if nominal_start is not None:
+            m, meas = place(*nominal_start, fit.measurement, train_c)
+            errs["nominal"].append(np.sum(measured(m, meas, test_c) ** 2, axis=1)[keep])
+
+    def rms_of(parts: list[FloatArray]) -> float | None:
+        if not parts:
+            return None
+        v = np.concatenate(parts)
+        v = v[np.isfinite(v)]
+        return float(np.sqrt(np.mean(v))) if v.size else None
+
+    cal = rms_of(errs["calibrated"])
+    check = PixelHoldout(
+        folds=folds,
+        frames=data.frames,
+        nominal_px=rms_of(errs["nominal"]),
+        calibrated_px=math.nan if cal is None else cal,
+        nominal_mm=None,
+        calibrated_mm=math.nan,
+        fit_px=fit.rms,
+    )
+    check.notes.append(
+        "the cameras together: each fold refits the model and the further cameras' poses on "
+        "the other folds' frames of every camera; the nominal is placed on the same frames. "
+        "Pixels only (the mm figure is a single camera's PnP)."
+    )
+    return check
 
 
 #: A camera measures lengths in units of the board's squares: the robot's lengths (d, a of at
@@ -953,9 +1225,12 @@ def camera_view(
     obs: Observations,
     cam: CameraResult,
     check: PixelHoldout | None,
+    *,
+    T_base_M: FloatArray | None = None,
 ) -> CameraView:
     """What the recording shows: the kept frames with their corners and reprojections, the
-    camera and the board in the base frame at each frame."""
+    camera and the board in the base frame at each frame. ``T_base_M``: M in the base frame
+    when M is not this camera's (several cameras: the first's)."""
     from dhlog.identify.prediction import predict as predict_points
     from dhlog.identify.prediction import predict_orientation
 
@@ -967,14 +1242,17 @@ def camera_view(
     layout = ParameterLayout.of(model.types, rotation=True)
     p, _ = predict_points(model, data.Q)
     R, _ = predict_orientation(model, data.Q, layout, model.bases())
-    T_base_M = cam.T_base_fixed if cam.setup == "eye-to-hand" else cam.T_base_fixed @ _shift(centre)
+    if T_base_M is None:
+        T_base_M = (
+            cam.T_base_fixed if cam.setup == "eye-to-hand" else cam.T_base_fixed @ _shift(centre)
+        )
     uv_pred = data.uv + fit.residuals
     for f in range(data.frames):
         index = int(obs.frame[f])
         at = data.frame == f
         T_M_carried = _transform(R[:, :, f], p[f])
         if cam.setup == "eye-to-hand":
-            T_base_camera = T_base_M
+            T_base_camera = cam.T_base_fixed
             T_base_board = T_base_M @ T_M_carried @ _shift(-centre)
         else:
             T_base_camera = T_base_M @ T_M_carried

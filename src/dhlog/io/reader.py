@@ -98,23 +98,21 @@ _IMAGE_SCHEMAS = frozenset(
 
 def camera_pipeline(path: str | Path, pipeline: Pipeline | None) -> Pipeline | None:
     """The camera pipeline to read ``path`` with, or None for a tracker log: ``pipeline``
-    when it is a camera's; without one, the shipped camera pipeline whose image topic the log
-    has, when its channels (the summary's, else those before its first messages) carry camera
-    images. A vision log no shipped pipeline describes is a ``PipelineError``."""
+    when it is a camera's; without one, when the log's channels (the summary's, else those
+    before its 200th message) carry camera images, the shipped camera pipeline whose image
+    topic the log has, else the shipped ``ros2_camera`` (``io.observe`` takes the cameras on
+    topics like its image topic in other namespaces, e.g. ``/camera_1/…``, ``/camera_2/…``)."""
     if pipeline is not None:
         return pipeline if pipeline.is_camera else None
     topics = _image_topics(Path(path))
     if not topics:
         return None
-    for p in shipped_pipelines():
-        if p.image is not None and {p.image.topic, *p.image.alternatives} & topics:
-            return pipeline_by_name(p.name)  # read whole: its [target] and [camera]
-    raise PipelineError(
-        str(path),
-        f"a vision log (camera images on {', '.join(sorted(topics))}) that no shipped camera "
-        "pipeline describes: copy pipelines/ros2_camera.toml, name its image and camera-info "
-        "topics and its [target], and pass it with --pipeline.",
-    )
+    named = [
+        p
+        for p in shipped_pipelines()
+        if p.image is not None and {p.image.topic, *p.image.alternatives} & topics
+    ]
+    return pipeline_by_name(named[0].name if named else "ros2_camera")  # read whole
 
 
 def _image_topics(path: Path) -> set[str]:

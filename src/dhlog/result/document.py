@@ -107,6 +107,8 @@ def result_document(result: ProcessResult) -> dict[str, Any]:
         doc["nongeometric"] = nongeometric_document(result)
     if result.camera is not None:  # a camera calibration (issue 32): the hand-eye product
         doc["camera"] = result.camera.document()
+        if len(result.camera_results) > 1:  # several cameras: each one's block, the first's too
+            doc["cameras"] = [c.document() for c in result.camera_results]
     if ex is not None and result.complete:
         doc["modified_dh_tool"] = {"T_n_tool": ex.T_modified_tool.tolist()}
         if std is not None:

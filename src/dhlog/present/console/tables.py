@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from rich import box
@@ -200,9 +201,15 @@ def _print_camera(console: Console, result: ProcessResult, units: str) -> None:
     """A camera calibration's product: the camera's (or board's) pose in the base frame and
     the mounted part's on the flange with σ, the corners' σ, and the held-out check in pixels
     and in the unit of length."""
-    cam = result.camera
-    if cam is None:
-        return
+    cams = result.camera_results or ([] if result.camera is None else [result.camera])
+    for cam in cams:
+        _print_one_camera(console, cam, units)
+    if cams:
+        _print_camera_holdout(console, cams[0], units)
+
+
+def _print_one_camera(console: Console, cam: Any, units: str) -> None:
+    """One camera's poses ±σ and its corners."""
     length, _, lu, _ = scales(units)
     t = Table(
         title=escape(f"Camera {cam.name} ({cam.setup}): poses [{lu}, deg] ±1σ"),
@@ -233,6 +240,11 @@ def _print_camera(console: Console, result: ProcessResult, units: str) -> None:
         f"over {cam.inlier_corners} of {cam.corners} corners in {cam.frames} frames; "
         f"{escape(cam.tally)}"
     )
+
+
+def _print_camera_holdout(console: Console, cam: Any, units: str) -> None:
+    """The camera calibration's held-out check: pixels and, for one camera, mm."""
+    length, _, lu, _ = scales(units)
     h = cam.holdout
     if h is None:
         return
@@ -246,11 +258,15 @@ def _print_camera(console: Console, result: ProcessResult, units: str) -> None:
     )
     for head in ("model", "reprojection RMS [px]", f"board corners RMS [{lu}]"):
         t.add_column(head, justify="left" if head == "model" else "right")
-    if h.nominal_px is not None and h.nominal_mm is not None:
-        t.add_row("nominal", f"{h.nominal_px:.4f}", f"{h.nominal_mm * 1e-3 * length:.4f}")
-    t.add_row("calibrated", f"{h.calibrated_px:.4f}", f"{h.calibrated_mm * 1e-3 * length:.4f}")
-    t.add_row("(in sample)", f"{h.fit_px:.4f}", f"{h.fit_mm * 1e-3 * length:.4f}")
-    t.add_row("(PnP noise)", "", f"{h.pnp_noise_mm * 1e-3 * length:.4f}")
+
+    def mm(value: float | None) -> str:
+        return "—" if value is None or not math.isfinite(value) else f"{value * 1e-3 * length:.4f}"
+
+    if h.nominal_px is not None:
+        t.add_row("nominal", f"{h.nominal_px:.4f}", mm(h.nominal_mm))
+    t.add_row("calibrated", f"{h.calibrated_px:.4f}", mm(h.calibrated_mm))
+    t.add_row("(in sample)", f"{h.fit_px:.4f}", mm(h.fit_mm))
+    t.add_row("(PnP noise)", "", mm(h.pnp_noise_mm))
     console.print(t)
 
 
