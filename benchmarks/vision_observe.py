@@ -2,30 +2,31 @@
 detection of full-HD JPEG frames at >= 20 frames a second per core, ``--jobs`` using the cores,
 a 10 000-frame log within 1 GiB).
 
-    .venv/bin/python benchmarks/vision_observe.py write [--frames 2000] [--scale 1.5]
-    .venv/bin/python benchmarks/vision_observe.py run [--frames 2000] [--scale 1.5] [--jobs 1]
+    .venv/bin/python benchmarks/vision_observe.py write [--frames 2000] [--camera full-hd]
+    .venv/bin/python benchmarks/vision_observe.py run [--frames 2000] [--camera full-hd] [--jobs 1]
 
 ``write`` makes (once, cached in $TMPDIR/dhlog-bench) a ROS 2 vision log as
-``dhlog simulate kr5 --instrument camera --camera-setup eye-to-hand`` makes it
-(``dhlog.simulate.camera``: the KR5's ``random-poses`` session, its ChArUco board rendered
-through the plumb_bob camera with blur, noise and exposure, JPEG quality 95), its camera scaled
-by ``--scale`` (1.5: 1920x1200, f 2700 px — full HD's width; 1: the simulator's 1280x800), but
+``dhlog simulate kr5 --instrument camera --camera full-hd --camera-setup eye-to-hand`` makes
+it (``dhlog.simulate.camera``: the KR5's ``random-poses`` session, its ChArUco board rendered
+through the plumb_bob camera with blur, noise and exposure, JPEG quality 95; ``full-hd`` is
+issue 32's 1920x1080 camera, f 1600 px, with a 10x7 board of 30 mm squares 2 m away), but
 ``--frames`` long at 30 frames a second: the ``--poses`` (20) rendered frames repeat in turn,
-each held for its frame's 33 ms by joint states at 100 Hz (rendering 10 000 frames would take an
-hour; the decoding and detection cost the same on a repeated frame). ``run`` observes it with
-``dhlog.io.observe.observe`` (the shipped ros2_camera pipeline with the simulator's board) and
+each held for its frame's 33 ms by joint states at 100 Hz (rendering 10 000 frames would take
+an hour; decoding and detecting a repeated frame costs the same). ``run`` observes it with
+``dhlog.io.observe.observe`` (the shipped ros2_camera pipeline with the preset's board) and
 prints the frames, the wall time, the CPU time of this process and its workers (user + sys),
 frames per second and per CPU second (per core), and the peak RSS of this process and of the
-largest worker (``resource.getrusage``; the whole command's peak is at most this process's plus
-``jobs`` times the worker's).
+largest worker (``resource.getrusage``; the whole command's peak is at most this process's
+plus ``jobs`` times the worker's).
 
 Measured on a 2-core machine shared with other work (load 4-8 besides): ``run --frames 10000
---jobs 2`` (a 4.5 GiB log): 10 000 of 10 000 frames observed, 234 000 corners, 324.5 s CPU
-(30.8 frames per CPU second), peak RSS 285 MiB and 145 MiB the largest worker (at most 575 MiB
-for the command), 463 s wall at 69 % of the two cores; ``run --frames 200 --jobs 1``: 28.7–29.7
-frames per CPU second, peak 220–226 MiB; ``--jobs 2``: 25.7–27.7 (the workers' start included:
-0.2 s of imports each), 5.4–6.2 s wall against 7.4–11.9 s for one job when the others' work left
-the second core free (13–14 s for either when it did not).
+--jobs 2`` (4.1 GiB): 10 000 of 10 000 frames observed, 492 000 corners, 358.9 s CPU (27.9
+frames per CPU second), peak RSS 251 MiB and 151 MiB the largest worker (at most 553 MiB for the
+command), 452 s wall at 79 % of the two cores; ``run --frames 200 --jobs 1``: 25.9 frames per
+CPU second, peak 213 MiB; ``--jobs 2``: 22.8 (the workers' start included, 0.2 s of imports
+each). The wall time of --jobs 2 against 1 could not be measured cleanly here: 13.8 s and 13.0 s
+with the second core held by other work (on the earlier 1920x1200 log, 5.4-6.2 s against
+7.4-11.9 s when it was free).
 """
 
 from __future__ import annotations
@@ -46,23 +47,22 @@ from dhlog.io import ros2
 from dhlog.io.observe import observe
 from dhlog.io.pipeline import pipeline_by_name
 from dhlog.model.robots import load_robot
-from dhlog.simulate.camera import JPEG_QUALITY, TOPICS, render, simulate_vision
+from dhlog.simulate.camera import JPEG_QUALITY, PRESETS, TOPICS, render, simulate_vision
 from dhlog.simulate.config import SimulationConfig
-from dhlog.vision.camera import Intrinsics
 
 S = 1_000_000_000
 FPS = 30
 JOINT_RATE = 100
 
 
-def log_path(frames: int, scale: float, poses: int) -> Path:
+def log_path(frames: int, preset: str, poses: int) -> Path:
     folder = Path(os.environ.get("TMPDIR", tempfile.gettempdir())) / "dhlog-bench"
     folder.mkdir(parents=True, exist_ok=True)
-    return folder / f"vision_{frames}_x{scale:g}_p{poses}.mcap"
+    return folder / f"vision_{frames}_{preset}_p{poses}.mcap"
 
 
-def write(frames: int, scale: float, poses: int) -> Path:
-    path = log_path(frames, scale, poses)
+def write(frames: int, preset: str, poses: int) -> Path:
+    path = log_path(frames, preset, poses)
     if path.exists():
         return path
     cfg = SimulationConfig(
@@ -72,13 +72,8 @@ def write(frames: int, scale: float, poses: int) -> Path:
         instrument="camera",
         camera_setup="eye-to-hand",
     )
-    vision = simulate_vision(load_robot("kr5"), cfg, "eye-to-hand", "jpeg")
-    cam = vision.rig.camera
-    K = cam.K.copy()
-    K[:2] *= scale
-    scaled = Intrinsics(round(cam.width * scale), round(cam.height * scale), K, cam.model,
-                        cam.coefficients)  # fmt: skip
-    rig = dataclasses.replace(vision.rig, camera=scaled)
+    vision = simulate_vision(load_robot("kr5"), cfg, "eye-to-hand", "jpeg", preset=preset)
+    rig = vision.rig
     rng = np.random.default_rng([cfg.seed, 34])
     params = [cv2.IMWRITE_JPEG_QUALITY, JPEG_QUALITY]
     jpegs = [
@@ -109,7 +104,7 @@ def write(frames: int, scale: float, poses: int) -> Path:
             data = ros2.encode_compressed_image(t, "camera", jpegs[k], "jpeg")
             writer.add_message(image, t, data, t)
             if i % FPS == 0:
-                c = scaled
+                c = rig.camera
                 cal = ros2.encode_camera_info(
                     t, "camera", c.width, c.height, c.model, c.coefficients.tolist(), c.K
                 )
@@ -119,12 +114,13 @@ def write(frames: int, scale: float, poses: int) -> Path:
     return path
 
 
-def run(frames: int, scale: float, poses: int, jobs: int, keep: int) -> None:
-    path = log_path(frames, scale, poses)
+def run(frames: int, preset: str, poses: int, jobs: int, keep: int) -> None:
+    path = log_path(frames, preset, poses)
     if not path.exists():
         raise SystemExit(f"{path}: no log; run '{__file__} write' first")
-    pipeline = pipeline_by_name("ros2_camera")
-    assert pipeline is not None
+    shipped = pipeline_by_name("ros2_camera")
+    assert shipped is not None
+    pipeline = dataclasses.replace(shipped, target=PRESETS[preset].board)
     start = time.perf_counter()
     (obs,) = observe(path, pipeline, jobs=jobs, keep_frames=keep)
     wall = time.perf_counter() - start
@@ -146,15 +142,15 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("what", choices=["write", "run"])
     parser.add_argument("--frames", type=int, default=2000)
-    parser.add_argument("--scale", type=float, default=1.5)
+    parser.add_argument("--camera", default="full-hd", choices=list(PRESETS))
     parser.add_argument("--poses", type=int, default=20)
     parser.add_argument("--jobs", type=int, default=1)
     parser.add_argument("--keep", type=int, default=200)
     args = parser.parse_args()
     if args.what == "write":
-        print(write(args.frames, args.scale, args.poses))
+        print(write(args.frames, args.camera, args.poses))
     else:
-        run(args.frames, args.scale, args.poses, args.jobs, args.keep)
+        run(args.frames, args.camera, args.poses, args.jobs, args.keep)
 
 
 if __name__ == "__main__":
