@@ -40,7 +40,7 @@ class CameraView:
     """One camera: ``name`` (its image topic), ``setup`` ("eye-to-hand": fixed in the cell,
     the board on the flange; "eye-in-hand": on the flange, the board fixed), its
     ``intrinsics``, the board's corners in the board frame ``board_points`` (N, 3, m), the
-    reprojection RMS of the result (px) and the frames."""
+    reprojection RMS of the result (px), the frames and ``notes`` (the held-out check)."""
 
     name: str
     setup: str
@@ -48,3 +48,5 @@ class CameraView:
     board_points: FloatArray
     rms_px: float
     frames: list[FrameView]
+    #: lines the recording shows beside the camera: the held-out check's figures and notes
+    notes: tuple[str, ...] = ()

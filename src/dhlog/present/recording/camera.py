@@ -331,6 +331,7 @@ def _summary(view: CameraView, drawn: _Drawn, k: float) -> str:
     ]
     if drawn.unreadable:
         lines.append(f"{drawn.unreadable} image(s) neither JPEG nor PNG by their bytes: not drawn.")
+    lines.extend(view.notes)
     return "\n\n".join(lines)
 
 
