@@ -24,7 +24,7 @@ from dhlog.cli.common import (
 from dhlog.cli.options import load_model
 from dhlog.errors import DhlogError, OutputError
 
-EXPORT_FORMATS = ("urdf", "ur", "rtb", "dh-csv", "dh-json")
+EXPORT_FORMATS = ("urdf", "ur", "rtb", "dh-csv", "dh-json", "tf")
 
 
 def export(
@@ -35,7 +35,8 @@ def export(
         typer.Option(
             "--format",
             help="urdf; ur (Universal Robots calibration YAML); rtb (a roboticstoolbox "
-            "DHRobot in Python); dh-csv or dh-json (standard and modified DH tables).",
+            "DHRobot in Python); dh-csv or dh-json (standard and modified DH tables); tf (a "
+            "camera calibration's hand-eye poses as a ROS 2 launch file of static transforms).",
         ),
     ] = "urdf",
     limits_from: Annotated[
@@ -104,6 +105,8 @@ def export(
             )
         elif format == "rtb":
             text = exports.rtb_document(result)
+        elif format == "tf":
+            text = exports.static_transforms_document(result)
         else:
             text = exports.dh_table_document(result, format)
         with atomic_output(output) as f:
@@ -114,6 +117,7 @@ def export(
         fail(OutputError(output.parent, exc))
     stdout.print(f"wrote {plain(output)}{extra}")
     _terms_not_exported(result, format)
+    _camera_not_exported(result, format, template is not None)
 
 
 def _terms_not_exported(result: Path, fmt: str) -> None:
@@ -133,6 +137,26 @@ def _terms_not_exported(result: Path, fmt: str) -> None:
         f"geometry ({', '.join(terms.families())}); {fmt} cannot carry them, so the export is the "
         "geometric part (the robot as it would stand without gravity and gear errors): apply "
         "the JSON's nongeometric block for compensation (dhlog fk, DHModel.joint_values).",
+        markup=False,
+    )
+
+
+def _camera_not_exported(result: Path, fmt: str, template: bool) -> None:
+    """Say so when the result has a camera's hand-eye poses that ``fmt`` does not carry."""
+    from dhlog.result.check import load_result
+
+    if fmt == "tf" or (fmt == "urdf" and not template):
+        return
+    try:
+        data = load_result(result)
+    except DhlogError:
+        return
+    if data.get("camera") is None:
+        return
+    stdout.print(
+        f"note: the result has a camera's hand-eye poses, which "
+        f"{'urdf --template' if template else fmt} does not carry; export "
+        "them with --format tf (ROS 2 static transforms) or --format urdf (fixed links).",
         markup=False,
     )
 

@@ -10,7 +10,9 @@ at encoder zero, ``A_{i−1}(0) = Rz(θ_offset) Tz(d_offset) Tx(a) Rx(α)`` (a H
 
 which is the result's forward kinematics exactly: the URDF's joint zero is the encoder zero (the
 zero offsets are in the joint origins). An encoder scale (``--fit-encoder-scales``) has no place
-in a URDF and is refused.
+in a URDF and is refused. A camera calibration's result adds each camera's ``<name>_link`` and
+``<name>_optical_frame`` and the board's ``calibration_board`` as fixed links on ``base_link`` or
+``flange`` (:mod:`.camera`).
 """
 
 from __future__ import annotations
@@ -25,6 +27,7 @@ from dhlog.geometry._checks import FloatArray, roll_pitch_yaw
 from dhlog.io.dhfile import DHFileError
 from dhlog.io.safetext import printable, xml_comment_text
 from dhlog.model.dh import HayatiDH, JointType, StandardDH
+from dhlog.result.export.camera import add_camera_links, read_hand_eye
 from dhlog.result.export.source import load_table
 
 
@@ -95,7 +98,8 @@ def urdf_document(
     offsets in the joint origins) or ``calibration`` (the origins without them; each joint's
     ``<calibration rising="…"/>`` holds its offset: joint position = encoder value + rising)."""
     source = str(result_path)
-    _, table, model = load_table(result_path)
+    data, table, model = load_table(result_path)
+    hand_eye = read_hand_eye(data, printable(source))
     if zero_offsets not in ("origins", "calibration"):
         raise ValueError(f"zero_offsets must be origins or calibration, not {zero_offsets!r}")
     offsets = np.where(
@@ -151,6 +155,8 @@ def urdf_document(
             origin[:3, 3] = model.tool_point
         _origin(joint, origin)
         parent = link
+    if hand_eye is not None:
+        add_camera_links(robot, hand_eye, _origin)
     comment = ET.Comment(
         xml_comment_text(
             " written by dhlog export from "
@@ -161,7 +167,14 @@ def urdf_document(
                 else ": the zero offsets are in each joint's <calibration rising>: joint "
                 "position = encoder value + rising; "
             )
-            + "frame base_link = DH frame 1, flange = frame n+1, tool0 = the measured target "
+            + "frame base_link = DH frame 1, flange = frame n+1, tool0 = the measured target"
+            + (
+                "; <camera>_optical_frame = the calibrated camera frame (OpenCV's: x right, y "
+                "down, z forward; REP 103's optical frame), <camera>_link the same origin in "
+                "body axes (x forward, y left, z up), calibration_board the board's corner frame "
+                if hand_eye is not None
+                else " "
+            )
         )
     )
     robot.insert(0, comment)
