@@ -206,6 +206,66 @@ def test_a_tracker_result_gets_no_camera_links(tmp_path: Path) -> None:
     assert "has no camera block" in lines[0] and not out.exists()
 
 
+def _kr5_template(folder: Path) -> Path:
+    """A KR5 URDF as a robot description lays it out for the template: dhlog's own URDF of the
+    nominal (joints named as the camera results' joint_1 … joint_6)."""
+    t = load_robot("kr5").table
+    rows = [
+        {
+            "type": t.joint_types[i].value,
+            "theta_offset": float(t.theta_offset[i]),
+            "d": float(t.d_offset[i]),
+            "a": float(t.a[i]),
+            "alpha": float(t.alpha[i]),
+        }
+        for i in range(t.n)
+    ]
+    dh = folder / "kr5_nominal.json"
+    names = [{"name": f"joint_{i + 1}"} for i in range(t.n)]
+    dh.write_text(json.dumps({"standard_dh": rows, "joints": names}))
+    template = folder / "kr5.urdf"
+    made = _export(dh, "urdf", template)
+    assert made.exit_code == 0, made.output
+    return template
+
+
+@pytest.mark.parametrize("setup", ["eye-to-hand", "eye-in-hand"])
+def test_a_template_gets_the_camera_and_the_board(
+    results: dict[str, Path], tmp_path: Path, setup: str
+) -> None:
+    """--template: dhlog_camera_optical_frame and dhlog_calibration_board in dhlog_measurement
+    at zero and 20 random joint vectors are the result's T_measurement_base times its pose in
+    the base, or times the FK of the flange and its pose on the flange, to 1e-9; a template
+    that already has dhlog_camera_link is one line."""
+    result = results[setup]
+    doc = json.loads(result.read_text())
+    template = _kr5_template(tmp_path)
+    model = _urdf(result, tmp_path / "calibrated.urdf", "--template", str(template))
+    dh = load_dh(result)
+    n = dh.table.n
+    placed = {
+        "dhlog_camera_optical_frame": "T_base_camera"
+        if setup == "eye-to-hand"
+        else "T_flange_camera",
+        "dhlog_calibration_board": "T_flange_board" if setup == "eye-to-hand" else "T_base_board",
+    }
+    for q in [np.zeros(n), *_joint_vectors(n)]:
+        model.update_cfg(q)
+        flange = fk_frames(dh.table, q)[-1]
+        for link, field in placed.items():
+            in_base = (
+                _pose(doc, field) if field.startswith("T_base") else flange @ _pose(doc, field)
+            )
+            got = model.get_transform(link, "dhlog_measurement")
+            assert np.abs(got - dh.T_base @ in_base).max() < EXACT, (link, q)
+    clash = tmp_path / "clash.urdf"
+    clash.write_text(template.read_text().replace('"tool0"', '"dhlog_camera_link"'))
+    made = _export(result, "urdf", tmp_path / "x.urdf", "--template", str(clash))
+    lines = [line for line in made.output.splitlines() if line.strip()]
+    assert made.exit_code == 2 and len(lines) == 1, made.output
+    assert "already has a link dhlog_camera_link" in lines[0]
+
+
 # ---------------------------------------------------------------------------------------------
 # the static transforms
 

@@ -117,7 +117,7 @@ def export(
         fail(OutputError(output.parent, exc))
     stdout.print(f"wrote {plain(output)}{extra}")
     _terms_not_exported(result, format)
-    _camera_not_exported(result, format, template is not None)
+    _camera_not_exported(result, format)
 
 
 def _terms_not_exported(result: Path, fmt: str) -> None:
@@ -141,11 +141,11 @@ def _terms_not_exported(result: Path, fmt: str) -> None:
     )
 
 
-def _camera_not_exported(result: Path, fmt: str, template: bool) -> None:
+def _camera_not_exported(result: Path, fmt: str) -> None:
     """Say so when the result has a camera's hand-eye poses that ``fmt`` does not carry."""
     from dhlog.result.check import load_result
 
-    if fmt == "tf" or (fmt == "urdf" and not template):
+    if fmt in ("tf", "urdf"):
         return
     try:
         data = load_result(result)
@@ -154,8 +154,7 @@ def _camera_not_exported(result: Path, fmt: str, template: bool) -> None:
     if data.get("camera") is None:
         return
     stdout.print(
-        f"note: the result has a camera's hand-eye poses, which "
-        f"{'urdf --template' if template else fmt} does not carry; export "
+        f"note: the result has a camera's hand-eye poses, which {fmt} does not carry; export "
         "them with --format tf (ROS 2 static transforms) or --format urdf (fixed links).",
         markup=False,
     )

@@ -25,6 +25,7 @@ from __future__ import annotations
 import math
 import re
 import xml.etree.ElementTree as ET
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -193,42 +194,60 @@ def read_hand_eye(data: dict[str, Any], source: str) -> HandEye | None:
 # the URDF
 
 
+def camera_link_names(hand_eye: HandEye, prefix: str = "") -> list[str]:
+    """The links and joints :func:`add_camera_links` adds (each name after ``prefix``)."""
+    names = []
+    for cam in hand_eye.cameras:
+        names += [cam.link, cam.optical_frame, f"{cam.name}_joint", f"{cam.name}_optical_joint"]
+    if hand_eye.board is not None:
+        names += [BOARD, f"{BOARD}_joint"]
+    return [prefix + name for name in names]
+
+
 def add_camera_links(
-    robot: ET.Element, hand_eye: HandEye, origin: Any, parents: dict[str, str] = PARENTS
-) -> list[str]:
+    robot: ET.Element,
+    hand_eye: HandEye,
+    origin: Callable[[ET.Element, FloatArray], None],
+    *,
+    parents: dict[str, tuple[str, FloatArray]] | None = None,
+    prefix: str = "",
+) -> list[ET.Element]:
     """Add to ``robot`` (a URDF's root) each camera's ``<name>_link`` (fixed joint
     ``<name>_joint`` from its parent) and ``<name>_optical_frame`` (``<name>_optical_joint``),
-    and the board's ``calibration_board``; ``origin(parent_element, T)`` writes an ``<origin>``;
-    ``parents`` maps ``base``/``flange`` to the URDF's links. A name the URDF already has gets
-    a suffix. The added links' names, in order."""
+    and the board's ``calibration_board``, each name after ``prefix``; ``origin(joint, T)``
+    writes a joint's ``<origin>``; ``parents`` maps ``base``/``flange`` to a link of the URDF and
+    that frame in it (default: ``base_link`` and ``flange`` themselves). A name the URDF already
+    has gets a suffix. The elements added, in order."""
+    where = parents or {role: (link, np.eye(4)) for role, link in PARENTS.items()}
     links = {e.get("name") for e in robot.iter("link")}
     joints = {e.get("name") for e in robot.iter("joint")}
+    added: list[ET.Element] = []
 
     def unique(name: str, taken: set[str | None]) -> str:
-        out, k = name, 2
+        out, k = prefix + name, 2
         while out in taken:
-            out, k = f"{name}_{k}", k + 1
+            out, k = f"{prefix}{name}_{k}", k + 1
         taken.add(out)
         return out
 
     def fixed(parent: str, child: str, joint_name: str, T: FloatArray) -> None:
-        ET.SubElement(robot, "link", name=child)
+        added.append(ET.SubElement(robot, "link", name=child))
         joint = ET.SubElement(robot, "joint", name=unique(joint_name, joints), type="fixed")
         ET.SubElement(joint, "parent", link=parent)
         ET.SubElement(joint, "child", link=child)
         origin(joint, T)
+        added.append(joint)
 
-    added = []
     for cam in hand_eye.cameras:
         link = unique(cam.link, links)
         optical = unique(cam.optical_frame, links)
-        fixed(parents[cam.pose.parent], link, f"{cam.name}_joint", cam.T_parent_link)
+        parent, T_parent_role = where[cam.pose.parent]
+        fixed(parent, link, f"{cam.name}_joint", T_parent_role @ cam.T_parent_link)
         fixed(link, optical, f"{cam.name}_optical_joint", T_LINK_OPTICAL)
-        added += [link, optical]
     if hand_eye.board is not None:
         board = unique(BOARD, links)
-        fixed(parents[hand_eye.board.parent], board, f"{BOARD}_joint", hand_eye.board.T)
-        added.append(board)
+        parent, T_parent_role = where[hand_eye.board.parent]
+        fixed(parent, board, f"{BOARD}_joint", T_parent_role @ hand_eye.board.T)
     return added
 
 
@@ -301,7 +320,9 @@ def static_transforms_document(result_path: str | Path) -> str:
         "# Run: ros2 launch <this file>   (ROS 2 Humble or later: tf2_ros's --x ... --qw, "
         "--frame-id, --child-frame-id).",
         "# Frames as in dhlog export --format urdf: base_link = DH frame 1 (the result's base "
-        "frame), flange = DH frame n+1;",
+        "frame), flange = DH frame n+1",
+        "# (another description's own flange may be turned from it, e.g. the UR description's; "
+        "rename the frame ids to links that are these frames);",
         "# <camera>_optical_frame = the calibrated camera frame (OpenCV's: x right, y down, z "
         "forward; REP 103's optical frame),",
         "# <camera>_link = the same origin in body axes (x forward, y left, z up), turned to the "

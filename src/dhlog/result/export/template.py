@@ -13,6 +13,7 @@ from dhlog.geometry._checks import FloatArray
 from dhlog.io.dhfile import DHFileError
 from dhlog.io.safetext import printable, xml_comment_text
 from dhlog.model.dh import JointType
+from dhlog.result.export.camera import add_camera_links, camera_link_names, read_hand_eye
 from dhlog.result.export.source import load_table
 from dhlog.result.export.templatefile import (
     MOVING,
@@ -62,14 +63,18 @@ def urdf_from_template(result_path: str | Path, template_path: str | Path) -> st
     template's; fixed joints stay as they are (rigid in their link). The measured robot is
     placed by joint 1's link, turned about and moved along axis 1 to fit the other links to the
     template's (the base is a gauge the data does not fix). The measurement frame and the target
-    are added as the links ``dhlog_measurement`` and ``dhlog_target``. Joint zero = encoder zero.
+    are added as the links ``dhlog_measurement`` and ``dhlog_target``, a camera calibration's
+    cameras and board as ``dhlog_<camera>_link``, ``dhlog_<camera>_optical_frame`` and
+    ``dhlog_calibration_board`` (:mod:`.camera`) on the template's root (eye-to-hand) or last
+    link (eye-in-hand). Joint zero = encoder zero.
     Only the ``<joint>`` elements of ``<robot>`` itself are changed (those of a
     ``<transmission>`` name joints, they are not joints).
     """
     from scipy.optimize import least_squares
 
     src = printable(str(template_path))
-    _, table, model = load_table(result_path)
+    data, table, model = load_table(result_path)
+    hand_eye = read_hand_eye(data, printable(str(result_path)))
     robot = read_template(template_path)
     template = template_joints(robot, src)
     names = list(model.joint_names)
@@ -178,12 +183,38 @@ def urdf_from_template(result_path: str | Path, template_path: str | Path) -> st
         joint.append(origin_element(T))
         ET.indent(joint, level=1)
         joint.tail = "\n  "
+    if hand_eye is not None:  # on the template's root (the base) and last link (the flange)
+        taken = links | set(template) | {e.get("name") for e in robot.iter("joint")}
+        clash = [x for x in camera_link_names(hand_eye, "dhlog_") if x in taken]
+        if clash:
+            raise TemplateError(
+                src, f"already has a link {clash[0]} (or its joint); remove it first."
+            )
+        flange = np.linalg.inv(W[n - 1]) @ B @ F[n]
+        parents = {"base": (root, B @ F[0]), "flange": (joints[-1].child, flange)}
+        for element in add_camera_links(
+            robot,
+            hand_eye,
+            lambda j, T: j.append(origin_element(T)),
+            parents=parents,
+            prefix="dhlog_",
+        ):
+            ET.indent(element, level=1)
+            element.tail = "\n  "
+            joint = element
     joint.tail = "\n"
     note = ET.Comment(
         xml_comment_text(
             f" joint origins of {', '.join(names[1:])} calibrated by dhlog export from "
             f"{Path(str(result_path)).name}: joint zero = encoder zero; dhlog_measurement = the "
             "tracker's frame, dhlog_target = the measured target "
+            + (
+                "; dhlog_<camera>_optical_frame = the calibrated camera frame (OpenCV's: x right, "
+                "y down, z forward), dhlog_<camera>_link the same origin in body axes (x forward, "
+                "y left, z up), dhlog_calibration_board the board's corner frame "
+                if hand_eye is not None
+                else ""
+            )
         )
     )
     note.tail = "\n  "
