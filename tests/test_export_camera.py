@@ -458,3 +458,26 @@ def test_formats_without_the_camera_say_so(results: dict[str, Path], tmp_path: P
     made = _export(results["eye-to-hand"], "dh-json", tmp_path / "dh.json")
     assert made.exit_code == 0, made.output
     assert "--format tf" in made.output and "hand-eye" in made.output
+
+
+def test_a_hostile_topic_and_unknown_sigma(results: dict[str, Path], tmp_path: Path) -> None:
+    """A topic with quotes, a newline and markup becomes a plain frame name; the launch file
+    stays one YAML document with the same nodes, the URDF loads; a σ the result gives as null
+    is written as unknown."""
+    doc = json.loads(results["eye-to-hand"].read_text())
+    doc["camera"]["topic"] = '/cam"era\n--x 9 <b>/image_raw'
+    doc["camera"]["T_base_camera_std"]["translation_m"] = [None, 1e-4, 1e-4]
+    result = tmp_path / "hostile.dh.json"
+    result.write_text(json.dumps(doc))
+    made = _export(result, "tf", tmp_path / "tf.launch.yaml")
+    assert made.exit_code == 0, made.output
+    text = (tmp_path / "tf.launch.yaml").read_text()
+    tf = _published(text)
+    assert set(tf) == {
+        "cam_era_x_9_b_link",
+        "cam_era_x_9_b_optical_frame",
+        "calibration_board",
+    }
+    assert "σ translation x y z unknown 0.1000 0.1000 mm" in text
+    model = _urdf(result, tmp_path / "robot.urdf")
+    assert "cam_era_x_9_b_optical_frame" in model.link_map

@@ -101,12 +101,12 @@ class HandEye:
 
 def frame_name(topic: str) -> str:
     """A ROS frame stem from an image topic: its parts without the image and transport tail,
-    joined by ``_``, other characters than letters, digits and ``_`` replaced (``camera`` when
-    nothing is left)."""
+    joined by ``_``, each run of other characters than letters, digits and ``_`` one ``_``
+    (``camera`` when nothing is left)."""
     parts = [p for p in topic.split("/") if p]
     while parts and (parts[-1].lower() in _TRANSPORT or parts[-1].lower().startswith("image")):
         parts.pop()
-    name = re.sub(r"[^A-Za-z0-9_]", "_", "_".join(parts)).strip("_")[:64]
+    name = re.sub(r"[^A-Za-z0-9_]+", "_", "_".join(parts)).strip("_")[:64]
     if not name:
         return "camera"
     return name if name[0].isalpha() else f"camera_{name}"
