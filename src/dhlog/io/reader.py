@@ -15,6 +15,7 @@ decoding itself is :mod:`dhlog.io.decode`.
 
 from __future__ import annotations
 
+import struct
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -155,8 +156,8 @@ def _image_topics(path: Path) -> set[str]:
                     if seen >= 200:
                         break
             return found
-    except (McapError, OSError, ValueError, KeyError, EOFError, AssertionError):
-        return set()
+    except (McapError, OSError, ValueError, KeyError, EOFError, AssertionError, struct.error):
+        return set()  # a damaged summary or footer (struct.error from the mcap reader's reads)
 
 
 def _channels_for(scan_channels: dict[int, ChannelInfo], topic: str) -> list[ChannelInfo]:

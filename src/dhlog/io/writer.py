@@ -27,6 +27,7 @@ import numpy as np
 from mcap.writer import CompressionType, Writer
 from numpy.typing import NDArray
 
+from dhlog.errors import InputError
 from dhlog.io import ros2
 from dhlog.io.streams import RecordedStreams
 
@@ -469,7 +470,13 @@ def sha256_of(path: str | Path) -> str:
         sorted(p for p in Path(path).iterdir() if p.is_file()) if Path(path).is_dir() else [path]
     )
     for name in files:
-        with open(name, "rb") as f:
-            for block in iter(lambda: f.read(1 << 20), b""):
-                digest.update(block)
+        try:
+            with open(name, "rb") as f:
+                for block in iter(lambda: f.read(1 << 20), b""):
+                    digest.update(block)
+        except OSError as exc:  # gone or unreadable since it was read (moved, deleted)
+            raise InputError(
+                f"{name}: cannot be read again for its checksum ({exc.strerror or exc}); keep "
+                "the log in place until dhlog process has finished."
+            ) from None
     return digest.hexdigest()
