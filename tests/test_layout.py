@@ -57,6 +57,10 @@ IDENTIFY_FLOORS = {
     "check": 4,
     "camera": 5,
     "run": 6,
+    # the paths the README documented before the regrouping: deprecated, handing on the moved
+    "extract": 6,
+    "axismodel": 6,
+    "whole": 6,
 }
 
 
@@ -78,3 +82,24 @@ def test_identify_stages_import_only_their_own_or_lower_ones() -> None:
         and (stage(t) > stage(m) or (stage(t) == stage(m) and m.split(".")[2] != t.split(".")[2]))
     ]
     assert not wrong, "\n".join(wrong)
+
+
+def test_old_paths_warn_and_hand_on_the_moved_modules() -> None:
+    """The identify paths the README documented before the regrouping still import, with a
+    DeprecationWarning naming the new one, and are the moved modules themselves."""
+    import importlib
+    import sys
+    import warnings
+
+    for old, new in (
+        ("dhlog.identify.extract", "dhlog.identify.read.extract"),
+        ("dhlog.identify.axismodel", "dhlog.identify.fit.axismodel"),
+        ("dhlog.identify.whole", "dhlog.identify.fit.whole"),
+    ):
+        sys.modules.pop(old, None)
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            module = importlib.import_module(old)
+        said = [str(w.message) for w in caught if issubclass(w.category, DeprecationWarning)]
+        assert any(new in s for s in said), (old, said)
+        assert module is importlib.import_module(new)
