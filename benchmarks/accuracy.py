@@ -16,8 +16,8 @@ simulator's truth at ``--points`` random joint vectors within the robot's limits
 Printed per case: the RMS FK error (µm) of each over all sessions and points, the ratios
 default / limit and analytic / limit, and the worst session's default / limit. Target: default
 ≤ 1.05 × limit in every case. The default holds a nearly parallel pair parallel where the
-held-out poses do not reject it (:mod:`dhlog.identify.pairs`); ``--parallel-sigma K`` holds the
-pairs within K σ of parallel instead (the rule before: 2, Akaike's; 0 never);
+held-out poses do not reject it (:mod:`dhlog.identify.model.pairs`); ``--parallel-sigma K``
+holds the pairs within K σ of parallel instead (the rule before: 2, Akaike's; 0 never);
 ``--compare-sigma [K]`` adds a column with the default under that rule (K = 2 when not given),
 on the same sessions; ``--cases`` runs the cases whose name contains the text. A case marked
 ``nominal`` gives the robot's library table as the nominal (``--nominal``).
@@ -45,12 +45,12 @@ from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
 
-from dhlog.identify.analytic import AIC_SIGMA_2D
-from dhlog.identify.axismodel import AxisModel
-from dhlog.identify.prediction import predict
+from dhlog.identify.fit.axismodel import AxisModel
+from dhlog.identify.fit.prediction import predict
+from dhlog.identify.fit.whole import fit_whole_model
+from dhlog.identify.joints.sweeps import samples_with_encoders
+from dhlog.identify.read.analytic import AIC_SIGMA_2D
 from dhlog.identify.run import process_data
-from dhlog.identify.sweeps import samples_with_encoders
-from dhlog.identify.whole import fit_whole_model
 from dhlog.io.memory import log_data_from_session
 from dhlog.model.fk import fk_point
 from dhlog.model.noise import NoiseModel
@@ -194,8 +194,8 @@ def beyond(job: tuple[str, str, int, int]) -> dict[str, object]:
     import tempfile
     from pathlib import Path
 
+    from dhlog.identify.model.select import ModelRequest
     from dhlog.identify.run import table_values
-    from dhlog.identify.select import ModelRequest
     from dhlog.io.dhfile import DHModel
     from dhlog.model.terms import table_deflection
     from dhlog.simulate.robot import masses_urdf

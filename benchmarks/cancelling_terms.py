@@ -16,8 +16,8 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).parents[1] / "tests"))
 
-from dhlog.identify import beyond
-from dhlog.identify.sweeps import samples_with_encoders
+from dhlog.identify.joints.sweeps import samples_with_encoders
+from dhlog.identify.model import beyond
 from test_cancelling_terms import _truth_deflection, short_wrist
 
 

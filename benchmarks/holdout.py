@@ -99,10 +99,10 @@ from concurrent.futures import ProcessPoolExecutor
 import numpy as np
 
 from dhlog.geometry._checks import FloatArray
-from dhlog.identify.holdout import pose_groups
+from dhlog.identify.check.holdout import pose_groups
+from dhlog.identify.joints.sweeps import samples_with_encoders
+from dhlog.identify.model.select import ModelRequest
 from dhlog.identify.run import ProcessResult, process_data, table_values
-from dhlog.identify.select import ModelRequest
-from dhlog.identify.sweeps import samples_with_encoders
 from dhlog.io.dhfile import DHModel
 from dhlog.io.memory import log_data_from_session
 from dhlog.model.fk import fk_point

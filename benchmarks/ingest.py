@@ -20,7 +20,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from dhlog.identify.segment import segment_log
+from dhlog.identify.segment.segment import segment_log
 from dhlog.io.reader import read_log
 from dhlog.io.writer import write_session
 from dhlog.model.robots import load_robot

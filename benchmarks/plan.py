@@ -27,8 +27,8 @@ from concurrent.futures import ProcessPoolExecutor
 import numpy as np
 
 from dhlog.cell.plan import WORKSPACE_POINTS, plan_session, select_poses
+from dhlog.identify.model.select import ModelRequest
 from dhlog.identify.run import process_data
-from dhlog.identify.select import ModelRequest
 from dhlog.io.dhfile import DHModel
 from dhlog.io.memory import log_data_from_session
 from dhlog.model.fk import fk_point

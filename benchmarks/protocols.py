@@ -33,13 +33,13 @@ from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
 
-from dhlog.identify.axismodel import AxisModel
-from dhlog.identify.prediction import predict
+from dhlog.identify.check.validate import fk_prediction_std
+from dhlog.identify.fit.axismodel import AxisModel
+from dhlog.identify.fit.prediction import predict
+from dhlog.identify.fit.samples import measured_rotations
+from dhlog.identify.fit.whole import fit_whole_model
+from dhlog.identify.joints.sweeps import samples_with_encoders
 from dhlog.identify.run import process_data
-from dhlog.identify.samples import measured_rotations
-from dhlog.identify.sweeps import samples_with_encoders
-from dhlog.identify.validate import fk_prediction_std
-from dhlog.identify.whole import fit_whole_model
 from dhlog.io.dhfile import DHModel
 from dhlog.io.memory import log_data_from_session
 from dhlog.model.fk import fk_point

@@ -27,8 +27,8 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from dhlog.identify.model.select import ModelRequest
 from dhlog.identify.run import process_log
-from dhlog.identify.select import ModelRequest
 from dhlog.io.dhfile import DHModel
 from dhlog.io.pipeline import parse_pipeline
 from dhlog.io.writer import write_session

@@ -9,7 +9,7 @@ board; a 10×7 ChArUco board of 30 mm squares, 0.3 m across), eye-to-hand or eye
 poses (``--poses``) or the seed method's sweeps (frames at 10 Hz). Each session draws its own
 robot, rig and poses (seed = session), the corners' detections are the truth's projection with
 Gaussian noise of 0.2 px per coordinate (``simulate_detections``: no rendering, so many sessions
-run), and ``identify.vision.process_observations`` calibrates from them as ``dhlog process``
+run), and ``identify.camera.flow.process_observations`` calibrates from them as ``dhlog process``
 does (the set-up decided from the data, ``--holdout 5``). Per case:
 
 - **FK ratio**: the RMS over sessions of the FK error of the carried frame's origin (the board's
@@ -45,7 +45,7 @@ SIGMA_PX = 0.2
 
 
 def _truth_model(rig: Any, table: Any, n: int, centre: np.ndarray) -> Any:
-    from dhlog.identify.axismodel import AxisModel
+    from dhlog.identify.fit.axismodel import AxisModel
 
     shift = np.eye(4)
     shift[:3, 3] = centre
@@ -65,11 +65,12 @@ def _truth_model(rig: Any, table: Any, n: int, centre: np.ndarray) -> Any:
 
 
 def one_session(case: str, seed: int, poses: int) -> dict[str, float]:
-    from dhlog.identify.extract import extract_dh
-    from dhlog.identify.pixels import Corners, PixelModel, fit_pixels
-    from dhlog.identify.prediction import predict
+    from dhlog.identify.camera.flow import process_observations
+    from dhlog.identify.camera.poses import board_centre, corners_of
+    from dhlog.identify.fit.pixels import Corners, PixelModel, fit_pixels
+    from dhlog.identify.fit.prediction import predict
+    from dhlog.identify.read.extract import extract_dh
     from dhlog.identify.run import process_data
-    from dhlog.identify.vision import _centre, corners_of, process_observations
     from dhlog.io.dhfile import dh_model_from
     from dhlog.model.robots import load_robot
     from dhlog.simulate.camera import (
@@ -120,7 +121,7 @@ def one_session(case: str, seed: int, poses: int) -> dict[str, float]:
     seconds = time.perf_counter() - t0
     cam = result.camera
     true_table = vision.session.table
-    centre = _centre(obs)
+    centre = board_centre(obs)
     truth = _truth_model(rig, true_table, robot.n, centre)
     data = corners_of(obs, np.ones(obs.frames, dtype=bool))
     ml = fit_pixels(truth, PixelModel(setup, rig.camera), data)

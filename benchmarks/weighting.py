@@ -25,7 +25,7 @@ import math
 import numpy as np
 import polars as pl
 
-import dhlog.identify.variance as variance
+import dhlog.identify.fit.variance as variance
 from dhlog.identify import run as process
 from dhlog.io.decode.frames import COVARIANCE_COLUMNS
 from dhlog.io.dhfile import DHModel

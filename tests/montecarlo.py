@@ -14,9 +14,9 @@ from concurrent.futures import ProcessPoolExecutor
 import numpy as np
 
 from dhlog.geometry._checks import FloatArray
-from dhlog.identify.analytic import NOMINAL_SIGMA_2D
+from dhlog.identify.model.select import ModelRequest
+from dhlog.identify.read.analytic import NOMINAL_SIGMA_2D
 from dhlog.identify.run import process_data
-from dhlog.identify.select import ModelRequest
 from dhlog.io.dhfile import DHModel
 from dhlog.io.memory import log_data_from_session
 from dhlog.model.robots import load_robot

@@ -1,5 +1,5 @@
 """The camera calibration (issue 32): the whole model's maximum likelihood in pixels
-(identify.pixels) and the run around it (identify.vision), on corners projected through a known
+(identify.fit.pixels) and the run around it (identify.camera), on corners projected through a known
 robot, camera and board (the simulator's rig) with Gaussian noise of a known σ.
 
 The fit is checked by forward kinematics against the truth at random joint vectors, against an
@@ -18,13 +18,13 @@ import jsonschema
 import numpy as np
 import pytest
 
-from dhlog.identify.axismodel import AxisModel
-from dhlog.identify.extract import extract_dh
-from dhlog.identify.measure import place, residuals
-from dhlog.identify.pixels import Corners, PixelModel, fit_pixels
-from dhlog.identify.prediction import predict
+from dhlog.identify.camera.flow import process_observations
+from dhlog.identify.fit.axismodel import AxisModel
+from dhlog.identify.fit.measure import place, residuals
+from dhlog.identify.fit.pixels import Corners, PixelModel, fit_pixels
+from dhlog.identify.fit.prediction import predict
+from dhlog.identify.read.extract import extract_dh
 from dhlog.identify.run import process_data
-from dhlog.identify.vision import process_observations
 from dhlog.io.dhfile import DHModel
 from dhlog.model.robots import load_robot
 from dhlog.result.document import result_document
@@ -79,7 +79,7 @@ def _observations(robot, Q, ids, uv) -> Observations:  # type: ignore[no-untyped
     )
 
 
-def _centre() -> np.ndarray:
+def board_centre() -> np.ndarray:
     pts = BOARD.object_points()
     return np.asarray((pts.min(axis=0) + pts.max(axis=0)) / 2.0, dtype=np.float64)
 
@@ -88,7 +88,7 @@ def _model(rig: Rig, table: object, n: int) -> AxisModel:
     """The model ``table`` is in the fit's frames: M the camera (eye-to-hand) or the board's
     centred frame (eye-in-hand), the chain carrying the board's centre or the camera."""
     shift = np.eye(4)
-    shift[:3, 3] = _centre()
+    shift[:3, 3] = board_centre()
     ref = np.zeros(n)
     if rig.setup == "eye-to-hand":
         T = rig.T_mounted @ shift
@@ -109,7 +109,7 @@ def _model(rig: Rig, table: object, n: int) -> AxisModel:
 
 
 def _data(Q: np.ndarray, ids: list[np.ndarray], uv: list[np.ndarray]) -> Corners:
-    points = BOARD.object_points() - _centre()
+    points = BOARD.object_points() - board_centre()
     counts = [i.size for i in ids]
     return Corners(
         Q,
@@ -180,7 +180,7 @@ def test_nominal_placed_keeps_its_geometry() -> None:
     data = _data(Q, ids, uv)
     measurement = PixelModel("eye-to-hand", CAMERA)
     shift = np.eye(4)
-    shift[:3, 3] = _centre()
+    shift[:3, 3] = board_centre()
     mount = rig.T_mounted @ shift
     T0 = np.linalg.inv(rig.T_fixed)
     off = T0.copy()
@@ -227,7 +227,7 @@ def test_process_observations(setup: str) -> None:
     T_base_M = np.linalg.inv(ex.T_measurement_base)
     if setup == "eye-in-hand":
         shift = np.eye(4)
-        shift[:3, 3] = -_centre()
+        shift[:3, 3] = -board_centre()
         T_base_M = T_base_M @ shift
     err = cam.T_base_fixed[:3, 3] - T_base_M[:3, 3]
     assert np.all(np.abs(err) < 4 * cam.fixed_std[3:] + 1e-6), (err, cam.fixed_std)

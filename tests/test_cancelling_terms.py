@@ -11,11 +11,11 @@ import math
 import numpy as np
 import pytest
 
-from dhlog.identify.beyond import TERM_BOUND, cancelling, determined, term_std
-from dhlog.identify.prediction import predict
+from dhlog.identify.fit.prediction import predict
+from dhlog.identify.joints.sweeps import samples_with_encoders
+from dhlog.identify.model.beyond import TERM_BOUND, cancelling, determined, term_std
+from dhlog.identify.model.select import ModelRequest
 from dhlog.identify.run import ProcessResult, process_data
-from dhlog.identify.select import ModelRequest
-from dhlog.identify.sweeps import samples_with_encoders
 from dhlog.io.dhfile import DHModel
 from dhlog.io.memory import log_data_from_session
 from dhlog.model import terms as ng

@@ -13,8 +13,8 @@ from typer.testing import CliRunner
 
 from dhlog.cell.compensate import compensate, compensate_poses, read_poses
 from dhlog.cli.app import app
+from dhlog.identify.model.select import ModelRequest
 from dhlog.identify.run import process_data
-from dhlog.identify.select import ModelRequest
 from dhlog.io.dhfile import DHModel, parse_dh
 from dhlog.io.memory import log_data_from_session
 from dhlog.model.fk import fk_frames

@@ -7,7 +7,7 @@ import pytest
 
 from dhlog.errors import DegenerateGeometryError, DhlogError
 from dhlog.geometry.lines import Line, Plane, RelationKind
-from dhlog.identify.extract import extract_dh, place_prismatic_axis
+from dhlog.identify.read.extract import extract_dh, place_prismatic_axis
 from dhlog.model.dh import JointType, StandardDH
 from dhlog.model.fk import fk_point, joint_axes
 from dhlog.model.robots import load_robot, robot_names

@@ -15,7 +15,7 @@ import math
 import numpy as np
 import pytest
 
-from dhlog.identify import hold
+from dhlog.identify.model import hold
 from dhlog.identify.run import ProcessResult, process_data, table_values
 from dhlog.io.dhfile import dh_model_from
 from dhlog.io.memory import log_data_from_session

@@ -253,7 +253,7 @@ def test_segmentation_out_of_range_is_refused_by_the_segmentation_too() -> None:
     index (a negative window) or a count of nanoseconds (1e300 s)."""
     import dataclasses
 
-    from dhlog.identify.segment import check_settings
+    from dhlog.identify.segment.segment import check_settings
     from dhlog.io.pipeline import SegmentationSettings
 
     check_settings(SegmentationSettings(), "here")

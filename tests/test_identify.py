@@ -9,12 +9,12 @@ import math
 import numpy as np
 import pytest
 
-from dhlog.identify.axismodel import AxisModel, ParameterLayout
-from dhlog.identify.prediction import predict
+from dhlog.identify.check.validate import fk_prediction_std
+from dhlog.identify.fit.axismodel import AxisModel, ParameterLayout
+from dhlog.identify.fit.prediction import predict
+from dhlog.identify.fit.whole import fit_whole_model
+from dhlog.identify.model.select import ModelRequest
 from dhlog.identify.run import ProcessResult, process_data
-from dhlog.identify.select import ModelRequest
-from dhlog.identify.validate import fk_prediction_std
-from dhlog.identify.whole import fit_whole_model
 from dhlog.io.dhfile import DHModel
 from dhlog.io.memory import log_data_from_session
 from dhlog.model.fk import fk_point
@@ -91,7 +91,7 @@ def test_the_adjoint_gradient_equals_the_jacobian_transpose_times_the_residual(
     """The full pass's gradient by the adjoint of the chain (no J formed) against ``JᵀWr`` of
     the explicit columns, with two targets, a clock offset, a tracker's 3x3 whitening, held-out
     samples and samples beyond the truncation: equal to rounding (1e-9 relative)."""
-    from dhlog.identify.passes import Samples, accumulate, gradient
+    from dhlog.identify.fit.passes import Samples, accumulate, gradient
 
     rob = load_robot(robot)
     session = simulate_session(rob, SimulationConfig(seed=1))
@@ -387,7 +387,7 @@ def test_several_targets_are_fitted_jointly(tmp_path) -> None:  # type: ignore[n
 
 
 def axis6_cov(result: ProcessResult) -> np.ndarray:
-    from dhlog.identify.relations import axis_covariances
+    from dhlog.identify.model.relations import axis_covariances
 
     assert result.whole is not None
     return axis_covariances(result.whole)[5][:2, :2]

@@ -14,8 +14,8 @@ from mcap.reader import make_reader
 from typer.testing import CliRunner
 
 from dhlog.cli.app import app
+from dhlog.identify.check.validate import fk_prediction_std
 from dhlog.identify.run import process_log
-from dhlog.identify.validate import fk_prediction_std
 from dhlog.io.reader import read_log
 from dhlog.model.fk import fk_point
 from dhlog.model.robots import load_robot

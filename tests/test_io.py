@@ -20,7 +20,7 @@ from dhlog.errors import (
     TooFewSamplesError,
     UnknownSchemaError,
 )
-from dhlog.identify.segment import segment_log
+from dhlog.identify.segment.segment import segment_log
 from dhlog.io.pipeline import load_pipeline, parse_pipeline, pipeline_by_name, shipped_pipelines
 from dhlog.io.reader import read_log
 from dhlog.io.writer import write_session

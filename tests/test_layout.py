@@ -44,3 +44,62 @@ def test_imports_go_to_the_same_folder_or_a_lower_one() -> None:
 
 def test_no_modules_import_each_other_in_a_circle() -> None:
     list(TopologicalSorter(GRAPH).static_order())  # a circle raises CycleError naming it
+
+
+#: identify/ by stage (docs/architecture.md, "Layers"): a stage imports its own folder and the
+#: stages below it; model/ and check/ stand side by side (neither imports the other); run.py on top.
+IDENTIFY_FLOORS = {
+    "segment": 0,
+    "joints": 1,
+    "fit": 2,
+    "read": 3,
+    "model": 4,
+    "check": 4,
+    "camera": 5,
+    "run": 6,
+    # the paths the README documented before the regrouping: deprecated, handing on the moved
+    "extract": 6,
+    "axismodel": 6,
+    "whole": 6,
+}
+
+
+def test_identify_stages_import_only_their_own_or_lower_ones() -> None:
+    def stage(name: str) -> int | None:
+        parts = name.split(".")
+        if parts[:2] != ["dhlog", "identify"] or len(parts) < 3:
+            return None
+        return IDENTIFY_FLOORS.get(parts[2])
+
+    unplaced = [m for m in GRAPH if m.startswith("dhlog.identify.") and stage(m) is None]
+    assert not unplaced, f"modules in no stage of identify/: {unplaced}"
+    wrong = [
+        f"{m} → {t}"
+        for m, ts in sorted(GRAPH.items())
+        for t in ts
+        if stage(m) is not None
+        and stage(t) is not None
+        and (stage(t) > stage(m) or (stage(t) == stage(m) and m.split(".")[2] != t.split(".")[2]))
+    ]
+    assert not wrong, "\n".join(wrong)
+
+
+def test_old_paths_warn_and_hand_on_the_moved_modules() -> None:
+    """The identify paths the README documented before the regrouping still import, with a
+    DeprecationWarning naming the new one, and are the moved modules themselves."""
+    import importlib
+    import sys
+    import warnings
+
+    for old, new in (
+        ("dhlog.identify.extract", "dhlog.identify.read.extract"),
+        ("dhlog.identify.axismodel", "dhlog.identify.fit.axismodel"),
+        ("dhlog.identify.whole", "dhlog.identify.fit.whole"),
+    ):
+        sys.modules.pop(old, None)
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            module = importlib.import_module(old)
+        said = [str(w.message) for w in caught if issubclass(w.category, DeprecationWarning)]
+        assert any(new in s for s in said), (old, said)
+        assert module is importlib.import_module(new)

@@ -9,10 +9,10 @@ import math
 
 import numpy as np
 
-from dhlog.identify.axismodel import AxisModel
-from dhlog.identify.measure import PointMeasurement, Points, fit_measured, residuals, rms
-from dhlog.identify.prediction import predict
-from dhlog.identify.whole import fit_whole_model
+from dhlog.identify.fit.axismodel import AxisModel
+from dhlog.identify.fit.measure import PointMeasurement, Points, fit_measured, residuals, rms
+from dhlog.identify.fit.prediction import predict
+from dhlog.identify.fit.whole import fit_whole_model
 from dhlog.model.fk import fk_point
 from dhlog.model.noise import NoiseModel
 from dhlog.model.robots import load_robot

@@ -1,5 +1,5 @@
 """The held-out error of the whole procedure (issue 31, item 1): the linearised leave-out of
-:mod:`dhlog.identify.leaveout` against refits, and ``--model auto`` chosen again inside each
+:mod:`dhlog.identify.fit.leaveout` against refits, and ``--model auto`` chosen again inside each
 fold of ``--holdout K`` from its training poses alone (nested cross-validation)."""
 
 from __future__ import annotations
@@ -9,12 +9,12 @@ import math
 import numpy as np
 import pytest
 
-from dhlog.identify.holdout import pose_groups
-from dhlog.identify.leaveout import fold_of_poses, linearise, pose_means
+from dhlog.identify.check.holdout import pose_groups
+from dhlog.identify.fit.leaveout import fold_of_poses, linearise, pose_means
+from dhlog.identify.fit.whole import fit_whole_model
+from dhlog.identify.joints.sweeps import samples_with_encoders
+from dhlog.identify.model.select import ModelRequest, default_gravity, select_model
 from dhlog.identify.run import process_data
-from dhlog.identify.select import ModelRequest, default_gravity, select_model
-from dhlog.identify.sweeps import samples_with_encoders
-from dhlog.identify.whole import fit_whole_model
 from dhlog.io.dhfile import DHModel
 from dhlog.io.memory import log_data_from_session
 from dhlog.model.noise import NoiseModel
@@ -72,7 +72,7 @@ def test_the_linearised_leave_out_is_the_refit(bending) -> None:  # type: ignore
         z, _ = lin.step(A, g)
         _, linear = pose_means(groups[test], lin.residuals(z, test))
         refit = fit_whole_model(whole.model, Q, P, keep=train, **options)  # type: ignore[arg-type]
-        from dhlog.identify.prediction import predict
+        from dhlog.identify.fit.prediction import predict
 
         pred, _ = predict(refit.model, Q[test])
         _, exact = pose_means(groups[test], pred - P[test])
@@ -213,7 +213,7 @@ def test_the_error_over_the_ranges_is_given_where_the_poses_do_not_span_them() -
 def test_the_folds_of_a_long_log_are_those_of_np_unique() -> None:
     """A long log's poses, numbered in time order, are dealt a block at a time into a scratch
     array: the same folds as the sort of every pose would give, balanced to one pose."""
-    from dhlog.identify import leaveout
+    from dhlog.identify.fit import leaveout
 
     steps = np.random.default_rng(0).random(leaveout.DENSE_ABOVE + 5000) < 0.3
     steps[0] = False

@@ -15,10 +15,10 @@ from typer.testing import CliRunner
 
 from dhlog.cli.app import app
 from dhlog.errors import InputError
-from dhlog.identify.axismodel import ParameterLayout
-from dhlog.identify.prediction import predict
+from dhlog.identify.fit.axismodel import ParameterLayout
+from dhlog.identify.fit.prediction import predict
+from dhlog.identify.model.select import ModelRequest
 from dhlog.identify.run import ProcessResult, process_data
-from dhlog.identify.select import ModelRequest
 from dhlog.io.dhfile import DHModel, load_dh
 from dhlog.io.memory import log_data_from_session
 from dhlog.model import terms as ng

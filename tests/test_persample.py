@@ -10,10 +10,10 @@ import numpy as np
 import polars as pl
 import pytest
 
-import dhlog.identify.validate as validate
-from dhlog.identify.persample import PerSample, blocks
+import dhlog.identify.check.validate as validate
 from dhlog.identify.run import process_log
-from dhlog.identify.segment import Encoders
+from dhlog.identify.segment.persample import PerSample, blocks
+from dhlog.identify.segment.segment import Encoders
 from dhlog.io import scratch
 from dhlog.model.fk import fk_point
 from dhlog.present.recording import residual_parts
@@ -84,9 +84,9 @@ def test_the_encoder_values_of_the_samples_are_interpolated_once(
     """``samples_with_encoders`` interpolates the encoder stream once, at every target sample,
     and the passes over the samples read those values afterwards; beyond ``FILL_BYTES`` (here
     made small) each pass interpolates its blocks again. The values are the interpolation's."""
-    from dhlog.identify import persample
-    from dhlog.identify.segment import segment_log
-    from dhlog.identify.sweeps import samples_with_encoders
+    from dhlog.identify.joints.sweeps import samples_with_encoders
+    from dhlog.identify.segment import persample
+    from dhlog.identify.segment.segment import segment_log
     from dhlog.io.reader import read_log
 
     seg = segment_log(read_log(SAMPLES / "kr5_0.01mm.mcap"))
@@ -197,7 +197,7 @@ def test_joint_speeds_are_np_interp_of_the_differences() -> None:
     """The joints' speeds, differenced where asked for, equal np.interp of the stream's finite
     differences at their midpoints (0 outside), value for value: repeated stamps, samples
     before, between and after, at a midpoint and at the last one."""
-    from dhlog.identify.timing import JointRates
+    from dhlog.identify.segment.timing import JointRates
 
     rng = np.random.default_rng(5)
     for _ in range(10):
@@ -233,7 +233,7 @@ def test_the_start_reads_only_the_further_targets_samples_it_moves_back(
     target back to the reference pose: it reads those rows only (it gathered every sample of
     the target before), and gives the mean of the evenly strided ones as before."""
     from dhlog.geometry.lines import Line
-    from dhlog.identify import samples
+    from dhlog.identify.fit import samples
     from dhlog.model.dh import JointType
     from dhlog.model.screws import points_at_reference
 

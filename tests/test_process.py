@@ -17,8 +17,8 @@ import pytest
 from typer.testing import CliRunner
 
 from dhlog.cli.app import app
+from dhlog.identify.check.validate import fk_prediction_std
 from dhlog.identify.run import ProcessResult, process_log
-from dhlog.identify.validate import fk_prediction_std
 from dhlog.io.dhfile import load_dh
 from dhlog.io.writer import write_session
 from dhlog.model.fk import fk_point

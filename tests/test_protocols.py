@@ -15,11 +15,11 @@ import pytest
 from typer.testing import CliRunner
 
 from dhlog.cli.app import app
-from dhlog.identify.holdout import pose_groups
-from dhlog.identify.propagate import NOT_DETERMINED
-from dhlog.identify.register import register_nominal
+from dhlog.identify.check.holdout import pose_groups
+from dhlog.identify.check.validate import fk_prediction_std
+from dhlog.identify.fit.register import register_nominal
+from dhlog.identify.read.propagate import NOT_DETERMINED
 from dhlog.identify.run import process_data
-from dhlog.identify.validate import fk_prediction_std
 from dhlog.io.decode.frames import COVARIANCE_COLUMNS
 from dhlog.io.dhfile import DHModel
 from dhlog.io.memory import log_data_from_session
@@ -278,9 +278,9 @@ def test_the_design_effect_in_one_pass_is_the_direct_one(monkeypatch: pytest.Mon
     the next pose starts: with blocks of 7 and 3 samples (every pose of 5 straddles one) it is
     the same as with whole blocks, and both equal the direct computation from every inlier's
     whitened residual grouped by :func:`pose_groups`."""
-    import dhlog.identify.holdout as holdout
-    import dhlog.identify.variance as variance
-    from dhlog.identify.sweeps import samples_with_encoders
+    import dhlog.identify.check.holdout as holdout
+    import dhlog.identify.fit.variance as variance
+    from dhlog.identify.joints.sweeps import samples_with_encoders
 
     robot, session = random_poses(7, model_error=6e-5, tracker_rate=10.0)
     result = process_data(log_data_from_session(session), nominal=nominal_of(robot))

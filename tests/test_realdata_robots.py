@@ -27,7 +27,7 @@ from numpy.typing import NDArray
 from typer.testing import CliRunner
 
 from dhlog.cli.app import app
-from dhlog.identify.register import register_nominal
+from dhlog.identify.fit.register import register_nominal
 from dhlog.io.dhfile import load_dh
 from dhlog.io.exports.source import EPOCH_NS
 from dhlog.io.importer import STOP_JOINT_TIMES, STOP_SECONDS

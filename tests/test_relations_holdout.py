@@ -1,5 +1,5 @@
 """The decision to hold a nearly parallel pair parallel, made by held-out poses
-(:mod:`dhlog.identify.pairs`): a seeded UR5 session swept as the seed protocol records it
+(:mod:`dhlog.identify.model.pairs`): a seeded UR5 session swept as the seed protocol records it
 (100 Hz, σ 30 µm), off its nominal and at it, judged by the FK error against the simulator's
 truth at random joint vectors within the robot's limits."""
 
@@ -10,19 +10,19 @@ import math
 import numpy as np
 import pytest
 
-from dhlog.identify.axismodel import AxisModel
-from dhlog.identify.pairs import (
+from dhlog.identify.fit.axismodel import AxisModel
+from dhlog.identify.fit.prediction import predict
+from dhlog.identify.fit.whole import fit_whole_model
+from dhlog.identify.joints.sweeps import samples_with_encoders
+from dhlog.identify.model.pairs import (
     Folds,
     candidate_pairs,
     decide_pairs,
     held_out_squares,
     linearised,
 )
-from dhlog.identify.prediction import predict
-from dhlog.identify.relations import constrain_pairs, pair_constraints
+from dhlog.identify.model.relations import constrain_pairs, pair_constraints
 from dhlog.identify.run import ProcessResult, process_data
-from dhlog.identify.sweeps import samples_with_encoders
-from dhlog.identify.whole import fit_whole_model
 from dhlog.io.dhfile import DHModel
 from dhlog.io.memory import log_data_from_session
 from dhlog.model.fk import fk_point

@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from dhlog.identify.segment import segment_log
+from dhlog.identify.segment.segment import segment_log
 from dhlog.io.reader import read_log
 from dhlog.io.writer import sha256_of
 

@@ -6,7 +6,7 @@ import numpy as np
 import polars as pl
 import pytest
 
-from dhlog.identify.segment import segment_log, shared_locked_pose
+from dhlog.identify.segment.segment import segment_log, shared_locked_pose
 from dhlog.io.pipeline import parse_pipeline
 from dhlog.io.reader import LogData
 

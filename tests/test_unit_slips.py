@@ -252,7 +252,7 @@ def test_the_process_side_thresholds() -> None:
     """Hand-computed cases: a heavy robot's nominal 8 mm off and its calibration 0.5 mm (the
     FANUC R-2000iC of ../shared/realdata) gets no warning; a calibration 2.5 mm off, a
     model-error σ of 1.2 mm, or a nominal 25 mm off each get one naming the slips."""
-    from dhlog.identify.checks import check_slips
+    from dhlog.identify.joints.checks import check_slips
 
     notes: list[str] = []
     check_slips(8e-3, 5e-4, 3e-4, notes)

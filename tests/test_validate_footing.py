@@ -25,9 +25,9 @@ from scipy.spatial.transform import Rotation
 from typer.testing import CliRunner
 
 from dhlog.cli.app import app
-from dhlog.identify.footing import LogHoldout
+from dhlog.identify.check.footing import LogHoldout
+from dhlog.identify.model.select import ModelRequest
 from dhlog.identify.run import ProcessResult, process_log
-from dhlog.identify.select import ModelRequest
 from dhlog.io.dhfile import DHModel
 from dhlog.io.pipeline import parse_pipeline
 from dhlog.io.writer import write_session

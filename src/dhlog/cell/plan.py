@@ -135,11 +135,11 @@ def plan_session(robot: Robot, cfg: SimulationConfig, tracker: Tracker | None = 
     """The plan ``cfg`` (protocol, counts, noise) on ``robot`` as its nominal; with
     ``tracker``, the robot placed in front of it, its noise model, and random poses whose target
     is out of its range left out (counted)."""
-    from dhlog.identify.holdout import pose_groups
+    from dhlog.identify.check.validate import fk_prediction_std
+    from dhlog.identify.fit.leaveout import pose_groups
+    from dhlog.identify.joints.sweeps import samples_with_encoders
+    from dhlog.identify.model.select import ModelRequest
     from dhlog.identify.run import process_data
-    from dhlog.identify.select import ModelRequest
-    from dhlog.identify.sweeps import samples_with_encoders
-    from dhlog.identify.validate import fk_prediction_std
     from dhlog.io.dhfile import DHModel
     from dhlog.io.memory import log_data_from_session
     from dhlog.present.console import held_lines
@@ -254,8 +254,8 @@ def select_poses(
     information, by the matrix determinant lemma), the model being the nominal's axes and tool
     point; a position target, isotropic noise ``noise`` or, with ``tracker``, its noise model
     along the line of sight from its station, and candidates beyond its range left out."""
-    from dhlog.identify.axismodel import AxisModel, ParameterLayout
-    from dhlog.identify.prediction import predict
+    from dhlog.identify.fit.axismodel import AxisModel, ParameterLayout
+    from dhlog.identify.fit.prediction import predict
     from dhlog.model.fk import spatial_jacobian
 
     singular = np.array(

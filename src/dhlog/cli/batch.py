@@ -129,7 +129,7 @@ def batch(
         written_logs,
     )
     from dhlog.fleet.executors import EXECUTORS
-    from dhlog.identify.select import MODELS
+    from dhlog.identify.model.select import MODELS
 
     if jobs < 1 or jobs > 256:
         stderr.print(f"error: --jobs must be between 1 and 256, not {jobs}.")

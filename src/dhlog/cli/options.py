@@ -89,7 +89,7 @@ def load_model(spec: str) -> DHModel:
 def model_request(model: str, gravity: str | None, harmonic_joints: str | None) -> Any:
     """``--model``, ``--gravity`` and ``--harmonic-joints`` as a request (exit 1 naming the
     option when one is wrong)."""
-    from dhlog.identify.select import MODELS, ModelRequest
+    from dhlog.identify.model.select import MODELS, ModelRequest
 
     if model not in MODELS:
         stderr.print(f"error: --model must be one of {', '.join(MODELS)}, not '{plain(model)}'.")

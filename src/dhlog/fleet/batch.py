@@ -87,8 +87,8 @@ def process_job(job: BatchJob, *, hold_signals: bool = False) -> dict[str, Any]:
     folder = Path(job.folder)
     outputs = job_outputs(job)
     try:
+        from dhlog.identify.model.select import ModelRequest
         from dhlog.identify.run import process_log
-        from dhlog.identify.select import ModelRequest
         from dhlog.io.dhfile import dh_model_from
         from dhlog.io.pipeline import pipeline_from
 

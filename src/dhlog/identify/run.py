@@ -34,54 +34,71 @@ from dhlog.errors import DhlogError, GeometryError, InputError
 from dhlog.geometry._checks import FloatArray
 from dhlog.geometry.fitting import PlaneFit, fit_plane
 from dhlog.geometry.lines import ANGLE_TOL, DISTANCE_TOL, Line, Plane
-from dhlog.identify.analytic import (
-    hayati_rows,
-    pair_tolerances,
-    partial_extraction,
+from dhlog.identify.check.footing import Placed, nominal_on_session, score_poses
+from dhlog.identify.check.holdout import Holdout, cross_validate
+from dhlog.identify.check.validate import (
+    Validation,
+    check_residual,
+    shown_stride,
+    table_gap,
+    validate_samples,
+    validate_sweeps,
 )
-from dhlog.identify.axismodel import AxisModel
-from dhlog.identify.beyond import (
-    beyond_geometry,
-    deflections,
-    merge_cancelling,
-    term_covariance,
+from dhlog.identify.fit.axismodel import AxisModel
+from dhlog.identify.fit.leaveout import fold_of_poses, pose_groups
+from dhlog.identify.fit.prediction import predict
+from dhlog.identify.fit.register import Registration
+from dhlog.identify.fit.samples import (
+    START_TARGET_POINTS,
+    measured_rotations,
+    sample_covariance,
+    start_model,
 )
-from dhlog.identify.checks import (
+from dhlog.identify.fit.start import Start, start_unswept
+from dhlog.identify.fit.variance import (
+    pose_clustered,
+    residual_norms,
+    whitened_cost,
+    whitening,
+    with_model_error,
+)
+from dhlog.identify.fit.whole import CHI3_MEDIAN, WholeFit, fit_whole_model
+from dhlog.identify.joints.checks import (
     check_fit_noise,
     check_noise_model,
     check_sizes,
     check_slips,
     check_units,
 )
-from dhlog.identify.conditioning import Conditioned, identifiability_notes, nominal_rows
-from dhlog.identify.extract import Extraction, extract_dh
-from dhlog.identify.footing import Placed, nominal_on_session, score_poses
-from dhlog.identify.hayati import HayatiRow
-from dhlog.identify.hold import hold_unseen, may_hold
-from dhlog.identify.holdout import Holdout, cross_validate, pose_groups
-from dhlog.identify.leaveout import fold_of_poses
-from dhlog.identify.pairs import decided_tolerances, fold_holds
-from dhlog.identify.persample import PerSample, SampleArray, blocks
-from dhlog.identify.prediction import predict
-from dhlog.identify.register import Registration
-from dhlog.identify.relations import constrain_pairs, with_fixed_relations
-from dhlog.identify.samples import (
-    START_TARGET_POINTS,
-    measured_rotations,
-    sample_covariance,
-    start_model,
-)
-from dhlog.identify.segment import Segmentation, segment_log
-from dhlog.identify.select import AUTO, RANGE_POINTS, ModelRequest, Selection, term_std
-from dhlog.identify.start import Start, start_unswept
-from dhlog.identify.sweeps import (
+from dhlog.identify.joints.sweeps import (
     JointReport,
     TargetAtReference,
     fit_joint,
     samples_with_encoders,
     target_labels,
 )
-from dhlog.identify.timing import (
+from dhlog.identify.model.beyond import (
+    beyond_geometry,
+    deflections,
+    merge_cancelling,
+    term_covariance,
+)
+from dhlog.identify.model.hold import hold_unseen, may_hold
+from dhlog.identify.model.pairs import decided_tolerances, fold_holds
+from dhlog.identify.model.relations import constrain_pairs, with_fixed_relations
+from dhlog.identify.model.select import AUTO, RANGE_POINTS, ModelRequest, Selection, term_std
+from dhlog.identify.read.analytic import (
+    hayati_rows,
+    pair_tolerances,
+    partial_extraction,
+)
+from dhlog.identify.read.conditioning import Conditioned, identifiability_notes, nominal_rows
+from dhlog.identify.read.extract import Extraction, extract_dh
+from dhlog.identify.read.hayati import HayatiRow
+from dhlog.identify.read.uncertainty import analytic_uncertainty, whole_uncertainty
+from dhlog.identify.segment.persample import PerSample, SampleArray, blocks
+from dhlog.identify.segment.segment import Segmentation, segment_log
+from dhlog.identify.segment.timing import (
     MAX_REJOINS,
     REJOIN_BELOW,
     REJOIN_FIT,
@@ -91,23 +108,6 @@ from dhlog.identify.timing import (
     rejoin,
     sweep_phases,
 )
-from dhlog.identify.uncertainty import analytic_uncertainty, whole_uncertainty
-from dhlog.identify.validate import (
-    Validation,
-    check_residual,
-    shown_stride,
-    table_gap,
-    validate_samples,
-    validate_sweeps,
-)
-from dhlog.identify.variance import (
-    pose_clustered,
-    residual_norms,
-    whitened_cost,
-    whitening,
-    with_model_error,
-)
-from dhlog.identify.whole import CHI3_MEDIAN, WholeFit, fit_whole_model
 from dhlog.io.dhfile import DHModel
 from dhlog.io.pipeline import Pipeline
 from dhlog.io.reader import LogData, camera_pipeline, read_log
@@ -176,9 +176,9 @@ class ProcessResult:
     #: what a reader should know but need not act on (the method chosen, forms shown); the
     #: ``warnings`` are for what may need action
     info: list[str] = field(default_factory=list)
-    #: a camera calibration's product (:class:`dhlog.identify.vision.CameraResult`: the set-up,
-    #: the camera's and the board's poses with σ, the corners' σ, the held-out check in pixels)
-    #: and what the recording shows of each camera; None and empty for a tracker log
+    #: a camera calibration's product (:class:`~dhlog.identify.camera.report.CameraResult`: the
+    #: set-up, the camera's and the board's poses with σ, the corners' σ, the held-out check in
+    #: pixels) and what the recording shows of each camera; None and empty for a tracker log
     camera: Any = None
     cameras: list[Any] = field(default_factory=list)
     #: with several cameras, each one's product (``camera`` is the first's)
@@ -222,17 +222,17 @@ def process_log(
     """Run the whole identification on the log at ``path`` (see the module docstring).
 
     A vision log (camera images; a camera pipeline) is calibrated from its detected board
-    corners (:mod:`dhlog.identify.vision`): ``camera_setup`` eye-to-hand / eye-in-hand (None:
+    corners (:mod:`dhlog.identify.camera.flow`): ``camera_setup`` eye-to-hand / eye-in-hand (None:
     decided from the data), ``refine_intrinsics``, ``jobs`` processes decoding and detecting,
     ``frames`` the range of frames (indices on the image topic, end excluded) calibrated from.
 
     ``holdout`` K > 1: K-fold cross-validation over the session's poses; ``validate``: further
     logs (other sessions of the same robot) whose poses score the result and the nominal on one
-    footing (:mod:`dhlog.identify.footing`; a log that cannot be scored is a warning).
+    footing (:mod:`dhlog.identify.check.footing`; a log that cannot be scored is a warning).
     ``progress(stage, fraction)`` is called as each stage advances."""
     camera = camera_pipeline(path, pipeline)
     if camera is not None:  # one Observations a camera
-        from dhlog.identify.vision import process_observations
+        from dhlog.identify.camera.flow import process_observations
         from dhlog.io.observe import observe
 
         observations = observe(
@@ -310,10 +310,10 @@ def process_data(
     values, started from the analytic result (per-joint fits + line geometry). With
     ``analytic_only`` (or without encoders), the analytic result with its propagated covariance.
     ``parallel_sigma``: None, nearly parallel pairs are held parallel in the whole-model fit
-    where that does not raise the error at held-out poses (:mod:`dhlog.identify.pairs`); K,
+    where that does not raise the error at held-out poses (:mod:`dhlog.identify.model.pairs`); K,
     those within K σ (2-D) of parallel, whatever the nominal says (0: never). ``holdout`` K > 1:
     K-fold cross-validation of the whole-model fit over the session's poses (``result.holdout``).
-    ``model``: the terms beyond the geometry to try or force (:mod:`dhlog.identify.select`).
+    ``model``: the terms beyond the geometry to try or force (:mod:`dhlog.identify.model.select`).
     ``known_noise``: the tracker's σ (m) where it is known rather than measured (a plan): the
     base plane's covariance from it.
     """
@@ -484,7 +484,7 @@ def _from_a_start(result: ProcessResult, kwargs: dict[str, Any], stage: Stage) -
     """Joints never moved alone, identified by the whole-model fit from every other sample
     (coupled moves, random static poses, stops), started from the nominal or, without one, from
     the circle a coupled move with a parallel neighbour traces
-    (:func:`~dhlog.identify.start.start_unswept`). Returns False (and changes nothing but the
+    (:func:`~dhlog.identify.fit.start.start_unswept`). Returns False (and changes nothing but the
     warnings) when a joint never moved, there is no start, or the fit fails."""
     nominal = result.nominal
     start = start_unswept(
@@ -881,7 +881,7 @@ def _validate_log(
     placed: list[Placed | None],
 ) -> None:
     """Score ``result`` at the poses of the log at ``path`` (``--validate``), the nominal and
-    the calibrated model on one footing (:mod:`dhlog.identify.footing`); ``placed`` keeps the
+    the calibrated model on one footing (:mod:`dhlog.identify.check.footing`); ``placed`` keeps the
     nominal as placed on this session once it is (one item)."""
     ex = result.extraction
     if ex is None or not result.complete:

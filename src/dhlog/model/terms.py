@@ -19,7 +19,7 @@ Each term moves one joint by a coefficient times a known function of the pose,
 * ``harmonic_sin`` / ``harmonic_cos`` (joint i): ``b = sin q_i`` / ``cos q_i`` of the encoder
   value, the first harmonic of a transmission's angle error (rad).
 
-The same terms are evaluated on the fitted axes (:mod:`dhlog.identify.prediction`) and on the DH
+The same terms are evaluated on the fitted axes (:mod:`dhlog.identify.fit.prediction`) and on the DH
 table (:func:`table_deflection`: the result JSON's ``nongeometric`` block, the ``fk`` command
 and the simulator's truth), from points given in the frames each carries.
 """

@@ -9,7 +9,7 @@ from typing import Any
 import numpy as np
 
 from dhlog.geometry._checks import FloatArray
-from dhlog.identify.extract import PairRelation
+from dhlog.identify.read.extract import PairRelation
 from dhlog.model.dh import StandardDH, standard_to_modified
 
 RESULT_FORMAT = "dhlog.result/1"

@@ -12,11 +12,11 @@ from numpy.typing import NDArray
 
 from dhlog import __version__
 from dhlog.geometry._checks import FloatArray, wrap_angle
-from dhlog.identify.hayati import NEAR_PARALLEL
-from dhlog.identify.propagate import state_difference, state_names, state_vector
+from dhlog.identify.check.validate import shown_stride
+from dhlog.identify.joints.sweeps import JointReport
+from dhlog.identify.read.hayati import NEAR_PARALLEL
+from dhlog.identify.read.propagate import state_difference, state_names, state_vector
 from dhlog.identify.run import ProcessResult
-from dhlog.identify.sweeps import JointReport
-from dhlog.identify.validate import shown_stride
 from dhlog.model.dh import JointType
 from dhlog.result.contract import RESULT_FORMAT, dh_documents, relation_documents
 
@@ -206,7 +206,8 @@ HAYATI_DESCRIPTION = (
 
 
 def _conditioned_document(result: ProcessResult, n_rows: int) -> dict[str, Any]:
-    """``hayati_dh``: the table of :class:`~dhlog.identify.conditioning.Conditioned`, row by row."""
+    """``hayati_dh``: the table of :class:`~dhlog.identify.read.conditioning.Conditioned`, row
+    by row."""
     c = result.conditioned
     assert c is not None
     t = c.table

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 from dhlog.geometry.lines import Line
-from dhlog.identify.extract import extract_dh
+from dhlog.identify.read.extract import extract_dh
 from dhlog.model.fk import fk_point, joint_axes
 from dhlog.result.contract import RESULT_FORMAT, dh_documents, relation_documents
 from dhlog.simulate.protocols import protocol_config

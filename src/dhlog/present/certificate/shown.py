@@ -140,7 +140,7 @@ def nominal_deltas(
     Hayati–Mirmirani form, as ``dhlog process`` does); rows whose nominal has no such form get
     none."""
     from dhlog.geometry._checks import wrap_angle
-    from dhlog.identify.hayati import table_in_hayati_form
+    from dhlog.identify.read.hayati import table_in_hayati_form
 
     hayati = frozenset(r.joint - 1 for r in rows if r.form == "hayati")
     table = nominal

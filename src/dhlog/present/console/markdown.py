@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import math
 
-from dhlog.identify.beyond import determined
+from dhlog.identify.model.beyond import determined
 from dhlog.identify.run import ProcessResult
 from dhlog.present.console.layout import decimals, scales, table_title, value_cells
 from dhlog.present.console.notes import clock_line, held_lines, method_line

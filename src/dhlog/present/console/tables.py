@@ -16,7 +16,7 @@ from rich.markup import escape
 from rich.table import Table
 
 from dhlog.geometry._checks import FloatArray, roll_pitch_yaw
-from dhlog.identify.beyond import determined
+from dhlog.identify.model.beyond import determined
 from dhlog.identify.run import ProcessResult
 from dhlog.present.console.layout import (
     NAME_WIDTH,
@@ -320,7 +320,7 @@ def deflection_lines(
     """The "Deflection" line: the terms' largest move per joint and of the target at the
     samples, each with its σ there; one within 2σ of zero (or depending on an undetermined
     term) is said not to be determined, not printed as a measurement
-    (:func:`dhlog.identify.beyond.determined`)."""
+    (:func:`dhlog.identify.model.beyond.determined`)."""
     stds = result.deflection_max_std
     moved: list[str] = []
     unseen: list[str] = []

@@ -16,8 +16,8 @@ from dhlog.model.dh import JointType
 from dhlog.present.recording.scene import JOINT_TIMELINE, Shown, joint_color, time_column
 
 if TYPE_CHECKING:
+    from dhlog.identify.joints.sweeps import JointReport
     from dhlog.identify.run import ProcessResult
-    from dhlog.identify.sweeps import JointReport
 
 
 #: Residual components, in the joint's own directions, and their colours in every plot.

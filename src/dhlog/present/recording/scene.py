@@ -14,8 +14,8 @@ import rerun as rr
 import rerun.blueprint as rrb
 
 from dhlog.geometry._checks import FloatArray
-from dhlog.identify.persample import PerSample
-from dhlog.identify.validate import shown_stride
+from dhlog.identify.check.validate import shown_stride
+from dhlog.identify.segment.persample import PerSample
 from dhlog.model.dh import JointType
 from dhlog.model.fk import fk_frames
 
@@ -89,7 +89,7 @@ class Shown:
     """What a result's recording draws, read from the result once: the samples (``xyz`` in M,
     ``t`` stamps, ``q`` encoder values or None; read by table rows as they are drawn), every
     how many rows of the table are drawn (``stride``: the viewer shows no more than
-    :data:`~dhlog.identify.validate.SHOWN_SAMPLES`), the DH frames of the shown table, the
+    :data:`~dhlog.identify.check.validate.SHOWN_SAMPLES`), the DH frames of the shown table, the
     transform from M to the displayed base frame and the scene's sizes."""
 
     result: ProcessResult

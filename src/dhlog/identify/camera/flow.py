@@ -1,0 +1,409 @@
+"""A camera calibration: from a camera's detected board corners to the DH model, the camera's
+pose (the hand-eye calibration) and the error at held-out frames (issue 32).
+
+1. Each frame's board pose in the camera by OpenCV's PnP (:func:`board_poses`).
+2. Those poses are a 6-DoF target's samples: the board's centre and orientation in the camera
+   (eye-to-hand), or the camera's in the board's frame (eye-in-hand). The tracker's run
+   (:func:`dhlog.identify.run.process_data`, the geometric model) makes its start from them:
+   the seed method where joints were swept alone, the nominal placed on them otherwise.
+3. The whole model is fitted again to every corner in pixels (:mod:`dhlog.identify.fit.pixels`):
+   the maximum likelihood of the detections. Its DH table, covariance and fixed parameters are
+   read off as for a tracker.
+4. The camera's and the board's poses with their σ (:func:`hand_eye`), the FK check against
+   the PnP poses (mm), and with ``holdout`` K the error at held-out frames in pixels and in mm
+   (:func:`cross_validate_pixels`), the nominal placed on the same training frames.
+
+The set-up (``eye-to-hand`` / ``eye-in-hand``) is the caller's, or decided by which one places
+the nominal on the poses better.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import replace
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.spatial.transform import Rotation
+
+from dhlog.errors import DhlogError, InputError
+from dhlog.geometry._checks import FloatArray
+from dhlog.geometry.lines import Line
+from dhlog.identify.camera.checks import (
+    board_scale,
+    camera_moved,
+    frame_clustered,
+    placed_nominal_px,
+)
+from dhlog.identify.camera.hand_eye import cameras_std, hand_eye
+from dhlog.identify.camera.holdout import cross_validate_cameras, cross_validate_pixels
+from dhlog.identify.camera.poses import (
+    PNP_RMS,
+    board_centre,
+    board_poses,
+    corners_of,
+    of_frames,
+    pose_log,
+    shift,
+    stacked,
+    transform,
+)
+from dhlog.identify.camera.report import CameraResult
+from dhlog.identify.camera.view import camera_view
+from dhlog.identify.fit.axismodel import ParameterLayout
+from dhlog.identify.fit.pixels import CamerasModel, PixelFit, PixelModel, fit_pixels
+from dhlog.identify.fit.prediction import predict as predict_points
+from dhlog.identify.fit.prediction import predict_orientation
+from dhlog.identify.model.select import ModelRequest
+from dhlog.identify.read.extract import Extraction, extract_dh
+from dhlog.identify.read.uncertainty import whole_uncertainty
+from dhlog.io.dhfile import DHModel
+from dhlog.vision.observe import Observations
+
+#: the fewest frames with the board for a calibration
+MIN_FRAMES = 8
+
+
+# ---------------------------------------------------------------------------------------------
+# the run
+
+
+def process_observations(
+    observations: list[Observations],
+    *,
+    sha256: str = "",
+    nominal: DHModel | None = None,
+    reference_pose: FloatArray | None = None,
+    setup: str | None = None,
+    refine_intrinsics: bool = False,
+    holdout: int = 0,
+    frames: tuple[int | None, int | None] | None = None,
+    progress: Callable[[str, float], None] | None = None,
+    start: Callable[..., Any] | None = None,
+    pipeline: str | None = None,
+) -> Any:
+    """The calibration of the module docstring from one camera's observations; returns the
+    :class:`~dhlog.identify.run.ProcessResult` with its ``camera`` and ``cameras`` filled.
+    ``start``: the tracker's run on the poses (:func:`dhlog.identify.run.process_data`, which
+    ``identify.run.process_log`` passes: this module is below the run and never imports it)."""
+    if start is None:  # the tracker's run makes the start (identify.run passes itself)
+        raise ValueError("process_observations needs start= (identify.run.process_data)")
+    process_data = start
+    if not observations:
+        raise InputError("the log holds no camera with detections.")
+    obs = observations[0]
+    if frames is not None:
+        obs = of_frames(obs, frames)
+    extra_cameras = [o.camera for o in observations[1:]]
+    if obs.frames < MIN_FRAMES:
+        raise InputError(
+            f"{obs.path}: {obs.frames} frame(s) of {obs.camera} have the board and joint values "
+            f"({obs.tally.summary()}); a calibration needs at least {MIN_FRAMES}: record more "
+            "poses with the board in view."
+        )
+    T_cb, pnp_rms = board_poses(obs, obs.intrinsics)
+    use = np.isfinite(pnp_rms) & (pnp_rms <= PNP_RMS)
+    dropped = int(obs.frames - np.count_nonzero(use))
+    notes: list[str] = list(obs.warnings)
+    if dropped:
+        bad = ", ".join(str(int(obs.frame[k])) for k in np.flatnonzero(~use)[:3])
+        notes.append(
+            f"{dropped} frame(s) left out of the start: the board's pose (PnP) misses its own "
+            f"corners by more than {PNP_RMS} px there (frames {bad}"
+            f"{', …' if dropped > 3 else ''}): false detections or wrong intrinsics."
+        )
+    if np.count_nonzero(use) < MIN_FRAMES:
+        raise InputError(
+            f"{obs.path}: only {int(np.count_nonzero(use))} frame(s) of {obs.camera} give the "
+            f"board's pose within {PNP_RMS} px (median {np.nanmedian(pnp_rms):.2f} px): check the "
+            "intrinsics (the CameraInfo topic or the pipeline's [camera] calibration) and the "
+            "pipeline's [target] sizes."
+        )
+    model_request = ModelRequest(mode="geometric")
+    candidates = [setup] if setup else ["eye-to-hand", "eye-in-hand"]
+    if not setup and nominal is None:
+        raise InputError(
+            f"{obs.path}: the camera's set-up cannot be told without a nominal: pass "
+            "--camera-setup eye-to-hand (the camera fixed, the board on the flange) or "
+            "eye-in-hand (the camera on the flange), or --nominal."
+        )
+    starts: dict[str, Any] = {}
+    for s in candidates:
+        log = pose_log(obs, T_cb, s, use)
+        try:
+            starts[s] = process_data(
+                log,
+                sha256=sha256,
+                nominal=nominal,
+                reference_pose=reference_pose,
+                model=model_request,
+                progress=progress,
+            )
+            starts[s].camera_setup = s
+        except DhlogError as exc:
+            if len(candidates) == 1:
+                raise
+            starts[s] = exc
+    usable = {
+        s: r
+        for s, r in starts.items()
+        if not isinstance(r, Exception) and r.whole is not None and r.validation is not None
+    }
+    if not usable:
+        why = "; ".join(f"{s}: {r}" for s, r in starts.items() if isinstance(r, Exception))
+        raise InputError(
+            f"{obs.path}: no start for the pixel fit from the board's poses "
+            f"({why or 'the whole-model fit failed'}): check --camera-setup and --nominal."
+        )
+    # a set-up the poses cannot fit is out (its FK check far beyond the other's); of the rest,
+    # the one whose table is the nominal's: sweeps from one home pose fit either set-up (each
+    # move is one joint's turn, about a line fixed in both the camera's and the board's frame),
+    # but only the right one reads the nominal's table off them
+    gap = {
+        s: placed_nominal_px(r, nominal, obs) if len(usable) > 1 else math.nan
+        for s, r in usable.items()
+    }
+    chosen = min(usable, key=lambda s: (gap[s], usable[s].validation.rms))
+    if setup:
+        reason = "given"
+    else:
+        said = "; ".join(
+            f"{s}: the nominal placed on the corners misses them by {gap[s]:.3f} px RMS"
+            for s in usable
+        )
+        reason = f"decided from the data ({said})"
+    result = usable[chosen]
+    if pipeline is not None:  # the camera pipeline read, not the poses' internal one
+        result.log = replace(result.log, pipeline=replace(result.log.pipeline, name=pipeline))
+    # what the start's run said is of the poses' fit (its noise, its pairs, its registration in
+    # mm), not of the calibration: one line says how the start was made, the rest is the
+    # pixel fit's
+    swept = [j.index for j in result.joints if j.fit is not None]
+    how = (
+        f"the seed method on the sweeps of joint(s) {', '.join(map(str, swept))}"
+        if swept
+        else "the nominal placed on them"
+    )
+    result.info = [
+        f"start: each frame's board pose (OpenCV PnP) as a 6-DoF target, the model from {how}; "
+        "then the whole model fitted to every corner in pixels."
+    ]
+    result.warnings = [*notes, *(w for w in result.warnings if "never moved alone" in w)]
+    fit = _pixel_stage(result, obs, T_cb, use, chosen, reason, refine_intrinsics, holdout, progress)
+    if extra_cameras and chosen != "eye-to-hand":
+        result.warnings.append(
+            f"the log has {len(observations)} cameras; several are fitted together fixed in the "
+            f"cell (eye-to-hand) only: this calibration used {obs.camera} alone "
+            f"({', '.join(extra_cameras)} not used)."
+        )
+    elif extra_cameras:
+        rest = [o if frames is None else of_frames(o, frames) for o in observations[1:]]
+        _several_cameras(result, fit, [obs, *rest], holdout, progress)
+    return result
+
+
+def _adopt(
+    result: Any, whole: Any
+) -> tuple[Extraction, Any, Callable[[list[Line], FloatArray, Any], Extraction]]:
+    """Put the pixel fit ``whole`` in ``result``: its DH model read off as for a tracker, the
+    covariance and what is fixed, the FK check against the PnP poses. Returns the extraction,
+    the uncertainty and the extraction's function."""
+    from dhlog.identify.check.validate import validate_samples
+    from dhlog.identify.joints.sweeps import samples_with_encoders
+
+    nominal = result.nominal
+    nominal_table = nominal.table if nominal is not None else None
+    ref = result.reference_pose
+    types = tuple(whole.model.types)
+
+    def extract(axes: list[Line], target: FloatArray, plane: Any) -> Extraction:
+        return extract_dh(
+            axes, types, target=target, reference_pose=ref, base_plane=plane, nominal=nominal_table
+        )
+
+    ex = extract(list(whole.model.axes), whole.model.target, None)
+    said: list[str] = []
+    found = whole_uncertainty(whole, None, extract, ex, ref, nominal_table, said)
+    result.info.extend(said)
+    result.method = "whole-model maximum likelihood"  # in pixels: the camera block says so
+    result.extraction, result.whole = ex, whole
+    result.covariance, result.std, result.fixed = found.covariance, found.std, found.fixed
+    result.hayati, result.hayati_std = found.hayati, found.hayati_std
+    result.conditioned = found.conditioned
+    result.tool_orientation = found.tool_orientation
+    result.tool_orientation_std = found.tool_orientation_std
+    result.target = whole.model.target
+    result.selection = None
+    seg = result.segmentation
+    rows, Q, P = samples_with_encoders(seg)
+    # the table's joint values are the encoders' (no scales, no terms in a camera's fit)
+    inl = np.ones(len(rows), dtype=bool)
+    result.validation = validate_samples(seg, rows, Q, P, ex, inl, ex.tool_point[None])
+    return ex, found, extract
+
+
+def _pixel_stage(
+    result: Any,
+    obs: Observations,
+    T_cb: FloatArray,
+    use: NDArray[np.bool_],
+    setup: str,
+    reason: str,
+    refine_intrinsics: bool,
+    holdout: int,
+    progress: Callable[[str, float], None] | None,
+) -> PixelFit:
+    """Refit ``result``'s whole model in pixels and put the DH model, σ and camera in it;
+    returns the fit."""
+    assert result.whole is not None
+    if progress is not None:
+        progress("fitting pixels", 0.0)
+    data = corners_of(obs, np.ones(obs.frames, dtype=bool))
+    measurement = PixelModel(setup, obs.intrinsics, refine=refine_intrinsics)
+    fit = frame_clustered(
+        fit_pixels(result.whole.model, measurement, data), data.frame, result.info
+    )
+    nominal = result.nominal
+    nominal_table = nominal.table if nominal is not None else None
+    ref = result.reference_pose
+    ex, found, extract = _adopt(result, fit.whole)
+    T_fixed, T_mounted, fixed_std, mounted_std = hand_eye(fit, extract, setup, board_centre(obs))
+    scaled = board_scale(ex, nominal_table, obs, set(found.fixed))
+    if scaled is not None:
+        result.warnings.insert(0, scaled)
+    moved = camera_moved(fit, data, obs, ex, ref)
+    if moved is not None:
+        result.warnings.insert(0, moved)
+    check = None
+    if holdout > 1:
+        if progress is not None:
+            progress("cross-validating", 0.0)
+        check = cross_validate_pixels(fit, data, obs, T_cb, holdout, nominal, ref)
+    sigma_i = None
+    if fit.own_covariance is not None:
+        sigma_i = np.sqrt(np.clip(np.diag(fit.own_covariance), 0.0, None))
+    cam = CameraResult(
+        name=obs.camera,
+        setup=setup,
+        intrinsics=fit.measurement.intrinsics,
+        intrinsics_refined=refine_intrinsics,
+        intrinsics_std=sigma_i,
+        T_base_fixed=T_fixed,
+        fixed_std=fixed_std,
+        T_flange_mounted=T_mounted,
+        mounted_std=mounted_std,
+        sigma_px=fit.sigma,
+        rms_px=fit.rms,
+        frames=obs.frames,
+        corners=int(data.uv.shape[0]),
+        inlier_corners=int(np.count_nonzero(fit.inliers)),
+        tally=obs.tally.summary(),
+        setup_reason=reason,
+        holdout=check,
+    )
+    result.camera = cam
+    result.sigma = None
+    result.info.append(
+        f"camera {obs.camera} ({setup}, {reason}): {cam.frames} frames, {cam.corners} corners "
+        f"({cam.corners - cam.inlier_corners} held out as false detections); the whole model "
+        f"fitted to the corners in pixels: σ {cam.sigma_px:.3f} px per coordinate. The FK "
+        "check below is against the board's poses from PnP (mm), the fit's own is in pixels."
+    )
+    result.cameras = [camera_view(fit, data, obs, cam, check)]
+    result.camera_results = [cam]
+    return fit
+
+
+def _several_cameras(
+    result: Any,
+    first: PixelFit,
+    observations: list[Observations],
+    holdout: int,
+    progress: Callable[[str, float], None] | None,
+) -> None:
+    """Fit the whole model to every camera's corners at once (:class:`CamerasModel`: M the
+    first camera's frame, each further camera's pose fitted with it), starting from the first
+    camera's fit and each further camera placed by its frames' PnP poses against where that
+    fit puts the board; every camera's pose in the base frame with σ, the held-out check
+    over all frames, a view per camera."""
+    from dhlog.identify.fit.measure import fit_measured
+
+    if progress is not None:
+        progress("fitting cameras together", 0.0)
+    model = first.whole.model
+    centre = board_centre(observations[0])
+    layout = ParameterLayout.of(model.types, rotation=True)
+    poses: list[FloatArray] = [np.eye(4)]
+    for o in observations[1:]:
+        T, pnp = board_poses(o, o.intrinsics)
+        ok = np.isfinite(pnp) & (pnp <= PNP_RMS)
+        if np.count_nonzero(ok) < 3:
+            raise InputError(
+                f"{o.path}: {o.camera} gives the board's pose in {int(np.count_nonzero(ok))} "
+                "frame(s): too few to place it beside the first camera; record more frames it "
+                "sees, or calibrate from one camera (--pipeline naming its topic)."
+            )
+        p, _ = predict_points(model, o.q[ok])
+        R, _ = predict_orientation(model, o.q[ok], layout, model.bases())
+        found = [
+            transform(R[:, :, f], p[f]) @ shift(-centre) @ np.linalg.inv(T[ok][f])
+            for f in range(int(np.count_nonzero(ok)))
+        ]
+        mean = Rotation.from_matrix(np.array([c[:3, :3] for c in found])).mean().as_matrix()
+        poses.append(transform(mean, np.median(np.array([c[:3, 3] for c in found]), axis=0)))
+    data = stacked(observations)
+    measurement = CamerasModel(tuple(o.intrinsics for o in observations), tuple(poses))
+    # the further cameras placed first, the model held and every corner in (their PnP start
+    # misses by px, which the joint fit's outlier cut, judged mostly on the first camera's
+    # corners, would hold out whole), then everything together
+    held = np.zeros((ParameterLayout.of(model.types, rotation=True).size, 0))
+    placed = fit_measured(model, measurement, data, within=held, threshold=math.inf)
+    result.info = [line for line in result.info if "share their frame's error" not in line]
+    fit = frame_clustered(fit_measured(model, placed.measurement, data), data.frame, result.info)
+    ex, _, extract = _adopt(result, fit.whole)
+    _, T_mounted, _, mounted_std = hand_eye(first, extract, "eye-to-hand", centre)
+    cams_std = cameras_std(fit, extract)
+    base: FloatArray = np.asarray(np.linalg.inv(ex.T_measurement_base), dtype=np.float64)
+    check = None
+    if holdout > 1:
+        if progress is not None:
+            progress("cross-validating", 0.0)
+        check = cross_validate_cameras(fit, data, holdout, result.nominal, result.reference_pose)
+    results = []
+    views = []
+    for k, o in enumerate(observations):
+        at = data.camera == k
+        res = fit.residuals[at]
+        inl = fit.inliers[at]
+        T_k = fit.measurement.poses[k]
+        cam = CameraResult(
+            name=o.camera,
+            setup="eye-to-hand",
+            intrinsics=o.intrinsics,
+            intrinsics_refined=False,
+            intrinsics_std=None,
+            T_base_fixed=np.asarray(base @ T_k, dtype=np.float64),
+            fixed_std=cams_std[k],
+            T_flange_mounted=T_mounted,
+            mounted_std=mounted_std,
+            sigma_px=fit.sigma,
+            rms_px=float(np.sqrt(np.mean(np.sum(res[inl] ** 2, axis=1)))) if inl.any() else 0.0,
+            frames=o.frames,
+            corners=int(np.count_nonzero(at)),
+            inlier_corners=int(np.count_nonzero(inl)),
+            tally=o.tally.summary(),
+            setup_reason=result.camera.setup_reason if k == 0 else "the first camera's",
+            holdout=check,
+        )
+        results.append(cam)
+        own = corners_of(o, np.ones(o.frames, dtype=bool))
+        sub = replace(first, residuals=res, whole=replace(first.whole, model=fit.whole.model))
+        views.append(camera_view(sub, own, o, cam, check, T_base_M=base))
+    result.camera, result.camera_results, result.cameras = results[0], results, views
+    result.info.append(
+        f"{len(observations)} cameras fitted together ({', '.join(o.camera for o in observations)}"
+        f"): {int(data.uv.shape[0])} corners, σ {fit.sigma:.3f} px per coordinate; each "
+        "camera's pose in the base frame with its σ in the camera blocks."
+    )

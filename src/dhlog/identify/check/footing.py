@@ -1,0 +1,534 @@
+"""Another session's log scored on one footing for every model (``--validate LOG``).
+
+A held-out log may have been measured after the tracker moved (the base no longer where the
+calibration put it) or after the probe was re-mounted (the target elsewhere on the flange). What
+such a log needs is a property of the log, not of the model scored: so it is decided **once per
+log**, and then the nominal and the calibrated model get exactly the same freedom, placed on the
+same poses, and are scored at the same poses.
+
+**The decision** (:func:`decide`). The log's poses are split: every third pose (the placing
+poses) and the others (the scored poses). Each freedom — none, the tool (its point; with the
+measured orientation also its frame), the base (``T_measurement_base``), both — is placed on the
+placing poses and judged by the error it leaves at the scored poses (with the orientation: the
+position error and the orientation error times :data:`LEVER`). The freedom taken is the smallest
+(fewest numbers; a base before a tool of as many) whose error is within :data:`MOVED_RATIO` of the
+best: a freedom is taken only when it lowers the error at poses it was not placed on by more than
+that factor, i.e. by far more than the model's noise. The decision is made with the calibrated
+model: whether the tracker moved or the probe was re-mounted is a fact of the session, and the
+calibrated model is the sharpest instrument to see it with (a millimetre's shift stands out of a
+0.05 mm error, not of the nominal's 1 mm); being taken once, it is the same for both models
+whatever they would each have preferred, so two results scored on one log are comparable.
+
+**What the log determines** (:func:`poses_of`, :class:`Shape`). The measured orientation
+(6-DoF probe, where the calibration also measured it, so both models have a tool frame) places the
+base from a line or a single point: everything is scored in 3-D. Without it, points spread over a
+plane or a volume place the base; points on one line do not fix the base's rotation about the
+line and cannot tell a re-mounted probe from a moved tracker — only the base is ever re-placed
+there, and the errors across the line are scored (the component along it is left out: the
+placement's translation takes its mean, and along a path it is where a clock shows; ISO 9283
+measures a path's accuracy across it). Fewer than :data:`MIN_POSES` poses, or position-only
+points all within :data:`POINT_SPREAD` of one point, cannot be scored (:class:`NotScoredError`).
+
+**Before.** The nominal comes to the log already placed: its base and tool point (and tool
+frame) registered on the calibration session's samples (:func:`nominal_on_session`), the
+session the calibrated model was fitted on. Neither model is ever placed on the poses it is scored
+at.
+
+Pure numpy/scipy.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+from numpy.typing import NDArray
+
+from dhlog.errors import InputError
+from dhlog.geometry._checks import FloatArray, nearest_rotation, rotation_from_vector
+from dhlog.identify.check.holdout import MIN_POSES, ErrorStats, Holdout
+from dhlog.identify.fit.leaveout import pose_groups, pose_means
+from dhlog.identify.fit.register import (
+    OUTLIER_SCALE,
+    ROBUST_SCALE,
+    SCALE_FLOOR,
+    register_nominal,
+)
+from dhlog.model.dh import StandardDH
+from dhlog.model.fk import fk_frames, fk_point
+
+#: A freedom is taken when it lowers the error at the poses it was not placed on by more than
+#: this factor over the smaller freedoms (the tracker moved, the probe was re-mounted).
+MOVED_RATIO = 2.0
+#: Metres per radian when orientation and position errors are weighed together: 1 mrad of the
+#: probe's frame counts as 0.1 mm (a T-Mac's σ is about 0.2 mrad beside a tracker's 0.01–0.02 mm).
+LEVER = 0.1
+#: Position-only poses whose positions spread less than this (m, RMS along the widest direction)
+#: are one point: no base can be placed on them.
+POINT_SPREAD = 1e-3
+#: Poses whose spread across their widest direction is below this fraction of the spread along
+#: it lie on one line.
+LINE_RATIO = 0.01
+#: The placement's increments are held towards zero with this weight, so that what the poses do
+#: not determine (the rotation about a line) stays where the model put it.
+PRIOR = 1e-3
+#: At most this many poses enter each placement of the decision (evenly strided).
+DECISION_POSES = 3000
+
+
+@dataclass
+class LogHoldout(Holdout):
+    """A held-out log's check: beyond :class:`~dhlog.identify.check.holdout.Holdout`'s, whether the
+    tool was placed again (``tool_replaced``: the probe was re-mounted) and which components of
+    the errors are scored (``components``: ``"3-D"`` or ``"across the line"``)."""
+
+    tool_replaced: bool = False
+    components: str = "3-D"
+
+    def document(self) -> dict[str, object]:
+        doc = super().document()
+        doc["tool_replaced"] = self.tool_replaced
+        doc["components"] = self.components
+        return doc
+
+
+class NotScoredError(InputError):
+    """A held-out log that cannot be scored (too few poses, one point without orientation)."""
+
+
+@dataclass(frozen=True)
+class Placed:
+    """A model as it stands in a log's frame M: the table, ``T_measurement_base``, the target in
+    the last frame (``tool``, m) and the target frame's orientation there (``R_tool``, None when
+    unknown)."""
+
+    table: StandardDH
+    T: FloatArray
+    tool: FloatArray
+    R_tool: FloatArray | None = None
+
+
+@dataclass(frozen=True)
+class Shape:
+    """What a log's poses determine: ``kind`` ``"spread"`` (a plane or a volume), ``"line"``
+    (``direction``: the line's unit vector), ``"point"``; ``oriented``: the measured orientation
+    is used; ``spread``: the RMS spread (m) along the poses' three principal directions."""
+
+    kind: str
+    oriented: bool
+    spread: FloatArray
+    direction: FloatArray | None = None
+
+    @property
+    def across(self) -> bool:
+        """Only the errors across the line are scored."""
+        return self.kind == "line" and not self.oriented
+
+    def scored(self, vectors: FloatArray) -> FloatArray:
+        """The error vectors (k, 3) as scored: across the line where only that is."""
+        if not self.across:
+            return vectors
+        u = self.direction
+        assert u is not None
+        return np.asarray(vectors - np.outer(vectors @ u, u), dtype=np.float64)
+
+
+@dataclass(frozen=True)
+class Poses:
+    """A log's poses: each pose's mean joint values for each model (``Q`` for the calibrated,
+    ``Qn`` for the nominal), its mean measured position ``P`` (k, 3) and orientation ``R``
+    (k, 3, 3; None without)."""
+
+    Q: FloatArray
+    Qn: FloatArray
+    P: FloatArray
+    R: FloatArray | None
+
+
+@dataclass(frozen=True)
+class Footing:
+    """The decision for one log: re-place the ``base`` and/or the ``tool`` on the poses
+    ``placing`` (a mask over the poses) and score the others; the held-out errors (m) of the
+    calibrated model for each freedom tried (``errors``: name → error), and the log's
+    ``shape``."""
+
+    base: bool
+    tool: bool
+    placing: NDArray[np.bool_]
+    errors: dict[str, float]
+    shape: Shape
+
+    @property
+    def placed(self) -> bool:
+        return self.base or self.tool
+
+
+def poses_of(
+    groups: NDArray[np.int64],
+    Q: FloatArray,
+    Qn: FloatArray,
+    P: FloatArray,
+    R: FloatArray | None,
+) -> Poses:
+    """Each pose's mean joint values, position and (chordal mean) orientation."""
+
+    def mean(values: FloatArray) -> FloatArray:
+        return pose_means(groups, values)[1]
+
+    rotations = None
+    if R is not None:
+        U, _, Vt = np.linalg.svd(mean(R))
+        D = np.ones((U.shape[0], 3))
+        D[:, 2] = np.sign(np.linalg.det(U @ Vt))
+        rotations = np.einsum("kij,kj,kjl->kil", U, D, Vt)
+    return Poses(mean(Q), mean(Qn), mean(P), rotations)
+
+
+def shape_of(P: FloatArray, oriented: bool) -> Shape:
+    """What the pose positions ``P`` (k, 3) determine (:class:`Shape`)."""
+    centred = P - P.mean(axis=0)
+    _, s, Vt = np.linalg.svd(centred, full_matrices=False)
+    spread = np.zeros(3)
+    spread[: s.size] = s / np.sqrt(max(P.shape[0], 1))
+    if spread[0] < POINT_SPREAD:
+        return Shape("point", oriented, spread)
+    if spread[1] < LINE_RATIO * spread[0]:
+        return Shape("line", oriented, spread, np.asarray(Vt[0], dtype=np.float64))
+    return Shape("spread", oriented, spread)
+
+
+def _skew_part(R: FloatArray) -> FloatArray:
+    """The rotation vector of small rotations (k, 3, 3) from their antisymmetric part."""
+    return 0.5 * np.stack(
+        [R[:, 2, 1] - R[:, 1, 2], R[:, 0, 2] - R[:, 2, 0], R[:, 1, 0] - R[:, 0, 1]], axis=1
+    )
+
+
+def _angles(R: FloatArray) -> FloatArray:
+    """The angle (rad) of each rotation (k, 3, 3)."""
+    c = (np.trace(R, axis1=1, axis2=2) - 1.0) / 2.0
+    return np.asarray(np.arccos(np.clip(c, -1.0, 1.0)), dtype=np.float64)
+
+
+@dataclass(frozen=True)
+class _Flange:
+    """The last frame of a table at some joint values, in the table's frame 1."""
+
+    R: FloatArray  # (k, 3, 3)
+    p: FloatArray  # (k, 3)
+
+    @classmethod
+    def of(cls, table: StandardDH, Q: FloatArray) -> _Flange:
+        frames = fk_frames(table, Q)[:, -1]
+        return cls(frames[:, :3, :3], frames[:, :3, 3])
+
+    def take(self, mask: NDArray[np.bool_] | NDArray[np.intp]) -> _Flange:
+        return _Flange(self.R[mask], self.p[mask])
+
+
+def _predict(
+    model: Placed, flange: _Flange, oriented: bool
+) -> tuple[FloatArray, FloatArray | None]:
+    """The target's position (k, 3) and, ``oriented``, its frame (k, 3, 3) in M."""
+    R0, c0 = model.T[:3, :3], model.T[:3, 3]
+    local = np.einsum("kij,j->ki", flange.R, model.tool) + flange.p
+    pos = local @ R0.T + c0
+    if not oriented or model.R_tool is None:
+        return np.asarray(pos, dtype=np.float64), None
+    frame = np.einsum("ij,kjl,lm->kim", R0, flange.R, model.R_tool)
+    return np.asarray(pos, dtype=np.float64), np.asarray(frame, dtype=np.float64)
+
+
+def place(
+    model: Placed,
+    flange: _Flange,
+    P: FloatArray,
+    R: FloatArray | None,
+    *,
+    base: bool,
+    tool: bool,
+) -> Placed:
+    """``model`` with its base and/or tool (point; frame too when ``R`` is given and the model
+    has one) placed on the poses (``flange`` of its table, measured positions ``P`` (k, 3) and
+    orientations ``R``): least squares (soft-L1 at :data:`ROBUST_SCALE`, then plain least squares
+    without the poses beyond :data:`OUTLIER_SCALE` robust scales, as the registration of the
+    nominal does) over the increments, held towards zero with the weight :data:`PRIOR` so that
+    what the poses do not determine stays as it was. The base turns about the poses' centroid."""
+    from scipy.optimize import least_squares
+
+    if not (base or tool):
+        return model
+    oriented = R is not None and model.R_tool is not None
+    R0, c0 = model.T[:3, :3], model.T[:3, 3]
+    m = P.mean(axis=0)
+    nb = 6 if base else 0
+    nt = (6 if oriented else 3) if tool else 0
+
+    def unpack(x: FloatArray) -> Placed:
+        T, t, Rt = model.T, model.tool, model.R_tool
+        if base:
+            W = rotation_from_vector(x[:3])
+            T = np.eye(4)
+            T[:3, :3] = W @ R0
+            T[:3, 3] = W @ (c0 - m) + m + x[3:6]
+        if tool:
+            t = model.tool + x[nb : nb + 3]
+            if oriented:
+                assert Rt is not None
+                Rt = Rt @ rotation_from_vector(x[nb + 3 : nb + 6])
+        return replace(model, T=T, tool=np.asarray(t, dtype=np.float64), R_tool=Rt)
+
+    def residual(x: FloatArray) -> FloatArray:
+        pos, frame = _predict(unpack(x), flange, oriented)
+        parts = [(pos - P).reshape(-1)]
+        if frame is not None:
+            assert R is not None
+            parts.append(LEVER * _skew_part(np.einsum("kji,kjl->kil", R, frame)).reshape(-1))
+        prior = x.copy()
+        if base:
+            prior[:3] *= LEVER
+        if tool and oriented:
+            prior[nb + 3 : nb + 6] *= LEVER
+        parts.append(PRIOR * prior)
+        return np.concatenate(parts)
+
+    x = least_squares(
+        residual, np.zeros(nb + nt), loss="soft_l1", f_scale=ROBUST_SCALE, x_scale="jac"
+    ).x
+    k = P.shape[0]
+    for _ in range(3):  # the robust loss still leans towards gross outliers: refit without them
+        dist = np.linalg.norm(residual(x)[: 3 * k].reshape(-1, 3), axis=1)
+        keep = dist <= OUTLIER_SCALE * max(1.5 * float(np.median(dist)), SCALE_FLOOR)
+        if keep.all():
+            break
+
+        def on_kept(x: FloatArray, keep: NDArray[np.bool_] = keep) -> FloatArray:
+            return _kept(residual(x), keep, oriented)
+
+        x = least_squares(on_kept, x, x_scale="jac").x
+    return unpack(x)
+
+
+def _kept(r: FloatArray, keep: NDArray[np.bool_], oriented: bool) -> FloatArray:
+    """The placement's residual ``r`` (positions, orientations, prior) of the poses ``keep``."""
+    k = keep.size
+    parts = [r[: 3 * k].reshape(-1, 3)[keep].reshape(-1)]
+    rest = r[3 * k :]
+    if oriented:
+        parts.append(rest[: 3 * k].reshape(-1, 3)[keep].reshape(-1))
+        rest = rest[3 * k :]
+    return np.concatenate([*parts, rest])
+
+
+def _error(
+    model: Placed, flange: _Flange, P: FloatArray, R: FloatArray | None, shape: Shape
+) -> float:
+    """RMS over the poses of the scored position error and, oriented, :data:`LEVER` × the
+    orientation error."""
+    pos, frame = _predict(model, flange, shape.oriented)
+    e2 = np.sum(shape.scored(P - pos) ** 2, axis=1)
+    if frame is not None and R is not None:
+        e2 = e2 + (LEVER * _angles(np.einsum("kji,kjl->kil", R, frame))) ** 2
+    return float(np.sqrt(np.mean(e2)))
+
+
+def decide(calibrated: Placed, poses: Poses, shape: Shape) -> Footing:
+    """The footing of a log (see the module docstring), decided with the calibrated model."""
+    k = poses.P.shape[0]
+    placing = np.zeros(k, dtype=bool)
+    placing[::3] = True
+    R = poses.R if shape.oriented else None
+    flange = _Flange.of(calibrated.table, poses.Q)
+    on = np.flatnonzero(placing)
+    off = np.flatnonzero(~placing)
+    on = on[:: max(1, on.size // DECISION_POSES)]
+    off = off[:: max(1, off.size // DECISION_POSES)]
+    Ron = None if R is None else R[on]
+    Roff = None if R is None else R[off]
+    tool_allowed = shape.kind == "spread" or shape.oriented
+    tool_n = 6 if shape.oriented else 3
+    tried = [("none", False, False, 0), ("base", True, False, 6)]
+    if tool_allowed:
+        tried += [("tool", False, True, tool_n), ("base and tool", True, True, 6 + tool_n)]
+    errors: dict[str, float] = {}
+    for name, base, tool, _ in tried:
+        moved = place(calibrated, flange.take(on), poses.P[on], Ron, base=base, tool=tool)
+        errors[name] = _error(moved, flange.take(off), poses.P[off], Roff, shape)
+    best = min(errors.values())
+    order = sorted(tried, key=lambda c: (c[3], c[2]))  # fewest numbers; a base before a tool
+    chosen = next(c for c in order if errors[c[0]] <= MOVED_RATIO * best)
+    return Footing(chosen[1], chosen[2], placing, errors, shape)
+
+
+def nominal_on_session(
+    table: StandardDH,
+    Q: FloatArray,
+    P: FloatArray,
+    R: FloatArray | None,
+    *,
+    tool_point: FloatArray,
+    T_base: FloatArray,
+) -> Placed:
+    """The nominal placed on the calibration session's samples (``Q`` its joint values, ``P``
+    the primary target's positions, ``R`` its measured orientations or None): base and tool
+    point by :func:`~dhlog.identify.fit.register.register_nominal`, the tool frame (with ``R``) as
+    the chordal mean of the measured frames carried into the last frame."""
+    reg = register_nominal(table, Q, P, tool_point=tool_point, T_base=T_base)
+    R_tool = None
+    if R is not None:
+        flange = fk_frames(table, Q)[:, -1, :3, :3]
+        inl = reg.inliers
+        R_last = np.einsum("ij,kjl->kil", reg.T_measurement_base[:3, :3], flange[inl])
+        R_tool = nearest_rotation(np.einsum("kji,kjl->il", R_last, R[inl]))
+    return Placed(table, reg.T_measurement_base, reg.tool_point, R_tool)
+
+
+def score_poses(
+    calibrated: Placed,
+    Q: FloatArray,
+    P: FloatArray,
+    *,
+    path: str,
+    nominal: Placed | None = None,
+    rotations: FloatArray | None = None,
+    table_values: FloatArray | None = None,
+    nominal_values: FloatArray | None = None,
+) -> Holdout:
+    """The calibrated model and the nominal (both as they stand in the calibration session's
+    frame: the nominal placed there by :func:`nominal_on_session`) at the poses of another
+    session (``Q``, ``P``: its samples of the primary target; ``rotations``: their measured
+    orientations where the probe is 6-DoF), on one footing (see the module docstring).
+    ``table_values`` / ``nominal_values`` (m, n): each model's joint values at ``Q`` when they
+    are not ``Q`` (fitted encoder scales, terms beyond the geometry). Raises :class:`NotScoredError`
+    when the log cannot be scored."""
+    groups = pose_groups(Q)
+    Qc = Q if table_values is None else table_values
+    Qn = Q if nominal_values is None else nominal_values
+    oriented = (
+        rotations is not None
+        and calibrated.R_tool is not None
+        and (nominal is None or nominal.R_tool is not None)
+    )
+    poses = poses_of(groups, Qc, Qn, P, rotations if oriented else None)
+    k = poses.P.shape[0]
+    if k < MIN_POSES:
+        raise NotScoredError(
+            f"{path}: has {k} distinct pose(s) with encoder values; a held-out check needs at "
+            f"least {MIN_POSES}."
+        )
+    shape = shape_of(poses.P, oriented)
+    if shape.kind == "point" and not oriented:
+        raise NotScoredError(
+            f"{path}: its {k} poses put the target within {shape.spread[0] * 1e3:.3f} mm of one "
+            "point and it carries no orientation: no base can be placed on them; measure poses "
+            "that spread, or with a 6-DoF probe."
+        )
+    footing = decide(calibrated, poses, shape)
+    scored = ~footing.placing if footing.placed else np.ones(k, dtype=bool)
+    R = poses.R if oriented else None
+
+    _, pose_of = np.unique(groups, return_inverse=True)  # each sample's pose, 0 … k−1
+    rows = scored[pose_of]
+
+    def scored_vectors(model: Placed, Qp: FloatArray, Qs: FloatArray) -> tuple[Placed, FloatArray]:
+        """``model`` placed with the footing's freedom (poses' joint values ``Qp``) and its
+        error vectors at the scored poses (samples' joint values ``Qs``)."""
+        flange = _Flange.of(model.table, Qp[footing.placing])
+        Rp = None if R is None else R[footing.placing]
+        moved = place(
+            model, flange, poses.P[footing.placing], Rp, base=footing.base, tool=footing.tool
+        )
+        pred = fk_point(model.table, Qs[rows], moved.tool, T_base=moved.T)
+        return moved, shape.scored(pose_means(pose_of[rows], P[rows] - pred)[1])
+
+    cal_moved, cal = scored_vectors(calibrated, poses.Q, Qc)
+    nom = None
+    if nominal is not None:
+        _, nom = scored_vectors(nominal, poses.Qn, Qn)
+    notes = _notes(footing, calibrated, cal_moved, k, nominal is not None)
+    return LogHoldout(
+        kind="log",
+        nominal=None if nom is None else ErrorStats.of(np.linalg.norm(nom, axis=1)),
+        calibrated=ErrorStats.of(np.linalg.norm(cal, axis=1)),
+        positions=poses.P[scored],
+        nominal_vectors=nom,
+        calibrated_vectors=cal,
+        path=path,
+        registered=footing.base,
+        n_registration_poses=int(np.count_nonzero(footing.placing)) if footing.placed else 0,
+        notes=notes,
+        T_measurement_base=cal_moved.T if footing.base else None,
+        tool_replaced=footing.tool,
+        components="across the line" if shape.across else "3-D",
+    )
+
+
+def _notes(
+    footing: Footing, before: Placed, after: Placed, k: int, with_nominal: bool
+) -> list[str]:
+    """What the log determines, what was placed on how many poses, and what "before" is."""
+    shape, e = footing.shape, footing.errors
+    notes = []
+    if shape.kind == "line":
+        what = (
+            f"the poses lie on one line ({shape.spread[1] * 1e3:.3f} mm across it, "
+            f"{shape.spread[0] * 1e3:.1f} mm along it, RMS)"
+        )
+        if shape.oriented:
+            notes.append(f"{what}: the measured orientation places the base; scored in 3-D.")
+        else:
+            notes.append(
+                f"{what} and the log has no orientation: the errors across the line are "
+                "scored, the component along it left out (a placement's translation takes its "
+                "mean, and along a path it is where a clock shows; ISO 9283 measures path "
+                "accuracy across the path); such poses cannot tell a re-mounted probe from a "
+                "moved tracker, so only the base is ever placed again."
+            )
+    elif shape.kind == "point":
+        notes.append(
+            f"the poses lie within {shape.spread[0] * 1e3:.3f} mm of one point: the measured "
+            "orientation places the base."
+        )
+    tried = ", ".join(f"{name} {v * 1e3:.4f} mm" for name, v in e.items())
+    n_on = int(np.count_nonzero(footing.placing))
+    if not footing.placed:
+        what = f"nothing was placed again: both models scored as they stand at all {k} poses"
+    else:
+        parts = []
+        if footing.base:
+            parts.append("the base (the tracker moved)")
+        if footing.tool:
+            shift = np.linalg.norm(after.tool - before.tool) * 1e3
+            turn = ""
+            if after.R_tool is not None and before.R_tool is not None:
+                angle = _angles((before.R_tool.T @ after.R_tool)[None])[0]
+                turn = f", its frame turned {np.degrees(angle):.2f}°"
+            parts.append(
+                f"the tool (the probe was re-mounted: its point moved {shift:.3f} mm{turn} "
+                "on the flange)"
+            )
+        what = (
+            f"{' and '.join(parts)} placed again on {n_on} poses (every third), for both "
+            f"models alike; the other {k - n_on} scored"
+        )
+    notes.append(
+        f"{what}. Decided once for this log with the calibrated model (its error at poses a "
+        f"placement was not made on, for each freedom: {tried}; a freedom is taken when it "
+        f"lowers that error more than {MOVED_RATIO:g}×)."
+    )
+    if footing.placed:
+        other = "tool" if footing.base and not footing.tool else "base"
+        if other in e and e[other] <= MOVED_RATIO * min(e.values()):
+            notes.append(
+                f"placing the {other} instead explains these poses as well "
+                f"({e[other] * 1e3:.4f} mm): this log cannot tell a moved tracker from a "
+                "re-mounted probe; both models had the same freedom either way."
+            )
+    if with_nominal:
+        frame = " and tool frame" if shape.oriented else ""
+        notes.append(
+            f"before: the nominal with its base, tool point{frame} placed on the calibration "
+            "session's samples (the session the calibrated model was fitted on, never this "
+            "log's scored poses), then given the same freedom here as the calibrated model."
+        )
+    return notes

@@ -1,0 +1,210 @@
+"""The error of a calibration at poses not used to fit it, before (the nominal) and after.
+
+Poses, not samples, are held out: consecutive samples whose joint vectors differ by less than
+:data:`SAME_POSE` form one pose (a tracker's dwell at a static pose), so no held-out pose has a
+sample among the fitted ones. A pose's error is the length of the mean of its samples' residual
+vectors (measured − predicted).
+
+* :func:`cross_validate` (``--holdout K``): the poses split into K folds (seeded); for each fold
+  the whole model is fitted again to the other folds (from the full fit, which the fold's
+  optimum lies close to, or from the model ``--model auto`` chose from that fold's poses: see
+  :mod:`dhlog.identify.model.select`), held to the pairs the fold holds parallel, and the nominal
+  placed on the same poses (its base and tool point registered,
+  :func:`dhlog.identify.fit.register.register_nominal`); both predict the fold.
+* another session's log (``--validate LOG``) is scored by
+  :func:`dhlog.identify.check.footing.score_poses`, on one footing for the nominal and the
+  calibrated model.
+
+Pure numpy/scipy.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+
+from dhlog.geometry._checks import FloatArray
+from dhlog.identify.fit.axismodel import AxisModel
+from dhlog.identify.fit.leaveout import (
+    fold_of_poses,
+    pose_groups,
+    pose_means,
+)
+from dhlog.identify.fit.prediction import predict
+from dhlog.identify.fit.register import register_nominal
+from dhlog.identify.fit.whole import WholeFit, fit_whole_model
+from dhlog.identify.segment.persample import SampleArray
+from dhlog.model.dh import StandardDH
+from dhlog.model.fk import fk_point
+
+#: Fewest poses a held-out statistic is given for.
+MIN_POSES = 5
+
+
+@dataclass(frozen=True)
+class ErrorStats:
+    """Position errors (m) at held-out poses: mean, RMS, 95th percentile, max, count."""
+
+    mean: float
+    rms: float
+    p95: float
+    max: float
+    n_poses: int
+
+    @classmethod
+    def of(cls, errors: FloatArray) -> ErrorStats:
+        e = np.asarray(errors, dtype=np.float64)
+        return cls(
+            float(e.mean()),
+            float(np.sqrt(np.mean(e**2))),
+            float(np.percentile(e, 95)),
+            float(e.max()),
+            int(e.size),
+        )
+
+    def document(self) -> dict[str, float | int]:
+        return {
+            "mean": self.mean,
+            "rms": self.rms,
+            "p95": self.p95,
+            "max": self.max,
+            "n_poses": self.n_poses,
+        }
+
+
+@dataclass
+class Holdout:
+    """One held-out check: ``kind`` ``"cross-validation"`` (``folds``) or ``"log"`` (``path``;
+    ``registered``: the base was placed again on ``n_registration_poses`` of its poses because
+    the tracker moved); the statistics of the nominal and of the calibrated model, and per
+    scored pose its measured position and both error vectors (measured − predicted, m)."""
+
+    kind: str
+    nominal: ErrorStats | None
+    calibrated: ErrorStats
+    positions: FloatArray
+    nominal_vectors: FloatArray | None
+    calibrated_vectors: FloatArray
+    folds: int | None = None
+    path: str | None = None
+    registered: bool = False
+    n_registration_poses: int = 0
+    notes: list[str] = field(default_factory=list)
+    #: where the positions' frame M stands (its ``T_measurement_base``) when it is not the
+    #: result's own: another log measured after the tracker moved
+    T_measurement_base: FloatArray | None = None
+    #: the calibrated model's RMS predicted FK σ (m) over every combination of the session's
+    #: joint ranges (a cross-validation: poses the session may never have visited among them)
+    range_sd: float | None = None
+
+    @property
+    def expected_rms(self) -> float | None:
+        """The error expected over the session's joint ranges (m): the held-out RMS with the
+        model's own σ there added in quadrature."""
+        if self.range_sd is None:
+            return None
+        return math.sqrt(self.calibrated.rms**2 + self.range_sd**2)
+
+    def document(self) -> dict[str, object]:
+        doc: dict[str, object] = {"kind": self.kind}
+        if self.folds is not None:
+            doc["folds"] = self.folds
+        if self.path is not None:
+            doc["path"] = self.path
+            doc["registered"] = self.registered
+            doc["n_registration_poses"] = self.n_registration_poses
+        doc["n_poses"] = self.calibrated.n_poses
+        doc["nominal"] = None if self.nominal is None else self.nominal.document()
+        doc["calibrated"] = self.calibrated.document()
+        if self.range_sd is not None:
+            doc["range_sd"] = self.range_sd
+            doc["expected_rms"] = self.expected_rms
+        doc["notes"] = list(self.notes)
+        return doc
+
+
+def _pose_errors(
+    groups: NDArray[np.int64], mask: NDArray[np.bool_], P: SampleArray, pred: FloatArray
+) -> tuple[FloatArray, FloatArray]:
+    """Per pose with samples in ``mask``: the mean measured position and the mean residual
+    (``pred``: the prediction at the samples in ``mask``)."""
+    g, measured = groups[mask], P[mask]
+    return pose_means(g, measured)[1], pose_means(g, measured - pred)[1]
+
+
+def cross_validate(
+    whole: WholeFit,
+    Q: SampleArray,
+    P: SampleArray,
+    folds: int,
+    *,
+    fit_options: dict[str, object],
+    nominal: tuple[StandardDH, FloatArray, FloatArray] | None = None,
+    which: NDArray[np.int64] | None = None,
+    seed: int = 0,
+    fold: NDArray[np.int64] | None = None,
+    starts: Sequence[AxisModel] = (),
+    refine: Callable[[WholeFit, int], WholeFit] | None = None,
+) -> Holdout:
+    """K-fold cross-validation over poses (see the module docstring). ``fit_options`` are the
+    keyword arguments of the full fit (noise, σ, per-sample covariance, orientations, …);
+    ``nominal`` = (table, T_base, tool point) to place on each fold's fitted poses. Only the
+    full fit's inliers are used; with several targets only the primary one is scored.
+    ``fold`` (m,): each sample's fold (default: :func:`fold_of_poses` of its pose, seeded);
+    ``starts``: per fold, the model to fit to its training poses (default ``whole``'s) — the
+    model ``--model auto`` chose from those poses alone; ``refine(fit, k)``: fold k's fit as the
+    run would finish it from those poses (its pairs held parallel)."""
+    from dhlog.errors import InputError
+
+    groups = pose_groups(Q)
+    usable = whole.inliers.copy()
+    if which is not None:
+        usable &= which == 0
+    poses = np.unique(groups[usable])
+    if poses.size < max(folds, MIN_POSES):
+        raise InputError(
+            f"--holdout {folds}: the session has {poses.size} distinct poses; hold out fewer "
+            "folds or measure more poses."
+        )
+    if fold is None:
+        fold = fold_of_poses(groups, folds, seed)
+    positions, cal_vecs, nom_vecs = [], [], []
+    notes: list[str] = []
+    for k in range(folds):
+        test = usable & (fold == k)
+        train = whole.inliers & (fold != k)
+        start = starts[k] if k < len(starts) else whole.model
+        fit = fit_whole_model(start, Q, P, keep=train, which=which, **fit_options)  # type: ignore[arg-type]
+        if refine is not None:
+            fit = refine(fit, k)
+        pred, _ = predict(fit.model, Q[test])
+        pos, vec = _pose_errors(groups, test, P, pred)
+        positions.append(pos)
+        cal_vecs.append(vec)
+        if nominal is not None:
+            table, T_base, tool = nominal
+            primary = train if which is None else train & (which == 0)
+            reg = register_nominal(table, Q[primary], P[primary], tool_point=tool, T_base=T_base)
+            pn = fk_point(table, Q[test], reg.tool_point, T_base=reg.T_measurement_base)  # at test
+            nom_vecs.append(_pose_errors(groups, test, P, pn)[1])
+    cal = np.vstack(cal_vecs)
+    nom = np.vstack(nom_vecs) if nom_vecs else None
+    if nominal is not None:
+        notes.append(
+            "the nominal's base and tool point were placed on each fold's fitted poses "
+            "(a robust registration), as a calibration would be judged without one."
+        )
+    return Holdout(
+        kind="cross-validation",
+        nominal=None if nom is None else ErrorStats.of(np.linalg.norm(nom, axis=1)),
+        calibrated=ErrorStats.of(np.linalg.norm(cal, axis=1)),
+        positions=np.vstack(positions),
+        nominal_vectors=nom,
+        calibrated_vectors=cal,
+        folds=folds,
+        notes=notes,
+    )

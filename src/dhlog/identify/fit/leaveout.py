@@ -1,0 +1,287 @@
+"""A whole-model fit linearised at its optimum, so that the fit to any subset of its samples —
+a fold's training poses, those less an inner fold, the model with some terms held at zero — is
+one small solve, not another pass of Levenberg–Marquardt.
+
+The model is linear far beyond the moves between such fits (lengths of metres against residuals
+of micrometres; the folds' optima lie within a few σ of the full one): with ``J`` the whitened
+Jacobian and ``r`` the whitened residuals (predicted − measured) of the samples at the optimum,
+in the directions the samples determine (``z``: :class:`dhlog.identify.fit.whole.Determined`), the
+optimum over a subset ``T`` is the Gauss–Newton step ``z_T = −A_T⁻¹ g_T`` with
+``A_T = Σ_T JᵀJ``, ``g_T = Σ_T Jᵀr``, and with coefficients held (``C z = d``) the constrained
+step ``z_T − A_T⁻¹Cᵀ(C A_T⁻¹ Cᵀ)⁻¹(C z_T − d)`` (the least-squares solution, exact for a linear
+model). Its residual at any sample is ``r + J z``; its covariance ``A_T⁻¹ χ²/dof``. This is
+what the leave-out figures of the model selection (:mod:`dhlog.identify.model.select`) use — every
+candidate's held-out error and the whole selection again inside each fold of ``--holdout K``
+(nested cross-validation) — at the cost of a few small matrix solves a fold, where refitting
+would cost a pass over the samples for each. ``tests/test_nested_cv.py`` checks it against
+refits.
+
+Pure numpy.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterator
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from dhlog.geometry._checks import FloatArray
+from dhlog.identify.fit.passes import ROTATION_LIMIT, Samples, whitened_rows
+from dhlog.identify.fit.prediction import predict
+from dhlog.identify.fit.whole import WholeFit
+from dhlog.identify.segment.persample import PerSample, SampleArray, blocks
+from dhlog.io import scratch
+from dhlog.model.noise import NoiseModel
+
+
+@dataclass(frozen=True)
+class Linear:
+    """A fit linearised over ``N`` samples (see the module docstring): the whitened rows
+    ``Jw`` (N, k, r) and residuals ``rw`` (N, k) (k = 3, or 6 with orientations), the positions'
+    Jacobian ``F`` (N, 3, r) and residuals ``e`` (N, 3, m: predicted − measured), whether each
+    sample was an inlier of the fit (``use``), ``B`` (size, r) from ``z`` to the fit's local
+    parameters, ``box_gram`` (r, r) = ``Σ JᵀJ`` of the positions' Jacobian at ``box_count``
+    joint vectors spread over the session's ranges, and the fit's χ²/dof."""
+
+    Jw: FloatArray
+    rw: FloatArray
+    F: FloatArray
+    e: FloatArray
+    use: NDArray[np.bool_]
+    B: FloatArray
+    box_gram: FloatArray
+    box_count: int
+    chi2_dof: float
+    #: the fit's own parameter values (size,), for constraints on absolute values
+    values: FloatArray
+
+    @property
+    def rank(self) -> int:
+        return int(self.B.shape[1])
+
+    def normal(self, mask: NDArray[np.bool_]) -> tuple[FloatArray, FloatArray, int]:
+        """``A_T``, ``g_T`` and the sample count over the inliers in ``mask`` (N,)."""
+        at = mask & self.use
+        J, r = self.Jw[at], self.rw[at]
+        return (
+            np.einsum("nki,nkj->ij", J, J),
+            np.einsum("nki,nk->i", J, r),
+            int(np.count_nonzero(at)),
+        )
+
+    def step(
+        self,
+        A: FloatArray,
+        g: FloatArray,
+        constraint: tuple[FloatArray, FloatArray] | None = None,
+    ) -> tuple[FloatArray, FloatArray]:
+        """The optimum ``z`` of ``A``, ``g`` (with ``constraint`` = (C, d): ``C z = d``) and
+        the inverse of ``A`` within the constraint (the covariance up to χ²/dof)."""
+        Ainv = _inverse(A)
+        z = -Ainv @ g
+        if constraint is not None and constraint[0].shape[0]:
+            C, d = constraint
+            K = Ainv @ C.T @ _inverse(C @ Ainv @ C.T)
+            z = z - K @ (C @ z - d)
+            Ainv = Ainv - K @ C @ Ainv
+        return z, Ainv
+
+    def rss(self, z: FloatArray, mask: NDArray[np.bool_]) -> float:
+        """The whitened sum of squares of the inliers in ``mask`` at ``z``."""
+        at = mask & self.use
+        res = self.rw[at] + np.einsum("nki,i->nk", self.Jw[at], z)
+        return float(np.sum(res**2))
+
+    def residuals(self, z: FloatArray, mask: NDArray[np.bool_]) -> FloatArray:
+        """Predicted − measured positions (m, 3) of the samples in ``mask`` at ``z``."""
+        return np.asarray(self.e[mask] + self.F[mask] @ z, dtype=np.float64)
+
+    def range_sd(self, cov: FloatArray) -> float:
+        """RMS predicted FK σ (m) over the range points for the covariance ``cov`` (r, r):
+        ``√(tr(C G) / M)`` with ``G = Σ JᵀJ`` of the range points' rows."""
+        return math.sqrt(max(float(np.sum(cov * self.box_gram)) / self.box_count, 0.0))
+
+
+def _inverse(A: FloatArray) -> FloatArray:
+    """``A``'s inverse (symmetric, positive semi-definite), by Cholesky where it is definite
+    and well scaled, else the pseudo-inverse (a fold that does not determine a direction)."""
+    d = np.sqrt(np.clip(np.diag(A), 1e-300, None))
+    As = A / np.outer(d, d)
+    try:
+        L = np.linalg.cholesky(As)
+        if float(np.min(np.diag(L))) > 1e-7:
+            Li = np.linalg.inv(L)
+            return np.asarray((Li.T @ Li) / np.outer(d, d), dtype=np.float64)
+    except np.linalg.LinAlgError:
+        pass
+    return np.asarray(np.linalg.pinv(A, rcond=1e-13, hermitian=True), dtype=np.float64)
+
+
+def linearise(
+    fit: WholeFit,
+    Q: SampleArray,
+    P: SampleArray,
+    box: FloatArray,
+    *,
+    noise: NoiseModel,
+    sigma: float,
+    sample_cov: FloatArray | None = None,
+    which: NDArray[np.int64] | None = None,
+    rotations: FloatArray | None = None,
+    rates: SampleArray | None = None,
+    **ignored: object,
+) -> Linear:
+    """``fit`` linearised over the samples ``Q``, ``P`` it was fitted to (weighted as the fit
+    was: ``noise``/``sigma`` or ``sample_cov``; ``rotations`` weighted by the fit's own σ), and
+    its positions' Jacobian at the joint vectors ``box`` (M, n); the fit's other options are
+    ignored (``ignored``)."""
+    from dhlog.model.noise import whitening_from_std
+
+    model, layout, bases = fit.model, fit.layout, fit.bases
+    d = fit.determined
+    if d is None:
+        B = np.eye(layout.size)
+    else:
+        B = d.basis / d.scale[:, None]
+    m = Q.shape[0]
+
+    def whiten(points: FloatArray, W: FloatArray | None) -> FloatArray | float:
+        return W if W is not None else noise.whiten(points, sigma)
+
+    data = Samples(
+        Q,
+        P,
+        np.ones(m, dtype=bool),
+        None if sample_cov is None else whitening_from_std(sample_cov),
+        whiten,
+        which,
+        rotations,
+        1.0 if fit.sigma_rotation is None else fit.sigma_rotation / math.sqrt(fit.chi2_dof),
+        rates,
+    )
+    rows = whitened_rows(model, layout, bases, data, slice(0, m))
+    Jw, rw = rows.Jw, rows.rw  # (size, 3, m), (3, m)
+    use = np.asarray(fit.inliers, dtype=bool).copy()
+    if rows.ro is not None and rows.Jr is not None:
+        Jw = np.concatenate([Jw, rows.Jr], axis=1)
+        rw = np.concatenate([rw, rows.ro])
+        # the fit held out the orientations beyond its limit too (passes.accumulate)
+        use &= np.sqrt(np.sum(rows.ro**2, axis=0)) <= max(fit.limit, ROTATION_LIMIT)
+    Jz = np.einsum("pkm,pr->mkr", Jw, B)
+    F = np.einsum("pkm,pr->mkr", rows.J, B)
+    _, Jb = predict(model, box, layout, bases)
+    assert Jb is not None
+    Jbz = Jb @ B
+    return Linear(
+        Jw=np.ascontiguousarray(Jz),
+        rw=np.ascontiguousarray(rw.T),
+        F=np.ascontiguousarray(F),
+        e=np.ascontiguousarray(rows.r.T),
+        use=use,
+        B=B,
+        box_gram=np.einsum("mki,mkj->ij", Jbz, Jbz),
+        box_count=int(box.shape[0]),
+        chi2_dof=fit.chi2_dof,
+        values=model_values(fit),
+    )
+
+
+def strided(m: int, most: int, options: dict[str, Any]) -> tuple[NDArray[np.int64], dict[str, Any]]:
+    """At most ``most`` of ``m`` samples, evenly strided, and the fit's keyword arguments
+    ``options`` with their per-sample arrays (over all ``m`` samples) cut to them."""
+    stride = -(-m // most) if m > most else 1
+    pick = np.arange(0, m, stride)
+    sub = {
+        k: (v[pick] if isinstance(v, np.ndarray | PerSample) and v.shape[:1] == (m,) else v)
+        for k, v in options.items()
+    }
+    return pick, sub
+
+
+def model_values(fit: WholeFit) -> FloatArray:
+    """The fit's parameters whose absolute value a constraint may name (size,): the terms'
+    coefficients where the layout has them, else 0 (the local parameters start at 0)."""
+    values = np.zeros(fit.layout.size)
+    terms, k = fit.model.terms, fit.layout.terms_at
+    if terms is not None and k is not None:
+        values[k : k + terms.size] = terms.coefficients
+    return values
+
+
+def pose_means(
+    groups: NDArray[np.int64], values: FloatArray
+) -> tuple[NDArray[np.int64], FloatArray]:
+    """The poses of ``groups`` (m,), sorted, and the mean of ``values`` (m, …) over each."""
+    ids, inverse = np.unique(groups, return_inverse=True)
+    count = np.bincount(inverse, minlength=ids.size).astype(np.float64)
+    out = np.zeros((ids.size, *values.shape[1:]))
+    np.add.at(out, inverse, values)
+    return ids, out / count.reshape(-1, *([1] * (values.ndim - 1)))
+
+
+#: Samples above which :func:`fold_of_poses` maps poses numbered in time order a block at a
+#: time (no sort of the whole log).
+DENSE_ABOVE = 1 << 20
+
+
+def fold_of_poses(groups: NDArray[np.int64], folds: int, seed: int) -> NDArray[np.int64]:
+    """A fold (0 … folds−1) per sample: its pose's, the poses dealt to the folds in a seeded
+    random order (every fold gets ⌊P/K⌋ or ⌈P/K⌉ poses). Poses numbered 0 … P−1 in time order
+    (:func:`dhlog.identify.check.holdout.pose_groups` of a log of more than :data:`DENSE_ABOVE`
+    samples) are mapped a block at a time into a scratch array, the same folds as
+    ``np.unique`` would give them; any other numbering (a subset's) through ``np.unique``."""
+    rng = np.random.default_rng(seed)
+    m = groups.shape[0]
+    dense = m > DENSE_ABOVE and int(groups[0]) == 0
+    dense = dense and bool(np.all(np.diff(groups[: 1 << 16]) >= 0))
+    if dense:
+        top = int(groups[m - 1]) + 1
+        dense = top <= m and bool(np.all(groups[-(1 << 16) :] < top))
+    if not dense:
+        poses, inverse = np.unique(groups, return_inverse=True)
+        fold_of_pose = np.empty(poses.size, dtype=np.int64)
+        fold_of_pose[rng.permutation(poses.size)] = np.arange(poses.size) % folds
+        return np.asarray(fold_of_pose[inverse], dtype=np.int64)
+    fold_of_pose = np.empty(top, dtype=np.int64)
+    fold_of_pose[rng.permutation(top)] = np.arange(top) % folds
+    out = scratch.empty(m, np.int64)
+    for sl in blocks(m):
+        out[sl] = fold_of_pose[groups[sl]]
+    return out
+
+
+#: Consecutive samples whose joint values all differ by less than this (rad or m) are one pose.
+SAME_POSE = 1e-3
+
+
+def pose_groups(Q: SampleArray) -> NDArray[np.int64]:
+    """A pose index (0, 1, …) per sample of ``Q`` (m, n) in time order: a new pose wherever a
+    joint value moves by :data:`SAME_POSE` or more from the previous sample."""
+    out = scratch.empty(Q.shape[0], np.int64)
+    for sl, poses, _ in pose_blocks(Q):
+        out[sl] = poses
+    return out
+
+
+def pose_blocks(Q: SampleArray) -> Iterator[tuple[slice, NDArray[np.int64], FloatArray]]:
+    """:func:`pose_groups` a block of :data:`POSE_CHUNK` samples at a time: the block, its
+    samples' poses and their joint values."""
+    offset, previous = 0, None
+    for sl in blocks(Q.shape[0], POSE_CHUNK):
+        q = Q[sl]
+        step = np.zeros(q.shape[0], dtype=np.int64)
+        if previous is not None:
+            step[0] = np.max(np.abs(q[0] - previous)) >= SAME_POSE
+        if q.shape[0] > 1:
+            step[1:] = np.max(np.abs(q[1:] - q[:-1]), axis=1) >= SAME_POSE
+        poses = offset + np.cumsum(step)
+        offset, previous = int(poses[-1]), q[-1]
+        yield sl, poses, q
+
+
+#: Samples a chunk in :func:`pose_groups`.
+POSE_CHUNK = 1 << 18

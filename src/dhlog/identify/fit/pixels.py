@@ -1,0 +1,296 @@
+"""A camera's measurement model (:class:`PixelModel`, a
+:class:`~dhlog.identify.fit.measure.Measurement`): the whole model's maximum-likelihood fit in
+pixels, every detected board corner an observation (issue 32, item 4).
+
+The model is the tracker's (:class:`~dhlog.identify.fit.axismodel.AxisModel` with a target frame):
+the joint axes as lines in a measurement frame M, and the frame the chain carries (its origin
+``target``, its orientation ``tool_rotation`` at the reference pose). What differs is the
+measurement model (:class:`PixelModel`):
+
+- **eye-to-hand**: M is the camera's frame; the carried frame is the board's (its centre), so a
+  corner ``c`` (in the board's frame, from its centre) is at ``X = p(q) + R(q) c`` in the camera;
+- **eye-in-hand**: M is the board's frame (from its centre); the carried frame is the camera's,
+  so a corner ``c`` (in M) is at ``X = R(q)ᵀ (c − p(q))`` in the camera.
+
+``X`` is projected through the intrinsics (:meth:`dhlog.vision.camera.Intrinsics.project`,
+OpenCV's lens models and their Jacobian). The intrinsics are held, or refined with the model
+where the data determine them (``refine_intrinsics``). The DH table and base are read off the
+fitted axes as for a tracker (:func:`~dhlog.identify.read.extract.extract_dh`): the base's pose in M
+is the camera's (eye-to-hand) or the board's (eye-in-hand) pose in the robot's base frame, the
+carried frame on the flange the board's mount (eye-to-hand) or the camera's (eye-in-hand: the
+hand-eye calibration).
+
+Each corner's residual (predicted − detected, px) is weighted by one σ in pixels, the data's
+own (a robust scale at the start, then χ²/dof at the optimum), and a corner beyond
+``threshold`` σ (a false detection) is held out by a truncated quadratic. Levenberg–Marquardt
+steps within the directions the corners determine (:class:`~dhlog.identify.fit.whole.Determined`);
+the covariance is ``(JᵀJ)⁻¹ σ²`` there.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+from numpy.typing import NDArray
+
+from dhlog.geometry._checks import FloatArray, rotation_from_vector
+from dhlog.identify.fit.axismodel import AxisModel, ParameterLayout
+from dhlog.identify.fit.measure import MeasuredFit, fit_measured
+from dhlog.identify.fit.prediction import predict_columns, predict_orientation, prefix_motions
+from dhlog.vision.camera import Intrinsics
+
+SETUPS = ("eye-to-hand", "eye-in-hand")
+
+
+@dataclass(frozen=True)
+class Corners:
+    """The pixel observations of one camera: ``Q`` (f, n) each frame's joint values;
+    ``frame`` (N,) each corner's frame (an index into ``Q``); ``points`` (N, 3) the corner in
+    the board's frame from its centre (m); ``uv`` (N, 2) where it was detected (px)."""
+
+    Q: FloatArray
+    frame: NDArray[np.intp]
+    points: FloatArray
+    uv: FloatArray
+    #: with several cameras (:class:`CamerasModel`), each corner's camera (N,; 0 the first)
+    camera: NDArray[np.intp] | None = None
+
+    @property
+    def frames(self) -> int:
+        return int(self.Q.shape[0])
+
+    def of_frames(self, chosen: NDArray[np.bool_]) -> Corners:
+        """The observations of the frames ``chosen`` (f,) only, renumbered."""
+        index = np.cumsum(chosen) - 1
+        keep = chosen[self.frame]
+        return Corners(
+            self.Q[chosen],
+            index[self.frame[keep]].astype(np.intp),
+            self.points[keep],
+            self.uv[keep],
+            None if self.camera is None else self.camera[keep],
+        )
+
+
+@dataclass(frozen=True)
+class PixelModel:
+    """The camera measurement model: the set-up and the intrinsics; with ``refine``, the
+    intrinsics' parameters (fx, fy, cx, cy and the lens coefficients) follow the model's."""
+
+    setup: str
+    intrinsics: Intrinsics
+    refine: bool = False
+
+    #: a corner's pixel: two components
+    dim: int = 2
+
+    def count(self, data: Corners) -> int:
+        return int(data.uv.shape[0])
+
+    def observed(self, data: Corners, sl: slice) -> FloatArray:
+        return data.uv[sl]
+
+    @property
+    def extra(self) -> int:
+        """Parameters of the measurement model beyond the kinematic model's."""
+        return 4 + self.intrinsics.coefficients.size if self.refine else 0
+
+    def moved(self, delta: FloatArray) -> PixelModel:
+        """The intrinsics moved by ``delta`` (``extra``,)."""
+        if not self.refine:
+            return self
+        c = self.intrinsics
+        K = c.K.copy()
+        K[0, 0] += delta[0]
+        K[1, 1] += delta[1]
+        K[0, 2] += delta[2]
+        K[1, 2] += delta[3]
+        return replace(self, intrinsics=replace(c, K=K, coefficients=c.coefficients + delta[4:]))
+
+    def in_camera(
+        self,
+        model: AxisModel,
+        layout: ParameterLayout | None,
+        bases: list[tuple[FloatArray, FloatArray]] | None,
+        data: Corners,
+        sl: slice,
+    ) -> tuple[FloatArray, FloatArray | None]:
+        """The corners ``sl`` in the camera's frame (c, 3) and, with ``layout``, their
+        Jacobian (size, 3, c) with respect to the model's local parameters."""
+        frames = data.frame[sl]
+        used, back = np.unique(frames, return_inverse=True)
+        Q = data.Q[used]
+        prefix = prefix_motions(model, Q)
+        p, Jp = predict_columns(model, Q, layout, bases, None, prefix)
+        if layout is None or bases is None:
+            R = _rotations(model, Q)
+            Jo = None
+        else:
+            R, Jo = predict_orientation(model, Q, layout, bases, prefix)
+        c = data.points[sl].T  # (3, k)
+        Rk, pk = R[:, :, back], p[:, back]
+        if self.setup == "eye-to-hand":
+            Rc = np.einsum("ijk,jk->ik", Rk, c)
+            X = pk + Rc
+            if Jp is None or Jo is None:
+                return X.T, None
+            J = Jp[:, :, back] + np.cross(Jo[:, :, back], Rc[None], axis=1)
+            return X.T, J
+        v = c - pk
+        X = np.einsum("jik,jk->ik", Rk, v)
+        if Jp is None or Jo is None:
+            return X.T, None
+        t = Jp[:, :, back] + np.cross(Jo[:, :, back], v[None], axis=1)
+        J = -np.einsum("jik,sjk->sik", Rk, t)
+        return X.T, J
+
+    def predict(
+        self,
+        model: AxisModel,
+        layout: ParameterLayout | None,
+        bases: list[tuple[FloatArray, FloatArray]] | None,
+        data: Corners,
+        sl: slice,
+    ) -> tuple[FloatArray, FloatArray | None]:
+        """The corners ``sl``' pixels (c, 2) and, with ``layout``, their Jacobian
+        (c, 2, size + extra) with respect to the model's and the intrinsics' parameters."""
+        X, JX = self.in_camera(model, layout, bases, data, sl)
+        if JX is None:
+            return self.intrinsics.project(X), None
+        uv, jp, ji = self.intrinsics.project_jacobian(X)
+        J = np.einsum("kab,sbk->kas", jp, JX)
+        if self.refine:
+            J = np.concatenate([J, ji], axis=2)
+        return uv, J
+
+
+@dataclass(frozen=True)
+class CamerasModel:
+    """Several fixed cameras seeing one board on the flange (eye-to-hand; issue 32 item 3), a
+    :class:`~dhlog.identify.fit.measure.Measurement`: M is the first camera's frame; camera k ≥ 1
+    sits at ``poses[k]`` (4×4, in M), six parameters of its own each (a small rotation about
+    M's axes, then a shift), fitted with the model; each camera's intrinsics held. The data are
+    :class:`Corners` with ``camera`` set."""
+
+    intrinsics: tuple[Intrinsics, ...]
+    poses: tuple[FloatArray, ...]
+    dim: int = 2
+    setup: str = "eye-to-hand"
+
+    @property
+    def extra(self) -> int:
+        return 6 * (len(self.intrinsics) - 1)
+
+    def count(self, data: Corners) -> int:
+        return int(data.uv.shape[0])
+
+    def observed(self, data: Corners, sl: slice) -> FloatArray:
+        return data.uv[sl]
+
+    def moved(self, delta: FloatArray) -> CamerasModel:
+        poses = [self.poses[0]]
+        for k in range(1, len(self.poses)):
+            d = delta[6 * (k - 1) : 6 * k]
+            T = self.poses[k].copy()
+            T[:3, :3] = rotation_from_vector(d[:3]) @ T[:3, :3]
+            T[:3, 3] = T[:3, 3] + d[3:]
+            poses.append(T)
+        return replace(self, poses=tuple(poses))
+
+    def in_camera(
+        self,
+        model: AxisModel,
+        layout: ParameterLayout | None,
+        bases: list[tuple[FloatArray, FloatArray]] | None,
+        data: Corners,
+        sl: slice,
+    ) -> tuple[FloatArray, FloatArray | None]:
+        """The corners ``sl`` in their own camera's frame (c, 3), and their Jacobian
+        (size, 3, c) over the model's local parameters (the cameras' own not included)."""
+        X, J = PixelModel("eye-to-hand", self.intrinsics[0]).in_camera(
+            model, layout, bases, data, sl
+        )
+        assert data.camera is not None
+        cam = data.camera[sl]
+        out = X.copy()
+        Jout = None if J is None else J.copy()
+        for k in range(1, len(self.poses)):
+            at = cam == k
+            if not at.any():
+                continue
+            R, t = self.poses[k][:3, :3], self.poses[k][:3, 3]
+            out[at] = (X[at] - t) @ R
+            if Jout is not None and J is not None:
+                Jout[:, :, at] = np.einsum("ji,sjc->sic", R, J[:, :, at])
+        return out, Jout
+
+    def predict(
+        self,
+        model: AxisModel,
+        layout: ParameterLayout | None,
+        bases: list[tuple[FloatArray, FloatArray]] | None,
+        data: Corners,
+        sl: slice,
+    ) -> tuple[FloatArray, FloatArray | None]:
+        X_M, J_M = PixelModel("eye-to-hand", self.intrinsics[0]).in_camera(
+            model, layout, bases, data, sl
+        )
+        assert data.camera is not None
+        cam = data.camera[sl]
+        c = X_M.shape[0]
+        uv = np.full((c, 2), np.nan)
+        size = 0 if layout is None else layout.size
+        J = None if J_M is None else np.zeros((c, 2, size + self.extra))
+        for k in range(len(self.poses)):
+            at = cam == k
+            if not at.any():
+                continue
+            R, t = self.poses[k][:3, :3], self.poses[k][:3, 3]
+            v = X_M[at] - t
+            X = v @ R
+            if J is None or J_M is None:
+                uv[at] = self.intrinsics[k].project(X)
+                continue
+            uv_k, jp, _ = self.intrinsics[k].project_jacobian(X)
+            uv[at] = uv_k
+            JX = np.einsum("ji,sjc->sic", R, J_M[:, :, at])
+            J[at, :, :size] = np.einsum("kab,sbk->kas", jp, JX)
+            if k:
+                o = size + 6 * (k - 1)
+                # X_k = Rᵀ (X − t): a turn δω of the camera gives Rᵀ [X − t]× δω, a shift −Rᵀ δt
+                skew = np.zeros((v.shape[0], 3, 3))
+                skew[:, 0, 1], skew[:, 0, 2] = -v[:, 2], v[:, 1]
+                skew[:, 1, 0], skew[:, 1, 2] = v[:, 2], -v[:, 0]
+                skew[:, 2, 0], skew[:, 2, 1] = -v[:, 1], v[:, 0]
+                J[at, :, o : o + 3] = np.einsum("kab,cb,kcd->kad", jp, R, skew)
+                J[at, :, o + 3 : o + 6] = -np.einsum("kab,cb->kac", jp, R)
+        return uv, J
+
+
+def _rotations(model: AxisModel, Q: FloatArray) -> FloatArray:
+    """The carried frame's orientation (3, 3, f) at ``Q``."""
+    layout = ParameterLayout.of(model.types, rotation=True)
+    R, _ = predict_orientation(model, Q, layout, model.bases())
+    return R
+
+
+PixelFit = MeasuredFit
+
+
+def fit_pixels(
+    start: AxisModel,
+    measurement: PixelModel,
+    data: Corners,
+    *,
+    threshold: float = 5.0,
+    within: FloatArray | None = None,
+    sigma_px: float | None = None,
+) -> MeasuredFit:
+    """:func:`~dhlog.identify.fit.measure.fit_measured` of a camera's corners (the carried frame's
+    orientation is part of the model)."""
+    if start.tool_rotation is None:
+        raise ValueError("the pixel fit needs the model's carried frame (tool_rotation)")
+    return fit_measured(
+        start, measurement, data, threshold=threshold, within=within, sigma=sigma_px
+    )

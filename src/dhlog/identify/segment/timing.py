@@ -1,0 +1,293 @@
+"""The clock offset between the tracker and the joint states, estimated from the data.
+
+The pipeline's ``clock_offset`` (seconds added to the joint-state stamps) puts both streams on
+the tracker's clock; a residual offset ``δ`` makes the encoder value joined to a target sample at
+time t the one of ``t + δ``: ``Q(t) = q(t + δ) ≈ q(t) + δ q̇(t)``. While the joints move, that
+is an error proportional to their speed — a lag the geometry of the sweeps exposes:
+
+1. **Start** (:func:`phase_lag`): per sweep, a circle (seed 002's algebraic fit) or line fitted
+   to the points alone gives
+   each sample's angle (position) ``φ``, independent of any clock; ``φ = a + b Q − b δ q̇``
+   is linear in ``a, b, e = −b δ`` and gives ``δ`` with its σ; the sweeps' estimates are
+   combined by their weights. The encoders are joined again at the corrected offset
+   (:func:`rejoin`) before anything is fitted (:func:`clock_start`, up to
+   :data:`START_REJOINS` times).
+2. **Maximum likelihood**: the whole-model fit carries ``δ`` as one more parameter (the
+   prediction at ``Q − δ q̇``, :mod:`dhlog.identify.fit.prediction`), so its σ and its correlations
+   enter every DH parameter's uncertainty; should it move by more than a fraction of its σ,
+   the encoders are joined once more and the fit repeated.
+
+Step-and-measure logs (samples only while the robot stands still) carry no lag: the offset is
+then the pipeline's, and the result says why.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+
+import numpy as np
+import polars as pl
+from numpy.typing import NDArray
+
+from dhlog.errors import DhlogError
+from dhlog.geometry._checks import FloatArray
+from dhlog.geometry.circles import fit_circle_algebraic
+from dhlog.geometry.fitting import fit_line
+from dhlog.identify.segment.persample import blocks, rows_where
+from dhlog.identify.segment.segment import BLOCK, Encoders, Segmentation
+from dhlog.io import scratch
+from dhlog.io.reader import LogData
+
+#: Fewest moving samples a sweep needs to estimate the lag from.
+MIN_MOVING = 20
+#: Points per sweep used for the start estimate (evenly strided).
+START_POINTS = 3000
+#: A joint moves at a sample when its speed exceeds this (rad/s or m/s).
+MOVING_SPEED = 1e-3
+#: Below this fraction of sweep samples taken while moving, a log is step-and-measure.
+STEP_FRACTION = 0.5
+#: The whole-model fit joins the encoders again when its clock offset moved by more than this
+#: many of its σ from the offset they were joined at (at most MAX_REJOINS times).
+REJOIN_BELOW = 0.25
+MAX_REJOINS = 2
+#: ... and by more than this (s): below it, the fit's own first-order move of the encoders
+#: (``Q − δ q̇``) errs by ``δ² q̈ / 2``, under 10⁻⁸ rad at 1 rad/s².
+REJOIN_FIT = 1e-4
+#: The start estimate joins the encoders again only for a move beyond this (s): the fit
+#: carries the rest.
+REJOIN_START = REJOIN_FIT
+#: The start estimate of the clock offset joins the encoders again at most this many times.
+START_REJOINS = 4
+
+
+@dataclass(frozen=True)
+class Timing:
+    """The clock offset (s, added to the joint-state stamps; the pipeline's sign), its σ (None
+    when not estimated), where it comes from (``estimated``, ``pipeline``), the pipeline's own
+    value, and why it was not estimated (empty when it was)."""
+
+    offset: float
+    std: float | None
+    source: str
+    pipeline: float
+    reason: str = ""
+
+
+class JointRates:
+    """Each joint's speed from the encoder stream (its finite differences at their midpoints),
+    interpolated linearly at any times (0 outside the stream) — as ``np.interp`` does, value for
+    value, but with the differences taken where they are needed: nothing of the size of the
+    stream is kept beyond its midpoints and steps."""
+
+    def __init__(self, encoders: Encoders) -> None:
+        t_ns = encoders.log_t_ns
+        pairs = max(t_ns.size - 1, 0)
+        ok = scratch.empty(pairs, np.bool_)
+        for sl in blocks(pairs):
+            ok[sl] = np.diff(t_ns[sl.start : sl.stop + 1].astype(np.float64)) > 0
+        #: the first encoder sample of each difference (None: every pair)
+        self.first = None if bool(all(np.all(ok[sl]) for sl in blocks(pairs))) else rows_where(ok)
+        del ok
+        count = pairs if self.first is None else self.first.size
+        self.mid, self.dt = scratch.empty(count), scratch.empty(count)
+        for sl in blocks(count):
+            if self.first is None:
+                t0 = t_ns[sl].astype(np.float64)
+                t1 = t_ns[sl.start + 1 : sl.stop + 1].astype(np.float64)
+            else:
+                k = self.first[sl]
+                t0, t1 = t_ns[k].astype(np.float64), t_ns[k + 1].astype(np.float64)
+            self.mid[sl] = (t1 + t0) / 2.0
+            self.dt[sl] = (t1 - t0) * 1e-9
+        self.q = encoders.q
+
+    def _speeds(self, i: int, j: NDArray[np.intp]) -> FloatArray:
+        """Joint ``i``'s finite differences number ``j``."""
+        k = j if self.first is None else self.first[j]
+        column = self.q[i]
+        return np.asarray((column[k + 1] - column[k]) / self.dt[j], dtype=np.float64)
+
+    def at(self, t_ns: NDArray[np.int64], joints: list[int] | None = None) -> FloatArray:
+        """Speeds (m, len(joints)) at ``t_ns`` of ``joints`` (0-based; default all)."""
+        cols = range(len(self.q)) if joints is None else joints
+        out = np.zeros((t_ns.size, len(cols)))
+        mid = self.mid
+        if mid.size < 2:
+            return out
+        x = t_ns.astype(np.float64)
+        j = np.searchsorted(mid, x, side="right") - 1
+        inside = np.flatnonzero((j >= 0) & (j < mid.size - 1))
+        last = np.flatnonzero(x == mid[-1])
+        ji, xi = j[inside], x[inside]
+        for k, i in enumerate(cols):
+            f0, f1 = self._speeds(i, ji), self._speeds(i, ji + 1)
+            slope = (f1 - f0) / (mid[ji + 1] - mid[ji])
+            value = slope * (xi - mid[ji]) + f0
+            bad = np.isnan(value)  # np.interp tries the other end
+            value[bad] = slope[bad] * (xi[bad] - mid[ji[bad] + 1]) + f1[bad]
+            out[inside, k] = value
+            if last.size:
+                out[last, k] = self._speeds(i, np.array([mid.size - 1]))[0]
+        return out
+
+
+def rejoin(seg: Segmentation, log: LogData, extra: float) -> Segmentation:
+    """``seg`` with its encoder values joined again with the joint-state stamps moved by
+    ``extra`` seconds more (labels and sweeps kept; samples of a sweep left without encoder
+    values by the move leave it)."""
+    assert seg.encoders is not None
+    pipeline_shift = round(extra * 1e9)
+    encoders = seg.encoders.shifted(pipeline_shift)
+    moved = replace(seg, encoders=encoders)
+    segment = seg.segment
+    lost = np.zeros(0, dtype=np.intp)
+    for sl in blocks(seg.height, BLOCK):
+        inside = np.flatnonzero(segment[sl] > 0)
+        if inside.size:
+            at = sl.start + inside
+            lost = np.concatenate([lost, at[~moved.has_q(at)]])
+    if not lost.size:  # moved off the joint stream's ends: out of their sweeps
+        return moved
+    segment = scratch.moved(segment, copy=True)
+    segment[lost] = 0
+    aside = dict(seg.set_aside)
+    aside["no_encoder"] = aside.get("no_encoder", 0) + int(lost.size)
+    ids = seg.segments["segment"].to_numpy()
+    counts = np.bincount(segment, minlength=int(ids.max(initial=0)) + 1)
+    segments = seg.segments.with_columns(pl.Series("n", counts[ids]).cast(seg.segments["n"].dtype))
+    return replace(moved, segment=segment, segments=segments, set_aside=aside)
+
+
+@dataclass(frozen=True)
+class SweepPhase:
+    """What one sweep's points say of its encoder: the joint (1-based), the slope of the
+    points' angle (position) over the encoder value (1 when both are in the same unit), and the
+    lag ``δ`` with its σ (None when the sweep barely moves while sampled)."""
+
+    joint: int
+    slope: float
+    delta: float | None
+    std: float | None
+    moving: int
+    samples: int
+
+
+def sweep_phases(seg: Segmentation, log: LogData) -> list[SweepPhase]:
+    """Per sweep: the points-only fit's angle (position) regressed on ``1, Q, q̇`` (see the
+    module); at most :data:`START_POINTS` evenly strided samples per sweep."""
+    if log.joints is None or seg.encoders is None:
+        return []
+    rates = JointRates(seg.encoders)
+    out = []
+    for sid, j1 in zip(seg.segments["segment"], seg.segments["joint"], strict=True):
+        rows = seg.rows_in([sid])
+        finite = scratch.empty(rows.size, np.bool_)
+        for b in blocks(rows.size, BLOCK):
+            finite[b] = np.isfinite(seg.q(rows[b])).all(axis=1)
+        rows = scratch.gathered(rows, rows_where(finite))
+        if rows.size < 4:
+            continue
+        if rows.size > START_POINTS:
+            rows = rows[:: -(-rows.size // START_POINTS)]
+        j = int(j1) - 1
+        rate = rates.at(seg.t_ns[rows], [j])[:, 0]
+        moving = int(np.count_nonzero(np.abs(rate) > MOVING_SPEED))
+        one = _sweep_lag(seg.xyz(rows), seg.q(rows, [j])[:, 0], rate, moving >= MIN_MOVING)
+        if one is not None:
+            slope, delta, std = one
+            out.append(SweepPhase(j + 1, slope, delta, std, moving, int(rows.size)))
+    return out
+
+
+def phase_lag(
+    seg: Segmentation, log: LogData, phases: list[SweepPhase] | None = None
+) -> tuple[float, float] | None:
+    """The residual offset ``δ`` (s) and its σ from the sweeps' phases (see the module), or
+    None when no sweep moves enough samples to tell (step-and-measure)."""
+    phases = sweep_phases(seg, log) if phases is None else phases
+    estimates = [
+        (p.delta, p.std)
+        for p in phases
+        if p.delta is not None and p.std is not None and 0.5 < abs(p.slope) < 2.0
+    ]
+    moving = sum(p.moving for p in phases)
+    total = sum(p.samples for p in phases)
+    # step-and-measure: the samples were taken at the stops; the few that the offset joins to
+    # the start of the next move are not a timing signal to trust
+    if not estimates or moving < STEP_FRACTION * total:
+        return None
+    values = np.array([e[0] for e in estimates])
+    weights = 1.0 / np.array([e[1] for e in estimates]) ** 2
+    delta = float(np.sum(weights * values) / np.sum(weights))
+    std = float(1.0 / math.sqrt(np.sum(weights)))
+    if len(estimates) > 2:  # the sweeps disagree beyond their σ: widen by their scatter
+        chi2 = float(np.sum(weights * (values - delta) ** 2)) / (len(estimates) - 1)
+        std *= math.sqrt(max(chi2, 1.0))
+    return delta, std
+
+
+def _sweep_lag(
+    points: FloatArray, q: FloatArray, rate: FloatArray, timed: bool
+) -> tuple[float, float | None, float | None] | None:
+    """Slope, ``δ`` and σ of one sweep: its points' angle (position) regressed on ``1, Q, q̇``
+    (on ``1, Q`` alone when it barely moves while sampled: ``timed`` False)."""
+    try:
+        fit = fit_circle_algebraic(points, min_sweep=0.0)  # phases only: no scipy needed
+        phi = np.unwrap(fit.positions)
+    except DhlogError:
+        try:
+            phi = fit_line(points, min_travel=0.0).positions
+        except DhlogError:
+            return None
+    columns = [np.ones(q.size), q - q.mean()] + ([rate] if timed else [])
+    A = np.column_stack(columns)
+    coef, *_ = np.linalg.lstsq(A, phi, rcond=None)
+    b = float(coef[1])
+    if not timed:
+        return (b, None, None) if math.isfinite(b) else None
+    resid = phi - A @ coef
+    dof = max(q.size - 3, 1)
+    try:
+        cov = np.linalg.inv(A.T @ A) * float(resid @ resid) / dof
+    except np.linalg.LinAlgError:
+        return (b, None, None) if math.isfinite(b) else None
+    e = float(coef[2])
+    if abs(b) < 1e-12 or not np.all(np.isfinite(cov)):
+        return None
+    delta = -e / b
+    std = math.sqrt(max(float(cov[2, 2]), 0.0)) / abs(b)
+    if not (math.isfinite(delta) and std > 0.0):
+        return (b, None, None)
+    return b, delta, std
+
+
+def clock_start(
+    seg: Segmentation, log: LogData, info: list[str], phases: list[SweepPhase] | None = None
+) -> tuple[Segmentation, Timing | None]:
+    """The clock offset's start estimate from the sweeps' phases (:func:`phase_lag`), the
+    encoders joined again at it; the pipeline's offset where it is fixed or cannot be told."""
+    pipe = log.pipeline.segmentation
+    if not seg.has_encoders or log.joints is None:
+        return seg, None
+    if pipe.clock_offset_fixed:
+        return seg, Timing(pipe.clock_offset, None, "pipeline", pipe.clock_offset, "fixed")
+    total, std = 0.0, None
+    for attempt in range(START_REJOINS):
+        lag = phase_lag(seg, log, phases if attempt == 0 else None)
+        if lag is None:
+            break
+        delta, std = lag
+        if abs(delta) <= max(REJOIN_BELOW * std, REJOIN_START):
+            break
+        total += delta
+        seg = rejoin(seg, log, total)
+    if std is None:
+        info.append(
+            "no sweep moves while the tracker samples it (step-and-measure): a clock offset "
+            "between tracker and joint states has no effect and is not estimated."
+        )
+        return seg, Timing(
+            pipe.clock_offset, None, "pipeline", pipe.clock_offset, "step-and-measure"
+        )
+    return seg, Timing(pipe.clock_offset + total, std, "estimated", pipe.clock_offset)
