@@ -24,8 +24,8 @@ from scipy.spatial.transform import Rotation
 from typer.testing import CliRunner
 
 from dhlog.cli.app import app
+from dhlog.identify.camera.flow import process_observations
 from dhlog.identify.run import process_data
-from dhlog.identify.vision import process_observations
 from dhlog.io.dhfile import DHModel, load_dh
 from dhlog.model.fk import fk_frames
 from dhlog.model.robots import load_robot

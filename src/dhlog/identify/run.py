@@ -235,17 +235,18 @@ def process_log(
         from dhlog.identify.camera.flow import process_observations
         from dhlog.io.observe import observe
 
+        digest = sha256_of(path)  # before the long walk: the log as it was read
         observations = observe(
             path,
             camera,
             jobs=jobs,
             progress=None if progress is None else (lambda f: progress("detecting", f)),
         )
-        return cast(
+        found = cast(
             ProcessResult,
             process_observations(
                 observations,
-                sha256=sha256_of(path),
+                sha256=digest,
                 nominal=nominal,
                 reference_pose=reference_pose,
                 setup=camera_setup,
@@ -257,6 +258,17 @@ def process_log(
                 pipeline=camera.name,
             ),
         )
+        if model.mode != "geometric":
+            found.info.append(
+                f"--model {model.mode}: a camera calibration fits the geometric model; terms "
+                "beyond the geometry (gravity, gears) are not fitted from a camera's corners yet."
+            )
+        if validate:
+            found.warnings.append(
+                "--validate: held-out logs score tracker calibrations; a camera's is scored by "
+                "--holdout K over its own frames (the held-out logs were not scored)."
+            )
+        return found
     log = read_log(
         path,
         pipeline,

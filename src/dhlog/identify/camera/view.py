@@ -4,6 +4,8 @@
 
 from __future__ import annotations
 
+import math
+
 from dhlog.geometry._checks import FloatArray
 from dhlog.identify.camera.poses import board_centre, shift, transform
 from dhlog.identify.camera.report import CameraResult, PixelHoldout
@@ -73,4 +75,24 @@ def camera_view(
         board_points=obs.board.object_points(),
         rms_px=cam.rms_px,
         frames=frames,
+        notes=holdout_lines(check),
+    )
+
+
+def holdout_lines(check: PixelHoldout | None) -> tuple[str, ...]:
+    """The held-out check as the recording's camera text shows it (markdown lines)."""
+    if check is None:
+        return ("No held-out check: run dhlog process with --holdout 5.",)
+
+    def mm(value: float | None) -> str:
+        return "—" if value is None or not math.isfinite(value) else f"{value:.4f} mm"
+
+    nominal = "—" if check.nominal_px is None else f"{check.nominal_px:.4f} px"
+    return (
+        f"**Held-out** ({check.folds}-fold over {check.frames} frames): reprojection RMS "
+        f"nominal {nominal}, calibrated {check.calibrated_px:.4f} px (in sample "
+        f"{check.fit_px:.4f} px); board corners nominal {mm(check.nominal_mm)}, calibrated "
+        f"{mm(check.calibrated_mm)} (in sample {mm(check.fit_mm)}, PnP noise "
+        f"{mm(check.pnp_noise_mm)}).",
+        *check.notes,
     )
