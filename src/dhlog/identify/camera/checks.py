@@ -206,6 +206,7 @@ def placed_nominal_px(start: Any, nominal: DHModel | None, obs: Observations) ->
     image, which no placement gives (sweeps from one home pose fit either set-up by a free fit: each
     move is one joint's turn, about a line fixed in both the camera's and the board's frame). inf
     without a nominal or a start."""
+    from dhlog.identify.fit.measure import residuals as measured
     from dhlog.identify.fit.measure import rms
 
     whole, ex = start.whole, start.extraction
@@ -213,20 +214,56 @@ def placed_nominal_px(start: Any, nominal: DHModel | None, obs: Observations) ->
         return math.inf
     setup = start.camera_setup
     data = corners_of(obs, np.ones(obs.frames, dtype=bool))
-    R_tool = ex.frames[-1][:3, :3].T @ whole.model.tool_rotation
-    try:
-        model, meas = place(
-            nominal.table,
-            start.reference_pose,
-            ex.T_measurement_base,
-            ex.tool_point,
-            R_tool,
-            PixelModel(setup, obs.intrinsics),
-            data,
-        )
-    except (DhlogError, ValueError, np.linalg.LinAlgError):
-        return math.inf
-    from dhlog.identify.fit.measure import residuals as measured
+    # two places to start from: the start's own (its table's base and mount) and the nominal
+    # registered on the PnP poses (robust; the start's may be poor where its fit was): the better
+    starts = [
+        (ex.T_measurement_base, ex.tool_point, ex.frames[-1][:3, :3].T @ whole.model.tool_rotation)
+    ]
+    registered = _registered(start, nominal)
+    if registered is not None:
+        starts.append(registered)
+    best = math.inf
+    for T_mb, tool, R_tool in starts:
+        try:
+            model, meas = place(
+                nominal.table,
+                start.reference_pose,
+                T_mb,
+                tool,
+                R_tool,
+                PixelModel(setup, obs.intrinsics),
+                data,
+            )
+        except (DhlogError, ValueError, np.linalg.LinAlgError):
+            continue
+        value = rms(measured(model, meas, data))
+        if math.isfinite(value):
+            best = min(best, value)
+    return best
 
-    value = rms(measured(model, meas, data))
-    return value if math.isfinite(value) else math.inf
+
+def _registered(start: Any, nominal: DHModel) -> tuple[FloatArray, FloatArray, FloatArray] | None:
+    """The nominal registered on the start's PnP poses (its log: positions and orientations of
+    the carried frame at the frames' joint values): frame 1 in M, the carried frame's origin and
+    orientation on the flange (the mean over the frames); None where it cannot be."""
+    from scipy.spatial.transform import Rotation
+
+    from dhlog.identify.fit.register import register_nominal
+    from dhlog.io.decode.frames import ORIENTATION_COLUMNS
+    from dhlog.model.fk import fk_frames
+
+    log = start.log
+    if log.joints is None:
+        return None
+    Q = log.joints.select([c for c in log.joints.columns if c != "t_ns"]).to_numpy()
+    P = log.points.select(["x", "y", "z"]).to_numpy()
+    if Q.shape[0] != P.shape[0] or not all(c in log.points.columns for c in ORIENTATION_COLUMNS):
+        return None
+    try:
+        reg = register_nominal(nominal.table, Q, P)
+    except DhlogError:
+        return None
+    R_meas = Rotation.from_quat(log.points.select(list(ORIENTATION_COLUMNS)).to_numpy())
+    R_flange = reg.T_measurement_base[:3, :3] @ fk_frames(nominal.table, Q)[:, -1, :3, :3]
+    rel = Rotation.from_matrix(np.transpose(R_flange, (0, 2, 1))) * R_meas
+    return reg.T_measurement_base, reg.tool_point, rel.mean().as_matrix()

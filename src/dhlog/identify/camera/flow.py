@@ -170,7 +170,8 @@ def process_observations(
         reason = "given"
     else:
         said = "; ".join(
-            f"{s}: the nominal placed on the corners misses them by {gap[s]:.3f} px RMS"
+            f"{s}: the nominal placed on the corners misses them by "
+            + (f"{gap[s]:.3f} px RMS" if gap[s] < 1e4 else "over 10 000 px RMS")
             for s in usable
         )
         reason = f"decided from the data ({said})"
