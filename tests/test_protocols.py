@@ -15,8 +15,8 @@ import pytest
 from typer.testing import CliRunner
 
 from dhlog.cli.app import app
-from dhlog.identify.check.holdout import pose_groups
 from dhlog.identify.check.validate import fk_prediction_std
+from dhlog.identify.fit.leaveout import pose_groups
 from dhlog.identify.fit.register import register_nominal
 from dhlog.identify.read.propagate import NOT_DETERMINED
 from dhlog.identify.run import process_data
@@ -278,7 +278,7 @@ def test_the_design_effect_in_one_pass_is_the_direct_one(monkeypatch: pytest.Mon
     the next pose starts: with blocks of 7 and 3 samples (every pose of 5 straddles one) it is
     the same as with whole blocks, and both equal the direct computation from every inlier's
     whitened residual grouped by :func:`pose_groups`."""
-    import dhlog.identify.check.holdout as holdout
+    import dhlog.identify.fit.leaveout as leaveout
     import dhlog.identify.fit.variance as variance
     from dhlog.identify.joints.sweeps import samples_with_encoders
 
@@ -300,7 +300,7 @@ def test_the_design_effect_in_one_pass_is_the_direct_one(monkeypatch: pytest.Mon
     within = (squares - float(np.sum(sums**2 / np.bincount(pose)[:, None]))) / (3 * (m - g))
     rho = 1.0 - within / (squares / (3 * m - result.whole.layout.size))
     whole = variance.design_effect(result.whole, Q, P, whiten)
-    monkeypatch.setattr(holdout, "POSE_CHUNK", 7)
+    monkeypatch.setattr(leaveout, "POSE_CHUNK", 7)
     monkeypatch.setattr(variance, "CHUNK", 3)
     small = variance.design_effect(result.whole, Q, P, whiten)
     assert (whole.samples, whole.poses) == (small.samples, small.poses) == (m, g) == (200, 40)
