@@ -18,105 +18,16 @@ import jsonschema
 import numpy as np
 import pytest
 
+import camera_rig as cams
 from dhlog.identify.camera.flow import process_observations
 from dhlog.identify.fit.axismodel import AxisModel
 from dhlog.identify.fit.measure import place, residuals
-from dhlog.identify.fit.pixels import Corners, PixelModel, fit_pixels
+from dhlog.identify.fit.pixels import PixelModel, fit_pixels
 from dhlog.identify.fit.prediction import predict
-from dhlog.identify.read.extract import extract_dh
 from dhlog.identify.run import process_data
 from dhlog.io.dhfile import DHModel
-from dhlog.model.robots import load_robot
 from dhlog.result.document import result_document
-from dhlog.simulate.camera import BOARD, CAMERA, Rig, camera_poses, flange_poses, place_rig
-from dhlog.simulate.config import SimulationConfig
-from dhlog.simulate.robot import perturbed
-from dhlog.vision.detect import Tally
-from dhlog.vision.observe import Observations
-
-SIGMA_PX = 0.2
-
-
-def _session(setup: str, seed: int, poses: int = 50, robot_name: str = "kr5"):  # type: ignore[no-untyped-def]
-    robot = load_robot(robot_name)
-    cfg = SimulationConfig(perturb_length=2e-4, perturb_angle=math.radians(0.05))
-    true = perturbed(robot.table, np.random.default_rng(seed), cfg)
-    rig = place_rig(robot, true, setup, seed)  # type: ignore[arg-type]
-    Q = camera_poses(robot, true, rig, poses, seed)
-    return robot, true, rig, Q
-
-
-def _corners(rig: Rig, true: object, robot: object, Q: np.ndarray, rng: np.random.Generator):  # type: ignore[no-untyped-def]
-    T_cb = rig.board_in_camera(flange_poses(robot, true, Q))  # type: ignore[arg-type]
-    obj = BOARD.object_points()
-    ids, uv = [], []
-    for f in range(len(Q)):
-        X = obj @ T_cb[f, :3, :3].T + T_cb[f, :3, 3]
-        p = CAMERA.project(X)
-        inside = (p[:, 0] > 0) & (p[:, 0] < CAMERA.width - 1)
-        inside &= (p[:, 1] > 0) & (p[:, 1] < CAMERA.height - 1)
-        ids.append(np.flatnonzero(inside).astype(np.int64))
-        uv.append(p[inside] + rng.normal(scale=SIGMA_PX, size=(int(inside.sum()), 2)))
-    return ids, uv
-
-
-def _observations(robot, Q, ids, uv) -> Observations:  # type: ignore[no-untyped-def]
-    f = len(Q)
-    tally = Tally()
-    tally.frames = tally.detected = f
-    return Observations(
-        "simulated.mcap",
-        "/camera/image_raw/compressed",
-        CAMERA,
-        BOARD,
-        (np.arange(f) * 2_000_000_000).astype(np.int64),
-        np.arange(f, dtype=np.int64),
-        Q,
-        [f"joint_{k + 1}" for k in range(robot.n)],
-        ids,
-        uv,
-        tally,
-    )
-
-
-def board_centre() -> np.ndarray:
-    pts = BOARD.object_points()
-    return np.asarray((pts.min(axis=0) + pts.max(axis=0)) / 2.0, dtype=np.float64)
-
-
-def _model(rig: Rig, table: object, n: int) -> AxisModel:
-    """The model ``table`` is in the fit's frames: M the camera (eye-to-hand) or the board's
-    centred frame (eye-in-hand), the chain carrying the board's centre or the camera."""
-    shift = np.eye(4)
-    shift[:3, 3] = board_centre()
-    ref = np.zeros(n)
-    if rig.setup == "eye-to-hand":
-        T = rig.T_mounted @ shift
-        return AxisModel.of_table(
-            table,  # type: ignore[arg-type]
-            ref,
-            T[:3, 3],
-            np.asarray(np.linalg.inv(rig.T_fixed), dtype=np.float64),
-            tool_rotation=T[:3, :3],
-        )
-    return AxisModel.of_table(
-        table,  # type: ignore[arg-type]
-        ref,
-        rig.T_mounted[:3, 3],
-        np.asarray(np.linalg.inv(rig.T_fixed @ shift), dtype=np.float64),
-        tool_rotation=rig.T_mounted[:3, :3],
-    )
-
-
-def _data(Q: np.ndarray, ids: list[np.ndarray], uv: list[np.ndarray]) -> Corners:
-    points = BOARD.object_points() - board_centre()
-    counts = [i.size for i in ids]
-    return Corners(
-        Q,
-        np.repeat(np.arange(len(Q)), counts).astype(np.intp),
-        points[np.concatenate(ids)],
-        np.vstack(uv),
-    )
+from dhlog.simulate.camera import CAMERA, Rig, camera_poses
 
 
 def _fk_rms(a: AxisModel, b: AxisModel, Q: np.ndarray) -> float:
@@ -131,34 +42,34 @@ def test_pixel_fit_is_the_maximum_likelihood(setup: str) -> None:
     from the truth (the same optimum: within 1 µm at random joint vectors) and beats the
     nominal by far; σ comes back as the corners' (0.2 px, within 10 %: over 1000+ corners
     the estimate's own spread is under 3 %)."""
-    robot, true, rig, Q = _session(setup, 3)
+    robot, true, rig, Q = cams.session(setup, 3)
     rng = np.random.default_rng(7)
-    ids, uv = _corners(rig, true, robot, Q, rng)
-    data = _data(Q, ids, uv)
+    ids, uv = cams.corners(rig, true, robot, Q, rng)
+    data = cams.data(Q, ids, uv)
     measurement = PixelModel(setup, CAMERA)
-    truth = _model(rig, true, robot.n)
-    fit = fit_pixels(_model(rig, robot.table, robot.n), measurement, data)
+    truth = cams.model(rig, true, robot.n)
+    fit = fit_pixels(cams.model(rig, robot.table, robot.n), measurement, data)
     from_truth = fit_pixels(truth, measurement, data)
     Qr = np.random.default_rng(8).uniform(robot.limits[:, 0], robot.limits[:, 1], (300, robot.n))
     err = _fk_rms(fit.whole.model, truth, Qr)
-    nominal_err = _fk_rms(_model(rig, robot.table, robot.n), truth, Qr)
+    nominal_err = _fk_rms(cams.model(rig, robot.table, robot.n), truth, Qr)
     assert _fk_rms(fit.whole.model, from_truth.whole.model, Qr) < 1e-6
     assert err < 0.5 * nominal_err
-    assert abs(fit.sigma / SIGMA_PX - 1.0) < 0.1
+    assert abs(fit.sigma / cams.SIGMA_PX - 1.0) < 0.1
 
 
 def test_reported_sigma_matches_the_spread() -> None:
     """Over 24 noise realisations (eye-to-hand, 40 poses) the spread of the fitted target
     point's prediction at a fixed far pose matches the σ the fit reports: their ratio lies
     within the 99.9 % band of a χ² of 23 dof (0.55 … 1.5)."""
-    robot, true, rig, Q = _session("eye-to-hand", 5, poses=40)
+    robot, true, rig, Q = cams.session("eye-to-hand", 5, poses=40)
     measurement = PixelModel("eye-to-hand", CAMERA)
-    start = _model(rig, robot.table, robot.n)
+    start = cams.model(rig, robot.table, robot.n)
     q_far = np.asarray(robot.limits).mean(axis=1)[None] + 0.3
     values, sigmas = [], []
     for k in range(24):
-        ids, uv = _corners(rig, true, robot, Q, np.random.default_rng([11, k]))
-        fit = fit_pixels(start, measurement, _data(Q, ids, uv))
+        ids, uv = cams.corners(rig, true, robot, Q, np.random.default_rng([11, k]))
+        fit = fit_pixels(start, measurement, cams.data(Q, ids, uv))
         p, J = predict(fit.whole.model, q_far, fit.whole.layout, fit.whole.model.bases())
         assert J is not None
         values.append(p[0])
@@ -175,12 +86,12 @@ def test_nominal_placed_keeps_its_geometry() -> None:
     them far worse than the calibration."""
     from scipy.spatial.transform import Rotation
 
-    robot, true, rig, Q = _session("eye-to-hand", 4)
-    ids, uv = _corners(rig, true, robot, Q, np.random.default_rng(2))
-    data = _data(Q, ids, uv)
+    robot, true, rig, Q = cams.session("eye-to-hand", 4)
+    ids, uv = cams.corners(rig, true, robot, Q, np.random.default_rng(2))
+    data = cams.data(Q, ids, uv)
     measurement = PixelModel("eye-to-hand", CAMERA)
     shift = np.eye(4)
-    shift[:3, 3] = board_centre()
+    shift[:3, 3] = cams.centre()
     mount = rig.T_mounted @ shift
     T0 = np.linalg.inv(rig.T_fixed)
     off = T0.copy()
@@ -206,9 +117,9 @@ def test_process_observations(setup: str) -> None:
     (a 2-D norm of σ 0.2 px per coordinate: 0.28 px, up to the model's own error) and well
     below the nominal's, the PnP noise floor predicted within 25 % of the calibrated mm
     figure."""
-    robot, true, rig, Q = _session(setup, 6)
-    ids, uv = _corners(rig, true, robot, Q, np.random.default_rng(9))
-    obs = _observations(robot, Q, ids, uv)
+    robot, true, rig, Q = cams.session(setup, 6)
+    ids, uv = cams.corners(rig, true, robot, Q, np.random.default_rng(9))
+    obs = cams.observations(robot, Q, ids, uv)
     nominal = DHModel(robot.table, np.eye(4), np.zeros(3), tuple(obs.joint_names), "library")
     result = process_observations(
         start=process_data, observations=[obs], nominal=nominal, holdout=5
@@ -216,20 +127,8 @@ def test_process_observations(setup: str) -> None:
     cam = result.camera
     assert cam.setup == setup and cam.setup_reason.startswith("decided")
     # the truth in the same conventions: the true axes in M, extracted with the same nominal
-    truth = _model(rig, true, robot.n)
-    ex = extract_dh(
-        list(truth.axes),
-        truth.types,
-        target=truth.target,
-        reference_pose=np.zeros(robot.n),
-        nominal=robot.table,
-    )
-    T_base_M = np.linalg.inv(ex.T_measurement_base)
-    if setup == "eye-in-hand":
-        shift = np.eye(4)
-        shift[:3, 3] = -board_centre()
-        T_base_M = T_base_M @ shift
-    err = cam.T_base_fixed[:3, 3] - T_base_M[:3, 3]
+    T_true = cams.fixed_in_base(rig, true, robot.table, robot.n)
+    err = cam.T_base_fixed[:3, 3] - T_true[:3, 3]
     assert np.all(np.abs(err) < 4 * cam.fixed_std[3:] + 1e-6), (err, cam.fixed_std)
     h = cam.holdout
     assert h is not None and h.nominal_px is not None
@@ -251,25 +150,25 @@ def test_a_camera_that_moved_is_named() -> None:
     the same session with the camera still gives none."""
     from scipy.spatial.transform import Rotation
 
-    robot, true, rig, Q = _session("eye-to-hand", 8)
+    robot, true, rig, Q = cams.session("eye-to-hand", 8)
     rng = np.random.default_rng(4)
-    ids, uv = _corners(rig, true, robot, Q, rng)
+    ids, uv = cams.corners(rig, true, robot, Q, rng)
     knock = np.eye(4)
     knock[:3, :3] = Rotation.from_rotvec([0.0, math.radians(0.05), 0.0]).as_matrix()
     knock[:3, 3] = [0.0015, 0.0, 0.0]
     moved = Rig(rig.setup, rig.T_fixed @ knock, rig.T_mounted, rig.board, rig.camera)
-    ids2, uv2 = _corners(moved, true, robot, Q[30:], rng)
+    ids2, uv2 = cams.corners(moved, true, robot, Q[30:], rng)
     nominal = DHModel(robot.table, np.eye(4), np.zeros(3), tuple(f"j{k}" for k in range(6)), "lib")
     still = process_observations(
         start=process_data,
-        observations=[_observations(robot, Q, ids, uv)],
+        observations=[cams.observations(robot, Q, ids, uv)],
         nominal=nominal,
         setup="eye-to-hand",
     )
     assert not any("moved during the session" in w for w in still.warnings)
     result = process_observations(
         start=process_data,
-        observations=[_observations(robot, Q, ids[:30] + ids2, uv[:30] + uv2)],
+        observations=[cams.observations(robot, Q, ids[:30] + ids2, uv[:30] + uv2)],
         nominal=nominal,
         setup="eye-to-hand",
     )
@@ -283,7 +182,7 @@ def test_a_camera_that_moved_is_named() -> None:
     # the option it names calibrates from the part before the move, which is still
     before = process_observations(
         start=process_data,
-        observations=[_observations(robot, Q, ids[:30] + ids2, uv[:30] + uv2)],
+        observations=[cams.observations(robot, Q, ids[:30] + ids2, uv[:30] + uv2)],
         nominal=nominal,
         setup="eye-to-hand",
         frames=(None, 30),
@@ -299,20 +198,19 @@ def test_two_cameras_fitted_together() -> None:
     camera alone (the second adds its corners)."""
     from scipy.spatial.transform import Rotation
 
-    robot, true, rig, Q = _session("eye-to-hand", 9, poses=40)
+    robot, true, rig, Q = cams.session("eye-to-hand", 9, poses=40)
     aside = np.eye(4)
     aside[:3, :3] = Rotation.from_rotvec([0.0, math.radians(15.0), 0.0]).as_matrix()
     aside[:3, 3] = [-0.5, 0.0, 0.1]
     rig2 = Rig(rig.setup, rig.T_fixed @ aside, rig.T_mounted, rig.board, rig.camera)
-    from dhlog.simulate.camera import camera_poses
 
     Q2 = camera_poses(robot, true, rig2, 40, 10)
     rng = np.random.default_rng(6)
-    ids, uv = _corners(rig, true, robot, Q, rng)
-    ids2, uv2 = _corners(rig2, true, robot, Q2, rng)
-    first = _observations(robot, Q, ids, uv)
+    ids, uv = cams.corners(rig, true, robot, Q, rng)
+    ids2, uv2 = cams.corners(rig2, true, robot, Q2, rng)
+    first = cams.observations(robot, Q, ids, uv)
     second = dataclasses.replace(
-        _observations(robot, Q2, ids2, uv2), camera="/camera_2/image_raw/compressed"
+        cams.observations(robot, Q2, ids2, uv2), camera="/camera_2/image_raw/compressed"
     )
     nominal = DHModel(robot.table, np.eye(4), np.zeros(3), tuple(first.joint_names), "library")
     alone = process_observations([first], start=process_data, nominal=nominal, setup="eye-to-hand")
@@ -320,15 +218,8 @@ def test_two_cameras_fitted_together() -> None:
         [first, second], start=process_data, nominal=nominal, setup="eye-to-hand", holdout=3
     )
     assert len(both.camera_results) == 2
-    truth = _model(rig, true, robot.n)
-    ex = extract_dh(
-        list(truth.axes),
-        truth.types,
-        target=truth.target,
-        reference_pose=np.zeros(robot.n),
-        nominal=robot.table,
-    )
-    T_base_M = np.linalg.inv(ex.T_measurement_base)
+    truth = cams.model(rig, true, robot.n)
+    T_base_M = cams.fixed_in_base(rig, true, robot.table, robot.n)
     for cam, T_true in zip(both.camera_results, (T_base_M, T_base_M @ aside), strict=True):
         err = cam.T_base_fixed[:3, 3] - T_true[:3, 3]
         assert np.all(np.abs(err) < 4 * cam.fixed_std[3:] + 1e-6), (err, cam.fixed_std)

@@ -23,6 +23,7 @@ import yourdfpy
 from scipy.spatial.transform import Rotation
 from typer.testing import CliRunner
 
+import camera_rig as cams
 from dhlog.cli.app import app
 from dhlog.identify.camera.flow import process_observations
 from dhlog.identify.run import process_data
@@ -31,52 +32,16 @@ from dhlog.model.fk import fk_frames
 from dhlog.model.robots import load_robot
 from dhlog.result.document import result_document
 from dhlog.result.export.camera import T_LINK_OPTICAL, frame_name
-from dhlog.simulate.camera import BOARD, CAMERA, Rig, camera_poses, flange_poses, place_rig
+from dhlog.simulate.camera import camera_poses, place_rig
 from dhlog.simulate.config import SimulationConfig
 from dhlog.simulate.robot import perturbed
-from dhlog.vision.detect import Tally
-from dhlog.vision.observe import Observations
 
 runner = CliRunner()
-SIGMA_PX = 0.2
 #: The URDF's numbers are written with 17 digits; composing a 9-link chain loses ~1e-15.
 EXACT = 1e-9
 
 # ---------------------------------------------------------------------------------------------
-# a real camera result (helpers as tests/test_camera_calibration.py's)
-
-
-def _corners(rig: Rig, true: Any, robot: Any, Q: np.ndarray, rng: np.random.Generator) -> Any:
-    T_cb = rig.board_in_camera(flange_poses(robot, true, Q))
-    obj = BOARD.object_points()
-    ids, uv = [], []
-    for f in range(len(Q)):
-        X = obj @ T_cb[f, :3, :3].T + T_cb[f, :3, 3]
-        p = CAMERA.project(X)
-        inside = (p[:, 0] > 0) & (p[:, 0] < CAMERA.width - 1)
-        inside &= (p[:, 1] > 0) & (p[:, 1] < CAMERA.height - 1)
-        ids.append(np.flatnonzero(inside).astype(np.int64))
-        uv.append(p[inside] + rng.normal(scale=SIGMA_PX, size=(int(inside.sum()), 2)))
-    return ids, uv
-
-
-def _observations(robot: Any, Q: np.ndarray, ids: Any, uv: Any) -> Observations:
-    f = len(Q)
-    tally = Tally()
-    tally.frames = tally.detected = f
-    return Observations(
-        "simulated.mcap",
-        "/camera/image_raw/compressed",
-        CAMERA,
-        BOARD,
-        (np.arange(f) * 2_000_000_000).astype(np.int64),
-        np.arange(f, dtype=np.int64),
-        Q,
-        [f"joint_{k + 1}" for k in range(robot.n)],
-        ids,
-        uv,
-        tally,
-    )
+# a real camera result (tests/camera_rig.py's corners)
 
 
 def _result(setup: str, folder: Path) -> Path:
@@ -85,8 +50,8 @@ def _result(setup: str, folder: Path) -> Path:
     true = perturbed(robot.table, np.random.default_rng(6), cfg)
     rig = place_rig(robot, true, setup, 6)  # type: ignore[arg-type]
     Q = camera_poses(robot, true, rig, 30, 6)
-    ids, uv = _corners(rig, true, robot, Q, np.random.default_rng(9))
-    obs = _observations(robot, Q, ids, uv)
+    ids, uv = cams.corners(rig, true, robot, Q, np.random.default_rng(9))
+    obs = cams.observations(robot, Q, ids, uv)
     nominal = DHModel(robot.table, np.eye(4), np.zeros(3), tuple(obs.joint_names), "library")
     result = process_observations(
         start=process_data, observations=[obs], nominal=nominal, setup=setup
