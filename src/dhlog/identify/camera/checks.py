@@ -199,19 +199,26 @@ def camera_moved(
 
 
 def placed_nominal_px(start: Any, nominal: DHModel | None, obs: Observations) -> float:
+    """:func:`placed_nominal`'s RMS (px)."""
+    return placed_nominal(start, nominal, obs)[0]
+
+
+def placed_nominal(
+    start: Any, nominal: DHModel | None, obs: Observations
+) -> tuple[float, AxisModel | None]:
     """How well the nominal, placed on the corners in pixels
     (:func:`~dhlog.identify.fit.measure.place`: the fixed part's pose and the mount, its geometry
     held) from ``start``'s placement for its set-up, reproduces them: the RMS (px). The set-up a log
     was recorded in lets the nominal fit to about its own error; the other needs the chain's mirror
     image, which no placement gives (sweeps from one home pose fit either set-up by a free fit: each
     move is one joint's turn, about a line fixed in both the camera's and the board's frame). inf
-    without a nominal or a start."""
+    without a nominal or a start. Returns the RMS and the placed model (None: none)."""
     from dhlog.identify.fit.measure import residuals as measured
     from dhlog.identify.fit.measure import rms
 
     whole, ex = start.whole, start.extraction
     if nominal is None or whole is None or ex is None or whole.model.tool_rotation is None:
-        return math.inf
+        return math.inf, None
     setup = start.camera_setup
     data = corners_of(obs, np.ones(obs.frames, dtype=bool))
     # two places to start from: the start's own (its table's base and mount) and the nominal
@@ -222,7 +229,7 @@ def placed_nominal_px(start: Any, nominal: DHModel | None, obs: Observations) ->
     registered = _registered(start, nominal)
     if registered is not None:
         starts.append(registered)
-    best = math.inf
+    best: tuple[float, AxisModel | None] = (math.inf, None)
     for T_mb, tool, R_tool in starts:
         try:
             model, meas = place(
@@ -237,8 +244,8 @@ def placed_nominal_px(start: Any, nominal: DHModel | None, obs: Observations) ->
         except (DhlogError, ValueError, np.linalg.LinAlgError):
             continue
         value = rms(measured(model, meas, data))
-        if math.isfinite(value):
-            best = min(best, value)
+        if math.isfinite(value) and value < best[0]:
+            best = (value, model)
     return best
 
 

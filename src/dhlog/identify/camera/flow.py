@@ -35,6 +35,7 @@ from dhlog.identify.camera.checks import (
     board_scale,
     camera_moved,
     frame_clustered,
+    placed_nominal,
     placed_nominal_px,
 )
 from dhlog.identify.camera.hand_eye import cameras_std, hand_eye
@@ -263,9 +264,16 @@ def _pixel_stage(
         progress("fitting pixels", 0.0)
     data = corners_of(obs, np.ones(obs.frames, dtype=bool))
     measurement = PixelModel(setup, obs.intrinsics, refine=refine_intrinsics)
-    fit = frame_clustered(
-        fit_pixels(result.whole.model, measurement, data), data.frame, result.info
-    )
+    fit = fit_pixels(result.whole.model, measurement, data)
+    # a second start, the nominal placed on the corners: the start fit's model can sit in
+    # another basin of the pixels' cost (a poor seed-method start eye-in-hand); the better
+    # optimum, by the truncated cost at the first fit's cut, is kept
+    _, placed = placed_nominal(result, result.nominal, obs)
+    if placed is not None:
+        other = fit_pixels(placed, measurement, data)
+        if _cost(other, fit.whole.limit) < _cost(fit, fit.whole.limit):
+            fit = other
+    fit = frame_clustered(fit, data.frame, result.info)
     nominal = result.nominal
     nominal_table = nominal.table if nominal is not None else None
     ref = result.reference_pose
@@ -315,6 +323,12 @@ def _pixel_stage(
     result.cameras = [camera_view(fit, data, obs, cam, check)]
     result.camera_results = [cam]
     return fit
+
+
+def _cost(fit: PixelFit, limit: float) -> float:
+    """The truncated sum of squares of ``fit``'s residuals at the cut ``limit`` (px)."""
+    norms = np.sqrt(np.sum(fit.residuals**2, axis=1))
+    return float(np.sum(np.minimum(np.nan_to_num(norms, nan=limit), limit) ** 2))
 
 
 def _several_cameras(
