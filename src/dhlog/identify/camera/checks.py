@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import replace
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 from numpy.typing import NDArray
@@ -198,6 +198,11 @@ def camera_moved(
     )
 
 
+#: A placement of the nominal whose corners' robust scale is this or more (px) found no pose
+#: near them (the wrong set-up: hundreds of px); a nominal a few mm off its robot misses by ~1 px.
+FAR_PX = 20.0
+
+
 def placed_nominal_px(start: Any, nominal: DHModel | None, obs: Observations) -> float:
     """:func:`placed_nominal`'s RMS (px)."""
     return placed_nominal(start, nominal, obs)[0]
@@ -216,6 +221,9 @@ def placed_nominal(
     from dhlog.identify.fit.measure import residuals as measured
     from dhlog.identify.fit.measure import rms
 
+    cached = getattr(start, "placed_nominal", None)
+    if cached is not None:  # one placement a start: the set-up's test and the second start
+        return cast(tuple[float, AxisModel | None], cached)
     whole, ex = start.whole, start.extraction
     if nominal is None or whole is None or ex is None or whole.model.tool_rotation is None:
         return math.inf, None
@@ -240,12 +248,14 @@ def placed_nominal(
                 R_tool,
                 PixelModel(setup, obs.intrinsics),
                 data,
+                far=FAR_PX,
             )
         except (DhlogError, ValueError, np.linalg.LinAlgError):
             continue
         value = rms(measured(model, meas, data))
         if math.isfinite(value) and value < best[0]:
             best = (value, model)
+    start.placed_nominal = best
     return best
 
 

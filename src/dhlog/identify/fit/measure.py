@@ -348,12 +348,14 @@ def place(
     *,
     threshold: float = 5.0,
     max_iterations: int = 50,
+    far: float = math.inf,
 ) -> tuple[AxisModel, M]:
     """``table`` placed on the corners, its geometry held: the base's pose in M and the
     carried frame (``tool_point``, ``tool_rotation``) on the flange — the camera's pose and the
     board's mount — by Levenberg–Marquardt in pixels along :func:`rigid_directions`, the model
     rebuilt exactly from the table at each step (so the table never drifts); first on every
-    corner, then with the corners beyond ``threshold`` times the robust scale held out. How a
+    corner, then with the corners beyond ``threshold`` times the robust scale held out (not when the
+    first round's robust scale is ``far`` or more: no placement near the observations). How a
     nominal is scored on one footing with the calibration."""
     from dhlog.model.fk import fk_frames
 
@@ -376,7 +378,7 @@ def place(
     layout = ParameterLayout.of(model.types, rotation=tool_rotation is not None)
     k, extra = layout.size, meas.extra
     limit = math.inf
-    for _ in range(2):
+    for round_ in range(2):
         normal = _normal(model, layout, meas, data, limit)
         lam = 1e-4
         for _ in range(max_iterations):
@@ -400,7 +402,9 @@ def place(
             trial, trial_m = build(trial_state), meas.moved(dd[12:])
             tn = _normal(trial, layout, trial_m, data, limit)
             if tn[2] <= cost:
-                done = cost - tn[2] < 1e-10 * max(cost, 1e-30)
+                # converged: the decrease below a millionth of the cost (the placement's own
+                # noise is far above it; a tenth of a per cent of σ in each parameter)
+                done = cost - tn[2] < 1e-6 * max(cost, 1e-30)
                 state, model, meas, normal = trial_state, trial, trial_m, tn
                 lam = max(lam / 10.0, 1e-12)
                 if done:
@@ -411,10 +415,10 @@ def place(
                     break
         norms = normal[5]
         finite = norms[np.isfinite(norms)]
-        limit = threshold * max(
-            float(np.median(finite)) / CHI_MEDIAN.get(meas.dim, 1.0) if finite.size else 0.0,
-            1e-12,
-        )
+        scale = float(np.median(finite)) / CHI_MEDIAN.get(meas.dim, 1.0) if finite.size else 0.0
+        if round_ == 0 and not scale < far:
+            break  # no placement found near the observations: judging outliers adds nothing
+        limit = threshold * max(scale, 1e-12)
     return model, meas
 
 
