@@ -230,3 +230,23 @@ def test_two_cameras_fitted_together() -> None:
     doc = result_document(both)
     assert [c["topic"] for c in doc["cameras"]] == [first.camera, second.camera]
     assert len(both.cameras) == 2
+
+
+def test_a_wrong_camera_setup_is_said() -> None:
+    """Eye-to-hand corners calibrated with --camera-setup eye-in-hand: the run does not end in
+    exit 0 silently — either the start fails naming --camera-setup, or a warning says the
+    nominal placed in that set-up misses the corners."""
+    from dhlog.errors import DhlogError
+
+    robot, true, rig, Q = cams.session("eye-to-hand", 3, poses=40)
+    ids, uv = cams.corners(rig, true, robot, Q, np.random.default_rng(5))
+    obs = cams.observations(robot, Q, ids, uv)
+    nominal = DHModel(robot.table, np.eye(4), np.zeros(3), tuple(obs.joint_names), "library")
+    try:
+        result = process_observations(
+            [obs], start=process_data, nominal=nominal, setup="eye-in-hand"
+        )
+    except DhlogError as exc:
+        assert "--camera-setup" in str(exc)
+        return
+    assert any("--camera-setup eye-in-hand" in w for w in result.warnings), result.warnings

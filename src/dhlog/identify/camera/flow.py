@@ -32,6 +32,7 @@ from dhlog.errors import DhlogError, InputError
 from dhlog.geometry._checks import FloatArray
 from dhlog.geometry.lines import Line
 from dhlog.identify.camera.checks import (
+    FAR_PX,
     board_scale,
     camera_moved,
     frame_clustered,
@@ -194,6 +195,15 @@ def process_observations(
     ]
     result.warnings = [*notes, *(w for w in result.warnings if "never moved alone" in w)]
     fit = _pixel_stage(result, obs, T_cb, use, chosen, reason, refine_intrinsics, holdout, progress)
+    placed_px = getattr(result, "placed_nominal", (math.nan, None))[0]
+    if setup and nominal is not None and not placed_px < FAR_PX:
+        # a set-up given wrongly fits by a free fit on sweeps, and shows only here
+        result.warnings.insert(
+            0,
+            f"--camera-setup {setup}: the nominal, placed on the corners in that set-up, misses "
+            f"them by {'over 10 000' if not placed_px < 1e4 else f'{placed_px:.1f}'} px RMS: is "
+            "the set-up right? Leave --camera-setup out and it is decided from the data.",
+        )
     if extra_cameras and chosen != "eye-to-hand":
         result.warnings.append(
             f"the log has {len(observations)} cameras; several are fitted together fixed in the "

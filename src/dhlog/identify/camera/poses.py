@@ -177,13 +177,14 @@ def refined_poses(
     c = fit.measurement.intrinsics
     points = obs.board.object_points()
     T = np.tile(np.eye(4), (data.frames, 1, 1))
+    spans = data.frame_slices()
     for f in range(data.frames):
         carried = transform(R[:, :, f], p[f])
         if fit.measurement.setup == "eye-to-hand":
             T0 = carried @ shift(-o)
         else:
             T0 = np.linalg.inv(carried) @ shift(-o)
-        mine = use[data.frame == f]
+        mine = use[spans[f]]
         if np.count_nonzero(mine) < 4:
             T[f] = T0
             continue
@@ -217,8 +218,7 @@ def pnp_points(
     var = np.full(data.uv.shape[0], np.nan)
     points = data.points + board_centre(obs)
     c = obs.intrinsics
-    for f in range(data.frames):
-        at = data.frame == f
+    for f, at in enumerate(data.frame_slices()):
         T = T_cb[f]
         X[at] = points[at] @ T[:3, :3].T + T[:3, 3]
         rvec = cv2.Rodrigues(T[:3, :3])[0]
@@ -234,11 +234,18 @@ def pnp_points(
             cov = np.linalg.inv(J.T @ J) * sigma_px**2  # (rvec, t)
         except (cv2.error, np.linalg.LinAlgError):
             continue
-        # a corner moves by −[R x]× δr (to first order, δr about the rotation vector) + δt
-        for k in np.flatnonzero(at):
-            Rx = T[:3, :3] @ points[k]
-            A = np.hstack([-_skew(Rx) @ _rodrigues_jacobian(rvec.ravel()), np.eye(3)])
-            var[k] = float(np.trace(A @ cov @ A.T))
+        # a corner moves by −[R x]× δr (to first order, δr about the rotation vector) + δt:
+        # A = [−[R x]× Jr, I] (k, 3, 6), its variance the trace of A cov Aᵀ, every corner at once
+        Rx = points[at] @ T[:3, :3].T
+        skew = np.zeros((Rx.shape[0], 3, 3))
+        skew[:, 0, 1], skew[:, 0, 2] = -Rx[:, 2], Rx[:, 1]
+        skew[:, 1, 0], skew[:, 1, 2] = Rx[:, 2], -Rx[:, 0]
+        skew[:, 2, 0], skew[:, 2, 1] = -Rx[:, 1], Rx[:, 0]
+        A = np.concatenate(
+            [-skew @ _rodrigues_jacobian(rvec.ravel()), np.broadcast_to(np.eye(3), skew.shape)],
+            axis=2,
+        )
+        var[at] = np.einsum("kij,jl,kil->k", A, cov, A)
     return X, var
 
 

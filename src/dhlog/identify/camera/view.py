@@ -43,9 +43,10 @@ def camera_view(
             cam.T_base_fixed if cam.setup == "eye-to-hand" else cam.T_base_fixed @ shift(centre)
         )
     uv_pred = data.uv + fit.residuals
+    spans = data.frame_slices()
     for f in range(data.frames):
         index = int(obs.frame[f])
-        at = data.frame == f
+        at = spans[f]
         T_M_carried = transform(R[:, :, f], p[f])
         if cam.setup == "eye-to-hand":
             T_base_camera = cam.T_base_fixed

@@ -29,6 +29,7 @@ the covariance is ``(JᵀJ)⁻¹ σ²`` there.
 
 from __future__ import annotations
 
+import itertools
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -59,6 +60,15 @@ class Corners:
     @property
     def frames(self) -> int:
         return int(self.Q.shape[0])
+
+    def frame_slices(self) -> list[slice]:
+        """Each frame's corners as a slice (the corners stand in frame order, as
+        :func:`~dhlog.identify.camera.poses.corners_of` and :meth:`of_frames` give them): one
+        search, not a mask over every corner a frame."""
+        if self.frame.size and np.any(np.diff(self.frame) < 0):
+            raise ValueError("the corners are not in frame order")
+        edges = np.searchsorted(self.frame, np.arange(self.frames + 1)).tolist()
+        return [slice(a, b) for a, b in itertools.pairwise(edges)]
 
     def of_frames(self, chosen: NDArray[np.bool_]) -> Corners:
         """The observations of the frames ``chosen`` (f,) only, renumbered."""
