@@ -1,16 +1,14 @@
-"""Deprecated: ``dhlog.identify.extract`` moved to :mod:`dhlog.identify.read.extract` when
-identify/ was grouped by stage; this path keeps working for one minor version with a
-``DeprecationWarning`` (and is that module itself: its private names too)."""
+"""Deprecated since 0.2, removed in 0.3: ``dhlog.identify.extract`` (``extract_dh``, as an earlier
+README documented it) is ``dhlog.identify.read.extract`` now, private; use ``dhlog.extract_dh``
+(``import dhlog``). This path warns once (a ``DeprecationWarning``) and is the moved module itself
+(its other names too).
+"""
 
 import sys
-import warnings
 
+from dhlog._deprecated import moved
 from dhlog.identify.read import extract as _moved
 from dhlog.identify.read.extract import *  # noqa: F403
 
-warnings.warn(
-    "dhlog.identify.extract moved to dhlog.identify.read.extract; import it from there",
-    DeprecationWarning,
-    stacklevel=2,
-)
+moved("dhlog.identify.extract", "dhlog.extract_dh", now="dhlog.identify.read.extract")
 sys.modules[__name__] = _moved
