@@ -1,4 +1,4 @@
-"""``dhlog report``: the calibration certificate of a real result (the README's random-poses
+"""``dhlog report``: the calibration certificate of a real result (docs/random-poses.md's
 walkthrough, and a sweeps session), checked against the result JSON; damaged inputs; and the
 page in a headless Chromium."""
 
@@ -42,7 +42,7 @@ class Made:
 
 @pytest.fixture(scope="module")
 def poses(tmp_path_factory: pytest.TempPathFactory) -> Made:
-    """The README's "Random poses" commands: the export imported, then processed with the
+    """docs/random-poses.md's commands: the export imported, then processed with the
     nominal and 5-fold held-out validation (results beside the log)."""
     folder = tmp_path_factory.mktemp("poses")
     log = folder / "poses.mcap"

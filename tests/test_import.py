@@ -175,7 +175,7 @@ def test_bad_sources_are_one_line_naming_the_line(
 
 
 def test_the_readme_walkthrough_from_the_bundled_csv(tmp_path: Path) -> None:
-    """README "Your own data": sample_logs/kr5_stops.csv (a KR5 off its nominal, 8 stops per
+    """docs/own-data.md: sample_logs/kr5_stops.csv (a KR5 off its nominal, 8 stops per
     joint, one tracker point per stop) imported, processed with --nominal kr5, exported as a
     URDF: the result's FK within 4σ of the truth beside the CSV at 200 joint vectors."""
     from dhlog.io.dhfile import dh_model_from, load_dh

@@ -293,9 +293,8 @@ def test_the_command_line(tmp_path: Path) -> None:
 
 
 def test_the_readme_gravity_walkthrough(tmp_path: Path) -> None:
-    """README "Gravity and gears": its two commands give the model table it shows."""
-    readme = (Path(__file__).parents[1] / "README.md").read_text()
-    section = readme.split("### Gravity and gears", 1)[1].split("\n### ", 1)[0]
+    """docs/gravity-and-gears.md: its two commands give the model table it shows."""
+    section = (Path(__file__).parents[1] / "docs" / "gravity-and-gears.md").read_text()
     blocks = section.split("```")
     commands = blocks[1].removeprefix("sh\n").split("\n")
     simulate, process = (c.split()[1:] for c in commands if c.strip())

@@ -223,13 +223,14 @@ def test_process_refuses_a_vision_log_naming_the_camera_pipeline(
 
 
 def test_the_readmes_camera_pipeline_block_parses() -> None:
-    """README's "A camera pipeline" example is a pipeline as it stands."""
+    """docs/pipeline.md's "A camera pipeline" example is a pipeline as it stands."""
     import re
 
-    readme = (Path(__file__).resolve().parents[1] / "README.md").read_text(encoding="utf-8")
-    after = readme[readme.index("**A camera pipeline**") :]
+    page = Path(__file__).resolve().parents[1] / "docs" / "pipeline.md"
+    text = page.read_text(encoding="utf-8")
+    after = text[text.index("**A camera pipeline**") :]
     found = re.search(r"```toml\n(.*?)```", after, re.S)
     assert found is not None
-    p = parse_pipeline(found.group(1), "README.md")
+    p = parse_pipeline(found.group(1), "docs/pipeline.md")
     assert p.target == BOARD and p.image is not None and p.image.alternatives
     assert p.camera is not None and p.camera.info_topic == "/camera/camera_info"

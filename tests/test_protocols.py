@@ -312,9 +312,9 @@ def test_the_design_effect_in_one_pass_is_the_direct_one(monkeypatch: pytest.Mon
 
 
 def test_the_readme_random_poses_walkthrough(tmp_path: Path) -> None:
-    """README "Random poses": the bundled tracker export (6-DoF probe, U95 rounded, one read
+    """docs/random-poses.md: the bundled tracker export (6-DoF probe, U95 rounded, one read
     0.000) imported unchanged and processed with --nominal kr5 --holdout 5: exit 0, the
-    probe's orientation used, a model-error σ estimated, the held-out table as the README
+    probe's orientation used, a model-error σ estimated, the held-out table as the page
     shows it, and the FK within 4σ of the truth beside the export at 200 joint vectors."""
     from dhlog.identify.run import process_log
     from dhlog.io.dhfile import dh_model_from, load_dh
@@ -329,8 +329,7 @@ def test_the_readme_random_poses_walkthrough(tmp_path: Path) -> None:
     args = ["process", str(tmp_path / "poses.mcap"), "--nominal", "kr5", "--holdout", "5"]
     done = runner.invoke(app, [*args, "--out", str(tmp_path / "results"), "--no-rrd"])
     assert done.exit_code == 0, done.output
-    readme = (Path(__file__).parents[1] / "README.md").read_text()
-    section = readme.split("### Random poses", 1)[1].split("\n### ", 1)[0]
+    section = (Path(__file__).parents[1] / "docs" / "random-poses.md").read_text()
     (table,) = [b for b in section.split("```") if "Held-out error" in b]
     printed = {line.rstrip() for line in done.output.splitlines()}
     for line in table.strip("\n").splitlines():
