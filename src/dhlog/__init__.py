@@ -1,18 +1,103 @@
-"""dhlog: exact Denavit–Hartenberg parameters from robot calibration logs."""
+"""dhlog: exact Denavit–Hartenberg parameters from robot calibration logs.
+
+The public API is what this module exports (``__all__``; ``docs/api.md``): the operations of the
+commands — :func:`process`, :func:`load`, :func:`simulate`, :func:`plan`, :func:`robot` — the
+:class:`Calibration` they give, and the geometry's building blocks. Everything else
+(``dhlog.identify``, ``dhlog.model``, ``dhlog.io`` …) is private and may move between versions.
+
+Names are resolved on first use: the console entry point imports nothing heavy before it
+handles signals."""
 
 from __future__ import annotations
 
-__all__ = ["__version__"]
+from importlib import import_module
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from dhlog.api import (
+        Calibration,
+        Simulation,
+        UsageError,
+        load,
+        plan,
+        process,
+        robot,
+        simulate,
+    )
+    from dhlog.cell.compensate import Compensation
+    from dhlog.cell.plan import Plan, Tracker
+    from dhlog.errors import DhlogError, InputError
+    from dhlog.geometry.circles import fit_circle
+    from dhlog.identify.read.extract import extract_dh
+    from dhlog.model.dh import JointType, ModifiedDH, StandardDH
+    from dhlog.model.fk import fk_frames, fk_point
+    from dhlog.model.robots import Robot
+
+    __version__: str
+
+#: Every public name and the module it lives in (private; may move).
+_PUBLIC = {
+    "process": "dhlog.api",
+    "load": "dhlog.api",
+    "simulate": "dhlog.api",
+    "plan": "dhlog.api",
+    "robot": "dhlog.api",
+    "Calibration": "dhlog.api",
+    "Simulation": "dhlog.api",
+    "UsageError": "dhlog.api",
+    "Compensation": "dhlog.cell.compensate",
+    "Plan": "dhlog.cell.plan",
+    "Tracker": "dhlog.cell.plan",
+    "Robot": "dhlog.model.robots",
+    "StandardDH": "dhlog.model.dh",
+    "ModifiedDH": "dhlog.model.dh",
+    "JointType": "dhlog.model.dh",
+    "fk_point": "dhlog.model.fk",
+    "fk_frames": "dhlog.model.fk",
+    "fit_circle": "dhlog.geometry.circles",
+    "extract_dh": "dhlog.identify.read.extract",
+    "DhlogError": "dhlog.errors",
+    "InputError": "dhlog.errors",
+}
+
+#: The public names (``tests/test_public_api.py`` fails when one disappears).
+__all__ = [
+    "Calibration",
+    "Compensation",
+    "DhlogError",
+    "InputError",
+    "JointType",
+    "ModifiedDH",
+    "Plan",
+    "Robot",
+    "Simulation",
+    "StandardDH",
+    "Tracker",
+    "UsageError",
+    "__version__",
+    "extract_dh",
+    "fit_circle",
+    "fk_frames",
+    "fk_point",
+    "load",
+    "plan",
+    "process",
+    "robot",
+    "simulate",
+]
 
 
-def __getattr__(name: str) -> str:
-    """``__version__`` on first use (the console entry point imports nothing heavy before it
-    handles signals)."""
-    if name != "__version__":
-        raise AttributeError(name)
-    from importlib.metadata import PackageNotFoundError, version
+def __getattr__(name: str) -> object:
+    if name == "__version__":
+        from dhlog._version import version
 
-    try:
-        return version("dhlog")
-    except PackageNotFoundError:  # running from a source tree without installation
-        return "0.0.0+unknown"
+        return version()
+    if name not in _PUBLIC:
+        raise AttributeError(f"module 'dhlog' has no attribute {name!r}")
+    value = getattr(import_module(_PUBLIC[name]), name)
+    globals()[name] = value  # resolved once
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted({*globals(), *__all__})

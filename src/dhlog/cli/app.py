@@ -15,7 +15,7 @@ from typing import Annotated
 
 import typer
 
-from dhlog import __version__
+from dhlog._version import __version__
 from dhlog.cli.batch import batch
 from dhlog.cli.cell import compensate, plan
 from dhlog.cli.common import (

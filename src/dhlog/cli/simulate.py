@@ -9,7 +9,7 @@ from typing import Annotated, Any, Literal
 import numpy as np
 import typer
 
-from dhlog import __version__
+from dhlog._version import __version__
 from dhlog.cli.common import (
     EXIT_USAGE,
     check_folder,

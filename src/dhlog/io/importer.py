@@ -206,7 +206,7 @@ def write_imported(imported: Imported, out: str | Path) -> None:
     in time order (points before joint states at the same stamp), ordered in one sort."""
     from mcap.writer import CompressionType, Writer
 
-    from dhlog import __version__
+    from dhlog._version import __version__
     from dhlog.io.writer import atomic_output
 
     point_schema, points = _point_messages(imported)

@@ -10,7 +10,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from dhlog import __version__
+from dhlog._version import __version__
 from dhlog.geometry._checks import FloatArray, wrap_angle
 from dhlog.identify.check.validate import shown_stride
 from dhlog.identify.joints.sweeps import JointReport

@@ -7,7 +7,7 @@ from __future__ import annotations
 from dataclasses import replace
 from datetime import UTC, datetime
 
-from dhlog import __version__
+from dhlog._version import __version__
 from dhlog.errors import InputError
 from dhlog.present.certificate.camera_section import (
     camera_accuracy,

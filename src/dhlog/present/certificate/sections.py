@@ -11,7 +11,7 @@ import math
 from datetime import datetime
 from typing import Any
 
-from dhlog import __version__
+from dhlog._version import __version__
 from dhlog.present.certificate.plots import histogram_svg, residual_bars_svg
 from dhlog.present.certificate.shown import Parameter, Result, ShownRow, Stats, Triple
 from dhlog.present.certificate.sources import Nominal, Sources

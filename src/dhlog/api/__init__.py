@@ -1,0 +1,18 @@
+"""dhlog's public Python API, re-exported at the top (``import dhlog``): the operations of the
+commands (:mod:`.operations`) and the calibration they give (:mod:`.calibration`)."""
+
+from dhlog.api.calibration import EXPORT_FORMATS, Calibration, ExportFormat, UsageError
+from dhlog.api.operations import Simulation, load, plan, process, robot, simulate
+
+__all__ = [
+    "EXPORT_FORMATS",
+    "Calibration",
+    "ExportFormat",
+    "Simulation",
+    "UsageError",
+    "load",
+    "plan",
+    "process",
+    "robot",
+    "simulate",
+]

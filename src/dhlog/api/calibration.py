@@ -1,0 +1,581 @@
+"""A calibration as a Python object: :class:`Calibration`, what :func:`dhlog.process` returns and
+:func:`dhlog.load` reads back — the tables with σ and covariance, base and tool, the terms beyond
+the geometry, the held-out statistics, and the operations of the commands (``fk``, ``export``,
+``compensate``, ``save``, ``log_to_rerun``)."""
+
+from __future__ import annotations
+
+import json
+import math
+import tempfile
+from collections.abc import Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, Literal
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from dhlog.errors import DhlogError
+from dhlog.geometry._checks import FloatArray
+from dhlog.model.dh import ModifiedDH, StandardDH, standard_to_modified
+from dhlog.model.fk import fk_frames, fk_point
+
+if TYPE_CHECKING:
+    import polars as pl
+    import rerun as rr
+
+    from dhlog.cell.compensate import Compensation
+    from dhlog.identify.run import ProcessResult
+    from dhlog.io.dhfile import DHModel
+    from dhlog.model.robots import Robot
+    from dhlog.model.terms import Terms
+
+#: The formats :meth:`Calibration.export` writes (``dhlog export --format``).
+ExportFormat = Literal["urdf", "ur", "rtb", "dh-csv", "dh-json", "tf"]
+EXPORT_FORMATS: tuple[str, ...] = ("urdf", "ur", "rtb", "dh-csv", "dh-json", "tf")
+
+#: The DH parameters of a row, in the result's order, and their SI units.
+_PARAMETERS = (("theta", "rad"), ("d", "m"), ("a", "m"), ("alpha", "rad"))
+
+
+class UsageError(DhlogError, ValueError):
+    """An argument of the Python API that cannot be used (the message names it and what to give)."""
+
+
+@dataclass(eq=False)
+class Calibration:
+    """An identified robot model: what ``dhlog process`` writes as ``<stem>.dh.json``, as an
+    object.
+
+    Made by :func:`dhlog.process` (a run: everything the run found, and the outputs of the command
+    — CSV tables, the recording — can be written from it) or :func:`dhlog.load` (a result JSON or
+    a DH file read back: the model, σ, covariance and held-out statistics the file holds).
+
+    Units are SI throughout: metres and radians. Positions are in the measurement frame M (the
+    tracker's or camera's), as the result contract defines them (``FK = T_measurement_base · A_1 ⋯
+    A_n · tool``).
+    """
+
+    #: the result document (the ``dhlog.result/1`` JSON contract; for a DH file, what it holds)
+    document: dict[str, Any]
+    #: the model as forward kinematics reads it
+    model: DHModel
+    #: the nominal the run followed (None when none was given or the file does not name one)
+    nominal: DHModel | None = None
+    #: where it came from: the log processed, or the file loaded
+    source: str = ""
+    #: the nominal's joint limits (n, 2; rad or m) when it is a library robot
+    limits: FloatArray | None = None
+    _result: ProcessResult | None = field(default=None, repr=False)
+    #: what the run was asked that adds outputs: a held-out check, terms beyond the geometry
+    _asked: tuple[bool, bool] = field(default=(False, False), repr=False)
+
+    # ------------------------------------------------------------------ the model
+
+    @property
+    def table(self) -> StandardDH:
+        """The standard DH table (offsets at encoder zero)."""
+        return self.model.table
+
+    @property
+    def modified(self) -> ModifiedDH:
+        """The same model as a modified (Craig) DH table; its base transform is
+        ``T_base @ standard_to_modified(table)[1]`` (the result's ``modified_dh`` rows)."""
+        return standard_to_modified(self.model.table)[0]
+
+    @property
+    def n(self) -> int:
+        """The number of joints."""
+        return self.model.table.n
+
+    @property
+    def joint_names(self) -> tuple[str, ...]:
+        """The joints' names, as the log (or file) names them."""
+        return self.model.joint_names
+
+    @property
+    def T_base(self) -> FloatArray:
+        """DH frame 1 (the base) in the measurement frame M, a 4×4 transform."""
+        return self.model.T_base
+
+    @property
+    def tool_point(self) -> FloatArray:
+        """The target (tool point) in the last DH frame, m (3,)."""
+        return self.model.tool_point
+
+    @property
+    def terms(self) -> Terms | None:
+        """The terms beyond the geometry (gravity compliance, transmission harmonics) the run
+        chose, in the table's frames; None for a geometric model."""
+        return self.model.terms
+
+    @property
+    def complete(self) -> bool:
+        """True when every joint was identified (a partial result keeps what was)."""
+        return not any("error" in j for j in self.document.get("joints", []))
+
+    @property
+    def warnings(self) -> list[str]:
+        """What may need the user's action (the console's warnings)."""
+        return [str(w) for w in self.document.get("warnings", [])]
+
+    @property
+    def notes(self) -> list[str]:
+        """What a reader should know but need not act on."""
+        return [str(w) for w in self.document.get("notes", [])]
+
+    @property
+    def version(self) -> str | None:
+        """The dhlog version that made the result (None: a DH file)."""
+        found = self.document.get("dhlog_version")
+        return None if found is None else str(found)
+
+    # ------------------------------------------------------------------ σ and covariance
+
+    @property
+    def parameters(self) -> pl.DataFrame:
+        """Every DH parameter with its σ, one row each: ``joint`` (1 …), ``name``, ``parameter``
+        (theta, d, a, alpha; theta and d are the offsets at encoder zero), ``value``, ``sigma``
+        (null where the parameter is fixed or not given), ``fixed`` (a convention or gauge the
+        data cannot determine, never a measurement), ``unit`` (m or rad)."""
+        import polars as pl
+
+        rows = []
+        names = self.joint_names
+        for i, row in enumerate(self.document.get("standard_dh", [])):
+            std = row.get("std") or {}
+            fixed = set(row.get("fixed") or [])
+            for key, unit in _PARAMETERS:
+                value = row.get(f"{key}_offset", row.get(key)) if key in ("theta", "d") else None
+                value = row.get(key) if value is None else value
+                sigma = std.get(key)
+                rows.append(
+                    {
+                        "joint": i + 1,
+                        "name": names[i] if i < len(names) else f"joint_{i + 1}",
+                        "parameter": key,
+                        "value": float(value) if value is not None else math.nan,
+                        "sigma": None if sigma is None or key in fixed else float(sigma),
+                        "fixed": key in fixed,
+                        "unit": unit,
+                    }
+                )
+        schema = {
+            "joint": pl.Int64,
+            "name": pl.String,
+            "parameter": pl.String,
+            "value": pl.Float64,
+            "sigma": pl.Float64,
+            "fixed": pl.Boolean,
+            "unit": pl.String,
+        }
+        return pl.DataFrame(rows, schema=schema, orient="row")
+
+    @property
+    def covariance(self) -> FloatArray | None:
+        """The covariance of the fitted parameters (SI units), ordered as
+        :attr:`covariance_names`; None when the result holds none."""
+        block = self.document.get("covariance")
+        if not isinstance(block, dict) or block.get("matrix") is None:
+            return None
+        return np.asarray(block["matrix"], dtype=np.float64)
+
+    @property
+    def covariance_names(self) -> list[str]:
+        """The names of :attr:`covariance`'s rows (``d_1``, ``theta_offset_2``, …, ``tool_x``,
+        ``base_rz``)."""
+        block = self.document.get("covariance")
+        return [str(p) for p in block.get("parameters", [])] if isinstance(block, dict) else []
+
+    # ------------------------------------------------------------------ held out
+
+    @property
+    def holdout(self) -> pl.DataFrame:
+        """The errors at poses not used to fit (``holdout=K``, ``validate=[…]``), one row per
+        check and model: ``check`` (``5-fold`` or the held-out log's name), ``model`` (nominal,
+        calibrated), ``n_poses``, ``mean``, ``rms``, ``p95``, ``max`` (m). Empty when the run
+        made no held-out check."""
+        import polars as pl
+
+        rows = []
+        for check in (self.document.get("validation") or {}).get("holdout", []):
+            what = (
+                f"{check.get('folds')}-fold"
+                if check.get("kind") == "cross-validation"
+                else Path(str(check.get("path", "log"))).name
+            )
+            for model in ("nominal", "calibrated"):
+                stats = check.get(model)
+                if not stats:
+                    continue
+                rows.append(
+                    {
+                        "check": what,
+                        "model": model,
+                        "n_poses": int(stats["n_poses"]),
+                        **{k: float(stats[k]) for k in ("mean", "rms", "p95", "max")},
+                    }
+                )
+        schema = {
+            "check": pl.String,
+            "model": pl.String,
+            "n_poses": pl.Int64,
+            "mean": pl.Float64,
+            "rms": pl.Float64,
+            "p95": pl.Float64,
+            "max": pl.Float64,
+        }
+        return pl.DataFrame(rows, schema=schema, orient="row")
+
+    @property
+    def fk_rms(self) -> float | None:
+        """The in-sample check: RMS (m) of every sample's distance from the model's forward
+        kinematics (None: not in the result)."""
+        found = (self.document.get("validation") or {}).get("fk_rms")
+        return None if found is None else float(found)
+
+    # ------------------------------------------------------------------ operations
+
+    def fk(self, q: ArrayLike) -> FloatArray:
+        """The target's position in M (…, 3) at encoder values ``q`` (…, n; rad or m), the terms
+        beyond the geometry applied (the joints deflected first, as the model was fitted)."""
+        values = self.table.check_q(q)
+        return fk_point(
+            self.table, self.model.joint_values(values), self.tool_point, T_base=self.T_base
+        )
+
+    def fk_frames(self, q: ArrayLike) -> FloatArray:
+        """DH frames 1 … n+1 in M (…, n+1, 4, 4) at encoder values ``q``, terms applied."""
+        values = self.table.check_q(q)
+        return fk_frames(self.table, self.model.joint_values(values), T_base=self.T_base)
+
+    def export(
+        self,
+        format: ExportFormat = "urdf",
+        path: str | Path | None = None,
+        *,
+        limits_from: str | None = None,
+        template: str | Path | None = None,
+        zero_offsets: Literal["origins", "calibration"] = "origins",
+        overwrite: bool = False,
+    ) -> str:
+        """The model in a form a robot stack loads (``dhlog export``): ``urdf``, ``ur`` (the UR
+        description's calibration YAML), ``rtb`` (a roboticstoolbox ``DHRobot`` in Python),
+        ``dh-csv`` / ``dh-json`` (both DH tables), ``tf`` (a camera calibration's hand-eye poses
+        as a ROS 2 launch file). Returns the text; with ``path``, also writes it atomically
+        (``overwrite``: replace an existing file). ``limits_from``: a library robot or DH file
+        whose joint limits the URDF gets; ``template``: a URDF whose joints get the calibrated
+        origins; ``zero_offsets``: ``calibration`` puts the offsets in each joint's
+        ``<calibration rising>`` instead of the origins."""
+        from dhlog.io.dhfile import robot_or_dh_file
+        from dhlog.result import export as exports
+
+        if format not in EXPORT_FORMATS:
+            raise UsageError(
+                f"export: format must be one of {', '.join(EXPORT_FORMATS)}, not {format!r}."
+            )
+        if zero_offsets not in ("origins", "calibration") or (
+            zero_offsets == "calibration" and (template is not None or format != "urdf")
+        ):
+            raise UsageError(
+                "export: zero_offsets must be 'origins' or 'calibration' (calibration: a URDF "
+                "without a template)."
+            )
+        if template is not None and format != "urdf":
+            raise UsageError("export: a template is for the urdf format.")
+        target = None if path is None else Path(path)
+        if target is not None:
+            _refuse_existing(target, overwrite, self.source)
+        with self._as_file() as result:
+            if format == "urdf" and template is not None:
+                text = exports.urdf_from_template(result, template)
+            elif format == "urdf":
+                limits = (
+                    robot_or_dh_file(limits_from).limits if limits_from is not None else self.limits
+                )
+                text = exports.urdf_document(result, limits=limits, zero_offsets=zero_offsets)
+            elif format == "ur":
+                text = exports.ur_calibration(result)[0]
+            elif format == "rtb":
+                text = exports.rtb_document(result)
+            elif format == "tf":
+                text = exports.static_transforms_document(result)
+            else:
+                text = exports.dh_table_document(result, format)
+        if target is not None:
+            _write_text(target, text)
+        return text
+
+    def compensate(
+        self,
+        targets: ArrayLike,
+        *,
+        nominal: str | Path | DHModel | Robot | Calibration | None = None,
+        limits: ArrayLike | None = None,
+    ) -> Compensation:
+        """The joint targets to command a controller running the ``nominal`` model so that the
+        robot, as calibrated, reaches where the nominal meant ``targets`` (m, n; rad or m) to go
+        (``dhlog compensate --joints``). ``nominal``: the controller's model (default: the run's
+        nominal); ``limits`` (n, 2): the joints' limits (default: the library robot's).
+
+        Returns a :class:`~dhlog.Compensation`: ``targets`` (m, n; NaN rows where none),
+        ``error`` (the pose error left per target, m or rad) and ``problems`` (row → why)."""
+        from dhlog.cell.compensate import compensate
+
+        controller = self.nominal if nominal is None else _dh_model(nominal)
+        if controller is None:
+            raise UsageError(
+                "compensate: this calibration names no nominal; pass nominal= (a library robot "
+                "name, a DH file or dhlog.robot(...)) — the model the controller runs."
+            )
+        Q = np.asarray(targets, dtype=np.float64)
+        if Q.ndim == 1:
+            Q = Q[None]
+        if Q.ndim != 2 or Q.shape[1] != self.n:
+            raise UsageError(
+                f"compensate: targets must be (m, {self.n}) joint vectors, not shape {Q.shape}."
+            )
+        if not np.all(np.isfinite(Q)):
+            raise UsageError("compensate: targets must be finite numbers.")
+        bounds = None
+        if limits is not None:
+            bounds = np.asarray(limits, dtype=np.float64)
+        elif nominal is None or not isinstance(nominal, str) or Path(nominal).suffix == "":
+            bounds = self.limits if nominal is None else _library_limits(nominal)
+        return compensate(self.model, controller, Q, limits=bounds)
+
+    def save(
+        self,
+        path: str | Path,
+        *,
+        units: Literal["mm", "m"] = "mm",
+        recording: bool = False,
+        with_log: bool = False,
+        overwrite: bool = False,
+    ) -> list[Path]:
+        """Write the result JSON to ``path`` (``<stem>.dh.json``) atomically, and — for a run —
+        what ``dhlog process`` writes beside it: ``<stem>.dh.csv`` (in ``units``: mm or m),
+        the held-out poses' and the terms' CSV when the run has them, and the Rerun recording
+        ``<stem>.rrd`` (``recording``; ``with_log``: the log's own channels in it). All move
+        into place together; an existing file is an error unless ``overwrite``. Returns the
+        paths written."""
+        target = Path(path)
+        if units not in ("mm", "m"):
+            raise UsageError(f"save: units must be 'mm' or 'm', not {units!r}.")
+        if self._result is None:
+            if recording:
+                raise UsageError(
+                    "save: a loaded calibration has no run to record; log_to_rerun() draws its "
+                    "model."
+                )
+            _refuse_existing(target, overwrite, self.source)
+            _write_text(target, json.dumps(self.document, indent=2) + "\n")
+            return [target]
+        outputs = self.output_paths(target, recording=recording)
+        for p in outputs:
+            _refuse_existing(p, overwrite, self.source)
+        target.parent.mkdir(parents=True, exist_ok=True)
+        write_run(self, outputs, units, with_log=with_log)
+        return outputs
+
+    def output_paths(self, path: str | Path, *, recording: bool = False) -> list[Path]:
+        """The files :meth:`save` writes for ``path`` (``<stem>.dh.json``): the JSON, then the
+        CSV table (a run's), the recording (``recording``), the held-out poses' and the terms'
+        CSV as the run has them — the order ``dhlog process`` writes them in."""
+        if self._result is None:
+            return [Path(path)]
+        return output_names(path, recording=recording, heldout=self._asked[0], terms=self._asked[1])
+
+    def log_to_rerun(
+        self,
+        path: str | Path | None = None,
+        *,
+        recording: rr.RecordingStream | None = None,
+        with_log: bool = False,
+    ) -> rr.RecordingStream | None:
+        """The Rerun recording: for a run, what ``dhlog process`` records (the raw points, the
+        fitted circles and axes, the DH frames, the residuals, the held-out errors, a camera's
+        images); for a loaded calibration, its model with each joint swept in turn (``dhlog
+        show``). With ``path``, written to that ``.rrd`` file atomically; otherwise logged into
+        ``recording`` (default: a new stream, returned — in a notebook, call its
+        ``notebook_show()``)."""
+        import rerun as rr
+
+        from dhlog.present.recording.writers import (
+            log_process_recording,
+            log_robot_recording,
+            process_recording_blueprint,
+            robot_blueprint,
+            write_process_recording,
+            write_robot_recording,
+        )
+
+        result = self._result
+        if path is not None:
+            if recording is not None:
+                raise UsageError("log_to_rerun: give a path or a recording, not both.")
+            if Path(path).resolve() == Path(self.source).resolve():
+                raise UsageError(f"log_to_rerun: {path} is the input; choose another path.")
+            if result is not None:
+                write_process_recording(result, path, with_log=with_log)
+            else:
+                write_robot_recording(
+                    self.table,
+                    path,
+                    T_base=self.T_base,
+                    limits=self.limits,
+                    title=Path(self.source).name,
+                )
+            return None
+        rec = recording if recording is not None else rr.RecordingStream("dhlog")
+        rec.log("world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
+        if result is not None:
+            rec.send_blueprint(process_recording_blueprint(result))
+            log_process_recording(rec, result, with_log=with_log)
+        else:
+            rec.send_blueprint(robot_blueprint())
+            log_robot_recording(
+                rec, self.table, T_base=self.T_base, limits=self.limits, title=self.source
+            )
+        return rec
+
+    # ------------------------------------------------------------------ shown
+
+    def report(self, units: Literal["mm", "m"] = "mm", width: int = 80) -> str:
+        """The console report of ``dhlog process`` as text (a run), or the DH table with σ (a
+        loaded calibration)."""
+        from io import StringIO
+
+        from rich.console import Console
+
+        console = Console(file=StringIO(), width=width, color_system=None, force_terminal=False)
+        if self._result is not None:
+            from dhlog.present.console import print_result
+
+            print_result(console, self._result, units=units)
+        else:
+            console.print(self.parameters)
+        text = console.file.getvalue()  # type: ignore[attr-defined]
+        return str(text)
+
+    def __repr__(self) -> str:
+        held = self.holdout.filter(model="calibrated")
+        shown = (
+            f", held-out RMS {held['rms'][0] * 1e3:.4f} mm ({held['check'][0]})"
+            if held.height
+            else ""
+        )
+        rms = f", FK RMS {self.fk_rms * 1e3:.4f} mm" if self.fk_rms is not None else ""
+        state = "" if self.complete else ", partial"
+        return f"<Calibration of {Path(self.source).name}: {self.n} joints{rms}{shown}{state}>"
+
+    @contextmanager
+    def _as_file(self) -> Iterator[str]:
+        """The result as a file the exporters read: the file loaded, or the run's document
+        written to a temporary file."""
+        if self._result is None and self.source and Path(self.source).is_file():
+            yield self.source
+            return
+        with tempfile.TemporaryDirectory(prefix="dhlog-") as folder:
+            stem = Path(self.source).name.removesuffix(".mcap") or "result"
+            written = Path(folder) / f"{stem}.dh.json"
+            written.write_text(json.dumps(self.document))
+            yield str(written)
+
+
+def output_names(path: str | Path, *, recording: bool, heldout: bool, terms: bool) -> list[Path]:
+    """A run's outputs for ``path`` (``<stem>.dh.json``), in the order they are written: the JSON,
+    the CSV table, the recording, the held-out poses' CSV (``heldout``: asked for), the terms'
+    CSV (``terms``: terms beyond the geometry asked for)."""
+    from dhlog.fleet.batch import HOLDOUT_SUFFIX, TERMS_SUFFIX
+
+    target = Path(path)
+    stem = target.name.removesuffix(".json").removesuffix(".dh")
+    folder = target.parent
+    outputs = [target, folder / f"{stem}.dh.csv"]
+    if recording:
+        outputs.append(folder / f"{stem}.rrd")
+    if heldout:
+        outputs.append(folder / f"{stem}{HOLDOUT_SUFFIX}")
+    if terms:
+        outputs.append(folder / f"{stem}{TERMS_SUFFIX}")
+    return outputs
+
+
+def write_run(
+    calibration: Calibration,
+    outputs: list[Path],
+    units: str,
+    *,
+    with_log: bool = False,
+    hold_signals: bool = False,
+) -> None:
+    """Write a run's ``outputs`` (:func:`output_names`) together, atomically; ``hold_signals``:
+    an interrupt waits until they are in place (the command line)."""
+    from dhlog.errors import OutputError
+    from dhlog.fleet.batch import write_results
+
+    if calibration._result is None:
+        raise UsageError("a loaded calibration has no run to write; save() writes its JSON.")
+    try:
+        write_results(
+            calibration._result, outputs, units, hold_signals=hold_signals, with_log=with_log
+        )
+    except OSError as exc:
+        raise OutputError(outputs[0].parent, exc) from None
+
+
+def _dh_model(spec: str | Path | DHModel | Robot | Calibration) -> DHModel:
+    """A DH model from a library robot name, a DH file, a :class:`Robot` or a model."""
+    from dhlog.io.dhfile import DHModel, dh_model_from
+    from dhlog.model.robots import Robot
+
+    if isinstance(spec, DHModel):
+        return spec
+    if isinstance(spec, Robot):
+        names = tuple(f"joint_{i + 1}" for i in range(spec.n))
+        return DHModel(spec.table, spec.T_base, spec.tool_point, names, spec.name)
+    if isinstance(spec, Calibration):
+        return spec.model
+    if isinstance(spec, (str, Path)):
+        return dh_model_from(str(spec))
+    raise UsageError(
+        f"a model must be a library robot name, a DH file's path or dhlog.robot(...), not "
+        f"{type(spec).__name__}."
+    )
+
+
+def _library_limits(spec: object) -> FloatArray | None:
+    """A library robot's joint limits (None for anything else)."""
+    from dhlog.model.robots import Robot, robot_names
+
+    if isinstance(spec, Robot):
+        return spec.limits
+    if isinstance(spec, str) and spec in robot_names():
+        from dhlog.model.robots import load_robot
+
+        return load_robot(spec).limits
+    return None
+
+
+def _refuse_existing(path: Path, overwrite: bool, source: str) -> None:
+    if source and path.exists() and path.resolve() == Path(source).resolve():
+        raise UsageError(f"{path} is the input; choose another path.")
+    if path.exists() and not overwrite:
+        raise UsageError(f"{path} exists; pass overwrite=True to replace it.")
+
+
+def _write_text(path: Path, text: str) -> None:
+    from dhlog.errors import OutputError
+    from dhlog.io.writer import atomic_output
+
+    try:
+        with atomic_output(path) as f:
+            f.write(text.encode())
+    except OSError as exc:
+        raise OutputError(path.parent, exc) from None
+
+
+__all__ = ["EXPORT_FORMATS", "Calibration", "ExportFormat", "UsageError"]
