@@ -5,6 +5,7 @@ module that holds its names now, and hands on the very objects that live there."
 import ast
 import importlib
 import re
+import subprocess
 import sys
 import warnings
 from pathlib import Path
@@ -74,6 +75,19 @@ def test_an_old_path_warns_naming_the_new_import_and_hands_on_the_same_objects(
         importlib.import_module(old)  # once: a second import is the cached module, silent
 
 
+def test_the_public_successors_the_notices_name_exist() -> None:
+    import dhlog
+
+    for new in {new for _, _, new, _ in OLD_PATHS}:
+        name = new.removeprefix("dhlog.").split("(")[0]
+        assert name in dhlog.__all__, f"a notice names {new}, which dhlog does not export"
+        assert callable(getattr(dhlog, name))
+    model_fk = importlib.import_module("dhlog.model.fk")
+    read_extract = importlib.import_module("dhlog.identify.read.extract")
+    assert dhlog.fk_point is model_fk.fk_point
+    assert dhlog.extract_dh is read_extract.extract_dh
+
+
 SHIMS = {
     ".".join(path.relative_to(SRC).with_suffix("").parts)
     for path in (SRC / "dhlog").rglob("*.py")
@@ -96,3 +110,22 @@ def test_dhlog_itself_imports_no_deprecated_path() -> None:
                 continue
             using += [f"{path.relative_to(SRC)} → {t}" for t in sorted(targets & SHIMS)]
     assert not using, "\n".join(using)
+
+
+def test_the_public_api_raises_no_deprecation_warning_from_dhlog() -> None:
+    """Every public name resolved in a fresh interpreter with dhlog's DeprecationWarnings as errors
+    (a shim imported on the way would fail it)."""
+    script = (
+        "import warnings\n"
+        "warnings.filterwarnings('error', category=DeprecationWarning, module=r'dhlog(\\.|$)')\n"
+        "warnings.filterwarnings('error', message=r'dhlog\\.', category=DeprecationWarning)\n"
+        "import dhlog\n"
+        "for name in dhlog.__all__:\n"
+        "    getattr(dhlog, name)\n"
+        "print(len(dhlog.__all__))\n"
+    )
+    run = subprocess.run(
+        [sys.executable, "-c", script], capture_output=True, text=True, timeout=120, check=False
+    )
+    assert run.returncode == 0, run.stderr[-2000:]
+    assert int(run.stdout) >= 10, "the public API is resolved (not only __version__)"
