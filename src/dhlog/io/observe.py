@@ -485,7 +485,7 @@ def observe(
             pipeline.source,
             f"is not a camera pipeline ({pipeline.name}: no [streams.image] with [target] and "
             "[camera]); give a camera pipeline (the shipped ros2_camera, or a file of your own: "
-            "README, Writing a pipeline file).",
+            "docs/pipeline.md, Writing a pipeline file).",
         )
     if jobs < 1:
         raise InputError(f"jobs is {jobs}; give 1 or more worker processes.")

@@ -561,7 +561,7 @@ def _camera_tables(
         raise PipelineError(
             source,
             "a camera pipeline needs a [target] table: the board's kind, dictionary, squares, "
-            "square_m and marker_m (README: Writing a pipeline file).",
+            "square_m and marker_m (docs/pipeline.md: Writing a pipeline file).",
         )
     target_table = _table(source, data, "target")
     for key, value in target_table.items():

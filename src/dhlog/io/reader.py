@@ -339,7 +339,7 @@ def read_log(
             f"{name}: {', '.join(unread)} {'carries' if len(unread) == 1 else 'carry'} the "
             f"target's message type but {'is' if len(unread) == 1 else 'are'} not read: "
             "further targets on the end-effector are fitted when the pipeline names their "
-            "topics in extra_topics (README, Writing a pipeline file)."
+            "topics in extra_topics (docs/pipeline.md, Writing a pipeline file)."
         )
     decoded: dict[int, list[Block]] = {}
     if sink is not None:
