@@ -9,6 +9,7 @@ import math
 import subprocess
 import sys
 from importlib import resources
+from importlib.metadata import version
 from pathlib import Path
 
 import jsonschema
@@ -105,6 +106,7 @@ def test_result_documents_follow_the_contract(processed) -> None:  # type: ignor
     for r in (result, with_nominal):
         doc = result_document(r)
         jsonschema.validate(doc, SCHEMA)
+        assert doc["dhlog_version"] == version("dhlog")  # pyproject's, as CHANGELOG.md's newest
         assert doc["source"]["path"] == path.name
         assert len(doc["standard_dh"]) == len(doc["joints"]) == len(doc["modified_dh"])
         # any consumer can check the result with the contract's FK convention: the JSON alone
