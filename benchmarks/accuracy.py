@@ -55,8 +55,8 @@ from dhlog.io.memory import log_data_from_session
 from dhlog.model.fk import fk_point
 from dhlog.model.noise import NoiseModel
 from dhlog.model.robots import load_robot
-from dhlog.simulate.config import SimulationConfig
-from dhlog.simulate.session import simulate_session
+from dhlog.simulator.config import SimulationConfig
+from dhlog.simulator.session import simulate_session
 
 CASES: dict[str, tuple[str, dict[str, object]]] = {
     "KR5, seed 002 Table 2 protocol (±0.1 mm uniform, 36 stops over 180°)": (
@@ -198,7 +198,7 @@ def beyond(job: tuple[str, str, int, int]) -> dict[str, object]:
     from dhlog.identify.run import table_values
     from dhlog.io.dhfile import DHModel
     from dhlog.model.terms import table_deflection
-    from dhlog.simulate.robot import masses_urdf
+    from dhlog.simulator.robot import masses_urdf
 
     case, robot_name, seed, points = job
     robot = load_robot(robot_name)

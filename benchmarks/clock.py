@@ -24,8 +24,8 @@ from dhlog.identify.run import process_data
 from dhlog.io.memory import log_data_from_session
 from dhlog.model.fk import fk_point
 from dhlog.model.robots import load_robot
-from dhlog.simulate.config import SimulationConfig
-from dhlog.simulate.session import simulate_session
+from dhlog.simulator.config import SimulationConfig
+from dhlog.simulator.session import simulate_session
 
 CASES: dict[str, dict[str, object]] = {
     "+20 ms, 20°/s, 100 Hz tracker": {"clock_offset": 0.02, "speed": math.radians(20)},

@@ -108,9 +108,9 @@ from dhlog.io.memory import log_data_from_session
 from dhlog.model.fk import fk_point
 from dhlog.model.robots import Robot, load_robot
 from dhlog.model.terms import table_deflection
-from dhlog.simulate.config import SimulationConfig
-from dhlog.simulate.robot import smooth_model_error
-from dhlog.simulate.session import Session, simulate_session
+from dhlog.simulator.config import SimulationConfig
+from dhlog.simulator.robot import smooth_model_error
+from dhlog.simulator.session import Session, simulate_session
 
 #: Every case's robot is off its nominal like this, measured with this σ (isotropic, Gaussian).
 OFF_NOMINAL: dict[str, object] = {

@@ -24,8 +24,8 @@ from dhlog.identify.segment.segment import segment_log
 from dhlog.io.reader import read_log
 from dhlog.io.writer import write_session
 from dhlog.model.robots import load_robot
-from dhlog.simulate.config import SimulationConfig
-from dhlog.simulate.session import simulate_session
+from dhlog.simulator.config import SimulationConfig
+from dhlog.simulator.session import simulate_session
 
 
 def make_log(samples: int) -> Path:

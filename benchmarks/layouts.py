@@ -40,8 +40,8 @@ DHLOG = str(Path(sys.executable).with_name("dhlog"))
 
 def _session(samples: int, targets: int = 1):  # type: ignore[no-untyped-def]
     from dhlog.model.robots import load_robot
-    from dhlog.simulate.config import SimulationConfig
-    from dhlog.simulate.session import simulate_session
+    from dhlog.simulator.config import SimulationConfig
+    from dhlog.simulator.session import simulate_session
 
     speed = 6 * math.radians(90) * 1.34 / (samples / 1000.0)
     extra = tuple((0.03 * k, -0.02 * k, 0.01) for k in range(1, targets))

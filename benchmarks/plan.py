@@ -34,8 +34,8 @@ from dhlog.io.memory import log_data_from_session
 from dhlog.model.fk import fk_point
 from dhlog.model.robots import load_robot
 from dhlog.result.document import display_rows
-from dhlog.simulate.config import SimulationConfig
-from dhlog.simulate.session import simulate_session
+from dhlog.simulator.config import SimulationConfig
+from dhlog.simulator.session import simulate_session
 
 OFF = {"perturb_length": 2e-4, "perturb_angle": math.radians(0.05)}
 Poses = tuple[tuple[float, ...], ...]

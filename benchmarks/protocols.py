@@ -45,8 +45,8 @@ from dhlog.io.memory import log_data_from_session
 from dhlog.model.fk import fk_point
 from dhlog.model.noise import NoiseModel
 from dhlog.model.robots import load_robot
-from dhlog.simulate.config import SIX_DOF_TOOL_ROTATION, SimulationConfig
-from dhlog.simulate.session import simulate_session
+from dhlog.simulator.config import SIX_DOF_TOOL_ROTATION, SimulationConfig
+from dhlog.simulator.session import simulate_session
 
 OFF = {"perturb_length": 2e-4, "perturb_angle": math.radians(0.05)}
 

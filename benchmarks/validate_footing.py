@@ -33,9 +33,9 @@ from dhlog.io.dhfile import DHModel
 from dhlog.io.pipeline import parse_pipeline
 from dhlog.io.writer import write_session
 from dhlog.model.robots import load_robot
-from dhlog.simulate.config import SimulationConfig
-from dhlog.simulate.session import simulate_session
-from dhlog.simulate.tracker import default_measurement_pose
+from dhlog.simulator.config import SimulationConfig
+from dhlog.simulator.session import simulate_session
+from dhlog.simulator.tracker import default_measurement_pose
 
 ROTATION = (0.3, -0.2, 0.5)
 SIX_DOF = (

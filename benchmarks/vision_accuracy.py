@@ -73,13 +73,13 @@ def one_session(case: str, seed: int, poses: int) -> dict[str, float]:
     from dhlog.identify.run import process_data
     from dhlog.io.dhfile import dh_model_from
     from dhlog.model.robots import load_robot
-    from dhlog.simulate.camera import (
+    from dhlog.simulator.camera import (
         camera_poses,
         flange_poses,
         simulate_detections,
         simulate_vision,
     )
-    from dhlog.simulate.config import SimulationConfig
+    from dhlog.simulator.config import SimulationConfig
     from dhlog.vision.detect import Tally
     from dhlog.vision.observe import Observations
 

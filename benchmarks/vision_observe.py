@@ -7,7 +7,7 @@ a 10 000-frame log within 1 GiB).
 
 ``write`` makes (once, cached in $TMPDIR/dhlog-bench) a ROS 2 vision log as
 ``dhlog simulate kr5 --instrument camera --camera full-hd --camera-setup eye-to-hand`` makes
-it (``dhlog.simulate.camera``: the KR5's ``random-poses`` session, its ChArUco board rendered
+it (``dhlog.simulator.camera``: the KR5's ``random-poses`` session, its ChArUco board rendered
 through the plumb_bob camera with blur, noise and exposure, JPEG quality 95; ``full-hd`` is
 issue 32's 1920x1080 camera, f 1600 px, with a 10x7 board of 30 mm squares 2 m away), but
 ``--frames`` long at 30 frames a second: the ``--poses`` (20) rendered frames repeat in turn,
@@ -47,8 +47,8 @@ from dhlog.io import ros2
 from dhlog.io.observe import observe
 from dhlog.io.pipeline import pipeline_by_name
 from dhlog.model.robots import load_robot
-from dhlog.simulate.camera import JPEG_QUALITY, PRESETS, TOPICS, render, simulate_vision
-from dhlog.simulate.config import SimulationConfig
+from dhlog.simulator.camera import JPEG_QUALITY, PRESETS, TOPICS, render, simulate_vision
+from dhlog.simulator.config import SimulationConfig
 
 S = 1_000_000_000
 FPS = 30

@@ -5,7 +5,7 @@ corners lie from the truth's projection.
         [--protocol random-poses|sweeps|coupled] [--poses 12] [--frame-rate 10]
         [--camera default|full-hd|small] [--format jpeg]
 
-For each robot and set-up (eye-to-hand, eye-in-hand) ``dhlog.simulate.camera`` simulates a
+For each robot and set-up (eye-to-hand, eye-in-hand) ``dhlog.simulator.camera`` simulates a
 vision log of the protocol (seed 0) with the camera preset and writes it; the frames are read
 back by ``io.images.ImageStream`` and ``vision.detect.detect`` runs on each with the
 intrinsics. Printed: the frames with the board, the corners found of those on the board, their
@@ -26,14 +26,14 @@ import numpy as np
 
 from dhlog.io.images import ImageStream
 from dhlog.model.robots import load_robot
-from dhlog.simulate.camera import (
+from dhlog.simulator.camera import (
     CAMERA_PRESETS,
     camera_topics,
     protocol_moves,
     simulate_vision,
     write_vision_log,
 )
-from dhlog.simulate.config import SimulationConfig
+from dhlog.simulator.config import SimulationConfig
 from dhlog.vision.detect import Detection, detect
 
 

@@ -25,9 +25,9 @@ from scipy.spatial.transform import Rotation
 
 from dhlog import __version__
 from dhlog.model.robots import load_robot
-from dhlog.simulate.config import SIX_DOF_TOOL_ROTATION, SimulationConfig
-from dhlog.simulate.session import simulate_session
-from dhlog.simulate.truth import truth_document
+from dhlog.simulator.config import SIX_DOF_TOOL_ROTATION, SimulationConfig
+from dhlog.simulator.session import simulate_session
+from dhlog.simulator.truth import truth_document
 
 CONFIG = SimulationConfig(
     seed=31,

@@ -15,9 +15,9 @@ from dhlog.identify.fit.axismodel import AxisModel
 from dhlog.identify.fit.pixels import Corners
 from dhlog.identify.read.extract import extract_dh
 from dhlog.model.robots import load_robot
-from dhlog.simulate.camera import BOARD, CAMERA, Rig, camera_poses, flange_poses, place_rig
-from dhlog.simulate.config import SimulationConfig
-from dhlog.simulate.robot import perturbed
+from dhlog.simulator.camera import BOARD, CAMERA, Rig, camera_poses, flange_poses, place_rig
+from dhlog.simulator.config import SimulationConfig
+from dhlog.simulator.robot import perturbed
 from dhlog.vision.detect import Tally
 from dhlog.vision.observe import Observations
 

@@ -11,7 +11,7 @@ from dhlog.geometry.lines import Line, Plane
 from dhlog.identify.run import ProcessResult
 from dhlog.model.dh import JointType, StandardDH
 from dhlog.model.fk import fk_point, joint_axes
-from dhlog.simulate.session import Session
+from dhlog.simulator.session import Session
 
 PI = np.pi
 

@@ -2,10 +2,10 @@
 
 Shared by ``tests/test_fuzz_images.py`` (a few dozen cases in CI) and ``benchmarks/fuzz.py
 --kind images`` (long runs). The logs start as a small simulated vision session
-(:func:`dhlog.simulate.camera.simulate_vision`: the KR5, eye-in-hand, four still poses, the
+(:func:`dhlog.simulator.camera.simulate_vision`: the KR5, eye-in-hand, four still poses, the
 simulator's ChArUco board) rendered through the simulator's camera scaled to 640×400 (the same
 field of view, so the same poses see the board), written by
-:func:`dhlog.simulate.camera.write_vision_log` as JPEG ``CompressedImage`` frames, each with
+:func:`dhlog.simulator.camera.write_vision_log` as JPEG ``CompressedImage`` frames, each with
 ``CameraInfo`` and joint states; the same log with the frames as PNG ``CompressedImage`` and as
 raw mono8 ``Image`` is written by the mcap writer. The mutations come in four families:
 
@@ -84,8 +84,8 @@ def make_base(folder: Path) -> Base:
 
     from dhlog.io import ros2
     from dhlog.model.robots import load_robot
-    from dhlog.simulate.camera import simulate_vision, write_vision_log
-    from dhlog.simulate.config import SimulationConfig
+    from dhlog.simulator.camera import simulate_vision, write_vision_log
+    from dhlog.simulator.config import SimulationConfig
     from dhlog.vision.camera import Intrinsics
 
     folder.mkdir(parents=True, exist_ok=True)
@@ -437,7 +437,7 @@ def run_cli(case: Case, folder: Path) -> Outcome:
 def run_case(case: Case, folder: Path, timeout: float = 60.0) -> Outcome:
     """The long runs' (``benchmarks/fuzz.py --kind images``): :func:`run_library` with the
     simulator's board, then :func:`run_cli`; their problems together."""
-    from dhlog.simulate.camera import BOARD
+    from dhlog.simulator.camera import BOARD
     from fuzzing import Hang, time_limit
 
     try:

@@ -158,8 +158,8 @@ def time_limit(seconds: float) -> Iterator[None]:
 
 def _session(seed: int, **kw: object):  # type: ignore[no-untyped-def]
     from dhlog.model.robots import load_robot
-    from dhlog.simulate.config import SimulationConfig
-    from dhlog.simulate.session import simulate_session
+    from dhlog.simulator.config import SimulationConfig
+    from dhlog.simulator.session import simulate_session
 
     cfg = SimulationConfig(
         seed=seed,

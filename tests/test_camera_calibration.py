@@ -27,7 +27,7 @@ from dhlog.identify.fit.prediction import predict
 from dhlog.identify.run import process_data
 from dhlog.io.dhfile import DHModel
 from dhlog.result.document import result_document
-from dhlog.simulate.camera import CAMERA, Rig, camera_poses
+from dhlog.simulator.camera import CAMERA, Rig, camera_poses
 
 
 def _fk_rms(a: AxisModel, b: AxisModel, Q: np.ndarray) -> float:

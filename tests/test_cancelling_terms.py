@@ -21,8 +21,8 @@ from dhlog.io.memory import log_data_from_session
 from dhlog.model import terms as ng
 from dhlog.model.fk import fk_frames, fk_point
 from dhlog.model.robots import load_robot
-from dhlog.simulate.config import SimulationConfig
-from dhlog.simulate.session import Session, simulate_session
+from dhlog.simulator.config import SimulationConfig
+from dhlog.simulator.session import Session, simulate_session
 
 #: The truth's compliance (rad per N·m): joints 2 and 3 of a KR5 bend ≈ 6″ and 3″ under its
 #: own masses and 5 kg at the tool, ≈ 0.05 mm at the target.

@@ -20,8 +20,8 @@ from dhlog.io.memory import log_data_from_session
 from dhlog.model.fk import fk_frames
 from dhlog.model.robots import load_robot
 from dhlog.result.document import result_document
-from dhlog.simulate.config import SimulationConfig
-from dhlog.simulate.session import simulate_session
+from dhlog.simulator.config import SimulationConfig
+from dhlog.simulator.session import simulate_session
 
 runner = CliRunner()
 

@@ -24,6 +24,18 @@ OLD_PATHS = [
     ("dhlog.segment", ["segment_log"], "dhlog.process(log, ...)", "dhlog.identify.segment.segment"),
     ("dhlog.identify.noise", ["NoiseModel"], "dhlog.process(log, ...)", "dhlog.model.noise"),
     (
+        "dhlog.simulate.config",
+        ["SimulationConfig"],
+        "dhlog.simulate(robot, out, ...)",
+        "dhlog.simulator.config",
+    ),
+    (
+        "dhlog.simulate.camera",
+        ["simulate_detections", "simulate_vision"],
+        "dhlog.simulate(robot, out, ...)",
+        "dhlog.simulator.camera",
+    ),
+    (
         "dhlog.identify.whole",
         ["fit_whole_model", "AxisModel"],
         "dhlog.process(log, ...)",

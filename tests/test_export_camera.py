@@ -32,9 +32,9 @@ from dhlog.model.fk import fk_frames
 from dhlog.model.robots import load_robot
 from dhlog.result.document import result_document
 from dhlog.result.export.camera import T_LINK_OPTICAL, frame_name
-from dhlog.simulate.camera import camera_poses, place_rig
-from dhlog.simulate.config import SimulationConfig
-from dhlog.simulate.robot import perturbed
+from dhlog.simulator.camera import camera_poses, place_rig
+from dhlog.simulator.config import SimulationConfig
+from dhlog.simulator.robot import perturbed
 
 runner = CliRunner()
 #: The URDF's numbers are written with 17 digits; composing a 9-link chain loses ~1e-15.

@@ -22,8 +22,8 @@ from dhlog.io.memory import log_data_from_session
 from dhlog.model.fk import fk_frames, fk_point
 from dhlog.model.robots import load_robot
 from dhlog.result.document import nominal_difference, result_document
-from dhlog.simulate.config import SimulationConfig
-from dhlog.simulate.session import Session, simulate_session
+from dhlog.simulator.config import SimulationConfig
+from dhlog.simulator.session import Session, simulate_session
 
 ROBOT = dataclasses.replace(load_robot("ur5"), tool_point=np.array([0.0004, 0.0, 0.08]))
 #: 300 random still poses, 0.1 mm tracker noise, 5 Hz (1–2 samples a pose), off by 0.5 mm/0.05°

@@ -21,8 +21,8 @@ from dhlog.model.fk import fk_point
 from dhlog.model.noise import NoiseModel
 from dhlog.model.robots import load_robot
 from dhlog.result.document import result_document
-from dhlog.simulate.config import SimulationConfig
-from dhlog.simulate.session import Session, simulate_session
+from dhlog.simulator.config import SimulationConfig
+from dhlog.simulator.session import Session, simulate_session
 
 from chains import fk_error
 

@@ -19,8 +19,8 @@ from dhlog.identify.run import process_log
 from dhlog.io.reader import read_log
 from dhlog.model.fk import fk_point
 from dhlog.model.robots import load_robot
-from dhlog.simulate.config import SimulationConfig
-from dhlog.simulate.session import Session, simulate_session
+from dhlog.simulator.config import SimulationConfig
+from dhlog.simulator.session import Session, simulate_session
 
 runner = CliRunner()
 NOISE = 1e-5

@@ -25,8 +25,8 @@ from dhlog.io.pipeline import load_pipeline, parse_pipeline, pipeline_by_name, s
 from dhlog.io.reader import read_log
 from dhlog.io.writer import write_session
 from dhlog.model.robots import load_robot
-from dhlog.simulate.config import SimulationConfig
-from dhlog.simulate.session import Session, simulate_session
+from dhlog.simulator.config import SimulationConfig
+from dhlog.simulator.session import Session, simulate_session
 
 ENCODINGS = ["ros2", "json", "protobuf"]
 

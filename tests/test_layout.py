@@ -7,10 +7,10 @@ from pathlib import Path
 
 SRC = Path(__file__).parents[1] / "src"
 FLOORS = (
-    "_version _deprecated errors geometry model vision io identify result simulate present fleet"
+    "_version _deprecated errors geometry model vision io identify result simulator present fleet"
     " cell api cli entry __main__"
     # the top-level paths an earlier README documented: deprecated shims handing on moved modules
-    " kinematics robots dhfile extract segment"
+    " kinematics robots dhfile extract segment simulate"
 )
 MODULES = {
     ".".join(path.relative_to(SRC).with_suffix("").parts).removesuffix(".__init__"): path

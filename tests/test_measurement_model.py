@@ -16,8 +16,8 @@ from dhlog.identify.fit.whole import fit_whole_model
 from dhlog.model.fk import fk_point
 from dhlog.model.noise import NoiseModel
 from dhlog.model.robots import load_robot
-from dhlog.simulate.config import SimulationConfig
-from dhlog.simulate.robot import perturbed
+from dhlog.simulator.config import SimulationConfig
+from dhlog.simulator.robot import perturbed
 
 SIGMA = 1e-5  # 10 µm, a tracker's
 

@@ -25,9 +25,9 @@ from dhlog.model import terms as ng
 from dhlog.model.fk import fk_frames, fk_point
 from dhlog.model.robots import load_robot
 from dhlog.result.document import result_document, terms_csv
-from dhlog.simulate.config import SimulationConfig
-from dhlog.simulate.robot import masses_urdf
-from dhlog.simulate.session import Session, simulate_session
+from dhlog.simulator.config import SimulationConfig
+from dhlog.simulator.robot import masses_urdf
+from dhlog.simulator.session import Session, simulate_session
 from test_identify import truth_model
 
 runner = CliRunner()

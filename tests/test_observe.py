@@ -33,7 +33,7 @@ from dhlog.errors import PipelineError
 from dhlog.io import ros2
 from dhlog.io.observe import VisionLogError, observe
 from dhlog.io.pipeline import Pipeline, parse_pipeline, pipeline_by_name
-from dhlog.simulate.camera import TOPICS, VisionSession
+from dhlog.simulator.camera import TOPICS, VisionSession
 from dhlog.vision.camera import Intrinsics
 from dhlog.vision.observe import Decimation, joint_values_at
 
@@ -60,8 +60,8 @@ class Base:
 @pytest.fixture(scope="module")
 def base(tmp_path_factory: pytest.TempPathFactory) -> Base:
     from dhlog.model.robots import load_robot
-    from dhlog.simulate.camera import simulate_vision, write_vision_log
-    from dhlog.simulate.config import SimulationConfig
+    from dhlog.simulator.camera import simulate_vision, write_vision_log
+    from dhlog.simulator.config import SimulationConfig
 
     cfg = SimulationConfig(
         seed=3,
@@ -305,8 +305,8 @@ def test_several_cameras_each_observed_and_one_without_intrinsics_left_out(
     tmp_path: Path,
 ) -> None:
     from dhlog.model.robots import load_robot
-    from dhlog.simulate.camera import simulate_vision, write_vision_log
-    from dhlog.simulate.config import SimulationConfig
+    from dhlog.simulator.camera import simulate_vision, write_vision_log
+    from dhlog.simulator.config import SimulationConfig
 
     cfg = SimulationConfig(seed=3, poses=10, protocol="random-poses", joint_rate=20.0,
                            instrument="camera", camera_setup="eye-to-hand")  # fmt: skip

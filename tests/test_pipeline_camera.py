@@ -16,7 +16,7 @@ from dhlog.errors import PipelineError
 from dhlog.io import ros2
 from dhlog.io.pipeline import load_pipeline, parse_pipeline, pipeline_by_name
 from dhlog.io.reader import read_log
-from dhlog.simulate.camera import BOARD
+from dhlog.simulator.camera import BOARD
 from dhlog.vision.boards import BoardSpec
 
 S = 1_000_000_000

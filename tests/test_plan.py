@@ -14,7 +14,7 @@ from dhlog.cell.plan import plan_session, select_poses
 from dhlog.cli.app import app
 from dhlog.errors import InputError
 from dhlog.model.robots import load_robot
-from dhlog.simulate.config import SimulationConfig
+from dhlog.simulator.config import SimulationConfig
 
 runner = CliRunner()
 
@@ -75,7 +75,7 @@ def test_select_chooses_more_informative_poses(tmp_path: Path) -> None:
     assert done.exit_code == 0, done.output
     truth = json.loads(log.with_name("chosen.truth.json").read_text())
     assert truth["simulation"]["poses"] == 40
-    from dhlog.simulate.protocols import random_poses
+    from dhlog.simulator.protocols import random_poses
 
     listed = tuple(tuple(np.radians(C[r - 1])) for r in rows)
     replayed = random_poses(rob, SimulationConfig(pose_list=listed), np.zeros(6))
@@ -87,7 +87,7 @@ def test_select_chooses_more_informative_poses(tmp_path: Path) -> None:
 def test_simulate_replays_a_pose_list() -> None:
     """A pose list is visited in order: the session's still poses are the list's, and each is
     where the robot stands while the tracker measures (the encoders read it)."""
-    from dhlog.simulate.session import simulate_session
+    from dhlog.simulator.session import simulate_session
 
     rob = load_robot("kr5")
     Q = np.random.default_rng(4).uniform(rob.limits[:, 0], rob.limits[:, 1], (6, 6))
@@ -132,7 +132,7 @@ def test_the_simulated_tracker_scatters_along_its_line_of_sight() -> None:
     """simulate's tracker model: the residuals' spread along the line of sight is the radial
     σ, across it the transverse σ at that distance (30 000 samples: ±1 % each)."""
     from dhlog.model.fk import fk_point
-    from dhlog.simulate.session import simulate_session
+    from dhlog.simulator.session import simulate_session
 
     robot = load_robot("kr5")
     cfg = SimulationConfig(

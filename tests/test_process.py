@@ -26,8 +26,8 @@ from dhlog.model.fk import fk_point
 from dhlog.model.robots import load_robot
 from dhlog.present.recording import write_process_recording
 from dhlog.result.document import nominal_difference, result_csv, result_document
-from dhlog.simulate.config import SimulationConfig
-from dhlog.simulate.session import simulate_session
+from dhlog.simulator.config import SimulationConfig
+from dhlog.simulator.session import simulate_session
 
 SAMPLES = Path(__file__).parents[1] / "sample_logs"
 LOGS = sorted(SAMPLES.glob("*.mcap"))

@@ -27,9 +27,9 @@ from dhlog.io.writer import write_session
 from dhlog.model.fk import fk_point
 from dhlog.model.robots import Robot, load_robot
 from dhlog.result.document import result_document
-from dhlog.simulate.config import SimulationConfig
-from dhlog.simulate.session import Session, simulate_session
-from dhlog.simulate.tracker import default_measurement_pose
+from dhlog.simulator.config import SimulationConfig
+from dhlog.simulator.session import Session, simulate_session
+from dhlog.simulator.tracker import default_measurement_pose
 
 from chains import fk_error
 

@@ -24,8 +24,8 @@ from dhlog.model.fk import fk_point, fk_points_chunked
 from dhlog.model.robots import load_robot
 from dhlog.present.console import print_result
 from dhlog.result.document import display_rows, nominal_difference, result_csv, result_document
-from dhlog.simulate.config import SimulationConfig
-from dhlog.simulate.session import Session, simulate_session
+from dhlog.simulator.config import SimulationConfig
+from dhlog.simulator.session import Session, simulate_session
 
 
 def perturbed(robot: str, seed: int, deg: float = 0.05, mm: float = 0.5) -> Session:

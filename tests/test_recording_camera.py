@@ -36,7 +36,7 @@ from dhlog.present.recording.camera import (
 from dhlog.present.recording.scene import Shown
 from dhlog.present.recording.stream import recording_file
 from dhlog.present.render import missing, screenshot
-from dhlog.simulate import camera as sim
+from dhlog.simulator import camera as sim
 from dhlog.vision.detect import Detection, detect
 from dhlog.vision.view import CameraView, FrameView
 from test_process import SAMPLES, rrd_verify

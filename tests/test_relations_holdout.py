@@ -28,8 +28,8 @@ from dhlog.io.memory import log_data_from_session
 from dhlog.model.fk import fk_point
 from dhlog.model.noise import NoiseModel
 from dhlog.model.robots import load_robot
-from dhlog.simulate.config import SimulationConfig
-from dhlog.simulate.session import Session, simulate_session
+from dhlog.simulator.config import SimulationConfig
+from dhlog.simulator.session import Session, simulate_session
 
 NOISE = 3e-5
 

@@ -15,10 +15,10 @@ from typer.testing import CliRunner
 from dhlog.cli.app import app
 from dhlog.model.fk import fk_frames, fk_point
 from dhlog.model.robots import load_robot
-from dhlog.simulate.config import SimulationConfig, config_problems
-from dhlog.simulate.protocols import MIN_POSE_CHANGE, swept_joints
-from dhlog.simulate.session import Session, simulate_session
-from dhlog.simulate.truth import truth_document
+from dhlog.simulator.config import SimulationConfig, config_problems
+from dhlog.simulator.protocols import MIN_POSE_CHANGE, swept_joints
+from dhlog.simulator.session import Session, simulate_session
+from dhlog.simulator.truth import truth_document
 
 #: SHA-256 of point_xyz and joint_q of ``simulate_session(kr5, SimulationConfig())``, computed
 #: before the protocols and the model error were added: the default path draws nothing new

@@ -39,7 +39,7 @@ from dhlog.io.images import ImageStream
 from dhlog.model.dh import JointType, StandardDH
 from dhlog.model.fk import fk_frames
 from dhlog.model.robots import load_robot
-from dhlog.simulate.camera import (
+from dhlog.simulator.camera import (
     CAMERA_SPREAD,
     MIN_SWEEP_FRAMES,
     MIN_SWEEP_SEEN,
@@ -54,7 +54,7 @@ from dhlog.simulate.camera import (
     vision_truth,
     write_vision_log,
 )
-from dhlog.simulate.config import SimulationConfig
+from dhlog.simulator.config import SimulationConfig
 from dhlog.vision.boards import BoardSpec
 from dhlog.vision.camera import Intrinsics
 from dhlog.vision.detect import Detection, detect

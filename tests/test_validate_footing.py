@@ -33,9 +33,9 @@ from dhlog.io.pipeline import parse_pipeline
 from dhlog.io.writer import write_session
 from dhlog.model.fk import fk_frames, fk_point
 from dhlog.model.robots import Robot, load_robot
-from dhlog.simulate.config import SimulationConfig
-from dhlog.simulate.session import Session, simulate_session
-from dhlog.simulate.tracker import default_measurement_pose
+from dhlog.simulator.config import SimulationConfig
+from dhlog.simulator.session import Session, simulate_session
+from dhlog.simulator.tracker import default_measurement_pose
 
 OFF = {"perturb_length": 2e-4, "perturb_angle": math.radians(0.05)}
 ROTATION = (0.3, -0.2, 0.5)  # the probe's frame on the flange (rotation vector)

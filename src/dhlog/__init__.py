@@ -17,7 +17,6 @@ if TYPE_CHECKING:
     from dhlog.api import (
         Calibration,
         Simulation,
-        UsageError,
         load,
         plan,
         process,
@@ -26,7 +25,7 @@ if TYPE_CHECKING:
     )
     from dhlog.cell.compensate import Compensation
     from dhlog.cell.plan import Plan, Tracker
-    from dhlog.errors import DhlogError, InputError
+    from dhlog.errors import DhlogError, InputError, UsageError
     from dhlog.geometry.circles import fit_circle
     from dhlog.identify.read.extract import extract_dh
     from dhlog.model.dh import JointType, ModifiedDH, StandardDH
@@ -44,7 +43,7 @@ _PUBLIC = {
     "robot": "dhlog.api",
     "Calibration": "dhlog.api",
     "Simulation": "dhlog.api",
-    "UsageError": "dhlog.api",
+    "UsageError": "dhlog.errors",
     "Compensation": "dhlog.cell.compensate",
     "Plan": "dhlog.cell.plan",
     "Tracker": "dhlog.cell.plan",

@@ -180,3 +180,8 @@ class FieldError(InputError):
         self.where = where
         self.field_name = field_name
         super().__init__(f"{where}: {field_name} {problem}; {todo}.")
+
+
+class UsageError(DhlogError, ValueError):
+    """An argument that cannot be used — of the Python API (``dhlog.process(holdout=1)``) or of
+    a command; the message names it and what to give."""

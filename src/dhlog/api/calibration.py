@@ -17,7 +17,7 @@ from typing import TYPE_CHECKING, Any, Literal
 import numpy as np
 from numpy.typing import ArrayLike
 
-from dhlog.errors import DhlogError
+from dhlog.errors import UsageError
 from dhlog.geometry._checks import FloatArray
 from dhlog.model.dh import ModifiedDH, StandardDH, standard_to_modified
 from dhlog.model.fk import fk_frames, fk_point
@@ -38,10 +38,6 @@ EXPORT_FORMATS: tuple[str, ...] = ("urdf", "ur", "rtb", "dh-csv", "dh-json", "tf
 
 #: The DH parameters of a row, in the result's order, and their SI units.
 _PARAMETERS = (("theta", "rad"), ("d", "m"), ("a", "m"), ("alpha", "rad"))
-
-
-class UsageError(DhlogError, ValueError):
-    """An argument of the Python API that cannot be used (the message names it and what to give)."""
 
 
 @dataclass(eq=False)
@@ -324,12 +320,7 @@ class Calibration:
         ``error`` (the pose error left per target, m or rad) and ``problems`` (row → why)."""
         from dhlog.cell.compensate import compensate
 
-        controller = self.nominal if nominal is None else _dh_model(nominal)
-        if controller is None:
-            raise UsageError(
-                "compensate: this calibration names no nominal; pass nominal= (a library robot "
-                "name, a DH file or dhlog.robot(...)) — the model the controller runs."
-            )
+        controller, bounds = self._controller(nominal, limits, "compensate")
         Q = np.asarray(targets, dtype=np.float64)
         if Q.ndim == 1:
             Q = Q[None]
@@ -339,12 +330,57 @@ class Calibration:
             )
         if not np.all(np.isfinite(Q)):
             raise UsageError("compensate: targets must be finite numbers.")
-        bounds = None
-        if limits is not None:
-            bounds = np.asarray(limits, dtype=np.float64)
-        elif nominal is None or not isinstance(nominal, str) or Path(nominal).suffix == "":
-            bounds = self.limits if nominal is None else _library_limits(nominal)
         return compensate(self.model, controller, Q, limits=bounds)
+
+    def compensate_poses(
+        self,
+        poses: ArrayLike,
+        *,
+        configuration: ArrayLike | None = None,
+        nominal: str | Path | DHModel | Robot | Calibration | None = None,
+        limits: ArrayLike | None = None,
+    ) -> Compensation:
+        """Cartesian targets (m, 4, 4: the last frame in the nominal's base frame, m) to the
+        joint targets that make the calibrated robot reach them (``dhlog compensate --poses``);
+        ``configuration`` (m, n): the controller's joint configuration per target (default: the
+        nearest solution from home or seeded starts). ``nominal`` and ``limits`` as in
+        :meth:`compensate`."""
+        from dhlog.cell.compensate import compensate_poses
+
+        controller, bounds = self._controller(nominal, limits, "compensate_poses")
+        T = np.asarray(poses, dtype=np.float64)
+        if T.ndim == 2:
+            T = T[None]
+        if T.ndim != 3 or T.shape[1:] != (4, 4) or not np.all(np.isfinite(T)):
+            raise UsageError(
+                f"compensate_poses: poses must be finite (m, 4, 4) transforms, not shape {T.shape}."
+            )
+        config = None
+        if configuration is not None:
+            config = np.asarray(configuration, dtype=np.float64).reshape(-1, self.n)
+        return compensate_poses(self.model, controller, T, configuration=config, limits=bounds)[0]
+
+    def _controller(
+        self,
+        nominal: str | Path | DHModel | Robot | Calibration | None,
+        limits: ArrayLike | None,
+        what: str,
+    ) -> tuple[DHModel, FloatArray | None]:
+        """The controller's model and the joints' limits for a compensation."""
+        controller = self.nominal if nominal is None else _dh_model(nominal)
+        if controller is None:
+            raise UsageError(
+                f"{what}: this calibration names no nominal; pass nominal= (a library robot "
+                "name, a DH file or dhlog.robot(...)) — the model the controller runs."
+            )
+        if controller.table.n != self.n:
+            raise UsageError(
+                f"{what}: the nominal {controller.source} has {controller.table.n} joints but "
+                f"the calibration has {self.n}; give the nominal of this robot."
+            )
+        if limits is not None:
+            return controller, np.asarray(limits, dtype=np.float64)
+        return controller, self.limits if nominal is None else _library_limits(nominal)
 
     def save(
         self,

@@ -21,7 +21,7 @@ from dhlog.errors import DhlogError
 if TYPE_CHECKING:
     from dhlog.cell.plan import Plan, Tracker
     from dhlog.model.robots import Robot
-    from dhlog.simulate.config import SimulationConfig
+    from dhlog.simulator.config import SimulationConfig
 
 #: ``process(model=…)``: the terms beyond the geometry to try (auto) or force.
 ModelName = Literal["auto", "geometric", "compliance", "harmonic", "full"]
@@ -211,6 +211,8 @@ class Simulation:
     urdf: Path | None = None
     notes: list[str] = field(default_factory=list)
     warnings: list[str] = field(default_factory=list)
+    #: what the log holds, in words (the command's "wrote" line)
+    described: str = ""
 
     def truth_model(self) -> Calibration:
         """The simulated robot's true model, read back (compare a calibration with it)."""
@@ -247,8 +249,8 @@ def simulate(
     ``joint_rate`` (Hz), ``model_error`` (m), ``perturb_length`` (m), ``perturb_angle`` (rad):
     the robot off its nominal, ``clock_offset`` (s), ``outliers``, ``dropouts`` (fractions),
     ``compliance`` ((joint, rad/N·m), …), ``harmonic`` ((joint, a, b), …), ``camera_setup``,
-    ``image_format``, … (every field of ``dhlog.simulate.config.SimulationConfig``)."""
-    from dhlog.simulate.config import SimulationConfig
+    ``image_format``, … (every field of ``dhlog.simulator.config.SimulationConfig``)."""
+    from dhlog.simulator.config import SimulationConfig
 
     known = {f.name for f in dataclasses.fields(SimulationConfig)}
     unknown = sorted(set(options) - known)
@@ -298,10 +300,10 @@ def simulate_config(
     path)."""
     from dhlog._version import __version__
     from dhlog.io.writer import sha256_of, write_session, write_truth
-    from dhlog.simulate.config import config_problems
-    from dhlog.simulate.protocols import swept_joints
-    from dhlog.simulate.session import simulate_session
-    from dhlog.simulate.truth import truth_document
+    from dhlog.simulator.config import config_problems
+    from dhlog.simulator.protocols import swept_joints
+    from dhlog.simulator.session import simulate_session
+    from dhlog.simulator.truth import truth_document
 
     if encoding not in ("ros2", "json", "protobuf"):
         raise UsageError(f"simulate: encoding must be ros2, json or protobuf, not {encoding!r}.")
@@ -315,7 +317,7 @@ def simulate_config(
             raise UsageError(f"{path} exists; pass overwrite=True (--force) to replace it.")
     problems = config_problems(rob, cfg)
     if problems:
-        raise UsageError(f"simulate: {problems[0]}.")
+        raise UsageError(f"{problems[0]}.")
     if cfg.instrument == "camera":
         if encoding != "ros2":
             raise UsageError("simulate: a vision log is written in ros2 encoding only, so far.")
@@ -352,17 +354,19 @@ def simulate_config(
     write_truth(doc, truth_path)
     if urdf_path is not None:  # the maker's description of the masses, for --masses
         from dhlog.io.writer import atomic_output
-        from dhlog.simulate.robot import masses_urdf
+        from dhlog.simulator.robot import masses_urdf
 
         with atomic_output(urdf_path) as f:
             f.write(masses_urdf(rob).encode())
+    samples, states = int(session.point_xyz.shape[0]), int(session.joint_t_ns.size)
     return Simulation(
         output,
         truth_path,
-        int(session.point_xyz.shape[0]),
-        int(session.joint_t_ns.size),
+        samples,
+        states,
         urdf_path,
         notes,
+        described=f"{samples} target samples, {states} joint states, {encoding}",
     )
 
 
@@ -377,9 +381,9 @@ def _simulate_vision(
     exposure: float,
     version: str,
 ) -> Simulation:
-    """``instrument="camera"``: the vision log and its truth (:mod:`dhlog.simulate.camera`)."""
+    """``instrument="camera"``: the vision log and its truth (:mod:`dhlog.simulator.camera`)."""
     from dhlog.io.writer import sha256_of, write_truth
-    from dhlog.simulate.camera import (
+    from dhlog.simulator.camera import (
         simulate_vision,
         vision_problems,
         vision_truth,
@@ -388,7 +392,7 @@ def _simulate_vision(
 
     problems = vision_problems(cfg.camera_setup, preset, frame_rate, cameras, exposure)
     if problems:
-        raise UsageError(f"simulate: {problems[0]}.")
+        raise UsageError(f"{problems[0]}.")
     vision = simulate_vision(
         rob,
         cfg,
@@ -418,14 +422,16 @@ def _simulate_vision(
     where = (
         f"{cfg.camera_setup}, {len(vision.cameras)} cameras" if cameras > 1 else cfg.camera_setup
     )
+    states = int(vision.session.joint_t_ns.size)
     return Simulation(
         output,
         truth_path,
         int(vision.frame_t_ns.size),
-        int(vision.session.joint_t_ns.size),
+        states,
         None,
-        [*vision.notes, f"{frames} {kind} frames of a ChArUco board, {where}"],
+        [f"{note}." for note in vision.notes],
         list(vision.warnings),
+        described=f"{frames} {kind} frames of a ChArUco board, {where}, {states} joint states",
     )
 
 
@@ -450,7 +456,7 @@ def plan(
     Returns a :class:`~dhlog.Plan`: ``rows_std`` (n, 4: θ, d or β, a, α; NaN where fixed),
     ``fk_sd`` (m, at random joint vectors within the limits), ``fixed`` (why), ``samples``."""
     from dhlog.cell.plan import plan_session
-    from dhlog.simulate.config import SIX_DOF_TOOL_ROTATION, SimulationConfig, config_problems
+    from dhlog.simulator.config import SIX_DOF_TOOL_ROTATION, SimulationConfig, config_problems
 
     rob = robot if not isinstance(robot, (str, Path)) else _robot(str(robot))
     cfg = SimulationConfig(
@@ -467,5 +473,5 @@ def plan(
     )
     problems = config_problems(rob, cfg)
     if problems:
-        raise UsageError(f"plan: {problems[0]}.")
+        raise UsageError(f"{problems[0]}.")
     return plan_session(rob, cfg, tracker)

@@ -22,8 +22,8 @@ from dhlog.errors import InputError
 from dhlog.geometry._checks import FloatArray
 from dhlog.model.noise import NoiseModel
 from dhlog.model.robots import Robot
-from dhlog.simulate.config import SimulationConfig
-from dhlog.simulate.session import simulate_session
+from dhlog.simulator.config import SimulationConfig
+from dhlog.simulator.session import simulate_session
 
 #: Joint vectors (seeded, uniform within the limits) the FK σ is predicted at.
 WORKSPACE_POINTS = 300
@@ -156,7 +156,7 @@ def plan_session(robot: Robot, cfg: SimulationConfig, tracker: Tracker | None = 
     if tracker is not None:
         T_mr = tracker.measurement_pose()
         if cfg.protocol == "random-poses":
-            from dhlog.simulate.protocols import random_poses
+            from dhlog.simulator.protocols import random_poses
 
             home = np.clip(np.zeros(robot.n), robot.limits[:, 0], robot.limits[:, 1])
             Q = random_poses(robot, cfg, home)

@@ -12,7 +12,7 @@ import numpy as np
 import typer
 
 from dhlog.cli.common import EXIT_USAGE, fail, plain, refuse_existing, stderr, stdout
-from dhlog.cli.options import floats, load_model
+from dhlog.cli.options import floats
 from dhlog.errors import DhlogError, OutputError
 
 
@@ -56,10 +56,8 @@ def compensate(
 ) -> None:
     """Correct joint targets for a controller that keeps its nominal model: the calibrated robot
     (its terms beyond the geometry included) then reaches the pose the controller intended."""
-    from dhlog.cell.compensate import compensate as corrected
     from dhlog.cell.compensate import read_targets, targets_csv
     from dhlog.io.writer import atomic_output
-    from dhlog.model.robots import load_robot, robot_names
 
     if angle_unit not in ("rad", "deg"):
         stderr.print(f"error: --angle-unit must be rad or deg, not '{plain(angle_unit)}'.")
@@ -78,13 +76,12 @@ def compensate(
         return
     assert joints is not None
     try:
-        model, nom = _result_and_nominal(result, nominal)
-        header, Q = read_targets(joints, model.table.n)
-        revolute = np.array([t.value == "revolute" for t in model.table.joint_types])
+        calibration = _result_and_nominal(result, nominal)
+        header, Q = read_targets(joints, calibration.n)
+        revolute = np.array([t.value == "revolute" for t in calibration.table.joint_types])
         if angle_unit == "deg":
             Q = np.where(revolute, np.radians(Q), Q)
-        limits = load_robot(nominal).limits if nominal in robot_names() else None
-        done = corrected(model, nom, Q, limits=limits)
+        done = calibration.compensate(Q)
         shown = np.where(revolute, np.degrees(done.targets), done.targets)
         if angle_unit != "deg":
             shown = done.targets
@@ -106,40 +103,38 @@ def compensate(
     )
 
 
-def _result_and_nominal(result: Path, nominal: str) -> tuple[Any, Any]:
-    """The calibrated model of ``result`` and the controller's nominal, of the same robot."""
+def _result_and_nominal(result: Path, nominal: str) -> Any:
+    """The calibration of ``result`` with the controller's nominal, of the same robot."""
+    from dhlog.api import load
     from dhlog.errors import InputError
-    from dhlog.io.dhfile import load_dh
 
-    model = load_dh(result)
-    nom = load_model(nominal)
-    if nom.table.n != model.table.n:
+    calibration = load(result, nominal=nominal)
+    nom = calibration.nominal
+    if nom is not None and nom.table.n != calibration.n:
         raise InputError(
-            f"{nominal}: has {nom.table.n} joints but {result} has {model.table.n}; give the "
+            f"{nominal}: has {nom.table.n} joints but {result} has {calibration.n}; give the "
             "nominal of this robot."
         )
-    return model, nom
+    return calibration
 
 
 def _compensate_poses(
     result: Path, nominal: str, poses: Path, output: Path, angle_unit: str
 ) -> None:
     """``dhlog compensate --poses CSV``: Cartesian targets to corrected joint targets."""
-    from dhlog.cell.compensate import compensate_poses, poses_csv, read_poses
+    from dhlog.cell.compensate import poses_csv, read_poses
     from dhlog.io.writer import atomic_output
-    from dhlog.model.robots import load_robot, robot_names
 
     try:
-        model, nom = _result_and_nominal(result, nominal)
-        T, config = read_poses(poses, model.table.n)
-        revolute = np.array([t.value == "revolute" for t in model.table.joint_types])
+        calibration = _result_and_nominal(result, nominal)
+        T, config = read_poses(poses, calibration.n)
+        revolute = np.array([t.value == "revolute" for t in calibration.table.joint_types])
         scale = np.where(revolute & (angle_unit == "deg"), 180 / math.pi, 1.0)
         if config is not None:
             config = config / scale
-        limits = load_robot(nominal).limits if nominal in robot_names() else None
-        done, _ = compensate_poses(model, nom, T, configuration=config, limits=limits)
+        done = calibration.compensate_poses(T, configuration=config)
         with atomic_output(output) as f:
-            f.write(poses_csv(nom, done, scale).encode())
+            f.write(poses_csv(calibration.nominal, done, scale).encode())
     except DhlogError as exc:
         fail(exc)
     except OSError as exc:
@@ -227,10 +222,9 @@ def plan(
     from rich import box
     from rich.table import Table
 
-    from dhlog.cell.plan import plan_session
+    from dhlog.api import plan as plan_protocol
     from dhlog.io.dhfile import robot_or_dh_file
     from dhlog.io.writer import atomic_output
-    from dhlog.simulate.config import SIX_DOF_TOOL_ROTATION, SimulationConfig, config_problems
 
     tracker = _tracker(station, range_m, tracker_um)
     if candidates is not None or select:
@@ -240,23 +234,18 @@ def plan(
         refuse_existing(output, force)
     try:
         rob = robot_or_dh_file(robot)
-        cfg = SimulationConfig(
-            noise=noise_mm * 1e-3,
-            tracker_rate=tracker_rate,
-            motion="step",
-            sweep=math.radians(sweep_deg),
-            steps=steps,
+        found = plan_protocol(
+            rob,
             protocol=protocol,  # type: ignore[arg-type]
             poses=poses,
-            tool_rotation=SIX_DOF_TOOL_ROTATION if six_dof else None,
-            base_points=12,
+            steps=steps,
+            sweep=math.radians(sweep_deg),
+            noise=noise_mm * 1e-3,
+            tracker_rate=tracker_rate,
+            six_dof=six_dof,
             seed=seed,
+            tracker=tracker,
         )
-        problems = config_problems(rob, cfg)
-        if problems:
-            stderr.print(f"error: {plain(problems[0])}.")
-            raise typer.Exit(EXIT_USAGE)
-        found = plan_session(rob, cfg, tracker)
         if output is not None:
             with atomic_output(output) as f:
                 f.write(json.dumps(found.document(rob.name), indent=2).encode())

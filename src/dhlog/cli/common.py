@@ -135,7 +135,12 @@ def plain(text: object) -> str:
 
 
 def fail(exc: DhlogError, code: int = EXIT_INPUT) -> None:
-    """One line on stderr (the message is the log's text, never markup) and the exit code."""
+    """One line on stderr (the message is the log's text, never markup) and the exit code (a
+    :class:`~dhlog.errors.UsageError`, an argument that cannot be used: exit 1)."""
+    from dhlog.errors import UsageError
+
+    if isinstance(exc, UsageError) and code == EXIT_INPUT:
+        code = EXIT_USAGE
     stderr.print(f"[bold red]error:[/] {plain(exc)}", soft_wrap=True)
     raise typer.Exit(code)
 

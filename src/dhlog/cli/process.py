@@ -194,8 +194,9 @@ def process(
     """Identify the DH parameters from a calibration log and write <stem>.dh.json, .dh.csv, .rrd."""
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
-    from dhlog.fleet.batch import HOLDOUT_SUFFIX, TERMS_SUFFIX, write_results
-    from dhlog.identify.run import process_log
+    from dhlog.api.calibration import output_names, write_run
+    from dhlog.api.operations import process as identify
+    from dhlog.api.operations import run_of
     from dhlog.present.console import print_result
 
     if units not in ("mm", "m"):
@@ -239,13 +240,12 @@ def process(
         request = replace(request, masses=str(masses))
     folder = out if out is not None else log.parent
     stem = log.name.removesuffix(".zstd").removesuffix(".mcap")
-    outputs = [folder / f"{stem}.dh.json", folder / f"{stem}.dh.csv"]
-    if not no_rrd:
-        outputs.append(folder / f"{stem}.rrd")
-    if holdout or validate:
-        outputs.append(folder / f"{stem}{HOLDOUT_SUFFIX}")
-    if request.mode != "geometric" and not analytic_only:
-        outputs.append(folder / f"{stem}{TERMS_SUFFIX}")
+    outputs = output_names(
+        folder / f"{stem}.dh.json",
+        recording=not no_rrd,
+        heldout=bool(holdout or validate),
+        terms=request.mode != "geometric" and not analytic_only,
+    )
     inputs = {p.resolve() for p in [log, *(validate or [])]}
     clash = [plain(p) for p in outputs if p.resolve() in inputs]
     if clash:
@@ -263,7 +263,8 @@ def process(
             unit = angle_unit or (pipe.angle_unit if pipe is not None else "rad")
             types = pipe.joint_types if pipe is not None and pipe.joint_types else None
             ref = angles(ref, unit, types)
-        nom = load_model(nominal) if nominal is not None else None
+        if nominal is not None:
+            load_model(nominal)  # a wrong nominal is named before the log is read
         with Progress(
             TextColumn("{task.description}"),
             BarColumn(),
@@ -277,22 +278,28 @@ def process(
             def advance(stage: str, fraction: float) -> None:
                 bar.update(task, description=f"{stage} {plain(log.name)}", completed=fraction)
 
-            result = process_log(
+            calibration = identify(
                 log,
-                pipeline=pipe,
-                nominal=nom,
+                nominal=nominal,
+                pipeline=pipeline,
                 reference_pose=ref,
                 analytic_only=analytic_only,
-                fit_scales=fit_encoder_scales,
+                fit_encoder_scales=fit_encoder_scales,
                 holdout=holdout,
                 validate=list(validate or []),
-                model=request,
+                model=request.mode,
+                gravity=request.gravity,
+                harmonic_joints=None
+                if request.harmonic_joints is None
+                else [j + 1 for j in request.harmonic_joints],
+                masses=request.masses,
                 progress=advance,
-                camera_setup=camera_setup,
+                camera_setup=camera_setup,  # type: ignore[arg-type]
                 refine_intrinsics=refine_intrinsics,
                 jobs=jobs,
                 frames=frame_range,
             )
+            result = run_of(calibration)
             if refine:
                 result.info.append(
                     "--refine is a no-op: the fit of the whole model to every sample is the "
@@ -302,9 +309,9 @@ def process(
             advance("writing", 0.0)
             try:
                 folder.mkdir(parents=True, exist_ok=True)  # --out is created when missing
-                write_results(result, outputs, units, hold_signals=True, with_log=with_log)
             except OSError as exc:
                 raise OutputError(folder, exc) from None
+            write_run(calibration, outputs, units, hold_signals=True, with_log=with_log)
     except DhlogError as exc:
         fail(exc)
     if result.log.pipeline_reason:

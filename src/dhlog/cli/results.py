@@ -60,7 +60,7 @@ def export(
     force: Annotated[bool, typer.Option("--force", help="Overwrite the output.")] = False,
 ) -> None:
     """Write the identified model in a form a robot stack loads."""
-    from dhlog.io.dhfile import robot_or_dh_file
+    from dhlog.api import load
     from dhlog.io.paths import refuse_inputs_as_outputs
     from dhlog.io.writer import atomic_output
     from dhlog.result import export as exports
@@ -92,23 +92,18 @@ def export(
     refuse_existing(output, force)
     extra = ""
     try:
-        if format == "urdf" and template is not None:
-            text = exports.urdf_from_template(result, template)
-        elif format == "urdf":
-            limits = robot_or_dh_file(limits_from).limits if limits_from else None
-            text = exports.urdf_document(result, limits=limits, zero_offsets=zero_offsets)
-        elif format == "ur":
-            text, tcp = exports.ur_calibration(result)
+        text = load(result).export(
+            format,  # type: ignore[arg-type]
+            limits_from=limits_from,
+            template=template,
+            zero_offsets=zero_offsets,  # type: ignore[arg-type]
+        )
+        if format == "ur":
+            tcp = exports.ur_calibration(result)[1]
             extra = (
                 "; set the TCP on the controller to "
                 f"({tcp[0] * 1e3:.4f}, {tcp[1] * 1e3:.4f}, {tcp[2] * 1e3:.4f}) mm in tool0"
             )
-        elif format == "rtb":
-            text = exports.rtb_document(result)
-        elif format == "tf":
-            text = exports.static_transforms_document(result)
-        else:
-            text = exports.dh_table_document(result, format)
         with atomic_output(output) as f:
             f.write(text.encode())
     except DhlogError as exc:

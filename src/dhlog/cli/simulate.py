@@ -4,12 +4,11 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
-from typing import Annotated, Any, Literal
+from typing import Annotated, Any
 
 import numpy as np
 import typer
 
-from dhlog._version import __version__
 from dhlog.cli.common import (
     EXIT_USAGE,
     check_folder,
@@ -217,17 +216,14 @@ def simulate(
     force: Annotated[bool, typer.Option("--force", help="Overwrite existing outputs.")] = False,
 ) -> None:
     """Write a simulated calibration session and its ground truth."""
+    from dhlog.api.operations import simulate_config
     from dhlog.io.dhfile import robot_or_dh_file
-    from dhlog.io.writer import sha256_of, write_session, write_truth
-    from dhlog.simulate.config import (
+    from dhlog.simulator.config import (
         PROTOCOLS,
         SIX_DOF_TOOL_ROTATION,
         SimulationConfig,
         config_problems,
     )
-    from dhlog.simulate.protocols import swept_joints
-    from dhlog.simulate.session import simulate_session
-    from dhlog.simulate.truth import truth_document
 
     choices = {
         "encoding": (encoding, ("ros2", "json", "protobuf")),
@@ -312,59 +308,35 @@ def simulate(
         if problems:
             stderr.print(f"error: {plain(problems[0])}.")
             raise typer.Exit(EXIT_USAGE)
-        if cfg.instrument == "camera":
-            if encoding != "ros2":
-                stderr.print("error: a vision log is written in ros2 encoding only, so far.")
-                raise typer.Exit(EXIT_USAGE)
-            _simulate_vision(
-                rob, cfg, output, truth_path, camera, frame_rate, cameras, exposure_ms * 1e-3
-            )
-            return
-        session = simulate_session(rob, cfg)
-        swept = swept_joints(rob, cfg)
-        for k, (got, jt) in enumerate(zip(session.sweeps, rob.table.joint_types, strict=True)):
-            asked = cfg.sweep if jt.value == "revolute" else cfg.travel
-            if k + 1 in swept and got < asked - 1e-9:
-                shown = (
-                    f"sweep {math.degrees(got):.1f}° (asked {math.degrees(asked):g}°)"
-                    if jt.value == "revolute"
-                    else f"travel {got * 1e3:.1f} mm (asked {asked * 1e3:g} mm)"
-                )
-                stdout.print(f"note: joint {k + 1}: {shown}, as its limits allow.")
-        kind: Literal["point", "pose"] = "pose" if point_type == "pose" else "point"
-        write_session(session, output, encoding, point_type=kind)  # type: ignore[arg-type]
-        pipeline = (
-            "phase_markers"
-            if no_encoders
-            else {"ros2": "ros2_tracker", "json": "foxglove_json", "protobuf": "foxglove_protobuf"}[
-                encoding
-            ]
+        found = simulate_config(
+            rob,
+            cfg,
+            output,
+            encoding=encoding,
+            point_type=point_type,
+            camera=camera,
+            frame_rate=frame_rate,
+            cameras=cameras,
+            exposure=exposure_ms * 1e-3,
+            overwrite=True,  # refused above without --force
         )
-        doc = truth_document(
-            session,
-            source_path=output.name,
-            sha256=sha256_of(output),
-            pipeline=pipeline,
-            version=__version__,
-        )
-        write_truth(doc, truth_path)
-        if urdf_path is not None:  # the maker's description of the masses, for --masses
-            from dhlog.io.writer import atomic_output
-            from dhlog.simulate.robot import masses_urdf
-
-            with atomic_output(urdf_path) as f:
-                f.write(masses_urdf(rob).encode())
     except DhlogError as exc:
         fail(exc)
+    for note in found.notes:
+        stdout.print(f"note: {note}", markup=False)
+    for warning in found.warnings:
+        stderr.print(f"warning: {plain(warning)}.")
     stdout.print(
-        f"wrote {plain(output)} ({session.point_xyz.shape[0]} target samples, "
-        f"{session.joint_t_ns.size} joint states, {encoding}) and {plain(truth_path)}"
+        f"wrote {plain(output)} ({found.described}) and {plain(truth_path)}"
         + (
-            f"; {plain(urdf_path)} (the nominal robot with its lumped masses, for --masses)"
-            if urdf_path
+            f"; {plain(found.urdf)} (the nominal robot with its lumped masses, for --masses)"
+            if found.urdf
             else ""
-        )
+        ),
+        markup=False,
     )
+    if instrument == "camera":
+        return
     if six_dof:
         stdout.print(
             "note: the target's orientation is in /tracker/point: read it with "
@@ -378,69 +350,6 @@ def simulate(
             "[streams.point].",
             markup=False,
         )
-
-
-def _simulate_vision(
-    robot: Any,
-    cfg: Any,
-    output: Path,
-    truth_path: Path,
-    preset: str,
-    frame_rate: float,
-    cameras: int,
-    exposure: float,
-) -> None:
-    """``--instrument camera``: the vision log and its truth (see :mod:`dhlog.simulate.camera`)."""
-    from dhlog.io.writer import sha256_of, write_truth
-    from dhlog.simulate.camera import (
-        simulate_vision,
-        vision_problems,
-        vision_truth,
-        write_vision_log,
-    )
-
-    problems = vision_problems(cfg.camera_setup, preset, frame_rate, cameras, exposure)
-    if problems:
-        stderr.print(f"error: {plain(problems[0])}.")
-        raise typer.Exit(EXIT_USAGE)
-    vision = simulate_vision(
-        robot,
-        cfg,
-        cfg.camera_setup,
-        cfg.image_format,
-        preset=preset,
-        frame_rate=frame_rate,
-        cameras=cameras,
-        exposure=exposure,
-    )
-    if not vision.frame_t_ns.size:
-        raise DhlogError(
-            f"{robot.name}: the board is seen in no frame; try another --seed, --camera-setup "
-            "or --protocol"
-        )
-    for note in vision.notes:
-        stdout.print(f"note: {note}.", markup=False)
-    for warning in vision.warnings:
-        stderr.print(f"warning: {plain(warning)}.")
-    write_vision_log(vision, output, cfg.seed)
-    doc = vision_truth(
-        vision,
-        source_path=output.name,
-        sha256=sha256_of(output),
-        pipeline="none (a vision log)",
-        version=__version__,
-    )
-    write_truth(doc, truth_path)
-    kind = "Image" if cfg.image_format == "raw" else f"CompressedImage ({cfg.image_format})"
-    frames = " + ".join(str(view.frame_t_ns.size) for view in vision.cameras)
-    where = (
-        f"{cfg.camera_setup}, {len(vision.cameras)} cameras" if cameras > 1 else cfg.camera_setup
-    )
-    stdout.print(
-        f"wrote {plain(output)} ({frames} {kind} frames of a ChArUco board, {where}, "
-        f"{vision.session.joint_t_ns.size} joint states) and {plain(truth_path)}",
-        markup=False,
-    )
 
 
 def _pose_file(path: Path, robot: Any, angle_unit: str) -> tuple[tuple[float, ...], ...]:

@@ -1,6 +1,6 @@
 """What a session's log carries, as the writers and the in-memory reader take it.
 
-A structural type: :class:`dhlog.simulate.session.Session` (a simulated session with its truth)
+A structural type: :class:`dhlog.simulator.session.Session` (a simulated session with its truth)
 is one, so the writers stand below the simulator and never import it.
 """
 

@@ -78,10 +78,10 @@ from dhlog.geometry._checks import FloatArray
 from dhlog.model.dh import JointType
 from dhlog.model.fk import fk_frames
 from dhlog.model.robots import Robot
-from dhlog.simulate.config import SimulationConfig
-from dhlog.simulate.protocols import joints_at, keyframes, protocol_config, swept_joints
-from dhlog.simulate.robot import perturbed
-from dhlog.simulate.session import START_NS, Session, simulate_session
+from dhlog.simulator.config import SimulationConfig
+from dhlog.simulator.protocols import joints_at, keyframes, protocol_config, swept_joints
+from dhlog.simulator.robot import perturbed
+from dhlog.simulator.session import START_NS, Session, simulate_session
 from dhlog.vision.boards import BoardSpec
 from dhlog.vision.camera import Intrinsics
 
@@ -1114,7 +1114,7 @@ def vision_truth(vision: VisionSession, **source: str) -> dict[str, object]:
     the frames of each move (a moving protocol), the warnings; with several cameras, a
     ``cameras`` list too (each camera's rig, topics and frames; the ``camera`` block the
     first's)."""
-    from dhlog.simulate.truth import truth_document
+    from dhlog.simulator.truth import truth_document
 
     doc = truth_document(vision.session, **source)
     views = vision.cameras

@@ -68,7 +68,7 @@ class SimulationConfig:
     #: days after START_NS at which the session starts (a series of sessions)
     start_day: float = 0.0
     #: gravity compliance of the truth: (joint, rad per N·m), the torque from the robot's
-    #: lumped masses and payload (:func:`dhlog.simulate.robot.truth_terms`)
+    #: lumped masses and payload (:func:`dhlog.simulator.robot.truth_terms`)
     compliance: tuple[tuple[int, float], ...] = ()
     #: the payload (kg) at the tool point; None: the robot's
     payload: float | None = None
@@ -81,7 +81,7 @@ class SimulationConfig:
     #: ``tracker`` noise model of :mod:`dhlog.model.noise`)
     tracker_model: tuple[float, float, float] | None = None
     #: the instrument: a laser ``tracker`` (the default), or a ``camera`` and a ChArUco board
-    #: (a vision log: :mod:`dhlog.simulate.camera`, every protocol)
+    #: (a vision log: :mod:`dhlog.simulator.camera`, every protocol)
     instrument: Literal["tracker", "camera"] = "tracker"
     #: the camera's set-up: fixed in the cell, the board on the flange (``eye-to-hand``), or
     #: on the flange, the board fixed (``eye-in-hand``)

@@ -1,6 +1,6 @@
 """What the robot does in a simulated session: each protocol spelled out (:func:`protocol_config`),
 the random still poses, coupled moves within the limits, and the trajectory as keyframes with the
-joint values between them (see :mod:`dhlog.simulate` for the protocols)."""
+joint values between them (see :mod:`dhlog.simulator` for the protocols)."""
 
 from __future__ import annotations
 
@@ -12,7 +12,7 @@ from numpy.typing import NDArray
 from dhlog.geometry._checks import FloatArray
 from dhlog.model.dh import JointType
 from dhlog.model.robots import Robot
-from dhlog.simulate.config import COUPLED_PAIR, SimulationConfig
+from dhlog.simulator.config import COUPLED_PAIR, SimulationConfig
 
 #: smallest change of every joint from one random pose to the next, as a fraction of its range
 MIN_POSE_CHANGE = 0.05

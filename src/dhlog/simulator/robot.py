@@ -12,7 +12,7 @@ from dhlog.geometry._checks import FloatArray
 from dhlog.model.dh import JointType, StandardDH
 from dhlog.model.robots import Robot
 from dhlog.model.terms import Lump, Term, Terms
-from dhlog.simulate.config import SimulationConfig
+from dhlog.simulator.config import SimulationConfig
 
 
 def perturbed(table: StandardDH, rng: np.random.Generator, cfg: SimulationConfig) -> StandardDH:

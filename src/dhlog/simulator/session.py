@@ -13,10 +13,10 @@ from dhlog.model.dh import JointType, StandardDH
 from dhlog.model.fk import fk_point
 from dhlog.model.robots import Robot
 from dhlog.model.terms import Terms, table_deflection
-from dhlog.simulate.config import SimulationConfig
-from dhlog.simulate.protocols import joints_at, keyframes, protocol_config, random_poses, still_at
-from dhlog.simulate.robot import perturbed, smooth_model_error, truth_terms
-from dhlog.simulate.tracker import (
+from dhlog.simulator.config import SimulationConfig
+from dhlog.simulator.protocols import joints_at, keyframes, protocol_config, random_poses, still_at
+from dhlog.simulator.robot import perturbed, smooth_model_error, truth_terms
+from dhlog.simulator.tracker import (
     add_outliers,
     base_points,
     default_measurement_pose,
@@ -79,7 +79,7 @@ def simulate_session(
     tool_point: FloatArray | None = None,
     home: FloatArray | None = None,
 ) -> Session:
-    """Simulate one session of ``robot`` (see :mod:`dhlog.simulate`)."""
+    """Simulate one session of ``robot`` (see :mod:`dhlog.simulator`)."""
     rng = np.random.default_rng(cfg.seed)
     T_mr = default_measurement_pose() if T_measurement_robot is None else T_measurement_robot
     T_mb = T_mr @ robot.T_base

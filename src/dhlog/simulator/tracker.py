@@ -15,7 +15,7 @@ from numpy.typing import NDArray
 from dhlog.geometry._checks import FloatArray, rotation_about, rotation_from_vector
 from dhlog.model.dh import StandardDH
 from dhlog.model.fk import fk_frames
-from dhlog.simulate.config import SimulationConfig
+from dhlog.simulator.config import SimulationConfig
 
 
 def default_measurement_pose() -> FloatArray:

@@ -9,8 +9,8 @@ from dhlog.geometry.lines import Line
 from dhlog.identify.read.extract import extract_dh
 from dhlog.model.fk import fk_point, joint_axes
 from dhlog.result.contract import RESULT_FORMAT, dh_documents, relation_documents
-from dhlog.simulate.protocols import protocol_config
-from dhlog.simulate.session import Session
+from dhlog.simulator.protocols import protocol_config
+from dhlog.simulator.session import Session
 
 
 def truth_document(

@@ -1,0 +1,209 @@
+"""The public API (``import dhlog``): the names it promises, each documented, and what a user's
+script does with them — process the bundled sample, print the held-out table, export a URDF,
+compensate ten targets — checked against independent ground truth (the simulator's truth file,
+yourdfpy's forward kinematics, the library's FK)."""
+
+from __future__ import annotations
+
+import inspect
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import dhlog
+
+ROOT = Path(__file__).parents[1]
+SAMPLE = ROOT / "sample_logs" / "kr5_0.01mm.mcap"
+
+#: The public names of 0.2.0. A name leaving this list is a breaking change: it goes through a
+#: deprecation (CHANGELOG.md) first, and this list changes with it.
+PUBLIC = {
+    "Calibration",
+    "Compensation",
+    "DhlogError",
+    "InputError",
+    "JointType",
+    "ModifiedDH",
+    "Plan",
+    "Robot",
+    "Simulation",
+    "StandardDH",
+    "Tracker",
+    "UsageError",
+    "__version__",
+    "extract_dh",
+    "fit_circle",
+    "fk_frames",
+    "fk_point",
+    "load",
+    "plan",
+    "process",
+    "robot",
+    "simulate",
+}
+
+
+def test_every_public_name_is_exported_and_documented() -> None:
+    assert set(dhlog.__all__) >= PUBLIC, f"gone: {PUBLIC - set(dhlog.__all__)}"
+    for name in dhlog.__all__:
+        value = getattr(dhlog, name)
+        if name != "__version__":
+            assert inspect.getdoc(value), f"dhlog.{name} has no docstring"
+    assert set(dir(dhlog)) >= set(dhlog.__all__)
+    with pytest.raises(AttributeError, match="no attribute 'identify_now'"):
+        _ = dhlog.identify_now  # type: ignore[attr-defined]
+
+
+def test_import_dhlog_loads_nothing_heavy() -> None:
+    """The console entry point imports dhlog first: names resolve on first use."""
+    code = (
+        "import sys, dhlog; "
+        "print(sorted(m for m in ('numpy', 'polars', 'rerun') if m in sys.modules))"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "[]"
+
+
+def test_simulate_stays_callable_beside_its_deprecated_modules() -> None:
+    """``dhlog.simulate`` is the function; an old ``dhlog.simulate.config`` import (deprecated)
+    binds the name to the shim package, which runs the same function."""
+    code = (
+        "import warnings; warnings.simplefilter('ignore'); import dhlog; f = dhlog.simulate; "
+        "from dhlog.simulate.config import SimulationConfig; "
+        "print(callable(f), callable(dhlog.simulate), SimulationConfig.__module__)"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.split() == ["True", "True", "dhlog.simulator.config"]
+
+
+@pytest.fixture(scope="module")
+def calibration() -> dhlog.Calibration:
+    return dhlog.process(SAMPLE, nominal="kr5", holdout=5)
+
+
+def test_process_gives_the_truth_within_its_sigma(calibration: dhlog.Calibration) -> None:
+    """FK of the result against the simulator's truth at random joint vectors within the limits:
+    within the propagated noise (σ 0.01 mm tracker noise; 3σ of the FK's own uncertainty is a
+    few µm, so 20 µm is far above it and far below a wrong model)."""
+    truth = dhlog.load(ROOT / "sample_logs" / "kr5_0.01mm.truth.json")
+    limits = dhlog.robot("kr5").limits
+    Q = np.random.default_rng(3).uniform(limits[:, 0], limits[:, 1], (500, 6))
+    error = np.linalg.norm(calibration.fk(Q) - truth.fk(Q), axis=1)
+    assert np.sqrt(np.mean(error**2)) < 20e-6
+    assert calibration.complete and calibration.n == 6
+    assert calibration.version == dhlog.__version__
+
+
+def test_the_holdout_table_and_parameters_are_frames(calibration: dhlog.Calibration) -> None:
+    held = calibration.holdout
+    assert held["model"].to_list() == ["nominal", "calibrated"]
+    assert held["check"].to_list() == ["5-fold", "5-fold"]
+    assert 5e-6 < held.filter(model="calibrated")["rms"][0] < 20e-6  # σ 0.01 mm, 3-D
+    params = calibration.parameters
+    assert params.height == 4 * 6
+    fixed = params.filter(fixed=True)
+    assert fixed["sigma"].null_count() == fixed.height  # fixed: never a measured σ
+    assert params.filter(fixed=False)["sigma"].null_count() == 0
+    assert calibration.covariance is not None
+    assert calibration.covariance.shape == (len(calibration.covariance_names),) * 2
+
+
+def test_export_urdf_is_the_same_robot_in_yourdfpy(
+    calibration: dhlog.Calibration, tmp_path: Path
+) -> None:
+    """The URDF, loaded by yourdfpy (a real consumer), places ``tool0`` (the measured target) in
+    its ``measurement`` frame where the calibration's FK puts it in M."""
+    import yourdfpy
+
+    path = tmp_path / "kr5.urdf"
+    text = calibration.export("urdf", path)
+    assert path.read_text() == text
+    robot = yourdfpy.URDF.load(str(path))
+    q = np.array([0.3, -0.4, 0.5, 0.2, -0.6, 0.7])
+    robot.update_cfg(dict(zip(robot.actuated_joint_names, q, strict=True)))
+    tool0 = robot.get_transform("tool0", "measurement")
+    assert np.allclose(tool0[:3, 3], calibration.fk(q), atol=1e-9)
+    with pytest.raises(dhlog.UsageError, match="exists; pass overwrite=True"):
+        calibration.export("urdf", path)
+    with pytest.raises(dhlog.UsageError, match="format must be one of"):
+        calibration.export("step", tmp_path / "x")  # type: ignore[arg-type]
+
+
+def test_compensate_ten_targets_reaches_the_nominal_poses(calibration: dhlog.Calibration) -> None:
+    """The corrected targets put the calibrated robot where the nominal meant the originals."""
+    kr5 = dhlog.robot("kr5")
+    Q = np.random.default_rng(1).uniform(kr5.limits[:, 0] / 2, kr5.limits[:, 1] / 2, (10, 6))
+    done = calibration.compensate(Q)
+    good = np.isfinite(done.targets[:, 0])
+    assert good.sum() >= 9
+    meant = dhlog.fk_point(kr5.table, Q, calibration.tool_point, T_base=kr5.T_base)
+    reached = calibration.fk(done.targets[good])
+    # both in the nominal's base frame: the calibrated FK is in M, mapped back by its T_base
+    T = kr5.T_base @ np.linalg.inv(calibration.T_base)
+    reached_base = reached @ T[:3, :3].T + T[:3, 3]
+    assert np.max(np.linalg.norm(reached_base - meant[good], axis=1)) < 1e-6
+
+
+def test_save_and_load_round_trip(calibration: dhlog.Calibration, tmp_path: Path) -> None:
+    written = calibration.save(tmp_path / "kr5.dh.json")
+    assert [p.name for p in written] == [
+        "kr5.dh.json",
+        "kr5.dh.csv",
+        "kr5.holdout.csv",
+        "kr5.terms.csv",
+    ]
+    again = dhlog.load(written[0], nominal="kr5")
+    Q = np.random.default_rng(2).uniform(-1, 1, (20, 6))
+    assert np.array_equal(again.fk(Q), calibration.fk(Q))
+    assert again.holdout.equals(calibration.holdout)
+    assert json.loads(written[0].read_text())["dhlog_version"] == dhlog.__version__
+    with pytest.raises(dhlog.UsageError, match="exists"):
+        calibration.save(tmp_path / "kr5.dh.json")
+    with pytest.raises(dhlog.UsageError, match="names no nominal"):
+        dhlog.load(written[0]).compensate(Q)
+
+
+def test_log_to_rerun_writes_a_recording_rerun_verifies(
+    calibration: dhlog.Calibration, tmp_path: Path
+) -> None:
+    path = tmp_path / "run.rrd"
+    calibration.log_to_rerun(path)
+    rerun = Path(sys.executable).with_name("rerun")
+    out = subprocess.run([str(rerun), "rrd", "verify", str(path)], capture_output=True, text=True)
+    assert out.returncode == 0, out.stderr
+    rec = calibration.log_to_rerun()  # into a stream: a notebook's viewer
+    assert rec is not None
+
+
+@pytest.mark.parametrize(
+    ("call", "match"),
+    [
+        (lambda: dhlog.process(SAMPLE, holdout=1), "holdout must be 0"),
+        (lambda: dhlog.process(SAMPLE, model="magic"), "model must be one of"),  # type: ignore[arg-type]
+        (lambda: dhlog.process(SAMPLE, gravity=(0, 0, 0)), "gravity takes three"),
+        (lambda: dhlog.process("no/such.mcap"), "no/such.mcap"),
+        (lambda: dhlog.robot("kr6"), "kr6"),
+        (lambda: dhlog.simulate("kr5", "x.mcap", warp=3), "no setting warp"),
+    ],
+)
+def test_bad_arguments_are_one_clear_error(call: object, match: str) -> None:
+    with pytest.raises(dhlog.DhlogError, match=match):
+        call()  # type: ignore[operator]
+
+
+def test_simulate_then_process_recovers_the_truth(tmp_path: Path) -> None:
+    """dhlog.simulate writes a real MCAP and its truth; processing it gives the truth back."""
+    sim = dhlog.simulate(
+        "puma560", tmp_path / "s.mcap", noise=2e-5, perturb_length=2e-4, seed=4, steps=8
+    )
+    assert sim.log.is_file() and sim.truth.is_file() and sim.samples > 0
+    cal = dhlog.process(sim.log, nominal="puma560", model="geometric")
+    truth = sim.truth_model()
+    limits = dhlog.robot("puma560").limits
+    Q = np.random.default_rng(5).uniform(limits[:, 0], limits[:, 1], (300, 6))
+    error = np.linalg.norm(cal.fk(Q) - truth.fk(Q), axis=1)
+    assert np.sqrt(np.mean(error**2)) < 1e-4  # 20 µm noise; the nominal is 200 µm off
