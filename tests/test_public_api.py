@@ -105,6 +105,7 @@ def test_the_holdout_table_and_parameters_are_frames(calibration: dhlog.Calibrat
     assert 5e-6 < held.filter(model="calibrated")["rms"][0] < 20e-6  # σ 0.01 mm, 3-D
     params = calibration.parameters
     assert params.height == 4 * 6
+    assert set(params["form"]) == {"dh"}  # the KR5's pairs are perpendicular or well apart
     fixed = params.filter(fixed=True)
     assert fixed["sigma"].null_count() == fixed.height  # fixed: never a measured σ
     assert params.filter(fixed=False)["sigma"].null_count() == 0
@@ -198,10 +199,19 @@ def test_bad_arguments_are_one_clear_error(call: object, match: str) -> None:
 def test_simulate_then_process_recovers_the_truth(tmp_path: Path) -> None:
     """dhlog.simulate writes a real MCAP and its truth; processing it gives the truth back."""
     sim = dhlog.simulate(
-        "puma560", tmp_path / "s.mcap", noise=2e-5, perturb_length=2e-4, seed=4, steps=8
+        "puma560",
+        tmp_path / "s.mcap",
+        noise=2e-5,
+        perturb_length=2e-4,
+        perturb_angle=1e-3,
+        seed=4,
+        steps=8,
     )
     assert sim.log.is_file() and sim.truth.is_file() and sim.samples > 0
     cal = dhlog.process(sim.log, nominal="puma560", model="geometric")
+    # axes 2 and 3 nearly parallel (0.06° off): row 2 in the Hayati form, beta with its sigma
+    hayati = cal.parameters.filter(form="hayati")
+    assert set(hayati["joint"]) == {2} and "beta" in set(hayati["parameter"])
     truth = sim.truth_model()
     limits = dhlog.robot("puma560").limits
     Q = np.random.default_rng(5).uniform(limits[:, 0], limits[:, 1], (300, 6))

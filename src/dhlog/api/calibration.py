@@ -36,9 +36,6 @@ if TYPE_CHECKING:
 ExportFormat = Literal["urdf", "ur", "rtb", "dh-csv", "dh-json", "tf"]
 EXPORT_FORMATS: tuple[str, ...] = ("urdf", "ur", "rtb", "dh-csv", "dh-json", "tf")
 
-#: The DH parameters of a row, in the result's order, and their SI units.
-_PARAMETERS = (("theta", "rad"), ("d", "m"), ("a", "m"), ("alpha", "rad"))
-
 
 @dataclass(eq=False)
 class Calibration:
@@ -132,27 +129,37 @@ class Calibration:
 
     @property
     def parameters(self) -> pl.DataFrame:
-        """Every DH parameter with its σ, one row each: ``joint`` (1 …), ``name``, ``parameter``
-        (theta, d, a, alpha; theta and d are the offsets at encoder zero), ``value``, ``sigma``
-        (null where the parameter is fixed or not given), ``fixed`` (a convention or gauge the
-        data cannot determine, never a measurement), ``unit`` (m or rad)."""
+        """Every DH parameter with its σ, one row each, in the well-conditioned form the result
+        shows (as ``<stem>.dh.csv``): ``joint`` (1 …), ``name``, ``form`` (``dh``; ``hayati``
+        where a nearly parallel pair makes ``d`` ill-conditioned: ``beta``, a rotation about y,
+        in its place), ``parameter`` (theta, d or beta, a, alpha; theta and d are the offsets at
+        encoder zero), ``value``, ``sigma`` (null where fixed), ``fixed`` (a convention or gauge
+        the data cannot determine, never a measurement), ``unit`` (m or rad)."""
         import polars as pl
 
+        conditioned = self.document.get("hayati_dh")
+        table = (
+            conditioned.get("rows", [])
+            if isinstance(conditioned, dict)
+            else self.document.get("standard_dh", [])
+        )
         rows = []
         names = self.joint_names
-        for i, row in enumerate(self.document.get("standard_dh", [])):
+        for i, row in enumerate(table):
             std = row.get("std") or {}
             fixed = set(row.get("fixed") or [])
-            for key, unit in _PARAMETERS:
-                value = row.get(f"{key}_offset", row.get(key)) if key in ("theta", "d") else None
-                value = row.get(key) if value is None else value
+            form = str(row.get("form", "dh"))
+            second = ("beta", "rad") if form == "hayati" else ("d", "m")
+            for key, unit in (("theta", "rad"), second, ("a", "m"), ("alpha", "rad")):
+                value = row.get(f"{key}_offset", row.get(key))
                 sigma = std.get(key)
                 rows.append(
                     {
                         "joint": i + 1,
                         "name": names[i] if i < len(names) else f"joint_{i + 1}",
+                        "form": form,
                         "parameter": key,
-                        "value": float(value) if value is not None else math.nan,
+                        "value": math.nan if value is None else float(value),
                         "sigma": None if sigma is None or key in fixed else float(sigma),
                         "fixed": key in fixed,
                         "unit": unit,
@@ -161,6 +168,7 @@ class Calibration:
         schema = {
             "joint": pl.Int64,
             "name": pl.String,
+            "form": pl.String,
             "parameter": pl.String,
             "value": pl.Float64,
             "sigma": pl.Float64,
