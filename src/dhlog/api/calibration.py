@@ -494,7 +494,13 @@ class Calibration:
 
         from rich.console import Console
 
-        console = Console(file=StringIO(), width=width, color_system=None, force_terminal=False)
+        console = Console(
+            file=StringIO(),
+            width=width,
+            color_system=None,
+            force_terminal=False,
+            force_jupyter=False,  # in a notebook too: the text, not an HTML display
+        )
         if self._result is not None:
             from dhlog.present.console import print_result
 
