@@ -14,9 +14,9 @@ import griffe
 ROLE = re.compile(r":(?:py:)?[a-z]+:`(~?)([A-Za-z_][\w.]*)(\(\))?`")
 SRC = Path(__file__).resolve().parents[2] / "src" / "dhlog"
 
-#: Public names that a subpackage of the same name hides from ``::: dhlog`` (griffe, like
-#: Python once the subpackage is imported, takes ``dhlog.simulate`` for the package): docs/api.md
-#: documents each of them where it is defined, under this identifier.
+#: Public names that a subpackage of the same name hides from ``::: dhlog`` (griffe takes
+#: ``dhlog.simulate`` for the deprecated package of the simulator's old module paths, until 0.3):
+#: docs/api.md documents each of them where it is defined, under this identifier.
 SHADOWED = {"simulate": "dhlog.api.operations.simulate"}
 
 
