@@ -61,9 +61,9 @@ class Calibration:
     source: str = ""
     #: the nominal's joint limits (n, 2; rad or m) when it is a library robot
     limits: FloatArray | None = None
-    _result: ProcessResult | None = field(default=None, repr=False)
+    _result: ProcessResult | None = field(default=None, repr=False, init=False)
     #: what the run was asked that adds outputs: a held-out check, terms beyond the geometry
-    _asked: tuple[bool, bool] = field(default=(False, False), repr=False)
+    _asked: tuple[bool, bool] = field(default=(False, False), repr=False, init=False)
 
     # ------------------------------------------------------------------ the model
 

@@ -145,14 +145,15 @@ def calibration_of(result: Any, *, limits: Any = None) -> Calibration:
         if ex is None:
             raise
         model = DHModel(ex.standard, ex.T_measurement_base, np.zeros(3), names, str(result.path))
-    return Calibration(
+    found = Calibration(
         document=document,
         model=model,
         nominal=result.nominal,
         source=str(result.path),
         limits=limits,
-        _result=result,
     )
+    found._result = result
+    return found
 
 
 def run_of(calibration: Calibration) -> Any:
