@@ -166,21 +166,20 @@ def load(path: str | Path, *, nominal: str | Path | Robot | None = None) -> Cali
     """A result (``<stem>.dh.json``) or a DH file (``.json``, ``.toml``; a truth file) read back
     as a :class:`Calibration`. ``nominal``: the model the robot's controller runs (for
     :meth:`Calibration.compensate`; a result file does not carry it)."""
-    import json
+    from dhlog.io.dhfile import load_dh, parse_dh
+    from dhlog.io.safetext import printable
 
-    from dhlog.io.dhfile import load_dh
-
-    model = load_dh(path)  # every byte checked: a bad file is one line naming it
     name = str(path)
-    try:
-        if name.endswith(".toml"):
-            import tomllib
+    if name.endswith(".toml"):
+        import tomllib
 
-            document: dict[str, Any] = tomllib.loads(Path(path).read_text(encoding="utf-8"))
-        else:
-            document = json.loads(Path(path).read_text(encoding="utf-8"))
-    except (OSError, ValueError) as exc:  # load_dh read it a moment ago
-        raise UsageError(f"{path}: could not be read again ({exc}).") from None
+        model = load_dh(path)  # every byte checked: a bad file is one line naming it
+        document: dict[str, Any] = tomllib.loads(Path(path).read_text(encoding="utf-8"))
+    else:  # a result (or DH) JSON: size, nesting and every field checked as export reads it
+        from dhlog.result.check import load_result
+
+        document = load_result(path)
+        model = parse_dh(document, printable(name))
     return Calibration(
         document=document,
         model=model,
