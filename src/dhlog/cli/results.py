@@ -110,7 +110,7 @@ def export(
         fail(exc)
     except OSError as exc:
         fail(OutputError(output.parent, exc))
-    stdout.print(f"wrote {plain(output)}{extra}")
+    stdout.print(f"wrote {plain(output)}{extra}", soft_wrap=True)  # a path never broken
     _terms_not_exported(result, format)
     _camera_not_exported(result, format)
 
