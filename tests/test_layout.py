@@ -7,7 +7,8 @@ from pathlib import Path
 
 SRC = Path(__file__).parents[1] / "src"
 FLOORS = (
-    "_version _deprecated errors geometry model vision io identify result simulator present fleet"
+    "_version _deprecated errors geometry model vision io identify result iso9283 simulator present"
+    " fleet"
     " cell api cli entry __main__"
     # the top-level paths an earlier README documented: deprecated shims handing on moved modules
     " kinematics robots dhfile extract segment simulate"
