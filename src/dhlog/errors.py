@@ -185,3 +185,13 @@ class FieldError(InputError):
 class UsageError(DhlogError, ValueError):
     """An argument that cannot be used — of the Python API (``dhlog.process(holdout=1)``) or of
     a command; the message names it and what to give."""
+
+
+class Iso9283Error(InputError):
+    """An ISO 9283 characteristic cannot be computed from the data given (too few cycles, a
+    path never crossing a plane, an arrival that never settles): the message names the
+    characteristic, what is missing and what to do."""
+
+    def __init__(self, what: str, problem: str, todo: str) -> None:
+        self.what = what
+        super().__init__(f"{what}: {problem}; {todo}.")
