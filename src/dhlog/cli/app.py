@@ -34,6 +34,7 @@ from dhlog.cli.common import (
     stderr,
     stdout,
 )
+from dhlog.cli.iso9283 import iso9283
 from dhlog.cli.logs import import_, pipelines
 from dhlog.cli.process import process
 from dhlog.cli.results import compare_results, export, report
@@ -81,6 +82,7 @@ app.command(cls=Command, epilog=EXIT_CODES)(report)
 app.command(cls=Command, epilog=EXIT_CODES)(compensate)
 app.command(cls=Command, epilog=EXIT_CODES)(plan)
 app.command(cls=Command, epilog=EXIT_CODES)(batch)
+app.command(cls=Command, epilog=EXIT_CODES)(iso9283)
 app.command(name="import", cls=Command)(import_)
 app.command(name="compare", cls=Command)(compare_results)
 app.command(cls=Command)(show)

@@ -28,12 +28,13 @@ if TYPE_CHECKING:  # OpenCV imported only when a camera pipeline is read
     from dhlog.vision.boards import BoardSpec
     from dhlog.vision.camera import Intrinsics
 
-STREAMS = ("point", "joints", "base", "phase")
+STREAMS = ("point", "joints", "base", "phase", "commanded")
 DEFAULT_TOPICS = {
     "point": "/tracker/point",
     "joints": "/joint_states",
     "base": "/tracker/base_plane",
     "phase": "/calibration/phase",
+    "commanded": "/joint_command",
 }
 ENCODINGS = ("cdr", "json", "protobuf")
 #: Every key a pipeline may hold, per table (unknown keys are errors, with the nearest known).
@@ -72,6 +73,7 @@ FIELD_KEYS = {
     "base": ("x", "y", "z", "stamp_ns"),
     "joints": ("joints", "names", "positions"),
     "phase": ("joint",),
+    "commanded": ("joints", "names", "positions"),
 }
 JOINT_KEYS = ("names", "types")
 #: A camera pipeline's image stream: its topic, whether it is needed, and the topics read

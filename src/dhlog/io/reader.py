@@ -70,7 +70,9 @@ class LogData:
     """The decoded streams of one log, in SI units, sorted by time.
 
     ``points``/``base``: ``t_ns, x, y, z``; ``joints``: ``t_ns, q_1 … q_n`` in chain order
-    (``joint_names``); ``phase``: ``t_ns, joint`` (1-based, null between sweeps).
+    (``joint_names``); ``phase``: ``t_ns, joint`` (1-based, null between sweeps);
+    ``commanded``: the controller's commanded joints (``[streams.commanded]``, an ISO 9283
+    test's), ``t_ns, q_1 … q_n`` as ``joints``, None where the log has no such stream.
     ``set_aside`` counts samples dropped on reading, by reason.
     """
 
@@ -84,6 +86,7 @@ class LogData:
     set_aside: dict[str, int] = field(default_factory=dict)
     warnings: list[str] = field(default_factory=list)
     pipeline_reason: str | None = None
+    commanded: pl.DataFrame | None = None
 
 
 #: the schemas of camera images (those of :mod:`dhlog.io.images`, named here without its cv2)
@@ -388,17 +391,35 @@ def read_log(
     points = points_of()
     if targets:  # one frame per target, labelled 0 (the primary one), 1, 2, …
         points = merged([points, *(points_of(channels) for channels in targets)], "target")
-    release("base", "joints", "phase")
+    release("base", "joints", "phase", "commanded")
     base = None
     if "base" in infos:
         base = clean(points_frame(blocks_of("base"), pipeline.length_scale), "base", set_aside)
-    release("joints", "phase")
+    release("joints", "phase", "commanded")
     joints, joint_names = None, list(pipeline.joint_names or [])
     if "joints" in infos:
         joints, joint_names = joints_frame(
             name, infos["joints"][0].topic, blocks_of("joints"), pipeline
         )
         joints = clean(joints, "joints", set_aside)
+    commanded = None
+    if "commanded" in infos:  # decoded as the joint states are (a JointState stream)
+        blocks = decode_stream(
+            "joints",
+            infos["commanded"],
+            scan.messages if fast else None,
+            general,
+            pipeline.streams["commanded"].fields,
+            name,
+            False,
+            damaged,
+            "",
+            warnings,
+            0,
+            decoded,
+        )
+        commanded, _ = joints_frame(name, infos["commanded"][0].topic, blocks, pipeline)
+        commanded = clean(commanded, "commanded", set_aside)
     release("phase")
     phase = None
     if "phase" in infos:
@@ -422,7 +443,17 @@ def read_log(
             f"skipped (first at {first})."
         )
     return LogData(
-        name, pipeline, points, joints, joint_names, base, phase, set_aside, warnings, reason
+        name,
+        pipeline,
+        points,
+        joints,
+        joint_names,
+        base,
+        phase,
+        set_aside,
+        warnings,
+        reason,
+        commanded,
     )
 
 
@@ -482,6 +513,7 @@ def _read_bag(
                         points=spilled(log.points),
                         joints=None if log.joints is None else spilled(log.joints),
                         base=None if log.base is None else spilled(log.base),
+                        commanded=None if log.commanded is None else spilled(log.commanded),
                     )
                 parts.append(log)
     except (ReaderError, FileNotFoundError, KeyError, ValueError) as exc:
@@ -517,6 +549,7 @@ def _read_bag(
         if first.pipeline_reason is None
         else f"{first.pipeline_reason}; a rosbag2 bag of {len(parts)} file(s)"
         + (", messages zstd-compressed" if per_message else ""),
+        joined([log.commanded for log in parts]),
     )
 
 

@@ -54,8 +54,8 @@ def bulk_layout(
         return "point"
     if stream in ("point", "base") and schema == ros2.POSE_WITH_COVARIANCE:
         return "point_cov"
-    if stream == "joints" and schema == ros2.JOINT_STATE:
-        return "joints"
+    if stream in ("joints", "commanded") and schema == ros2.JOINT_STATE:
+        return "joints"  # the commanded joints (issue 34) are a JointState stream too
     return None
 
 

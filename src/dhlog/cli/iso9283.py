@@ -1,0 +1,100 @@
+"""``dhlog iso9283``: the ISO 9283 acceptance report from tracker logs (thin: the options
+parsed, :func:`dhlog.iso9283.run.run_logs` called, the tables printed, the JSON written)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from dhlog.cli.common import EXIT_USAGE, check_folder, fail, plain, refuse_existing, stderr, stdout
+from dhlog.cli.options import PIPELINE_HELP, load_model, load_pipeline
+from dhlog.errors import DhlogError, OutputError
+
+
+def iso9283(
+    logs: Annotated[
+        list[Path],
+        typer.Argument(
+            metavar="LOG", help="The test's log(s) (.mcap or bag folder), read as one test."
+        ),
+    ],
+    nominal: Annotated[
+        str | None,
+        typer.Option(
+            metavar="ROBOT|FILE",
+            help="The model the controller runs (library robot or DH file): its FK of the "
+            "commanded joints is the commanded position (accuracy AP, AD).",
+        ),
+    ] = None,
+    result: Annotated[
+        Path | None,
+        typer.Option(
+            metavar="R.dh.json",
+            help="A calibration result of this robot: its placement gives the base frame, and "
+            "each accuracy figure is given after the calibration too.",
+        ),
+    ] = None,
+    pipeline: Annotated[str | None, typer.Option(metavar="NAME|FILE", help=PIPELINE_HELP)] = None,
+    commanded: Annotated[
+        Path | None,
+        typer.Option(
+            metavar="CSV",
+            help="The commanded joint targets, one row per visit in order (dhlog plan "
+            "--iso9283's cycle program), where the log has no commanded stream.",
+        ),
+    ] = None,
+    out: Annotated[
+        Path | None,
+        typer.Option(
+            metavar="DIR", help="Where <stem>.iso9283.json goes (default: beside the log)."
+        ),
+    ] = None,
+    force: Annotated[bool, typer.Option("--force", help="Overwrite the output.")] = False,
+) -> None:
+    """The ISO 9283 pose characteristics (AP, RP, vAP, AD/RD, stabilisation, overshoot, drift)
+    of a robot's test from tracker logs, before and after a calibration; written as
+    <stem>.iso9283.json."""
+    from dhlog.iso9283.run import report_document, run_logs, write_report
+    from dhlog.present.console.iso9283 import print_iso9283
+
+    first = logs[0]
+    folder = out if out is not None else first.resolve().parent
+    check_folder(folder)
+    stem = first.name.removesuffix(".zstd").removesuffix(".mcap")
+    target = folder / f"{stem}.iso9283.json"
+    inputs = [*logs, *(p for p in (result, commanded) if p is not None)]
+    if any(target.resolve() == p.resolve() for p in inputs):
+        stderr.print(f"error: {plain(target)} is an input; choose another --out.")
+        raise typer.Exit(EXIT_USAGE)
+    refuse_existing(target, force)
+    try:
+        pipe = None if pipeline is None else load_pipeline(pipeline)
+        nom = None if nominal is None else load_model(nominal)
+        cal = None
+        if result is not None:
+            from dhlog.api import load
+
+            cal = load(result, nominal=nominal).model
+            if nom is None:
+                stderr.print(
+                    "error: --result needs --nominal (the model the controller runs: the "
+                    "commanded positions are its forward kinematics)."
+                )
+                raise typer.Exit(EXIT_USAGE)
+        report = run_logs(logs, pipeline=pipe, nominal=nom, calibrated=cal, commanded_csv=commanded)
+        source = {
+            "logs": [str(p) for p in logs],
+            "nominal": nominal,
+            "result": None if result is None else str(result),
+            "commanded": None if commanded is None else str(commanded),
+            "pipeline": pipeline,
+        }
+        write_report(report_document(report, source), target)
+    except DhlogError as exc:
+        fail(exc)
+    except OSError as exc:
+        fail(OutputError(folder, exc))
+    print_iso9283(stdout, report)
+    stdout.print(f"wrote {plain(target)}", soft_wrap=True)

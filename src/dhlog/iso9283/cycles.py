@@ -1,0 +1,400 @@
+"""The ISO 9283 test's cycles found in a tracker log: the visits to the test poses (dwells), each
+visit's attained position, its commanded target and the samples of its arrival.
+
+**Dwell detection.** The tracker's speed at each sample is the distance it moved over a window of
+``DwellSettings.window`` s centred on it (0.2 s: at 10 µm noise per coordinate the speed's noise
+is about 0.1 mm/s), divided by the window's time. A *dwell* is a run of samples slower than
+``DwellSettings.speed`` (2 mm/s) lasting at least ``DwellSettings.min_time`` (0.5 s); a gap in the
+stream longer than ``DwellSettings.gap`` (0.1 s) ends a run (a step-and-measure log whose tracker
+records only the stops is read as well). Each dwell is a *visit*.
+
+**Attained position** (clause 7.2.1: "the attained pose" after stabilisation). The visit's final
+position is the mean of its last half; the stabilisation band (``DwellSettings.band``, default
+``BAND_FACTOR`` × the 3-D RMS scatter of that half, at least ``BAND_FLOOR``) around it; the
+*settled* samples are those of the dwell after the last sample outside the band. The attained
+position is the mean of the settled samples, its orientation (a 6-DoF target) the mean rotation
+of their orientations (the nearest rotation to their mean matrix).
+
+**Arrival** (clauses 7.3, 7.4: stabilisation time and overshoot): the samples from
+``DwellSettings.approach`` s (1 s) before the dwell, or the end of the previous dwell if later,
+to the dwell's end, kept for :func:`dhlog.iso9283.formulas.stabilisation`. Below 100 Hz the
+arrival is too coarsely sampled and the report says so.
+
+**Commanded target** of each visit, in order of preference: the log's commanded joint stream
+(``[streams.commanded]``, e.g. ``/joint_command``) at the middle of the dwell; a commanded CSV
+(``dhlog plan --iso9283``'s cycle program) matched to the visits in order; else the encoders'
+mean over the settled samples (the controller's joints: the servo's own error is in them, so
+the commanded pose is the one the controller believes it reached — said in the report).
+Visits whose commanded joints agree within ``SAME_TARGET`` (rad) are visits to one pose; the
+poses are named P1, P2, … in the order first visited (the program's names where it gives them).
+
+Pure numpy on arrays; :func:`visits_from_log` reads :class:`dhlog.io.reader.LogData`.
+"""
+
+from __future__ import annotations
+
+import itertools
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+
+from dhlog.errors import Iso9283Error
+from dhlog.geometry._checks import FloatArray, nearest_rotation
+from dhlog.io.reader import ORIENTATION_COLUMNS, LogData
+
+#: The band is this many times the settled samples' 3-D RMS scatter (noise alone leaves a band
+#: of 4·√3 σ ≈ 7 σ per coordinate about once in 10¹⁰ samples).
+BAND_FACTOR = 4.0
+#: The band is never below this (m).
+BAND_FLOOR = 5e-6
+#: Commanded joint vectors this close (rad, m; largest component) are one target.
+SAME_TARGET = 1e-4
+#: Below this tracker rate (Hz) stabilisation time and overshoot are not computed.
+ARRIVAL_RATE = 100.0
+#: The fewest settled samples a visit's attained position is the mean of (else the last half).
+MIN_SETTLED = 3
+#: Approach directions within this angle (rad) are one direction (clause 7.2.2's vAP).
+SAME_DIRECTION = np.radians(30.0)
+
+
+@dataclass(frozen=True)
+class DwellSettings:
+    """How visits are found (see the module docstring): ``speed`` (m/s), ``min_time`` (s),
+    ``window`` (s), ``gap`` (s), ``band`` (m; None: from each visit's scatter), ``approach``
+    (s of samples kept before each dwell)."""
+
+    speed: float = 2e-3
+    min_time: float = 0.5
+    window: float = 0.2
+    gap: float = 0.1
+    band: float | None = None
+    approach: float = 1.0
+
+
+@dataclass(frozen=True)
+class Visit:
+    """One visit (a dwell): its ``index`` in the log, ``pose`` (P1 …; "" for a stop that is no
+    test pose), ``cycle`` (1-based: the k-th visit to its pose), the dwell's start and end and
+    the first settled sample's time (ns), the attained ``position`` (3,) and ``rotation``
+    (3, 3; None without a 6-DoF target) in the measurement frame, ``n_settled`` samples,
+    ``scatter`` (m, their 3-D RMS about the mean), the ``band`` used, the commanded joints
+    ``q`` (n,) (None where nothing gives them), the arrival's times (s from the dwell's start)
+    and positions ``arrival_xyz`` (k, 3), and the approach ``direction`` (3,) (unit; zeros when
+    the arrival holds no motion)."""
+
+    index: int
+    pose: str
+    cycle: int
+    t_start_ns: int
+    t_end_ns: int
+    t_settled_ns: int
+    position: FloatArray
+    rotation: FloatArray | None
+    n_settled: int
+    scatter: float
+    band: float
+    settled: bool
+    q: FloatArray | None
+    arrival_t: FloatArray
+    arrival_xyz: FloatArray
+    direction: FloatArray
+
+
+@dataclass(frozen=True)
+class Segmented:
+    """The log's visits and what they were matched to: ``poses`` (names in order) with their
+    commanded joints ``pose_q`` (k, n) (None without commanded joints), where the commanded
+    targets came from (``commanded_from``), the tracker's rate (Hz), whether the log has a
+    6-DoF target, and ``notes`` (one line each: what is missing, what was assumed)."""
+
+    path: str
+    visits: list[Visit]
+    poses: list[str]
+    pose_q: FloatArray | None
+    commanded_from: str
+    rate_hz: float
+    orientation: bool
+    notes: list[str] = field(default_factory=list)
+
+    def of_pose(self, name: str) -> list[Visit]:
+        """The visits to pose ``name``, in cycle order."""
+        return [v for v in self.visits if v.pose == name]
+
+
+def sample_speed(
+    t_s: FloatArray, xyz: FloatArray, *, window: float, gap: float
+) -> tuple[FloatArray, NDArray[np.int64]]:
+    """The speed (m/s) at each sample over ``window`` s centred on it, within its run (runs are
+    split at gaps longer than ``gap``), and each sample's run number. A run of one sample has
+    speed 0."""
+    run = np.concatenate([[0], np.cumsum(np.diff(t_s) > gap)]).astype(np.int64)
+    speed = np.zeros(t_s.size)
+    starts = np.flatnonzero(np.r_[True, np.diff(run) != 0])
+    ends = np.r_[starts[1:], t_s.size]
+    for s, e in zip(starts, ends, strict=True):
+        t = t_s[s:e]
+        lo = np.searchsorted(t, t - window / 2, side="left")
+        hi = np.searchsorted(t, t + window / 2, side="right") - 1
+        dt = t[hi] - t[lo]
+        moved = np.linalg.norm(xyz[s:e][hi] - xyz[s:e][lo], axis=1)
+        speed[s:e] = np.where(dt > 0, moved / np.where(dt > 0, dt, 1.0), 0.0)
+    return speed, run
+
+
+def find_dwells(t_s: FloatArray, xyz: FloatArray, settings: DwellSettings) -> list[tuple[int, int]]:
+    """The dwells of the stream: (first, end) sample indices (end exclusive) of each run of
+    samples slower than ``settings.speed`` lasting ``settings.min_time`` or longer."""
+    speed, run = sample_speed(t_s, xyz, window=settings.window, gap=settings.gap)
+    still = speed < settings.speed
+    # a run of still samples ends where a sample moves or the stream has a gap
+    breaks = np.flatnonzero(np.diff(still.astype(np.int8)) != 0) + 1
+    breaks = np.union1d(breaks, np.flatnonzero(np.diff(run) != 0) + 1)
+    edges = np.r_[0, breaks, t_s.size].astype(np.int64)
+    out = []
+    for s, e in itertools.pairwise(edges):
+        if still[s] and t_s[e - 1] - t_s[s] >= settings.min_time:
+            out.append((int(s), int(e)))
+    return out
+
+
+def _settle(xyz: FloatArray, settings: DwellSettings) -> tuple[int, float, bool]:
+    """The first settled sample of a dwell's positions ``xyz`` (k, 3), the band, and whether
+    the dwell settled at all (else its last half is used)."""
+    half = xyz[xyz.shape[0] // 2 :]
+    final = half.mean(axis=0)
+    scatter = float(np.sqrt(np.mean(np.sum((half - final) ** 2, axis=1))))
+    band = settings.band if settings.band is not None else max(BAND_FACTOR * scatter, BAND_FLOOR)
+    outside = np.flatnonzero(np.linalg.norm(xyz - final, axis=1) > band)
+    first = 0 if outside.size == 0 else int(outside[-1]) + 1
+    if xyz.shape[0] - first < MIN_SETTLED:
+        return xyz.shape[0] // 2, band, False
+    return first, band, True
+
+
+def _mean_rotation(quats: FloatArray) -> FloatArray:
+    """The mean rotation of unit quaternions (k, 4: x, y, z, w): the nearest rotation to the
+    mean of their matrices."""
+    from scipy.spatial.transform import Rotation
+
+    return nearest_rotation(Rotation.from_quat(quats).as_matrix().mean(axis=0))
+
+
+def _cluster(vectors: list[FloatArray], tolerance: float) -> list[int]:
+    """A label per vector: vectors within ``tolerance`` (largest component) of a label's first
+    member share it; labels in order of first appearance."""
+    reps: list[FloatArray] = []
+    labels = []
+    for v in vectors:
+        for k, r in enumerate(reps):
+            if r.shape == v.shape and float(np.max(np.abs(r - v))) <= tolerance:
+                labels.append(k)
+                break
+        else:
+            reps.append(v)
+            labels.append(len(reps) - 1)
+    return labels
+
+
+def _value_at(t_ns: NDArray[np.int64], values: FloatArray, at_ns: int) -> FloatArray:
+    """The last value at or before ``at_ns`` (the first one when none is before)."""
+    k = int(np.searchsorted(t_ns, at_ns, side="right")) - 1
+    return np.asarray(values[max(k, 0)], dtype=np.float64)
+
+
+def _joint_columns(frame: object) -> tuple[NDArray[np.int64], FloatArray]:
+    import polars as pl
+
+    assert isinstance(frame, pl.DataFrame)
+    cols = [c for c in frame.columns if c.startswith("q_")]
+    t = np.asarray(frame["t_ns"].to_numpy(), dtype=np.int64)
+    return t, np.column_stack([np.asarray(frame[c].to_numpy(), np.float64) for c in cols])
+
+
+def segment_log(
+    log: LogData,
+    *,
+    settings: DwellSettings | None = None,
+    commanded: FloatArray | None = None,
+    commanded_source: str = "",
+    program_poses: list[tuple[str, FloatArray]] | None = None,
+) -> Segmented:
+    """The visits of ``log`` (see the module docstring). ``commanded``: the commanded joint
+    targets of the visits in order (a commanded CSV, (k, n)), named by ``commanded_source``;
+    ``program_poses``: the test program's poses (name, joints) — visits whose commanded joints
+    match one take its name, other stops are no test pose. Raises :class:`Iso9283Error` when
+    the log holds no dwell."""
+    settings = settings or DwellSettings()
+    name = log.path
+    points = log.points
+    if "target" in points.columns:  # several targets: the primary one
+        import polars as pl
+
+        points = points.filter(pl.col("target") == 0)
+    t_ns = np.asarray(points["t_ns"].to_numpy(), dtype=np.int64)
+    xyz = np.column_stack([np.asarray(points[c].to_numpy(), np.float64) for c in "xyz"])
+    orientation = all(c in points.columns for c in ORIENTATION_COLUMNS)
+    quats = (
+        np.column_stack([np.asarray(points[c].to_numpy(), np.float64) for c in ORIENTATION_COLUMNS])
+        if orientation
+        else None
+    )
+    notes: list[str] = []
+    if t_ns.size < 2:
+        raise Iso9283Error(
+            name, f"the tracker stream holds {t_ns.size} sample(s)", "record the test's cycles"
+        )
+    t_s = (t_ns - t_ns[0]) * 1e-9
+    steps = np.diff(t_s)
+    rate = float(1.0 / np.median(steps[steps > 0])) if np.any(steps > 0) else 0.0
+    dwells = find_dwells(t_s, xyz, settings)
+    if not dwells:
+        raise Iso9283Error(
+            name,
+            f"no dwell found (no {settings.min_time:g} s with the target slower than "
+            f"{settings.speed * 1e3:g} mm/s)",
+            "give the log of an ISO 9283 test (the robot stopping at each test pose)",
+        )
+    enc = None if log.joints is None else _joint_columns(log.joints)
+    cmd = (
+        None
+        if log.commanded is None or log.commanded.height == 0
+        else _joint_columns(log.commanded)
+    )
+    if commanded is not None:
+        source = commanded_source or "the commanded CSV"
+    elif cmd is not None:
+        topic = log.pipeline.streams["commanded"].topic
+        source = f"the commanded joint stream {topic}"
+    elif enc is not None:
+        source = (
+            "the encoders at each visit (the controller's joints, its servo error included: "
+            "no commanded stream in the log and no --commanded CSV)"
+        )
+        notes.append(
+            f"{name}: no commanded joint stream and no --commanded CSV: each visit's commanded "
+            "target is the encoders' mean at the visit (accuracy is then against the pose the "
+            "controller believes it reached)."
+        )
+    else:
+        source = "nothing (no commanded stream, CSV or encoders)"
+        notes.append(
+            f"{name}: neither commanded joints nor encoders: the visits are grouped by their "
+            "attained positions; accuracy needs the commanded poses (give --commanded)."
+        )
+    if commanded is not None and commanded.shape[0] != len(dwells):
+        notes.append(
+            f"{name}: {len(dwells)} visit(s) found against {commanded.shape[0]} commanded "
+            f"target(s) in {source}: matched in order, the first "
+            f"{min(len(dwells), commanded.shape[0])}."
+        )
+    raw: list[dict[str, object]] = []
+    previous_end = -np.inf
+    for k, (s, e) in enumerate(dwells):
+        first, band, settled = _settle(xyz[s:e], settings)
+        kept = slice(s + first, e)
+        position = xyz[kept].mean(axis=0)
+        scatter = float(np.sqrt(np.mean(np.sum((xyz[kept] - position) ** 2, axis=1))))
+        rotation = None if quats is None else _mean_rotation(quats[kept])
+        a0 = max(t_s[s] - settings.approach, previous_end)
+        a = int(np.searchsorted(t_s, a0, side="left"))
+        previous_end = t_s[e - 1]
+        arrival_t = t_s[a:e] - t_s[s]
+        arrival_xyz = xyz[a:e]
+        direction = position - arrival_xyz[0]
+        norm = float(np.linalg.norm(direction))
+        direction = direction / norm if norm > 20 * max(scatter, BAND_FLOOR) else np.zeros(3)
+        mid = int((t_ns[s] + t_ns[e - 1]) // 2)
+        q: FloatArray | None = None
+        if commanded is not None:
+            q = commanded[k] if k < commanded.shape[0] else None
+        elif cmd is not None:
+            q = _value_at(cmd[0], cmd[1], mid)
+        elif enc is not None:
+            inside = (enc[0] >= t_ns[s + first]) & (enc[0] <= t_ns[e - 1])
+            q = enc[1][inside].mean(axis=0) if np.any(inside) else _value_at(*enc, mid)
+        raw.append(
+            dict(
+                index=k,
+                t_start_ns=int(t_ns[s]),
+                t_end_ns=int(t_ns[e - 1]),
+                t_settled_ns=int(t_ns[s + first]),
+                position=position,
+                rotation=rotation,
+                n_settled=e - s - first,
+                scatter=scatter,
+                band=band,
+                settled=settled,
+                q=q,
+                arrival_t=arrival_t,
+                arrival_xyz=arrival_xyz,
+                direction=direction,
+            )
+        )
+    # the poses: program poses by their joints; else each distinct target, in order first seen
+    names: list[str] = []
+    labels: list[str] = []
+    pose_q: list[FloatArray] = []
+    have_q = all(r["q"] is not None for r in raw)
+    if program_poses is not None and have_q:
+        for r in raw:
+            q = np.asarray(r["q"])
+            hit = [
+                n
+                for n, pq in program_poses
+                if pq.shape == q.shape and float(np.max(np.abs(pq - q))) <= SAME_TARGET
+            ]
+            labels.append(hit[0] if hit else "")
+        names = [n for n, _ in program_poses]
+        pose_q = [pq for _, pq in program_poses]
+    else:
+        keys = (
+            [np.asarray(r["q"]) for r in raw]
+            if have_q
+            else [np.asarray(r["position"]) for r in raw]
+        )
+        tol = SAME_TARGET if have_q else 5e-3  # positions: 5 mm apart at least
+        clusters = _cluster(keys, tol)
+        counts = np.bincount(clusters)
+        # a pose is visited more than once; the five most visited are the test poses
+        order = [c for c in dict.fromkeys(clusters) if counts[c] >= 2]
+        if len(order) > 5:
+            kept_clusters = sorted(order, key=lambda c: -counts[c])[:5]
+            notes.append(
+                f"{name}: {len(order)} distinct targets visited more than once; the five most "
+                "visited are taken as P1–P5 (give --commanded with the program to name them)."
+            )
+            order = [c for c in order if c in kept_clusters]
+        if not order:
+            order = list(dict.fromkeys(clusters))
+            notes.append(
+                f"{name}: no target is visited twice (one cycle at most): repeatability needs "
+                "two cycles or more."
+            )
+        label_of = {c: f"P{i + 1}" for i, c in enumerate(order)}
+        labels = [label_of.get(c, "") for c in clusters]
+        names = [label_of[c] for c in order]
+        if have_q:
+            # the mean of the pose's visits' targets (identical when commanded)
+            pose_q = [
+                np.mean([kv for kv, c2 in zip(keys, clusters, strict=True) if c2 == c], axis=0)
+                for c in order
+            ]
+    cycle_count: dict[str, int] = {}
+    visits = []
+    for r, label in zip(raw, labels, strict=True):
+        cycle = 0
+        if label:
+            cycle = cycle_count.get(label, 0) + 1
+            cycle_count[label] = cycle
+        visits.append(Visit(pose=label, cycle=cycle, **r))  # type: ignore[arg-type]
+    return Segmented(
+        name,
+        visits,
+        names,
+        np.array(pose_q) if pose_q else None,
+        source,
+        rate,
+        orientation,
+        notes,
+    )

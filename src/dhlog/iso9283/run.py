@@ -1,0 +1,703 @@
+"""The ISO 9283 acceptance report from tracker logs: the visits of :mod:`dhlog.iso9283.cycles`
+registered into the robot's base frame and turned into the characteristics of clause 7 per pose
+(AP, RP, vAP, stabilisation time and overshoot), between P2 and P4 (AD, RD) and over time (drift).
+
+**The base frame.** With a calibration result, its ``T_measurement_base`` (the tracker where it
+stood for the calibration) carries the attained positions into the base frame; otherwise the
+nominal is registered on the attained barycentres (a rigid best fit of its forward kinematics at
+the commanded joints, :func:`dhlog.identify.fit.register.register_nominal`, the nominal's tool
+point kept): the fit absorbs the part of the error a rigid motion explains, so AP is lower than
+against the controller's own base frame — the report says so. Without a model the positions
+stay in the measurement frame: repeatability, stabilisation and drift of the barycentre need no
+model; accuracy is not computed.
+
+**Before / after.** Before: the attained positions against the nominal's forward kinematics of
+the commanded joints (the pose the controller, running the nominal, intended). After (with a
+result): what ``dhlog compensate``'s corrected commands would attain, to first order — each
+attained position minus (the calibrated model's prediction at the commanded joints − the
+nominal's), against the same commanded positions; i.e. the error left is the attained position
+minus the calibrated prediction. Computed, not measured: the report says so.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from dhlog.errors import InputError, Iso9283Error
+from dhlog.geometry._checks import FloatArray
+from dhlog.io.dhfile import DHModel
+from dhlog.io.pipeline import Pipeline
+from dhlog.iso9283.cycles import (
+    ARRIVAL_RATE,
+    SAME_DIRECTION,
+    DwellSettings,
+    Segmented,
+    Visit,
+    segment_log,
+)
+from dhlog.model.fk import fk_point
+
+#: The standard's pair of poses for distance accuracy and repeatability (clause 7.6).
+DISTANCE_POSES = ("P2", "P4")
+#: The pose drift is measured at (clause 7.7: P1).
+DRIFT_POSE = "P1"
+
+
+@dataclass(frozen=True)
+class Accuracy:
+    """Pose accuracy (clause 7.2.1): ``AP`` (m) = |x̄ − x_c| and its components (3,)."""
+
+    AP: float
+    components: FloatArray
+
+    def document(self) -> dict[str, Any]:
+        x, y, z = (float(v) for v in self.components)
+        return {"AP": self.AP, "AP_x": x, "AP_y": y, "AP_z": z}
+
+
+@dataclass(frozen=True)
+class PoseReport:
+    """One test pose's characteristics (SI: m, rad, s); None where not computed."""
+
+    name: str
+    visits: int
+    barycentre: FloatArray  # (3,) in the report's frame
+    commanded: FloatArray | None  # (3,) the nominal's FK of the commanded joints, base frame
+    before: Accuracy | None
+    after: Accuracy | None
+    RP: float | None
+    l_mean: float | None
+    S_l: float | None
+    RP_abc: FloatArray | None  # (3,) ±3 S_a, S_b, S_c (rad)
+    stabilisation_time: float | None  # mean over arrivals (s)
+    stabilisation_max: float | None
+    overshoot: float | None  # mean over arrivals (m)
+    overshoot_max: float | None
+    unsettled: int
+    vAP: float | None
+    directions: int
+
+    def document(self) -> dict[str, Any]:
+        def vec(v: FloatArray | None) -> list[float] | None:
+            return None if v is None else [float(x) for x in v]
+
+        return {
+            "pose": self.name,
+            "visits": self.visits,
+            "barycentre": vec(self.barycentre),
+            "commanded": vec(self.commanded),
+            "before": None if self.before is None else self.before.document(),
+            "after": None if self.after is None else self.after.document(),
+            "RP": self.RP,
+            "l_mean": self.l_mean,
+            "S_l": self.S_l,
+            "RP_abc": vec(self.RP_abc),
+            "stabilisation_time": self.stabilisation_time,
+            "stabilisation_time_max": self.stabilisation_max,
+            "overshoot": self.overshoot,
+            "overshoot_max": self.overshoot_max,
+            "unsettled": self.unsettled,
+            "vAP": self.vAP,
+            "directions": self.directions,
+        }
+
+
+@dataclass(frozen=True)
+class DistanceReport:
+    """Distance accuracy and repeatability between two poses (clause 7.6): ``D_mean`` the mean
+    attained distance over ``cycles``, ``D_commanded`` (None without a model), ``AD`` = D̄ − D_c
+    (before; ``AD_after`` with a result), ``RD`` = 3 S_D."""
+
+    poses: tuple[str, str]
+    cycles: int
+    D_mean: float
+    D_commanded: float | None
+    AD: float | None
+    AD_after: float | None
+    RD: float | None
+
+    def document(self) -> dict[str, Any]:
+        return {
+            "poses": list(self.poses),
+            "cycles": self.cycles,
+            "D_mean": self.D_mean,
+            "D_commanded": self.D_commanded,
+            "AD": self.AD,
+            "AD_after": self.AD_after,
+            "RD": self.RD,
+        }
+
+
+@dataclass(frozen=True)
+class DriftReport:
+    """Drift at ``pose`` (clause 7.7) between the first and the last ``group`` cycles, ``hours``
+    apart (their mean times): dAP = |AP_first − AP_last| (None without a model), dRP =
+    |RP_first − RP_last|, the barycentre's shift (m) and its rate (m/h, a line fitted to every
+    visit's position over time)."""
+
+    pose: str
+    group: int
+    hours: float
+    dAP: float | None
+    dRP: float | None
+    shift: float
+    rate: float
+
+    def document(self) -> dict[str, Any]:
+        return {
+            "pose": self.pose,
+            "group": self.group,
+            "hours": self.hours,
+            "dAP": self.dAP,
+            "dRP": self.dRP,
+            "shift": self.shift,
+            "rate_per_hour": self.rate,
+        }
+
+
+@dataclass(frozen=True)
+class Iso9283Report:
+    """The acceptance report: per pose, distance, drift (paths: not yet computed from logs),
+    the frame and how it was found, where the commanded targets came from, and ``notes`` (one
+    line each: what is missing or assumed)."""
+
+    logs: list[str]
+    frame: str
+    registration: str
+    commanded_from: str
+    after_basis: str | None
+    rate_hz: float
+    visits: int
+    cycles: int
+    poses: list[PoseReport]
+    distance: DistanceReport | None
+    drift: DriftReport | None
+    orientation: bool
+    notes: list[str] = field(default_factory=list)
+
+    def document(self) -> dict[str, Any]:
+        """The ``iso9283`` block (docs/iso9283.md, src/dhlog/schemas/iso9283.schema.json)."""
+        return {
+            "units": {"length": "m", "angle": "rad", "time": "s"},
+            "frame": self.frame,
+            "registration": self.registration,
+            "commanded_from": self.commanded_from,
+            "after": self.after_basis,
+            "tracker_rate_hz": self.rate_hz,
+            "visits": self.visits,
+            "cycles": self.cycles,
+            "orientation": self.orientation,
+            "poses": [p.document() for p in self.poses],
+            "distance": None if self.distance is None else self.distance.document(),
+            "drift": None if self.drift is None else self.drift.document(),
+            "paths": [],
+            "notes": list(self.notes),
+        }
+
+
+# ---------------------------------------------------------------- the formulas' stand-ins
+
+
+def _accuracy(attained: FloatArray, commanded: FloatArray) -> Accuracy:
+    """Clause 7.2.1: AP_P = √((x̄−x_c)² + (ȳ−y_c)² + (z̄−z_c)²), components x̄ − x_c …"""
+    d = attained.mean(axis=0) - commanded
+    return Accuracy(float(np.linalg.norm(d)), d)
+
+
+def _repeatability(attained: FloatArray) -> tuple[float, float, float]:
+    """Clause 7.2.3: l_j = |x_j − x̄|, RP_l = l̄ + 3 S_l with S_l = √(Σ(l_j − l̄)² / (n − 1))."""
+    lengths = np.linalg.norm(attained - attained.mean(axis=0), axis=1)
+    mean = float(lengths.mean())
+    s = float(np.sqrt(np.sum((lengths - mean) ** 2) / (lengths.size - 1)))
+    return mean + 3.0 * s, mean, s
+
+
+def _orientation_repeatability(rotations: Sequence[FloatArray]) -> FloatArray:
+    """Clause 7.2.3: ±3 S_a, S_b, S_c — the rotations about the frame's x, y, z of each visit
+    from the visits' mean orientation (small angles), their standard deviations × 3."""
+    from scipy.spatial.transform import Rotation
+
+    from dhlog.geometry._checks import nearest_rotation
+
+    Rs = np.asarray(rotations)
+    mean = nearest_rotation(Rs.mean(axis=0))
+    abc = Rotation.from_matrix(Rs @ mean.T).as_rotvec()
+    return np.asarray(3.0 * abc.std(axis=0, ddof=1), dtype=np.float64)
+
+
+def _stabilisation(visit: Visit) -> tuple[float, float] | None:
+    """Clauses 7.4, 7.5 from one arrival: the time from the first sample within the visit's
+    band (around its attained position) to the last sample outside it (0 when it never leaves
+    again), and the overshoot: the largest distance from the attained position after the
+    first entry into the band. None when the arrival never enters the band."""
+    d = np.linalg.norm(visit.arrival_xyz - visit.position, axis=1)
+    inside = np.flatnonzero(d <= visit.band)
+    if inside.size == 0:
+        return None
+    first = int(inside[0])
+    outside = np.flatnonzero(d[first:] > visit.band)
+    last = first + int(outside[-1]) + 1 if outside.size else first
+    t = visit.arrival_t
+    time = float(t[min(last, t.size - 1)] - t[first])
+    return time, float(d[first:].max())
+
+
+# ---------------------------------------------------------------- the run
+
+
+def _base_positions(
+    seg: Segmented,
+    nominal: DHModel | None,
+    calibrated: DHModel | None,
+    notes: list[str],
+) -> tuple[FloatArray | None, str, str]:
+    """The transform from the measurement frame into the nominal's base frame (None: the
+    report stays in the measurement frame), its frame's name and how it was found."""
+    if calibrated is not None:
+        T_mb = calibrated.T_base
+        base = nominal.T_base if nominal is not None else np.eye(4)
+        return (
+            base @ np.linalg.inv(T_mb),
+            "base",
+            f"the result's T_measurement_base ({calibrated.source}): the tracker where it stood "
+            "for the calibration",
+        )
+    if nominal is None:
+        return None, "measurement", "none: no model given (positions in the tracker's frame)"
+    if seg.pose_q is None:
+        notes.append(
+            "no commanded joints: the nominal cannot be registered; positions stay in the "
+            "tracker's frame and accuracy is not computed."
+        )
+        return None, "measurement", "none: no commanded joints to register the nominal on"
+    from dhlog.identify.fit.register import register_nominal
+
+    named = [(k, seg.of_pose(n)) for k, n in enumerate(seg.poses) if seg.of_pose(n)]
+    if len(named) < 3:
+        notes.append(
+            f"{len(named)} pose(s) visited: the nominal needs three to be registered on; "
+            "accuracy is not computed (give --result)."
+        )
+        return None, "measurement", "none: fewer than three poses to register the nominal on"
+    Q = np.array([seg.pose_q[k] for k, _ in named])
+    P = np.array([np.mean([v.position for v in vs], axis=0) for _, vs in named])
+    try:
+        reg = register_nominal(nominal.table, Q, P, tool_point=nominal.tool_point, fit_tool=False)
+    except Exception as exc:  # a degenerate set of poses
+        notes.append(f"the nominal could not be registered on the poses ({exc}).")
+        return None, "measurement", "none: the registration failed"
+    notes.append(
+        "the base frame is the nominal registered on the attained barycentres (a rigid best fit): "
+        "it absorbs the error a rigid motion explains, so AP is lower than against the "
+        "controller's base; give --result for the calibration's placement."
+    )
+    return (
+        nominal.T_base @ np.linalg.inv(reg.T_measurement_base),
+        "base",
+        f"the nominal registered on the {len(named)} poses' attained barycentres (rigid best "
+        f"fit, RMS {reg.rms * 1e3:.3f} mm)",
+    )
+
+
+def _moved(T: FloatArray | None, p: FloatArray) -> FloatArray:
+    return p if T is None else np.asarray(p @ T[:3, :3].T + T[:3, 3], dtype=np.float64)
+
+
+def iso9283_report(
+    segmented: Sequence[Segmented],
+    *,
+    nominal: DHModel | None = None,
+    calibrated: DHModel | None = None,
+) -> Iso9283Report:
+    """The report from one or more logs' visits (see the module docstring). ``nominal``: the
+    model the controller runs (its FK of the commanded joints is the commanded position);
+    ``calibrated``: dhlog's result (placement and the after column)."""
+    if not segmented:
+        raise Iso9283Error("dhlog iso9283", "no log given", "give the test's log(s)")
+    seg0 = segmented[0]
+    notes = [n for s in segmented for n in s.notes]
+    if len(segmented) > 1:  # the logs' visits in one list, each pose's cycles numbered on
+        visits: list[Visit] = []
+        counts: dict[str, int] = {}
+        for s in segmented:
+            for v in s.visits:
+                c = v.cycle
+                if v.pose:
+                    c = counts.get(v.pose, 0) + 1
+                    counts[v.pose] = c
+                visits.append(_renumbered(v, c))
+        seg = Segmented(
+            ", ".join(s.path for s in segmented),
+            visits,
+            seg0.poses,
+            seg0.pose_q,
+            seg0.commanded_from,
+            min(s.rate_hz for s in segmented),
+            all(s.orientation for s in segmented),
+            [],
+        )
+    else:
+        seg = seg0
+    T, frame, registration = _base_positions(seg, nominal, calibrated, notes)
+    n_q = None if seg.pose_q is None else seg.pose_q.shape[1]
+    if nominal is not None and n_q is not None and n_q != nominal.table.n:
+        raise Iso9283Error(
+            "--nominal",
+            f"{nominal.source} has {nominal.table.n} joints but the commanded targets have {n_q}",
+            "give the robot's own model",
+        )
+    accuracy = T is not None and nominal is not None and seg.pose_q is not None
+
+    def commanded_at(k: int) -> FloatArray:
+        assert nominal is not None and seg.pose_q is not None
+        q = seg.pose_q[k]
+        return np.asarray(fk_point(nominal.table, q, nominal.tool_point, T_base=nominal.T_base))
+
+    def correction_at(k: int) -> FloatArray:
+        """The calibrated prediction − the nominal's at pose k's commanded joints (base)."""
+        assert calibrated is not None and nominal is not None and seg.pose_q is not None
+        q = seg.pose_q[k]
+        pred_m = fk_point(
+            calibrated.table,
+            calibrated.joint_values(q),
+            calibrated.tool_point,
+            T_base=calibrated.T_base,
+        )
+        assert T is not None
+        return _moved(T, pred_m) - commanded_at(k)
+
+    stabilising = seg.rate_hz >= 0.99 * ARRIVAL_RATE  # 100 Hz give or take the clock
+    if not stabilising:
+        notes.append(
+            f"the tracker samples at {seg.rate_hz:.0f} Hz: stabilisation time and overshoot need "
+            f"{ARRIVAL_RATE:.0f} Hz or more and are not computed."
+        )
+    poses: list[PoseReport] = []
+    for k, name in enumerate(seg.poses):
+        vs = seg.of_pose(name)
+        if not vs:
+            notes.append(f"{name} was never reached (no visit matched its commanded target).")
+            continue
+        X = _moved(T, np.array([v.position for v in vs]))
+        before = after = None
+        commanded = None
+        if accuracy:
+            commanded = commanded_at(k)
+            before = _accuracy(X, commanded)
+            if calibrated is not None:
+                after = _accuracy(X - correction_at(k), commanded)
+        RP = l_mean = S_l = None
+        if len(vs) >= 2:
+            RP, l_mean, S_l = _repeatability(X)
+        abc = None
+        if seg.orientation and len(vs) >= 2:
+            Rs = [v.rotation for v in vs if v.rotation is not None]
+            if len(Rs) >= 2:
+                R_frame = np.eye(3) if T is None else T[:3, :3]
+                abc = _orientation_repeatability([R_frame @ R for R in Rs])
+        stab = [s for s in (_stabilisation(v) for v in vs) if s is not None] if stabilising else []
+        times = [s[0] for s in stab]
+        overs = [s[1] for s in stab]
+        vap, ndir = _multi_directional(vs, X)
+        poses.append(
+            PoseReport(
+                name,
+                len(vs),
+                X.mean(axis=0),
+                commanded,
+                before,
+                after,
+                RP,
+                l_mean,
+                S_l,
+                abc,
+                float(np.mean(times)) if times else None,
+                float(np.max(times)) if times else None,
+                float(np.mean(overs)) if overs else None,
+                float(np.max(overs)) if overs else None,
+                sum(1 for v in vs if not v.settled),
+                vap,
+                ndir,
+            )
+        )
+        if len(vs) < 2:
+            notes.append(
+                f"{name}: {len(vs)} cycle: RP needs 2 cycles or more (the standard: 30); not "
+                "computed."
+            )
+    cycles = max((p.visits for p in poses), default=0)
+    if 0 < cycles < 30:
+        notes.append(
+            f"{cycles} cycle(s) per pose: the standard asks 30; the figures are from these."
+        )
+    missing = [n for n in ("P1", "P2", "P3", "P4", "P5") if n not in {p.name for p in poses}]
+    if len(seg.poses) >= 5 and missing:
+        pass  # named above, one line each
+    elif len(seg.poses) < 5:
+        notes.append(
+            f"{len(seg.poses)} test pose(s) in the log: the standard has five (P1–P5); "
+            f"{', '.join(missing)} not in this log."
+        )
+    if not any(p.directions > 1 for p in poses):
+        notes.append(
+            "vAP (multi-directional accuracy variation): not in this log (every pose is "
+            "approached from one direction)."
+        )
+    notes.append("path accuracy and repeatability (AT, RT): not computed from logs yet.")
+    distance = _distance(
+        seg,
+        T,
+        commanded_at if accuracy else None,
+        correction_at if accuracy and calibrated is not None else None,
+        notes,
+    )
+    drift = _drift(seg, T, commanded_at if accuracy else None, notes)
+    after_basis = None
+    if calibrated is not None and accuracy:
+        after_basis = (
+            "computed: each attained position minus (the calibrated model's prediction at the "
+            "commanded joints − the nominal's), i.e. what dhlog compensate's corrected commands "
+            "would attain to first order; not measured"
+        )
+    return Iso9283Report(
+        [s.path for s in segmented],
+        frame,
+        registration,
+        seg.commanded_from,
+        after_basis,
+        seg.rate_hz,
+        len(seg.visits),
+        cycles,
+        poses,
+        distance,
+        drift,
+        seg.orientation,
+        notes,
+    )
+
+
+def _renumbered(v: Visit, cycle: int) -> Visit:
+    from dataclasses import replace
+
+    return replace(v, cycle=cycle)
+
+
+def _multi_directional(vs: list[Visit], X: FloatArray) -> tuple[float | None, int]:
+    """Clause 7.2.2: the visits grouped by approach direction (within ``SAME_DIRECTION``);
+    vAP = the largest distance between two groups' barycentres (None with one direction), and
+    the number of directions."""
+    groups: list[tuple[FloatArray, list[int]]] = []
+    for i, v in enumerate(vs):
+        if not np.any(v.direction):
+            continue
+        for d, members in groups:
+            if float(np.dot(d, v.direction)) >= math.cos(SAME_DIRECTION):
+                members.append(i)
+                break
+        else:
+            groups.append((v.direction, [i]))
+    groups = [g for g in groups if len(g[1]) >= 2]
+    if len(groups) < 2:
+        return None, len(groups)
+    bary = [X[m].mean(axis=0) for _, m in groups]
+    return (
+        max(float(np.linalg.norm(a - b)) for i, a in enumerate(bary) for b in bary[i + 1 :]),
+        len(groups),
+    )
+
+
+def _distance(
+    seg: Segmented,
+    T: FloatArray | None,
+    commanded_at: Any,
+    correction_at: Any,
+    notes: list[str],
+) -> DistanceReport | None:
+    """Clause 7.6 between P2 and P4: D_j = |P4_j − P2_j| per cycle."""
+    a, b = DISTANCE_POSES
+    if a not in seg.poses or b not in seg.poses:
+        notes.append(f"AD/RD: {a} or {b} not in this log; not computed.")
+        return None
+    pa = {v.cycle: v.position for v in seg.of_pose(a)}
+    pb = {v.cycle: v.position for v in seg.of_pose(b)}
+    both = sorted(set(pa) & set(pb))
+    if not both:
+        notes.append(f"AD/RD: no cycle visits both {a} and {b}; not computed.")
+        return None
+    D = np.array([np.linalg.norm(_moved(T, pb[c]) - _moved(T, pa[c])) for c in both])
+    ka, kb = seg.poses.index(a), seg.poses.index(b)
+    Dc = AD = AD_after = None
+    if commanded_at is not None:
+        Dc = float(np.linalg.norm(commanded_at(kb) - commanded_at(ka)))
+        AD = float(D.mean() - Dc)
+        if correction_at is not None:
+            Da = np.array(
+                [
+                    np.linalg.norm(
+                        (_moved(T, pb[c]) - correction_at(kb))
+                        - (_moved(T, pa[c]) - correction_at(ka))
+                    )
+                    for c in both
+                ]
+            )
+            AD_after = float(Da.mean() - Dc)
+    RD = float(3.0 * D.std(ddof=1)) if D.size >= 2 else None
+    if RD is None:
+        notes.append(f"RD: {D.size} cycle with both {a} and {b}: needs 2 or more; not computed.")
+    return DistanceReport((a, b), int(D.size), float(D.mean()), Dc, AD, AD_after, RD)
+
+
+def _drift(
+    seg: Segmented, T: FloatArray | None, commanded_at: Any, notes: list[str]
+) -> DriftReport | None:
+    """Clause 7.7 at P1: the first and the last ``min(10, n // 2)`` cycles."""
+    vs = seg.of_pose(DRIFT_POSE)
+    if len(vs) < 4:
+        notes.append(
+            f"drift: {len(vs)} visit(s) to {DRIFT_POSE}: needs 4 or more (two groups of two); "
+            "not computed."
+        )
+        return None
+    g = min(10, len(vs) // 2)
+    X = _moved(T, np.array([v.position for v in vs]))
+    t_h = np.array([(v.t_start_ns - vs[0].t_start_ns) * 1e-9 / 3600.0 for v in vs])
+    first, last = X[:g], X[-g:]
+    hours = float(t_h[-g:].mean() - t_h[:g].mean())
+    dAP = None
+    if commanded_at is not None:
+        c = commanded_at(seg.poses.index(DRIFT_POSE))
+        dAP = abs(_accuracy(first, c).AP - _accuracy(last, c).AP)
+    dRP = abs(_repeatability(first)[0] - _repeatability(last)[0])
+    shift = float(np.linalg.norm(last.mean(axis=0) - first.mean(axis=0)))
+    rate = 0.0
+    if np.ptp(t_h) > 0:
+        slope = np.polyfit(t_h, X, 1)[0]
+        rate = float(np.linalg.norm(slope))
+    return DriftReport(DRIFT_POSE, g, hours, dAP, dRP, shift, rate)
+
+
+# ---------------------------------------------------------------- logs in, the document out
+
+#: The report file's format name.
+FORMAT = "dhlog.iso9283/1"
+
+
+def read_commanded_csv(path: str | Path, n: int | None) -> tuple[FloatArray, list[str]]:
+    """The commanded joint targets of a cycle program CSV (one row per visit, in order; one
+    column per joint, radians; a header row; an optional first column ``pose`` naming each
+    row's pose), and the names (empty without the column). Raises :class:`InputError` naming
+    the file, row and field."""
+    import csv
+
+    from dhlog.io.textfile import decode_utf8, read_capped
+
+    def fail(problem: str) -> InputError:
+        return InputError(f"{path}: {problem}")
+
+    data = read_capped(
+        path, 64 * 2**20, fail, what="commanded CSV", hint="give the cycle program's CSV."
+    )
+    text = decode_utf8(data, fail, what="commanded CSV")
+    rows = [r for r in csv.reader(text.splitlines()) if r and any(c.strip() for c in r)]
+    if len(rows) < 2:
+        raise InputError(f"{path}: no commanded targets (a header row and one row per visit).")
+    header = [c.strip().lower() for c in rows[0]]
+    named = header[0] in ("pose", "name")
+    names: list[str] = []
+    values = []
+    for k, row in enumerate(rows[1:], start=2):
+        cells = row[1:] if named else row
+        if named:
+            names.append(row[0].strip())
+        try:
+            q = [float(c) for c in cells]
+        except ValueError:
+            raise InputError(
+                f"{path}: row {k} holds a value that is not a number; give joint targets in "
+                "radians, one column per joint."
+            ) from None
+        if (n is not None and len(q) != n) or not all(math.isfinite(v) for v in q):
+            raise InputError(
+                f"{path}: row {k} has {len(q)} finite value(s), the robot {n} joints; give one "
+                "column per joint."
+            )
+        values.append(q)
+    widths = {len(q) for q in values}
+    if len(widths) != 1:
+        raise InputError(f"{path}: rows of different lengths; give one column per joint.")
+    return np.array(values, dtype=np.float64), names
+
+
+def run_logs(
+    logs: Sequence[str | Path],
+    *,
+    pipeline: Pipeline | None = None,
+    nominal: DHModel | None = None,
+    calibrated: DHModel | None = None,
+    commanded_csv: str | Path | None = None,
+    settings: DwellSettings | None = None,
+) -> Iso9283Report:
+    """``dhlog iso9283``: read each log, find its visits, and report."""
+    from dhlog.io.reader import read_log
+
+    commanded = None
+    names: list[str] = []
+    if commanded_csv is not None:
+        n = None if nominal is None else nominal.table.n
+        commanded, names = read_commanded_csv(commanded_csv, n)
+    segmented = []
+    for log in logs:
+        data = read_log(log, pipeline)
+        program: list[tuple[str, FloatArray]] = []
+        if names:
+            for name, q in zip(names, commanded if commanded is not None else [], strict=False):
+                if name and name not in [p for p, _ in program]:
+                    program.append((name, q))
+        segmented.append(
+            segment_log(
+                data,
+                settings=settings,
+                commanded=commanded,
+                commanded_source=f"the commanded CSV {commanded_csv}" if commanded_csv else "",
+                program_poses=program or None,
+            )
+        )
+    return iso9283_report(segmented, nominal=nominal, calibrated=calibrated)
+
+
+def report_document(report: Iso9283Report, source: dict[str, Any]) -> dict[str, Any]:
+    """``<stem>.iso9283.json``: the format, dhlog's version, the sources and the block."""
+    from dhlog._version import version
+
+    return {
+        "format": FORMAT,
+        "dhlog_version": version(),
+        "source": source,
+        "iso9283": report.document(),
+    }
+
+
+def write_report(document: dict[str, Any], path: str | Path) -> None:
+    """The document written atomically as JSON (non-finite numbers as null)."""
+    import json
+
+    from dhlog.io.writer import atomic_output
+
+    def clean(v: Any) -> Any:
+        if isinstance(v, float):
+            return v if math.isfinite(v) else None
+        if isinstance(v, dict):
+            return {k: clean(x) for k, x in v.items()}
+        if isinstance(v, list):
+            return [clean(x) for x in v]
+        return v
+
+    text = json.dumps(clean(document), indent=2, allow_nan=False) + "\n"
+    with atomic_output(path) as f:
+        f.write(text.encode("utf-8"))
