@@ -273,6 +273,23 @@ def test_path_accuracy_takes_the_crossing_nearest_the_commanded_point() -> None:
     )
 
 
+def test_path_accuracy_on_a_circle_with_the_default_tangents() -> None:
+    # command: 36 points on a 100 mm circle; cycles: concentric circles 0.1, 0.2, 0.6 mm larger,
+    # sampled every 0.1°: the chords lie inside the arcs by r (1 − cos 0.05°) < 0.04 µm
+    th = np.radians(np.arange(0.0, 360.0, 0.1))
+    cmd_th = np.radians(np.arange(5.0, 355.0, 10.0))
+    r = 0.1
+    commanded = C + r * np.column_stack([np.cos(cmd_th), np.sin(cmd_th), np.zeros_like(cmd_th)])
+    offsets = np.array([0.1, 0.2, 0.6]) * MM
+    cycles = [C + (r + o) * np.column_stack([np.cos(th), np.sin(th), 0 * th]) for o in offsets]
+    pc = path_accuracy(cycles, commanded)
+    # barycentre 0.3 mm outside everywhere; l = 0.2, 0.1, 0.3 mm: l̄ = 0.2, S_l = 0.1 mm. At the
+    # ends the tangent is a second-order one-sided difference (a first-order one, 5° off the
+    # tangent, put the end points 1.1 µm out)
+    np.testing.assert_allclose(pc.deviation, 0.3 * MM, atol=1e-7)
+    assert pc.RT_P == pytest.approx(0.5 * MM, abs=1e-7)
+
+
 def test_path_refusals() -> None:
     commanded, cycles = _line_cycles()
     with pytest.raises(Iso9283Error, match="at least 2 cycles"):

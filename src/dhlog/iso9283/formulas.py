@@ -683,15 +683,21 @@ class PathCharacteristics:
 
 
 def _tangents(commanded: FloatArray) -> FloatArray:
-    """Unit tangents of a commanded polyline (m, 3) by central differences (one-sided at the
-    ends)."""
-    g = np.gradient(commanded, axis=0)
-    norm = np.linalg.norm(g, axis=1)
-    if np.any(norm <= 0.0):
+    """Unit tangents of a commanded polyline (m, 3) by central differences (second-order
+    one-sided ones at the ends, first-order for two points)."""
+    if np.any(np.linalg.norm(np.diff(commanded, axis=0), axis=1) <= 0.0):
         raise Iso9283Error(
             "path accuracy",
             "two consecutive commanded path points coincide, so the path has no direction there",
             "give distinct commanded points, or their tangents",
+        )
+    g = np.gradient(commanded, axis=0, edge_order=2 if len(commanded) > 2 else 1)
+    norm = np.linalg.norm(g, axis=1)
+    if np.any(norm <= 0.0):
+        raise Iso9283Error(
+            "path accuracy",
+            "the commanded path turns back on itself, so it has no direction at a point",
+            "give the tangents of the commanded path",
         )
     return np.asarray(g / norm[:, None], dtype=np.float64)
 
@@ -720,7 +726,8 @@ def path_accuracy(
     attained paths ``attained_paths`` (each (k_j, 3), the measured positions of one cycle in
     time order) of the command path through the commanded points ``commanded`` (m, 3), whose
     unit ``tangents`` (m, 3) give the normal planes (by default central differences of the
-    commanded points).
+    commanded points, second-order one-sided at the ends: give the tangents where the ends
+    matter on a coarsely sampled curve).
 
     For each commanded point i, each cycle's attained point x_ij is where its path crosses the
     plane through the commanded point normal to the command path (linearly interpolated between
