@@ -195,13 +195,13 @@ def write_iso_log(
             name: writer.register_schema(name, "ros2msg", ros2.MSGDEFS[name].encode())
             for name in (ros2.POINT_STAMPED, ros2.JOINT_STATE)
         }
-        events = []
+        events: list[tuple[int, int, bytes]] = []
         for topic, schema, times, payloads in streams:
             cid = writer.register_channel(topic, "cdr", schemas[schema])
             events.extend((int(t), cid, p) for t, p in zip(times, payloads, strict=True))
         events.sort(key=lambda e: e[0])
-        for t, cid, p in events:
-            writer.add_message(cid, t, p, t)
+        for stamp, channel, payload in events:
+            writer.add_message(channel, stamp, payload, stamp)
         writer.finish()  # type: ignore[no-untyped-call]
     meta = {"pose": out.pose, "cycle": out.cycle, "attained": [a.tolist() for a in out.attained]}
     path.with_suffix(".iso.json").write_text(json.dumps(meta), encoding="utf-8")

@@ -29,7 +29,7 @@ from typing import Any
 
 import numpy as np
 
-from dhlog.errors import InputError, Iso9283Error
+from dhlog.errors import DhlogError, InputError, Iso9283Error
 from dhlog.geometry._checks import FloatArray
 from dhlog.io.dhfile import DHModel
 from dhlog.io.pipeline import Pipeline
@@ -201,51 +201,56 @@ class Iso9283Report:
         }
 
 
-# ---------------------------------------------------------------- the formulas' stand-ins
+# ---------------------------------------------------------------- the formulas, as run uses them
 
 
 def _accuracy(attained: FloatArray, commanded: FloatArray) -> Accuracy:
-    """Clause 7.2.1: AP_P = √((x̄−x_c)² + (ȳ−y_c)² + (z̄−z_c)²), components x̄ − x_c …"""
-    d = attained.mean(axis=0) - commanded
-    return Accuracy(float(np.linalg.norm(d)), d)
+    """Clause 7.2.1 (:func:`dhlog.iso9283.formulas.pose_accuracy`)."""
+    from dhlog.iso9283.formulas import pose_accuracy
+
+    got = pose_accuracy(attained, commanded)
+    return Accuracy(float(got.AP_P), np.asarray(got.AP_xyz, dtype=np.float64))
 
 
 def _repeatability(attained: FloatArray) -> tuple[float, float, float]:
-    """Clause 7.2.3: l_j = |x_j − x̄|, RP_l = l̄ + 3 S_l with S_l = √(Σ(l_j − l̄)² / (n − 1))."""
-    lengths = np.linalg.norm(attained - attained.mean(axis=0), axis=1)
-    mean = float(lengths.mean())
-    s = float(np.sqrt(np.sum((lengths - mean) ** 2) / (lengths.size - 1)))
-    return mean + 3.0 * s, mean, s
+    """Clause 7.2.2 (:func:`dhlog.iso9283.formulas.pose_repeatability`): RP_l, l̄, S_l."""
+    from dhlog.iso9283.formulas import pose_repeatability
+
+    got = pose_repeatability(attained)
+    return float(got.RP_l), float(got.l_mean), float(got.S_l)
 
 
-def _orientation_repeatability(rotations: Sequence[FloatArray]) -> FloatArray:
-    """Clause 7.2.3: ±3 S_a, S_b, S_c — the rotations about the frame's x, y, z of each visit
-    from the visits' mean orientation (small angles), their standard deviations × 3."""
-    from scipy.spatial.transform import Rotation
+def _orientation_repeatability(attained: FloatArray, rotations: Sequence[FloatArray]) -> FloatArray:
+    """Clause 7.2.2's RP_a, RP_b, RP_c (±3 S about the frame's x, y, z)."""
+    from dhlog.iso9283.formulas import pose_repeatability
 
-    from dhlog.geometry._checks import nearest_rotation
-
-    Rs = np.asarray(rotations)
-    mean = nearest_rotation(Rs.mean(axis=0))
-    abc = Rotation.from_matrix(Rs @ mean.T).as_rotvec()
-    return np.asarray(3.0 * abc.std(axis=0, ddof=1), dtype=np.float64)
+    got = pose_repeatability(attained, np.asarray(rotations))
+    assert got.RP_abc is not None
+    return np.asarray(got.RP_abc, dtype=np.float64)
 
 
 def _stabilisation(visit: Visit) -> tuple[float, float] | None:
-    """Clauses 7.4, 7.5 from one arrival: the time from the first sample within the visit's
-    band (around its attained position) to the last sample outside it (0 when it never leaves
-    again), and the overshoot: the largest distance from the attained position after the
-    first entry into the band. None when the arrival never enters the band."""
+    """Clauses 7.4, 7.5 of one arrival (:func:`dhlog.iso9283.formulas.stabilisation`) in the
+    visit's band around its attained position. The controller's attained-pose signal is not in
+    the log: the first sample within the band stands in for it. None when the arrival's samples
+    do not begin outside the band or never settle."""
+    from dhlog.iso9283.formulas import stabilisation
+
     d = np.linalg.norm(visit.arrival_xyz - visit.position, axis=1)
     inside = np.flatnonzero(d <= visit.band)
-    if inside.size == 0:
+    if inside.size == 0 or inside[0] == 0:
         return None
-    first = int(inside[0])
-    outside = np.flatnonzero(d[first:] > visit.band)
-    last = first + int(outside[-1]) + 1 if outside.size else first
-    t = visit.arrival_t
-    time = float(t[min(last, t.size - 1)] - t[first])
-    return time, float(d[first:].max())
+    try:
+        got = stabilisation(
+            visit.arrival_t,
+            visit.arrival_xyz,
+            visit.position,
+            float(visit.arrival_t[inside[0]]),
+            band=visit.band,
+        )
+    except DhlogError:
+        return None
+    return float(got.time), float(got.overshoot)
 
 
 # ---------------------------------------------------------------- the run
@@ -400,7 +405,7 @@ def iso9283_report(
             Rs = [v.rotation for v in vs if v.rotation is not None]
             if len(Rs) >= 2:
                 R_frame = np.eye(3) if T is None else T[:3, :3]
-                abc = _orientation_repeatability([R_frame @ R for R in Rs])
+                abc = _orientation_repeatability(X[: len(Rs)], [R_frame @ R for R in Rs])
         stab = [s for s in (_stabilisation(v) for v in vs) if s is not None] if stabilising else []
         times = [s[0] for s in stab]
         overs = [s[1] for s in stab]

@@ -64,7 +64,7 @@ def print_iso9283(console: Console, report: Iso9283Report) -> None:
     lines: list[tuple[str, str]] = []
     d = report.distance
     if d is not None:
-        text = f"{d.poses[0]}–{d.poses[1]}, {d.cycles} cycle(s): D̄ {_mm(d.D_mean, 4)} mm"
+        text = f"{d.poses[0]}–{d.poses[1]}, {d.cycles} cycle(s): mean D {_mm(d.D_mean, 4)} mm"
         if d.AD is not None:
             text += f", AD {_mm(d.AD)} mm"
             if d.AD_after is not None:

@@ -1,0 +1,156 @@
+"""dhlog iso9283 (issue 34) on a written ISO 9283 pose test (tests/iso9283_log.py: a KR5 off its
+nominal, 4 cycles of P1–P5, the tracker at 100 Hz with 10 µm noise per coordinate, 20 µm
+repeatability, a damped overshoot at each arrival): the visits found are the commanded ones,
+each attained position is the noise-free truth's within its sampling uncertainty, and each
+characteristic equals the one the formulas give on the truth.
+
+Tolerances: a visit's attained position is the mean of ≥ 150 settled samples, so its noise is
+10 µm / √150 = 0.8 µm per coordinate; the overshoot's tail within the band adds under 1 µm.
+A characteristic built from 4 such positions moves by at most a few times that: AP (a mean)
+and D (a difference of two means) by ≤ 3 µm, RP (l̄ + 3 S_l, each l_j moved by ≤ |error|)
+by ≤ 4 × 1.5 µm (|error| of 3 coordinates, 1.4 µm at 1σ) — 8 µm is ≥ 4σ.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from dhlog.cli.app import app
+from dhlog.io.dhfile import dh_model_from, load_dh
+from dhlog.io.reader import read_log
+from dhlog.iso9283.cycles import segment_log
+from dhlog.iso9283.formulas import distance_accuracy, pose_accuracy, pose_repeatability
+from dhlog.iso9283.run import iso9283_report, run_logs
+from dhlog.model.fk import fk_point
+from iso9283_log import IsoLog, write_iso_log
+
+runner = CliRunner()
+CYCLES = 4
+
+
+@pytest.fixture(scope="module")
+def test_log(tmp_path_factory: pytest.TempPathFactory) -> IsoLog:
+    return write_iso_log(tmp_path_factory.mktemp("iso") / "iso.mcap", cycles=CYCLES, seed=3)
+
+
+def _truth_in_base(log: IsoLog) -> np.ndarray:
+    T = np.linalg.inv(log.T_measurement_base)
+    A = np.array(log.attained)
+    return np.asarray(A @ T[:3, :3].T + T[:3, 3])
+
+
+def test_visits_are_the_commanded_ones(test_log: IsoLog) -> None:
+    seg = segment_log(read_log(test_log.log))
+    assert seg.commanded_from == "the commanded joint stream /joint_command"
+    assert seg.poses == ["P1", "P2", "P3", "P4", "P5"]
+    assert [v.pose for v in seg.visits] == [f"P{k + 1}" for k in test_log.pose]
+    assert [v.cycle for v in seg.visits] == test_log.cycle
+    assert seg.pose_q is not None
+    np.testing.assert_allclose(seg.pose_q, test_log.targets, atol=1e-12)
+    errors = np.array([v.position - a for v, a in zip(seg.visits, test_log.attained, strict=True)])
+    assert np.max(np.abs(errors)) < 5e-6  # 0.8 µm per coordinate at 1σ
+    assert all(v.settled and v.n_settled >= 150 for v in seg.visits)
+
+
+def test_characteristics_equal_the_truths(test_log: IsoLog) -> None:
+    nominal = dh_model_from("kr5")
+    true = load_dh(test_log.true_model)
+    report = run_logs([test_log.log], nominal=nominal, calibrated=true)
+    X = _truth_in_base(test_log)
+    pose = np.array(test_log.pose)
+    assert [p.name for p in report.poses] == ["P1", "P2", "P3", "P4", "P5"]
+    for k, p in enumerate(report.poses):
+        truth = X[pose == k]
+        commanded = fk_point(nominal.table, test_log.targets[k], nominal.tool_point)
+        true_fk = fk_point(true.table, test_log.targets[k], true.tool_point)
+        assert p.visits == CYCLES
+        assert p.before is not None and p.after is not None and p.RP is not None
+        assert p.before.AP == pytest.approx(pose_accuracy(truth, commanded).AP_P, abs=3e-6)
+        assert p.before.AP > 1e-3  # the nominal is a millimetre off: the check can fail
+        # after: the calibrated (here the true) model's error left — the repeatability's mean
+        assert p.after.AP == pytest.approx(
+            float(np.linalg.norm(truth.mean(axis=0) - true_fk)), abs=3e-6
+        )
+        assert p.RP == pytest.approx(pose_repeatability(truth).RP_l, abs=8e-6)
+        assert p.stabilisation_time is not None and 0.0 < p.stabilisation_time < 0.5
+        # the arrival overshoots by 0.2 mm × e^(−t/0.08 s) sin(8π t): its peak ≈ 0.11 mm
+        assert p.overshoot is not None and 0.08e-3 < p.overshoot < 0.13e-3
+    d = report.distance
+    assert d is not None and d.AD is not None and d.RD is not None
+    truth_d = distance_accuracy(
+        X[pose == 1],
+        X[pose == 3],
+        fk_point(nominal.table, test_log.targets[1], nominal.tool_point),
+        fk_point(nominal.table, test_log.targets[3], nominal.tool_point),
+    )
+    assert d.AD == pytest.approx(truth_d.AD_P, abs=3e-6)
+    assert d.RD == pytest.approx(truth_d.RD, abs=8e-6)
+    assert report.frame == "base" and report.after_basis is not None
+    assert any("vAP" in n and "not in this log" in n for n in report.notes)
+
+
+def test_without_model_repeatability_only(test_log: IsoLog) -> None:
+    report = run_logs([test_log.log])
+    assert report.frame == "measurement"
+    assert all(p.before is None and p.after is None and p.RP is not None for p in report.poses)
+    A = np.array(test_log.attained)
+    for k, p in enumerate(report.poses):
+        # RP does not depend on the frame: the truth in the tracker's frame
+        assert p.RP == pytest.approx(
+            pose_repeatability(A[np.array(test_log.pose) == k]).RP_l, abs=8e-6
+        )
+
+
+def test_without_commanded_stream_uses_the_encoders(tmp_path: Path) -> None:
+    log = write_iso_log(tmp_path / "nocmd.mcap", cycles=2, seed=4, commanded=False)
+    data = read_log(log.log)
+    assert data.commanded is None  # the shipped pipeline's /joint_command is optional
+    report = run_logs([log.log], nominal=dh_model_from("kr5"))
+    assert report.commanded_from.startswith("the encoders at each visit")
+    assert any("no commanded joint stream and no --commanded CSV" in n for n in report.notes)
+    assert [p.visits for p in report.poses] == [2] * 5
+    assert all(p.RP is not None and p.before is not None for p in report.poses)
+    assert any("registered on the attained barycentres" in n for n in report.notes)
+
+
+def test_missing_parts_are_named(tmp_path: Path) -> None:
+    log = write_iso_log(tmp_path / "short.mcap", cycles=1, seed=5)
+    data = read_log(log.log)
+    program = [(f"P{k + 1}", log.targets[k]) for k in range(4)]
+    program.append(("P5", log.targets[4] + 0.5))  # commanded, never reached
+    seg = segment_log(data, program_poses=program)
+    report = iso9283_report([seg])
+    assert "P5 was never reached (no visit matched its commanded target)." in report.notes
+    assert [p.name for p in report.poses] == ["P1", "P2", "P3", "P4"]
+    assert all(p.RP is None for p in report.poses)
+    assert any(n.startswith("P1: 1 cycle: RP needs 2 cycles") for n in report.notes)
+    assert any(n.startswith("drift: 1 visit(s) to P1") for n in report.notes)
+    assert any(n.startswith("RD: 1 cycle") for n in report.notes)
+
+
+def test_cli_writes_the_json_and_it_validates(test_log: IsoLog, tmp_path: Path) -> None:
+    import jsonschema  # type: ignore[import-untyped]
+
+    args = ["iso9283", str(test_log.log), "--nominal", "kr5", "--result", str(test_log.true_model)]
+    got = runner.invoke(app, [*args, "--out", str(tmp_path)])
+    assert got.exit_code == 0, got.output
+    assert "AP before" in got.output and "AP after" in got.output
+    # the tables and notes fit 80 columns (the 'wrote PATH' line is never broken)
+    shown = [line for line in got.output.splitlines() if not line.startswith("wrote ")]
+    assert max(len(line) for line in shown) <= 80
+    out = tmp_path / "iso.iso9283.json"
+    doc = json.loads(out.read_text())
+    schema_path = Path(__file__).parents[1] / "src/dhlog/schemas/iso9283.schema.json"
+    jsonschema.validate(doc, json.loads(schema_path.read_text()))
+    assert doc["format"] == "dhlog.iso9283/1"
+    assert [p["pose"] for p in doc["iso9283"]["poses"]] == ["P1", "P2", "P3", "P4", "P5"]
+    again = runner.invoke(app, [*args, "--out", str(tmp_path)])
+    assert again.exit_code == 1 and "pass --force" in again.output
+    missing = runner.invoke(app, ["iso9283", str(tmp_path / "none.mcap"), "--out", str(tmp_path)])
+    assert missing.exit_code == 2
+    assert len([line for line in missing.output.splitlines() if line.strip()]) == 1
