@@ -263,6 +263,30 @@ def test_path_accuracy_and_repeatability_of_offset_straight_lines() -> None:
     assert doc["AT_at_point"] == 8 and len(doc["deviation_m"]) == 9
 
 
+def test_path_orientation_accuracy_and_repeatability() -> None:
+    commanded, cycles = _line_cycles()
+    R0 = Rz(0.8) @ Ry(-0.4) @ Rx(2.2)
+    # cycle j turns about the base's x by alpha_j + 1e-4 rad per m of x along the path: the
+    # turn between samples is about one axis, so the interpolation at a crossing is exact
+    alpha = np.array([1.0, 2.0, 3.0]) * 1e-4
+    R_paths = [
+        np.array([Rx(a + 1e-4 * (x - C[0])) @ R0 for x in c[:, 0]])
+        for a, c in zip(alpha, cycles, strict=True)
+    ]
+    R_cmd = np.tile(R0, (len(commanded), 1, 1))
+    pc = path_accuracy(cycles, commanded, R_paths=R_paths, R_commanded=R_cmd)
+    assert pc.AT_abc is not None and pc.RT_abc is not None and pc.deviation_abc is not None
+    # ā_i − a_ci = 2e-4 + 1e-4 x_i, largest at x = 0.9 m; 3 S_a = 3 · std(1, 2, 3)e-4 = 3e-4
+    np.testing.assert_allclose(
+        pc.deviation_abc[:, 0], 2e-4 + 1e-4 * (commanded[:, 0] - C[0]), atol=1e-12
+    )
+    np.testing.assert_allclose(pc.AT_abc, [2.9e-4, 0.0, 0.0], atol=1e-12)
+    np.testing.assert_allclose(pc.RT_abc, [3e-4, 0.0, 0.0], atol=1e-12)
+    assert pc.document()["AT_abc_rad"] == pytest.approx([2.9e-4, 0.0, 0.0], abs=1e-12)
+    with pytest.raises(Iso9283Error, match="without commanded ones"):
+        path_accuracy(cycles, commanded, R_paths=R_paths)
+
+
 def test_path_accuracy_takes_the_crossing_nearest_the_commanded_point() -> None:
     commanded, cycles = _line_cycles()
     # a cycle that comes back across the planes 5 cm away: the far crossing is ignored

@@ -21,7 +21,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from dhlog.errors import Iso9283Error, NonFiniteError, ShapeError
-from dhlog.geometry._checks import FloatArray, nearest_rotation
+from dhlog.geometry._checks import FloatArray, nearest_rotation, rotation_from_vector
 
 __all__ = [
     "DistanceCharacteristics",
@@ -656,7 +656,10 @@ class PathCharacteristics:
     commanded points: ``crossings`` (m, n, 3), each cycle's attained point in the plane normal
     to the command path at each commanded point; ``barycentres`` (m, 3); ``deviation`` (m,), the
     barycentre's distance from the commanded point; ``repeatability`` (m,), l̄_i + 3 S_li;
-    ``AT_P`` = max deviation, ``RT_P`` = max repeatability. m."""
+    ``AT_P`` = max deviation, ``RT_P`` = max repeatability. With orientations:
+    ``deviation_abc`` (m, 3), the mean deviation of the attained orientations from the
+    commanded one at each point, ``repeatability_abc`` (m, 3), 3 S_ai …, and ``AT_abc``,
+    ``RT_abc`` (3,) their largest absolute values over the points. m, rad."""
 
     cycles: int
     commanded: FloatArray
@@ -666,6 +669,10 @@ class PathCharacteristics:
     repeatability: FloatArray
     AT_P: float
     RT_P: float
+    deviation_abc: FloatArray | None = None
+    repeatability_abc: FloatArray | None = None
+    AT_abc: FloatArray | None = None
+    RT_abc: FloatArray | None = None
 
     def document(self) -> dict[str, Any]:
         """The JSON-ready figures (m), with the per-point deviation and repeatability."""
@@ -679,6 +686,10 @@ class PathCharacteristics:
             "deviation_m": _floats(self.deviation),
             "repeatability_m": _floats(self.repeatability),
             "barycentres_m": _floats(self.barycentres),
+            "AT_abc_rad": _floats(self.AT_abc),
+            "RT_abc_rad": _floats(self.RT_abc),
+            "deviation_abc_rad": _floats(self.deviation_abc),
+            "repeatability_abc_rad": _floats(self.repeatability_abc),
         }
 
 
@@ -702,25 +713,56 @@ def _tangents(commanded: FloatArray) -> FloatArray:
     return np.asarray(g / norm[:, None], dtype=np.float64)
 
 
-def _crossing(path: FloatArray, point: FloatArray, normal: FloatArray) -> FloatArray | None:
-    """The point where the polyline ``path`` (k, 3) crosses the plane through ``point`` normal
-    to ``normal`` nearest ``point`` (linear interpolation between the two bracketing samples),
-    or None when it never reaches the plane."""
-    s = (path - point) @ normal
-    on = np.flatnonzero(s == 0.0)
-    seg = np.flatnonzero(s[:-1] * s[1:] < 0.0)
-    lam = s[seg] / (s[seg] - s[seg + 1])
+def _crossing(
+    path: FloatArray, point: FloatArray, normal: FloatArray
+) -> tuple[FloatArray, int, float] | None:
+    """Where the polyline ``path`` (k, 3) crosses the plane through ``point`` normal to
+    ``normal``, nearest ``point`` (linear interpolation between the two bracketing samples):
+    the point, the index s of the sample before it and the fraction λ of the way to sample
+    s + 1; None when the path never reaches the plane."""
+    side = (path - point) @ normal
+    on = np.flatnonzero(side == 0.0)
+    seg = np.flatnonzero(side[:-1] * side[1:] < 0.0)
+    lam = side[seg] / (side[seg] - side[seg + 1])
     cand = path[seg] + lam[:, None] * (path[seg + 1] - path[seg])
     cand = np.concatenate([cand, path[on]])
     if len(cand) == 0:
         return None
-    return np.asarray(cand[np.argmin(np.linalg.norm(cand - point, axis=1))], dtype=np.float64)
+    best = int(np.argmin(np.linalg.norm(cand - point, axis=1)))
+    if best < len(seg):
+        return np.asarray(cand[best], dtype=np.float64), int(seg[best]), float(lam[best])
+    return np.asarray(cand[best], dtype=np.float64), int(on[best - len(seg)]), 0.0
+
+
+def _rotation_vector(R: FloatArray) -> FloatArray:
+    """The rotation vector (axis × angle, rad) of a rotation of less than 90°."""
+    w = 0.5 * np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]])
+    sin = float(np.linalg.norm(w))
+    angle = float(np.arctan2(sin, (np.trace(R) - 1.0) / 2.0))  # not arccos: exact when small
+    return w if sin < 1e-15 else w * (angle / sin)
+
+
+def _interpolated_rotation(Rs: FloatArray, seg: int, lam: float, what: str) -> FloatArray:
+    """The rotation a fraction ``lam`` of the way from ``Rs[seg]`` to ``Rs[seg + 1]`` along
+    the shortest turn between them (as slerp)."""
+    if lam == 0.0:
+        return np.asarray(Rs[seg], dtype=np.float64)
+    step = Rs[seg].T @ Rs[seg + 1]
+    if np.trace(step) < 1.0:  # a turn of more than 90° between two samples
+        raise Iso9283Error(
+            what,
+            f"the orientation turns by more than 90° between samples {seg + 1} and {seg + 2}",
+            "record the path's orientations at a higher rate",
+        )
+    return np.asarray(Rs[seg] @ rotation_from_vector(lam * _rotation_vector(step)))
 
 
 def path_accuracy(
     attained_paths: Sequence[ArrayLike],
     commanded: ArrayLike,
     tangents: ArrayLike | None = None,
+    R_paths: Sequence[ArrayLike] | None = None,
+    R_commanded: ArrayLike | None = None,
 ) -> PathCharacteristics:
     """Path accuracy AT_P and path repeatability RT_P, ISO 9283:1998 clause 8.2, from the n ≥ 2
     attained paths ``attained_paths`` (each (k_j, 3), the measured positions of one cycle in
@@ -738,7 +780,15 @@ def path_accuracy(
         l_ij = |x_ij − x̄_i|, S_li = √(Σ_j (l_ij − l̄_i)² / (n − 1)),
         RT_P = max_i (l̄_i + 3 S_li).
 
-    The orientation's path characteristics (AT_a …, RT_a …) are not computed here."""
+    With the attained orientations ``R_paths`` (each (k_j, 3, 3), one per sample) and the
+    commanded ones ``R_commanded`` (m, 3, 3), each cycle's orientation at the crossing is
+    interpolated along the shortest turn between the two samples (as slerp), and
+
+        AT_a = max_i |ā_i − a_ci|, RT_a = max_i 3 S_ai (likewise b, c),
+
+    with ā_i − a_ci the mean :func:`orientation_deviation` of the cycles' orientations from the
+    commanded one and S_ai the sample standard deviation of their deviations from their mean
+    orientation (as in :func:`pose_repeatability`)."""
     what = "path accuracy"
     if len(attained_paths) < 2:
         raise Iso9283Error(
@@ -765,11 +815,32 @@ def path_accuracy(
         for j, p in enumerate(attained_paths)
     ]
     m, n = len(cmd), len(paths)
+    if (R_paths is None) != (R_commanded is None):
+        raise Iso9283Error(
+            what,
+            "attained orientations were given without commanded ones (or the reverse)",
+            "give both R_paths and R_commanded, or neither",
+        )
+    Rp: list[FloatArray] = []
+    Rc = None
+    if R_paths is not None and R_commanded is not None:
+        if len(R_paths) != n:
+            raise Iso9283Error(
+                what,
+                f"{len(R_paths)} cycles of orientations for {n} attained paths",
+                "give one array of orientations per attained path",
+            )
+        Rp = [
+            _rotations(f"{what}: orientations of cycle {j + 1}", R, len(paths[j]))
+            for j, R in enumerate(R_paths)
+        ]
+        Rc = _rotations(f"{what}: commanded orientations", R_commanded, m)
     crossings = np.empty((m, n, 3))
+    R_cross = np.empty((m, n, 3, 3))
     for i in range(m):
         for j, path in enumerate(paths):
-            x = _crossing(path, cmd[i], tan[i])
-            if x is None:
+            hit = _crossing(path, cmd[i], tan[i])
+            if hit is None:
                 raise Iso9283Error(
                     what,
                     f"the attained path of cycle {j + 1} never crosses the plane normal to the "
@@ -777,11 +848,28 @@ def path_accuracy(
                     "give the whole pass of each cycle, or drop the commanded points it does "
                     "not reach",
                 )
-            crossings[i, j] = x
+            crossings[i, j] = hit[0]
+            if Rp:
+                R_cross[i, j] = _interpolated_rotation(
+                    Rp[j], hit[1], hit[2], f"{what}: cycle {j + 1}"
+                )
     bary = crossings.mean(axis=1)
     deviation = np.linalg.norm(bary - cmd, axis=1)
     l_ij = np.linalg.norm(crossings - bary[:, None, :], axis=2)
     rt = l_ij.mean(axis=1) + 3.0 * np.std(l_ij, axis=1, ddof=1)
+    dev_abc = rep_abc = at_abc = rt_abc = None
+    if Rc is not None:
+        dev_abc = np.array(
+            [orientation_deviation(R_cross[i], Rc[i]).mean(axis=0) for i in range(m)]
+        )
+        rep_abc = np.array(
+            [
+                3.0 * _sample_std(orientation_deviation(R_cross[i], _mean_rotation(R_cross[i])))
+                for i in range(m)
+            ]
+        )
+        at_abc = np.abs(dev_abc).max(axis=0)
+        rt_abc = rep_abc.max(axis=0)
     return PathCharacteristics(
         n,
         cmd,
@@ -791,6 +879,10 @@ def path_accuracy(
         rt,
         float(deviation.max()),
         float(rt.max()),
+        dev_abc,
+        rep_abc,
+        at_abc,
+        rt_abc,
     )
 
 
