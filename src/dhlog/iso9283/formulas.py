@@ -598,8 +598,8 @@ def drift(
 ) -> Drift:
     """Drift of pose accuracy and pose repeatability, ISO 9283:1998 clause 7.6, from the
     attained positions of one commanded pose ``commanded`` (3,) in T ≥ 2 groups of cycles
-    ``groups`` (each (n_t, 3), n_t ≥ 2, in time order; the standard measures ten cycles at
-    intervals over eight hours):
+    ``groups`` (each (n_t, 3), n_t ≥ 2, in time order: the standard's groups of cycles at
+    intervals over hours of running):
 
         dAP = |AP_t=1 − AP_t=T|, dRP = |RP_t=1 − RP_t=T|,
 
