@@ -15,7 +15,7 @@ position is the mean of its last half; the stabilisation band (``DwellSettings.b
 position is the mean of the settled samples, its orientation (a 6-DoF target) the mean rotation
 of their orientations (the nearest rotation to their mean matrix).
 
-**Arrival** (clauses 7.3, 7.4: stabilisation time and overshoot): the samples from
+**Arrival** (clauses 7.4, 7.5: stabilisation time and overshoot): the samples from
 ``DwellSettings.approach`` s (1 s) before the dwell, or the end of the previous dwell if later,
 to the dwell's end, kept for :func:`dhlog.iso9283.formulas.stabilisation`. Below 100 Hz the
 arrival is too coarsely sampled and the report says so.
@@ -54,7 +54,7 @@ SAME_TARGET = 1e-4
 ARRIVAL_RATE = 100.0
 #: The fewest settled samples a visit's attained position is the mean of (else the last half).
 MIN_SETTLED = 3
-#: Approach directions within this angle (rad) are one direction (clause 7.2.2's vAP).
+#: Approach directions within this angle (rad) are one direction (clause 7.2.3: vAP).
 SAME_DIRECTION = np.radians(30.0)
 
 

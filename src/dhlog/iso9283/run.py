@@ -43,9 +43,9 @@ from dhlog.iso9283.cycles import (
 )
 from dhlog.model.fk import fk_point
 
-#: The standard's pair of poses for distance accuracy and repeatability (clause 7.6).
+#: The pair of poses for distance accuracy and repeatability (clause 7.3).
 DISTANCE_POSES = ("P2", "P4")
-#: The pose drift is measured at (clause 7.7: P1).
+#: The pose drift is measured at (clause 7.6: P1).
 DRIFT_POSE = "P1"
 
 
@@ -110,7 +110,7 @@ class PoseReport:
 
 @dataclass(frozen=True)
 class DistanceReport:
-    """Distance accuracy and repeatability between two poses (clause 7.6): ``D_mean`` the mean
+    """Distance accuracy and repeatability between two poses (clause 7.3): ``D_mean`` the mean
     attained distance over ``cycles``, ``D_commanded`` (None without a model), ``AD`` = D̄ − D_c
     (before; ``AD_after`` with a result), ``RD`` = 3 S_D."""
 
@@ -136,7 +136,7 @@ class DistanceReport:
 
 @dataclass(frozen=True)
 class DriftReport:
-    """Drift at ``pose`` (clause 7.7) between the first and the last ``group`` cycles, ``hours``
+    """Drift at ``pose`` (clause 7.6) between the first and the last ``group`` cycles, ``hours``
     apart (their mean times): dAP = |AP_first − AP_last| (None without a model), dRP =
     |RP_first − RP_last|, the barycentre's shift (m) and its rate (m/h, a line fitted to every
     visit's position over time)."""
@@ -494,9 +494,11 @@ def _renumbered(v: Visit, cycle: int) -> Visit:
 
 
 def _multi_directional(vs: list[Visit], X: FloatArray) -> tuple[float | None, int]:
-    """Clause 7.2.2: the visits grouped by approach direction (within ``SAME_DIRECTION``);
-    vAP = the largest distance between two groups' barycentres (None with one direction), and
-    the number of directions."""
+    """Clause 7.2.3: the visits grouped by approach direction (within ``SAME_DIRECTION``, two
+    visits at least); vAP (:func:`dhlog.iso9283.formulas.multi_directional`) from the groups'
+    barycentres (None with one direction), and the number of directions."""
+    from dhlog.iso9283.formulas import multi_directional
+
     groups: list[tuple[FloatArray, list[int]]] = []
     for i, v in enumerate(vs):
         if not np.any(v.direction):
@@ -510,11 +512,8 @@ def _multi_directional(vs: list[Visit], X: FloatArray) -> tuple[float | None, in
     groups = [g for g in groups if len(g[1]) >= 2]
     if len(groups) < 2:
         return None, len(groups)
-    bary = [X[m].mean(axis=0) for _, m in groups]
-    return (
-        max(float(np.linalg.norm(a - b)) for i, a in enumerate(bary) for b in bary[i + 1 :]),
-        len(groups),
-    )
+    bary = np.array([X[m].mean(axis=0) for _, m in groups])
+    return float(multi_directional(bary).vAP_P), len(groups)
 
 
 def _distance(
@@ -524,7 +523,10 @@ def _distance(
     correction_at: Any,
     notes: list[str],
 ) -> DistanceReport | None:
-    """Clause 7.6 between P2 and P4: D_j = |P4_j − P2_j| per cycle."""
+    """Clause 7.3 between P2 and P4 (:func:`dhlog.iso9283.formulas.distance_accuracy` with a
+    model): D_j = |P4_j − P2_j| per cycle, AD = D̄ − D_c, RD = 3 S_D."""
+    from dhlog.iso9283.formulas import distance_accuracy
+
     a, b = DISTANCE_POSES
     if a not in seg.poses or b not in seg.poses:
         notes.append(f"AD/RD: {a} or {b} not in this log; not computed.")
@@ -535,24 +537,22 @@ def _distance(
     if not both:
         notes.append(f"AD/RD: no cycle visits both {a} and {b}; not computed.")
         return None
-    D = np.array([np.linalg.norm(_moved(T, pb[c]) - _moved(T, pa[c])) for c in both])
+    Xa = _moved(T, np.array([pa[c] for c in both]))
+    Xb = _moved(T, np.array([pb[c] for c in both]))
+    D = np.linalg.norm(Xb - Xa, axis=1)
     ka, kb = seg.poses.index(a), seg.poses.index(b)
     Dc = AD = AD_after = None
-    if commanded_at is not None:
-        Dc = float(np.linalg.norm(commanded_at(kb) - commanded_at(ka)))
-        AD = float(D.mean() - Dc)
-        if correction_at is not None:
-            Da = np.array(
-                [
-                    np.linalg.norm(
-                        (_moved(T, pb[c]) - correction_at(kb))
-                        - (_moved(T, pa[c]) - correction_at(ka))
-                    )
-                    for c in both
-                ]
-            )
-            AD_after = float(Da.mean() - Dc)
     RD = float(3.0 * D.std(ddof=1)) if D.size >= 2 else None
+    if commanded_at is not None:
+        ca, cb = commanded_at(ka), commanded_at(kb)
+        Dc = float(np.linalg.norm(cb - ca))
+        AD = float(D.mean() - Dc)
+        if D.size >= 2:
+            got = distance_accuracy(Xa, Xb, ca, cb)
+            AD, RD = float(got.AD_P), float(got.RD)
+        if correction_at is not None:
+            Da = np.linalg.norm((Xb - correction_at(kb)) - (Xa - correction_at(ka)), axis=1)
+            AD_after = float(Da.mean() - Dc)
     if RD is None:
         notes.append(f"RD: {D.size} cycle with both {a} and {b}: needs 2 or more; not computed.")
     return DistanceReport((a, b), int(D.size), float(D.mean()), Dc, AD, AD_after, RD)
@@ -561,7 +561,10 @@ def _distance(
 def _drift(
     seg: Segmented, T: FloatArray | None, commanded_at: Any, notes: list[str]
 ) -> DriftReport | None:
-    """Clause 7.7 at P1: the first and the last ``min(10, n // 2)`` cycles."""
+    """Clause 7.6 at P1 between the first and the last ``min(10, n // 2)`` cycles
+    (:func:`dhlog.iso9283.formulas.drift` with a model; without one, dRP and the shift)."""
+    from dhlog.iso9283.formulas import drift
+
     vs = seg.of_pose(DRIFT_POSE)
     if len(vs) < 4:
         notes.append(
@@ -575,10 +578,10 @@ def _drift(
     first, last = X[:g], X[-g:]
     hours = float(t_h[-g:].mean() - t_h[:g].mean())
     dAP = None
-    if commanded_at is not None:
-        c = commanded_at(seg.poses.index(DRIFT_POSE))
-        dAP = abs(_accuracy(first, c).AP - _accuracy(last, c).AP)
     dRP = abs(_repeatability(first)[0] - _repeatability(last)[0])
+    if commanded_at is not None:
+        got = drift([first, last], commanded_at(seg.poses.index(DRIFT_POSE)))
+        dAP, dRP = float(got.dAP), float(got.dRP)
     shift = float(np.linalg.norm(last.mean(axis=0) - first.mean(axis=0)))
     rate = 0.0
     if np.ptp(t_h) > 0:
