@@ -223,7 +223,7 @@ def simulate(
     robot: str | Path | Robot = "kr5",
     out: str | Path = "session.mcap",
     *,
-    protocol: Literal["sweeps", "random-poses", "coupled"] = "sweeps",
+    protocol: Literal["sweeps", "random-poses", "coupled", "iso9283"] = "sweeps",
     noise: float = 1e-5,
     seed: int = 0,
     encoding: Literal["ros2", "json", "protobuf"] = "ros2",
@@ -240,7 +240,9 @@ def simulate(
     :func:`robot`'s result) and write it to ``out`` (MCAP) with its truth beside it
     (``<stem>.truth.json``) — ``dhlog simulate``.
 
-    ``protocol``: each joint swept alone, random still poses, or joints moved together;
+    ``protocol``: each joint swept alone, random still poses, joints moved together, or the
+    ISO 9283 test program (``iso9283``: ``iso_cycles``, ``repeatability``, ``drift``,
+    ``overshoot``, ``path_error``, … — :mod:`dhlog.simulator.iso9283`);
     ``noise``: the tracker's σ per coordinate (m); ``encoding`` of the messages; ``point_type``
     ``pose`` writes a 6-DoF probe's pose. ``instrument="camera"`` renders a camera's images of a
     ChArUco board instead (``camera``: the preset, ``frame_rate`` Hz, ``cameras``, ``exposure``
@@ -324,7 +326,12 @@ def simulate_config(
         return _simulate_vision(
             rob, cfg, output, truth_path, camera, frame_rate, cameras, exposure, __version__
         )
-    session = simulate_session(rob, cfg)
+    if cfg.protocol == "iso9283":  # the ISO 9283 test program
+        from dhlog.simulator.iso9283 import simulate_iso9283
+
+        session = simulate_iso9283(rob, cfg)
+    else:
+        session = simulate_session(rob, cfg)
     swept = swept_joints(rob, cfg)
     notes = []
     for k, (got, jt) in enumerate(zip(session.sweeps, rob.table.joint_types, strict=True)):
@@ -366,7 +373,13 @@ def simulate_config(
         states,
         urdf_path,
         notes,
-        described=f"{samples} target samples, {states} joint states, {encoding}",
+        described=f"{samples} target samples, {states} joint states, "
+        + (
+            f"{session.command_t_ns.size} commanded joint targets, "
+            if cfg.protocol == "iso9283"
+            else ""
+        )
+        + encoding,
     )
 
 

@@ -62,9 +62,46 @@ def simulate(
         typer.Option(
             help="sweeps (each joint alone), random-poses (--poses still poses within the "
             "limits, every joint changing) or coupled (each joint alone in --steps stops, "
-            "except joint 2: only with joint 3 as q3 = -q2); the last two measure only at stops."
+            "except joint 2: only with joint 3 as q3 = -q2); these two measure only at stops. "
+            "iso9283: the ISO 9283 test program (dhlog plan --iso9283's) run by a robot of known "
+            "repeatability, drift, overshoot and path error (--cycles, --repeatability-mm, …), "
+            "with the commanded joints on /joint_command and every attained pose in the truth."
         ),
     ] = "sweeps",
+    cycles: Annotated[
+        int, typer.Option(help="--protocol iso9283: cycles of the pose test (P1 P5 P4 P3 P2).")
+    ] = 30,
+    path_cycles: Annotated[
+        int, typer.Option(help="--protocol iso9283: cycles of the path test (each test path).")
+    ] = 10,
+    repeatability_mm: Annotated[
+        float,
+        typer.Option(
+            help="--protocol iso9283: σ per coordinate of the attained position from visit to "
+            "visit, mm."
+        ),
+    ] = 0.02,
+    drift_mm: Annotated[
+        float,
+        typer.Option(
+            help="--protocol iso9283: the drift (a warm-up): the barycentre of a cycle's "
+            "positions moves this much from the first cycle to the last, mm."
+        ),
+    ] = 0.05,
+    overshoot_mm: Annotated[
+        float,
+        typer.Option(
+            help="--protocol iso9283: each arrival's overshoot along its approach (a damped "
+            "5 Hz oscillation, damping ratio 0.2), mm."
+        ),
+    ] = 0.1,
+    path_error_mm: Annotated[
+        float,
+        typer.Option(
+            help="--protocol iso9283: the peak of the paths' systematic deviation normal to the "
+            "command, mm (and a random offset per path cycle of σ 0.02 mm)."
+        ),
+    ] = 0.2,
     poses: Annotated[
         str,
         typer.Option(
@@ -243,6 +280,13 @@ def simulate(
                 f"error: --{option} must be one of {', '.join(allowed)}, not '{plain(value)}'."
             )
             raise typer.Exit(EXIT_USAGE)
+    iso_options = (cycles, path_cycles, repeatability_mm, drift_mm, overshoot_mm, path_error_mm)
+    if protocol != "iso9283" and iso_options != (30, 10, 0.02, 0.05, 0.1, 0.2):
+        stderr.print(
+            "error: --cycles, --path-cycles, --repeatability-mm, --drift-mm, --overshoot-mm and "
+            "--path-error-mm are for --protocol iso9283."
+        )
+        raise typer.Exit(EXIT_USAGE)
     camera_options = (camera, frame_rate, cameras, exposure_ms) != ("default", 10.0, 1, 0.0)
     if instrument != "camera" and camera_options:
         stderr.print(
@@ -302,6 +346,12 @@ def simulate(
             instrument=instrument,  # type: ignore[arg-type]
             camera_setup=camera_setup,  # type: ignore[arg-type]
             image_format=image_format,  # type: ignore[arg-type]
+            iso_cycles=cycles,
+            iso_path_cycles=path_cycles,
+            repeatability=repeatability_mm * 1e-3,
+            drift=drift_mm * 1e-3,
+            overshoot=overshoot_mm * 1e-3,
+            path_error=path_error_mm * 1e-3,
             seed=seed,
         )
         problems = config_problems(rob, cfg)
@@ -337,6 +387,13 @@ def simulate(
     )
     if instrument == "camera":
         return
+    if protocol == "iso9283":
+        stdout.print(
+            "note: the truth's iso9283 block lists every visit and path cycle without the "
+            "tracker's noise (docs/iso9283.md, Simulating the test); analyse the log with "
+            f"dhlog iso9283 {plain(output)} --nominal {plain(robot)}.",
+            markup=False,
+        )
     if six_dof:
         stdout.print(
             "note: the target's orientation is in /tracker/point: read it with "

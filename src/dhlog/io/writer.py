@@ -7,7 +7,9 @@
 * ``protobuf``: the Foxglove protobuf schemas; phase markers as JSON on their own channel.
 
 Further targets go on ``/tracker/point_2``, ``/tracker/point_3``, … in every encoding, as points
-(SMRs measure no orientation) beside a 6-DoF target.
+(SMRs measure no orientation) beside a 6-DoF target. A session with commanded joint targets
+(``command_t_ns`` / ``command_q``, the ISO 9283 test) writes them on ``/joint_command`` as joint
+states (sensor_msgs/JointState, foxglove.JointStates).
 
 Files are written to a temporary name beside the target and renamed into place.
 """
@@ -37,6 +39,7 @@ TOPICS = {
     "joints": "/joint_states",
     "base": "/tracker/base_plane",
     "phase": "/calibration/phase",
+    "command": "/joint_command",
 }
 
 _TIME = {"type": "object", "properties": {"sec": {"type": "integer"}, "nsec": {"type": "integer"}}}
@@ -223,6 +226,16 @@ def _extra_streams(session: RecordedStreams) -> list[str]:
     return [f"point_{k + 2}" for k in range(len(session.extra_point_xyz))]
 
 
+def _commands(session: RecordedStreams) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
+    """The commanded joint targets' stamps and values (none for a session without them: the
+    attributes ``command_t_ns`` / ``command_q`` are optional)."""
+    t_ns = getattr(session, "command_t_ns", None)
+    q = getattr(session, "command_q", None)
+    if t_ns is None or q is None or not np.asarray(t_ns).size:
+        return np.zeros(0, dtype=np.int64), np.zeros((0, len(session.joint_names)))
+    return np.asarray(t_ns, dtype=np.int64), np.asarray(q, dtype=np.float64)
+
+
 def _events(session: RecordedStreams, *, extras: bool = False) -> list[tuple[int, str, int]]:
     """(time, stream, index) of every message, in time order (with the further targets')."""
     ev: list[tuple[int, str, int]] = []
@@ -233,6 +246,7 @@ def _events(session: RecordedStreams, *, extras: bool = False) -> list[tuple[int
             ev += [(int(t), stream, i) for i, t in enumerate(session.point_t_ns)]
     ev += [(int(t), "joints", i) for i, t in enumerate(session.joint_t_ns)]
     ev += [(t, "phase", i) for i, (t, _) in enumerate(session.phase)]
+    ev += [(int(t), "command", i) for i, t in enumerate(_commands(session)[0])]
     ev.sort(key=lambda e: e[0])
     return ev
 
@@ -307,6 +321,10 @@ def _write_ros2(session: RecordedStreams, f: IO[bytes], point_type: str, chunk_s
         "joints": ros2.JOINT_STATE,
         "phase": ros2.STRING,
     }
+    command_t, command_q = _commands(session)
+    if command_t.size:  # only then: a session without commands is written as before
+        payloads["command"] = ros2.encode_joint_state(command_t, session.joint_names, command_q)
+        stream_schema["command"] = ros2.JOINT_STATE
     # further targets are SMRs: no orientation of their own (a pose message only when asked)
     extra_schema, encode_extra = point_schema, encode
     if quats is not None:
@@ -362,6 +380,11 @@ def _write_json(session: RecordedStreams, f: IO[bytes], chunk_size: int) -> None
         )
     if session.phase:
         channels["phase"] = writer.register_channel(TOPICS["phase"], "json", ids["dhlog.Phase"])
+    command_t, command_q = _commands(session)
+    if command_t.size:
+        channels["command"] = writer.register_channel(
+            TOPICS["command"], "json", ids["foxglove.JointStates"]
+        )
     for t, stream, i in _events(session, extras=True):
         if stream.startswith("point") or stream == "base":
             xyz = _target_xyz(session, stream, i)
@@ -372,12 +395,13 @@ def _write_json(session: RecordedStreams, f: IO[bytes], chunk_size: int) -> None
                 msg["pose"] = {"position": position, "orientation": orientation}
             else:
                 msg["point"] = position
-        elif stream == "joints":
+        elif stream in ("joints", "command"):
+            values = session.joint_q[i] if stream == "joints" else command_q[i]
             msg = {
                 "timestamp": _stamp(t),
                 "joints": [
                     {"name": n, "position": float(v)}
-                    for n, v in zip(session.joint_names, session.joint_q[i], strict=True)
+                    for n, v in zip(session.joint_names, values, strict=True)
                 ],
             }
         else:
@@ -409,10 +433,13 @@ def _write_protobuf(session: RecordedStreams, f: IO[bytes], chunk_size: int) -> 
     }
     for stream in _extra_streams(session):
         channels[stream] = writer.register_channel(f"/tracker/{stream}", "protobuf", point_schema)
+    command_t, command_q = _commands(session)
+    if session.joint_t_ns.size or command_t.size:
+        joint_schema = register_schema(writer, JointStates)
     if session.joint_t_ns.size:
-        channels["joints"] = writer.register_channel(
-            TOPICS["joints"], "protobuf", register_schema(writer, JointStates)
-        )
+        channels["joints"] = writer.register_channel(TOPICS["joints"], "protobuf", joint_schema)
+    if command_t.size:
+        channels["command"] = writer.register_channel(TOPICS["command"], "protobuf", joint_schema)
     if session.phase:
         phase_schema = writer.register_schema(
             "dhlog.Phase", "jsonschema", json.dumps(JSON_SCHEMAS["dhlog.Phase"]).encode()
@@ -443,10 +470,11 @@ def _write_protobuf(session: RecordedStreams, f: IO[bytes], chunk_size: int) -> 
                 point=Point3(x=float(xyz[0]), y=float(xyz[1]), z=float(xyz[2])),
             )
             payload = data.SerializeToString()
-        elif stream == "joints":
+        elif stream in ("joints", "command"):
+            values = session.joint_q[i] if stream == "joints" else command_q[i]
             joints = [
                 JointState(name=n, position=float(v))
-                for n, v in zip(session.joint_names, session.joint_q[i], strict=True)
+                for n, v in zip(session.joint_names, values, strict=True)
             ]
             payload = JointStates(timestamp=stamp(t), joints=joints).SerializeToString()
         else:

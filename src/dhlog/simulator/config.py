@@ -12,7 +12,7 @@ import numpy as np
 from dhlog.model.dh import JointType
 from dhlog.model.robots import Robot
 
-PROTOCOLS = ("sweeps", "random-poses", "coupled")
+PROTOCOLS = ("sweeps", "random-poses", "coupled", "iso9283")
 #: the ``coupled`` protocol's pair: joint 3 follows joint 2 as q3 = −q2 (the level forearm move)
 COUPLED_PAIR = (2, 3, -1.0)
 #: the target frame's fixed rotation in the flange frame (rotation vector, rad) of the command
@@ -38,7 +38,7 @@ class SimulationConfig:
     lock_poses: Literal["home", "random"] = "home"
     #: what the robot does (see the module docstring); ``random-poses`` and ``coupled`` are
     #: step-and-measure whatever ``motion`` says
-    protocol: Literal["sweeps", "random-poses", "coupled"] = "sweeps"
+    protocol: Literal["sweeps", "random-poses", "coupled", "iso9283"] = "sweeps"
     #: random still poses of the ``random-poses`` protocol
     poses: int = 40
     #: the ``random-poses`` protocol's still poses given, in their order (a planned list,
@@ -88,6 +88,30 @@ class SimulationConfig:
     camera_setup: Literal["eye-to-hand", "eye-in-hand"] = "eye-to-hand"
     #: the images as written: ``jpeg`` or ``png`` (CompressedImage) or ``raw`` (Image, mono8)
     image_format: Literal["jpeg", "png", "raw"] = "jpeg"
+    #: the ``iso9283`` protocol (:mod:`dhlog.simulator.iso9283`): cycles of the pose test
+    #: (P1 → P5 → P4 → P3 → P2 each) and of the path test, and the dwell at each pose (s)
+    iso_cycles: int = 30
+    iso_path_cycles: int = 10
+    iso_dwell: float = 2.0
+    #: σ per coordinate (m) of the attained position's scatter from visit to visit, and σ per
+    #: axis (rad) of the attained orientation's
+    repeatability: float = 20e-6
+    orientation_repeatability: float = 2e-5
+    #: the slow (thermal) motion of the position (m: the barycentre of a cycle's attained
+    #: positions moves this much from the first cycle to the last), an exponential warm-up of
+    #: time constant ``drift_time`` (s; 0: a third of the pose test) along a fixed direction
+    drift: float = 50e-6
+    drift_time: float = 0.0
+    #: the overshoot (m) of each arrival, along the approach: a damped oscillation
+    #: e^(−ζωt) sin(ωt) scaled to this peak, ω = 2π ``overshoot_frequency`` (Hz),
+    #: ζ = ``overshoot_damping``
+    overshoot: float = 100e-6
+    overshoot_frequency: float = 5.0
+    overshoot_damping: float = 0.2
+    #: the paths: a systematic smooth deviation normal to the commanded path of this peak (m),
+    #: and a random offset per path cycle of σ ``path_repeatability`` per coordinate (m)
+    path_error: float = 200e-6
+    path_repeatability: float = 20e-6
     seed: int = 0
 
 
@@ -179,6 +203,8 @@ def _protocol_problems(robot: Robot, cfg: SimulationConfig) -> list[str]:
     ]
     out += [why for ok, why in checks if not ok]
     out += _terms_problems(robot, cfg)
+    if cfg.protocol == "iso9283":
+        out += _iso9283_problems(cfg)
     if cfg.protocol not in PROTOCOLS:
         out.append(f"the protocol must be one of {', '.join(PROTOCOLS)}, not '{cfg.protocol}'")
         return out
@@ -208,6 +234,77 @@ def _protocol_problems(robot: Robot, cfg: SimulationConfig) -> list[str]:
             if cfg.dwell > 0
             else "the dwell must be > 0 for a step-and-measure protocol"
         )
+    return out
+
+
+def _iso9283_problems(cfg: SimulationConfig) -> list[str]:
+    """What is wrong with the settings of the ``iso9283`` protocol."""
+    numbers = [
+        cfg.iso_dwell,
+        cfg.repeatability,
+        cfg.orientation_repeatability,
+        cfg.drift,
+        cfg.drift_time,
+        cfg.overshoot,
+        cfg.overshoot_frequency,
+        cfg.overshoot_damping,
+        cfg.path_error,
+        cfg.path_repeatability,
+    ]
+    if not all(math.isfinite(v) for v in numbers):
+        return ["every setting of the iso9283 protocol must be finite"]
+    checks = [
+        (
+            1 <= cfg.iso_cycles <= 1000,
+            f"the ISO 9283 pose cycles must be in [1, 1000] (got {cfg.iso_cycles})",
+        ),
+        (
+            0 <= cfg.iso_path_cycles <= 1000,
+            f"the ISO 9283 path cycles must be in [0, 1000] (got {cfg.iso_path_cycles})",
+        ),
+        (
+            0.1 <= cfg.iso_dwell <= 60,
+            f"the dwell at each ISO 9283 pose must be in [0.1, 60] s (got {cfg.iso_dwell:g} s)",
+        ),
+        (
+            cfg.tracker_rate >= 100,
+            f"the iso9283 protocol needs a tracker rate ≥ 100 Hz for the arrivals' "
+            f"stabilisation (got {cfg.tracker_rate:g} Hz)",
+        ),
+        (
+            all(0 <= v <= 0.01 for v in (cfg.repeatability, cfg.drift, cfg.overshoot))
+            and 0 <= cfg.path_error <= 0.01
+            and 0 <= cfg.path_repeatability <= 0.01,
+            "the repeatability, drift, overshoot and path errors must be in [0, 10] mm",
+        ),
+        (
+            0 <= cfg.orientation_repeatability <= 0.01,
+            "the orientation repeatability must be in [0, 0.01] rad",
+        ),
+        (cfg.drift_time >= 0, f"the drift time must be ≥ 0 s (got {cfg.drift_time:g} s)"),
+        (
+            0.1 <= cfg.overshoot_frequency <= 1000,
+            f"the overshoot frequency must be in [0.1, 1000] Hz "
+            f"(got {cfg.overshoot_frequency:g} Hz)",
+        ),
+        (
+            0 < cfg.overshoot_damping < 1,
+            f"the overshoot damping ratio must be in (0, 1) (got {cfg.overshoot_damping:g})",
+        ),
+    ]
+    out = [why for ok, why in checks if not ok]
+    unsupported = [
+        (bool(cfg.compliance or cfg.harmonic), "--compliance/--harmonic"),
+        (bool(cfg.extra_tools), "--extra-targets"),
+        (bool(cfg.pose_list), "--poses CSV"),
+        (bool(cfg.skip_joints or cfg.coupled), "--skip-joints"),
+        (cfg.instrument != "tracker", "--instrument camera"),
+    ]
+    out += [
+        f"{what} is not simulated with the iso9283 protocol (it runs the ISO 9283 test program)"
+        for bad, what in unsupported
+        if bad
+    ]
     return out
 
 

@@ -35,7 +35,7 @@ def protocol_config(cfg: SimulationConfig) -> SimulationConfig:
 
 def swept_joints(robot: Robot, cfg: SimulationConfig) -> list[int]:
     """The joints (1-based) a session of ``cfg`` sweeps alone."""
-    if cfg.protocol == "random-poses":
+    if cfg.protocol in ("random-poses", "iso9283"):
         return []
     skip = protocol_config(cfg).skip_joints
     return [j for j in range(1, robot.n + 1) if j not in skip]

@@ -4,6 +4,7 @@ sampling it on their own clocks (:func:`simulate_session` → :class:`Session`).
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -69,6 +70,12 @@ class Session:
     poses: FloatArray = field(default_factory=lambda: np.zeros((0, 0)))
     #: the truth's compliance and harmonics in ``table``'s frames (None: a geometric robot)
     terms: Terms | None = None
+    #: the commanded joint targets (``/joint_command``) and their stamps (the ``iso9283``
+    #: protocol; empty for the others)
+    command_t_ns: NDArray[np.int64] = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+    command_q: FloatArray = field(default_factory=lambda: np.zeros((0, 0)))
+    #: the truth file's ``iso9283`` block (the ``iso9283`` protocol; None for the others)
+    iso9283: dict[str, Any] | None = None
 
 
 def simulate_session(
@@ -80,6 +87,8 @@ def simulate_session(
     home: FloatArray | None = None,
 ) -> Session:
     """Simulate one session of ``robot`` (see :mod:`dhlog.simulator`)."""
+    if cfg.protocol == "iso9283":
+        raise ValueError("the iso9283 protocol: dhlog.simulator.iso9283.simulate_iso9283")
     rng = np.random.default_rng(cfg.seed)
     T_mr = default_measurement_pose() if T_measurement_robot is None else T_measurement_robot
     T_mb = T_mr @ robot.T_base

@@ -84,4 +84,5 @@ def truth_document(
             "harmonic_rad": [[j, a, b] for j, a, b in cfg.harmonic],
         },
         **({} if session.terms is None else {"nongeometric": session.terms.document()}),
+        **({} if session.iso9283 is None else {"iso9283": session.iso9283}),
     }
