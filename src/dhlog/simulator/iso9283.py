@@ -303,6 +303,20 @@ def plan_run(
     )
 
 
+def commanded_at(run: Iso9283Run, t: FloatArray) -> FloatArray:
+    """The commanded joints (m, n) of the run at the sorted times ``t`` (s): what the encoders
+    read."""
+    starts = np.array([s.t0 for s in run.segments])
+    which = np.clip(np.searchsorted(starts, t, side="right") - 1, 0, len(run.segments) - 1)
+    bounds = np.searchsorted(which, np.arange(len(run.segments) + 1))
+    q = np.empty((t.size, run.segments[0].q.shape[1]))
+    for i, seg in enumerate(run.segments):
+        lo, hi = int(bounds[i]), int(bounds[i + 1])
+        if lo < hi:
+            q[lo:hi] = _segment_state(seg, t[lo:hi])[0]
+    return q
+
+
 @dataclass(frozen=True)
 class Motion:
     """The robot at the times ``t`` (s): the commanded joints ``q`` (m, n), the position it
@@ -458,7 +472,7 @@ def simulate_iso9283(
     )
     t_enc = np.sort(t_enc + noise_rng.uniform(-cfg.clock_jitter, cfg.clock_jitter, t_enc.size))
     t_enc = np.clip(t_enc, 0.0, duration)
-    q_enc = motion_at(robot, replace(cfg, overshoot=0.0), run, table, t_enc).q
+    q_enc = commanded_at(run, t_enc)
     base = base_points(cfg, T_mb, noise_rng)
     base_t = start_ns + (np.linspace(0.1, base_time - 0.2, cfg.base_points) * 1e9).astype(np.int64)
     block = truth_block(robot, cfg, run, table, motion, stamp, T_mr)
