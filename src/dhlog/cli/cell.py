@@ -206,17 +206,57 @@ def plan(
             "-o",
             "--output",
             metavar="FILE",
-            help="With --select: the chosen poses (CSV); else the prediction as JSON.",
+            help="With --select: the chosen poses (CSV); with --iso9283: the test's cycle "
+            "program (CSV); else the prediction as JSON.",
         ),
     ] = None,
     angle_unit: Annotated[
         str, typer.Option(metavar="rad|deg", help="The unit of the candidates' revolute joints.")
     ] = "rad",
+    iso9283: Annotated[
+        bool,
+        typer.Option(
+            "--iso9283",
+            help="The ISO 9283 test program instead: the largest test cube the workspace "
+            "allows, the poses P1–P5 and the test paths with their joint targets; -o writes "
+            "the cycle program (CSV, docs/iso9283.md).",
+        ),
+    ] = False,
+    cube_size: Annotated[
+        float | None,
+        typer.Option(metavar="MM", help="With --iso9283: the test cube's edge, mm."),
+    ] = None,
+    cube_centre: Annotated[
+        str | None,
+        typer.Option(
+            metavar="X,Y,Z",
+            help="With --iso9283: the test cube's centre, mm in the robot's base frame.",
+        ),
+    ] = None,
+    plane: Annotated[
+        str,
+        typer.Option(
+            metavar="C1-C2-C7-C8|C2-C3-C8-C5|C3-C4-C5-C6|C4-C1-C6-C7",
+            help="With --iso9283: the cube's diagonal plane the poses and paths lie in.",
+        ),
+    ] = "C1-C2-C7-C8",
+    cycles: Annotated[
+        int, typer.Option(help="With --iso9283: cycles of the pose test (P1 → … → P5).")
+    ] = 30,
+    path_cycles: Annotated[
+        int, typer.Option(help="With --iso9283: cycles of the path test (line, circles).")
+    ] = 10,
+    dwell: Annotated[
+        float, typer.Option(metavar="S", help="With --iso9283: the dwell at each pose, s.")
+    ] = 2.0,
+    path_speed: Annotated[
+        float, typer.Option(metavar="MM/S", help="With --iso9283: the commanded path speed, mm/s.")
+    ] = 250.0,
     force: Annotated[bool, typer.Option("--force", help="Overwrite the output.")] = False,
 ) -> None:
     """Before the session: the σ of every DH parameter and the FK σ over the workspace that a
     protocol will give, and what it cannot determine; or, with --candidates and --select, the
-    most informative poses (D-optimal)."""
+    most informative poses (D-optimal); or, with --iso9283, the ISO 9283 test program."""
     import json
 
     from rich import box
@@ -226,6 +266,20 @@ def plan(
     from dhlog.io.dhfile import robot_or_dh_file
     from dhlog.io.writer import atomic_output
 
+    if iso9283:
+        _iso9283_program(
+            robot,
+            output,
+            force,
+            cube_size,
+            cube_centre,
+            plane,
+            cycles,
+            path_cycles,
+            dwell,
+            path_speed,
+        )
+        return
     tracker = _tracker(station, range_m, tracker_um)
     if candidates is not None or select:
         _select_poses(robot, candidates, select, output, noise_mm, angle_unit, force, tracker)
@@ -287,6 +341,111 @@ def plan(
         )
     if output is not None:
         stdout.print(plain(f"wrote {output}"))
+
+
+def _iso9283_program(
+    robot: str,
+    output: Path | None,
+    force: bool,
+    cube_size: float | None,
+    cube_centre: str | None,
+    plane: str,
+    cycles: int,
+    path_cycles: int,
+    dwell: float,
+    path_speed: float,
+) -> None:
+    """``dhlog plan ROBOT --iso9283``: the test program's tables, and its CSV with -o."""
+    from rich import box
+    from rich.table import Table
+
+    from dhlog.io.dhfile import robot_or_dh_file
+    from dhlog.io.writer import atomic_output
+    from dhlog.iso9283.program import program_csv
+    from dhlog.iso9283.program import test_program as iso9283_program
+
+    centre = None
+    if cube_centre is not None:
+        centre = floats(cube_centre, "--cube-centre")
+        if len(centre) != 3 or max(abs(v) for v in centre) > 1e5:
+            stderr.print("error: --cube-centre needs X,Y,Z in mm (within 100 m).")
+            raise typer.Exit(EXIT_USAGE)
+    for what, value in (("--cube-size", cube_size), ("--path-speed", path_speed)):
+        if value is not None and not (math.isfinite(value) and 0 < value <= 1e5):
+            stderr.print(f"error: {what} must be a positive number of mm (or mm/s), not {value}.")
+            raise typer.Exit(EXIT_USAGE)
+    if output is not None:
+        refuse_existing(output, force)
+    try:
+        rob = robot_or_dh_file(robot)
+        program = iso9283_program(
+            rob,
+            cube_size=None if cube_size is None else cube_size * 1e-3,
+            cube_centre=None if centre is None else np.array(centre) * 1e-3,
+            plane=plane,
+            cycles=cycles,
+            path_cycles=path_cycles,
+            dwell=dwell,
+            speed=path_speed * 1e-3,
+        )
+        if output is not None:
+            with atomic_output(output) as f:
+                f.write(program_csv(program).encode())
+    except DhlogError as exc:
+        fail(exc)
+    except OSError as exc:
+        assert output is not None
+        fail(OutputError(output.parent, exc))
+    cube = program.cube
+    xyz = ", ".join(f"{v * 1e3:.1f}" for v in cube.centre)
+    stdout.print(
+        plain(
+            f"ISO 9283 test cube of {rob.name}: centre ({xyz}) mm in the base frame, edge "
+            f"{cube.size * 1e3:.0f} mm, poses and paths in the plane {cube.plane}."
+        )
+    )
+    revolute = np.array([t.value == "revolute" for t in rob.table.joint_types])
+    t = Table(
+        title="Test poses: the tool point in the base frame (mm), the joint targets (° or mm)",
+        title_justify="left",
+        box=box.SIMPLE_HEAD,
+        pad_edge=False,
+        padding=(0, 1),
+        collapse_padding=True,
+    )
+    for head in ("pose", "x", "y", "z", *(f"j{j + 1}" for j in range(rob.n))):
+        t.add_column(head, justify="right", no_wrap=True)
+    for pose in program.poses:
+        joints = np.where(revolute, np.degrees(pose.q), pose.q * 1e3)
+        t.add_row(
+            pose.name,
+            *(f"{v * 1e3:.1f}" for v in pose.T[:3, 3]),
+            *(f"{v:.2f}" for v in joints),
+        )
+    stdout.print(t)
+    t = Table(title="Test paths", title_justify="left", box=box.SIMPLE_HEAD, pad_edge=False)
+    for head in ("path", "length [mm]", "points", "speed [mm/s]"):
+        t.add_column(plain(head), justify="right")
+    for path in program.paths:
+        length = float(np.sum(np.linalg.norm(np.diff(path.points, axis=0), axis=1)))
+        t.add_row(
+            path.name, f"{length * 1e3:.1f}", str(len(path.points)), f"{path.speed * 1e3:.0f}"
+        )
+    stdout.print(t)
+    for note in program.notes:
+        stdout.print(plain(f"Note: {note}."))
+    rows = program.cycles * len(program.poses) + program.path_cycles * sum(
+        len(p.points) for p in program.paths
+    )
+    if output is not None:
+        stdout.print(
+            plain(
+                f"wrote {output}: {rows} commanded targets ({program.cycles} pose cycles, "
+                f"{program.path_cycles} path cycles, dwell {program.dwell:g} s)"
+            )
+        )
+    else:
+        stdout.print("Give -o CSV to write the cycle program.")
 
 
 def _tracker(station: str | None, range_m: str, tracker_um: str | None) -> Any:
