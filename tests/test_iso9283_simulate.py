@@ -40,7 +40,7 @@ STEPS = np.array(
         [0.15, -0.1, 0.1],
     ]
 )
-QUIET = {
+QUIET: dict[str, Any] = {
     "repeatability": 0.0,
     "orientation_repeatability": 0.0,
     "drift": 0.0,
@@ -297,3 +297,39 @@ def test_simulate_iso9283_through_the_command_line(tmp_path: Path) -> None:
     assert summary is not None
     topics = {c.topic for c in summary.channels.values()}
     assert {"/tracker/point", "/joint_states", "/joint_command"} <= topics
+
+
+@pytest.mark.parametrize("encoding", ["json", "protobuf"])
+def test_the_commanded_joints_in_json_and_protobuf(tmp_path: Path, encoding: str) -> None:
+    session = run(cycles=1, path_cycles=1, seed=3)
+    path = tmp_path / f"iso_{encoding}.mcap"
+    write_session(session, path, encoding)  # type: ignore[arg-type]
+    with open(path, "rb") as f:
+        summary = make_reader(f).get_summary()
+    assert summary is not None and summary.statistics is not None
+    counts = {
+        c.topic: summary.statistics.channel_message_counts[i] for i, c in summary.channels.items()
+    }
+    assert counts["/joint_command"] == 5 + 1 + 60
+    assert counts["/joint_states"] == session.joint_q.shape[0]
+
+
+def test_a_six_dof_target_turns_with_the_attained_orientation() -> None:
+    session = run(cycles=2, seed=10, tool_rotation=(0.3, -0.2, 0.5))
+    assert session.point_rotation is not None and session.tool_rotation is not None
+    T = session.T_measurement_base
+    for vs in visits(session).values():
+        for v in vs:
+            mid = (v["t_arrival_ns"] + v["t_leave_ns"]) // 2
+            k = int(np.searchsorted(session.point_t_ns, mid))
+            expected = T[:3, :3] @ np.array(v["attained_R"]) @ session.tool_rotation
+            assert np.allclose(session.point_rotation[k], expected, atol=1e-12)
+
+
+def test_the_protocols_options_are_refused_with_another_protocol(tmp_path: Path) -> None:
+    result = CliRunner().invoke(
+        app, ["simulate", "kr5", "-o", str(tmp_path / "x.mcap"), "--cycles", "3"]
+    )
+    assert result.exit_code == 1
+    assert "are for --protocol iso9283" in result.output
+    assert not (tmp_path / "x.mcap").exists()
