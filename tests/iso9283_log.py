@@ -3,12 +3,13 @@ tests/test_iso9283_run.py and benchmarks/iso9283.py until they use ``dhlog simul
 iso9283``).
 
 A KR5 off its nominal (each a, d 0.3 mm, each θ offset 0.3 mrad, seeded) visits five joint
-targets in cycles P1 → P2 → … → P5; each visit's attained position is the true model's forward
-kinematics of the commanded joints plus a random offset (``repeat`` m per coordinate: the robot's
-repeatability) plus a linear drift; each arrival overshoots along its approach with a damped
-oscillation. The tracker samples the target at ``rate`` Hz through the motion and the dwells with
-``noise`` m per coordinate. /joint_states follow the commanded trajectory; /joint_command holds
-the current move's target (10 Hz). The truth holds each visit's noise-free attained position.
+targets in cycles P1 → P5 → P4 → P3 → P2 (the standard's); each visit's attained position is the
+true model's forward kinematics of the commanded joints plus a random offset (``repeat`` m per
+coordinate: the robot's repeatability) plus a linear drift; each arrival overshoots along its
+approach with a damped oscillation. The tracker samples the target at ``rate`` Hz through the
+motion and the dwells with ``noise`` m per coordinate. /joint_states follow the commanded
+trajectory; /joint_command holds the current move's target (10 Hz). The truth holds each visit's
+noise-free attained position.
 """
 
 from __future__ import annotations
@@ -26,6 +27,8 @@ from dhlog.model.fk import fk_point
 from dhlog.model.robots import load_robot
 
 NAMES = [f"joint_{k + 1}" for k in range(6)]
+#: the standard's cycle P1 → P5 → P4 → P3 → P2 (clause 7.2.1), as indices of P1 … P5
+CYCLE = (0, 4, 3, 2, 1)
 #: The five commanded joint targets (rad): a KR5 pose and four moves about it.
 Q0 = np.radians([10.0, -60.0, 100.0, 5.0, 40.0, 10.0])
 OFFSETS = np.radians(
@@ -122,7 +125,7 @@ def write_iso_log(
     def fk(q: np.ndarray) -> np.ndarray:
         return np.asarray(fk_point(table, q, tool, T_base=T))
 
-    order = [k for _ in range(cycles) for k in range(5)]
+    order = [k for _ in range(cycles) for k in CYCLE]
     dt = 1.0 / rate
     t_all, xyz_all = [], []
     jt, jq, ct, cq = [], [], [], []
