@@ -333,3 +333,25 @@ def test_the_protocols_options_are_refused_with_another_protocol(tmp_path: Path)
     assert result.exit_code == 1
     assert "are for --protocol iso9283" in result.output
     assert not (tmp_path / "x.mcap").exists()
+
+
+def test_simulate_iso9283_through_the_api(tmp_path: Path) -> None:
+    import dhlog
+
+    sim = dhlog.simulate(
+        "kr5",
+        tmp_path / "api.mcap",
+        protocol="iso9283",
+        iso_cycles=2,
+        iso_path_cycles=1,
+        drift=1e-4,
+        perturb_length=1e-4,
+    )
+    assert "commanded joint targets" in sim.described
+    block = json.loads(sim.truth.read_text())["iso9283"]
+    assert block["settings"]["drift_m"] == 1e-4 and len(block["visits"]) == 10
+    truth = sim.truth_model()  # the truth still reads as a result document
+    q = np.array(block["visits"][0]["q"])
+    expected = np.array(block["visits"][0]["true_fk"])
+    T = np.array(block["T_measurement_base"])  # the block's frame → M
+    assert np.allclose(truth.fk(q[None])[0], T[:3, :3] @ expected + T[:3, 3], atol=1e-9)
