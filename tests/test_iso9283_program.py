@@ -229,3 +229,37 @@ def test_the_plan_command_writes_the_program(tmp_path: Path) -> None:
     assert not (tmp_path / "y.csv").exists()
     worse = runner.invoke(app, ["plan", "kr5", "--iso9283", "--cube-centre", "1,2"])
     assert worse.exit_code == 1 and "--cube-centre" in worse.output
+
+
+@pytest.mark.parametrize("plane", list(iso.PLANES))
+def test_each_plane_holds_its_poses_and_paths(plane: str) -> None:
+    """In each of the four planes of clause 6.3 (a bottom edge and the opposite top edge):
+    P2–P5 at 10 % of the diagonal from the named corners, in order; P2–P4 and P3–P5 through P1;
+    every pose and path point in the plane of the four corners."""
+    c, s = np.array([0.5, -0.2, 0.4]), 0.3
+    cube = iso.TestCube(c, s, plane, iso.cube_corners(c, s))
+    P = iso.pose_points(cube)
+    corners = [int(name[1:]) - 1 for name in plane.split("-")]
+    C = cube.corners[corners]
+    for k in range(4):
+        assert np.allclose(P[k + 1], C[k] + 0.1 * (C[(k + 2) % 4] - C[k]), atol=1e-15)
+        assert np.isclose(np.linalg.norm(C[k] - C[(k + 2) % 4]), math.sqrt(3) * s)
+    assert np.allclose((P[1] + P[3]) / 2, c) and np.allclose((P[2] + P[4]) / 2, c)
+    assert np.isclose(np.linalg.norm(C[1] - C[0]), s)  # a cube's edge, then a face diagonal
+    assert np.isclose(np.linalg.norm(C[2] - C[1]), math.sqrt(2) * s)
+    normal = np.cross(C[1] - C[0], C[3] - C[0])
+    normal /= np.linalg.norm(normal)
+    points = np.vstack([P, *iso.path_points(cube).values()])
+    assert np.max(np.abs((points - c) @ normal)) < 1e-12
+
+
+def test_a_centre_given_gets_the_largest_cube_about_it() -> None:
+    """--cube-centre alone: the edge is searched (bisection) about that centre; the cube found
+    there is reached, and it is no larger than the one the full search finds."""
+    robot = load_robot("ur5")
+    program = iso.test_program(robot, cube_centre=np.array([0.35, 0.0, 0.3]))
+    assert np.allclose(program.cube.centre, [0.35, 0.0, 0.3])
+    assert 0.1 < program.cube.size <= iso.test_program(robot).cube.size
+    for pose in program.poses:
+        T = tool_frame(robot, pose.q, program.tool_point)
+        assert np.max(np.abs(T[:3, 3] - pose.T[:3, 3])) < 1e-9
