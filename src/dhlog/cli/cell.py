@@ -370,9 +370,12 @@ def _iso9283_program(
         if len(centre) != 3 or max(abs(v) for v in centre) > 1e5:
             stderr.print("error: --cube-centre needs X,Y,Z in mm (within 100 m).")
             raise typer.Exit(EXIT_USAGE)
-    for what, value in (("--cube-size", cube_size), ("--path-speed", path_speed)):
+    for what, value, unit in (
+        ("--cube-size", cube_size, "mm"),
+        ("--path-speed", path_speed, "mm/s"),
+    ):
         if value is not None and not (math.isfinite(value) and 0 < value <= 1e5):
-            stderr.print(f"error: {what} must be a positive number of mm (or mm/s), not {value}.")
+            stderr.print(f"error: {what} must be a positive number of {unit}, not {value:g}.")
             raise typer.Exit(EXIT_USAGE)
     if output is not None:
         refuse_existing(output, force)
