@@ -171,6 +171,17 @@ def _segment_state(
     return np.asarray(q, dtype=np.float64), frac, off, rot
 
 
+def _normal_part(v: FloatArray, chord: FloatArray) -> FloatArray:
+    """``v`` (3,) without its component along ``chord`` (2, 3): its part normal to the path
+    where the chord lies (the path's end tangent, as :func:`motion_at` takes it)."""
+    d = chord[-1] - chord[0]
+    norm = float(np.linalg.norm(d))
+    if norm < 1e-12:
+        return np.asarray(v, dtype=np.float64)
+    d = d / norm
+    return np.asarray(v - (v @ d) * d, dtype=np.float64)
+
+
 def _arc_fractions(points: FloatArray) -> FloatArray:
     """Cumulative length along the polyline ``points`` (k, 3) as a fraction of the whole."""
     step = np.linalg.norm(np.diff(points, axis=0), axis=1)
@@ -259,12 +270,19 @@ def plan_run(
     for cycle in range(1, cfg.iso_path_cycles + 1):
         for k, path in enumerate(program.paths):
             path_q = np.asarray(path.q, dtype=np.float64)
-            move(path_q[0], zero, zero)
-            hold(PATH_DWELL)
-            fractions = _arc_fractions(np.asarray(path.points, dtype=np.float64))
-            length = float(np.sum(np.linalg.norm(np.diff(path.points, axis=0), axis=1)))
-            duration = length / path.speed + PATH_RAMP
+            points = np.asarray(path.points, dtype=np.float64)
             random_offset = rng.normal(scale=cfg.path_repeatability, size=3)
+            # the cycle's random offset (its part normal to the path) blended in on the way to
+            # the path's start and out after its end: the robot never jumps
+            ends = [
+                _normal_part(random_offset, points[:2]),
+                _normal_part(random_offset, points[-2:]),
+            ]
+            move(path_q[0], ends[0], zero)
+            hold(PATH_DWELL)
+            fractions = _arc_fractions(points)
+            length = float(np.sum(np.linalg.norm(np.diff(points, axis=0), axis=1)))
+            duration = length / path.speed + PATH_RAMP
             path_runs.append(
                 {
                     "cycle": cycle,
@@ -286,7 +304,7 @@ def plan_run(
                     path=len(path_runs) - 1,
                 )
             )  # fmt: skip
-            t, q = t + duration, path_q[-1].copy()
+            t, q, off = t + duration, path_q[-1].copy(), ends[1]
             hold(PATH_DWELL)
     return Iso9283Run(
         program=program,
