@@ -21,7 +21,8 @@ pose accuracy is its model error at the poses; on its true forward kinematics co
   largest distance from the final position is ``overshoot``;
 * on the paths, a systematic deviation ``path_error`` · sin(π f) · n(f) (f: the fraction of the
   path's length, n: a fixed direction made normal to the path's tangent) and a random offset
-  per path cycle (σ ``path_repeatability`` per coordinate, its part normal to the tangent).
+  per path cycle (σ ``path_repeatability`` per coordinate, its part normal to the tangent,
+  blended in on the way to the path's start and out after its end).
 
 The tracker samples the target at its rate with its noise; the encoders read the commanded joint
 trajectory; ``/joint_command`` carries each commanded joint target when it is commanded. The
