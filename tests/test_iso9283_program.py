@@ -263,3 +263,16 @@ def test_a_centre_given_gets_the_largest_cube_about_it() -> None:
     for pose in program.poses:
         T = tool_frame(robot, pose.q, program.tool_point)
         assert np.max(np.abs(T[:3, 3] - pose.T[:3, 3])) < 1e-9
+
+
+def test_a_program_that_is_not_text_is_one_line(tmp_path: Path) -> None:
+    for data, said in ((b"\xff\xfec\x00y\x00", "UTF-16"), (b"cycle,\x00", "NUL")):
+        path = tmp_path / "p.csv"
+        path.write_bytes(data)
+        with pytest.raises(InputError, match=said):
+            iso.read_program(path, 6)
+    with pytest.raises(InputError, match=r"missing\.csv"):
+        iso.read_program(tmp_path / "missing.csv", 6)
+    (tmp_path / "empty.csv").write_text("\n")
+    with pytest.raises(InputError, match="is empty"):
+        iso.read_program(tmp_path / "empty.csv", 6)

@@ -634,6 +634,8 @@ def program_rows(program: TestProgram) -> CommandedProgram:
     )
 
 
+#: The largest program CSV :func:`read_program` reads (a 30-cycle program is about 0.6 MB).
+MAX_PROGRAM_BYTES = 64 * 2**20
 #: The columns before and after the joints in :func:`program_csv`.
 HEAD = ("cycle", "step", "kind", "name", "index")
 TAIL = ("x", "y", "z")
@@ -668,14 +670,16 @@ def program_csv(program: TestProgram) -> str:
 def read_program(path: str | Path, n: int) -> CommandedProgram:
     """A cycle program as :func:`program_csv` writes it, for a robot of ``n`` joints (untrusted:
     every row and field is checked; one-line errors name the file, line and field)."""
+    from dhlog.io.textfile import decode_utf8, read_capped
+
     name = str(path)
-    try:
-        text = Path(path).read_text(encoding="utf-8-sig")
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InputError(
-            f"{name}: cannot be read ({exc}); give the test program `dhlog plan ROBOT "
-            "--iso9283 -o CSV` wrote."
-        ) from None
+
+    def fail(problem: str) -> InputError:
+        return InputError(f"{name}: {problem}")
+
+    hint = "give the test program `dhlog plan ROBOT --iso9283 -o CSV` wrote."
+    data = read_capped(path, MAX_PROGRAM_BYTES, fail, what="test program CSV", hint=hint)
+    text = decode_utf8(data, fail, what="test program CSV")
     expected = [*HEAD, *(f"j{j + 1}" for j in range(n)), *TAIL]
     lines = [
         (number, line)
