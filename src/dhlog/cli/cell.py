@@ -236,8 +236,9 @@ def plan(
     plane: Annotated[
         str,
         typer.Option(
-            metavar="C1-C2-C7-C8|C2-C3-C8-C5|C3-C4-C5-C6|C4-C1-C6-C7",
-            help="With --iso9283: the cube's diagonal plane the poses and paths lie in.",
+            metavar="PLANE",
+            help="With --iso9283: the cube's diagonal plane the poses and paths lie in: "
+            "C1-C2-C7-C8, C2-C3-C8-C5, C3-C4-C5-C6 or C4-C1-C6-C7 (docs/iso9283.md).",
         ),
     ] = "C1-C2-C7-C8",
     cycles: Annotated[
