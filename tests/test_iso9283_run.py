@@ -17,15 +17,18 @@ import json
 from pathlib import Path
 from typing import Any
 
+import jsonschema  # type: ignore[import-untyped]
 import numpy as np
 import pytest
 from typer.testing import CliRunner
 
 from dhlog.cli.app import app
+from dhlog.errors import DhlogError
 from dhlog.io.dhfile import dh_model_from, load_dh
 from dhlog.io.reader import read_log
 from dhlog.iso9283.cycles import segment_log
 from dhlog.iso9283.formulas import distance_accuracy, pose_accuracy, pose_repeatability
+from dhlog.iso9283.program import CommandedProgram, read_program
 from dhlog.iso9283.run import iso9283_report, run_logs
 from dhlog.model.fk import fk_point
 from iso9283_log import IsoLog, write_iso_log
@@ -122,9 +125,17 @@ def test_without_commanded_stream_uses_the_encoders(tmp_path: Path) -> None:
 def test_missing_parts_are_named(tmp_path: Path) -> None:
     log = write_iso_log(tmp_path / "short.mcap", cycles=1, seed=5)
     data = read_log(log.log)
-    program = [(f"P{k + 1}", log.targets[k]) for k in range(4)]
-    program.append(("P5", log.targets[4] + 0.5))  # commanded, never reached
-    seg = segment_log(data, program_poses=program)
+    q = np.vstack([log.targets[:4], log.targets[4] + 0.5])  # P5 commanded, never reached
+    program = CommandedProgram(
+        np.ones(5, int),
+        np.arange(1, 6),
+        ["pose"] * 5,
+        [f"P{k + 1}" for k in range(5)],
+        np.zeros(5, int),
+        q,
+        np.zeros((5, 3)),
+    )
+    seg = segment_log(data, program=program)
     report = iso9283_report([seg])
     assert "P5 was never reached (no visit matched its commanded target)." in report.notes
     assert [p.name for p in report.poses] == ["P1", "P2", "P3", "P4"]
@@ -135,8 +146,6 @@ def test_missing_parts_are_named(tmp_path: Path) -> None:
 
 
 def test_cli_writes_the_json_and_it_validates(test_log: IsoLog, tmp_path: Path) -> None:
-    import jsonschema  # type: ignore[import-untyped]
-
     args = ["iso9283", str(test_log.log), "--nominal", "kr5", "--result", str(test_log.true_model)]
     got = runner.invoke(app, [*args, "--out", str(tmp_path)])
     assert got.exit_code == 0, got.output
@@ -159,9 +168,11 @@ def test_cli_writes_the_json_and_it_validates(test_log: IsoLog, tmp_path: Path) 
 
 @pytest.fixture(scope="module")
 def simulated(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, dict[str, Any]]:
-    """``dhlog simulate --protocol iso9283``: 3 cycles of a KR5 0.2 mm / 0.2 mrad off its
-    nominal, no path cycles (6 s)."""
+    """``dhlog simulate --protocol iso9283``: 3 pose cycles and 2 path cycles of a KR5 0.2 mm /
+    0.2 mrad off its nominal, and its test program as ``dhlog plan --iso9283`` writes it."""
     import dhlog
+    from dhlog.iso9283.program import program_csv, test_program
+    from dhlog.model.robots import load_robot
 
     log = tmp_path_factory.mktemp("sim") / "sim.mcap"
     sim = dhlog.simulate(
@@ -170,10 +181,12 @@ def simulated(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, dict[str,
         protocol="iso9283",
         seed=7,
         iso_cycles=3,
-        iso_path_cycles=0,
+        iso_path_cycles=2,
         perturb_length=2e-4,
         perturb_angle=2e-4,
     )
+    program = test_program(load_robot("kr5"), cycles=3, path_cycles=2)
+    log.with_suffix(".program.csv").write_text(program_csv(program), encoding="utf-8")
     return log, json.loads(Path(sim.truth).read_text())
 
 
@@ -214,3 +227,73 @@ def test_simulated_test_against_its_truth(simulated: tuple[Path, dict[str, Any]]
         assert p.overshoot is not None
         assert p.overshoot == pytest.approx(truth["settings"]["overshoot_m"], rel=0.2)
     assert max(p.before.AP for p in report.poses if p.before) > 5e-5  # off its nominal
+
+
+def test_simulated_paths_against_their_truth(simulated: tuple[Path, dict[str, Any]]) -> None:
+    """With the test program (--commanded), each path's two passes are found where the
+    simulator ran them, and AT (before and after) and RT equal the formulas on the truth's
+    noise-free attained paths within their sampling uncertainty: a crossing is interpolated
+    between two samples (10 µm per coordinate), the barycentre of two crossings has 7 µm per
+    coordinate, 10 µm in the plane, and AT, the largest over ~100 points, picks up at most
+    about 2.5σ of it: 25 µm. RT with two cycles is half the distance between the crossings
+    (S_l = 0): the noise adds 14 µm per coordinate to that distance, and the largest over the
+    points lifts it by up to 40 µm (never lowers it by more than 10 µm)."""
+    import dhlog
+    from dhlog.iso9283.formulas import path_accuracy
+
+    log, truth_doc = simulated
+    truth = truth_doc["iso9283"]
+    nominal = dh_model_from("kr5")
+    report = run_logs(
+        [log],
+        nominal=nominal,
+        calibrated=dhlog.load(log.with_suffix(".truth.json")).model,
+        commanded_csv=log.with_suffix(".program.csv"),
+    )
+    assert report.commanded_from == "the commanded joint stream /joint_command"
+    seg = segment_log(read_log(log), program=read_program(log.with_suffix(".program.csv"), 6))
+    runs = truth["paths"]
+    assert [(p.path, p.cycle) for p in seg.passes] == sorted(
+        ((r["path"], r["cycle"]) for r in runs),
+        key=lambda pc: ([p["name"] for p in truth["program"]["paths"]].index(pc[0]), pc[1]),
+    )
+    for found in seg.passes:
+        r = next(r for r in runs if (r["path"], r["cycle"]) == (found.path, found.cycle))
+        assert found.t_start_ns <= r["t_start_ns"] and found.t_end_ns >= r["t_end_ns"]
+    programs = {p["name"]: p for p in truth["program"]["paths"]}
+    assert [p.path for p in report.paths] == list(programs)
+    true_model = dhlog.load(log.with_suffix(".truth.json")).model
+    T_base_m = np.linalg.inv(np.array(truth["T_measurement_base"]))
+    for p in report.paths:
+        q = np.array(programs[p.path]["q"])
+        commanded = fk_point(nominal.table, q, nominal.tool_point)
+        attained = [np.array(r["attained"]) for r in runs if r["path"] == p.path]
+        # the report's points: a pass may stop short of the last planes (trimmed at the ends)
+        truth_at = None
+        for a in range(len(q) - p.points + 1):
+            b = len(q) - p.points - a
+            try:
+                truth_at = path_accuracy(attained, commanded[a : len(q) - b])
+            except DhlogError:
+                continue
+            q, commanded = q[a : len(q) - b], commanded[a : len(q) - b]
+            break
+        assert truth_at is not None and p.cycles == 2
+        assert p.AT == pytest.approx(truth_at.AT_P, abs=25e-6)
+        assert -10e-6 < p.RT - truth_at.RT_P < 40e-6
+        # after: the true model's correction at each commanded point, its part in the plane
+        true_m = fk_point(true_model.table, q, true_model.tool_point, T_base=true_model.T_base)
+        correction = true_m @ T_base_m[:3, :3].T + T_base_m[:3, 3] - commanded
+        tangent = np.gradient(commanded, axis=0, edge_order=2)
+        tangent /= np.linalg.norm(tangent, axis=1, keepdims=True)
+        correction -= np.sum(correction * tangent, axis=1, keepdims=True) * tangent
+        left = truth_at.barycentres - correction - commanded
+        assert p.AT_after == pytest.approx(float(np.linalg.norm(left, axis=1).max()), abs=25e-6)
+    # the paths' systematic error is 0.2 mm: AT is far above the tolerances
+    assert min(p.AT for p in report.paths) > 1e-4
+    from dhlog.iso9283.run import report_document
+
+    schema_path = Path(__file__).parents[1] / "src/dhlog/schemas/iso9283.schema.json"
+    document = json.loads(json.dumps(report_document(report, {"logs": [str(log)]})))
+    jsonschema.validate(document, json.loads(schema_path.read_text()))
+    assert [p["path"] for p in document["iso9283"]["paths"]] == list(programs)

@@ -41,8 +41,8 @@ def iso9283(
         Path | None,
         typer.Option(
             metavar="CSV",
-            help="The commanded joint targets, one row per visit in order (dhlog plan "
-            "--iso9283's cycle program), where the log has no commanded stream.",
+            help="The test program dhlog plan --iso9283 wrote: it names the poses and gives "
+            "the paths (AT, RT); the commanded targets where the log has no commanded stream.",
         ),
     ] = None,
     out: Annotated[
@@ -53,9 +53,9 @@ def iso9283(
     ] = None,
     force: Annotated[bool, typer.Option("--force", help="Overwrite the output.")] = False,
 ) -> None:
-    """The ISO 9283 pose characteristics (AP, RP, vAP, AD/RD, stabilisation, overshoot, drift)
-    of a robot's test from tracker logs, before and after a calibration; written as
-    <stem>.iso9283.json."""
+    """The ISO 9283 characteristics (AP, RP, vAP, AD/RD, stabilisation, overshoot, drift; AT,
+    RT with the test program) of a robot's test from tracker logs, before and after a
+    calibration; written as <stem>.iso9283.json."""
     from dhlog.iso9283.run import report_document, run_logs, write_report
     from dhlog.present.console.iso9283 import print_iso9283
 

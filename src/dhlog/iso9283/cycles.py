@@ -32,12 +32,19 @@ target visited twice or more is a test pose (the five most visited, the first vi
 equals: a path's start and end are stops too); the poses are named in the standard's cycle order
 P1 → P5 → P4 → P3 → P2 as first visited (the program's names where it is given).
 
-Pure numpy on arrays; :func:`visits_from_log` reads :class:`dhlog.io.reader.LogData`.
+**Path passes** (clause 8), with the test program (:func:`dhlog.iso9283.program.read_program`:
+``--commanded``): each time the commanded joints (else the encoders) come nearest a path's
+second target, up to the next time they come nearest its last one, the tracker's samples from
+``PASS_MARGIN`` s before to as long after: one cycle's attained path, for
+:func:`dhlog.iso9283.formulas.path_accuracy`.
+
+Pure numpy on arrays; :func:`segment_log` reads :class:`dhlog.io.reader.LogData`.
 """
 
 from __future__ import annotations
 
 import itertools
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -46,6 +53,7 @@ from numpy.typing import NDArray
 from dhlog.errors import Iso9283Error
 from dhlog.geometry._checks import FloatArray, nearest_rotation
 from dhlog.io.reader import ORIENTATION_COLUMNS, LogData
+from dhlog.iso9283.program import CommandedProgram
 
 #: The band is this many times the settled samples' 3-D RMS scatter (noise alone leaves a band
 #: of 4·√3 σ ≈ 7 σ per coordinate about once in 10¹⁰ samples).
@@ -60,6 +68,16 @@ ARRIVAL_RATE = 100.0
 MIN_SETTLED = 3
 #: The standard's cycle (clause 7.2.1): the order in which unnamed poses are first visited.
 CYCLE_ORDER = ("P1", "P5", "P4", "P3", "P2")
+#: A dwell ends where its position, averaged over this window (s), has moved this many times
+#: the average's noise from the dwell's middle (:func:`_departure`).
+DEPART_WINDOW = 0.1
+DEPART_FACTOR = 5.0
+#: A visit's encoders this close (rad, m) to a program pose's joints are at that pose.
+ENCODER_MATCH = 1e-3
+#: A joint stream this close (rad, m) to a path's second and last targets is at them.
+PASS_TOLERANCE = 1e-3
+#: The tracker's samples kept before and after a pass (s).
+PASS_MARGIN = 0.3
 #: Approach directions within this angle (rad) are one direction (clause 7.2.3: vAP).
 SAME_DIRECTION = np.radians(30.0)
 
@@ -110,6 +128,19 @@ class Visit:
 
 
 @dataclass(frozen=True)
+class PathPass:
+    """One cycle's run along a test path: the ``path``'s name, its ``cycle`` (1-based), the
+    first and last sample's times (ns) and the tracker's positions ``xyz`` (k, 3, measurement
+    frame) in time order."""
+
+    path: str
+    cycle: int
+    t_start_ns: int
+    t_end_ns: int
+    xyz: FloatArray
+
+
+@dataclass(frozen=True)
 class Segmented:
     """The log's visits and what they were matched to: ``poses`` (names in order) with their
     commanded joints ``pose_q`` (k, n) (None without commanded joints), where the commanded
@@ -124,6 +155,9 @@ class Segmented:
     rate_hz: float
     orientation: bool
     notes: list[str] = field(default_factory=list)
+    passes: list[PathPass] = field(default_factory=list)
+    #: the program's paths (name, joint targets (m, n)); empty without a program
+    paths: list[tuple[str, FloatArray]] = field(default_factory=list)
 
     def of_pose(self, name: str) -> list[Visit]:
         """The visits to pose ``name``, in cycle order."""
@@ -180,6 +214,35 @@ def _settle(xyz: FloatArray, settings: DwellSettings) -> tuple[int, float, bool]
     return first, band, True
 
 
+def _departure(t: FloatArray, xyz: FloatArray) -> int:
+    """Where a dwell ends (exclusive index into its samples ``xyz`` (k, 3) at times ``t``): the
+    first sample of its second half at which the position, averaged over ``DEPART_WINDOW`` s,
+    has moved more than ``DEPART_FACTOR`` × that average's noise (at least ``BAND_FLOOR``)
+    from the median of its middle third, less half the window; the dwell's end when it never
+    does. The next move starts slower than the dwell's speed threshold, and its first
+    samples would otherwise pull the attained position towards it (by 7 µm in a simulated
+    test whose last pose was followed by a short move)."""
+    k = int(xyz.shape[0])
+    if k < 9:
+        return k
+    middle = xyz[k // 3 : 2 * k // 3]
+    reference = np.median(middle, axis=0)
+    scatter = float(np.sqrt(np.mean(np.sum((middle - middle.mean(axis=0)) ** 2, axis=1))))
+    steps = np.diff(t)
+    period = float(np.median(steps)) if steps.size else 1.0
+    w = max(1, round(DEPART_WINDOW / period) if period > 0 else 1)
+    if w >= k // 2:
+        return k
+    kernel = np.ones(w) / w
+    smooth = np.column_stack([np.convolve(xyz[:, c], kernel, mode="valid") for c in range(3)])
+    limit = max(DEPART_FACTOR * scatter / math.sqrt(w), BAND_FLOOR)
+    away = np.flatnonzero(np.linalg.norm(smooth - reference, axis=1) > limit)
+    away = away[away >= k // 2]
+    if away.size == 0:
+        return k
+    return max(int(away[0]) + w // 2, k // 2)
+
+
 def _mean_rotation(quats: FloatArray) -> FloatArray:
     """The mean rotation of unit quaternions (k, 4: x, y, z, w): the nearest rotation to the
     mean of their matrices."""
@@ -223,15 +286,14 @@ def segment_log(
     log: LogData,
     *,
     settings: DwellSettings | None = None,
-    commanded: FloatArray | None = None,
-    commanded_source: str = "",
-    program_poses: list[tuple[str, FloatArray]] | None = None,
+    program: CommandedProgram | None = None,
+    program_source: str = "the commanded CSV",
 ) -> Segmented:
-    """The visits of ``log`` (see the module docstring). ``commanded``: the commanded joint
-    targets of the visits in order (a commanded CSV, (k, n)), named by ``commanded_source``;
-    ``program_poses``: the test program's poses (name, joints) — visits whose commanded joints
-    match one take its name, other stops are no test pose. Raises :class:`Iso9283Error` when
-    the log holds no dwell."""
+    """The visits of ``log`` and its path passes (see the module docstring). ``program``: the
+    test program (:func:`dhlog.iso9283.program.read_program`, named by ``program_source``):
+    visits whose commanded joints match one of its poses take its name (other stops are no
+    test pose), and its paths' passes are cut out. Raises :class:`Iso9283Error` when the log
+    holds no dwell."""
     settings = settings or DwellSettings()
     name = log.path
     points = log.points
@@ -269,11 +331,21 @@ def segment_log(
         if log.commanded is None or log.commanded.height == 0
         else _joint_columns(log.commanded)
     )
-    if commanded is not None:
-        source = commanded_source or "the commanded CSV"
-    elif cmd is not None:
+    program_poses, pose_sequence, program_paths = (
+        program_parts(program) if program is not None else (None, None, [])
+    )
+    commanded = None
+    if cmd is not None:
         topic = log.pipeline.streams["commanded"].topic
         source = f"the commanded joint stream {topic}"
+    elif program_poses is not None and enc is not None:
+        source = (
+            f"{program_source} (each visit recognised by its encoders, the program's joints its "
+            "commanded target)"
+        )
+    elif pose_sequence is not None:
+        commanded = pose_sequence
+        source = f"{program_source} (its pose targets matched to the visits in order)"
     elif enc is not None:
         source = (
             "the encoders at each visit (the controller's joints, its servo error included: "
@@ -299,6 +371,7 @@ def segment_log(
     raw: list[dict[str, object]] = []
     previous_end = -np.inf
     for k, (s, e) in enumerate(dwells):
+        e = s + _departure(t_s[s:e], xyz[s:e])
         first, band, settled = _settle(xyz[s:e], settings)
         # the mean from settle_margin s later: a damped oscillation's tail inside the band
         # would pull it towards the approach by up to band / (ω · dwell)
@@ -319,13 +392,20 @@ def segment_log(
         direction = direction / norm if norm > 20 * max(scatter, BAND_FLOOR) else np.zeros(3)
         mid = int((t_ns[s] + t_ns[e - 1]) // 2)
         q: FloatArray | None = None
-        if commanded is not None:
-            q = commanded[k] if k < commanded.shape[0] else None
-        elif cmd is not None:
+        if cmd is not None:
             q = _value_at(cmd[0], cmd[1], mid)
+        elif commanded is not None:
+            q = commanded[k] if k < commanded.shape[0] else None
         elif enc is not None:
             inside = (enc[0] >= t_ns[s + first]) & (enc[0] <= t_ns[e - 1])
             q = enc[1][inside].mean(axis=0) if np.any(inside) else _value_at(*enc, mid)
+            if program_poses is not None:  # the program's target the encoders are at
+                near = [
+                    pq
+                    for _, pq in program_poses
+                    if pq.shape == q.shape and float(np.max(np.abs(pq - q))) <= ENCODER_MATCH
+                ]
+                q = near[0] if near else q
         raw.append(
             dict(
                 index=k,
@@ -409,6 +489,14 @@ def segment_log(
             cycle = cycle_count.get(label, 0) + 1
             cycle_count[label] = cycle
         visits.append(Visit(pose=label, cycle=cycle, **r))  # type: ignore[arg-type]
+    passes: list[PathPass] = []
+    stream = cmd if cmd is not None else enc
+    if program_paths and stream is not None:
+        for path_name, path_q in program_paths:
+            found = find_passes(stream, path_q, t_ns, xyz, path_name)
+            passes.extend(found)
+            if not found:
+                notes.append(f"{name}: the path {path_name} was never run (no pass found).")
     return Segmented(
         name,
         visits,
@@ -418,4 +506,82 @@ def segment_log(
         rate,
         orientation,
         notes,
+        passes,
+        program_paths,
     )
+
+
+def program_parts(
+    program: CommandedProgram,
+) -> tuple[list[tuple[str, FloatArray]], FloatArray, list[tuple[str, FloatArray]]]:
+    """The program's poses (name, joints) in order first commanded, its pose targets in order
+    (k, n), and each path's joint targets along it (name, (m, n)) from its first cycle."""
+    poses: dict[str, FloatArray] = {}
+    sequence = []
+    paths: dict[str, list[tuple[int, FloatArray]]] = {}
+    first_cycle: dict[str, int] = {}
+    for k, kind in enumerate(program.kind):
+        name, q = program.name[k], np.asarray(program.q[k], dtype=np.float64)
+        if kind == "pose":
+            poses.setdefault(name, q)
+            sequence.append(q)
+        else:
+            c = first_cycle.setdefault(name, int(program.cycle[k]))
+            if int(program.cycle[k]) == c:
+                paths.setdefault(name, []).append((int(program.index[k]), q))
+    n = program.q.shape[1]
+    return (
+        list(poses.items()),
+        np.array(sequence) if sequence else np.zeros((0, n)),
+        [
+            (name, np.array([q for _, q in sorted(rows, key=lambda r: r[0])]))
+            for name, rows in paths.items()
+        ],
+    )
+
+
+def find_passes(
+    stream: tuple[NDArray[np.int64], FloatArray],
+    path_q: FloatArray,
+    t_ns: NDArray[np.int64],
+    xyz: FloatArray,
+    name: str,
+    *,
+    tolerance: float = PASS_TOLERANCE,
+    margin: float = PASS_MARGIN,
+) -> list[PathPass]:
+    """The passes along a path whose joint targets are ``path_q`` (m, n), from a joint
+    ``stream`` (times, (k, n): the commanded joints, or the encoders): each time the stream
+    comes nearest its second point (within ``tolerance``, rad, or half the smallest step between
+    the path's targets if less), up to the next time it comes nearest its last point; the
+    tracker's samples from ``margin`` s before to ``margin`` s after (the path's ends, where the
+    crossings of the first and last normal planes lie)."""
+    t, Q = stream
+    if path_q.shape[0] < 3 or Q.shape[1] != path_q.shape[1]:
+        return []
+    # below half the smallest step between targets: the second target is told from the first
+    # and the last (a closed path's ends are one point)
+    steps = np.max(np.abs(np.diff(path_q, axis=0)), axis=1)
+    tolerance = min(tolerance, 0.5 * float(steps[steps > 0].min(initial=2 * tolerance)))
+
+    def nearest_times(target: FloatArray) -> NDArray[np.int64]:
+        d = np.max(np.abs(Q - target), axis=1)
+        near = d < tolerance
+        edges = np.flatnonzero(np.diff(np.r_[0, near.astype(np.int8), 0]))
+        return np.array(
+            [t[a + int(np.argmin(d[a:b]))] for a, b in zip(edges[::2], edges[1::2], strict=True)],
+            dtype=np.int64,
+        )
+
+    starts, ends = nearest_times(path_q[1]), nearest_times(path_q[-1])
+    out: list[PathPass] = []
+    step = int(margin * 1e9)
+    for k, t1 in enumerate(starts):
+        later = ends[ends > t1]
+        following = starts[k + 1] if k + 1 < len(starts) else None
+        if later.size == 0 or (following is not None and later[0] > following):
+            continue  # a pass not run to its end
+        a, b = np.searchsorted(t_ns, [t1 - step, later[0] + step])
+        if b - a >= 3:
+            out.append(PathPass(name, len(out) + 1, int(t_ns[a]), int(t_ns[b - 1]), xyz[a:b]))
+    return out

@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -37,6 +37,7 @@ from dhlog.iso9283.cycles import (
     ARRIVAL_RATE,
     SAME_DIRECTION,
     DwellSettings,
+    PathPass,
     Segmented,
     Visit,
     segment_log,
@@ -45,6 +46,9 @@ from dhlog.model.fk import fk_point
 
 #: The pair of poses for distance accuracy and repeatability (clause 7.3).
 DISTANCE_POSES = ("P2", "P4")
+#: The commanded points left out at a path's start and end, tried in turn, when a pass does
+#: not cross their normal planes (a robot stopping short of the end).
+PATH_TRIMS = ((0, 0), (0, 1), (1, 0), (1, 1), (0, 2), (2, 0), (2, 2), (3, 3))
 #: The pose drift is measured at (clause 7.6: P1).
 DRIFT_POSE = "P1"
 
@@ -162,8 +166,36 @@ class DriftReport:
 
 
 @dataclass(frozen=True)
+class PathReport:
+    """Path accuracy and repeatability of one test path (clause 8.2) over ``cycles`` passes at
+    its ``points`` commanded points: ``AT`` (before: against the nominal's FK of the commanded
+    joints; ``AT_after`` with a result), ``RT``, and the points where each is largest."""
+
+    path: str
+    cycles: int
+    points: int
+    AT: float
+    AT_after: float | None
+    RT: float
+    AT_at_point: int
+    RT_at_point: int
+
+    def document(self) -> dict[str, Any]:
+        return {
+            "path": self.path,
+            "cycles": self.cycles,
+            "points": self.points,
+            "AT": self.AT,
+            "AT_after": self.AT_after,
+            "RT": self.RT,
+            "AT_at_point": self.AT_at_point,
+            "RT_at_point": self.RT_at_point,
+        }
+
+
+@dataclass(frozen=True)
 class Iso9283Report:
-    """The acceptance report: per pose, distance, drift (paths: not yet computed from logs),
+    """The acceptance report: per pose, distance, drift, per path,
     the frame and how it was found, where the commanded targets came from, and ``notes`` (one
     line each: what is missing or assumed)."""
 
@@ -180,6 +212,7 @@ class Iso9283Report:
     drift: DriftReport | None
     orientation: bool
     notes: list[str] = field(default_factory=list)
+    paths: list[PathReport] = field(default_factory=list)
 
     def document(self) -> dict[str, Any]:
         """The ``iso9283`` block (docs/iso9283.md, src/dhlog/schemas/iso9283.schema.json)."""
@@ -196,7 +229,7 @@ class Iso9283Report:
             "poses": [p.document() for p in self.poses],
             "distance": None if self.distance is None else self.distance.document(),
             "drift": None if self.drift is None else self.drift.document(),
-            "paths": [],
+            "paths": [p.document() for p in self.paths],
             "notes": list(self.notes),
         }
 
@@ -329,6 +362,7 @@ def iso9283_report(
     notes = [n for s in segmented for n in s.notes]
     if len(segmented) > 1:  # the logs' visits in one list, each pose's cycles numbered on
         visits: list[Visit] = []
+        passes: list[PathPass] = []
         counts: dict[str, int] = {}
         for s in segmented:
             for v in s.visits:
@@ -336,7 +370,11 @@ def iso9283_report(
                 if v.pose:
                     c = counts.get(v.pose, 0) + 1
                     counts[v.pose] = c
-                visits.append(_renumbered(v, c))
+                visits.append(replace(v, cycle=c))
+            for pp in s.passes:
+                c = counts.get("path " + pp.path, 0) + 1
+                counts["path " + pp.path] = c
+                passes.append(replace(pp, cycle=c))
         seg = Segmented(
             ", ".join(s.path for s in segmented),
             visits,
@@ -346,6 +384,8 @@ def iso9283_report(
             min(s.rate_hz for s in segmented),
             all(s.orientation for s in segmented),
             [],
+            passes,
+            seg0.paths,
         )
     else:
         seg = seg0
@@ -454,7 +494,7 @@ def iso9283_report(
             "vAP (multi-directional accuracy variation): not in this log (every pose is "
             "approached from one direction)."
         )
-    notes.append("path accuracy and repeatability (AT, RT): not computed from logs yet.")
+    paths = _paths(seg, T, nominal, calibrated, notes)
     distance = _distance(
         seg,
         T,
@@ -484,13 +524,101 @@ def iso9283_report(
         drift,
         seg.orientation,
         notes,
+        paths,
     )
 
 
-def _renumbered(v: Visit, cycle: int) -> Visit:
-    from dataclasses import replace
+def _paths(
+    seg: Segmented,
+    T: FloatArray | None,
+    nominal: DHModel | None,
+    calibrated: DHModel | None,
+    notes: list[str],
+) -> list[PathReport]:
+    """Clause 8.2 for each of the program's paths (:func:`dhlog.iso9283.formulas.path_accuracy`
+    on the passes in the base frame, the commanded points the nominal's FK of the path's joint
+    targets); after: the crossings' barycentres less the part in each normal plane of the
+    calibrated model's correction at the commanded point (what compensated commands would move
+    the crossing by, to first order)."""
+    from dhlog.iso9283.formulas import path_accuracy
 
-    return replace(v, cycle=cycle)
+    if not seg.paths:
+        notes.append(
+            "paths (AT, RT): the commanded paths come from the test program: give --commanded "
+            "with the program dhlog plan --iso9283 wrote; not computed."
+        )
+        return []
+    out = []
+    for name, q in seg.paths:
+        passes = [p for p in seg.passes if p.path == name]
+        if not passes:
+            continue  # named by the segmentation
+        if len(passes) < 2:
+            notes.append(f"path {name}: 1 pass: AT and RT need 2 or more; not computed.")
+            continue
+        if T is None or nominal is None:
+            notes.append(
+                f"path {name}: AT and RT need the base frame (--nominal, or --result); not "
+                "computed."
+            )
+            continue
+        commanded = np.asarray(
+            fk_point(nominal.table, q, nominal.tool_point, T_base=nominal.T_base)
+        )
+        attained = [_moved(T, p.xyz) for p in passes]
+        got = None
+        problem = ""
+        for a, b in PATH_TRIMS:  # the ends a pass may stop short of (the robot stops there)
+            try:
+                got = path_accuracy(attained, commanded[a : len(q) - b])
+            except DhlogError as exc:
+                problem = problem or str(exc)
+                continue
+            if a or b:
+                notes.append(
+                    f"path {name}: the first {a} and last {b} commanded point(s) are not crossed "
+                    "by every pass (the robot stops at the path's ends, short of their normal "
+                    "planes): left out of AT and RT."
+                )
+            commanded, q = commanded[a : len(q) - b], q[a : len(q) - b]
+            break
+        if got is None:
+            notes.append(f"path {name}: {problem}")
+            continue
+        after = None
+        if calibrated is not None:
+            predicted = _moved(
+                T,
+                np.asarray(
+                    fk_point(
+                        calibrated.table,
+                        calibrated.joint_values(q),
+                        calibrated.tool_point,
+                        T_base=calibrated.T_base,
+                    )
+                ),
+            )
+            # the compensated commands move the path by −(predicted − commanded): its crossing
+            # of each normal plane moves by that correction's part in the plane
+            tangent = np.gradient(commanded, axis=0, edge_order=2)
+            tangent /= np.linalg.norm(tangent, axis=1, keepdims=True)
+            correction = predicted - commanded
+            correction -= np.sum(correction * tangent, axis=1, keepdims=True) * tangent
+            left = got.barycentres - correction - commanded
+            after = float(np.max(np.linalg.norm(left, axis=1)))
+        out.append(
+            PathReport(
+                name,
+                int(got.cycles),
+                len(q),
+                float(got.AT_P),
+                after,
+                float(got.RT_P),
+                int(np.argmax(got.deviation)),
+                int(np.argmax(got.repeatability)),
+            )
+        )
+    return out
 
 
 def _multi_directional(vs: list[Visit], X: FloatArray) -> tuple[float | None, int]:
@@ -596,52 +724,6 @@ def _drift(
 FORMAT = "dhlog.iso9283/1"
 
 
-def read_commanded_csv(path: str | Path, n: int | None) -> tuple[FloatArray, list[str]]:
-    """The commanded joint targets of a cycle program CSV (one row per visit, in order; one
-    column per joint, radians; a header row; an optional first column ``pose`` naming each
-    row's pose), and the names (empty without the column). Raises :class:`InputError` naming
-    the file, row and field."""
-    import csv
-
-    from dhlog.io.textfile import decode_utf8, read_capped
-
-    def fail(problem: str) -> InputError:
-        return InputError(f"{path}: {problem}")
-
-    data = read_capped(
-        path, 64 * 2**20, fail, what="commanded CSV", hint="give the cycle program's CSV."
-    )
-    text = decode_utf8(data, fail, what="commanded CSV")
-    rows = [r for r in csv.reader(text.splitlines()) if r and any(c.strip() for c in r)]
-    if len(rows) < 2:
-        raise InputError(f"{path}: no commanded targets (a header row and one row per visit).")
-    header = [c.strip().lower() for c in rows[0]]
-    named = header[0] in ("pose", "name")
-    names: list[str] = []
-    values = []
-    for k, row in enumerate(rows[1:], start=2):
-        cells = row[1:] if named else row
-        if named:
-            names.append(row[0].strip())
-        try:
-            q = [float(c) for c in cells]
-        except ValueError:
-            raise InputError(
-                f"{path}: row {k} holds a value that is not a number; give joint targets in "
-                "radians, one column per joint."
-            ) from None
-        if (n is not None and len(q) != n) or not all(math.isfinite(v) for v in q):
-            raise InputError(
-                f"{path}: row {k} has {len(q)} finite value(s), the robot {n} joints; give one "
-                "column per joint."
-            )
-        values.append(q)
-    widths = {len(q) for q in values}
-    if len(widths) != 1:
-        raise InputError(f"{path}: rows of different lengths; give one column per joint.")
-    return np.array(values, dtype=np.float64), names
-
-
 def run_logs(
     logs: Sequence[str | Path],
     *,
@@ -651,29 +733,29 @@ def run_logs(
     commanded_csv: str | Path | None = None,
     settings: DwellSettings | None = None,
 ) -> Iso9283Report:
-    """``dhlog iso9283``: read each log, find its visits, and report."""
+    """``dhlog iso9283``: read each log, find its visits and path passes, and report.
+    ``commanded_csv``: the test program ``dhlog plan --iso9283`` wrote
+    (:func:`dhlog.iso9283.program.read_program`)."""
     from dhlog.io.reader import read_log
+    from dhlog.iso9283.program import read_program
 
-    commanded = None
-    names: list[str] = []
-    if commanded_csv is not None:
-        n = None if nominal is None else nominal.table.n
-        commanded, names = read_commanded_csv(commanded_csv, n)
     segmented = []
+    program = None
     for log in logs:
         data = read_log(log, pipeline)
-        program: list[tuple[str, FloatArray]] = []
-        if names:
-            for name, q in zip(names, commanded if commanded is not None else [], strict=False):
-                if name and name not in [p for p, _ in program]:
-                    program.append((name, q))
+        if commanded_csv is not None and program is None:
+            n = nominal.table.n if nominal is not None else len(data.joint_names)
+            if n == 0:
+                raise InputError(
+                    f"{log}: no joint names to read {commanded_csv} with; give --nominal."
+                )
+            program = read_program(commanded_csv, n)
         segmented.append(
             segment_log(
                 data,
                 settings=settings,
-                commanded=commanded,
-                commanded_source=f"the commanded CSV {commanded_csv}" if commanded_csv else "",
-                program_poses=program or None,
+                program=program,
+                program_source=f"the test program {commanded_csv}",
             )
         )
     return iso9283_report(segmented, nominal=nominal, calibrated=calibrated)

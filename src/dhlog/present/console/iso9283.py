@@ -61,6 +61,28 @@ def print_iso9283(console: Console, report: Iso9283Report) -> None:
             if p.RP_abc is not None:
                 ori.add_row(p.name, *(f"{math.degrees(v):.4f}" for v in p.RP_abc))
         console.print(ori)
+    if report.paths:
+        after_p = any(p.AT_after is not None for p in report.paths)
+        paths = Table(
+            title="ISO 9283 path characteristics (mm)",
+            box=box.SIMPLE_HEAD,
+            title_justify="left",
+            pad_edge=False,
+        )
+        paths.add_column("path")
+        paths.add_column("n", justify="right")
+        paths.add_column("points", justify="right")
+        paths.add_column("AT before", justify="right")
+        if after_p:
+            paths.add_column("AT after", justify="right")
+        paths.add_column("RT", justify="right")
+        for path in report.paths:
+            row = [path.path, str(path.cycles), str(path.points), _mm(path.AT)]
+            if after_p:
+                row.append(_mm(path.AT_after))
+            row.append(_mm(path.RT))
+            paths.add_row(*row)
+        console.print(paths)
     lines: list[tuple[str, str]] = []
     d = report.distance
     if d is not None:
