@@ -187,6 +187,15 @@ def report(
             "folder: hashed and compared with the SHA-256 the result records.",
         ),
     ] = None,
+    iso9283: Annotated[
+        Path | None,
+        typer.Option(
+            "--iso9283",
+            metavar="FILE",
+            help="An acceptance test's <stem>.iso9283.json (dhlog iso9283): shown as the "
+            "section 'Acceptance test (ISO 9283)'.",
+        ),
+    ] = None,
     force: Annotated[bool, typer.Option("--force", help="Overwrite the output.")] = False,
 ) -> None:
     """Write a calibration certificate: one self-contained HTML page (robot, hashes, noise
@@ -194,7 +203,8 @@ def report(
     from dhlog.io.writer import atomic_output
     from dhlog.present.certificate import Nominal, certificate_html, load_sources
 
-    if output.resolve() in {result.resolve(), *([log.resolve()] if log else [])}:
+    given = [result, *([log] if log else []), *([iso9283] if iso9283 else [])]
+    if output.resolve() in {p.resolve() for p in given}:
         stderr.print(f"error: {plain(output)} is an input; name another with -o.")
         raise typer.Exit(EXIT_USAGE)
     check_folder(output.parent)
@@ -205,7 +215,12 @@ def report(
             stderr.print(f"error: {plain(output)} is an input; name another with -o.")
             raise typer.Exit(EXIT_USAGE)
         nom = None if nominal is None else Nominal(nominal, load_model(nominal).table)
-        page = certificate_html(sources, robot=robot, nominal=nom)
+        iso = None
+        if iso9283 is not None:
+            from dhlog.present.certificate.iso9283 import load_iso9283
+
+            iso = load_iso9283(iso9283)
+        page = certificate_html(sources, robot=robot, nominal=nom, iso9283=iso)
         with atomic_output(output) as f:
             f.write(page.encode())
     except DhlogError as exc:

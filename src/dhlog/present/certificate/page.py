@@ -16,6 +16,8 @@ from dhlog.present.certificate.camera_section import (
     camera_section,
 )
 from dhlog.present.certificate.holdout import read_holdout_csv
+from dhlog.present.certificate.iso9283 import Iso9283Shown
+from dhlog.present.certificate.iso9283_section import iso9283_section
 from dhlog.present.certificate.read import read_result
 from dhlog.present.certificate.sections import (
     accuracy_section,
@@ -124,10 +126,13 @@ def certificate_html(
     robot: str | None = None,
     nominal: Nominal | None = None,
     now: datetime | None = None,
+    iso9283: Iso9283Shown | None = None,
 ) -> str:
     """The certificate of ``sources`` as one HTML page (no script, no external resource).
     ``robot``: the robot as the certificate names it (the result does not record it);
-    ``nominal``: the table given to ``dhlog process``, for measured − nominal. Raises
+    ``nominal``: the table given to ``dhlog process``, for measured − nominal;
+    ``iso9283``: an acceptance test's report (``dhlog iso9283``), shown as its own section
+    after the DH parameters. Raises
     :class:`ResultFileError` (or :class:`~dhlog.errors.InputError`) naming the field at fault."""
     name = str(sources.result_path)
     result = read_result(sources.document, name)
@@ -207,6 +212,10 @@ def certificate_html(
             ],
         ),
     ]
+    if iso9283 is not None:
+        sections.append(
+            ("iso9283", "Acceptance test (ISO 9283)", [iso9283_section(iso9283, robot)])
+        )
     if camera is not None:
         sections.append(("camera", "Camera and board", [camera_section(camera)]))
     sections += [

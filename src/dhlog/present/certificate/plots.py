@@ -1,5 +1,6 @@
 """The certificate's plots as inline SVG (text as paths, ids prefixed): the held-out errors'
-histogram (:func:`histogram_svg`) and the per-joint residuals (:func:`residual_bars_svg`).
+histogram (:func:`histogram_svg`), the per-joint residuals (:func:`residual_bars_svg`) and the
+ISO 9283 test's poses (:func:`iso9283_svg`).
 matplotlib is imported here only, and only when a plot is drawn (``dhlog report``)."""
 
 from __future__ import annotations
@@ -15,6 +16,8 @@ from dhlog.present.certificate.shown import Check, JointResidual
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
+
+    from dhlog.present.certificate.iso9283 import IsoPose
 
 #: Colours of the nominal and the calibrated model in every plot.
 NOMINAL_COLOUR, CALIBRATED_COLOUR, FIT_COLOUR = "#c8553d", "#2a6f97", "#6c757d"
@@ -128,3 +131,51 @@ def residual_bars_svg(residuals: list[JointResidual], prefix: str) -> str | None
     ax.legend(frameon=False, fontsize=8, loc="upper center", ncols=len(series))
     ax.set_ylim(top=ax.get_ylim()[1] * 1.2)
     return _svg(fig, prefix, "per-joint residuals")
+
+
+def iso9283_svg(poses: list[IsoPose], prefix: str) -> str | None:
+    """The acceptance test's poses: with their attained positions, each pose's positions about
+    their barycentre (base x and y, µm) and the circle of radius RP; without, the bars of AP
+    before and after and RP per pose (µm). None when there is nothing to draw."""
+    if not poses:
+        return None
+    clusters = [p for p in poses if p.attained is not None and len(p.attained) >= 2]
+    if clusters:
+        fig = _figure(10.6, 2.6)
+        axes = fig.subplots(1, len(clusters), squeeze=False)[0]
+        for ax, p in zip(axes, clusters, strict=True):
+            assert p.attained is not None
+            d = (p.attained - p.attained.mean(axis=0)) * 1e6
+            ax.scatter(d[:, 0], d[:, 1], s=8, color=CALIBRATED_COLOUR, label="attained")
+            ax.plot([0.0], [0.0], "+", color="#1b3a57", markersize=8)
+            if p.RP is not None:
+                t = np.linspace(0.0, 2 * np.pi, 181)
+                r = p.RP * 1e6
+                ax.plot(r * np.cos(t), r * np.sin(t), color=NOMINAL_COLOUR, linewidth=1.0)
+            ax.set_aspect("equal", adjustable="datalim")
+            ax.set_title(p.name, fontsize=9)
+            ax.set_xlabel("x [µm]", fontsize=8)
+            _style(ax)
+        axes[0].set_ylabel("y [µm]", fontsize=8)
+        return _svg(fig, prefix, "attained positions of each test pose about their barycentre")
+    series = [
+        ("AP before", [p.AP_before for p in poses], NOMINAL_COLOUR),
+        ("AP after", [p.AP_after for p in poses], CALIBRATED_COLOUR),
+        ("RP", [p.RP for p in poses], FIT_COLOUR),
+    ]
+    series = [s for s in series if any(v is not None for v in s[1])]
+    if not series:
+        return None
+    x = np.arange(len(poses), dtype=np.float64)
+    width = 0.8 / len(series)
+    fig = _figure(10.6, 2.6)
+    ax = fig.add_subplot()
+    for k, (label, values, colour) in enumerate(series):
+        heights = np.array([np.nan if v is None else v * 1e6 for v in values])
+        ax.bar(x + (k - (len(series) - 1) / 2) * width, heights, width, color=colour, label=label)
+    ax.set_xticks(x, [p.name for p in poses])
+    ax.set_ylabel("[µm]", fontsize=9)
+    _style(ax)
+    ax.legend(frameon=False, fontsize=8, loc="upper center", ncols=len(series))
+    ax.set_ylim(top=ax.get_ylim()[1] * 1.2)
+    return _svg(fig, prefix, "AP before and after calibration and RP per test pose")
