@@ -168,12 +168,14 @@ class DriftReport:
 @dataclass(frozen=True)
 class PathReport:
     """Path accuracy and repeatability of one test path (clause 8.2) over ``cycles`` passes at
-    its ``points`` commanded points: ``AT`` (before: against the nominal's FK of the commanded
+    ``points`` of its commanded points from index ``first_point`` on (a pass may stop short of
+    the ends): ``AT`` (before: against the nominal's FK of the commanded
     joints; ``AT_after`` with a result), ``RT``, and the points where each is largest."""
 
     path: str
     cycles: int
     points: int
+    first_point: int
     AT: float
     AT_after: float | None
     RT: float
@@ -185,6 +187,7 @@ class PathReport:
             "path": self.path,
             "cycles": self.cycles,
             "points": self.points,
+            "first_point": self.first_point,
             "AT": self.AT,
             "AT_after": self.AT_after,
             "RT": self.RT,
@@ -567,6 +570,7 @@ def _paths(
         )
         attained = [_moved(T, p.xyz) for p in passes]
         got = None
+        first = 0
         problem = ""
         for a, b in PATH_TRIMS:  # the ends a pass may stop short of (the robot stops there)
             try:
@@ -580,7 +584,7 @@ def _paths(
                     "by every pass (the robot stops at the path's ends, short of their normal "
                     "planes): left out of AT and RT."
                 )
-            commanded, q = commanded[a : len(q) - b], q[a : len(q) - b]
+            commanded, q, first = commanded[a : len(q) - b], q[a : len(q) - b], a
             break
         if got is None:
             notes.append(f"path {name}: {problem}")
@@ -611,6 +615,7 @@ def _paths(
                 name,
                 int(got.cycles),
                 len(q),
+                first,
                 float(got.AT_P),
                 after,
                 float(got.RT_P),
