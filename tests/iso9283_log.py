@@ -111,9 +111,10 @@ def write_iso_log(
     commanded: bool = True,
     move: float = 1.0,
     dwell: float = 2.0,
+    cycle: tuple[int, ...] = CYCLE,
 ) -> IsoLog:
     """Write the test (see the module docstring); ``drift`` m per hour along x of the
-    measurement frame."""
+    measurement frame; ``cycle``: the pose indices each cycle visits, in order."""
     rng = np.random.default_rng(seed + 1000)
     table, tool = _true_robot(seed)
     T = _placement()
@@ -125,7 +126,7 @@ def write_iso_log(
     def fk(q: np.ndarray) -> np.ndarray:
         return np.asarray(fk_point(table, q, tool, T_base=T))
 
-    order = [k for _ in range(cycles) for k in CYCLE]
+    order = [k for _ in range(cycles) for k in cycle]
     dt = 1.0 / rate
     t_all, xyz_all = [], []
     jt, jq, ct, cq = [], [], [], []
@@ -157,7 +158,7 @@ def write_iso_log(
         cq.append(np.tile(q, (tc.size, 1)))
         out.pose.append(k)
         out.attained.append(attained)
-        out.cycle.append(j // 5 + 1)
+        out.cycle.append(j // len(cycle) + 1)
         t0 += move + dwell
         q_prev, off_prev = q, off
     start = 1_763_700_000_000_000_000
