@@ -147,6 +147,7 @@ def _document(*, points: bool = False) -> dict[str, Any]:
                     "path": name,
                     "cycles": 3,
                     "points": n,
+                    "first_point": 0,
                     "AT": at,
                     "AT_after": after,
                     "RT": rt,

@@ -10,6 +10,7 @@ from __future__ import annotations
 import hashlib
 import json
 import stat
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from datetime import UTC, datetime
 from pathlib import Path
@@ -100,10 +101,29 @@ class IsoDrift:
 @dataclass(frozen=True)
 class Cube:
     """The test cube found from the commanded P1 … P5 (clause 6.3): its centre (3,) and edge
-    (m) in the base frame."""
+    (m) in the base frame, and the measuring plane's corners (4, 3) in the order of the poses
+    near them (P2, P3, P4, P5: a closed quadrilateral)."""
 
     centre: list[float]
     edge: float
+    plane: list[list[float]]
+
+    def edges(self) -> FloatArray:
+        """The cube's 12 edges as (12, 2, 3) segments."""
+        c, h = np.asarray(self.centre), self.edge / 2
+        out = []
+        for axis in range(3):
+            u, v = [k for k in range(3) if k != axis]
+            for su in (-1.0, 1.0):
+                for sv in (-1.0, 1.0):
+                    a = c.copy()
+                    a[u] += su * h
+                    a[v] += sv * h
+                    b = a.copy()
+                    a[axis] -= h
+                    b[axis] += h
+                    out.append([a, b])
+        return np.asarray(out, dtype=np.float64)
 
 
 @dataclass(frozen=True)
@@ -267,7 +287,11 @@ def cube_from_poses(poses: list[IsoPose]) -> Cube | None:
     the measuring plane's diagonals from its corners; that plane holds two opposite edges, so
     the corners' bounding box is the cube). None when a pose or its commanded position is
     missing or the corners do not make a cube (the poses not the standard's)."""
-    by = {p.name: p.commanded for p in poses}
+    return cube_of({p.name: p.commanded for p in poses})
+
+
+def cube_of(by: Mapping[str, Sequence[float] | FloatArray | None]) -> Cube | None:
+    """The cube of the commanded positions of P1 … P5 by name (:func:`cube_from_poses`)."""
     if any(by.get(n) is None for n in ("P1", "P2", "P3", "P4", "P5")):
         return None
     P1 = np.asarray(by["P1"], dtype=np.float64)
@@ -289,7 +313,7 @@ def cube_from_poses(poses: list[IsoPose]) -> Cube | None:
         or np.max(np.abs((lo + hi) / 2 - P1)) > CUBE_TOLERANCE * edge
     ):
         return None
-    return Cube([float(v) for v in (lo + hi) / 2], edge)
+    return Cube([float(v) for v in (lo + hi) / 2], edge, corners.tolist())
 
 
 def read_iso9283(document: Any, path: Path, sha256: str, modified: datetime) -> Iso9283Shown:
