@@ -366,3 +366,29 @@ def test_multi_directional_accuracy_variation(tmp_path: Path) -> None:
     assert p1.vAP == pytest.approx(multi_directional(np.array(bary)).vAP_P, abs=3e-6)
     assert all(p.vAP is None for p in report.poses if p.name != "P1")
     assert not any("vAP" in n for n in report.notes)
+
+
+def test_cli_bad_input_is_one_line(test_log: IsoLog, tmp_path: Path) -> None:
+    """A program CSV that is not one, and --result without --nominal: one line each, exit 2
+    (unusable input) and 1 (usage), nothing written."""
+    bad = tmp_path / "bad.csv"
+    bad.write_text("a,b\n1,2\n", encoding="utf-8")
+    got = runner.invoke(
+        app, ["iso9283", str(test_log.log), "--commanded", str(bad), "--out", str(tmp_path)]
+    )
+    assert got.exit_code == 2
+    lines = [line for line in got.output.splitlines() if line.strip()]
+    assert len(lines) == 1 and "bad.csv, line 1: the header is not" in lines[0]
+    got = runner.invoke(
+        app,
+        [
+            "iso9283",
+            str(test_log.log),
+            "--result",
+            str(test_log.true_model),
+            "--out",
+            str(tmp_path),
+        ],
+    )
+    assert got.exit_code == 1 and "--result needs --nominal" in got.output
+    assert not (tmp_path / "iso.iso9283.json").exists()

@@ -59,6 +59,12 @@ def iso9283(
     from dhlog.iso9283.run import report_document, run_logs, write_report
     from dhlog.present.console.iso9283 import print_iso9283
 
+    if result is not None and nominal is None:
+        stderr.print(
+            "error: --result needs --nominal (the model the controller runs: the commanded "
+            "positions are its forward kinematics)."
+        )
+        raise typer.Exit(EXIT_USAGE)
     first = logs[0]
     folder = out if out is not None else first.resolve().parent
     check_folder(folder)
@@ -77,12 +83,6 @@ def iso9283(
             from dhlog.api import load
 
             cal = load(result, nominal=nominal).model
-            if nom is None:
-                stderr.print(
-                    "error: --result needs --nominal (the model the controller runs: the "
-                    "commanded positions are its forward kinematics)."
-                )
-                raise typer.Exit(EXIT_USAGE)
         report = run_logs(logs, pipeline=pipe, nominal=nom, calibrated=cal, commanded_csv=commanded)
         source = {
             "logs": [str(p) for p in logs],
