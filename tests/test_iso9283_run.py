@@ -392,3 +392,27 @@ def test_cli_bad_input_is_one_line(test_log: IsoLog, tmp_path: Path) -> None:
     )
     assert got.exit_code == 1 and "--result needs --nominal" in got.output
     assert not (tmp_path / "iso.iso9283.json").exists()
+
+
+@pytest.mark.parametrize("encoding", ["json", "protobuf"])
+def test_foxglove_logs_carry_the_commanded_stream(encoding: str, tmp_path: Path) -> None:
+    """The shipped foxglove pipelines read /joint_command (foxglove.JointStates) too: the visits
+    are matched by it, and RP equals the formula on the truth within 8 µm."""
+    import dhlog
+
+    sim = dhlog.simulate(
+        "kr5",
+        tmp_path / f"{encoding}.mcap",
+        protocol="iso9283",
+        seed=1,
+        iso_cycles=2,
+        iso_path_cycles=0,
+        encoding=encoding,  # type: ignore[arg-type]
+    )
+    report = run_logs([sim.log])
+    assert report.commanded_from == "the commanded joint stream /joint_command"
+    truth = json.loads(Path(sim.truth).read_text())["iso9283"]
+    for p in report.poses:
+        X = np.array([v["attained"] for v in truth["visits"] if v["pose"] == p.name])
+        assert p.visits == len(X) == 2
+        assert p.RP == pytest.approx(pose_repeatability(X).RP_l, abs=8e-6)
