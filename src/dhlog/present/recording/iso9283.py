@@ -5,10 +5,11 @@
 Everything is static, in the report's frame (``world``: the robot's base frame, z up; the
 tracker's when the report has no model, said in the text panel):
 
-* ``world/cube/edges`` the test cube's 12 edges and ``world/cube/plane`` the measuring plane
+* ``world/cube/edges`` the test cube's 12 edges and ``world/cube/plane`` the measuring plane's
+  outline and diagonals
   (clause 6.3; found from the commanded P1 … P5 by
   :func:`~dhlog.present.certificate.iso9283.cube_of`);
-* ``world/poses/<P>/commanded`` each pose's commanded point (labelled);
+* ``world/poses/<P>/commanded`` each pose's commanded point;
 * ``world/poses/<P>/AP_before``, ``.../AP_after`` the AP vector from the commanded point,
   magnified × ``k`` (the view's name says ``k``: a 1-2-5 number making the largest AP or AT
   about 10 % of the cube's edge);
@@ -57,7 +58,7 @@ AFTER = np.array([42, 111, 151], dtype=np.uint8)
 ATTAINED = np.array([60, 160, 90], dtype=np.uint8)
 SPHERE = np.array([60, 160, 90, 70], dtype=np.uint8)
 CUBE = np.array([120, 130, 145], dtype=np.uint8)
-PLANE = np.array([120, 130, 145, 40], dtype=np.uint8)
+PLANE = np.array([190, 150, 60], dtype=np.uint8)
 #: The magnified AP (and AT) and RP as fractions of the cube's edge.
 AP_FRACTION, RP_FRACTION = 0.10, 0.03
 
@@ -196,15 +197,31 @@ def write_iso9283_recording(
     extent = _extent(report, cube)
     k, k_rp = magnifications(report, extent)
     size = 0.004 * extent
+    middle = (
+        np.asarray(cube.centre)
+        if cube is not None
+        else np.mean([p.barycentre for p in report.poses], axis=0)
+        if report.poses
+        else np.zeros(3)
+    )
+    towards = np.array([1.0, -1.3, 0.8])  # from the front-right, above
+    eye = rrb.EyeControls3D(
+        kind=rrb.Eye3DKind.Orbital,
+        position=middle + 2.2 * extent * towards / np.linalg.norm(towards),
+        look_target=middle,
+        eye_up=[0.0, 0.0, 1.0],
+    )
     blueprint = rrb.Blueprint(
         rrb.Horizontal(
             rrb.Spatial3DView(
                 name=f"ISO 9283 test [{report.frame} frame; AP, AT ×{k:g}, RP ×{k_rp:g}]",
                 origin="world",
+                eye_controls=eye,
             ),
             rrb.TextDocumentView(name="ISO 9283 report", origin="report/iso9283"),
             column_shares=[2, 1],
         ),
+        rrb.BlueprintPanel(state="collapsed"),
         rrb.SelectionPanel(state="collapsed"),
         rrb.TimePanel(state="collapsed"),
     )
@@ -221,18 +238,13 @@ def write_iso9283_recording(
                 static=True,
             )
             quad = np.asarray(cube.plane, dtype=np.float64)
-            rec.log(
+            rec.log(  # its outline and diagonals (through P2, P1, P4 and P3, P1, P5)
                 "world/cube/plane",
-                rr.Mesh3D(
-                    vertex_positions=quad,
-                    triangle_indices=[[0, 1, 2], [0, 2, 3]],
-                    vertex_colors=np.tile(PLANE, (4, 1)),
+                rr.LineStrips3D(
+                    [np.vstack([quad, quad[:1]]), quad[[0, 2]], quad[[1, 3]]],
+                    colors=PLANE,
+                    radii=0.4 * size,
                 ),
-                static=True,
-            )
-            rec.log(
-                "world/cube/plane_outline",
-                rr.LineStrips3D([np.vstack([quad, quad[:1]])], colors=CUBE, radii=0.4 * size),
                 static=True,
             )
         for p in report.poses:
@@ -244,8 +256,11 @@ def write_iso9283_recording(
             if commanded is not None:
                 rec.log(
                     f"{base}/commanded",
-                    rr.Points3D([commanded], colors=COMMANDED, radii=size, labels=[p.name]),
+                    rr.Points3D([commanded], colors=COMMANDED, radii=size),
                     static=True,
+                )
+                label = f"{p.name} AP " + " | ".join(  # before | after, on the first arrow
+                    f"{acc.AP * 1e3:.3f}" for acc in (p.before, p.after) if acc is not None
                 )
                 for key, acc, colour in (
                     ("AP_before", p.before, BEFORE),
@@ -260,7 +275,7 @@ def write_iso9283_recording(
                             vectors=[k * np.asarray(acc.components, dtype=np.float64)],
                             colors=colour,
                             radii=0.5 * size,
-                            labels=[f"{key.replace('_', ' ')} {acc.AP * 1e3:.3f} mm ×{k:g}"],
+                            labels=[f"{label} mm"] if key == "AP_before" else None,
                         ),
                         static=True,
                     )
@@ -286,7 +301,7 @@ def write_iso9283_recording(
                         half_sizes=[[k_rp * p.RP] * 3],
                         colors=SPHERE,
                         fill_mode=rr.components.FillMode.Solid,
-                        labels=[f"RP {p.RP * 1e3:.3f} mm ×{k_rp:g}"],
+                        labels=[f"RP {p.RP * 1e3:.3f} mm"],
                     ),
                     static=True,
                 )
@@ -337,7 +352,7 @@ def write_iso9283_recording(
                     [points + k * (crossings.mean(axis=1) - points)],
                     colors=BEFORE,
                     radii=0.3 * size,
-                    labels=[f"{t.path}: AT {t.AT * 1e3:.3f} mm ×{k:g}"],
+                    labels=[f"{t.path} AT {t.AT * 1e3:.3f} mm"],
                 ),
                 static=True,
             )
