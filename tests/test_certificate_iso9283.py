@@ -403,3 +403,29 @@ def test_without_the_file_no_section(result: Path, tmp_path: Path) -> None:
         "s-terms",
         "s-warnings",
     ]
+
+
+def test_a_test_without_a_model_shows_what_was_computed(result: Path, tmp_path: Path) -> None:
+    """dhlog iso9283 without --nominal: the tracker's frame, no commanded positions, no AP, AD,
+    dAP or paths: dashes, the cube not known, RP and the stabilisation as the file has them."""
+    doc = _document()
+    block = doc["iso9283"]
+    block["frame"] = "measurement"
+    for p in block["poses"]:
+        p["commanded"] = p["before"] = p["after"] = None
+    block["distance"].update(D_commanded=None, AD=None, AD_after=None)
+    block["drift"]["dAP"] = None
+    block["paths"] = []
+    block["after"] = None
+    jsonschema.validate(doc, json.loads(SCHEMA.read_text()))
+    done, text = _report(result, tmp_path, doc)
+    assert done.exit_code == 0, done.output
+    page = _parse(text)
+    for p in block["poses"]:
+        assert page.cells[f"{p['pose']}.AP_before"] == (None, "—")
+        assert float(str(page.cells[f"{p['pose']}.RP"][0])) == p["RP"]
+    assert page.cells["distance.AD"] == (None, "—") and page.cells["drift.dAP"] == (None, "—")
+    assert "not known" in page.ids["iso9283-test"]
+    assert "not computed" in page.ids["iso9283-paths"]
+    assert "RP per test pose" in " ".join(page.plots)
+    assert "no model given to dhlog iso9283, so no AP" in page.ids["iso9283-plot"]

@@ -217,6 +217,8 @@ def iso9283_section(iso: Iso9283Shown, robot: str | None = None) -> str:
             "µm) with the circle of radius RP."
             if with_points
             else "Per pose: AP before and after calibration and RP (µm)."
+            if any(p.AP_before is not None for p in iso.poses)
+            else "Per pose: RP (µm; no model given to dhlog iso9283, so no AP)."
         )
         parts.append(
             f'<figure class="plot" id="iso9283-plot">{svg}'
