@@ -10,7 +10,8 @@ positions (``iso9283.visits[].attained``, base frame):
 - AT before / after, RT (with the program ``dhlog plan --iso9283`` writes as ``--commanded``):
   measured − the formulas on the truth's noise-free attained paths (µm); RT carries the
   tracker's noise (each crossing is one interpolated sample), so it reads high;
-- overshoot: measured / the simulated peak (``overshoot``);
+- overshoot: measured / the simulated peak (``overshoot``); stabilisation time: measured −
+  the simulator's noise-free one in the same band (``stabilisation_truth``), ms;
 - the visits and passes found against the truth's (their count per pose and path).
 
     .venv/bin/python benchmarks/iso9283.py [--tests 5] [--cycles 10] [--path-cycles 3]
@@ -30,6 +31,8 @@ import numpy as np
 import dhlog
 from dhlog.errors import DhlogError
 from dhlog.io.dhfile import dh_model_from
+from dhlog.io.reader import read_log
+from dhlog.iso9283.cycles import segment_log
 from dhlog.iso9283.formulas import (
     distance_accuracy,
     drift,
@@ -41,6 +44,7 @@ from dhlog.iso9283.program import program_csv, test_program
 from dhlog.iso9283.run import DISTANCE_POSES, DRIFT_POSE, run_logs
 from dhlog.model.fk import fk_point
 from dhlog.model.robots import load_robot
+from dhlog.simulator.iso9283 import stabilisation_truth
 
 
 def one_test(
@@ -73,6 +77,7 @@ def one_test(
     keys = ("AP", "AP_after", "RP", "AD", "RD", "dAP", "dRP", "AT", "AT_after", "RT")
     out: dict[str, list[float]] = {k: [] for k in keys}
     out["overshoot_ratio"] = []
+    out["t_stab (ms)"] = []
     out["visits_match"] = []
     by_pose: dict[str, np.ndarray] = {}
     commanded: dict[str, np.ndarray] = {}
@@ -82,7 +87,10 @@ def one_test(
         by_pose[name] = np.array([v["attained"] for v in rows])
         commanded[name] = np.array(rows[0]["commanded"])
         true_fk[name] = np.array(rows[0]["true_fk"])
-    peak = truth["settings"]["overshoot_m"]
+    settings = truth["settings"]
+    peak = settings["overshoot_m"]
+    freq, damping = settings["overshoot_frequency_hz"], settings["overshoot_damping"]
+    report_visits = segment_log(read_log(log)).visits  # the bands the report used
     for p in report.poses:
         X = by_pose[p.name]
         out["visits_match"].append(float(p.visits == len(X)))
@@ -93,6 +101,10 @@ def one_test(
         out["RP"].append(p.RP - pose_repeatability(X).RP_l)
         if p.overshoot is not None:
             out["overshoot_ratio"].append(p.overshoot / peak)
+        if p.stabilisation_time is not None:
+            bands = [v.band for v in report_visits if v.pose == p.name]
+            truth_t = float(np.mean([stabilisation_truth(peak, freq, damping, b) for b in bands]))
+            out["t_stab (ms)"].append((p.stabilisation_time - truth_t) * 1e3)
     a, b = DISTANCE_POSES
     d = report.distance
     if d is not None and d.AD is not None and d.RD is not None:
@@ -173,7 +185,7 @@ def main() -> None:
         if a.size == 0:
             print(f"{k:<16}{0:>4}")
             continue
-        if k in ("overshoot_ratio", "visits_match", "passes_match"):
+        if k in ("overshoot_ratio", "visits_match", "passes_match", "t_stab (ms)"):
             print(f"{k:<16}{a.size:>4}{a.mean():>12.4f}{a.std(ddof=1):>12.4f}{a.max():>12.4f}")
         else:
             um = a * 1e6

@@ -72,6 +72,9 @@ CYCLE_ORDER = ("P1", "P5", "P4", "P3", "P2")
 #: the average's noise from the dwell's middle (:func:`_departure`).
 DEPART_WINDOW = 0.1
 DEPART_FACTOR = 5.0
+#: The encoders have stopped when every one stays this close (rad, m) to its value at the
+#: end of the dwell: the stand-in for the controller's attained-pose signal (clause 7.4).
+ENCODER_STOP = 1e-6
 #: A visit's encoders this close (rad, m) to a program pose's joints are at that pose.
 ENCODER_MATCH = 1e-3
 #: A joint stream this close (rad, m) to a path's second and last targets is at them.
@@ -125,6 +128,9 @@ class Visit:
     arrival_t: FloatArray
     arrival_xyz: FloatArray
     direction: FloatArray
+    #: the attained-pose signal's stand-in (s from the dwell's start): the encoders' stop
+    #: (``ENCODER_STOP``) where the log has encoders, else None (the first sample in the band)
+    arrival: float | None = None
 
 
 @dataclass(frozen=True)
@@ -212,6 +218,26 @@ def _settle(xyz: FloatArray, settings: DwellSettings) -> tuple[int, float, bool]
     if xyz.shape[0] - first < MIN_SETTLED:
         return xyz.shape[0] // 2, band, False
     return first, band, True
+
+
+def _encoders_stop(
+    enc: tuple[NDArray[np.int64], FloatArray],
+    from_ns: int,
+    t_ns: NDArray[np.int64],
+    s: int,
+    e: int,
+) -> float | None:
+    """When the encoders stop at a visit (s from the dwell's first sample ``t_ns[s]``): the first
+    encoder sample after ``from_ns`` from which every one up to the dwell's end lies within
+    ``ENCODER_STOP`` of their value there. None when no encoder sample falls in the arrival."""
+    t, Q = enc
+    a, b = np.searchsorted(t, [from_ns, int(t_ns[e - 1])], side="left")
+    if b - a < 2:
+        return None
+    final = Q[b - 1]
+    moving = np.flatnonzero(np.max(np.abs(Q[a:b] - final), axis=1) > ENCODER_STOP)
+    k = a + (int(moving[-1]) + 1 if moving.size else 0)
+    return float((int(t[k]) - int(t_ns[s])) * 1e-9)
 
 
 def _departure(t: FloatArray, xyz: FloatArray) -> int:
@@ -406,8 +432,12 @@ def segment_log(
                     if pq.shape == q.shape and float(np.max(np.abs(pq - q))) <= ENCODER_MATCH
                 ]
                 q = near[0] if near else q
+        arrival = None
+        if enc is not None:
+            arrival = _encoders_stop(enc, int(t_ns[s]) + int(arrival_t[0] * 1e9), t_ns, s, e)
         raw.append(
             dict(
+                arrival=arrival,
                 index=k,
                 t_start_ns=int(t_ns[s]),
                 t_end_ns=int(t_ns[e - 1]),

@@ -268,8 +268,9 @@ def _orientation_repeatability(attained: FloatArray, rotations: Sequence[FloatAr
 def _stabilisation(visit: Visit) -> tuple[float, float] | None:
     """Clauses 7.4, 7.5 of one arrival (:func:`dhlog.iso9283.formulas.stabilisation`) in the
     visit's band around its attained position. The controller's attained-pose signal is not in
-    the log: the first sample within the band stands in for it. None when the arrival's samples
-    do not begin outside the band or never settle."""
+    the log: the encoders' stop stands in for it (:func:`dhlog.iso9283.cycles._encoders_stop`),
+    without encoders the first sample within the band. None when the arrival's samples do not
+    begin outside the band or never settle."""
     from dhlog.iso9283.formulas import stabilisation
 
     d = np.linalg.norm(visit.arrival_xyz - visit.position, axis=1)
@@ -281,7 +282,7 @@ def _stabilisation(visit: Visit) -> tuple[float, float] | None:
             visit.arrival_t,
             visit.arrival_xyz,
             visit.position,
-            float(visit.arrival_t[inside[0]]),
+            float(visit.arrival_t[inside[0]]) if visit.arrival is None else visit.arrival,
             band=visit.band,
         )
     except DhlogError:
