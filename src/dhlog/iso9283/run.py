@@ -55,14 +55,17 @@ DRIFT_POSE = "P1"
 
 @dataclass(frozen=True)
 class Accuracy:
-    """Pose accuracy (clause 7.2.1): ``AP`` (m) = |x̄ − x_c| and its components (3,)."""
+    """Pose accuracy (clause 7.2.1): ``AP`` (m) = |x̄ − x_c| and its components (3,), and
+    ``sigma`` (m): AP's standard uncertainty from the barycentre's sampling (the visits'
+    scatter over √n; the commanded position and, after, the model taken as exact)."""
 
     AP: float
     components: FloatArray
+    sigma: float | None = None
 
     def document(self) -> dict[str, Any]:
         x, y, z = (float(v) for v in self.components)
-        return {"AP": self.AP, "AP_x": x, "AP_y": y, "AP_z": z}
+        return {"AP": self.AP, "AP_x": x, "AP_y": y, "AP_z": z, "AP_sigma": self.sigma}
 
 
 @dataclass(frozen=True)
@@ -86,6 +89,8 @@ class PoseReport:
     unsettled: int
     vAP: float | None
     directions: int
+    #: each visit's attained position (n, 3) in the report's frame, in cycle order
+    attained: FloatArray | None = None
 
     def document(self) -> dict[str, Any]:
         def vec(v: FloatArray | None) -> list[float] | None:
@@ -109,6 +114,7 @@ class PoseReport:
             "unsettled": self.unsettled,
             "vAP": self.vAP,
             "directions": self.directions,
+            "attained": None if self.attained is None else [vec(a) for a in self.attained],
         }
 
 
@@ -181,6 +187,9 @@ class PathReport:
     RT: float
     AT_at_point: int
     RT_at_point: int
+    #: the commanded points used (m, 3) and each pass's samples (k, 3), in the report's frame
+    commanded: FloatArray | None = None
+    passes: list[FloatArray] = field(default_factory=list)
 
     def document(self) -> dict[str, Any]:
         return {
@@ -245,7 +254,14 @@ def _accuracy(attained: FloatArray, commanded: FloatArray) -> Accuracy:
     from dhlog.iso9283.formulas import pose_accuracy
 
     got = pose_accuracy(attained, commanded)
-    return Accuracy(float(got.AP_P), np.asarray(got.AP_xyz, dtype=np.float64))
+    d = np.asarray(got.AP_xyz, dtype=np.float64)
+    sigma = None
+    n = attained.shape[0]
+    if n >= 2:  # σ(x̄_c) = S_c / √n; AP's along d/AP (all of it where AP is 0)
+        var = np.var(attained, axis=0, ddof=1) / n
+        u = d / got.AP_P if got.AP_P > 0 else np.full(3, 1 / math.sqrt(3))
+        sigma = float(math.sqrt(float(np.sum(u**2 * var))))
+    return Accuracy(float(got.AP_P), d, sigma)
 
 
 def _repeatability(attained: FloatArray) -> tuple[float, float, float]:
@@ -473,6 +489,7 @@ def iso9283_report(
                 sum(1 for v in vs if not v.settled),
                 vap,
                 ndir,
+                X,
             )
         )
         if len(vs) < 2:
@@ -622,6 +639,8 @@ def _paths(
                 float(got.RT_P),
                 int(np.argmax(got.deviation)),
                 int(np.argmax(got.repeatability)),
+                commanded,
+                attained,
             )
         )
     return out

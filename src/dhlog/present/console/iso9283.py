@@ -1,4 +1,4 @@
-"""The console tables of ``dhlog iso9283``: per pose (visits, AP before | after, RP,
+"""The console tables of ``dhlog iso9283``: per pose (visits, AP before | after with σ below, RP,
 stabilisation time and overshoot, vAP), distance accuracy and repeatability, drift, then the
 frame, the commanded targets' source and the notes, one line each. mm, µm, degrees and s; 80
 columns."""
@@ -11,7 +11,7 @@ from rich import box
 from rich.console import Console
 from rich.table import Table
 
-from dhlog.iso9283.run import Iso9283Report
+from dhlog.iso9283.run import Accuracy, Iso9283Report
 from dhlog.present.console.notes import prose
 
 
@@ -21,6 +21,15 @@ def _mm(value: float | None, places: int = 3) -> str:
 
 def _s(value: float | None) -> str:
     return "—" if value is None or not math.isfinite(value) else f"{value:.3f}"
+
+
+def _ap(accuracy: Accuracy | None) -> str:
+    """AP (mm) above its σ line, as the house shows a value and its σ."""
+    if accuracy is None:
+        return "—"
+    if accuracy.sigma is None:
+        return _mm(accuracy.AP)
+    return f"{_mm(accuracy.AP)}\n± {_mm(accuracy.sigma)}"
 
 
 def print_iso9283(console: Console, report: Iso9283Report) -> None:
@@ -42,9 +51,9 @@ def print_iso9283(console: Console, report: Iso9283Report) -> None:
     table.add_column("overshoot", justify="right")
     table.add_column("vAP", justify="right")
     for p in report.poses:
-        row = [p.name, str(p.visits), _mm(None if p.before is None else p.before.AP)]
+        row = [p.name, str(p.visits), _ap(p.before)]
         if after:
-            row.append(_mm(None if p.after is None else p.after.AP))
+            row.append(_ap(p.after))
         row += [_mm(p.RP), _s(p.stabilisation_time), _mm(p.overshoot), _mm(p.vAP)]
         table.add_row(*row)
     console.print(table)
