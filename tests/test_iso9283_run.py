@@ -437,3 +437,19 @@ def test_foxglove_logs_carry_the_commanded_stream(encoding: str, tmp_path: Path)
         X = np.array([v["attained"] for v in truth["visits"] if v["pose"] == p.name])
         assert p.visits == len(X) == 2
         assert p.RP == pytest.approx(pose_repeatability(X).RP_l, abs=8e-6)
+
+
+def test_several_logs_are_one_test(test_log: IsoLog, tmp_path: Path) -> None:
+    """Two logs of one test (the second a copy): their visits in one list, each pose's cycles
+    numbered on (1 … 8), RP that of the two logs' attained positions together."""
+    import shutil
+
+    second = tmp_path / "second.mcap"
+    shutil.copy(test_log.log, second)
+    report = run_logs([test_log.log, second])
+    A = np.array(test_log.attained)
+    for k, p in enumerate(report.poses):
+        assert p.visits == 2 * CYCLES
+        truth = A[np.array(test_log.pose) == k]
+        assert p.RP == pytest.approx(pose_repeatability(np.vstack([truth, truth])).RP_l, abs=8e-6)
+    assert report.logs == [str(test_log.log), str(second)]

@@ -35,6 +35,7 @@ from dhlog.io.dhfile import DHModel
 from dhlog.io.pipeline import Pipeline
 from dhlog.iso9283.cycles import (
     ARRIVAL_RATE,
+    ENCODER_MATCH,
     SAME_DIRECTION,
     DwellSettings,
     PathPass,
@@ -385,7 +386,9 @@ def iso9283_report(
         passes: list[PathPass] = []
         counts: dict[str, int] = {}
         for s in segmented:
+            renamed = _names_as_in(seg0, s, notes)
             for v in s.visits:
+                v = replace(v, pose=renamed.get(v.pose, ""))
                 c = v.cycle
                 if v.pose:
                     c = counts.get(v.pose, 0) + 1
@@ -464,6 +467,11 @@ def iso9283_report(
         if seg.orientation and len(vs) >= 2:
             Rs = [v.rotation for v in vs if v.rotation is not None]
             if len(Rs) >= 2:
+                if T is None and not any("about the tracker's axes" in n for n in notes):
+                    notes.append(
+                        "RP_a, RP_b, RP_c are about the tracker's axes (no model places the "
+                        "base frame)."
+                    )
                 R_frame = np.eye(3) if T is None else T[:3, :3]
                 abc = _orientation_repeatability(X[: len(Rs)], [R_frame @ R for R in Rs])
         stab = [s for s in (_stabilisation(v) for v in vs) if s is not None] if stabilising else []
@@ -502,10 +510,8 @@ def iso9283_report(
         notes.append(
             f"{cycles} cycle(s) per pose: the standard asks 30; the figures are from these."
         )
-    missing = [n for n in ("P1", "P2", "P3", "P4", "P5") if n not in {p.name for p in poses}]
-    if len(seg.poses) >= 5 and missing:
-        pass  # named above, one line each
-    elif len(seg.poses) < 5:
+    missing = [n for n in ("P1", "P2", "P3", "P4", "P5") if n not in seg.poses]
+    if missing:  # (a pose of the program never reached is named above)
         notes.append(
             f"{len(seg.poses)} test pose(s) in the log: the standard has five (P1–P5); "
             f"{', '.join(missing)} not in this log."
@@ -547,6 +553,29 @@ def iso9283_report(
         notes,
         paths,
     )
+
+
+def _names_as_in(first: Segmented, other: Segmented, notes: list[str]) -> dict[str, str]:
+    """The names ``other``'s poses have in ``first`` (by their commanded joints, within
+    ``SAME_TARGET``; by name where either has none); a pose of ``other`` not in ``first`` is
+    left out, said."""
+    if other is first or first.pose_q is None or other.pose_q is None:
+        return {n: n for n in other.poses if n in first.poses}
+    out = {}
+    for name, q in zip(other.poses, other.pose_q, strict=True):
+        hit = [
+            n
+            for n, fq in zip(first.poses, first.pose_q, strict=True)
+            if fq.shape == q.shape and float(np.max(np.abs(fq - q))) <= ENCODER_MATCH
+        ]
+        if hit:
+            out[name] = hit[0]
+        else:
+            notes.append(
+                f"{other.path}: its pose {name} is none of {first.path}'s: its visits are left "
+                "out (the logs of one test command the same poses)."
+            )
+    return out
 
 
 def _paths(
