@@ -453,3 +453,17 @@ def test_several_logs_are_one_test(test_log: IsoLog, tmp_path: Path) -> None:
         truth = A[np.array(test_log.pose) == k]
         assert p.RP == pytest.approx(pose_repeatability(np.vstack([truth, truth])).RP_l, abs=8e-6)
     assert report.logs == [str(test_log.log), str(second)]
+
+
+def test_below_100_hz_no_stabilisation(tmp_path: Path) -> None:
+    """A tracker at 50 Hz: the visits and RP as before, stabilisation time and overshoot not
+    computed, said in one line."""
+    log = write_iso_log(tmp_path / "slow.mcap", cycles=2, seed=8, rate=50.0)
+    report = run_logs([log.log])
+    assert [p.visits for p in report.poses] == [2] * 5
+    assert all(p.RP is not None for p in report.poses)
+    assert all(p.stabilisation_time is None and p.overshoot is None for p in report.poses)
+    assert (
+        "the tracker samples at 50 Hz: stabilisation time and overshoot need 100 Hz or more "
+        "and are not computed." in report.notes
+    )
