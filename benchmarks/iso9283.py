@@ -15,7 +15,7 @@ positions (``iso9283.visits[].attained``, base frame):
 - the visits and passes found against the truth's (their count per pose and path).
 
     .venv/bin/python benchmarks/iso9283.py [--tests 5] [--cycles 10] [--path-cycles 3]
-        [--noise-um 10]
+        [--noise-um 10] [--rate 100]
 """
 
 from __future__ import annotations
@@ -48,7 +48,13 @@ from dhlog.simulator.iso9283 import stabilisation_truth
 
 
 def one_test(
-    seed: int, cycles: int, path_cycles: int, noise: float, folder: Path, program: Path
+    seed: int,
+    cycles: int,
+    path_cycles: int,
+    noise: float,
+    folder: Path,
+    program: Path,
+    rate: float = 100.0,
 ) -> dict[str, list[float]]:
     """Simulate, analyse and compare one test: the differences per characteristic."""
     log = folder / f"iso_{seed}.mcap"
@@ -60,6 +66,7 @@ def one_test(
         noise=noise,
         iso_cycles=cycles,
         iso_path_cycles=path_cycles,
+        tracker_rate=rate,
         perturb_length=2e-4,
         perturb_angle=2e-4,
         overwrite=True,
@@ -160,6 +167,7 @@ def main() -> None:
     parser.add_argument("--cycles", type=int, default=10)
     parser.add_argument("--path-cycles", type=int, default=3)
     parser.add_argument("--noise-um", type=float, default=10.0)
+    parser.add_argument("--rate", type=float, default=100.0, help="tracker rate (Hz)")
     args = parser.parse_args()
     totals: dict[str, list[float]] = {}
     start = time.perf_counter()
@@ -169,13 +177,19 @@ def main() -> None:
         program.write_text(program_csv(plan), encoding="utf-8")
         for seed in range(args.tests):
             got = one_test(
-                seed, args.cycles, args.path_cycles, args.noise_um * 1e-6, Path(tmp), program
+                seed,
+                args.cycles,
+                args.path_cycles,
+                args.noise_um * 1e-6,
+                Path(tmp),
+                program,
+                args.rate,
             )
             for k, v in got.items():
                 totals.setdefault(k, []).extend(v)
     print(
         f"{args.tests} simulated ISO 9283 tests of a KR5 (0.2 mm / 0.2 mrad off its nominal), "
-        f"{args.cycles} pose and {args.path_cycles} path cycles, tracker 100 Hz, noise "
+        f"{args.cycles} pose and {args.path_cycles} path cycles, tracker {args.rate:g} Hz, noise "
         f"{args.noise_um:g} um per coordinate "
         f"({time.perf_counter() - start:.0f} s)"
     )
