@@ -160,8 +160,13 @@ def test_cli_writes_the_json_and_it_validates(test_log: IsoLog, tmp_path: Path) 
     jsonschema.validate(doc, json.loads(schema_path.read_text()))
     assert doc["format"] == "dhlog.iso9283/1"
     assert [p["pose"] for p in doc["iso9283"]["poses"]] == ["P1", "P2", "P3", "P4", "P5"]
+    assert (tmp_path / "iso.iso9283.rrd").stat().st_size > 0  # the recording beside it
     again = runner.invoke(app, [*args, "--out", str(tmp_path)])
     assert again.exit_code == 1 and "pass --force" in again.output
+    alone = tmp_path / "alone"
+    alone.mkdir()
+    got = runner.invoke(app, [*args, "--out", str(alone), "--no-rrd"])
+    assert got.exit_code == 0 and sorted(f.name for f in alone.iterdir()) == ["iso.iso9283.json"]
     missing = runner.invoke(app, ["iso9283", str(tmp_path / "none.mcap"), "--out", str(tmp_path)])
     assert missing.exit_code == 2
     assert len([line for line in missing.output.splitlines() if line.strip()]) == 1

@@ -1,5 +1,6 @@
 """``dhlog iso9283``: the ISO 9283 acceptance report from tracker logs (thin: the options
-parsed, :func:`dhlog.iso9283.run.run_logs` called, the tables printed, the JSON written)."""
+parsed, :func:`dhlog.iso9283.run.run_logs` called, the tables printed, the JSON and the
+recording (:func:`dhlog.present.recording.iso9283.write_iso9283_recording`) written)."""
 
 from __future__ import annotations
 
@@ -51,11 +52,15 @@ def iso9283(
             metavar="DIR", help="Where <stem>.iso9283.json goes (default: beside the log)."
         ),
     ] = None,
-    force: Annotated[bool, typer.Option("--force", help="Overwrite the output.")] = False,
+    no_rrd: Annotated[
+        bool, typer.Option("--no-rrd", help="Do not write the Rerun recording.")
+    ] = False,
+    force: Annotated[bool, typer.Option("--force", help="Overwrite the outputs.")] = False,
 ) -> None:
     """The ISO 9283 characteristics (AP, RP, vAP, AD/RD, stabilisation, overshoot, drift; AT,
     RT with the test program) of a robot's test from tracker logs, before and after a
-    calibration; written as <stem>.iso9283.json."""
+    calibration; written as <stem>.iso9283.json and the recording <stem>.iso9283.rrd (the cube,
+    each pose's attained positions and RP sphere, the paths' deviations)."""
     from dhlog.iso9283.run import report_document, run_logs, write_report
     from dhlog.present.console.iso9283 import print_iso9283
 
@@ -70,11 +75,14 @@ def iso9283(
     check_folder(folder)
     stem = first.name.removesuffix(".zstd").removesuffix(".mcap")
     target = folder / f"{stem}.iso9283.json"
+    recording = None if no_rrd else folder / f"{stem}.iso9283.rrd"
+    outputs = [target] if recording is None else [target, recording]
     inputs = [*logs, *(p for p in (result, commanded) if p is not None)]
-    if any(target.resolve() == p.resolve() for p in inputs):
-        stderr.print(f"error: {plain(target)} is an input; choose another --out.")
-        raise typer.Exit(EXIT_USAGE)
-    refuse_existing(target, force)
+    for output in outputs:
+        if any(output.resolve() == p.resolve() for p in inputs):
+            stderr.print(f"error: {plain(output)} is an input; choose another --out.")
+            raise typer.Exit(EXIT_USAGE)
+        refuse_existing(output, force)
     try:
         pipe = None if pipeline is None else load_pipeline(pipeline)
         nom = None if nominal is None else load_model(nominal)
@@ -92,9 +100,14 @@ def iso9283(
             "pipeline": pipeline,
         }
         write_report(report_document(report, source), target)
+        if recording is not None:
+            from dhlog.present.recording.iso9283 import write_iso9283_recording
+
+            write_iso9283_recording(report, recording)
     except DhlogError as exc:
         fail(exc)
     except OSError as exc:
         fail(OutputError(folder, exc))
     print_iso9283(stdout, report)
-    stdout.print(f"wrote {plain(target)}", soft_wrap=True)
+    for output in outputs:
+        stdout.print(f"wrote {plain(output)}", soft_wrap=True)
