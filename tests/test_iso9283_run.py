@@ -472,3 +472,37 @@ def test_below_100_hz_no_stabilisation(tmp_path: Path) -> None:
         "the tracker samples at 50 Hz: stabilisation time and overshoot need 100 Hz or more "
         "and are not computed." in report.notes
     )
+
+
+def test_program_with_the_encoders_alone(
+    simulated: tuple[Path, dict[str, Any]], tmp_path: Path
+) -> None:
+    """The simulated test read without its commanded stream (a pipeline naming none), with the
+    test program: each visit recognised by its encoders takes the program's joints, the path
+    passes are found from the encoders, and the figures equal those from the commanded stream
+    (the same samples: within 1 µm)."""
+    from dhlog.io.pipeline import load_pipeline
+
+    log, _ = simulated
+    pipeline = tmp_path / "no_command.toml"
+    pipeline.write_text(
+        'name = "no_command"\nencoding = "cdr"\n[streams.point]\ntopic = "/tracker/point"\n'
+        '[streams.joints]\ntopic = "/joint_states"\nrequired = true\n',
+        encoding="utf-8",
+    )
+    program = log.with_suffix(".program.csv")
+    nominal = dh_model_from("kr5")
+    alone = run_logs(
+        [log], pipeline=load_pipeline(pipeline), nominal=nominal, commanded_csv=program
+    )
+    streamed = run_logs([log], nominal=nominal, commanded_csv=program)
+    assert alone.commanded_from.startswith(f"the test program {program} (each visit recognised")
+    assert [p.visits for p in alone.poses] == [p.visits for p in streamed.poses] == [3] * 5
+    for a, b in zip(alone.poses, streamed.poses, strict=True):
+        assert a.before is not None and b.before is not None
+        assert a.before.AP == pytest.approx(b.before.AP, abs=1e-6)
+    assert [p.path for p in alone.paths] == [p.path for p in streamed.paths]
+    for a2, b2 in zip(alone.paths, streamed.paths, strict=True):
+        assert a2.cycles == b2.cycles == 2
+        assert a2.AT == pytest.approx(b2.AT, abs=1e-6)
+        assert a2.RT == pytest.approx(b2.RT, abs=1e-6)

@@ -582,28 +582,58 @@ def find_passes(
 ) -> list[PathPass]:
     """The passes along a path whose joint targets are ``path_q`` (m, n), from a joint
     ``stream`` (times, (k, n): the commanded joints, or the encoders): each time the stream
-    comes nearest its second point (within ``tolerance``, rad, or half the smallest step between
-    the path's targets if less), up to the next time it comes nearest its last point; the
+    comes nearest its second point (the stream taken linearly between its samples; within
+    ``tolerance``, rad in joint space, or half the smallest step between the path's targets if
+    less), up to the next time it comes nearest its last point, passing
+    near its targets at a quarter, half and three quarters of the way (a move between two poses
+    may pass near the second target and stop at the last: not a pass); the
     tracker's samples from ``margin`` s before to ``margin`` s after (the path's ends, where the
     crossings of the first and last normal planes lie)."""
     t, Q = stream
-    if path_q.shape[0] < 3 or Q.shape[1] != path_q.shape[1]:
+    if path_q.shape[0] < 3 or Q.shape[1] != path_q.shape[1] or Q.shape[0] < 2:
         return []
     # below half the smallest step between targets: the second target is told from the first
     # and the last (a closed path's ends are one point)
-    steps = np.max(np.abs(np.diff(path_q, axis=0)), axis=1)
+    steps = np.linalg.norm(np.diff(path_q, axis=0), axis=1)
     tolerance = min(tolerance, 0.5 * float(steps[steps > 0].min(initial=2 * tolerance)))
+    A, B = Q[:-1], Q[1:]
+    AB = B - A
+    length2 = np.einsum("ij,ij->i", AB, AB)
+
+    def distance(target: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """Each stream segment's distance (joint space) from ``target``, and the time of its
+        nearest point (the stream linearly between its samples: a fast stream's samples may
+        straddle a target)."""
+        u = np.einsum("ij,ij->i", target - A, AB) / np.where(length2 > 0, length2, 1.0)
+        u = np.clip(np.where(length2 > 0, u, 0.0), 0.0, 1.0)
+        d = np.linalg.norm(A + u[:, None] * AB - target, axis=1)
+        return d, t[:-1] + u * (t[1:] - t[:-1])
 
     def nearest_times(target: FloatArray) -> NDArray[np.int64]:
-        d = np.max(np.abs(Q - target), axis=1)
+        d, when = distance(target)
         near = d < tolerance
         edges = np.flatnonzero(np.diff(np.r_[0, near.astype(np.int8), 0]))
         return np.array(
-            [t[a + int(np.argmin(d[a:b]))] for a, b in zip(edges[::2], edges[1::2], strict=True)],
+            [
+                int(when[a + int(np.argmin(d[a:b]))])
+                for a, b in zip(edges[::2], edges[1::2], strict=True)
+            ],
             dtype=np.int64,
         )
 
     starts, ends = nearest_times(path_q[1]), nearest_times(path_q[-1])
+    m = path_q.shape[0]
+    inner = [distance(path_q[round(f * (m - 1))]) for f in (0.25, 0.5, 0.75)]
+
+    def along(t1: int, t2: int) -> bool:
+        """Whether the stream passes near the path's inner targets between ``t1`` and ``t2``
+        (a move between two poses may pass near a path's second target and stop at its end)."""
+        for d, when in inner:
+            inside = (when >= t1) & (when <= t2)
+            if not np.any(inside) or float(d[inside].min()) >= tolerance:
+                return False
+        return True
+
     out: list[PathPass] = []
     step = int(margin * 1e9)
     for k, t1 in enumerate(starts):
@@ -611,6 +641,8 @@ def find_passes(
         following = starts[k + 1] if k + 1 < len(starts) else None
         if later.size == 0 or (following is not None and later[0] > following):
             continue  # a pass not run to its end
+        if not along(int(t1), int(later[0]) + 1):
+            continue
         a, b = np.searchsorted(t_ns, [t1 - step, later[0] + step])
         if b - a >= 3:
             out.append(PathPass(name, len(out) + 1, int(t_ns[a]), int(t_ns[b - 1]), xyz[a:b]))
