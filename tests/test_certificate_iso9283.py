@@ -83,6 +83,7 @@ def _document(*, points: bool = False) -> dict[str, Any]:
                 "AP_x": float(off_before[0]),
                 "AP_y": float(off_before[1]),
                 "AP_z": float(off_before[2]),
+                "AP_sigma": 1e-5 + 1e-6 * k,
             },
             "after": {
                 "AP": float(np.linalg.norm(off_after)),
@@ -180,6 +181,7 @@ class Cells(HTMLParser):
     sections' ids and the plots' labels."""
 
     cells: dict[str, tuple[str | None, str]] = field(default_factory=dict)
+    stds: dict[str, str] = field(default_factory=dict)
     ids: dict[str, str] = field(default_factory=dict)
     sections: list[str] = field(default_factory=list)
     plots: list[str] = field(default_factory=list)
@@ -194,6 +196,8 @@ class Cells(HTMLParser):
         if tag == "td" and a.get("data-key"):
             self._key = str(a["data-key"])
             self.cells[self._key] = (a.get("data-si"), "")
+            if a.get("data-std"):
+                self.stds[self._key] = str(a["data-std"])
         if tag == "section" and a.get("id"):
             self.sections.append(str(a["id"]))
         if tag == "svg":
@@ -265,7 +269,13 @@ def test_the_section_shows_the_reports_figures(result: Path, tmp_path: Path) -> 
             assert si is None and shown.strip() == "—", key
             continue
         assert si is not None and float(si) == value, key  # to the bit
+        shown, _, under = shown.partition("±")
         assert float(shown) == round(value * scale, places), key  # to the digits shown
+        if key.endswith("AP_before"):  # its standard uncertainty under it
+            sigma = block["poses"][int(key[1]) - 1]["before"]["AP_sigma"]
+            assert float(page.stds[key]) == sigma and float(under) == round(sigma * 1e3, 4)
+        else:
+            assert key not in page.stds and not under
     test = html.unescape(page.ids["iso9283-test"])
     assert "KR5 sixx #4711" in test and "test.mcap" in test
     assert "edge 241.0 mm, centre (1303.0, 0.0, 286.0) mm" in test
@@ -351,6 +361,7 @@ DAMAGED = [
     (_set("iso9283.notes", "none"), "iso9283.notes must be an array, not a string"),
     (_set("iso9283.frame", "world"), "iso9283.frame must be one of base, measurement"),
     (_set("iso9283.poses.0.attained", [[1, 2, "x"]]), "iso9283.poses[0].attained[0][2] must be"),
+    (_set("iso9283.poses.1.before.AP_sigma", -1e-6), "iso9283.poses[1].before.AP_sigma is -1e-06"),
 ]
 
 

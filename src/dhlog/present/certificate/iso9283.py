@@ -50,6 +50,8 @@ class IsoPose:
     AP_before: float | None
     AP_after: float | None
     RP: float | None
+    AP_before_sigma: float | None  # the barycentre's sampling uncertainty (optional field)
+    AP_after_sigma: float | None
     stabilisation_time: float | None
     stabilisation_time_max: float | None
     overshoot: float | None
@@ -172,15 +174,20 @@ def _point(f: FieldReader, holder: dict[str, Any], key: str, at: str) -> list[fl
     return [f.number(x, f"{at}.{key}[{k}]", "length") for k, x in enumerate(got)]
 
 
-def _accuracy(f: FieldReader, pose: dict[str, Any], key: str, at: str) -> float | None:
+def _accuracy(
+    f: FieldReader, pose: dict[str, Any], key: str, at: str
+) -> tuple[float | None, float | None]:
+    """``pose[key]``'s AP and its optional ``AP_sigma`` (None, None when null)."""
     where = f"{at}.{key}"
     v = f.get(pose, key, at, null=True)
     if v is None:
-        return None
+        return None, None
     block = f.obj(v, where)
     for comp in ("AP_x", "AP_y", "AP_z"):
         f.number(f.get(block, comp, where), f"{where}.{comp}", "length")
-    return f.number(f.get(block, "AP", where), f"{where}.AP", "length", sigma=True)
+    AP = f.number(f.get(block, "AP", where), f"{where}.AP", "length", sigma=True)
+    s = f.get(block, "AP_sigma", where, required=False, null=True)
+    return AP, None if s is None else f.number(s, f"{where}.AP_sigma", "length", sigma=True)
 
 
 def _pose(f: FieldReader, item: Any, at: str) -> IsoPose:
@@ -200,14 +207,18 @@ def _pose(f: FieldReader, item: Any, at: str) -> IsoPose:
             ],
             dtype=np.float64,
         ).reshape(-1, 3)
+    before, before_sigma = _accuracy(f, p, "before", at)
+    after, after_sigma = _accuracy(f, p, "after", at)
     return IsoPose(
         name,
         f.integer(f.get(p, "visits", at), f"{at}.visits", minimum=1),
         _point(f, p, "barycentre", at),
         _point(f, p, "commanded", at),
-        _accuracy(f, p, "before", at),
-        _accuracy(f, p, "after", at),
+        before,
+        after,
         _size(f, p, "RP", at),
+        before_sigma,
+        after_sigma,
         _size(f, p, "stabilisation_time", at),
         _size(f, p, "stabilisation_time_max", at),
         _size(f, p, "overshoot", at),

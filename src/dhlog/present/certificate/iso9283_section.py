@@ -13,14 +13,23 @@ from dhlog.present.certificate.sections import bullet_list, escape, kv_table
 DASH = '<span class="muted">—</span>'
 
 
-def _cell(value: float | None, key: str, *, scale: float = 1e3, places: int = 4) -> str:
-    """A figure in display units (mm by default) with its SI value in ``data-si``; a dash when
-    it was not computed."""
+def _cell(
+    value: float | None,
+    key: str,
+    *,
+    scale: float = 1e3,
+    places: int = 4,
+    sigma: float | None = None,
+) -> str:
+    """A figure in display units (mm by default) with its SI value in ``data-si`` (and its
+    standard uncertainty under it, in ``data-std``); a dash when it was not computed."""
     if value is None:
         return f'<td class="num" data-key="{escape(key)}">{DASH}</td>'
+    std = "" if sigma is None else f' data-std="{sigma!r}"'
+    under = "" if sigma is None else f'<span class="sd">± {sigma * scale:.{places}f}</span>'
     return (
-        f'<td class="num" data-key="{escape(key)}" data-si="{value!r}">'
-        f"{value * scale:.{places}f}</td>"
+        f'<td class="num" data-key="{escape(key)}" data-si="{value!r}"{std}>'
+        f"{value * scale:.{places}f}{under}</td>"
     )
 
 
@@ -94,8 +103,8 @@ def _poses_table(iso: Iso9283Shown) -> str:
         n = escape(p.name)
         rows.append(
             f'<tr data-pose="{n}"><th>{n}</th><td class="num">{p.visits}</td>'
-            + _cell(p.AP_before, f"{p.name}.AP_before")
-            + _cell(p.AP_after, f"{p.name}.AP_after")
+            + _cell(p.AP_before, f"{p.name}.AP_before", sigma=p.AP_before_sigma)
+            + _cell(p.AP_after, f"{p.name}.AP_after", sigma=p.AP_after_sigma)
             + _cell(p.RP, f"{p.name}.RP")
             + _cell(p.stabilisation_time, f"{p.name}.stabilisation_time", scale=1.0, places=3)
             + _cell(
@@ -109,7 +118,7 @@ def _poses_table(iso: Iso9283Shown) -> str:
     if not rows:
         return '<p class="muted" id="iso9283-poses">No test pose was found in the log.</p>'
     return (
-        f'<table class="grid" id="iso9283-poses"><thead>{head}</thead><tbody>'
+        f'<table class="grid tool" id="iso9283-poses"><thead>{head}</thead><tbody>'
         + "".join(rows)
         + "</tbody></table>"
     )
@@ -200,7 +209,8 @@ def iso9283_section(iso: Iso9283Shown, robot: str | None = None) -> str:
         "with this calibration applied, as the report's after line says. AP = |x̄ − x<sub>c</sub>| "
         "(7.2.1), RP = l̄ + 3 S<sub>l</sub> (7.2.2), t<sub>stab</sub> and overshoot over the "
         "arrivals (7.4, 7.5), vAP (7.2.3), AD = D̄ − D<sub>c</sub> and RD = 3 S<sub>D</sub> "
-        "(7.3), dAP and dRP (7.6), AT and RT (8.2). A dash: not computed.</p>",
+        "(7.3), dAP and dRP (7.6), AT and RT (8.2). ± under AP: its standard uncertainty from the "
+        "barycentre's sampling (the visits' scatter over √n). A dash: not computed.</p>",
         _test_table(iso, robot),
         "<h3>Poses</h3>",
         _poses_table(iso),
