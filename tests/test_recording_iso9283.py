@@ -176,3 +176,28 @@ def test_a_failed_write_leaves_nothing(tmp_path: Path) -> None:
     with pytest.raises(ValueError):
         write_iso9283_recording(report, path, attained=bad)
     assert list(tmp_path.iterdir()) == []
+
+
+def test_the_reports_own_positions_and_passes_are_drawn(tmp_path: Path) -> None:
+    """What ``dhlog iso9283`` hands over: the positions and passes kept on the report (its
+    poses' ``attained``, its paths' ``commanded`` and ``passes``) draw as the arguments do."""
+    import dataclasses
+
+    report, attained, paths = _report()
+    line, passes = paths["line"]
+    kept = dataclasses.replace(
+        report,
+        poses=[dataclasses.replace(p, attained=attained[p.name]) for p in report.poses],
+        paths=[dataclasses.replace(report.paths[0], commanded=line, passes=passes)],
+    )
+    a, b = tmp_path / "a.rrd", tmp_path / "b.rrd"
+    write_iso9283_recording(kept, a)
+    write_iso9283_recording(report, b, attained=attained, paths=paths)
+    rrd_verify(a)
+    got, want = _rows(a), _rows(b)
+    assert got.keys() == want.keys()
+    for key in want:
+        if key[0].startswith("/world"):
+            assert got[key] == want[key], key
+    assert ("/world/poses/P3/attained", "positions") in got
+    assert len(got[("/world/paths/line/deviation", "strips")][0]) == 303
