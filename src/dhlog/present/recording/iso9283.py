@@ -21,11 +21,10 @@ tracker's when the report has no model, said in the text panel):
   each commanded point (clause 8.2) drawn from the commanded point, magnified × ``k``;
 * ``report/iso9283`` the report's tables (Markdown).
 
-The attained positions and the passes are not in :class:`~dhlog.iso9283.run.Iso9283Report`'s
-figures: they are taken from ``attained`` and ``paths`` when given, else from the report's poses'
-``attained`` (n, 3) and its paths' ``commanded`` (m, 3) and ``passes`` [(k, 3)] attributes where
-they exist (all in the report's frame); without them the poses show their barycentre's sphere
-and the paths only their figures.
+The attained positions and the passes are the report's (its poses' ``attained`` (n, 3), its
+paths' ``commanded`` (m, 3) and ``passes`` [(k, 3)], in the report's frame) unless ``attained``
+and ``paths`` are given; without them the poses show their barycentre's sphere and the paths
+only their figures.
 """
 
 from __future__ import annotations
@@ -191,7 +190,7 @@ def write_iso9283_recording(
     """Write the recording of ``report`` to ``path`` (atomically; see the module docstring).
     ``attained``: each pose's attained positions (n, 3) by name; ``paths``: each path's
     commanded points (m, 3) and attained passes [(k, 3)] by name; all in the report's frame
-    (default: the report's own attributes where it has them)."""
+    (default: the report's own)."""
     by_name = {p.name: _array(p.commanded) for p in report.poses}
     cube = cube_of(by_name) if report.frame == "base" else None
     extent = _extent(report, cube)
@@ -279,9 +278,7 @@ def write_iso9283_recording(
                         ),
                         static=True,
                     )
-            points = _array(
-                attained.get(p.name) if attained is not None else getattr(p, "attained", None)
-            )
+            points = _array(attained.get(p.name) if attained is not None else p.attained)
             if points is not None:
                 points = points.reshape(-1, 3)
                 rec.log(
@@ -313,8 +310,8 @@ def write_iso9283_recording(
                     [np.asarray(x, np.float64) for x in given[1]],
                 )
             else:
-                commanded_path = _array(getattr(t, "commanded", None))
-                passes = [np.asarray(x, np.float64) for x in getattr(t, "passes", None) or []]
+                commanded_path = _array(t.commanded)
+                passes = [np.asarray(x, np.float64) for x in t.passes]
             if commanded_path is None:
                 continue
             base = f"world/paths/{t.path}"
@@ -330,7 +327,7 @@ def write_iso9283_recording(
                 rr.LineStrips3D(passes, colors=ATTAINED, radii=0.15 * size),
                 static=True,
             )
-            used = (int(getattr(t, "first_point", 0)), t.points)
+            used = (t.first_point, t.points)
             found = _path_deviation(commanded_path, passes, used) if len(passes) >= 2 else None
             if found is None:
                 continue
