@@ -17,6 +17,7 @@ if TYPE_CHECKING:
     from dhlog.api import (
         Calibration,
         Simulation,
+        acceptance_test,
         load,
         plan,
         process,
@@ -28,6 +29,7 @@ if TYPE_CHECKING:
     from dhlog.errors import DhlogError, InputError, UsageError
     from dhlog.geometry.circles import fit_circle
     from dhlog.identify.read.extract import extract_dh
+    from dhlog.iso9283.run import Iso9283Report
     from dhlog.model.dh import JointType, ModifiedDH, StandardDH
     from dhlog.model.fk import fk_frames, fk_point
     from dhlog.model.robots import Robot
@@ -37,6 +39,8 @@ if TYPE_CHECKING:
 #: Every public name and the module it lives in (private; may move).
 _PUBLIC = {
     "process": "dhlog.api",
+    "acceptance_test": "dhlog.api",
+    "Iso9283Report": "dhlog.iso9283.run",
     "load": "dhlog.api",
     "simulate": "dhlog.api",
     "plan": "dhlog.api",
@@ -65,6 +69,7 @@ __all__ = [
     "Compensation",
     "DhlogError",
     "InputError",
+    "Iso9283Report",
     "JointType",
     "ModifiedDH",
     "Plan",
@@ -74,6 +79,7 @@ __all__ = [
     "Tracker",
     "UsageError",
     "__version__",
+    "acceptance_test",
     "extract_dh",
     "fit_circle",
     "fk_frames",

@@ -2,7 +2,15 @@
 commands (:mod:`.operations`) and the calibration they give (:mod:`.calibration`)."""
 
 from dhlog.api.calibration import EXPORT_FORMATS, Calibration, ExportFormat, UsageError
-from dhlog.api.operations import Simulation, load, plan, process, robot, simulate
+from dhlog.api.operations import (
+    Simulation,
+    acceptance_test,
+    load,
+    plan,
+    process,
+    robot,
+    simulate,
+)
 
 __all__ = [
     "EXPORT_FORMATS",
@@ -10,6 +18,7 @@ __all__ = [
     "ExportFormat",
     "Simulation",
     "UsageError",
+    "acceptance_test",
     "load",
     "plan",
     "process",

@@ -20,6 +20,7 @@ from dhlog.errors import DhlogError
 
 if TYPE_CHECKING:
     from dhlog.cell.plan import Plan, Tracker
+    from dhlog.iso9283.run import Iso9283Report
     from dhlog.model.robots import Robot
     from dhlog.simulator.config import SimulationConfig
 
@@ -488,3 +489,55 @@ def plan(
     if problems:
         raise UsageError(f"{problems[0]}.")
     return plan_session(rob, cfg, tracker)
+
+
+def acceptance_test(
+    logs: str | Path | Sequence[str | Path],
+    *,
+    nominal: str | Path | Robot | Calibration | None = None,
+    result: str | Path | Calibration | None = None,
+    pipeline: str | Path | None = None,
+    commanded: str | Path | None = None,
+) -> Iso9283Report:
+    """The ISO 9283 acceptance test from tracker logs (``dhlog iso9283``): per pose P1–P5 the
+    pose accuracy AP and repeatability RP (orientation parts with a 6-DoF target), stabilisation
+    time and overshoot, vAP where poses are approached from several directions, distance
+    accuracy and repeatability AD/RD, drift, and per test path AT/RT — as ISO 9283:1998 defines
+    them (``docs/iso9283.md``).
+
+    ``logs``: the test's log(s), read as one test. ``nominal``: the model the controller runs
+    (its FK of the commanded joints is the commanded position; without it, only what needs no
+    model: RP, stabilisation, overshoot, drift). ``result``: a calibration of this robot (a
+    result file or a :class:`Calibration`): its placement gives the base frame, and each
+    accuracy figure is also given as the calibration's compensated commands would attain it.
+    ``commanded``: the test program ``dhlog plan --iso9283`` wrote (names the poses, gives the
+    paths). Returns the report; ``.document()`` is the ``iso9283`` JSON block."""
+    from dhlog.iso9283.run import run_logs
+
+    if result is not None and nominal is None:
+        raise UsageError(
+            "acceptance_test: result needs nominal (the model the controller runs: the "
+            "commanded positions are its forward kinematics)."
+        )
+    paths = [logs] if isinstance(logs, (str, Path)) else list(logs)
+    if not paths:
+        raise UsageError("acceptance_test: give at least one log.")
+    pipe = None
+    if pipeline is not None:
+        from dhlog.io.pipeline import pipeline_from
+
+        pipe = pipeline_from(str(pipeline))
+    nom = None if nominal is None else _dh_model(nominal)
+    calibrated = None
+    if isinstance(result, Calibration):
+        calibrated = result.model
+    elif result is not None:
+        calibrated = load(result).model
+    if nom is not None and calibrated is not None and nom.table.n != calibrated.table.n:
+        raise UsageError(
+            f"acceptance_test: the nominal {nom.source} has {nom.table.n} joints but the result "
+            f"{calibrated.source} has {calibrated.table.n}; give the nominal of this robot."
+        )
+    return run_logs(
+        paths, pipeline=pipe, nominal=nom, calibrated=calibrated, commanded_csv=commanded
+    )

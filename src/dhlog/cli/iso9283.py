@@ -10,7 +10,7 @@ from typing import Annotated
 import typer
 
 from dhlog.cli.common import EXIT_USAGE, check_folder, fail, plain, refuse_existing, stderr, stdout
-from dhlog.cli.options import PIPELINE_HELP, load_model, load_pipeline
+from dhlog.cli.options import PIPELINE_HELP, load_pipeline
 from dhlog.errors import DhlogError, OutputError
 
 
@@ -61,7 +61,8 @@ def iso9283(
     RT with the test program) of a robot's test from tracker logs, before and after a
     calibration; written as <stem>.iso9283.json and the recording <stem>.iso9283.rrd (the cube,
     each pose's attained positions and RP sphere, the paths' deviations)."""
-    from dhlog.iso9283.run import report_document, run_logs, write_report
+    from dhlog.api import acceptance_test
+    from dhlog.iso9283.run import report_document, write_report
     from dhlog.present.console.iso9283 import print_iso9283
 
     if result is not None and nominal is None:
@@ -84,14 +85,11 @@ def iso9283(
             raise typer.Exit(EXIT_USAGE)
         refuse_existing(output, force)
     try:
-        pipe = None if pipeline is None else load_pipeline(pipeline)
-        nom = None if nominal is None else load_model(nominal)
-        cal = None
-        if result is not None:
-            from dhlog.api import load
-
-            cal = load(result, nominal=nominal).model
-        report = run_logs(logs, pipeline=pipe, nominal=nom, calibrated=cal, commanded_csv=commanded)
+        if pipeline is not None:
+            load_pipeline(pipeline)  # a wrong pipeline is named before the logs are read
+        report = acceptance_test(
+            logs, nominal=nominal, result=result, pipeline=pipeline, commanded=commanded
+        )
         source = {
             "logs": [str(p) for p in logs],
             "nominal": nominal,
