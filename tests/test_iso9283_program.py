@@ -165,8 +165,8 @@ def test_a_cube_given_is_checked() -> None:
 def test_the_program_csv_round_trips(
     planned: tuple[Robot, iso.TestProgram], tmp_path: Path
 ) -> None:
-    """The CSV holds 30 pose cycles (P1 → P5) then 10 path cycles (line, circles), and reads
-    back to the same table exactly (numbers written to round-trip)."""
+    """The CSV holds 30 pose cycles (P1 → P5 → P4 → P3 → P2) then 10 path cycles (line,
+    circles), and reads back to the same table exactly (numbers written to round-trip)."""
     robot, program = planned
     path = tmp_path / "program.csv"
     path.write_text(iso.program_csv(program))
@@ -174,7 +174,7 @@ def test_the_program_csv_round_trips(
     rows = iso.program_rows(program)
     k = sum(len(p.points) for p in program.paths)
     assert len(back.kind) == 30 * 5 + 10 * k
-    assert back.name[:6] == ["P1", "P2", "P3", "P4", "P5", "P1"]
+    assert back.name[:6] == ["P1", "P5", "P4", "P3", "P2", "P1"]  # clause 7.2.1's order
     assert list(back.cycle[:6]) == [1, 1, 1, 1, 1, 2] and list(back.step[:6]) == [1, 2, 3, 4, 5, 1]
     assert back.kind[150] == "path" and back.name[150] == "line" and back.cycle[-1] == 10
     assert np.array_equal(back.q, rows.q) and np.array_equal(back.xyz, rows.xyz)

@@ -53,7 +53,7 @@ from numpy.typing import NDArray
 from dhlog.errors import Iso9283Error
 from dhlog.geometry._checks import FloatArray, nearest_rotation
 from dhlog.io.reader import ORIENTATION_COLUMNS, LogData
-from dhlog.iso9283.program import CommandedProgram
+from dhlog.iso9283.program import CYCLE_ORDER, CommandedProgram
 
 #: The band is this many times the settled samples' 3-D RMS scatter (noise alone leaves a band
 #: of 4·√3 σ ≈ 7 σ per coordinate about once in 10¹⁰ samples).
@@ -67,7 +67,6 @@ ARRIVAL_RATE = 100.0
 #: The fewest settled samples a visit's attained position is the mean of (else the last half).
 MIN_SETTLED = 3
 #: The standard's cycle (clause 7.2.1): the order in which unnamed poses are first visited.
-CYCLE_ORDER = ("P1", "P5", "P4", "P3", "P2")
 #: A dwell ends where its position, averaged over this window (s), has moved this many times
 #: the average's noise from the dwell's middle (:func:`_departure`).
 DEPART_WINDOW = 0.1

@@ -17,6 +17,9 @@ from dhlog.model import ik
 from dhlog.model.fk import fk_point
 from dhlog.model.robots import Robot
 
+#: A pose cycle's order (clause 7.2.1): P1 → P5 → P4 → P3 → P2.
+CYCLE_ORDER = ("P1", "P5", "P4", "P3", "P2")
+
 #: The standard's number of cycles for pose characteristics (clause 7) and for paths (clause 8).
 POSE_CYCLES = 30
 PATH_CYCLES = 10
@@ -592,9 +595,9 @@ def _plan(
 
 
 def program_rows(program: TestProgram) -> CommandedProgram:
-    """The cycle program, one row per commanded target: ``cycles`` pose cycles (P1 → P2 → P3 →
-    P4 → P5 each), then ``path_cycles`` path cycles (the line, the large circle, the small
-    circle each, every commanded point in turn)."""
+    """The cycle program, one row per commanded target: ``cycles`` pose cycles (P1 → P5 → P4 →
+    P3 → P2 each, :data:`CYCLE_ORDER`), then ``path_cycles`` path cycles (the line, the large
+    circle, the small circle each, every commanded point in turn)."""
     cycle: list[int] = []
     step: list[int] = []
     kind: list[str] = []
@@ -602,8 +605,14 @@ def program_rows(program: TestProgram) -> CommandedProgram:
     index: list[int] = []
     q: list[FloatArray] = []
     xyz: list[FloatArray] = []
+    names = [pose.name for pose in program.poses]
+    ordered = (
+        [program.poses[names.index(n)] for n in CYCLE_ORDER]
+        if sorted(names) == sorted(CYCLE_ORDER)
+        else program.poses
+    )
     for c in range(1, program.cycles + 1):
-        for s, pose in enumerate(program.poses, start=1):
+        for s, pose in enumerate(ordered, start=1):
             cycle.append(c)
             step.append(s)
             kind.append("pose")

@@ -526,6 +526,7 @@ def iso9283_report(
                 f"{name}: {len(vs)} cycle: RP needs 2 cycles or more (the standard: 30); not "
                 "computed."
             )
+    poses.sort(key=lambda p: _name_order(p.name))  # reported P1 … P5, whatever the cycle order
     cycles = max((p.visits for p in poses), default=0)
     if 0 < cycles < 30:
         notes.append(
@@ -574,6 +575,12 @@ def iso9283_report(
         notes,
         paths,
     )
+
+
+def _name_order(name: str) -> tuple[int, str]:
+    """P1 … P5 by number, other names after them as they come."""
+    digits = name[1:]
+    return (int(digits), "") if name[:1] == "P" and digits.isdigit() else (10**6, name)
 
 
 def _names_as_in(first: Segmented, other: Segmented, notes: list[str]) -> dict[str, str]:

@@ -39,7 +39,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from dhlog.geometry._checks import FloatArray, rotation_from_vector
-from dhlog.iso9283.program import TestProgram
+from dhlog.iso9283.program import CYCLE_ORDER, TestProgram
 from dhlog.model.dh import JointType, StandardDH
 from dhlog.model.fk import fk_frames
 from dhlog.model.robots import Robot
@@ -55,7 +55,6 @@ from dhlog.simulator.tracker import (
 )
 
 #: the order of the poses in each cycle of the pose test (clause 7.2.1)
-CYCLE_ORDER = ("P1", "P5", "P4", "P3", "P2")
 #: seconds still at each path's start and end
 PATH_DWELL = 0.5
 #: seconds of acceleration to (and from) a path's speed
