@@ -331,6 +331,9 @@ def test_simulated_paths_against_their_truth(simulated: tuple[Path, dict[str, An
         # path's end planes can be crossed at the wrong end: the truth over the inner points
         assert p.AT == pytest.approx(float(truth_at.deviation[1:-1].max()), abs=25e-6)
         assert -10e-6 < p.RT - float(truth_at.repeatability[1:-1].max()) < 40e-6
+        # the noise's share of RT: from the dwells' scatter (the simulator's 10 µm per
+        # coordinate), at two cycles and these points
+        assert p.RT_noise is not None and 10e-6 < p.RT_noise < 60e-6
         # after: the true model's correction at each commanded point, its part in the plane
         true_m = fk_point(true_model.table, q, true_model.tool_point, T_base=true_model.T_base)
         correction = true_m @ T_base_m[:3, :3].T + T_base_m[:3, 3] - commanded
@@ -347,6 +350,17 @@ def test_simulated_paths_against_their_truth(simulated: tuple[Path, dict[str, An
     document = json.loads(json.dumps(report_document(report, {"logs": [str(log)]})))
     jsonschema.validate(document, json.loads(schema_path.read_text()))
     assert [p["path"] for p in document["iso9283"]["paths"]] == list(programs)
+
+
+def test_the_noise_share_of_rt_is_the_rayleigh_figure() -> None:
+    """RT of noise alone at one point over many cycles: the in-plane deviation's length is
+    Rayleigh distributed (σ per coordinate), mean σ√(π/2) and standard deviation σ√(2 − π/2),
+    so l̄ + 3 S_l = (1.2533 + 3 · 0.6551) σ = 3.218 σ; the tracker's σ from dwells of known
+    scatter (3-D RMS = √3 σ)."""
+    from dhlog.iso9283.run import noise_rt
+
+    assert noise_rt(2e-6, cycles=4000, points=1, draws=10) == pytest.approx(3.218 * 2e-6, rel=0.02)
+    assert noise_rt(1.0, cycles=10, points=100) > noise_rt(1.0, cycles=10, points=1)
 
 
 def test_six_dof_orientation_repeatability(tmp_path: Path) -> None:

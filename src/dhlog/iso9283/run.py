@@ -195,6 +195,9 @@ class PathReport:
     #: the commanded points used (m, 3) and each pass's samples (k, 3), in the report's frame
     commanded: FloatArray | None = None
     passes: list[FloatArray] = field(default_factory=list)
+    #: the RT the tracker's noise alone gives at these cycles and points (m; None: the noise
+    #: unknown): each crossing is one sample, so RT carries it (:func:`noise_rt`)
+    RT_noise: float | None = None
 
     def document(self) -> dict[str, Any]:
         return {
@@ -207,6 +210,7 @@ class PathReport:
             "RT": self.RT,
             "AT_at_point": self.AT_at_point,
             "RT_at_point": self.RT_at_point,
+            "RT_noise": self.RT_noise,
         }
 
 
@@ -606,6 +610,27 @@ def _names_as_in(first: Segmented, other: Segmented, notes: list[str]) -> dict[s
     return out
 
 
+def tracker_sigma(visits: Sequence[Visit]) -> float | None:
+    """The tracker's σ per coordinate (m) from the settled dwells' scatter (each visit's 3-D RMS
+    about its mean, pooled; isotropic noise assumed); None without settled visits."""
+    scatter = [v.scatter for v in visits if v.settled and v.n_settled > 1]
+    return math.sqrt(float(np.mean(np.square(scatter))) / 3.0) if scatter else None
+
+
+def noise_rt(sigma: float, cycles: int, points: int, draws: int = 200) -> float:
+    """The path repeatability RT (clause 8.2: max over points of l̄ + 3 S_l) that isotropic
+    tracker noise of σ per coordinate alone gives when each of ``points`` crossings is one
+    sample in ``cycles`` passes: its two components in each normal plane, ``draws`` seeded
+    draws averaged. What RT reads above the robot's own repeatability comes to about this, added
+    in quadrature to first order."""
+    rng = np.random.default_rng(0)
+    d = rng.normal(0.0, sigma, (draws, cycles, points, 2))
+    d -= d.mean(axis=1, keepdims=True)
+    lengths = np.linalg.norm(d, axis=3)
+    rt = lengths.mean(axis=1) + 3.0 * lengths.std(axis=1, ddof=1)
+    return float(np.mean(rt.max(axis=1)))
+
+
 def _paths(
     seg: Segmented,
     T: FloatArray | None,
@@ -685,6 +710,16 @@ def _paths(
             correction -= np.sum(correction * tangent, axis=1, keepdims=True) * tangent
             left = got.barycentres - correction - commanded
             after = float(np.max(np.linalg.norm(left, axis=1)))
+        sigma = tracker_sigma(seg.visits)
+        floor = None if sigma is None else noise_rt(sigma, int(got.cycles), len(q))
+        if sigma is not None and floor is not None and floor > 0.25 * float(got.RT_P):
+            notes.append(
+                f"path {name}: the tracker's noise ({sigma * 1e6:.1f} µm per coordinate, from "
+                f"the dwells) alone gives RT {floor * 1e3:.3f} mm, "
+                f"{100 * floor / float(got.RT_P):.0f} % of the {float(got.RT_P) * 1e3:.3f} mm "
+                "measured: each crossing is one sample; the robot's own RT is about "
+                f"√(RT² − {floor * 1e3:.3f}²) mm."
+            )
         out.append(
             PathReport(
                 name,
@@ -698,6 +733,7 @@ def _paths(
                 int(np.argmax(got.repeatability)),
                 commanded,
                 attained,
+                RT_noise=floor,
             )
         )
     return out
