@@ -9,7 +9,8 @@ positions (``iso9283.visits[].attained``, base frame):
   tests' poses;
 - AT before / after, RT (with the program ``dhlog plan --iso9283`` writes as ``--commanded``):
   measured − the formulas on the truth's noise-free attained paths (µm); RT carries the
-  tracker's noise (each crossing is one interpolated sample), so it reads high;
+  tracker's noise (each crossing is one interpolated sample), so it reads high; RT_own is
+  √(RT² − RT_noise²), the robot's own RT to first order, against the same truth;
 - overshoot: measured / the simulated peak (``overshoot``); stabilisation time: measured −
   the simulator's noise-free one in the same band (``stabilisation_truth``), ms;
 - the visits and passes found against the truth's (their count per pose and path).
@@ -81,7 +82,7 @@ def one_test(
         commanded_csv=program if path_cycles else None,
     )
     visits = truth["visits"]
-    keys = ("AP", "AP_after", "RP", "AD", "RD", "dAP", "dRP", "AT", "AT_after", "RT")
+    keys = ("AP", "AP_after", "RP", "AD", "RD", "dAP", "dRP", "AT", "AT_after", "RT", "RT_own")
     out: dict[str, list[float]] = {k: [] for k in keys}
     out["overshoot_ratio"] = []
     out["t_stab (ms)"] = []
@@ -150,6 +151,9 @@ def one_test(
         # largest over the inner points (the measured pass has samples beyond both ends)
         out["AT"].append(path.AT - float(got.deviation[1:-1].max()))
         out["RT"].append(path.RT - float(got.repeatability[1:-1].max()))
+        if path.RT_noise is not None:  # the robot's own RT to first order: noise in quadrature
+            own = float(np.sqrt(max(path.RT**2 - path.RT_noise**2, 0.0)))
+            out["RT_own"].append(own - float(got.repeatability[1:-1].max()))
         true_m = fk_point(calibrated.table, q, calibrated.tool_point, T_base=calibrated.T_base)
         correction = true_m @ T_base_m[:3, :3].T + T_base_m[:3, 3] - c
         tangent = np.gradient(c, axis=0, edge_order=2)
