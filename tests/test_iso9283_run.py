@@ -218,6 +218,31 @@ def test_the_public_api_gives_the_commands_report(simulated: tuple[Path, dict[st
         dhlog.acceptance_test(log, result="x.dh.json")
 
 
+def test_a_tracker_moved_since_the_calibration_is_said(
+    simulated: tuple[Path, dict[str, Any]],
+) -> None:
+    """The result's placement of the tracker holds for a test measured from the same station
+    (the true model: nothing said) and not for one measured after the tracker moved 2 mm and
+    turned 0.05° (the same model, placed as before: the note names the move, which a rigid
+    re-placement removes)."""
+    import dataclasses
+
+    import dhlog
+
+    log, _ = simulated
+    program = log.with_suffix(".program.csv")
+    true_model = dhlog.load(log.with_suffix(".truth.json")).model
+    nominal = dh_model_from("kr5")
+    said = run_logs([log], nominal=nominal, calibrated=true_model, commanded_csv=program).notes
+    assert not [n for n in said if "tracker has likely moved" in n]
+    c, s_ = np.cos(np.radians(0.05)), np.sin(np.radians(0.05))
+    knock = np.array([[c, -s_, 0, 2e-3], [s_, c, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]])
+    elsewhere = dataclasses.replace(true_model, T_base=knock @ true_model.T_base)
+    said = run_logs([log], nominal=nominal, calibrated=elsewhere, commanded_csv=program).notes
+    moved = [n for n in said if "tracker has likely moved" in n]
+    assert len(moved) == 1 and "without --result" in moved[0]
+
+
 def test_simulated_test_against_its_truth(simulated: tuple[Path, dict[str, Any]]) -> None:
     """The simulator's visits found in order, each attained position within 5 µm of the
     truth's (0.8 µm per coordinate at 1σ; the warm-up drift moves it by < 1 µm between the

@@ -346,6 +346,7 @@ def _base_positions(
     if calibrated is not None:
         T_mb = calibrated.T_base
         base = nominal.T_base if nominal is not None else np.eye(4)
+        _tracker_moved(seg, calibrated, notes)
         return (
             base @ np.linalg.inv(T_mb),
             "base",
@@ -387,6 +388,50 @@ def _base_positions(
         f"the nominal registered on the {len(named)} poses' attained barycentres (rigid best "
         f"fit, RMS {reg.rms * 1e3:.3f} mm)",
     )
+
+
+#: A tracker moved since the calibration: the calibrated model, placed by the result, misses the
+#: test's barycentres by more than this RMS (m) ...
+MOVED_RMS = 1e-4
+#: ... and a rigid re-placement of the model on them removes this much of it (RMS ratio): a
+#: model error is not rigid; a tracker moved (or knocked) is.
+MOVED_RATIO = 3.0
+
+
+def _tracker_moved(seg: Segmented, calibrated: DHModel, notes: list[str]) -> None:
+    """Say so where the result's placement of the tracker does not hold for this test: the
+    calibrated model at the commanded joints misses the attained barycentres by more than
+    :data:`MOVED_RMS`, and a rigid re-placement of the same model removes most of it
+    (:data:`MOVED_RATIO`): the tracker stood elsewhere than for the calibration, and AP before
+    and after (both in the result's base frame) carry that move."""
+    if seg.pose_q is None:
+        return
+    named = [(k, seg.of_pose(n)) for k, n in enumerate(seg.poses) if seg.of_pose(n)]
+    if len(named) < 3:
+        return
+    from dhlog.identify.fit.register import register_nominal
+
+    Q = calibrated.joint_values(np.array([seg.pose_q[k] for k, _ in named]))
+    P = np.array([np.mean([v.position for v in vs], axis=0) for _, vs in named])
+    predicted = fk_point(calibrated.table, Q, calibrated.tool_point, T_base=calibrated.T_base)
+    placed = float(np.sqrt(np.mean(np.sum((P - predicted) ** 2, axis=1))))
+    if placed <= MOVED_RMS:
+        return
+    try:
+        reg = register_nominal(
+            calibrated.table, Q, P, tool_point=calibrated.tool_point, fit_tool=False
+        )
+    except Exception:  # a degenerate set of poses: nothing to say
+        return
+    if placed > MOVED_RATIO * reg.rms:
+        notes.append(
+            f"the tracker has likely moved since the calibration: the calibrated model, placed "
+            f"by {calibrated.source}'s T_measurement_base, misses the {len(named)} poses' "
+            f"barycentres by {placed * 1e3:.3f} mm RMS, and a rigid re-placement of it by "
+            f"{reg.rms * 1e3:.3f} mm; AP before and after carry the move. Measure the test "
+            "with the tracker where it stood for the calibration, or run without --result "
+            "(the nominal registered on the poses)."
+        )
 
 
 def _moved(T: FloatArray | None, p: FloatArray) -> FloatArray:
