@@ -182,6 +182,24 @@ def test_log_to_rerun_writes_a_recording_rerun_verifies(
     assert rec is not None
 
 
+def test_a_dh_file_in_mm_and_degrees_is_read_in_si(tmp_path: Path) -> None:
+    """A user's DH file in mm and degrees: the parameters frame and FK in SI (m, rad), as the
+    model reads the file — never the file's numbers under SI labels."""
+    path = tmp_path / "arm.json"
+    rows = [
+        {"type": "revolute", "theta": 0.0, "d": 400.0, "a": 180.0, "alpha": 90.0},
+        {"type": "revolute", "theta": 0.0, "d": 0.0, "a": 600.0, "alpha": 0.0},
+    ]
+    path.write_text(json.dumps({"units": {"length": "mm", "angle": "deg"}, "standard_dh": rows}))
+    arm = dhlog.load(path)
+    params = arm.parameters
+    assert params.filter(joint=1, parameter="d")["value"][0] == pytest.approx(0.4)
+    assert params.filter(joint=1, parameter="alpha")["value"][0] == pytest.approx(np.pi / 2)
+    assert params["unit"].to_list()[:4] == ["rad", "m", "m", "rad"]
+    assert params["sigma"].null_count() == params.height
+    assert np.allclose(arm.fk(np.zeros(2)), [0.78, 0.0, 0.4])
+
+
 @pytest.mark.parametrize(
     ("call", "match"),
     [

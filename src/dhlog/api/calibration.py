@@ -137,12 +137,27 @@ class Calibration:
         the data cannot determine, never a measurement), ``unit`` (m or rad)."""
         import polars as pl
 
-        conditioned = self.document.get("hayati_dh")
-        table = (
-            conditioned.get("rows", [])
-            if isinstance(conditioned, dict)
-            else self.document.get("standard_dh", [])
-        )
+        units = self.document.get("units") or {}
+        if units.get("length", "m") != "m" or units.get("angle", "rad") != "rad":
+            # a DH file in other units (mm, deg): its values as the model read them, in SI;
+            # such a file carries no σ
+            t = self.model.table
+            table = [
+                {
+                    "theta_offset": t.theta_offset[i],
+                    "d_offset": t.d_offset[i],
+                    "a": t.a[i],
+                    "alpha": t.alpha[i],
+                }
+                for i in range(t.n)
+            ]
+        else:
+            conditioned = self.document.get("hayati_dh")
+            table = (
+                conditioned.get("rows", [])
+                if isinstance(conditioned, dict)
+                else self.document.get("standard_dh", [])
+            )
         rows = []
         names = self.joint_names
         for i, row in enumerate(table):
