@@ -762,8 +762,9 @@ def _paths(
                 f"path {name}: the tracker's noise ({sigma * 1e6:.1f} µm per coordinate, from "
                 f"the dwells) alone gives RT {floor * 1e3:.3f} mm, "
                 f"{100 * floor / float(got.RT_P):.0f} % of the {float(got.RT_P) * 1e3:.3f} mm "
-                "measured: each crossing is one sample; the robot's own RT is about "
-                f"√(RT² − {floor * 1e3:.3f}²) mm."
+                "measured (each crossing is one sample): the robot's own RT is about "
+                f"{math.sqrt(max(float(got.RT_P) ** 2 - floor**2, 0.0)) * 1e3:.3f} mm "
+                "(√(RT² − noise's²))."
             )
         out.append(
             PathReport(
