@@ -586,7 +586,12 @@ def write_run(
         raise UsageError("a loaded calibration has no run to write; save() writes its JSON.")
     try:
         write_results(
-            calibration._result, outputs, units, hold_signals=hold_signals, with_log=with_log
+            calibration._result,
+            outputs,
+            units,
+            hold_signals=hold_signals,
+            with_log=with_log,
+            document=calibration.document,  # the JSON is the document the object shows
         )
     except OSError as exc:
         raise OutputError(outputs[0].parent, exc) from None

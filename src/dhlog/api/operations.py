@@ -20,6 +20,8 @@ from dhlog.errors import DhlogError
 
 if TYPE_CHECKING:
     from dhlog.cell.plan import Plan, Tracker
+    from dhlog.io.dhfile import DHModel
+    from dhlog.io.pipeline import Pipeline
     from dhlog.iso9283.run import Iso9283Report
     from dhlog.model.robots import Robot
     from dhlog.simulator.config import SimulationConfig
@@ -31,8 +33,8 @@ ModelName = Literal["auto", "geometric", "compliance", "harmonic", "full"]
 def process(
     log: str | Path,
     *,
-    nominal: str | Path | Robot | Calibration | None = None,
-    pipeline: str | Path | None = None,
+    nominal: str | Path | Robot | Calibration | DHModel | None = None,
+    pipeline: str | Path | Pipeline | None = None,
     holdout: int = 0,
     validate: Sequence[str | Path] = (),
     model: ModelName = "auto",
@@ -100,11 +102,7 @@ def process(
     if masses is not None and not Path(masses).is_file():
         raise UsageError(f"process: masses {masses}: no such file; give the robot's URDF.")
     request = ModelRequest(model, g, joints, None if masses is None else str(masses))
-    pipe = None
-    if pipeline is not None:
-        from dhlog.io.pipeline import pipeline_from
-
-        pipe = pipeline_from(str(pipeline))
+    pipe = _pipeline(pipeline)
     nom = None if nominal is None else _dh_model(nominal)
     ref = None
     if reference_pose is not None:
@@ -130,6 +128,15 @@ def process(
     found = calibration_of(result, limits=_library_limits(nominal))
     found._asked = (bool(holdout or validate), model != "geometric" and not analytic_only)
     return found
+
+
+def _pipeline(spec: str | Path | Pipeline | None) -> Pipeline | None:
+    """A pipeline given by name, file or as read (the command line reads it first)."""
+    from dhlog.io.pipeline import Pipeline, pipeline_from
+
+    if spec is None or isinstance(spec, Pipeline):
+        return spec
+    return pipeline_from(str(spec))
 
 
 def calibration_of(result: Any, *, limits: Any = None) -> Calibration:
@@ -494,9 +501,9 @@ def plan(
 def acceptance_test(
     logs: str | Path | Sequence[str | Path],
     *,
-    nominal: str | Path | Robot | Calibration | None = None,
+    nominal: str | Path | Robot | Calibration | DHModel | None = None,
     result: str | Path | Calibration | None = None,
-    pipeline: str | Path | None = None,
+    pipeline: str | Path | Pipeline | None = None,
     commanded: str | Path | None = None,
 ) -> Iso9283Report:
     """The ISO 9283 acceptance test from tracker logs (``dhlog iso9283``): per pose P1–P5 the
@@ -522,11 +529,7 @@ def acceptance_test(
     paths = [logs] if isinstance(logs, (str, Path)) else list(logs)
     if not paths:
         raise UsageError("acceptance_test: give at least one log.")
-    pipe = None
-    if pipeline is not None:
-        from dhlog.io.pipeline import pipeline_from
-
-        pipe = pipeline_from(str(pipeline))
+    pipe = _pipeline(pipeline)
     nom = None if nominal is None else _dh_model(nominal)
     calibrated = None
     if isinstance(result, Calibration):

@@ -10,7 +10,7 @@ from typing import Annotated
 import typer
 
 from dhlog.cli.common import EXIT_USAGE, check_folder, fail, plain, refuse_existing, stderr, stdout
-from dhlog.cli.options import PIPELINE_HELP, load_pipeline
+from dhlog.cli.options import PIPELINE_HELP, load_model, load_pipeline
 from dhlog.errors import DhlogError, OutputError
 
 
@@ -85,10 +85,12 @@ def iso9283(
             raise typer.Exit(EXIT_USAGE)
         refuse_existing(output, force)
     try:
-        if pipeline is not None:
-            load_pipeline(pipeline)  # a wrong pipeline is named before the logs are read
         report = acceptance_test(
-            logs, nominal=nominal, result=result, pipeline=pipeline, commanded=commanded
+            logs,
+            nominal=None if nominal is None else load_model(nominal),
+            result=result,
+            pipeline=None if pipeline is None else load_pipeline(pipeline),
+            commanded=commanded,
         )
         source = {
             "logs": [str(p) for p in logs],

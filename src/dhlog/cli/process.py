@@ -263,8 +263,7 @@ def process(
             unit = angle_unit or (pipe.angle_unit if pipe is not None else "rad")
             types = pipe.joint_types if pipe is not None and pipe.joint_types else None
             ref = angles(ref, unit, types)
-        if nominal is not None:
-            load_model(nominal)  # a wrong nominal is named before the log is read
+        nom = load_model(nominal) if nominal is not None else None  # named before the log
         with Progress(
             TextColumn("{task.description}"),
             BarColumn(),
@@ -280,8 +279,8 @@ def process(
 
             calibration = identify(
                 log,
-                nominal=nominal,
-                pipeline=pipeline,
+                nominal=nom,
+                pipeline=pipe,
                 reference_pose=ref,
                 analytic_only=analytic_only,
                 fit_encoder_scales=fit_encoder_scales,

@@ -131,15 +131,18 @@ def write_results(
     *,
     hold_signals: bool = False,
     with_log: bool = False,
+    document: dict[str, Any] | None = None,
 ) -> dict[str, Any]:
     """Write a result's JSON, CSV and the further outputs named (a recording, the held-out
     poses' CSV for a name ending in ``HOLDOUT_SUFFIX``, the terms' for ``TERMS_SUFFIX``), moved
-    into place together; returns the JSON document. ``with_log``: the log's own channels in the
-    recording."""
+    into place together; returns the JSON document (``document``: the result's, already made —
+    a :class:`dhlog.Calibration`'s — else made here). ``with_log``: the log's own channels in
+    the recording."""
     from dhlog.io.writer import staged_outputs
     from dhlog.result.document import holdout_csv, result_csv, result_document, terms_csv
 
-    document = result_document(result)
+    if document is None:
+        document = result_document(result)
     with staged_outputs(outputs, hold_signals=hold_signals) as temps:
         temps[0].write_bytes((json.dumps(document, indent=2) + "\n").encode())
         temps[1].write_bytes(result_csv(result, units=units).encode())
