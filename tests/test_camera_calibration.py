@@ -225,6 +225,15 @@ def test_two_cameras_fitted_together() -> None:
         assert np.all(np.abs(err) < 4 * cam.fixed_std[3:] + 1e-6), (err, cam.fixed_std)
     Qr = np.random.default_rng(8).uniform(robot.limits[:, 0], robot.limits[:, 1], (300, robot.n))
     assert _fk_rms(both.whole.model, truth, Qr) < _fk_rms(alone.whole.model, truth, Qr)
+    # the board's mount is the joint fit's (its centre at the joint fit's target in the last
+    # frame), not the first camera's own fit's, whose target lies elsewhere
+    assert both.extraction is not None and alone.extraction is not None
+    for cam in both.camera_results:
+        centre_on_flange = (
+            cam.T_flange_mounted[:3, :3] @ cams.centre() + cam.T_flange_mounted[:3, 3]
+        )
+        assert np.allclose(centre_on_flange, both.extraction.tool_point, atol=1e-9)
+    assert not np.allclose(both.extraction.tool_point, alone.extraction.tool_point, atol=1e-9)
     h = both.camera.holdout
     assert h is not None and h.calibrated_px < 0.35
     doc = result_document(both)

@@ -388,7 +388,7 @@ def _several_cameras(
     result.info = [line for line in result.info if "share their frame's error" not in line]
     fit = frame_clustered(fit_measured(model, placed.measurement, data), data.frame, result.info)
     ex, _, extract = _adopt(result, fit.whole)
-    _, T_mounted, _, mounted_std = hand_eye(first, extract, "eye-to-hand", centre)
+    _, T_mounted, _, mounted_std = hand_eye(fit, extract, "eye-to-hand", centre)
     cams_std = cameras_std(fit, extract)
     base: FloatArray = np.asarray(np.linalg.inv(ex.T_measurement_base), dtype=np.float64)
     check = None
