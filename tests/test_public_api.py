@@ -55,7 +55,8 @@ def test_every_public_name_is_exported_and_documented() -> None:
         value = getattr(dhlog, name)
         if name != "__version__":
             assert inspect.getdoc(value), f"dhlog.{name} has no docstring"
-    assert set(dir(dhlog)) >= set(dhlog.__all__)
+    # the one list: every name __all__ promises resolves through the lazy table, and no more
+    assert set(dhlog._PUBLIC) | {"__version__"} == set(dhlog.__all__)
     with pytest.raises(AttributeError, match="no attribute 'identify_now'"):
         _ = dhlog.identify_now  # type: ignore[attr-defined]
 
@@ -178,8 +179,16 @@ def test_log_to_rerun_writes_a_recording_rerun_verifies(
     rerun = Path(sys.executable).with_name("rerun")
     out = subprocess.run([str(rerun), "rrd", "verify", str(path)], capture_output=True, text=True)
     assert out.returncode == 0, out.stderr
-    rec = calibration.log_to_rerun()  # into a stream: a notebook's viewer
+    rec = calibration.log_to_rerun()  # into a stream: a notebook's viewer — kept in memory
     assert rec is not None
+    streamed = tmp_path / "streamed.rrd"
+    rec.save(str(streamed))  # what the stream holds, flushed to a file and verified
+    rec.flush()
+    rec.disconnect()
+    out = subprocess.run([str(rerun), "rrd", "verify", str(streamed)], capture_output=True)
+    assert out.returncode == 0 and streamed.stat().st_size > path.stat().st_size // 4
+    with pytest.raises(dhlog.UsageError, match="exists; pass overwrite=True"):
+        calibration.log_to_rerun(path)
 
 
 def test_a_dh_file_in_mm_and_degrees_is_read_in_si(tmp_path: Path) -> None:
@@ -200,6 +209,40 @@ def test_a_dh_file_in_mm_and_degrees_is_read_in_si(tmp_path: Path) -> None:
     assert np.allclose(arm.fk(np.zeros(2)), [0.78, 0.0, 0.4])
 
 
+def test_outputs_never_overwrite_inputs(calibration: dhlog.Calibration, tmp_path: Path) -> None:
+    """The inputs a call reads are never its outputs, overwrite or not: a URDF template, the
+    robot's own DH file for a simulated session; a loaded result saves as JSON only."""
+    template = tmp_path / "robot.urdf"
+    calibration.export("urdf", template)
+    with pytest.raises(dhlog.UsageError, match=r"robot\.urdf"):
+        calibration.export("urdf", template, template=template, overwrite=True)
+    truth = tmp_path / "arm.json"
+    dhlog.load(ROOT / "sample_logs" / "kr5_0.01mm.truth.json").save(truth)
+    with pytest.raises(dhlog.DhlogError, match="DH file is also an output"):
+        dhlog.simulate(truth, truth, overwrite=True)
+    assert dhlog.load(truth).n == 6  # still the DH file
+    with pytest.raises(dhlog.UsageError, match=r"must be a \.json path"):
+        dhlog.load(truth).save(tmp_path / "arm.toml")
+
+
+def test_a_log_with_no_joint_identified_is_a_partial_result(tmp_path: Path) -> None:
+    """Random poses without a nominal: no joint is identified (nothing swept, no start). The
+    command writes what it has and exits 3 naming the joints, as before the API; the API gives
+    the calibration, whose model raises naming why."""
+    from typer.testing import CliRunner
+
+    from dhlog.cli.app import app
+
+    sim = dhlog.simulate("kr5", tmp_path / "rp.mcap", protocol="random-poses", poses=12)
+    cal = dhlog.process(sim.log)
+    assert not cal.complete and cal.model is None
+    with pytest.raises(dhlog.UsageError, match="no joint was identified"):
+        cal.fk(np.zeros(6))
+    done = CliRunner().invoke(app, ["process", str(sim.log), "--no-rrd", "--model", "geometric"])
+    assert done.exit_code == 3, done.output
+    assert "partial result" in done.output and (tmp_path / "rp.dh.json").is_file()
+
+
 @pytest.mark.parametrize(
     ("call", "match"),
     [
@@ -208,6 +251,13 @@ def test_a_dh_file_in_mm_and_degrees_is_read_in_si(tmp_path: Path) -> None:
         (lambda: dhlog.process(SAMPLE, gravity=(0, 0, 0)), "gravity takes three"),
         (lambda: dhlog.process("no/such.mcap"), "no/such.mcap"),
         (lambda: dhlog.robot("kr6"), "kr6"),
+        (lambda: dhlog.process(SAMPLE, reference_pose=[0, -90, 90, 0, 45, 0]), "degrees"),
+        (
+            lambda: dhlog.load(SAMPLE.with_suffix(".truth.json"), nominal="kr5").compensate_poses(
+                np.eye(4)[None].repeat(2, 0), configuration=np.zeros((1, 6))
+            ),
+            "one per pose",
+        ),
         (lambda: dhlog.simulate("kr5", "x.mcap", warp=3), "no setting warp"),
     ],
 )

@@ -17,7 +17,7 @@ from typing import TYPE_CHECKING, Any, Literal
 import numpy as np
 from numpy.typing import ArrayLike
 
-from dhlog.errors import UsageError
+from dhlog.errors import DhlogError, UsageError
 from dhlog.geometry._checks import FloatArray
 from dhlog.model.dh import ModifiedDH, StandardDH, standard_to_modified
 from dhlog.model.fk import fk_frames, fk_point
@@ -53,8 +53,9 @@ class Calibration:
 
     #: the result document (the ``dhlog.result/1`` JSON contract; for a DH file, what it holds)
     document: dict[str, Any]
-    #: the model as forward kinematics reads it
-    model: DHModel
+    #: the model as forward kinematics reads it (None: a run that identified no joint — its
+    #: warnings say why; the model's properties then raise a UsageError naming the joints)
+    model: DHModel | None
     #: the nominal the run followed (None when none was given or the file does not name one)
     nominal: DHModel | None = None
     #: where it came from: the log processed, or the file loaded
@@ -64,45 +65,62 @@ class Calibration:
     _result: ProcessResult | None = field(default=None, repr=False, init=False)
     #: what the run was asked that adds outputs: a held-out check, terms beyond the geometry
     _asked: tuple[bool, bool] = field(default=(False, False), repr=False, init=False)
+    #: the run's other inputs (held-out logs): never an output
+    _inputs: tuple[str, ...] = field(default=(), repr=False, init=False)
 
     # ------------------------------------------------------------------ the model
+
+    def identified(self) -> DHModel:
+        """The model; a run that identified no joint raises a :class:`~dhlog.UsageError` naming
+        the joints and why (the run's warnings)."""
+        if self.model is None:
+            failed = [
+                f"joint {j.get('index')} ({j.get('error')})"
+                for j in self.document.get("joints", [])
+                if "error" in j
+            ]
+            raise UsageError(
+                f"{Path(self.source).name}: no joint was identified, so there is no model: "
+                + "; ".join(failed or self.warnings or ["see the warnings"])
+            )
+        return self.model
 
     @property
     def table(self) -> StandardDH:
         """The standard DH table (offsets at encoder zero)."""
-        return self.model.table
+        return self.identified().table
 
     @property
     def modified(self) -> ModifiedDH:
         """The same model as a modified (Craig) DH table; its base transform is
         ``T_base @ standard_to_modified(table)[1]`` (the result's ``modified_dh`` rows)."""
-        return standard_to_modified(self.model.table)[0]
+        return standard_to_modified(self.identified().table)[0]
 
     @property
     def n(self) -> int:
         """The number of joints."""
-        return self.model.table.n
+        return self.identified().table.n
 
     @property
     def joint_names(self) -> tuple[str, ...]:
         """The joints' names, as the log (or file) names them."""
-        return self.model.joint_names
+        return self.identified().joint_names
 
     @property
     def T_base(self) -> FloatArray:
         """DH frame 1 (the base) in the measurement frame M, a 4×4 transform."""
-        return self.model.T_base
+        return self.identified().T_base
 
     @property
     def tool_point(self) -> FloatArray:
         """The target (tool point) in the last DH frame, m (3,)."""
-        return self.model.tool_point
+        return self.identified().tool_point
 
     @property
     def terms(self) -> Terms | None:
         """The terms beyond the geometry (gravity compliance, transmission harmonics) the run
         chose, in the table's frames; None for a geometric model."""
-        return self.model.terms
+        return self.identified().terms
 
     @property
     def complete(self) -> bool:
@@ -141,7 +159,7 @@ class Calibration:
         if units.get("length", "m") != "m" or units.get("angle", "rad") != "rad":
             # a DH file in other units (mm, deg): its values as the model read them, in SI;
             # such a file carries no σ
-            t = self.model.table
+            t = self.identified().table
             table = [
                 {
                     "theta_offset": t.theta_offset[i],
@@ -262,13 +280,13 @@ class Calibration:
         beyond the geometry applied (the joints deflected first, as the model was fitted)."""
         values = self.table.check_q(q)
         return fk_point(
-            self.table, self.model.joint_values(values), self.tool_point, T_base=self.T_base
+            self.table, self.identified().joint_values(values), self.tool_point, T_base=self.T_base
         )
 
     def fk_frames(self, q: ArrayLike) -> FloatArray:
         """DH frames 1 … n+1 in M (…, n+1, 4, 4) at encoder values ``q``, terms applied."""
         values = self.table.check_q(q)
-        return fk_frames(self.table, self.model.joint_values(values), T_base=self.T_base)
+        return fk_frames(self.table, self.identified().joint_values(values), T_base=self.T_base)
 
     def export(
         self,
@@ -306,7 +324,7 @@ class Calibration:
             raise UsageError("export: a template is for the urdf format.")
         target = None if path is None else Path(path)
         if target is not None:
-            _refuse_existing(target, overwrite, self.source)
+            _refuse_existing(target, overwrite, self.source, template, limits_from)
         with self._as_file() as result:
             if format == "urdf" and template is not None:
                 text = exports.urdf_from_template(result, template)
@@ -353,7 +371,7 @@ class Calibration:
             )
         if not np.all(np.isfinite(Q)):
             raise UsageError("compensate: targets must be finite numbers.")
-        return compensate(self.model, controller, Q, limits=bounds)
+        return compensate(self.identified(), controller, Q, limits=bounds)
 
     def compensate_poses(
         self,
@@ -380,8 +398,15 @@ class Calibration:
             )
         config = None
         if configuration is not None:
-            config = np.asarray(configuration, dtype=np.float64).reshape(-1, self.n)
-        return compensate_poses(self.model, controller, T, configuration=config, limits=bounds)[0]
+            config = np.asarray(configuration, dtype=np.float64)
+            if config.shape != (len(T), self.n) or not np.all(np.isfinite(config)):
+                raise UsageError(
+                    f"compensate_poses: configuration must be finite ({len(T)}, {self.n}) joint "
+                    f"vectors, one per pose, not shape {config.shape}."
+                )
+        return compensate_poses(
+            self.identified(), controller, T, configuration=config, limits=bounds
+        )[0]
 
     def _controller(
         self,
@@ -429,12 +454,14 @@ class Calibration:
                     "save: a loaded calibration has no run to record; log_to_rerun() draws its "
                     "model."
                 )
+            if target.suffix != ".json":
+                raise UsageError(f"save: {target} must be a .json path (the result is JSON).")
             _refuse_existing(target, overwrite, self.source)
             _write_text(target, json.dumps(self.document, indent=2) + "\n")
             return [target]
         outputs = self.output_paths(target, recording=recording)
         for p in outputs:
-            _refuse_existing(p, overwrite, self.source)
+            _refuse_existing(p, overwrite, self.source, *self._inputs)
         target.parent.mkdir(parents=True, exist_ok=True)
         write_run(self, outputs, units, with_log=with_log)
         return outputs
@@ -453,13 +480,14 @@ class Calibration:
         *,
         recording: rr.RecordingStream | None = None,
         with_log: bool = False,
+        overwrite: bool = False,
     ) -> rr.RecordingStream | None:
         """The Rerun recording: for a run, what ``dhlog process`` records (the raw points, the
         fitted circles and axes, the DH frames, the residuals, the held-out errors, a camera's
         images); for a loaded calibration, its model with each joint swept in turn (``dhlog
         show``). With ``path``, written to that ``.rrd`` file atomically; otherwise logged into
         ``recording`` (default: a new stream, returned — in a notebook, call its
-        ``notebook_show()``)."""
+        ``notebook_show()``); an existing file is kept unless ``overwrite``."""
         import rerun as rr
 
         from dhlog.present.recording.writers import (
@@ -475,8 +503,7 @@ class Calibration:
         if path is not None:
             if recording is not None:
                 raise UsageError("log_to_rerun: give a path or a recording, not both.")
-            if Path(path).resolve() == Path(self.source).resolve():
-                raise UsageError(f"log_to_rerun: {path} is the input; choose another path.")
+            _refuse_existing(Path(path), overwrite, self.source, *self._inputs)
             if result is not None:
                 write_process_recording(result, path, with_log=with_log)
             else:
@@ -534,7 +561,8 @@ class Calibration:
         )
         rms = f", FK RMS {self.fk_rms * 1e3:.4f} mm" if self.fk_rms is not None else ""
         state = "" if self.complete else ", partial"
-        return f"<Calibration of {Path(self.source).name}: {self.n} joints{rms}{shown}{state}>"
+        n = len(self.document.get("joints", []))
+        return f"<Calibration of {Path(self.source).name}: {n} joints{rms}{shown}{state}>"
 
     @contextmanager
     def _as_file(self) -> Iterator[str]:
@@ -608,7 +636,7 @@ def _dh_model(spec: str | Path | DHModel | Robot | Calibration) -> DHModel:
         names = tuple(f"joint_{i + 1}" for i in range(spec.n))
         return DHModel(spec.table, spec.T_base, spec.tool_point, names, spec.name)
     if isinstance(spec, Calibration):
-        return spec.model
+        return spec.identified()
     if isinstance(spec, (str, Path)):
         return dh_model_from(str(spec))
     raise UsageError(
@@ -630,9 +658,16 @@ def _library_limits(spec: object) -> FloatArray | None:
     return None
 
 
-def _refuse_existing(path: Path, overwrite: bool, source: str) -> None:
-    if source and path.exists() and path.resolve() == Path(source).resolve():
-        raise UsageError(f"{path} is the input; choose another path.")
+def _refuse_existing(path: Path, overwrite: bool, *inputs: str | Path | None) -> None:
+    """An output that is one of the ``inputs`` (the log, a held-out log, a template …) is
+    refused whatever ``overwrite`` says; an existing one unless ``overwrite``."""
+    from dhlog.io.paths import refuse_inputs_as_outputs
+
+    given = [(Path(p), "input") for p in inputs if p]
+    try:
+        refuse_inputs_as_outputs([(p, label) for p, label in given if p.exists()], [path])
+    except DhlogError as exc:
+        raise UsageError(f"{exc} Choose another path.") from None
     if path.exists() and not overwrite:
         raise UsageError(f"{path} exists; pass overwrite=True to replace it.")
 

@@ -107,8 +107,11 @@ def process(
     ref = None
     if reference_pose is not None:
         ref = np.asarray(reference_pose, dtype=np.float64).ravel()
-        if not np.all(np.isfinite(ref)):
-            raise UsageError("process: reference_pose must be finite numbers (rad or m).")
+        if not np.all(np.isfinite(ref)) or np.any(np.abs(ref) > 2 * math.pi):
+            raise UsageError(
+                "process: reference_pose must be finite joint values in rad (m for prismatic "
+                "joints), each within ±2π: values beyond look like degrees (np.radians them)."
+            )
     result = process_log(
         log,
         pipeline=pipe,
@@ -127,6 +130,7 @@ def process(
     )
     found = calibration_of(result, limits=_library_limits(nominal))
     found._asked = (bool(holdout or validate), model != "geometric" and not analytic_only)
+    found._inputs = tuple(str(v) for v in validate)
     return found
 
 
@@ -145,14 +149,16 @@ def calibration_of(result: Any, *, limits: Any = None) -> Calibration:
     from dhlog.result.document import result_document
 
     document = result_document(result)
-    try:
-        model = parse_dh(document, str(result.path))
-    except DhlogError:  # a result without a complete table: what was identified stays
-        ex = result.extraction
-        names = tuple(j.name for j in result.joints)
-        if ex is None:
-            raise
-        model = DHModel(ex.standard, ex.T_measurement_base, np.zeros(3), names, str(result.path))
+    ex = result.extraction
+    model: DHModel | None = None
+    if ex is not None:  # None: no joint identified (the warnings say why); the rest is kept
+        try:
+            model = parse_dh(document, str(result.path))
+        except DhlogError:  # a result without a complete table: what was identified stays
+            names = tuple(j.name for j in result.joints)
+            model = DHModel(
+                ex.standard, ex.T_measurement_base, np.zeros(3), names, str(result.path)
+            )
     found = Calibration(
         document=document,
         model=model,
@@ -204,6 +210,10 @@ def robot(name: str | Path) -> Robot:
     from dhlog.io.dhfile import robot_or_dh_file
 
     return robot_or_dh_file(str(name))
+
+
+#: :func:`robot` under another name: simulate's and plan's parameter ``robot`` hides it there
+_robot = robot
 
 
 @dataclass(frozen=True)
@@ -272,7 +282,7 @@ def simulate(
     cfg = SimulationConfig(
         noise=noise, protocol=protocol, seed=seed, instrument=instrument, **options
     )
-    rob = robot if not isinstance(robot, (str, Path)) else _robot(str(robot))
+    rob = robot if not isinstance(robot, (str, Path)) else _robot(robot)
     return simulate_config(
         rob,
         cfg,
@@ -285,12 +295,6 @@ def simulate(
         exposure=exposure,
         overwrite=overwrite,
     )
-
-
-def _robot(spec: str) -> Robot:
-    from dhlog.io.dhfile import robot_or_dh_file
-
-    return robot_or_dh_file(spec)
 
 
 def simulate_config(
@@ -322,6 +326,11 @@ def simulate_config(
     truth_path = output.with_name(output.stem + ".truth.json")
     urdf_path = output.with_name(output.stem + ".urdf") if cfg.compliance else None
     outputs = [output, truth_path, *([urdf_path] if urdf_path else [])]
+    from dhlog.io.paths import refuse_inputs_as_outputs
+
+    robot_file = Path(rob.source)
+    if robot_file.is_file():  # a DH file: never overwritten by its own session
+        refuse_inputs_as_outputs([(robot_file, "robot's DH file")], outputs)
     for path in outputs:
         if path.exists() and not overwrite:
             raise UsageError(f"{path} exists; pass overwrite=True (--force) to replace it.")
@@ -479,7 +488,7 @@ def plan(
     from dhlog.cell.plan import plan_session
     from dhlog.simulator.config import SIX_DOF_TOOL_ROTATION, SimulationConfig, config_problems
 
-    rob = robot if not isinstance(robot, (str, Path)) else _robot(str(robot))
+    rob = robot if not isinstance(robot, (str, Path)) else _robot(robot)
     cfg = SimulationConfig(
         noise=noise,
         tracker_rate=tracker_rate,
@@ -533,9 +542,9 @@ def acceptance_test(
     nom = None if nominal is None else _dh_model(nominal)
     calibrated = None
     if isinstance(result, Calibration):
-        calibrated = result.model
+        calibrated = result.identified()
     elif result is not None:
-        calibrated = load(result).model
+        calibrated = load(result).identified()
     if nom is not None and calibrated is not None and nom.table.n != calibrated.table.n:
         raise UsageError(
             f"acceptance_test: the nominal {nom.source} has {nom.table.n} joints but the result "

@@ -299,12 +299,14 @@ def process(
                 frames=frame_range,
             )
             result = run_of(calibration)
-            if refine:
-                result.info.append(
+            if refine:  # in the console's report and in the JSON the calibration writes
+                said = (
                     "--refine is a no-op: the fit of the whole model to every sample is the "
                     "default (--analytic-only gives the per-joint circle fits and line geometry "
                     "alone)."
                 )
+                result.info.append(said)
+                calibration.document["notes"].append(said)
             advance("writing", 0.0)
             try:
                 folder.mkdir(parents=True, exist_ok=True)  # --out is created when missing
