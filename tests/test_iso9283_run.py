@@ -567,3 +567,40 @@ def test_program_with_the_encoders_alone(
         assert a2.cycles == b2.cycles == 2
         assert a2.AT == pytest.approx(b2.AT, abs=1e-6)
         assert a2.RT == pytest.approx(b2.RT, abs=1e-6)
+
+
+def test_user_mistakes_are_one_clear_error(
+    simulated: tuple[Path, dict[str, Any]], tmp_path: Path
+) -> None:
+    """Mistakes that gave a plausible report and exit 0: another robot's nominal (registered
+    as well as it can be, 80 mm and more off), the test program in degrees (its tool points are
+    not the nominal's FK of its joints), a program no visit matches (another robot's program of
+    the same joint count, consistent with its own nominal)."""
+    from dhlog.errors import Iso9283Error
+    from dhlog.iso9283.program import program_csv, test_program
+    from dhlog.model.robots import load_robot
+
+    log, _ = simulated
+    program = log.with_suffix(".program.csv")
+    with pytest.raises(Iso9283Error, match="no robot's nominal is that far off"):
+        run_logs([log], nominal=dh_model_from("ur5"))
+    lines = program.read_text().splitlines()
+    head, rows = lines[0], [r.split(",") for r in lines[1:]]
+    joints = [i for i, h in enumerate(head.split(",")) if h.startswith("j")]
+    for r in rows:
+        for i in joints:
+            r[i] = repr(float(np.degrees(float(r[i]))))
+    degrees = tmp_path / "degrees.csv"
+    degrees.write_text("\n".join([head, *(",".join(r) for r in rows)]) + "\n")
+    with pytest.raises(Iso9283Error, match="not the nominal kr5's forward kinematics"):
+        run_logs([log], nominal=dh_model_from("kr5"), commanded_csv=degrees)
+    other = tmp_path / "puma.csv"
+    other.write_text(program_csv(test_program(load_robot("puma560"), cycles=2, path_cycles=1)))
+    with pytest.raises(Iso9283Error, match="no visit in the log matches"):
+        run_logs([log], commanded_csv=other)
+
+
+def test_a_short_test_is_not_called_a_drift_test(test_log: IsoLog) -> None:
+    report = run_logs([test_log.log], nominal=dh_model_from("kr5"))
+    assert report.drift is not None and report.drift.hours < 0.5
+    assert any("clause 7.6's drift test runs over hours" in n for n in report.notes)

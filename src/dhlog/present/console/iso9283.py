@@ -11,7 +11,7 @@ from rich import box
 from rich.console import Console
 from rich.table import Table
 
-from dhlog.iso9283.run import Accuracy, Iso9283Report
+from dhlog.iso9283.run import DRIFT_HOURS, Accuracy, Iso9283Report
 from dhlog.present.console.notes import prose
 
 
@@ -111,7 +111,9 @@ def print_iso9283(console: Console, report: Iso9283Report) -> None:
         )
         if f.dAP is not None:
             text += f", dAP {_mm(f.dAP)} mm"
-        text += f", barycentre moved {_mm(f.shift)} mm ({_mm(f.rate)} mm/h)"
+        text += f", barycentre moved {_mm(f.shift)} mm"
+        if f.hours >= DRIFT_HOURS:  # a rate per hour from minutes would be an extrapolation
+            text += f" ({_mm(f.rate)} mm/h)"
         lines.append(("drift", text))
     lines.append(("frame", f"{report.frame}: {report.registration}"))
     lines.append(("commanded", report.commanded_from))
