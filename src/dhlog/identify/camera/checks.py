@@ -153,11 +153,13 @@ def camera_moved(
     sigma2 = fit.sigma**2
     limit2 = fit.whole.limit**2
 
-    def cost(placed: tuple[AxisModel, Any], corners: Corners) -> float:
-        r = measured(placed[0], placed[1], corners)
+    def truncated(r: FloatArray) -> float:  # a corner behind the camera (NaN) costs the limit
         return float(np.sum(np.minimum(np.nan_to_num(np.sum(r**2, axis=1), nan=limit2), limit2)))
 
-    whole = float(np.sum(np.minimum(np.sum(fit.residuals**2, axis=1), limit2)))
+    def cost(placed: tuple[AxisModel, Any], corners: Corners) -> float:
+        return truncated(measured(placed[0], placed[1], corners))
+
+    whole = truncated(fit.residuals)
 
     def drop(k: int) -> float:
         before = np.zeros(f, dtype=bool)

@@ -109,6 +109,8 @@ def process_observations(
     use = np.isfinite(pnp_rms) & (pnp_rms <= PNP_RMS)
     dropped = int(obs.frames - np.count_nonzero(use))
     notes: list[str] = list(obs.warnings)
+    # the further cameras' own (frames left out, unreadable images …), named by camera
+    notes += [f"{o.camera}: {w}" for o in observations[1:] for w in o.warnings]
     if dropped:
         bad = ", ".join(str(int(obs.frame[k])) for k in np.flatnonzero(~use)[:3])
         notes.append(
@@ -372,12 +374,13 @@ def _several_cameras(
             )
         p, _ = predict_points(model, o.q[ok])
         R, _ = predict_orientation(model, o.q[ok], layout, model.bases())
-        found = [
-            transform(R[:, :, f], p[f]) @ shift(-centre) @ np.linalg.inv(T[ok][f])
-            for f in range(int(np.count_nonzero(ok)))
-        ]
-        mean = Rotation.from_matrix(np.array([c[:3, :3] for c in found])).mean().as_matrix()
-        poses.append(transform(mean, np.median(np.array([c[:3, 3] for c in found]), axis=0)))
+        carried = np.zeros((p.shape[0], 4, 4))  # the board's frame in M at each frame
+        carried[:, :3, :3] = np.moveaxis(R, 2, 0)
+        carried[:, :3, 3] = p
+        carried[:, 3, 3] = 1.0
+        found = carried @ shift(-centre) @ np.linalg.inv(T[ok])  # one batch, not a copy a frame
+        mean = Rotation.from_matrix(found[:, :3, :3]).mean().as_matrix()
+        poses.append(transform(mean, np.median(found[:, :3, 3], axis=0)))
     data = stacked(observations)
     measurement = CamerasModel(tuple(o.intrinsics for o in observations), tuple(poses))
     # the further cameras placed first, the model held and every corner in (their PnP start
