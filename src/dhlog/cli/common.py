@@ -22,6 +22,8 @@ from typer.core import TyperArgument, TyperCommand, TyperGroup
 from dhlog.errors import DhlogError, OutputError
 
 EXIT_USAGE, EXIT_INPUT, EXIT_PARTIAL = 1, 2, 3
+#: the result was written but dhlog judges it implausible (``ProcessResult.implausible``)
+EXIT_IMPLAUSIBLE = 4
 EXIT_INTERRUPTED, EXIT_OUTPUT_CLOSED, EXIT_TERMINATED = 130, 141, 143
 
 #: The epilog of ``dhlog --help``, ``process --help`` and ``batch --help`` (no square brackets:

@@ -183,6 +183,11 @@ class ProcessResult:
     cameras: list[Any] = field(default_factory=list)
     #: with several cameras, each one's product (``camera`` is the first's)
     camera_results: list[Any] = field(default_factory=list)
+    #: why dhlog judges this result implausible, one sentence each naming the evidence and the
+    #: fix (a suspected joint permutation or unit slip, a validation session no footing could
+    #: place, ...); empty when plausible. The result is still written, marked ``plausible: false``
+    #: in the JSON, and ``dhlog process`` exits with ``EXIT_IMPLAUSIBLE`` (4)
+    implausible: list[str] = field(default_factory=list)
 
     @property
     def complete(self) -> bool:
