@@ -21,7 +21,7 @@ import pytest
 
 from dhlog.geometry._checks import wrap_angle
 from dhlog.geometry.lines import Line
-from dhlog.identify.read import analytic, hayati, propagate
+from dhlog.identify.read import analytic, extract, hayati, propagate
 from dhlog.identify.run import ProcessResult, process_data
 from dhlog.io.dhfile import dh_model_from
 from dhlog.io.memory import log_data_from_session
@@ -175,3 +175,21 @@ def test_hayati_branches_describe_the_same_line() -> None:
     np.testing.assert_allclose(A[:3, 2], B[:3, 2], atol=1e-15)
     np.testing.assert_allclose(A[:3, 0], -B[:3, 0], atol=1e-15)
     assert hayati.hayati_parameters(F, line, (2, 3), (0.0, math.pi)).a > 0
+
+
+def test_a_nominal_without_a_sign_gives_its_theta() -> None:
+    """A SCARA's prismatic axis 4 meets axis 3 (nominal a3 = 0, α3 = 0) at a tilt of the noise's
+    size: x4 along their cross product has no sign the nominal's a or α could give; it takes the
+    one that puts θ3 nearer the nominal's 0 (it was 178° off). The FK is the same."""
+    session = _session("scara", "random-poses")
+    result = _run(session, "scara")
+    with pytest.MonkeyPatch.context() as mp:  # x4 as Eq. 17 gives it
+        mp.setattr(extract, "_toward_theta", lambda x_next, *args: x_next)
+        before = _run(session, "scara")
+    ex, ex0 = result.extraction, before.extraction
+    assert ex is not None and ex0 is not None
+    assert abs(wrap_angle(ex.standard.theta_offset[2])) < math.pi / 2
+    assert abs(wrap_angle(ex0.standard.theta_offset[2])) > math.pi / 2
+    Q = np.random.default_rng(5).uniform(-1.0, 1.0, (200, 4)) * [2.5, 2.5, 3.0, 0.04]
+    got, want = _fk(ex.standard, result, Q), _fk(ex0.standard, before, Q)
+    assert np.max(np.linalg.norm(got - want, axis=1)) < 1e-9

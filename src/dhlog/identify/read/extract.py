@@ -24,7 +24,9 @@ The ambiguous choices follow ``shared/DESIGN.md`` and are deterministic:
   axis passes as close to the measurement origin as the remaining constraint allows.
 
 With a nominal table every ambiguous choice takes the branch that matches it: the sign of each
-``x_{i+1}`` (the sign of ``α_i`` for intersecting axes, of ``a_i`` otherwise), ``d_i`` of parallel
+``x_{i+1}`` (the sign of ``a_i`` for skew and parallel axes, of ``α_i`` for intersecting ones;
+where the nominal's a_i and α_i are both zero, the sign that puts ``θ_i`` nearer the nominal's),
+``d_i`` of parallel
 axes, ``d_1`` without base plane, ``θ_offset_1``, prismatic axes placed at the nominal ``a``/``d``,
 the last frame as frame n times the nominal ``A_n``, and angles reported nearest the nominal.
 """
@@ -300,8 +302,11 @@ def extract_dh(
             # convention exactly even when the axes are only parallel within the tolerance
             o_next = intersect_line_plane(line_next, Plane(base, z_i))
             x_next = _unit(_reject(_reject(o_next - base, z_i), z_next))  # Eq. 18
-            if nominal is not None and nominal.a[i] < 0.0:
-                x_next = -x_next
+            if nominal is not None:
+                if abs(nominal.a[i]) > distance_tol:
+                    x_next = -x_next if nominal.a[i] < 0.0 else x_next
+                else:
+                    x_next = _toward_theta(x_next, xs[i], z_i, float(desired_theta[i]))
             origins[i + 1], xs[i + 1] = o_next, x_next
         else:
             p_i, p_next = common_normal_feet(line_i, line_next)  # Eq. 14-15
@@ -316,6 +321,10 @@ def extract_dh(
                     sign = 1.0 if a_here * nominal.a[i] >= 0.0 else -1.0
                 elif abs(np.sin(nominal.alpha[i])) > np.sin(angle_tol):
                     sign = 1.0 if np.sin(nominal.alpha[i]) > 0.0 else -1.0
+                else:  # the nominal's a and α have no sign: its θ decides
+                    sign = float(
+                        _toward_theta(sign * normal, xs[i], z_i, float(desired_theta[i])) @ normal
+                    )
             origins[i + 1], xs[i + 1] = p_next, sign * normal
         s_i = steady[i]
         if s_i is not None and i < n - 1 and _nearly_parallel(z_i, z_next):
@@ -422,6 +431,17 @@ def _place_with_nominal(
         x_next = rotation_about(z_i, float(desired_theta[i])) @ x_i
     point = o_i + nominal_d[i] * z_i + nominal.a[i] * x_next
     lines[i + 1] = Line(point, e)
+
+
+def _toward_theta(
+    x_next: FloatArray, x_i: FloatArray | None, z_i: FloatArray, theta: float
+) -> FloatArray:
+    """``x_next`` or its reverse, whichever puts θ_i (from ``x_i`` about ``z_i``) nearer
+    ``theta``: the nominal's branch where its a and α give no sign (``x_next`` as it is while
+    ``x_i`` is not known yet)."""
+    if x_i is None:
+        return x_next
+    return x_next if x_next @ (rotation_about(z_i, theta) @ x_i) >= 0.0 else -x_next
 
 
 def _default_x(z: FloatArray) -> FloatArray:
