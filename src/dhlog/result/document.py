@@ -151,12 +151,15 @@ def result_document(result: ProcessResult) -> dict[str, Any]:
         q = result.reference_pose
         doc["hayati"] = []
         for k, h in enumerate(result.hayati):
+            i = h.joints[0] - 1
+            offset = h.theta - (float(q[i]) if result.joints[i].type is JointType.REVOLUTE else 0.0)
+            if result.nominal is not None:  # within π of the nominal's, as the table
+                near = float(result.nominal.table.theta_offset[i])
+                offset = near + wrap_angle(offset - near)
             row: dict[str, Any] = {
                 "joints": list(h.joints),
                 "theta": h.theta,
-                "theta_offset": h.theta - float(q[h.joints[0] - 1])
-                if result.joints[h.joints[0] - 1].type is JointType.REVOLUTE
-                else h.theta,
+                "theta_offset": offset,
                 "a": h.a,
                 "alpha": h.alpha,
                 "beta": h.beta,
