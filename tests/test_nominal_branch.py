@@ -7,14 +7,17 @@ and 0.05° off its nominal, processed with its nominal: axes 2, 3, 4 are nearly 
 the plane) has two directions — a ≥ 0 with θ2 = 180° is the same line as a < 0 with θ2 = 0. The
 table shown, the JSON, the CSV and measured − nominal take the nominal's; the forward kinematics
 is the one the other branch gives (to 1e-9 m), and the σ are those of the other branch. A KR5
-(positive a) is left as it was.
+(positive a) is left as it was. A previous result as the nominal (a sub-millimetre a1 beside
+α1 = 90°) keeps its branch too, and a nominal whose a and α are zero keeps its θ.
 """
 
 from __future__ import annotations
 
 import csv
 import io
+import json
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -35,9 +38,32 @@ from dhlog.simulator.session import Session, simulate_session
 OFF = {"perturb_length": 5e-4, "perturb_angle": math.radians(0.05), "seed": 3}
 
 
+def _config(protocol: str, seed: int = 3) -> SimulationConfig:
+    off = {**OFF, "seed": seed}
+    return SimulationConfig(protocol=protocol, poses=60, **off)  # type: ignore[arg-type]
+
+
 def _session(robot: str, protocol: str) -> Session:
-    config = SimulationConfig(protocol=protocol, poses=60, **OFF)  # type: ignore[arg-type]
-    return simulate_session(load_robot(robot), config)
+    return simulate_session(load_robot(robot), _config(protocol))
+
+
+def _by_signs(
+    x_next: np.ndarray,
+    x_i: np.ndarray | None,
+    z_i: np.ndarray,
+    z_next: np.ndarray,
+    offset: np.ndarray,
+    nominal: StandardDH,
+    i: int,
+    theta: np.ndarray,
+) -> np.ndarray:
+    """x_{i+1} as the sign of the nominal's a_i (beyond 1 µm) or else of its α_i gives it."""
+    a, sin_alpha = float(offset @ x_next), float(np.cross(z_i, z_next) @ x_next)
+    if abs(nominal.a[i]) > 1e-6:
+        return x_next if a * nominal.a[i] >= 0.0 else -x_next
+    if abs(math.sin(nominal.alpha[i])) > 1e-6:
+        return x_next if sin_alpha * math.sin(nominal.alpha[i]) >= 0.0 else -x_next
+    return x_next
 
 
 #: a reference pose far from home (the axes read off there; θ = offset + joint value)
@@ -190,13 +216,41 @@ def test_a_nominal_without_a_sign_gives_its_theta() -> None:
     one that puts θ3 nearer the nominal's 0 (it was 178° off). The FK is the same."""
     session = _session("scara", "random-poses")
     result = _run(session, "scara")
-    with pytest.MonkeyPatch.context() as mp:  # x4 as Eq. 17 gives it
-        mp.setattr(extract, "_toward_theta", lambda x_next, *args: x_next)
+    with pytest.MonkeyPatch.context() as mp:  # every x as Eq. 17-19 give it
+        mp.setattr(extract, "_nearest_branch", lambda x_next, *args: x_next)
         before = _run(session, "scara")
     ex, ex0 = result.extraction, before.extraction
     assert ex is not None and ex0 is not None
     assert abs(wrap_angle(ex.standard.theta_offset[2])) < math.pi / 2
     assert abs(wrap_angle(ex0.standard.theta_offset[2])) > math.pi / 2
     Q = np.random.default_rng(5).uniform(-1.0, 1.0, (200, 4)) * [2.5, 2.5, 3.0, 0.04]
+    got, want = _fk(ex.standard, result, Q), _fk(ex0.standard, before, Q)
+    assert np.max(np.linalg.norm(got - want, axis=1)) < 1e-9
+
+
+@pytest.mark.parametrize("robot", ["ur5", "puma560"])
+def test_a_previous_result_as_the_nominal(robot: str, tmp_path: Path) -> None:
+    """Recalibrating against the last result (``--nominal last.dh.json``): its a1 is a fraction
+    of a mm (the robot's, not the library's 0), its α1 90°. Following the sign of so small an a1
+    flipped x2 (α1 −90°, θ2 180° off: measured − nominal said ±180°); the row's nearest branch
+    keeps every difference to what the two robots differ by (0.5 mm, 0.05° σ each), and the FK
+    is the same as on the other branch."""
+    first = _run(simulate_session(load_robot(robot), _config("sweeps", seed=11)), robot)
+    path = tmp_path / "last.dh.json"
+    path.write_text(json.dumps(result_document(first)))
+    session = simulate_session(load_robot(robot), _config("sweeps", seed=12))
+    log = log_data_from_session(session)
+    result = process_data(log, nominal=dh_model_from(str(path)))
+    with pytest.MonkeyPatch.context() as mp:  # every x_{i+1} by a's sign, else α's
+        mp.setattr(extract, "_nearest_branch", _by_signs)
+        before = process_data(log, nominal=dh_model_from(str(path)))
+    diff, diff0 = nominal_difference(result, shown=True), nominal_difference(before, shown=True)
+    assert diff is not None and diff0 is not None
+    assert np.max(np.abs(diff0[:, [0, 3]])) > 3.0  # the flip this guards against
+    assert np.max(np.abs(diff[:, [0, 3]])) < math.radians(1.0), np.degrees(diff[:, [0, 3]])
+    assert np.max(np.abs(diff[:, 2])) < 5e-3, diff[:, 2]
+    ex, ex0 = result.extraction, before.extraction
+    assert ex is not None and ex0 is not None
+    Q = np.random.default_rng(5).uniform(-math.pi, math.pi, (200, 6))
     got, want = _fk(ex.standard, result, Q), _fk(ex0.standard, before, Q)
     assert np.max(np.linalg.norm(got - want, axis=1)) < 1e-9
