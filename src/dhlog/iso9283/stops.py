@@ -43,7 +43,7 @@ if TYPE_CHECKING:
     from dhlog.iso9283.run import DriftReport
 
 #: With ``--stops`` a run of samples longer than this (s) is refused: a time series, not a stop.
-MAX_STOP = 30.0
+MAX_STOP = 10.0
 #: What stops do not determine, one line each (the report's ``not_determined``).
 NOT_DETERMINED = (
     "stabilisation time and overshoot (clauses 7.4, 7.5): stops hold no samples of the arrival",

@@ -93,11 +93,11 @@ class IsoDrift:
 
     pose: str
     group: int
-    hours: float
+    hours: float | None  # None: not known (stops whose stamps are no times)
     dAP: float | None
     dRP: float | None
     shift: float
-    rate_per_hour: float
+    rate_per_hour: float | None
 
 
 @dataclass(frozen=True)
@@ -277,10 +277,11 @@ def _drift(f: FieldReader, block: dict[str, Any]) -> IsoDrift | None:
     d = f.obj(v, at)
     shift = _size(f, d, "shift", at)
     rate = _size(f, d, "rate_per_hour", at)
-    hours = f.number(f.get(d, "hours", at), f"{at}.hours", sigma=True)
+    given = f.get(d, "hours", at, null=True)  # null: stops whose stamps are no times
+    hours = None if given is None else f.number(given, f"{at}.hours", sigma=True)
     if shift is None:
         f.fail(f"{at}.shift", "is null")
-    if rate is None:
+    if rate is None and hours is not None:
         f.fail(f"{at}.rate_per_hour", "is null")
     return IsoDrift(
         f.text(f.get(d, "pose", at), f"{at}.pose"),
