@@ -354,7 +354,9 @@ def segment_log(
     dwells = [] if stops else find_dwells(t_s, xyz, settings)
     measured_as = None
     if stops or (stops is None and not dwells):
-        dwells, measured_as = stop_runs(name, t_s, settings, explicit=bool(stops))
+        dwells, measured_as = stop_runs(
+            name, t_s, gap=settings.gap, min_time=settings.min_time, explicit=bool(stops)
+        )
     if not dwells:
         raise Iso9283Error(
             name,

@@ -1011,12 +1011,18 @@ def run_logs(
 
 
 def _timed(report: Iso9283Report, synthetic: bool) -> Iso9283Report:
-    """Stops whose stamps are not times (``dhlog import``'s): the drift's hours not known."""
-    from dhlog.iso9283.stops import mark_timing
-
-    if report.stops is None:
+    """Stops whose stamps are not times (``dhlog import``'s one stop every 2 s,
+    :func:`dhlog.iso9283.stops.synthetic_timing`): the drift's hours and rate not known (NaN:
+    null in the JSON), said in a note."""
+    if report.stops is None or report.drift is None or not synthetic:
         return report
-    drift, notes = mark_timing(report.notes, report.drift, synthetic)
+    notes = [n for n in report.notes if not n.startswith("drift: the first and last cycles")]
+    notes.append(
+        "drift: the stops are in the export's row order, taken as time order; their stamps are "
+        "dhlog import's (one stop every 2 s), so the time between the first and last cycles is "
+        "not known (hours and rate_per_hour null): dAP and dRP are the change over the test."
+    )
+    drift = replace(report.drift, hours=math.nan, rate=math.nan)
     return replace(report, drift=drift, notes=notes)
 
 

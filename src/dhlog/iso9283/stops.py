@@ -29,18 +29,12 @@ primary target's, so the further targets' AP and AD are not determined (said).
 from __future__ import annotations
 
 import itertools
-from dataclasses import replace
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 import numpy as np
 
 from dhlog.errors import Iso9283Error
 from dhlog.geometry._checks import FloatArray
-
-if TYPE_CHECKING:
-    from dhlog.iso9283.cycles import DwellSettings
-    from dhlog.iso9283.run import DriftReport
 
 #: With ``--stops`` a run of samples longer than this (s) is refused: a time series, not a stop.
 MAX_STOP = 10.0
@@ -52,13 +46,12 @@ NOT_DETERMINED = (
 
 
 def stop_runs(
-    name: str, t_s: FloatArray, settings: DwellSettings, *, explicit: bool
+    name: str, t_s: FloatArray, *, gap: float, min_time: float, explicit: bool
 ) -> tuple[list[tuple[int, int]], str | None]:
     """The stops of a tracker stream at times ``t_s`` (s): (first, end) sample indices of each
-    run between gaps longer than ``settings.gap``, and how the log was found to be stops (None:
-    it is not: a run lasts ``settings.min_time`` or more, and ``explicit`` is False).
-    ``explicit`` (``--stops``): a run longer than ``MAX_STOP`` is refused."""
-    gap, min_time = settings.gap, settings.min_time
+    run between gaps longer than ``gap`` (s), and how the log was found to be stops (None: it
+    is not: a run lasts ``min_time`` (s) or more, and ``explicit`` is False). ``explicit``
+    (``--stops``): a run longer than ``MAX_STOP`` is refused."""
     breaks = np.flatnonzero(np.diff(t_s) > gap) + 1
     edges = np.r_[0, breaks, t_s.size].astype(np.int64)
     runs = [(int(a), int(b)) for a, b in itertools.pairwise(edges) if b > a]
@@ -127,19 +120,3 @@ def further_note(count: int) -> str:
         "further_targets, each its own report); AP and AD of the further targets are not "
         "determined (the nominal's tool point is the primary target's); RP, RD and drift are."
     )
-
-
-def mark_timing(
-    notes: list[str], drift: DriftReport | None, synthetic: bool
-) -> tuple[DriftReport | None, list[str]]:
-    """The drift of stops whose stamps are not times (:func:`synthetic_timing`): its hours and
-    rate are not known (NaN: null in the JSON), said in a note."""
-    if drift is None or not synthetic:
-        return drift, notes
-    notes = [n for n in notes if not n.startswith("drift: the first and last cycles")]
-    notes.append(
-        "drift: the stops are in the export's row order, taken as time order; their stamps are "
-        "dhlog import's (one stop every 2 s), so the time between the first and last cycles is "
-        "not known (hours and rate_per_hour null): dAP and dRP are the change over the test."
-    )
-    return replace(drift, hours=float("nan"), rate=float("nan")), notes
