@@ -104,6 +104,24 @@ def test_fanuc_rp_per_pose_and_reflector_is_the_formulas(
     assert "RP 3" in console
 
 
+def test_fanuc_orientation_rp_is_the_reflectors_frames(
+    fanuc: tuple[dict[str, Any], np.ndarray, str],
+) -> None:
+    """RP_a, RP_b, RP_c of each pose: 3 S of the fixed-axis angles of the frame reflectors A, B,
+    C make, written out in plain numpy in tests/test_iso9283_realdata.py (to 1e-9 relative)."""
+    from test_iso9283_realdata import frames, rp_abc_by_hand
+
+    doc, points, _ = fanuc
+    block = doc["iso9283"]
+    assert block["orientation"] is True
+    assert any("frame targets 1, 2, 3 make" in n for n in block["notes"])
+    bary = points[:, :, 0].mean(axis=1)
+    for pose in block["poses"]:
+        k = int(np.argmin(np.linalg.norm(bary - np.array(pose["barycentre"]), axis=1)))
+        want = rp_abc_by_hand(frames(*(points[k, :, r] for r in range(3))))
+        np.testing.assert_allclose(pose["RP_abc"], want, rtol=1e-9, err_msg=pose["pose"])
+
+
 def test_fanuc_rp_figures(fanuc: tuple[dict[str, Any], np.ndarray, str]) -> None:
     """The real robot's RP (reflector A): 0.065 mm to 0.254 mm over the 24 poses, as
     docs/iso9283.md reports (a check that the figures the docs show are the command's)."""

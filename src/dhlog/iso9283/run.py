@@ -997,6 +997,13 @@ def run_logs(
                 "check that the program is the one the robot ran (its joints in radians, this "
                 "robot's)",
             )
+    if len(further) >= 2:  # three reflectors or more: the tool's orientation from them
+        from dhlog.iso9283.reflectors import with_reflector_frames
+
+        segmented = [
+            with_reflector_frames(seg, [further[0][i], further[1][i]], seg.notes)
+            for i, seg in enumerate(segmented)
+        ]
     synthetic = all(synthetic_timing(log) for log in logs)
     report = _timed(iso9283_report(segmented, nominal=nominal, calibrated=calibrated), synthetic)
     if not further:
