@@ -138,8 +138,6 @@ def print_iso9283(console: Console, report: Iso9283Report) -> None:
     """The report's tables and lines (see the module docstring); several targets: each further
     target's pose table, distance and drift after the primary one's."""
     what = "stops, mm" if report.stops is not None else "mm, s"
-    if report.further:
-        what += f"; RP k: target k of {1 + len(report.further)}, AP target 1's"
     console.print(_pose_table(report, f"ISO 9283 pose characteristics ({what})"))
     _orientation_table(console, report)
     _path_table(console, report)
@@ -148,6 +146,14 @@ def print_iso9283(console: Console, report: Iso9283Report) -> None:
         lines = [(f"{label} 1", text) for label, text in lines]
         for other in report.further:
             lines += [(f"{label} {other.target}", text) for label, text in _distance_drift(other)]
+    if report.further:
+        lines.append(
+            (
+                "targets",
+                f"{1 + len(report.further)}: RP k is target k's; AP, the orientation RP and "
+                "the frame are target 1's",
+            )
+        )
     lines.append(("frame", f"{report.frame}: {report.registration}"))
     lines.append(("commanded", report.commanded_from))
     if report.after_basis is not None:
