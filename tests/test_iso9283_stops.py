@@ -185,20 +185,25 @@ def simulated_stops(
         perturb_angle=2e-4,
     )
     truth = json.loads(Path(sim.truth).read_text())["iso9283"]
-    T = np.array(truth["T_measurement_base"])
     rng = np.random.default_rng(5)
-    rows = ["point,q1 [rad],q2 [rad],q3 [rad],q4 [rad],q5 [rad],q6 [rad],x [m],y [m],z [m]"]
-    noisy = []
-    for k, v in enumerate(truth["visits"]):
-        p_base = np.array(v["attained"]) + rng.normal(0, 2e-6, 3)
-        noisy.append(p_base)
-        p = T[:3, :3] @ p_base + T[:3, 3]
-        rows.append(",".join([f"S{k + 1}", *(repr(float(x)) for x in [*v["q"], *p])]))
-    export = tmp / "stops.csv"
-    export.write_text("\n".join(rows) + "\n", encoding="utf-8")
+    noisy = np.array([np.array(v["attained"]) + rng.normal(0, 2e-6, 3) for v in truth["visits"]])
     log = tmp / "stops.mcap"
-    _ok(["import", str(export), "-o", str(log)])
-    return log, Path(sim.truth), truth, np.array(noisy)
+    _ok(["import", str(_export(truth, noisy, tmp / "stops.csv", timed=False)), "-o", str(log)])
+    return log, Path(sim.truth), truth, noisy
+
+
+def _export(truth: dict[str, Any], noisy: np.ndarray, path: Path, *, timed: bool) -> Path:
+    """The visits as a tracker's export: point name, (the stop's time, s,) joints (rad) and the
+    attained position ``noisy`` (base frame) carried into the tracker's frame (m)."""
+    T = np.array(truth["T_measurement_base"])
+    head = "point," + ("time," if timed else "") + ",".join(f"q{j} [rad]" for j in range(1, 7))
+    rows = [head + ",x [m],y [m],z [m]"]
+    for k, (v, p_base) in enumerate(zip(truth["visits"], noisy, strict=True)):
+        p = T[:3, :3] @ p_base + T[:3, 3]
+        t = [(v["t_arrival_ns"] + v["t_leave_ns"]) / 2e9] if timed else []
+        rows.append(",".join([f"S{k + 1}", *(repr(float(x)) for x in [*t, *v["q"], *p])]))
+    path.write_text("\n".join(rows) + "\n", encoding="utf-8")
+    return path
 
 
 def test_simulated_stops_against_the_truth(
@@ -251,3 +256,24 @@ def test_simulated_stops_without_a_result_register_the_nominal(
         X = np.array([v["attained"] for v in truth["visits"] if v["pose"] == p.name])
         assert p.before is not None
         assert p.RP == pytest.approx(pose_repeatability(X).RP_l, abs=6e-6)
+
+
+def test_timed_stops_give_the_drift_its_hours(
+    simulated_stops: tuple[Path, Path, dict[str, Any], np.ndarray], tmp_path: Path
+) -> None:
+    """The same stops exported with each stop's time (``--time``): still stops (one sample
+    every few seconds), and the drift's hours are the time between the first and last P1 groups
+    (the truth's mid-stop times, to 1 ms); dRP the same as without times."""
+    import dhlog
+
+    log, truth_path, truth, noisy = simulated_stops
+    timed = tmp_path / "timed.mcap"
+    export = _export(truth, noisy, tmp_path / "timed.csv", timed=True)
+    _ok(["import", str(export), "-o", str(timed), "--time", "time"])
+    report = dhlog.acceptance_test(timed, nominal="kr5", result=truth_path)
+    untimed = dhlog.acceptance_test(log, nominal="kr5", result=truth_path)
+    assert report.stops is not None and report.drift is not None and untimed.drift is not None
+    t = [(v["t_arrival_ns"] + v["t_leave_ns"]) / 2e9 for v in truth["visits"] if v["pose"] == "P1"]
+    g = report.drift.group
+    assert report.drift.hours * 3600 == pytest.approx(np.mean(t[-g:]) - np.mean(t[:g]), abs=1e-3)
+    assert report.drift.dRP == pytest.approx(untimed.drift.dRP, abs=1e-12)
