@@ -544,11 +544,14 @@ def acceptance_test(
         raise UsageError("acceptance_test: give at least one log.")
     pipe = _pipeline(pipeline)
     nom = None if nominal is None else _dh_model(nominal)
+    from dhlog.iso9283.stops import further_tool_points
+
     calibrated = None
-    if isinstance(result, Calibration):
-        calibrated = result.identified()
-    elif result is not None:
-        calibrated = load(result).identified()
+    further_tools: list[Any] = []
+    if result is not None:
+        cal = result if isinstance(result, Calibration) else load(result)
+        calibrated = cal.identified()
+        further_tools = further_tool_points(cal.document, str(cal.source))
     if nom is not None and calibrated is not None and nom.table.n != calibrated.table.n:
         raise UsageError(
             f"acceptance_test: the nominal {nom.source} has {nom.table.n} joints but the result "
@@ -561,4 +564,5 @@ def acceptance_test(
         calibrated=calibrated,
         commanded_csv=commanded,
         stops=stops,
+        further_tools=further_tools,
     )

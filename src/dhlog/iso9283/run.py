@@ -952,12 +952,15 @@ def run_logs(
     commanded_csv: str | Path | None = None,
     settings: DwellSettings | None = None,
     stops: bool | None = None,
+    further_tools: Sequence[FloatArray] = (),
 ) -> Iso9283Report:
     """``dhlog iso9283``: read each log, find its visits and path passes, and report.
     ``commanded_csv``: the test program ``dhlog plan --iso9283`` wrote
     (:func:`dhlog.iso9283.program.read_program`); ``stops``: the logs are static measurements,
     one per stop (None: detected; :mod:`dhlog.iso9283.stops`). Several targets: the primary
-    one's report, each further target's in ``further``."""
+    one's report, each further target's in ``further``; ``further_tools``: the result's tool
+    points of targets 2, 3, … (its ``tool.further_targets``), which give their AP and AD
+    (with ``calibrated``)."""
     from dhlog.io.reader import read_log
     from dhlog.iso9283.program import read_program
     from dhlog.iso9283.stops import synthetic_timing, target_count
@@ -1010,11 +1013,19 @@ def run_logs(
         return report
     from dhlog.iso9283.stops import further_note
 
-    others = [
-        replace(_timed(iso9283_report(segs), synthetic), target=k)
-        for k, segs in enumerate(further, start=2)
-    ]
-    return replace(report, further=others, notes=[*report.notes, further_note(1 + len(others))])
+    others = []
+    placed = 0
+    for k, segs in enumerate(further, start=2):
+        nominal_k = calibrated_k = None
+        if nominal is not None and calibrated is not None and k - 2 < len(further_tools):
+            tool = np.asarray(further_tools[k - 2], dtype=np.float64)
+            nominal_k = replace(nominal, tool_point=tool)
+            calibrated_k = replace(calibrated, tool_point=tool)
+            placed += 1
+        got = iso9283_report(segs, nominal=nominal_k, calibrated=calibrated_k)
+        others.append(replace(_timed(got, synthetic), target=k))
+    note = further_note(1 + len(others), placed)
+    return replace(report, further=others, notes=[*report.notes, note])
 
 
 def _timed(report: Iso9283Report, synthetic: bool) -> Iso9283Report:

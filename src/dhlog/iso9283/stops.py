@@ -113,10 +113,52 @@ def target_count(points: object) -> int:
     return int(points["target"].max()) + 1  # type: ignore[arg-type]
 
 
-def further_note(count: int) -> str:
-    """The note of a log with ``count`` targets: what is computed for the further ones."""
-    return (
+def further_note(count: int, placed: int) -> str:
+    """The note of a log with ``count`` targets of which ``placed`` further ones have the
+    result's tool point: what is computed for the further ones."""
+    head = (
         f"{count} targets: each reflector is its own target (targets 2 … {count} in "
-        "further_targets, each its own report); AP and AD of the further targets are not "
-        "determined (the nominal's tool point is the primary target's); RP, RD and drift are."
+        "further_targets, each its own report)"
     )
+    if placed >= count - 1:
+        return (
+            f"{head}; each further target's AP and AD against the nominal's and the result's "
+            "forward kinematics with the result's point of that target (tool.further_targets: "
+            "the nominal has none)."
+        )
+    which = f"targets {placed + 2} … {count}" if placed else "the further targets"
+    return (
+        f"{head}; AP and AD of {which} are not determined (the nominal's tool point is the "
+        "primary target's; a result with tool.further_targets, given with --nominal, gives "
+        "theirs); RP, RD and drift are."
+    )
+
+
+def further_tool_points(document: dict[str, object], source: str) -> list[FloatArray]:
+    """The further targets' tool points (m, the last frame) of a result document's
+    ``tool.further_targets`` (target 2, 3, … in order); each checked (three finite numbers
+    within 10 m), a bad one refused naming the field."""
+    from dhlog.errors import InputError
+
+    tool = document.get("tool")
+    items = tool.get("further_targets") if isinstance(tool, dict) else None
+    if items is None:
+        return []
+    if not isinstance(items, list):
+        raise InputError(f"{source}: tool.further_targets must be a list; re-write the result.")
+    out = []
+    for k, item in enumerate(items):
+        point = item.get("point") if isinstance(item, dict) else None
+        ok = (
+            isinstance(point, list)
+            and len(point) == 3
+            and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in point)
+        )
+        value = np.asarray(point if ok else [np.nan] * 3, dtype=np.float64)
+        if not ok or not np.all(np.isfinite(value)) or float(np.max(np.abs(value))) > 10.0:
+            raise InputError(
+                f"{source}: tool.further_targets[{k}].point must be three finite numbers (m); "
+                "re-write the result with dhlog process."
+            )
+        out.append(value)
+    return out
