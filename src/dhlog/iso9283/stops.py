@@ -23,7 +23,9 @@ no path is measured): marked not determined, no figure printed.
 **Several targets** (``dhlog import --targets``, or a pipeline's ``extra_topics``): each
 reflector is its own target with its own report (``Iso9283Report.further``), RP, RD and drift per
 reflector. AP needs each reflector's commanded position: the nominal's tool point is the
-primary target's, so the further targets' AP and AD are not determined (said).
+primary target's, so the further targets' AP and AD are not determined (said), unless the
+result gives their points (``tool.further_targets``, :func:`further_tool_points`): then the
+nominal's and the result's forward kinematics of the commanded joints with that point.
 """
 
 from __future__ import annotations

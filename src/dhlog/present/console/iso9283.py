@@ -151,7 +151,7 @@ def print_iso9283(console: Console, report: Iso9283Report) -> None:
             (
                 "targets",
                 f"{1 + len(report.further)}: RP k is target k's; AP, the orientation RP and "
-                "the frame are target 1's",
+                "the frame are target 1's (each target's in the JSON's further_targets)",
             )
         )
     lines.append(("frame", f"{report.frame}: {report.registration}"))
