@@ -377,7 +377,7 @@ def read_iso9283(document: Any, path: Path, sha256: str, modified: datetime) -> 
         _distance(f, block),
         _drift(f, block),
         paths,
-        f.texts(f.get(block, "notes", at), f"{at}.notes"),
+        [*_not_determined(f, block, at), *f.texts(f.get(block, "notes", at), f"{at}.notes")],
         None,
     )
     if frame != "base":
@@ -385,6 +385,15 @@ def read_iso9283(document: Any, path: Path, sha256: str, modified: datetime) -> 
     from dataclasses import replace
 
     return replace(shown, cube=cube_from_poses(poses))
+
+
+def _not_determined(f: FieldReader, block: dict[str, Any], at: str) -> list[str]:
+    """The report's ``not_determined`` lines (a test from stops: stabilisation, paths) as
+    notes, each marked so; none where the report has none."""
+    given = block.get("not_determined")
+    if given is None:
+        return []
+    return [f"Not determined: {t}." for t in f.texts(given, f"{at}.not_determined")]
 
 
 def load_iso9283(path: Path) -> Iso9283Shown:
