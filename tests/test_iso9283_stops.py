@@ -340,3 +340,29 @@ def test_a_second_reflector_has_its_own_accuracy_with_the_results_point(
     without = dhlog.acceptance_test(log, nominal="kr5", result=truth_path)
     assert all(p.before is None for p in without.further[0].poses)
     assert any("not determined" in n and "further_targets" in n for n in without.notes)
+
+
+def test_the_stops_report_validates_and_the_certificate_reads_it(
+    simulated_stops: tuple[Path, Path, dict[str, Any], np.ndarray], tmp_path: Path
+) -> None:
+    """``dhlog iso9283`` on the stops with the nominal and the result: the JSON validates
+    against the schema (stabilisation null, drift hours null), and the certificate's reader
+    takes it, the not-determined lines among its notes."""
+    import jsonschema  # type: ignore[import-untyped]
+
+    from dhlog.present.certificate.iso9283 import load_iso9283
+
+    log, truth_path, _, _ = simulated_stops
+    args = ["iso9283", str(log), "--nominal", "kr5", "--result", str(truth_path)]
+    console = _ok([*args, "--out", str(tmp_path), "--no-rrd"])
+    assert "AP after" in console and "not determined" in console
+    report = tmp_path / "stops.iso9283.json"
+    doc = json.loads(report.read_text())
+    schema = Path(__file__).parents[1] / "src" / "dhlog" / "schemas" / "iso9283.schema.json"
+    jsonschema.validate(doc, json.loads(schema.read_text()))
+    block = doc["iso9283"]
+    assert block["measured_as"] == "stops" and block["drift"]["hours"] is None
+    assert all(p["stabilisation_time"] is None for p in block["poses"])
+    shown = load_iso9283(report)
+    assert shown.drift is not None and shown.drift.hours is None
+    assert any(n.startswith("Not determined: stabilisation") for n in shown.notes)
