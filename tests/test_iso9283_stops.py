@@ -366,3 +366,34 @@ def test_the_stops_report_validates_and_the_certificate_reads_it(
     shown = load_iso9283(report)
     assert shown.drift is not None and shown.drift.hours is None
     assert any(n.startswith("Not determined: stabilisation") for n in shown.notes)
+
+
+def test_import_targets_refuses_what_it_cannot_read(tmp_path: Path) -> None:
+    """``--targets`` naming a prefix the header lacks, a prefix twice, or given with ``--x``:
+    one line each naming the fix (exit 2), nothing written; the header's triples in a unit each
+    (mm and m) are read in their own units."""
+    export = tmp_path / "two.csv"
+    export.write_text(
+        "q1,q2,q3,q4,q5,q6,A x [mm],A y [mm],A z [mm],B x [m],B y [m],B z [m]\n"
+        "1,2,3,4,5,6,1000,2000,3000,1.1,2.1,3.1\n"
+        "2,3,4,5,6,7,1001,2001,3001,1.2,2.2,3.2\n",
+        encoding="utf-8",
+    )
+    out = tmp_path / "two.mcap"
+    for extra, said in (
+        (["--targets", "A,C"], "no columns C x, y, z"),
+        (["--targets", "A,a"], "twice"),
+        (["--targets", "A,B", "--x", "A x"], "leave --x"),
+    ):
+        got = runner.invoke(app, ["import", str(export), "-o", str(out), *extra])
+        assert got.exit_code == 2 and said in got.output, got.output
+        assert len([line for line in got.output.splitlines() if line.strip()]) <= 2
+        assert not out.exists()
+    _ok(["import", str(export), "-o", str(out), "--targets", "A,B"])
+    from dhlog.io.reader import read_log
+
+    points = read_log(out).points
+    assert sorted(set(points["target"].to_list())) == [0, 1]
+    a = points.filter(points["target"] == 0)
+    b = points.filter(points["target"] == 1)
+    assert a["x"].to_list() == pytest.approx([1.0, 1.001]) and b["x"].to_list() == [1.1, 1.2]
