@@ -42,7 +42,7 @@ def _pose_table(report: Iso9283Report, title: str) -> Table:
     table = Table(title=title, box=box.SIMPLE_HEAD, title_justify="left", pad_edge=False)
     table.add_column("pose")
     table.add_column("n", justify="right")
-    table.add_column("AP before" if after else "AP", justify="right")
+    table.add_column("AP before", justify="right")
     if after:
         table.add_column("AP after", justify="right")
     table.add_column("RP" if not rp_of else "RP 1", justify="right")
