@@ -148,7 +148,8 @@ def fail(exc: DhlogError, code: int = EXIT_INPUT) -> None:
 
 
 def check_folder(folder: Path) -> None:
-    """A command's output folder must exist (only ``process --out`` creates one)."""
+    """A command's output folder must exist (``process --out`` and ``iso9283 --out`` create
+    theirs: :func:`check_writable` before the work, the folder made before writing)."""
     _refuse_file(folder)
     if not folder.is_dir():
         stderr.print(f"error: the folder {plain(folder)} does not exist; create it first.")

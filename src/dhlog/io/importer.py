@@ -33,7 +33,7 @@ a stop instead of 40, so that 200 000 stops write in seconds.
 from __future__ import annotations
 
 import json
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -45,7 +45,8 @@ from dhlog.io.exports.joints import with_joints_file
 from dhlog.io.exports.options import ImportOptions, checked_options
 from dhlog.io.exports.source import EPOCH_NS, Source, from_table
 from dhlog.io.exports.spatialanalyzer import is_table, spatialanalyzer_points
-from dhlog.io.exports.table import DEFAULT_LENGTH_UNIT, read_table
+from dhlog.io.exports.table import DEFAULT_LENGTH_UNIT, Table, read_table
+from dhlog.io.exports.targets import further_positions, further_topics, target_triples
 from dhlog.io.paths import same_file
 from dhlog.model.dh import JointType
 
@@ -83,6 +84,8 @@ class Imported:
     warnings: list[str] = field(default_factory=list)
     orientation: NDArray[np.float64] | None = None
     notes: list[str] = field(default_factory=list)
+    #: further targets' positions (k, m, 3), m, at the point stamps (``--targets``)
+    further: NDArray[np.float64] | None = None
 
 
 def import_source(source: str | Path, opts: ImportOptions) -> Imported:
@@ -90,6 +93,11 @@ def import_source(source: str | Path, opts: ImportOptions) -> Imported:
     path = Path(source)
     checked_options(opts)
     if opts.format == "spatialanalyzer" and not is_table(path, opts):
+        if opts.targets:
+            raise InputError(
+                f"{path}: a SpatialAnalyzer point list holds one target per point; --targets "
+                "is for a table whose rows hold several targets' x, y, z columns."
+            )
         if opts.joints_file is None:
             raise InputError(
                 f"{path}: a SpatialAnalyzer point list holds no joint values; give them with "
@@ -97,6 +105,8 @@ def import_source(source: str | Path, opts: ImportOptions) -> Imported:
             )
         names, xyz, lines = spatialanalyzer_points(path, opts.length_unit or DEFAULT_LENGTH_UNIT)
         src = Source(str(path), lines, names, xyz)
+    elif opts.targets:
+        src = _with_targets(read_table(path), opts)
     else:
         src = from_table(read_table(path), opts)
     if opts.joints_file is not None:
@@ -128,6 +138,9 @@ def import_source(source: str | Path, opts: ImportOptions) -> Imported:
         else "from the source",
         **src.provenance,
     }
+    if src.further is not None:
+        provenance["targets"] = str(1 + len(src.further))
+        provenance["further_target_topics"] = ",".join(further_topics(len(src.further)))
     if opts.joints_file is not None:
         provenance["joints_file"] = str(Path(opts.joints_file).resolve())
         provenance["joints_file_sha256"] = _sha256(Path(opts.joints_file))
@@ -143,7 +156,30 @@ def import_source(source: str | Path, opts: ImportOptions) -> Imported:
         list(src.warnings),
         src.quat,
         list(src.notes),
+        None if src.further is None else np.asarray(src.further, dtype=np.float64),
     )
+
+
+def _with_targets(table: Table, opts: ImportOptions) -> Source:
+    """A table's points with several targets (``--targets``): the first prefix's triple read
+    as the target (``--x/--y/--z``), the others' positions beside it."""
+    if (opts.x, opts.y, opts.z) != ("x", "y", "z"):
+        raise InputError(
+            f"{table.path}: --targets names the targets' columns; leave --x, --y, --z out."
+        )
+    triples = target_triples(table, opts.targets)
+    (x, y, z), further = triples[0], triples[1:]
+    src = from_table(table, replace(opts, x=x, y=y, z=z))
+    if further:
+        src.further = further_positions(table, further, opts)
+        if src.cov is not None:
+            src.notes.append(
+                f"{table.path}: the uncertainty columns are the first target's; the further "
+                "targets carry none (the noise model applies to them)."
+            )
+    shown = "; ".join(", ".join(t) for t in triples)
+    src.notes.append(f"{table.path}: {len(triples)} target(s) read from {shown}.")
+    return src
 
 
 def _sha256(path: Path) -> str:
@@ -203,7 +239,8 @@ def _joint_payloads(
 
 def write_imported(imported: Imported, out: str | Path) -> None:
     """Write ``imported`` as a ROS 2 MCAP log (atomically), with its provenance; the messages
-    in time order (points before joint states at the same stamp), ordered in one sort."""
+    in time order (points before joint states at the same stamp, further targets after them),
+    ordered in one sort."""
     from mcap.writer import CompressionType, Writer
 
     from dhlog._version import __version__
@@ -211,10 +248,15 @@ def write_imported(imported: Imported, out: str | Path) -> None:
 
     point_schema, points = _point_messages(imported)
     joints = _joint_payloads(imported.joint_t_ns, imported.joint_names, imported.joint_q)
-    times = np.concatenate([imported.point_t_ns, imported.joint_t_ns]).astype(np.int64)
-    stream = np.repeat([0, 1], [len(points), len(joints)])
+    further = [] if imported.further is None else list(imported.further)
+    extra = [ros2.encode_point_stamped(imported.point_t_ns, xyz, "tracker") for xyz in further]
+    times = np.concatenate(
+        [imported.point_t_ns, imported.joint_t_ns, *(imported.point_t_ns for _ in extra)]
+    ).astype(np.int64)
+    sizes = [len(points), len(joints), *(len(e) for e in extra)]
+    stream = np.repeat(np.arange(len(sizes)), sizes)
     order = np.lexsort((stream, times))  # stable: each stream keeps its own order
-    payloads = points + joints
+    payloads = points + joints + [p for e in extra for p in e]
     with atomic_output(out) as f:
         writer = Writer(f, compression=CompressionType.ZSTD, enable_crcs=False)
         writer.start(profile="ros2", library=f"dhlog import {__version__}")
@@ -222,10 +264,17 @@ def write_imported(imported: Imported, out: str | Path) -> None:
         jid = writer.register_schema(
             ros2.JOINT_STATE, "ros2msg", ros2.MSGDEFS[ros2.JOINT_STATE].encode()
         )
-        channels = (
+        channels = [
             writer.register_channel("/tracker/point", "cdr", pid),
             writer.register_channel("/joint_states", "cdr", jid),
-        )
+        ]
+        if extra:  # further targets: PointStamped at the point stamps
+            fid = writer.register_schema(
+                ros2.POINT_STAMPED, "ros2msg", ros2.MSGDEFS[ros2.POINT_STAMPED].encode()
+            )
+            channels += [
+                writer.register_channel(topic, "cdr", fid) for topic in further_topics(len(extra))
+            ]
         add = writer.add_message
         ordered = zip(order.tolist(), times[order].tolist(), stream[order].tolist(), strict=True)
         for i, t, s in ordered:

@@ -295,13 +295,25 @@ def read_log(
                 raise damage from None
             raise
         reason = f"using pipeline '{pipeline.name}' ({why})"
-        if IMPORT_METADATA in scan.metadata_names and _imported_orientation(path):
+        record = import_record(path) if IMPORT_METADATA in scan.metadata_names else {}
+        if record.get("orientation") == "true":
             point = replace(pipeline.streams["point"], orientation=True)
             pipeline = replace(pipeline, streams={**pipeline.streams, "point": point})
             reason += (
                 ", with the target's orientation (dhlog import wrote it from the export: "
                 "its dhlog.import record says orientation = true)"
             )
+        further = tuple(t for t in record.get("further_target_topics", "").split(",") if t)
+        if further and not pipeline.streams["point"].extra_topics:
+            point = replace(pipeline.streams["point"], extra_topics=further)
+            pipeline = replace(pipeline, streams={**pipeline.streams, "point": point})
+            reason += (
+                f", with the further targets on {', '.join(further)} (dhlog import wrote them "
+                "from the export's --targets)"
+            )
+            # read again with their topics named: the scan decoded the pipeline's streams only
+            again = read_log(path, pipeline, fast=fast, unzstd=unzstd, hint_unread=hint_unread)
+            return replace(again, pipeline_reason=reason)
     present = scan.topics()
     infos: dict[str, list[ChannelInfo]] = {}
     for stream, spec in pipeline.streams.items():
@@ -457,19 +469,20 @@ def read_log(
     )
 
 
-def _imported_orientation(path: str | Path) -> bool:
-    """True when the ``dhlog.import`` metadata record of the MCAP file at ``path`` says the
-    export carried the target's orientation (``orientation = "true"``)."""
+def import_record(path: str | Path) -> dict[str, str]:
+    """The ``dhlog.import`` metadata record of the MCAP file at ``path`` (empty when it has
+    none or it cannot be read): ``orientation = "true"`` where the export carried the target's
+    orientation, ``further_target_topics`` where it held several targets, ``timing``."""
     from mcap.reader import make_reader
 
     try:
         with open(path, "rb") as f:
             for record in make_reader(f).iter_metadata():
                 if record.name == IMPORT_METADATA:
-                    return record.metadata.get("orientation") == "true"
+                    return {str(k): str(v) for k, v in record.metadata.items()}
     except Exception:  # a record that cannot be read turns nothing on
-        return False
-    return False
+        return {}
+    return {}
 
 
 def _read_bag(

@@ -186,7 +186,7 @@ def _xyz_names(table: Table, opts: ImportOptions, notes: list[str]) -> tuple[str
         raise ConversionError(
             table.path,
             f"has no column x but several triples that may be the target's position ({shown}); "
-            "name the right one with --x, --y, --z.",
+            "name the right one with --x, --y, --z (or several targets with --targets).",
         )
     x, y, z = triples[0]
     notes.append(f"{table.path}: the target's position was read from {x}, {y}, {z}.")

@@ -143,6 +143,8 @@ class Source:
     #: (``"the header"``, ``"--angle-unit"``, ``"--angle-unit (shared)"``, ``"the default"``)
     angles: NDArray[np.float64] | None = None
     angles_read: tuple[str, str, str] | None = None
+    #: further targets' positions (k, m, 3), m (``--targets``)
+    further: NDArray[np.float64] | None = None
 
     def take(self, rows: NDArray[np.int64]) -> Source:
         """The points at ``rows``, in that order."""
@@ -157,6 +159,7 @@ class Source:
             t_ns=None if self.t_ns is None else self.t_ns[rows],
             q=None if self.q is None else self.q[rows],
             angles=None if self.angles is None else self.angles[rows],
+            further=None if self.further is None else self.further[:, rows],
         )
 
     def unit_slips(self, types: list[JointType] | None = None) -> None:
