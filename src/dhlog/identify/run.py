@@ -279,6 +279,8 @@ def process_log(
         pipeline,
         fast=fast,
         progress=None if progress is None else (lambda f: progress("reading", f)),
+        joint_names=None if nominal is None else nominal.joint_names,
+        joint_source=None if nominal is None else nominal.source,
     )
     result = process_data(
         log,
@@ -904,7 +906,13 @@ def _validate_log(
     if ex is None or not result.complete:
         result.warnings.append(f"{path}: not scored: the result is not complete.")
         return
-    log = read_log(path, pipeline, fast=fast)
+    log = read_log(
+        path,
+        pipeline,
+        fast=fast,
+        joint_names=result.segmentation.joint_names,
+        joint_source=f"{result.path} (the calibrated log)",
+    )
     seg = segment_log(log, joint_types=list(ex.standard.joint_types))
     if seg.n_joints != ex.standard.n or not seg.has_encoders:
         raise InputError(

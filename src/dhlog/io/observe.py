@@ -281,7 +281,7 @@ def _first_walk(name: str, pipeline: Pipeline, progress: Callable[[float], None]
             f"{name}: {bad} of {total} message(s) on {topic} could not be decoded and were "
             f"skipped (first at {first})."
         )
-    frame, names = joints_frame(name, spec.topic, blocks, pipeline)
+    frame, names, _ = joints_frame(name, spec.topic, blocks, pipeline)
     set_aside: dict[str, int] = {}
     frame = clean(frame, "joints", set_aside)
     if set_aside:
