@@ -280,7 +280,7 @@ def process_log(
         fast=fast,
         progress=None if progress is None else (lambda f: progress("reading", f)),
         joint_names=None if nominal is None else nominal.joint_names,
-        joint_source=None if nominal is None else nominal.source,
+        joint_source="model" if nominal is None else nominal.source,
     )
     result = process_data(
         log,
