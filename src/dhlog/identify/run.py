@@ -70,6 +70,7 @@ from dhlog.identify.joints.checks import (
     check_slips,
     check_units,
 )
+from dhlog.identify.joints.permutation import suspected_permutation
 from dhlog.identify.joints.sweeps import (
     JointReport,
     TargetAtReference,
@@ -354,6 +355,12 @@ def process_data(
     check_units(seg, log, phases, notes)
     seg, timing = clock_start(seg, log, info, phases)
     check_sizes(name, n, nominal, reference_pose)
+    implausible = []
+    order = log.joint_order
+    if nominal is not None and (order is None or not order.by_name):  # the data may tell
+        permuted = suspected_permutation(seg, nominal)
+        if permuted is not None:
+            implausible.append(permuted.reason(seg.joint_names))
     every = shown_stride(seg.height)
     if every > 1:
         info.append(
@@ -412,6 +419,7 @@ def process_data(
         noise=log.pipeline.noise,
         folds=holdout,
         model_request=model,
+        implausible=implausible,
     )
     kwargs: dict[str, Any] = {
         "angle_tol": angle_tol,

@@ -74,7 +74,7 @@ def as_mcap(
             with os.fdopen(fd, "wb") as f, Reader(path) as bag:
                 if not is_sqlite3(bag):
                     raise InputError(f"{path}: not a rosbag2 bag in sqlite3 storage.")
-                storages = getattr(bag.storage, "storages", None) or [bag.storage]
+                files = len(getattr(bag.storage, "storages", None) or [bag.storage])
                 writer = Writer(f, chunk_size=CHUNK_BYTES, compression=CompressionType.NONE)
                 writer.start(profile="ros2", library="dhlog (from a rosbag2 sqlite3 bag)")
                 distro = getattr(bag, "ros_distro", None)
@@ -107,6 +107,6 @@ def as_mcap(
                 f"{path}: the sqlite3 storage cannot be read ({exc}); copy the bag again from "
                 "where it was recorded."
             ) from None
-        yield Path(tmp), len(storages), mode
+        yield Path(tmp), files, mode
     finally:
         Path(tmp).unlink(missing_ok=True)
