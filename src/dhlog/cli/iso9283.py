@@ -74,7 +74,7 @@ def iso9283(
     first = logs[0]
     folder = out if out is not None else first.resolve().parent
     check_folder(folder)
-    stem = first.name.removesuffix(".zstd").removesuffix(".mcap")
+    stem = first.name.removesuffix(".zstd").removesuffix(".mcap").removesuffix(".db3")
     target = folder / f"{stem}.iso9283.json"
     recording = None if no_rrd else folder / f"{stem}.iso9283.rrd"
     outputs = [target] if recording is None else [target, recording]

@@ -239,7 +239,7 @@ def process(
             raise typer.Exit(EXIT_USAGE)
         request = replace(request, masses=str(masses))
     folder = out if out is not None else log.parent
-    stem = log.name.removesuffix(".zstd").removesuffix(".mcap")
+    stem = log.name.removesuffix(".zstd").removesuffix(".mcap").removesuffix(".db3")
     outputs = output_names(
         folder / f"{stem}.dh.json",
         recording=not no_rrd,

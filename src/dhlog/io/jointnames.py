@@ -67,8 +67,10 @@ def numbers(names: Sequence[str]) -> list[int] | None:
 
 def named(names: Sequence[str] | None) -> bool:
     """Whether ``names`` (a model's) name the joints rather than number them: a DH file
-    without ``joints[].name`` numbers them ``joint_1`` … (no names to match)."""
-    return bool(names) and numbers(list(names or [])) is None
+    without ``joints[].name`` numbers them ``joint_1`` … (no names to match); a name given
+    twice names no joint (the DH file's reader refuses it)."""
+    listed = list(names or [])
+    return bool(listed) and numbers(listed) is None and len(set(listed)) == len(listed)
 
 
 def _behind_prefix(stream: str, model: str) -> bool:
