@@ -369,3 +369,24 @@ def test_numbered_names() -> None:
     assert numbers(["joint_1", "J2", "A3", "axis 4", "q5", "theta6"]) == [1, 2, 3, 4, 5, 6]
     assert numbers(["joint_1", "joint_3"]) is None  # not 1 … n
     assert numbers(["elbow_joint"]) is None
+
+
+def test_dhlog_import_keeps_the_joint_names(tmp_path: Path) -> None:
+    """An export with a UR arm's joint columns (here in alphabetical order): ``dhlog import``
+    writes them in chain order under their names, and the log is matched to ur5 by name."""
+    rng = np.random.default_rng(2)
+    q = rng.uniform(-90, 90, size=(12, 6))
+    header = ["Point Name", "X [mm]", "Y [mm]", "Z [mm]"] + [f"{UR[k]} [deg]" for k in ALPHABETICAL]
+    rows = [
+        [f"P{i}", *map(str, rng.normal(size=3) * 500), *(str(q[i, k]) for k in ALPHABETICAL)]
+        for i in range(12)
+    ]
+    export = tmp_path / "ur.csv"
+    export.write_text("\n".join(",".join(r) for r in [header, *rows]) + "\n")
+    run = CliRunner().invoke(app, ["import", str(export), "-o", str(tmp_path / "ur.mcap")])
+    assert run.exit_code == 0, run.output
+    log = read_log(tmp_path / "ur.mcap", joint_names=UR)
+    assert log.joint_names == UR and log.joint_order is not None
+    assert log.joint_order.how == "name" and log.joints is not None
+    first = log.joints.drop("t_ns").to_numpy()[0]
+    np.testing.assert_allclose(np.degrees(first), q[0], atol=1e-9)
