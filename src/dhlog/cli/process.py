@@ -32,7 +32,10 @@ from dhlog.errors import DhlogError, OutputError
 
 def process(
     log: Annotated[
-        Path, typer.Argument(metavar="LOG", help="The session log (.mcap, or a bag folder).")
+        Path,
+        typer.Argument(
+            metavar="LOG", help="The session log (.mcap or .db3, or a rosbag2 bag folder)."
+        ),
     ],
     pipeline: Annotated[
         str | None,
