@@ -390,3 +390,27 @@ def test_dhlog_import_keeps_the_joint_names(tmp_path: Path) -> None:
     assert log.joint_order.how == "name" and log.joints is not None
     first = log.joints.drop("t_ns").to_numpy()[0]
     np.testing.assert_allclose(np.degrees(first), q[0], atol=1e-9)
+
+
+def test_the_simulator_writes_the_drivers_joint_states(tmp_path: Path) -> None:
+    """``dhlog simulate ur5 --driver-joints``: the joint states named and ordered as UR's
+    driver publishes them, the truth in chain order under the same names; a robot without
+    driver names is refused."""
+    out = tmp_path / "ur5.mcap"
+    args = ["simulate", "ur5", "-o", str(out), "--protocol", "random-poses", "--poses", "8"]
+    run = CliRunner().invoke(app, [*args, "--driver-joints", "--joint-rate", "20"])
+    assert run.exit_code == 0, run.output
+    log = read_log(out)
+    assert log.joint_names == [UR[k] for k in ALPHABETICAL]
+    truth = json.loads((tmp_path / "ur5.truth.json").read_text())
+    assert [j["name"] for j in truth["joints"]] == UR
+    matched = read_log(out, joint_names=UR)
+    assert log.joints is not None and matched.joints is not None
+    np.testing.assert_array_equal(
+        matched.joints.drop("t_ns").to_numpy(),
+        log.joints.drop("t_ns").to_numpy()[:, np.argsort(ALPHABETICAL)],
+    )
+    refused = CliRunner().invoke(
+        app, ["simulate", "puma560", "-o", str(tmp_path / "p.mcap"), "--driver-joints"]
+    )
+    assert refused.exit_code == 1 and "joint_names" in refused.output  # a usage error
