@@ -247,6 +247,8 @@ def process_log(
             camera,
             jobs=jobs,
             progress=None if progress is None else (lambda f: progress("detecting", f)),
+            joint_names=None if nominal is None else nominal.joint_names,
+            joint_source="model" if nominal is None else nominal.source,
         )
         found = cast(
             ProcessResult,

@@ -24,7 +24,7 @@ from typing import Any
 import numpy as np
 import polars as pl
 
-from dhlog.errors import DhlogError, InputError, MissingTopicError, PipelineError
+from dhlog.errors import InputError, MissingTopicError, PipelineError
 from dhlog.io import scratch
 from dhlog.io.decode.blocks import Block, bulk_layout, decode_stream
 from dhlog.io.decode.columns import ColumnSink, layout_plan
@@ -510,8 +510,26 @@ def _read_bag(
     (:mod:`dhlog.io.sqlitebag`)."""
     from rosbags.rosbag2 import Reader, ReaderError
 
-    if _is_sqlite3(folder):
-        return _read_sqlite3(folder, pipeline, fast, progress, joint_names, joint_source)
+    from dhlog.io.sqlitebag import as_mcap, sqlite3_storage
+
+    if sqlite3_storage(folder):  # read as the MCAP file it is copied into
+        with as_mcap(folder, progress) as copy:
+            log = read_log(
+                copy.path,
+                pipeline,
+                fast=fast,
+                progress=copy.reading,
+                joint_names=joint_names,
+                joint_source=joint_source,
+            )
+        return replace(
+            log,
+            path=str(folder),
+            warnings=[copy.renamed(w) for w in log.warnings],
+            pipeline_reason=None
+            if log.pipeline_reason is None
+            else f"{log.pipeline_reason}; {copy.stored}",
+        )
     try:
         with Reader(folder) as bag:
             paths = [Path(s.path) for s in bag.storage.storages]  # type: ignore[attr-defined]
@@ -581,55 +599,6 @@ def _read_bag(
         + (", messages zstd-compressed" if per_message else ""),
         joined([log.commanded for log in parts]),
         first.joint_order,
-    )
-
-
-def _is_sqlite3(path: Path) -> bool:
-    """Whether ``path`` is a ``.db3`` file or a bag folder whose storage files are ``.db3``
-    (file-compressed: ``.db3.zstd``)."""
-    if not path.is_dir():
-        return path.suffix == ".db3"
-    try:
-        return any(p.name.endswith((".db3", ".db3.zstd")) for p in path.iterdir())
-    except OSError:
-        return False
-
-
-def _read_sqlite3(
-    path: Path,
-    pipeline: Pipeline | None,
-    fast: bool,
-    progress: Callable[[float], None] | None,
-    joint_names: Sequence[str] | None,
-    joint_source: str,
-) -> LogData:
-    """The sqlite3 bag at ``path`` read as the MCAP file :func:`dhlog.io.sqlitebag.as_mcap`
-    copies it into; the messages and errors name the bag, not the copy."""
-    from dhlog.io.sqlitebag import as_mcap
-
-    def step(lo: float) -> Callable[[float], None] | None:
-        return None if progress is None else (lambda f: progress(lo + f / 2))
-
-    with as_mcap(path, step(0.0)) as (copy, files, mode):
-        try:
-            log = read_log(
-                copy,
-                pipeline,
-                fast=fast,
-                progress=step(0.5),
-                joint_names=joint_names,
-                joint_source=joint_source,
-            )
-        except DhlogError as exc:
-            exc.args = tuple(str(a).replace(str(copy), str(path)) for a in exc.args)
-            raise
-    stored = f"a rosbag2 bag in sqlite3 storage ({files} .db3 file(s)"
-    stored += f", {mode}-compressed)" if mode else ")"
-    return replace(
-        log,
-        path=str(path),
-        warnings=[w.replace(str(copy), str(path)) for w in log.warnings],
-        pipeline_reason=None if log.pipeline_reason is None else f"{log.pipeline_reason}; {stored}",
     )
 
 

@@ -18,10 +18,11 @@ import os
 import tempfile
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from dhlog.errors import InputError
+from dhlog.errors import DhlogError, InputError
 from dhlog.io import ros2
 
 #: The temporary MCAP file's chunk size (bytes; rosbag2's MCAP default).
@@ -57,8 +58,53 @@ def _definition(msgtype: str, msgdef: Any, distro: str | None) -> tuple[str, byt
         return "ros2msg", known.encode() if known else b""
 
 
+def sqlite3_storage(path: Path) -> bool:
+    """Whether ``path`` is a ``.db3`` file or a bag folder whose storage files are ``.db3``
+    (file-compressed: ``.db3.zstd``)."""
+    if not path.is_dir():
+        return path.suffix == ".db3"
+    try:
+        return any(p.name.endswith((".db3", ".db3.zstd")) for p in path.iterdir())
+    except OSError:
+        return False
+
+
+@dataclass(frozen=True)
+class Copy:
+    """The temporary MCAP copy of the bag at ``bag``: its ``path``, what the bag is
+    (``stored``, for the reader's message), and ``reading``: the progress callback for the
+    read of the copy (the second half of the work)."""
+
+    bag: Path
+    path: Path
+    stored: str
+    reading: Callable[[float], None] | None
+
+    def renamed(self, text: str) -> str:
+        """``text`` naming the bag where it names the copy."""
+        return text.replace(str(self.path), str(self.bag))
+
+
 @contextmanager
-def as_mcap(
+def as_mcap(path: Path, progress: Callable[[float], None] | None = None) -> Iterator[Copy]:
+    """The sqlite3 bag at ``path`` copied into a temporary MCAP file (:class:`Copy`), removed on
+    leaving; an error raised inside names the bag, not the copy. ``progress`` gets the fraction
+    of the work done: the copy's first half, the read of the copy (``Copy.reading``) the rest."""
+    copy = _copied(path, None if progress is None else (lambda f: progress(f / 2)))
+    with copy as (tmp, files, mode):
+        stored = f"a rosbag2 bag in sqlite3 storage ({files} .db3 file(s)"
+        stored += f", {mode}-compressed)" if mode else ")"
+        reading = None if progress is None else (lambda f: progress(0.5 + f / 2))
+        found = Copy(path, tmp, stored, reading)
+        try:
+            yield found
+        except DhlogError as exc:
+            exc.args = tuple(found.renamed(str(a)) for a in exc.args)
+            raise
+
+
+@contextmanager
+def _copied(
     path: Path, progress: Callable[[float], None] | None = None
 ) -> Iterator[tuple[Path, int, str | None]]:
     """The sqlite3 bag at ``path`` copied into a temporary MCAP file: yields its path, the
