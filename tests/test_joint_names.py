@@ -193,6 +193,12 @@ def test_a_sqlite3_bag_processes_to_the_ordered_logs_table(
 
 
 def test_a_damaged_db3_is_one_error(tmp_path: Path) -> None:
+    """A damaged .db3, a folder of .db3 files without its metadata.yaml: one error each."""
+    folder = tmp_path / "copied"
+    folder.mkdir()
+    (folder / "run_0.db3").write_bytes(b"")
+    with pytest.raises(DhlogError, match=r"without the bag's metadata\.yaml"):
+        read_log(folder)
     bad = tmp_path / "broken.db3"
     bad.write_bytes(b"SQLite format 3\x00" + b"\x01" * 500)
     with pytest.raises(DhlogError, match=r"broken\.db3"):

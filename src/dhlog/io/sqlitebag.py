@@ -141,7 +141,12 @@ def _copied(
                         progress(min(k / total, 1.0))
                 writer.finish()  # type: ignore[no-untyped-call]
                 mode = bag.compression_mode
-        except (ReaderError, KeyError, ValueError, AttributeError) as exc:
+        except FileNotFoundError:
+            raise InputError(
+                f"{path}: a folder of .db3 files without the bag's metadata.yaml; give the bag "
+                "folder as recorded (with metadata.yaml), or one .db3 file."
+            ) from None
+        except (ReaderError, KeyError, ValueError, AttributeError, OSError) as exc:
             raise InputError(
                 f"{path}: a rosbag2 bag in sqlite3 storage that rosbags cannot read ({exc}); "
                 "give the bag folder (with metadata.yaml) or its .db3 file as recorded."
