@@ -572,7 +572,7 @@ class Calibration:
             yield self.source
             return
         with tempfile.TemporaryDirectory(prefix="dhlog-") as folder:
-            stem = Path(self.source).name.removesuffix(".mcap") or "result"
+            stem = Path(self.source).name.removesuffix(".mcap").removesuffix(".db3") or "result"
             written = Path(folder) / f"{stem}.dh.json"
             written.write_text(json.dumps(self.document))
             yield str(written)

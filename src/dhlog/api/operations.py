@@ -360,7 +360,10 @@ def simulate_config(
                 else f"travel {got * 1e3:.1f} mm (asked {asked * 1e3:g} mm)"
             )
             notes.append(f"joint {k + 1}: {shown}, as its limits allow.")
-    write_session(session, output, encoding, point_type=point_type)  # type: ignore[arg-type]
+    from dhlog.simulator.session import as_published
+
+    written = as_published(session) if cfg.driver_joints else session
+    write_session(written, output, encoding, point_type=point_type)  # type: ignore[arg-type]
     pipeline = (
         "phase_markers"
         if not cfg.encoders

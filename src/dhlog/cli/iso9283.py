@@ -93,7 +93,7 @@ def iso9283(
     first = logs[0]
     folder = out if out is not None else first.resolve().parent
     check_writable(folder)  # a file in the way, or no permission: refused before any work
-    stem = first.name.removesuffix(".zstd").removesuffix(".mcap")
+    stem = first.name.removesuffix(".zstd").removesuffix(".mcap").removesuffix(".db3")
     target = folder / f"{stem}.iso9283.json"
     recording = None if no_rrd else folder / f"{stem}.iso9283.rrd"
     outputs = [target] if recording is None else [target, recording]

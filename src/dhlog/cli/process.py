@@ -32,7 +32,10 @@ from dhlog.errors import DhlogError, OutputError
 
 def process(
     log: Annotated[
-        Path, typer.Argument(metavar="LOG", help="The session log (.mcap, or a bag folder).")
+        Path,
+        typer.Argument(
+            metavar="LOG", help="The session log (.mcap or .db3, or a rosbag2 bag folder)."
+        ),
     ],
     pipeline: Annotated[
         str | None,
@@ -239,7 +242,7 @@ def process(
             raise typer.Exit(EXIT_USAGE)
         request = replace(request, masses=str(masses))
     folder = out if out is not None else log.parent
-    stem = log.name.removesuffix(".zstd").removesuffix(".mcap")
+    stem = log.name.removesuffix(".zstd").removesuffix(".mcap").removesuffix(".db3")
     outputs = output_names(
         folder / f"{stem}.dh.json",
         recording=not no_rrd,

@@ -56,7 +56,7 @@ class BatchJob:
 
 def stem_of(log: Path) -> str:
     """The results' name of a log (``run.mcap`` → ``run``; a bag folder by its name)."""
-    return log.name.removesuffix(".zstd").removesuffix(".mcap")
+    return log.name.removesuffix(".zstd").removesuffix(".mcap").removesuffix(".db3")
 
 
 def job_outputs(job: BatchJob) -> list[Path]:

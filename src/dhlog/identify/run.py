@@ -70,6 +70,7 @@ from dhlog.identify.joints.checks import (
     check_slips,
     check_units,
 )
+from dhlog.identify.joints.permutation import suspected_permutation
 from dhlog.identify.joints.sweeps import (
     JointReport,
     TargetAtReference,
@@ -246,6 +247,8 @@ def process_log(
             camera,
             jobs=jobs,
             progress=None if progress is None else (lambda f: progress("detecting", f)),
+            joint_names=None if nominal is None else nominal.joint_names,
+            joint_source="model" if nominal is None else nominal.source,
         )
         found = cast(
             ProcessResult,
@@ -279,6 +282,8 @@ def process_log(
         pipeline,
         fast=fast,
         progress=None if progress is None else (lambda f: progress("reading", f)),
+        joint_names=None if nominal is None else nominal.joint_names,
+        joint_source="model" if nominal is None else nominal.source,
     )
     result = process_data(
         log,
@@ -352,6 +357,12 @@ def process_data(
     check_units(seg, log, phases, notes)
     seg, timing = clock_start(seg, log, info, phases)
     check_sizes(name, n, nominal, reference_pose)
+    implausible = []
+    order = log.joint_order
+    if nominal is not None and (order is None or not order.by_name):  # the data may tell
+        permuted = suspected_permutation(seg, nominal)
+        if permuted is not None:
+            implausible.append(permuted.reason(seg.joint_names))
     every = shown_stride(seg.height)
     if every > 1:
         info.append(
@@ -410,6 +421,7 @@ def process_data(
         noise=log.pipeline.noise,
         folds=holdout,
         model_request=model,
+        implausible=implausible,
     )
     kwargs: dict[str, Any] = {
         "angle_tol": angle_tol,
@@ -904,7 +916,13 @@ def _validate_log(
     if ex is None or not result.complete:
         result.warnings.append(f"{path}: not scored: the result is not complete.")
         return
-    log = read_log(path, pipeline, fast=fast)
+    log = read_log(
+        path,
+        pipeline,
+        fast=fast,
+        joint_names=result.segmentation.joint_names,
+        joint_source=f"{result.path} (the calibrated log)",
+    )
     seg = segment_log(log, joint_types=list(ex.standard.joint_types))
     if seg.n_joints != ex.standard.n or not seg.has_encoders:
         raise InputError(

@@ -312,5 +312,5 @@ def dh_model_from(spec: str) -> DHModel:
     if Path(spec).suffix in (".json", ".toml") or Path(spec).exists():
         return load_dh(spec)
     robot = load_robot(spec)
-    names = tuple(f"joint_{i + 1}" for i in range(robot.n))
+    names = robot.joint_names or tuple(f"joint_{i + 1}" for i in range(robot.n))
     return DHModel(robot.table, robot.T_base, robot.tool_point, names, robot.name)

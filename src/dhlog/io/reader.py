@@ -16,7 +16,7 @@ decoding itself is :mod:`dhlog.io.decode`.
 from __future__ import annotations
 
 import struct
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -44,6 +44,7 @@ from dhlog.io.decode.messages import (
     json_decoder,
     phase_value,
 )
+from dhlog.io.jointnames import ChainOrder
 from dhlog.io.mcapscan import ZSTD_MAGIC, McapScan, scan_mcap
 from dhlog.io.mcapwalk import ChannelInfo, RawMessages
 from dhlog.io.pipeline import Pipeline, pipeline_by_name, shipped_pipelines
@@ -87,6 +88,9 @@ class LogData:
     warnings: list[str] = field(default_factory=list)
     pipeline_reason: str | None = None
     commanded: pl.DataFrame | None = None
+    #: how the joint-state stream's joints were matched to the chain (None: no joint states,
+    #: or not decided on reading: :func:`dhlog.io.jointnames.chain_order`)
+    joint_order: ChainOrder | None = None
 
 
 #: the schemas of camera images (those of :mod:`dhlog.io.images`, named here without its cv2)
@@ -248,6 +252,8 @@ def read_log(
     progress: Callable[[float], None] | None = None,
     unzstd: bool = False,
     hint_unread: bool = True,
+    joint_names: Sequence[str] | None = None,
+    joint_source: str = "model",
 ) -> LogData:
     """Decode the streams of the log at ``path`` with ``pipeline`` (chosen from the log if None).
 
@@ -258,6 +264,9 @@ def read_log(
 
     ``hint_unread``: warn of topics beside the point stream's, of its type, that no stream reads
     (a further target the pipeline does not name).
+
+    ``joint_names``: the model's joint names (a nominal's, ``joint_source`` naming it): the
+    joint-state stream's joints matched to them by name (:func:`dhlog.io.jointnames.chain_order`).
 
     ``fast=False`` reads through the mcap library's per-message decoders (the reference path).
     Non-finite samples are set aside and counted; a truncated file keeps what precedes the damage.
@@ -270,8 +279,15 @@ def read_log(
             "tracker's: dhlog process calibrates from camera logs with it; this reads tracker "
             "logs.",
         )
-    if Path(path).is_dir():
-        return _read_bag(Path(path), pipeline, fast=fast, progress=progress)
+    if Path(path).is_dir() or Path(path).suffix == ".db3":  # a bag; a sqlite3 storage file
+        return _read_bag(
+            Path(path),
+            pipeline,
+            fast=fast,
+            progress=progress,
+            joint_names=joint_names,
+            joint_source=joint_source,
+        )
     topics = (
         None
         if pipeline is None
@@ -408,11 +424,14 @@ def read_log(
     if "base" in infos:
         base = clean(points_frame(blocks_of("base"), pipeline.length_scale), "base", set_aside)
     release("joints", "phase", "commanded")
-    joints, joint_names = None, list(pipeline.joint_names or [])
+    joints, chain, order = None, list(pipeline.joint_names or []), None
     if "joints" in infos:
-        joints, joint_names = joints_frame(
-            name, infos["joints"][0].topic, blocks_of("joints"), pipeline
+        topic = infos["joints"][0].topic
+        joints, chain, order = joints_frame(
+            name, topic, blocks_of("joints"), pipeline, joint_names, joint_source
         )
+        if order.note:
+            warnings.append(f"{name}: {order.note}")
         joints = clean(joints, "joints", set_aside)
     commanded = None
     if "commanded" in infos:  # decoded as the joint states are (a JointState stream)
@@ -430,15 +449,17 @@ def read_log(
             0,
             decoded,
         )
-        commanded, _ = joints_frame(name, infos["commanded"][0].topic, blocks, pipeline)
+        commanded, _, _ = joints_frame(
+            name, infos["commanded"][0].topic, blocks, pipeline, joint_names, joint_source
+        )
         commanded = clean(commanded, "commanded", set_aside)
     release("phase")
     phase = None
     if "phase" in infos:
         marks_blocks = blocks_of("phase")
         t = np.concatenate([b[0] for b in marks_blocks]) if marks_blocks else np.zeros(0, np.int64)
-        marks = [phase_value(v, joint_names) for b in marks_blocks for v in b[1]]
-        limit = len(joint_names) if joint_names else MAX_JOINTS
+        marks = [phase_value(v, chain) for b in marks_blocks for v in b[1]]
+        limit = len(chain) if chain else MAX_JOINTS
         absurd = sum(1 for m in marks if m is not None and m > limit)
         if absurd:  # a marker naming joint 999999999 is damage, not a joint to allocate
             set_aside["phase_beyond_joints"] = absurd
@@ -459,13 +480,14 @@ def read_log(
         pipeline,
         points,
         joints,
-        joint_names,
+        chain,
         base,
         phase,
         set_aside,
         warnings,
         reason,
         commanded,
+        order,
     )
 
 
@@ -491,12 +513,36 @@ def _read_bag(
     *,
     fast: bool,
     progress: Callable[[float], None] | None,
+    joint_names: Sequence[str] | None = None,
+    joint_source: str = "model",
 ) -> LogData:
     """A rosbag2 folder as rosbag2 writes it: its ``metadata.yaml`` read by the rosbags library
     (which also decompresses a file-compressed bag), every split file read in order as one log;
-    per-message compressed payloads decompressed before decoding."""
+    per-message compressed payloads decompressed before decoding. A bag in sqlite3 storage
+    (its ``.db3`` files; or one ``.db3`` file) is read through a temporary MCAP copy
+    (:mod:`dhlog.io.sqlitebag`)."""
     from rosbags.rosbag2 import Reader, ReaderError
 
+    from dhlog.io.sqlitebag import as_mcap, sqlite3_storage
+
+    if sqlite3_storage(folder):  # read as the MCAP file it is copied into
+        with as_mcap(folder, progress) as copy:
+            log = read_log(
+                copy.path,
+                pipeline,
+                fast=fast,
+                progress=copy.reading,
+                joint_names=joint_names,
+                joint_source=joint_source,
+            )
+        return replace(
+            log,
+            path=str(folder),
+            warnings=[copy.renamed(w) for w in log.warnings],
+            pipeline_reason=None
+            if log.pipeline_reason is None
+            else f"{log.pipeline_reason}; {copy.stored}",
+        )
     try:
         with Reader(folder) as bag:
             paths = [Path(s.path) for s in bag.storage.storages]  # type: ignore[attr-defined]
@@ -518,6 +564,8 @@ def _read_bag(
                     progress=step,
                     unzstd=per_message,
                     hint_unread=k == 0,  # said once for the bag
+                    joint_names=joint_names,
+                    joint_source=joint_source,
                 )
                 pipeline = log.pipeline
                 if spill:
@@ -563,6 +611,7 @@ def _read_bag(
         else f"{first.pipeline_reason}; a rosbag2 bag of {len(parts)} file(s)"
         + (", messages zstd-compressed" if per_message else ""),
         joined([log.commanded for log in parts]),
+        first.joint_order,
     )
 
 

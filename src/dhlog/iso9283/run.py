@@ -968,8 +968,14 @@ def run_logs(
     segmented = []
     further: list[list[Segmented]] = []
     program = None
+    named = calibrated if calibrated is not None else nominal  # the joints matched by its names
     for log in logs:
-        data = read_log(log, pipeline)
+        data = read_log(
+            log,
+            pipeline,
+            joint_names=None if named is None else named.joint_names,
+            joint_source="model" if named is None else named.source,
+        )
         if commanded_csv is not None and program is None:
             n = nominal.table.n if nominal is not None else len(data.joint_names)
             if n == 0:
