@@ -36,6 +36,7 @@ from dhlog.geometry.fitting import PlaneFit, fit_plane
 from dhlog.geometry.lines import ANGLE_TOL, DISTANCE_TOL, Line, Plane
 from dhlog.identify.check.footing import Placed, nominal_on_session, score_poses
 from dhlog.identify.check.holdout import Holdout, cross_validate
+from dhlog.identify.check.plausible import judge
 from dhlog.identify.check.validate import (
     Validation,
     check_residual,
@@ -67,7 +68,6 @@ from dhlog.identify.joints.checks import (
     check_fit_noise,
     check_noise_model,
     check_sizes,
-    check_slips,
     check_units,
 )
 from dhlog.identify.joints.sweeps import (
@@ -294,6 +294,7 @@ def process_log(
         model=model,
         progress=progress,
     )
+    judge(result)  # implausible lengths or FK check (a camera's are judged in its pixel fit)
     placed: list[Placed | None] = []  # the nominal on this session, placed once
     for other in validate or []:
         try:  # each log's own pipeline unless named
@@ -772,9 +773,6 @@ def _identify_whole(
             "relations and the FK check."
         )
     check_residual(result.validation, sigma, notes)
-    reg = result.registration
-    nominal_rms = None if reg is None else reg.rms
-    check_slips(nominal_rms, result.validation.rms, result.noise.model_error, notes)
     if result.folds > 1:
         stage("cross-validating", 0.0)
         held_in_fold: list[dict[int, str]] = []  # the pairs each fold holds, from its poses
