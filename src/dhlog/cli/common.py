@@ -33,8 +33,8 @@ EXIT_CODES = (
     "without --force, an output folder that does not exist); 2 unreadable or unusable input, or "
     "an output that cannot be written; 3 partial result (joints not identified; in a batch, "
     "logs that failed: the rest is written); 4 implausible result (written, marked plausible: "
-    "false with the reasons; it wins over 3; in a batch, logs judged implausible and none "
-    "failed); 130 interrupted (Ctrl-C); 141 the standard output was closed (| head: the "
+    "false with the reasons; it wins over 3; in a batch, a log judged implausible and none "
+    "failed or partial); 130 interrupted (Ctrl-C); 141 the standard output was closed (| head: the "
     "results were written first); 143 terminated (SIGTERM)."
 )
 

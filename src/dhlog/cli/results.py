@@ -92,7 +92,8 @@ def export(
     refuse_existing(output, force)
     extra = ""
     try:
-        text = load(result).export(
+        loaded = load(result)
+        text = loaded.export(
             format,  # type: ignore[arg-type]
             limits_from=limits_from,
             template=template,
@@ -113,6 +114,12 @@ def export(
     stdout.print(f"wrote {plain(output)}{extra}", soft_wrap=True)  # a path never broken
     _terms_not_exported(result, format)
     _camera_not_exported(result, format)
+    if not loaded.plausible:  # exported as asked, but not silently
+        stderr.print(
+            f"warning: {plain(result.name)} is a result dhlog judged implausible (dhlog process "
+            "exited 4): " + " ".join(plain(r) for r in loaded.implausible) + " Check the "
+            "inputs before the robot runs this model."
+        )
 
 
 def _terms_not_exported(result: Path, fmt: str) -> None:

@@ -158,17 +158,23 @@ def fk_beyond(fk_rms: float, noise: float | None, miss: float | None) -> str | N
     ceiling = NOMINAL_SLIP if miss is None else min(FAR_NOMINAL * miss, NOMINAL_SLIP)
     if fk_rms <= ceiling:
         return None
+    limit_mm = f"{NOMINAL_SLIP * 1e3:.0f}"
     said = [f"the calibrated model misses its points by {fk_rms * 1e3:.1f} mm (FK RMS)"]
     if noise is not None:
         said.append(f"{fk_rms / noise:.0f} times the noise ({noise * 1e3:.3f} mm, 3-D)")
-    if miss is not None:
-        said.append(f"{fk_rms / miss:.1f} times the nominal's own miss ({miss * 1e3:.1f} mm)")
+    if miss is None:
+        said.append(f"more than any robot's nominal misses its points by ({limit_mm} mm)")
+    elif miss > NOMINAL_SLIP:
+        said.append(
+            f"and the nominal placed on them misses by {miss * 1e3:.1f} mm, more than any "
+            f"robot's nominal does ({limit_mm} mm)"
+        )
     else:
-        said.append(f"more than any robot's nominal misses by ({NOMINAL_SLIP * 1e3:.0f} mm)")
-    return (
-        f"{', '.join(said)}: a calibration fits its points better than its nominal, so the "
-        f"inputs are likely read wrong — {LIKELY_SLIPS}."
-    )
+        said.append(
+            f"{fk_rms / miss:.1f} times the nominal's own miss ({miss * 1e3:.2f} mm): a "
+            "calibration fits its points better than its nominal does"
+        )
+    return f"{', '.join(said)}; the inputs are likely read wrong — {LIKELY_SLIPS}."
 
 
 def slip_notes(
@@ -185,7 +191,7 @@ def slip_notes(
         found.append(f"the nominal placed on the points misses them by {miss * 1e3:.1f} mm (RMS)")
     if miss is None and fk_rms > FIT_SLIP and not explained:
         found.append(f"the calibrated model misses them by {fk_rms * 1e3:.1f} mm (FK RMS)")
-    if model_error is not None and model_error > MODEL_ERROR_SLIP:
+    if model_error is not None and model_error > MODEL_ERROR_SLIP and not explained:
         if miss is None or math.sqrt(3.0) * model_error > miss:
             found.append(f"the model-error σ is {model_error * 1e3:.2f} mm per coordinate")
     if not found:
