@@ -37,8 +37,9 @@ SCALE_MIN_LENGTH = 0.05
 #: this (|k − 1|, each length within a quarter of that of k) are not a robot's errors (a few
 #: mm on hundreds) but a unit slip, or the nominal of another robot.
 LENGTH_SLIP = 0.05
-#: The samples the nominal is placed on for its own miss (evenly strided).
-MISS_SAMPLES = 2000
+#: The samples the nominal is placed on for its own miss (evenly strided; its RMS to a few %:
+#: 0.4336 mm on the kr5_real sample in 0.04 s, 0.4343 mm from 2000 in 0.8 s).
+MISS_SAMPLES = 500
 #: Units lengths slip between, metres each.
 UNITS = {"m": 1.0, "cm": 1e-2, "mm": 1e-3, "inches": 0.0254, "feet": 0.3048}
 
