@@ -286,8 +286,8 @@ def test_the_process_side_thresholds() -> None:
 def test_lengths_all_k_times_the_nominals_name_the_unit() -> None:
     """A table whose lengths are all k times the nominal's (σ-sized errors on top) is
     implausible, k's units named (1000: mm read as m; 1/25.4: inches read as mm); 1.3 times
-    names the nominal of another robot; 1.01 times (a robot off its nominal by 1 %) and lengths
-    that disagree are not judged."""
+    names the nominal of another robot; 1.01 times (a robot off its nominal by 1 %), lengths
+    that disagree and lengths of the other sign (a DH branch) are not judged."""
     from dhlog.identify.check.plausible import length_slip
     from dhlog.io.dhfile import DHModel
 
@@ -311,6 +311,18 @@ def test_lengths_all_k_times_the_nominals_name_the_unit() -> None:
     assert said is not None and "another robot" in said, said
     assert length_slip(scaled(1.01), nominal, set()) is None
     assert length_slip(scaled(1.0, spread=0.2), nominal, set()) is None
+    # a length's sign is a DH branch (a2 = +425 mm on the other branch of the line), no slip
+    flipped = scaled(1.0)
+    flipped = StandardDH(
+        flipped.joint_types, flipped.theta_offset, flipped.d_offset, -flipped.a, flipped.alpha
+    )
+    assert length_slip(flipped, nominal, set()) is None
+    slipped = scaled(1000.0)
+    slipped = StandardDH(
+        slipped.joint_types, slipped.theta_offset, slipped.d_offset, -slipped.a, slipped.alpha
+    )
+    said = length_slip(slipped, nominal, set())
+    assert said is not None and "mm read as m" in said
 
 
 def test_a_spherical_pipeline_on_cartesian_points_is_one_line(tmp_path: Path) -> None:

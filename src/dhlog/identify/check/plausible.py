@@ -45,9 +45,9 @@ UNITS = {"m": 1.0, "cm": 1e-2, "mm": 1e-3, "inches": 0.0254, "feet": 0.3048}
 
 
 def common_scale(table: StandardDH, nominal: StandardDH, fixed: set[int]) -> float | None:
-    """The factor k when every length of ``table`` (d and a of at least
+    """The factor k > 0 when every length of ``table`` (d and a of at least
     :data:`SCALE_MIN_LENGTH` in the ``nominal``, not held by convention: ``fixed`` holds the
-    table's entries, 4 a row θ, d, a, α) is k times the nominal's, each ratio within a quarter of
+    table's entries, 4 a row θ, d, a, α) is k times the nominal's in size, each ratio within a quarter of
     ``|k − 1|`` of k; None when fewer than two lengths count or the ratios disagree."""
     n = table.n
     got = np.concatenate([table.d_offset, table.a])
@@ -58,7 +58,7 @@ def common_scale(table: StandardDH, nominal: StandardDH, fixed: set[int]) -> flo
     use = (np.abs(ref) >= SCALE_MIN_LENGTH) & free
     if np.count_nonzero(use) < 2:
         return None
-    ratio = got[use] / ref[use]
+    ratio = np.abs(got[use]) / np.abs(ref[use])  # the sizes: a sign is a DH branch, not a unit
     k = float(np.median(ratio))
     if not math.isfinite(k) or np.max(np.abs(ratio - k)) > 0.25 * abs(k - 1.0):
         return None
