@@ -47,8 +47,9 @@ UNITS = {"m": 1.0, "cm": 1e-2, "mm": 1e-3, "inches": 0.0254, "feet": 0.3048}
 def common_scale(table: StandardDH, nominal: StandardDH, fixed: set[int]) -> float | None:
     """The factor k > 0 when every length of ``table`` (d and a of at least
     :data:`SCALE_MIN_LENGTH` in the ``nominal``, not held by convention: ``fixed`` holds the
-    table's entries, 4 a row θ, d, a, α) is k times the nominal's in size, each ratio within a quarter of
-    ``|k − 1|`` of k; None when fewer than two lengths count or the ratios disagree."""
+    table's entries, 4 a row θ, d, a, α) is k times the nominal's in size, each ratio within a
+    quarter of ``|k − 1|`` of k; None when fewer than two lengths count or the ratios
+    disagree."""
     n = table.n
     got = np.concatenate([table.d_offset, table.a])
     ref = np.concatenate([nominal.d_offset, nominal.a])
