@@ -16,6 +16,7 @@ from numpy.typing import NDArray
 from dhlog.errors import DhlogError
 from dhlog.geometry._checks import FloatArray
 from dhlog.identify.camera.poses import corners_of
+from dhlog.identify.check.plausible import SCALE_MIN_LENGTH as SCALE_MIN_LENGTH
 from dhlog.identify.check.plausible import common_scale
 from dhlog.identify.fit.axismodel import AxisModel
 from dhlog.identify.fit.measure import place
