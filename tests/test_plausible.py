@@ -84,8 +84,8 @@ def test_a_unit_slip_is_written_marked_and_exits_4(logs: tuple[Path, Path], tmp_
 
 def test_readers_of_an_implausible_result_see_it(logs: tuple[Path, Path], tmp_path: Path) -> None:
     """``dhlog.process`` and ``dhlog.load`` warn (``ImplausibleWarning``) and give
-    ``Calibration.plausible`` False with the reasons; ``dhlog export`` writes what is asked and
-    warns; ``dhlog report`` shows the reasons on the certificate; a plausible result gives none
+    ``Calibration.plausible`` False with the reasons; ``dhlog export`` and ``compare`` do what
+    is asked and warn; ``dhlog report`` shows the reasons on the certificate; a plausible result gives none
     of these."""
     right, inches = logs
     with pytest.warns(dhlog.ImplausibleWarning, match="inches read as mm"):
@@ -102,6 +102,13 @@ def test_readers_of_an_implausible_result_see_it(logs: tuple[Path, Path], tmp_pa
     assert (tmp_path / "r.urdf").exists()
     said = " ".join(done.output.split())
     assert "judged implausible" in said and "inches read as mm" in said, said
+    good = tmp_path / "good.dh.json"
+    dhlog.process(right, nominal="kr5", model="geometric").save(good)
+    done = runner.invoke(app, ["compare", str(good), str(saved)])
+    assert done.exit_code == 0, done.output
+    said = " ".join(done.output.split())
+    assert "inches.dh.json is a result dhlog judged implausible" in said, said
+    assert "good.dh.json is a result" not in said
     done = runner.invoke(app, ["report", str(saved), "-o", str(tmp_path / "r.html")])
     assert done.exit_code == 0, done.output
     page = (tmp_path / "r.html").read_text()
