@@ -85,8 +85,8 @@ def test_a_unit_slip_is_written_marked_and_exits_4(logs: tuple[Path, Path], tmp_
 def test_readers_of_an_implausible_result_see_it(logs: tuple[Path, Path], tmp_path: Path) -> None:
     """``dhlog.process`` and ``dhlog.load`` warn (``ImplausibleWarning``) and give
     ``Calibration.plausible`` False with the reasons; ``dhlog export`` and ``compare`` do what
-    is asked and warn; ``dhlog report`` shows the reasons on the certificate; a plausible result gives none
-    of these."""
+    is asked and warn; ``dhlog report`` shows the reasons on the certificate; a plausible
+    result gives none of these."""
     right, inches = logs
     with pytest.warns(dhlog.ImplausibleWarning, match="inches read as mm"):
         cal = dhlog.process(inches, nominal="kr5", model="geometric")
@@ -102,9 +102,9 @@ def test_readers_of_an_implausible_result_see_it(logs: tuple[Path, Path], tmp_pa
     assert (tmp_path / "r.urdf").exists()
     said = " ".join(done.output.split())
     assert "judged implausible" in said and "inches read as mm" in said, said
-    good = tmp_path / "good.dh.json"
-    dhlog.process(right, nominal="kr5", model="geometric").save(good)
-    done = runner.invoke(app, ["compare", str(good), str(saved)])
+    kept = tmp_path / "good.dh.json"
+    dhlog.process(right, nominal="kr5", model="geometric").save(kept)
+    done = runner.invoke(app, ["compare", str(kept), str(saved)])
     assert done.exit_code == 0, done.output
     said = " ".join(done.output.split())
     assert "inches.dh.json is a result dhlog judged implausible" in said, said
