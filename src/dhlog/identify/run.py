@@ -10,7 +10,9 @@ the clock offset joined again if it moved; the terms beyond the geometry ``ident
 the weights ``identify.variance``), pairs the data cannot tell from parallel held parallel
 (``identify.relations``) → the DH model read off the fitted axes, its covariance and what is
 fixed (``identify.uncertainty``, ``identify.conditioning``) → forward kinematics of the table
-against every sample (``identify.validate``). The result document is ``result.document``.
+against every sample (``identify.validate``) → what makes the result implausible
+(``identify.check.plausible``: ``ProcessResult.implausible``). The result document is
+``result.document``.
 
 ``--analytic-only`` (and a log without encoders) stops at the analytic start, with its own
 propagated covariance. When some joints cannot be identified, what was identified is kept: their
