@@ -131,6 +131,25 @@ def process(
     found = calibration_of(result, limits=_library_limits(nominal))
     found._asked = (bool(holdout or validate), model != "geometric" and not analytic_only)
     found._inputs = tuple(str(v) for v in validate)
+    return _warned(found)
+
+
+def _warned(found: Calibration) -> Calibration:
+    """``found``, an :class:`~dhlog.errors.ImplausibleWarning` given first when dhlog judges it
+    implausible (the command line says so its own way, and exits 4)."""
+    if not found.plausible:
+        import warnings
+
+        from dhlog.errors import ImplausibleWarning
+        from dhlog.io.safetext import printable
+
+        warnings.warn(
+            ImplausibleWarning(
+                f"{printable(Path(found.source).name)}: implausible result: "
+                + " ".join(found.implausible)
+            ),
+            stacklevel=3,
+        )
     return found
 
 
@@ -194,12 +213,14 @@ def load(path: str | Path, *, nominal: str | Path | Robot | None = None) -> Cali
 
         document = load_result(path)
         model = parse_dh(document, printable(name))
-    return Calibration(
-        document=document,
-        model=model,
-        nominal=None if nominal is None else _dh_model(nominal),
-        source=name,
-        limits=_library_limits(nominal),
+    return _warned(
+        Calibration(
+            document=document,
+            model=model,
+            nominal=None if nominal is None else _dh_model(nominal),
+            source=name,
+            limits=_library_limits(nominal),
+        )
     )
 
 

@@ -10,11 +10,13 @@ import numpy as np
 import typer
 
 from dhlog.cli.common import (
+    EXIT_IMPLAUSIBLE,
     EXIT_PARTIAL,
     EXIT_USAGE,
     check_writable,
     fail,
     plain,
+    say_implausible,
     stderr,
     stdout,
     viewer,
@@ -335,4 +337,8 @@ def process(
     if not result.complete:
         names = ", ".join(f"joint {j.index} ({plain(j.name)})" for j in result.failed)
         stderr.print(f"partial result: {names} not identified; the rest was written.")
+    if not calibration.plausible:  # 4 wins over 3: what was written is not to be used
+        say_implausible(calibration.implausible)
+        raise typer.Exit(EXIT_IMPLAUSIBLE)
+    if not result.complete:
         raise typer.Exit(EXIT_PARTIAL)

@@ -10,7 +10,9 @@ the clock offset joined again if it moved; the terms beyond the geometry ``ident
 the weights ``identify.variance``), pairs the data cannot tell from parallel held parallel
 (``identify.relations``) → the DH model read off the fitted axes, its covariance and what is
 fixed (``identify.uncertainty``, ``identify.conditioning``) → forward kinematics of the table
-against every sample (``identify.validate``). The result document is ``result.document``.
+against every sample (``identify.validate``) → what makes the result implausible
+(``identify.check.plausible``: ``ProcessResult.implausible``). The result document is
+``result.document``.
 
 ``--analytic-only`` (and a log without encoders) stops at the analytic start, with its own
 propagated covariance. When some joints cannot be identified, what was identified is kept: their
@@ -36,6 +38,7 @@ from dhlog.geometry.fitting import PlaneFit, fit_plane
 from dhlog.geometry.lines import ANGLE_TOL, DISTANCE_TOL, Line, Plane
 from dhlog.identify.check.footing import Placed, nominal_on_session, score_poses
 from dhlog.identify.check.holdout import Holdout, cross_validate
+from dhlog.identify.check.plausible import judge
 from dhlog.identify.check.validate import (
     Validation,
     check_residual,
@@ -67,7 +70,6 @@ from dhlog.identify.joints.checks import (
     check_fit_noise,
     check_noise_model,
     check_sizes,
-    check_slips,
     check_units,
 )
 from dhlog.identify.joints.permutation import suspected_permutation
@@ -299,6 +301,7 @@ def process_log(
         model=model,
         progress=progress,
     )
+    judge(result)  # implausible lengths or FK check (a camera's are judged in its pixel fit)
     placed: list[Placed | None] = []  # the nominal on this session, placed once
     for other in validate or []:
         try:  # each log's own pipeline unless named
@@ -784,9 +787,6 @@ def _identify_whole(
             "relations and the FK check."
         )
     check_residual(result.validation, sigma, notes)
-    reg = result.registration
-    nominal_rms = None if reg is None else reg.rms
-    check_slips(nominal_rms, result.validation.rms, result.noise.model_error, notes)
     if result.folds > 1:
         stage("cross-validating", 0.0)
         held_in_fold: list[dict[int, str]] = []  # the pairs each fold holds, from its poses

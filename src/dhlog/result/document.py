@@ -102,6 +102,9 @@ def result_document(result: ProcessResult) -> dict[str, Any]:
         },
         "warnings": list(result.warnings),
         "notes": list(result.info),
+        # what makes dhlog judge the result implausible (dhlog process exits 4); empty: none
+        "plausible": not result.implausible,
+        "implausible": list(result.implausible),
     }
     if result.selection is not None:
         doc["nongeometric"] = nongeometric_document(result)

@@ -452,6 +452,13 @@ def read_result(document: Any, path: str) -> Result:
     notes_raw = doc.get("notes")
     notes = [] if notes_raw is None else f.texts(notes_raw, "notes")
     method = f.get_text(doc, "method", required=False)
+    flag = doc.get("plausible")
+    if flag is not None and not isinstance(flag, bool):
+        f.mismatch(flag, "plausible", "true or false")
+    reasons_raw = doc.get("implausible")
+    reasons = [] if reasons_raw is None else f.texts(reasons_raw, "implausible")
+    if flag is False and not reasons:
+        reasons = ["the result is marked implausible (plausible: false) without a reason"]
     return Result(
         version,
         log_name,
@@ -474,4 +481,5 @@ def read_result(document: Any, path: str) -> Result:
         _tool(f, doc, len(rows)),
         _nongeometric(f, doc),
         read_camera(f, doc),
+        reasons,
     )
