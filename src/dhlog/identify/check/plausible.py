@@ -210,6 +210,7 @@ def judge(result: Any) -> None:
     above the noise and the nominal's own miss (:func:`fk_beyond`) — and to its warnings what
     the misses say short of that (:func:`slip_notes`)."""
     ex, nominal, val = result.extraction, result.nominal, result.validation
+    named = bool(result.implausible)  # a cause already named (a joint permutation): said once
     if ex is None or not result.complete:
         return
     if nominal is not None and nominal.table.n == ex.standard.n:
@@ -220,7 +221,7 @@ def judge(result: Any) -> None:
         return
     miss = nominal_miss(result) if nominal is not None else None
     beyond = fk_beyond(val.rms, noise_rms(result), miss)
-    if beyond is not None:
+    if beyond is not None and not named:
         result.implausible.append(beyond)
     said_again = bool(result.implausible)
     result.warnings.extend(slip_notes(miss, val.rms, result.noise.model_error, said_again))
