@@ -41,11 +41,12 @@ from numpy.typing import NDArray
 
 from dhlog.errors import InputError
 from dhlog.io import ros2
+from dhlog.io.exports.checks import comment_length_unit, plausible_extent
 from dhlog.io.exports.joints import with_joints_file
 from dhlog.io.exports.options import ImportOptions, checked_options
-from dhlog.io.exports.source import EPOCH_NS, Source, from_table
+from dhlog.io.exports.source import EPOCH_NS, Source, file_length_unit, from_table
 from dhlog.io.exports.spatialanalyzer import is_table, spatialanalyzer_points
-from dhlog.io.exports.table import DEFAULT_LENGTH_UNIT, read_table
+from dhlog.io.exports.table import read_table, read_text
 from dhlog.io.paths import same_file
 from dhlog.model.dh import JointType
 
@@ -59,6 +60,8 @@ __all__ = [
     "write_imported",
 ]
 
+#: Length units as a note names them.
+UNIT_WORDS = {"um": "micrometres", "in": "inches"}
 #: A stop's length and its encoder rate (s, Hz), the target measured in its middle.
 STOP_SECONDS, STOP_RATE = 2.0, 20.0
 #: When in a stop its joint states are written (s): its start, the measurement, its end.
@@ -95,14 +98,36 @@ def import_source(source: str | Path, opts: ImportOptions) -> Imported:
                 f"{path}: a SpatialAnalyzer point list holds no joint values; give them with "
                 "--joints-file (matched by point name, or by row)."
             )
-        names, xyz, lines = spatialanalyzer_points(path, opts.length_unit or DEFAULT_LENGTH_UNIT)
-        src = Source(str(path), lines, names, xyz)
+        text = read_text(path)
+        comments = [
+            (i + 1, line.strip())
+            for i, line in enumerate(text.splitlines())
+            if line.lstrip().startswith(("#", "//"))
+        ]
+        unit, where = file_length_unit(str(path), opts, comment_length_unit(str(path), comments))
+        names, xyz, lines = spatialanalyzer_points(path, unit)
+        src = Source(str(path), lines, names, xyz, length_read=(unit, where))
     else:
         src = from_table(read_table(path), opts)
     if opts.joints_file is not None:
         src = with_joints_file(src, opts)
     assert src.q is not None
-    src.unit_slips([JointType.parse(t) for t in opts.joint_types] or None)
+    types = [JointType.parse(t) for t in opts.joint_types] or None
+    src.unit_slips(types)
+    if src.length_read is not None:
+        unit, where = src.length_read
+        revolute = [
+            j
+            for j in range(src.q.shape[1])
+            if types is None or j >= len(types) or types[j] is JointType.REVOLUTE
+        ]
+        plausible_extent(src.path, src.xyz, src.q, revolute, unit, where)
+        if unit in ("in", "um"):
+            src.notes.append(
+                f"{src.path}: the positions were read in {UNIT_WORDS.get(unit, unit)} "
+                f"({where}{' states it' if where.startswith('line') else ''}) and converted "
+                "to metres."
+            )
     xyz, q = src.xyz, src.q
     if src.t_ns is not None:
         point_t, joint_t, joint_q, stepped = src.t_ns, src.t_ns, q, False
