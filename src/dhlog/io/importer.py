@@ -22,7 +22,9 @@ The log is written as rosbag2 would (profile ``ros2``, CDR): the target on ``/tr
 ``PoseWithCovarianceStamped`` with the uncertainties, its pose holding the orientation when
 there is one), the joints on ``/joint_states`` (``sensor_msgs/msg/JointState``, SI units), with
 the conversion's provenance in an MCAP metadata record ``dhlog.import`` — whose ``orientation =
-true`` makes :func:`dhlog.io.reader.read_log` read the orientation without a pipeline saying so.
+true`` makes :func:`dhlog.io.reader.read_log` read the orientation without a pipeline saying so —
+and the export's point ids, when it names its points, in ``dhlog.point_ids``
+(:mod:`dhlog.io.pointids`: dhlog names outliers and held-out poses by them).
 Discrete points become stops: 2 s per point, the target measured in the middle, three joint
 states holding the point's joint values — at the stop's start, at the measurement and at its end
 one 20 Hz period before the next stop: what the segmentation sees of a step-and-measure cell's
@@ -48,6 +50,7 @@ from dhlog.io.exports.source import EPOCH_NS, Source, file_length_unit, from_tab
 from dhlog.io.exports.spatialanalyzer import is_table, spatialanalyzer_points
 from dhlog.io.exports.table import read_table, read_text
 from dhlog.io.paths import same_file
+from dhlog.io.pointids import POINT_IDS_METADATA, point_ids_record
 from dhlog.model.dh import JointType
 
 #: The import's entry, as the command line takes it.
@@ -86,6 +89,8 @@ class Imported:
     warnings: list[str] = field(default_factory=list)
     orientation: NDArray[np.float64] | None = None
     notes: list[str] = field(default_factory=list)
+    #: the export's point ids (its point-name column), one per target sample, or None
+    point_ids: list[str] | None = None
 
 
 def import_source(source: str | Path, opts: ImportOptions) -> Imported:
@@ -168,6 +173,7 @@ def import_source(source: str | Path, opts: ImportOptions) -> Imported:
         list(src.warnings),
         src.quat,
         list(src.notes),
+        None if src.names is None else list(src.names),
     )
 
 
@@ -256,4 +262,8 @@ def write_imported(imported: Imported, out: str | Path) -> None:
         for i, t, s in ordered:
             add(channels[s], t, payloads[i], t)
         writer.add_metadata("dhlog.import", {**imported.provenance, "dhlog": __version__})
+        if imported.point_ids is not None:
+            writer.add_metadata(
+                POINT_IDS_METADATA, point_ids_record(imported.point_t_ns, imported.point_ids)
+            )
         writer.finish()  # type: ignore[no-untyped-call]

@@ -47,6 +47,7 @@ from dhlog.io.decode.messages import (
 from dhlog.io.mcapscan import ZSTD_MAGIC, McapScan, scan_mcap
 from dhlog.io.mcapwalk import ChannelInfo, RawMessages
 from dhlog.io.pipeline import Pipeline, pipeline_by_name, shipped_pipelines
+from dhlog.io.pointids import POINT_IDS_METADATA, read_point_ids
 
 #: What the rest of dhlog reads from here (the columns of the point table among them).
 __all__ = [
@@ -87,6 +88,8 @@ class LogData:
     warnings: list[str] = field(default_factory=list)
     pipeline_reason: str | None = None
     commanded: pl.DataFrame | None = None
+    #: the export's point ids by stamp (``dhlog import``'s ``dhlog.point_ids``), or None
+    point_ids: dict[int, str] | None = None
 
 
 #: the schemas of camera images (those of :mod:`dhlog.io.images`, named here without its cv2)
@@ -442,6 +445,9 @@ def read_log(
             f"{name}: {bad} of {total} message(s) on {topic} could not be decoded and were "
             f"skipped (first at {first})."
         )
+    point_ids = None
+    if POINT_IDS_METADATA in scan.metadata_names:
+        point_ids = read_point_ids(path, warnings)
     return LogData(
         name,
         pipeline,
@@ -454,6 +460,7 @@ def read_log(
         warnings,
         reason,
         commanded,
+        point_ids,
     )
 
 

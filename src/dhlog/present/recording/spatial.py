@@ -136,6 +136,18 @@ def log_samples(rec: rr.RecordingStream, shown: Shown) -> None:
             rr.Points3D(xyz[outlier], colors=[[255, 0, 0]], radii=1.5 * scene.sample),
             static=True,
         )
+    rows = result.outlier_rows
+    if rows.size:  # the whole-model fit's, named as the export names them
+        rec.log(
+            "world/m/samples/fit_outliers",
+            rr.Points3D(
+                xyz[rows],
+                colors=[[255, 0, 0]],
+                radii=1.5 * scene.sample,
+                labels=list(result.outlier_names),
+            ),
+            static=True,
+        )
 
 
 def _lighter(color: np.ndarray, amount: float = 0.55) -> np.ndarray:
@@ -241,7 +253,12 @@ def log_holdout(rec: rr.RecordingStream, shown: Shown) -> None:
         path = f"world/m/holdout/{name}"
         rec.log(
             f"{path}/poses",
-            rr.Points3D(pos, colors=[[90, 90, 90]], radii=shown.scene.sample * 1.5),
+            rr.Points3D(
+                pos,
+                colors=[[90, 90, 90]],
+                radii=shown.scene.sample * 1.5,
+                labels=None if h.pose_names is None else list(h.pose_names),
+            ),
             static=True,
         )
         for model, vectors in (
