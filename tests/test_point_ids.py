@@ -30,9 +30,10 @@ POSES, MOVED = 60, 13
 IDS = [f"PT-{101 + k}" for k in range(POSES)]
 
 
-@pytest.fixture(scope="module")
-def export(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, np.ndarray]:
-    """The export (a CSV) and its points (mm)."""
+def _write(path: Path, ids: list[str], seed: int, moved: int | None) -> np.ndarray:
+    """An export of the KR5 off its nominal (the same robot whatever ``seed``: the poses and
+    the noise are drawn after it) at ``len(ids)`` poses, pose ``moved`` 20.8 mm off; its
+    points (mm)."""
     rob = load_robot("kr5")
     rng = np.random.default_rng(114)
     t = rob.table
@@ -43,20 +44,27 @@ def export(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, np.ndarray]:
         t.a + rng.normal(scale=3e-4, size=t.n),
         t.alpha + rng.normal(scale=np.radians(0.03), size=t.n),
     )
-    Q = rng.uniform(rob.limits[:, 0], rob.limits[:, 1], (POSES, rob.n))
+    rng = np.random.default_rng(seed)
+    Q = rng.uniform(rob.limits[:, 0], rob.limits[:, 1], (len(ids), rob.n))
     T = fk_frames(true, Q, T_base=rob.T_base)[:, -1]
     xyz = T[:, :3, :3] @ np.array([0.02, 0.01, 0.1]) + T[:, :3, 3]
     xyz += rng.normal(scale=2e-5, size=xyz.shape)
-    xyz[MOVED] += 0.012  # 20.8 mm
+    if moved is not None:
+        xyz[moved] += 0.012  # 20.8 mm
     mm = np.round(xyz * 1e3, 4)
-    folder = tmp_path_factory.mktemp("ids")
-    path = folder / "export.csv"
     lines = ["Point ID,X [mm],Y [mm],Z [mm]," + ",".join(f"A{k + 1}" for k in range(6))]
-    for k in range(POSES):
-        cells = [IDS[k], *(f"{v:.4f}" for v in mm[k]), *(f"{v:.5f}" for v in np.degrees(Q[k]))]
+    for k in range(len(ids)):
+        cells = [ids[k], *(f"{v:.4f}" for v in mm[k]), *(f"{v:.5f}" for v in np.degrees(Q[k]))]
         lines.append(",".join(cells))
     path.write_text("\n".join(lines) + "\n")
-    return path, mm
+    return np.asarray(mm)
+
+
+@pytest.fixture(scope="module")
+def export(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, np.ndarray]:
+    """The export (a CSV) and its points (mm)."""
+    path = tmp_path_factory.mktemp("ids") / "export.csv"
+    return path, _write(path, IDS, 1, MOVED)
 
 
 def test_the_ids_travel_into_the_log(export: tuple[Path, np.ndarray], tmp_path: Path) -> None:
@@ -122,3 +130,28 @@ def test_a_far_sample_the_fit_kept_is_named() -> None:
     assert len(warnings) == 1 and "P-8 (2 mm)" in warnings[0] and "#" not in warnings[0]
     # without ids: the samples' numbers
     assert sample_names(np.arange(3, dtype=np.int64), np.arange(3), None) == ["#1", "#2", "#3"]
+
+
+def test_a_validation_session_s_poses_are_named_by_its_ids(
+    export: tuple[Path, np.ndarray], tmp_path: Path
+) -> None:
+    """``--validate`` another export of the same robot (25 poses ``V-1 …``): its rows of the
+    held-out CSV carry its own ids, each at the position of its point."""
+    path, _ = export
+    other = tmp_path / "validation.csv"
+    ids = [f"V-{k + 1}" for k in range(25)]
+    mm = _write(other, ids, 2, None)
+    for src in (path, other):
+        done = runner.invoke(app, ["import", str(src), "-o", str(src.with_suffix(".mcap"))])
+        assert done.exit_code == 0, done.output
+    out = tmp_path / "out"
+    args = ["process", str(path.with_suffix(".mcap")), "--nominal", "kr5", "--out", str(out)]
+    result = runner.invoke(app, [*args, "--validate", str(other.with_suffix(".mcap")), "--no-rrd"])
+    assert result.exit_code == 0, result.output
+    rows = list(csv.DictReader(io.StringIO((out / "export.holdout.csv").read_text())))
+    assert len(rows) >= 16  # every pose, or the poses left after placing the base on a third
+    for row in rows:
+        assert row["check"] == "validation.mcap"
+        k = ids.index(row["point_id"])
+        got = [float(row[f"{a}_mm"]) for a in "xyz"]
+        np.testing.assert_allclose(got, mm[k], atol=1e-6)

@@ -36,7 +36,7 @@ from dhlog.geometry.fitting import PlaneFit, fit_plane
 from dhlog.geometry.lines import ANGLE_TOL, DISTANCE_TOL, Line, Plane
 from dhlog.identify.check.footing import Placed, nominal_on_session, score_poses
 from dhlog.identify.check.holdout import Holdout, cross_validate
-from dhlog.identify.check.named import name_outliers, sample_names
+from dhlog.identify.check.named import name_outliers, pose_names, sample_names
 from dhlog.identify.check.validate import (
     Validation,
     check_residual,
@@ -944,6 +944,11 @@ def _validate_log(
             nominal_values=None if nominal is None else nominal.joint_values(Q),
         )
     )
+    if log.point_ids is not None:  # the session's held-out poses by the export's ids
+        mine = rows if which is None else rows[primary]
+        names = sample_names(np.asarray(seg.column("t_ns", mine), np.int64), mine, log.point_ids)
+        check = result.holdout[-1]
+        check.pose_names = pose_names(np.asarray(Q), np.asarray(P), names, check.positions)
 
 
 #: Largest number of the session's samples the nominal is placed on for ``--validate``.

@@ -3,6 +3,8 @@
 log's point stream (``#14``).
 
 * :func:`sample_names`: each fitted sample's name;
+* :func:`pose_names`: each scored pose of another session (``--validate``) by its first sample's
+  name, the pose found by its measured position;
 * :func:`name_outliers`: a note naming the whole-model fit's gross outliers (set aside, with
   their residual), and a warning naming the samples it kept though they lie more than
   :data:`FAR` times its RMS off it (no noise puts a sample there: 5× the RMS of a 3-D residual
@@ -14,6 +16,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
+from dhlog.identify.fit.leaveout import pose_groups, pose_means
 from dhlog.io.pointids import listed
 
 #: A kept sample farther than this many times the fit's RMS (3-D residual) is named.
@@ -68,3 +71,20 @@ def name_outliers(
                 "them out of the export (a gross error pulls the whole model)."
             )
     return np.asarray(order, dtype=np.intp)
+
+
+def pose_names(
+    Q: NDArray[np.float64], P: NDArray[np.float64], names: list[str], scored: NDArray[np.float64]
+) -> list[str]:
+    """The name of each ``scored`` pose position (k, 3, m): the name of the first sample of the
+    session's pose (:func:`~dhlog.identify.fit.leaveout.pose_groups` of ``Q``) whose mean
+    measured position it is (within 1 nm; ``""`` where none is)."""
+    groups = pose_groups(Q)
+    _, first = np.unique(groups, return_index=True)
+    means = pose_means(groups, P)[1]
+    out = []
+    for pos in np.asarray(scored, dtype=np.float64):
+        d = np.linalg.norm(means - pos, axis=1)
+        k = int(np.argmin(d)) if d.size else -1
+        out.append(names[int(first[k])] if k >= 0 and d[k] <= 1e-9 else "")
+    return out
