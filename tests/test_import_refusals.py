@@ -89,7 +89,8 @@ def value(scale: float, u95: float = 1.0) -> Callable[[str, int], str]:
 @dataclass(frozen=True)
 class Case:
     """An export, the options, and what must happen: ``code`` 0 with the positions read at
-    ``scale`` (the file's unit, m), or 2 with ``message`` in the one line on stderr."""
+    ``scale`` (the file's unit, m) and the joints in ``order``, or 2 with ``message`` in the one
+    line on stderr."""
 
     text: str
     args: tuple[str, ...] = ()
@@ -97,6 +98,8 @@ class Case:
     message: str = ""
     scale: float = 1e-3
     printed: str = ""
+    #: the joints' order in the log: the session's joints at these indices
+    order: tuple[int, ...] = (0, 1, 2, 3, 4, 5)
 
 
 POS = ["Point", "X [mm]", "Y [mm]", "Z [mm]"]
@@ -150,6 +153,12 @@ CASES = {
     "A2 before A1: by their numbers": Case(
         export([*POS, "A2", "A1", "A3", "A4", "A5", "A6"], value(1e-3)),
         printed="taken in the order of their numbers (A1, A2",
+    ),
+    "--joint-columns A2 before A1: as given, said": Case(
+        export([*POS, *JOINTS], value(1e-3)),
+        ("--joint-columns", "A2,A1,A3,A4,A5,A6"),
+        printed="in the order --joint-columns gives (A2, A1",
+        order=(1, 0, 2, 3, 4, 5),
     ),
     "--angle-unit grad": Case(
         export([*POS, *JOINTS], value(1e-3)), ("--angle-unit", "grad"), 2, "--angle-unit"
@@ -211,7 +220,7 @@ def test_an_export_is_read_right_or_refused(name: str, tmp_path: Path) -> None:
     np.testing.assert_allclose(xyz, SESSION.xyz, atol=1e-7 * case.scale)
     # the joints in chain order, whatever the header's
     q = np.degrees(data.joints.select([f"q_{j}" for j in range(1, 7)]).to_numpy()[::3])
-    np.testing.assert_allclose(q, SESSION.q_deg, atol=1e-5)
+    np.testing.assert_allclose(q, SESSION.q_deg[:, list(case.order)], atol=1e-5)
     if "U95" in case.text.splitlines()[0]:
         cov = data.points.select(COVARIANCE_COLUMNS).to_numpy()
         np.testing.assert_allclose(np.sqrt(cov[:, 0]), SESSION.u95 / U95_SPHERE, rtol=1e-4)

@@ -135,6 +135,19 @@ def joints_by_number(table: Table, candidates: list[int], notes: list[str]) -> l
     return ordered
 
 
+def given_order(table: Table, cols: list[int], notes: list[str]) -> None:
+    """Say so in a note when ``--joint-columns`` names numbered joints out of their numbers'
+    order (``A7, A1, …``: a KUKA's linear unit first in the chain): the option's order is the
+    chain's, as given."""
+    numbers = [m[1] for k in cols if (m := JOINT_HEADER.match(table.heads[k].key))]
+    if len(numbers) == len(cols) and [int(n) for n in numbers] != sorted(int(n) for n in numbers):
+        notes.append(
+            f"{table.path}: the joints were taken in the order --joint-columns gives "
+            f"({', '.join(table.header[k] for k in cols)}), not by their numbers: the chain's "
+            "order, as the option says."
+        )
+
+
 def named_joints(table: Table, taken: dict[int, str], notes: list[str]) -> list[int]:
     """The joint columns named as :data:`NAMED_JOINTS` (a UR arm's ``shoulder_pan_joint …``),
     in chain order, said in a note; empty when the header holds none of those sets whole."""
@@ -421,6 +434,7 @@ def column_layout(table: Table, opts: ImportOptions, *, joints: bool) -> Layout:
                 )
             claim(table, claims, k, "--joint-columns")
             cols.append(k)
+        given_order(table, cols, notes)
     elif joints:
         cols = joints_by_number(
             table,
