@@ -109,6 +109,7 @@ def test_outliers_and_held_out_poses_are_named_by_the_ids(
             column = batch.column("Points3D:labels")
             labels.setdefault(chunk.entity_path, []).extend(column.to_pylist())
     assert labels["/world/m/samples/fit_outliers"] == [["PT-114"]]
+    assert labels["/world/m/samples/set_aside"] == [IDS]  # every stop, by its id
     held = labels["/world/m/holdout/cross_validation/poses"][0]
     assert isinstance(held, list) and sorted(held) == sorted(r["point_id"] for r in rows)
 

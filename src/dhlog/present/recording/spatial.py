@@ -125,9 +125,11 @@ def log_samples(rec: rr.RecordingStream, shown: Shown) -> None:
         )
     aside = shown.drawn(np.flatnonzero(segment == 0))
     if aside.size:
+        ids = result.log.point_ids  # the static poses of an import, by the export's ids
+        labels = None if ids is None else [ids.get(int(s), "") for s in np.asarray(t)[aside]]
         rec.log(
             "world/m/samples/set_aside",
-            rr.Points3D(xyz[aside], colors=[DIM], radii=0.5 * scene.sample),
+            rr.Points3D(xyz[aside], colors=[DIM], radii=0.5 * scene.sample, labels=labels),
             static=True,
         )
     if np.any(outlier):  # every outlier, however many rows are drawn
