@@ -293,3 +293,12 @@ def test_an_uncertainty_of_something_else_is_named_as_left_out(tmp_path: Path) -
     sd, printed = _sigma(tmp_path, [*POS, "temp_std", *JOINTS])
     assert sd.size == 0
     assert "temp_std were left out" in printed and "(none was read)" in printed
+
+
+def test_a_spread_under_a_micrometre_is_read(tmp_path: Path) -> None:
+    """A σ column may be an averaged reading's spread, under a µm (here 0.6 µm at 3 m): read as
+    written; the same from a U95 would be refused (no tracker's uncertainty model goes there)."""
+    header = [*POS, "Unc X [mm]", "Unc Y [mm]", "Unc Z [mm]", *JOINTS]
+    sd, _ = _sigma(tmp_path, header, u95=0.02)
+    np.testing.assert_allclose(sd[:, 2], SESSION.u95 * 0.02, rtol=1e-6)
+    assert float(np.median(sd)) < 1e-6

@@ -29,10 +29,14 @@ _UNIT_COMMENT = re.compile(
     r"^(?:#|//)\s*(?P<key>(?:[a-z]+\s+)?units?)\s*[:=]?\s*(?P<unit>[^\s,;]+)", re.IGNORECASE
 )
 _NOT_LENGTH = ("angle", "angular", "time", "temp", "temperature", "rotation")
-#: σ per coordinate no tracker reaches (m): a laser tracker's U95 is 15 µm or more, a σ of a few
-#: µm; below :data:`MIN_SIGMA_M` the values are in a larger unit than read (inches or metres
-#: read as mm), beyond :data:`MAX_SIGMA_M` in a smaller one (mm read as m).
+#: σ per coordinate no tracker reaches (m): a laser tracker's U95 (its uncertainty model: 15 µm
+#: + 6 µm/m) is 15 µm or more, a σ of several µm; a median below :data:`MIN_SIGMA_M` from a U95
+#: means the values are in a larger unit than read (inches or metres read as mm). A standard
+#: deviation or uncertainty column (``std``, ``unc``) may be the spread of an averaged reading,
+#: which can be well under a µm: its floor is :data:`MIN_SPREAD_M`. Beyond :data:`MAX_SIGMA_M`
+#: either is in a smaller unit than read (mm read as m).
 MIN_SIGMA_M = 1e-6
+MIN_SPREAD_M = 1e-7
 MAX_SIGMA_M = 5e-3
 #: Points that all lie within this (m, the largest extent along x, y or z) while the revolute
 #: joints turn by :data:`MIN_TURN_RAD` or more in all (the sum of their spans) are in a larger
@@ -90,27 +94,34 @@ def one_unit(table: Table, columns: list[int], units: list[str], what: str) -> N
 
 
 def plausible_sigma(
-    table: Table, columns: list[int], sd: NDArray[np.float64], unit: str, where: str
+    table: Table,
+    columns: list[int],
+    sd: NDArray[np.float64],
+    unit: str,
+    where: str,
+    *,
+    expanded: bool,
 ) -> None:
     """Refuse per-point σ (m, per coordinate) whose median no tracker gives: under
-    :data:`MIN_SIGMA_M` (inches or metres read as mm) or over :data:`MAX_SIGMA_M` (mm read as
-    m). ``unit``: the unit the columns were read in, ``where``: what said so."""
+    :data:`MIN_SIGMA_M` from a U95 (``expanded``; :data:`MIN_SPREAD_M` from a σ column: inches
+    or metres read as mm) or over :data:`MAX_SIGMA_M` (mm read as m). ``unit``: the unit the
+    columns were read in, ``where``: what said so."""
     if sd.shape[0] < MIN_POINTS:
         return
     median = float(np.median(sd))
-    if MIN_SIGMA_M <= median <= MAX_SIGMA_M:
+    if (MIN_SIGMA_M if expanded else MIN_SPREAD_M) <= median <= MAX_SIGMA_M:
         return
     names = ", ".join(table.header[k] for k in columns)
     slip = (
         "the export is in a larger unit than read (inches or metres)"
-        if median < MIN_SIGMA_M
+        if median < MAX_SIGMA_M
         else "the export is in a smaller unit than read (mm read as m)"
     )
     raise ConversionError(
         table.path,
         f"the uncertainty {names} read in {unit} ({where}) gives a median σ of "
         f"{median * 1e6:.3g} µm per coordinate; no tracker measures "
-        f"{'that well' if median < MIN_SIGMA_M else 'that poorly'}: {slip}? State the unit in "
+        f"{'that well' if median < MAX_SIGMA_M else 'that poorly'}: {slip}? State the unit in "
         "the header (X [in], U95 [in]) or give --length-unit; or leave the uncertainty out with "
         "--no-u95.",
     )

@@ -232,7 +232,9 @@ def _u95_sigma(
     if sd.shape[1] == 1:
         sd = np.repeat(sd, 3, axis=1)
     stated = table.heads[cols[0]].unit not in (None, *DIMENSIONLESS)
-    plausible_sigma(table, cols, sd, units[0], "the header" if stated else xyz_where)
+    expanded = kind in ("axes", "sphere")
+    where = "the header" if stated else xyz_where
+    plausible_sigma(table, cols, sd, units[0], where, expanded=expanded)
     return np.asarray(sd, dtype=np.float64)
 
 
