@@ -302,3 +302,32 @@ def test_a_spread_under_a_micrometre_is_read(tmp_path: Path) -> None:
     sd, _ = _sigma(tmp_path, header, u95=0.02)
     np.testing.assert_allclose(sd[:, 2], SESSION.u95 * 0.02, rtol=1e-6)
     assert float(np.median(sd)) < 1e-6
+
+
+@pytest.mark.parametrize(
+    ("head", "args", "message"),
+    [
+        ("Name X[m] Y[m] Z[m]", (), ""),
+        ("Name X[m] Y[m] Z[m]", ("--length-unit", "mm"), "the header states m but --length-unit"),
+        ("Name X[m] Y[mm] Z[m]", (), "not alike"),
+    ],
+)
+def test_a_point_list_s_header_unit_is_obeyed(
+    tmp_path: Path, head: str, args: tuple[str, ...], message: str
+) -> None:
+    """A SpatialAnalyzer point list (space-separated, no table) whose header line states the
+    unit: metres read as metres (the header was skipped and the points read as mm)."""
+    points, joints = tmp_path / "points.txt", tmp_path / "joints.csv"
+    rows = [f"P{i + 1:03d} " + " ".join(f"{v:.7f}" for v in SESSION.xyz[i]) for i in range(POSES)]
+    points.write_text("\n".join([head, *rows]) + "\n")
+    joints.write_text(export(["Point", *JOINTS], value(1e-3)))
+    out = tmp_path / "run.mcap"
+    cmd = ["import", str(points), "--format", "spatialanalyzer", "--joints-file", str(joints)]
+    result = runner.invoke(app, [*cmd, "-o", str(out), *args])
+    if message:
+        assert result.exit_code == 2, result.output
+        assert message in " ".join(result.stderr.split()) and "line 1" in result.stderr
+        return
+    assert result.exit_code == 0, result.output
+    xyz = read_log(out).points.select(["x", "y", "z"]).to_numpy()
+    np.testing.assert_allclose(xyz, SESSION.xyz, atol=1e-7)

@@ -110,8 +110,8 @@ def import_source(source: str | Path, opts: ImportOptions) -> Imported:
             if line.lstrip().startswith(("#", "//"))
         ]
         unit, where = file_length_unit(str(path), opts, comment_length_unit(str(path), comments))
-        names, xyz, lines = spatialanalyzer_points(path, unit)
-        src = Source(str(path), lines, names, xyz, length_read=(unit, where))
+        names, xyz, lines, read = spatialanalyzer_points(path, unit, where)
+        src = Source(str(path), lines, names, xyz, length_read=read)
     else:
         src = from_table(read_table(path), opts)
     if opts.joints_file is not None:
