@@ -282,7 +282,10 @@ def _uncertainty(
     position = [u for u in found if not u.rotation]
     families: dict[tuple[str, str], dict[str, int]] = {}
     for u in position:
-        families.setdefault((u.prefix, u.word), {}).setdefault(u.axis, u.k)
+        family = families.setdefault((u.prefix, u.word), {})
+        if u.axis in family:  # two columns of one figure: which would be read?
+            table._one([family[u.axis], u.k])
+        family[u.axis] = u.k
 
     def rank(family: tuple[str, str]) -> int:
         pre, _ = family
