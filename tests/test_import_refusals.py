@@ -287,6 +287,13 @@ def test_a_3d_standard_uncertainty_is_root_3_sigma(tmp_path: Path) -> None:
     assert "σ = u / √3" in printed
 
 
+def test_a_vendor_s_3d_uncertainty_alone_is_read(tmp_path: Path) -> None:
+    """``leica_unc_m`` alone (a standard uncertainty, one 3-D figure, in m): σ = u / √3."""
+    sd, printed = _sigma(tmp_path, [*POS, "leica_unc_m", *JOINTS])
+    np.testing.assert_allclose(sd[:, 1], SESSION.u95 / np.sqrt(3), rtol=1e-6)
+    assert "σ was read from leica_unc_m" in printed
+
+
 def test_an_uncertainty_of_something_else_is_named_as_left_out(tmp_path: Path) -> None:
     """``temp_std`` (a 3-D figure of another prefix: a temperature's?) is not read as the
     position's σ, and the warning names it."""

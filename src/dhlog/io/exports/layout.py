@@ -266,7 +266,7 @@ def _uncertainty(
     and the uncertainty columns left unread (the orientation's, a second set, a 3-D figure
     beside the per-axis one), every one of them recognised (never a joint). Read, in this
     order: a U95 per axis, a 3-D U95, σ per axis, a 3-D σ; of the position's prefix first, then
-    none, then any other (a 3-D figure of another prefix is not read: ``temp_std``)."""
+    none, then any other (a 3-D σ of another prefix is not read: ``temp_std``)."""
     found = [
         u
         for k, h in enumerate(table.heads)
@@ -298,13 +298,18 @@ def _uncertainty(
         ("std", ("std", "unc"), "xyz"),
         ("std3d", ("std", "unc"), ""),
     ):
-        # one 3-D figure of another prefix (``temp_std``) may be another quantity's: not read
+        # one 3-D σ of another prefix (``temp_std``) may be another quantity's spread: not
+        # read; an uncertainty (``leica_unc``, ``tracker_U95``) is the measurement's
         hits = sorted(
             (
                 f
                 for f, cols in families.items()
                 if f[1] in words
-                and (all(a in cols for a in axes) if axes else "" in cols and rank(f) < 2)
+                and (
+                    all(a in cols for a in axes)
+                    if axes
+                    else "" in cols and (rank(f) < 2 or f[1] != "std")
+                )
             ),
             key=rank,
         )
