@@ -338,3 +338,32 @@ def test_a_point_list_s_header_unit_is_obeyed(
     assert result.exit_code == 0, result.output
     xyz = read_log(out).points.select(["x", "y", "z"]).to_numpy()
     np.testing.assert_allclose(xyz, SESSION.xyz, atol=1e-7)
+
+
+def test_ur_joint_names_in_alphabetical_order_are_taken_in_chain_order(tmp_path: Path) -> None:
+    """A header with a UR arm's joints as its ROS 2 driver lists them (alphabetical: elbow
+    first): the joints in the log in chain order (shoulder_pan … wrist_3), said in a note."""
+    chain = [
+        "shoulder_pan_joint",
+        "shoulder_lift_joint",
+        "elbow_joint",
+        "wrist_1_joint",
+        "wrist_2_joint",
+        "wrist_3_joint",
+    ]
+    alphabetical = sorted(chain)
+    assert alphabetical[0] == "elbow_joint"
+    base = value(1e-3)
+
+    def cell(h: str, i: int) -> str:
+        return f"{SESSION.q_deg[i, chain.index(h)]:.5f}" if h in chain else base(h, i)
+
+    src, out = tmp_path / "ur.csv", tmp_path / "ur.mcap"
+    src.write_text(export([*POS, *alphabetical], cell))
+    result = runner.invoke(app, ["import", str(src), "-o", str(out)])
+    assert result.exit_code == 0, result.output
+    assert "taken in chain order" in " ".join(result.stdout.split())
+    data = read_log(out)
+    assert data.joints is not None and data.joint_names == chain
+    q = np.degrees(data.joints.select([f"q_{j}" for j in range(1, 7)]).to_numpy()[::3])
+    np.testing.assert_allclose(q, SESSION.q_deg, atol=1e-5)
