@@ -1,6 +1,7 @@
 """What each column of an export holds, read from its header: the point name, x, y, z (or a
 prefixed triple such as ``measurement_x … measurement_z`` when the header has no plain x), U95 or
-standard deviations (``std x``, ``sigma_x``, ``measurement_std_x``), the orientation of a 6-DoF
+standard uncertainties of any prefix, per axis or one 3-D figure (``U95 X``, ``leica_uncX_m``,
+``std x``, ``sigma_x``, ``measurement_std_x``, ``leica_unc_m``), the orientation of a 6-DoF
 target (quaternion ``Q0 Q1 Q2 Q3`` scalar first as Leica writes it, ``Qw Qx Qy Qz`` in any
 order, or rotation angles ``Rx Ry Rz`` in the ``--euler`` sequence, with the position's prefix
 or without), the time, and the joints (``q1…``, ``j1…``, ``A1…``, ``joint_1…``, ``axis1…``, a

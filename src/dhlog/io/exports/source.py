@@ -1,13 +1,16 @@
-"""An export's points in SI units (:class:`Source`): coordinates in their header's unit, U95
-or standard-deviation columns as each point's covariance, the orientation as unit quaternions,
+"""An export's points in SI units (:class:`Source`): coordinates in their header's unit (else
+``--length-unit``, else a comment line's ``# Units: …``, else mm; x, y, z in one unit), U95 or
+standard-uncertainty columns as each point's covariance, the orientation as unit quaternions,
 the time, and the joint values when the export holds them.
 
-U95 to σ: a per-coordinate U95 is 1.96 σ; a single (3D) U95 is the radius of the 95 % sphere
-of an isotropic normal distribution, 2.796 σ (√χ²₃(0.95)); a standard deviation per coordinate
-(``std x``, ``sigma_x``, ``measurement_std_x``) is σ. A value the export rounded to 0 is
-floored at the export's resolution (the last decimal written), and said in a note. Uncertainty
+U95 to σ (:data:`UNCERTAINTY_KINDS`): a per-coordinate U95 is 1.96 σ; a single (3D) U95 is the
+radius of the 95 % sphere of an isotropic normal distribution, 2.796 σ (√χ²₃(0.95)); a standard
+uncertainty or deviation per coordinate (``unc X``, ``std x``, ``sigma_x``,
+``measurement_std_x``) is σ; a single 3-D one (``leica_unc_m``, ``Uncertainty``) is the radial
+figure √(σx² + σy² + σz²): σ = u / √3. A value of 0 or below is refused naming its line, and so
+is a median σ no tracker gives in the unit read (:mod:`dhlog.io.exports.checks`). Uncertainty
 columns that cannot be used (an orientation's σ: the log carries the position's covariance
-only; σ beside a U95) are named in a warning as left out.
+only; a second set beside the one read) are named in a warning as left out.
 """
 
 from __future__ import annotations

@@ -335,21 +335,6 @@ def read_table(path: str | Path, *, header: bool = True, option: str = "the sour
     return table
 
 
-def resolution(texts: list[str]) -> float:
-    """The smallest step the numbers are written with: 10⁻ᵈ for d decimals (``0.001`` for
-    ``1.234``, ``1e-4`` for ``1.2e-3``), the finest over ``texts``."""
-    finest = math.inf
-    for text in texts:
-        mantissa, _, exponent = text.strip().lower().replace(",", ".").partition("e")
-        decimals = len(mantissa.partition(".")[2])
-        try:
-            shift = int(exponent) if exponent else 0
-        except ValueError:
-            continue
-        finest = min(finest, 10.0 ** max(min(shift - decimals, 300), -300))
-    return finest
-
-
 # ---------------------------------------------------------------------------------------------
 # units
 
