@@ -123,6 +123,14 @@ CASES = {
         scale=0.0254,
         printed="read in inches (line 1 states it)",
     ),
+    "a comment that states no unit": Case(
+        export([*POS, *JOINTS], value(1e-3), ("# unit tests passed; exported 2026-12-01",))
+    ),
+    "a comment's unknown unit": Case(
+        export(["Point", "X", "Y", "Z", *JOINTS], value(1e-3), ("# Units: feet",)),
+        code=2,
+        message="line 1: the comment '# Units: feet' states the unit 'feet'",
+    ),
     "header [m] against --length-unit mm": Case(
         export(["Point", "X [m]", "Y [m]", "Z [m]", *JOINTS], value(1.0)),
         ("--length-unit", "mm"),

@@ -26,7 +26,8 @@ from dhlog.io.exports.table import (
 #: A comment line stating the length unit: ``# Units: inch``, ``// length unit = mm``,
 #: ``# units mm`` (not an angle's, time's or temperature's unit).
 _UNIT_COMMENT = re.compile(
-    r"^(?:#|//)\s*(?P<key>(?:[a-z]+\s+)?units?)\s*[:=]?\s*(?P<unit>[^\s,;]+)", re.IGNORECASE
+    r"^(?:#|//)\s*(?P<key>(?:[a-z]+\s+)?units?)\s*(?P<sep>[:=])?\s*(?P<unit>[^\s,;]+)",
+    re.IGNORECASE,
 )
 _NOT_LENGTH = ("angle", "angular", "time", "temp", "temperature", "rotation")
 #: σ per coordinate no tracker reaches (m): a laser tracker's U95 (its uncertainty model: 15 µm
@@ -50,8 +51,9 @@ MIN_POINTS = 10
 
 
 def comment_length_unit(path: str, comments: list[tuple[int, str]]) -> tuple[str, int] | None:
-    """The length unit a comment line of the export states (``# Units: inch``) and its line, or
-    None; an unknown or ambiguous unit there is refused, naming the line."""
+    """The length unit a comment line of the export states (``# Units: inch``, ``# units mm``)
+    and its line, or None; an unknown or ambiguous unit after ``:`` or ``=`` is refused, naming
+    the line (without one, a word that is no unit is not a statement: ``# unit tests``)."""
     found: list[tuple[str, int]] = []
     for line, text in comments:
         m = _UNIT_COMMENT.match(text)
@@ -59,6 +61,8 @@ def comment_length_unit(path: str, comments: list[tuple[int, str]]) -> tuple[str
             continue
         word = m["unit"].strip().lower().rstrip(".")
         unit = UNIT_SPELLINGS.get(word)
+        if unit not in LENGTH_UNITS and not m["sep"]:
+            continue  # "# unit tests …": no statement of a unit
         if unit not in LENGTH_UNITS:
             why = AMBIGUOUS_UNITS.get(word, "")
             raise ConversionError(
