@@ -110,6 +110,11 @@ def test_outliers_and_held_out_poses_are_named_by_the_ids(
             labels.setdefault(chunk.entity_path, []).extend(column.to_pylist())
     assert labels["/world/m/samples/fit_outliers"] == [["PT-114"]]
     assert labels["/world/m/samples/set_aside"] == [IDS]  # every stop, by its id
+    # the certificate names the outlier
+    page = tmp_path / "certificate.html"
+    done = runner.invoke(app, ["report", str(out / "run.dh.json"), "-o", str(page)])
+    assert done.exit_code == 0, done.output
+    assert "held out as outliers: PT-114" in page.read_text()
     held = labels["/world/m/holdout/cross_validation/poses"][0]
     assert isinstance(held, list) and sorted(held) == sorted(r["point_id"] for r in rows)
 
