@@ -101,7 +101,8 @@ def import_(
         str | None,
         typer.Option(
             help="m, mm, um or in: positions, U95, prismatic joints, where the header states "
-            "no unit (default mm; a header that states another is an error)."
+            "no unit (default: a comment line's '# Units: …', else mm; a header or comment "
+            "that states another is an error)."
         ),
     ] = None,
     angle_unit: Annotated[
@@ -135,7 +136,10 @@ def import_(
     ] = "xyz",
     no_u95: Annotated[
         bool,
-        typer.Option("--no-u95", help="Leave the U95 columns out (the noise model applies)."),
+        typer.Option(
+            "--no-u95",
+            help="Leave the uncertainty columns (U95, unc, σ) out (the noise model applies).",
+        ),
     ] = False,
     force: Annotated[bool, typer.Option("--force", help="Overwrite the output.")] = False,
 ) -> None:

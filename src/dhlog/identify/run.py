@@ -39,6 +39,7 @@ from dhlog.geometry.lines import ANGLE_TOL, DISTANCE_TOL, Line, Plane
 from dhlog.identify.check.footing import Placed, nominal_on_session, score_poses
 from dhlog.identify.check.holdout import Holdout, cross_validate
 from dhlog.identify.check.plausible import judge
+from dhlog.identify.check.named import name_outliers, pose_names, sample_names
 from dhlog.identify.check.validate import (
     Validation,
     check_residual,
@@ -159,6 +160,10 @@ class ProcessResult:
     registration: Registration | None = None
     #: errors at poses not used to fit: K-fold cross-validation, held-out logs
     holdout: list[Holdout] = field(default_factory=list)
+    #: the whole-model fit's gross outliers by name (the export's point ids, else ``#k``)
+    outlier_names: list[str] = field(default_factory=list)
+    #: ... and their rows in the segmentation's point table
+    outlier_rows: NDArray[np.intp] = field(default_factory=lambda: np.zeros(0, np.intp))
     #: K of the K-fold cross-validation asked for (0: none)
     folds: int = 0
     #: the terms beyond the geometry asked for, the candidates tried, and the chosen terms in
@@ -779,6 +784,11 @@ def _identify_whole(
         result.deflection_max_std, result.deflection_target_std = moved.joints_std, moved.target_std
         result.deflection_vectors = moved.vectors
     result.validation = validate_samples(seg, rows, Q_table, P, ex, whole.inliers, tools, which)
+    stamps = np.asarray(seg.column("t_ns", rows), dtype=np.int64)
+    names = sample_names(stamps, rows, result.log.point_ids)
+    norms = residual_norms(whole.model, Q, P, which=which, rates=rates)
+    out = name_outliers(names, norms, whole.inliers, result.info, notes)
+    result.outlier_names, result.outlier_rows = [names[i] for i in out.tolist()], rows[out]
     gap = table_gap(whole, ex, Q, Q_table)
     if gap > 1e-6:
         notes.append(
@@ -845,6 +855,8 @@ def _identify_whole(
                 f"poses: {_tally(said, '; ')}."
             )
         check = result.holdout[-1]
+        if check.pose_samples is not None and result.log.point_ids is not None:
+            check.pose_names = [names[i] for i in check.pose_samples.tolist()]
         check.range_sd = range_sd(whole, Q)
         if check.expected_rms is not None and check.range_sd > 0.5 * check.calibrated.rms:
             check.notes.append(
@@ -950,6 +962,11 @@ def _validate_log(
             nominal_values=None if nominal is None else nominal.joint_values(Q),
         )
     )
+    if log.point_ids is not None:  # the session's held-out poses by the export's ids
+        mine = rows if which is None else rows[primary]
+        names = sample_names(np.asarray(seg.column("t_ns", mine), np.int64), mine, log.point_ids)
+        check = result.holdout[-1]
+        check.pose_names = pose_names(np.asarray(Q), np.asarray(P), names, check.positions)
 
 
 #: Largest number of the session's samples the nominal is placed on for ``--validate``.

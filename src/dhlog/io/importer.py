@@ -22,7 +22,9 @@ The log is written as rosbag2 would (profile ``ros2``, CDR): the target on ``/tr
 ``PoseWithCovarianceStamped`` with the uncertainties, its pose holding the orientation when
 there is one), the joints on ``/joint_states`` (``sensor_msgs/msg/JointState``, SI units), with
 the conversion's provenance in an MCAP metadata record ``dhlog.import`` — whose ``orientation =
-true`` makes :func:`dhlog.io.reader.read_log` read the orientation without a pipeline saying so.
+true`` makes :func:`dhlog.io.reader.read_log` read the orientation without a pipeline saying so —
+and the export's point ids, when it names its points, in ``dhlog.point_ids``
+(:mod:`dhlog.io.pointids`: dhlog names outliers and held-out poses by them).
 Discrete points become stops: 2 s per point, the target measured in the middle, three joint
 states holding the point's joint values — at the stop's start, at the measurement and at its end
 one 20 Hz period before the next stop: what the segmentation sees of a step-and-measure cell's
@@ -41,13 +43,15 @@ from numpy.typing import NDArray
 
 from dhlog.errors import InputError
 from dhlog.io import ros2
+from dhlog.io.exports.checks import comment_length_unit, plausible_extent
 from dhlog.io.exports.joints import with_joints_file
 from dhlog.io.exports.options import ImportOptions, checked_options
-from dhlog.io.exports.source import EPOCH_NS, Source, from_table
+from dhlog.io.exports.source import EPOCH_NS, Source, file_length_unit, from_table
 from dhlog.io.exports.spatialanalyzer import is_table, spatialanalyzer_points
-from dhlog.io.exports.table import DEFAULT_LENGTH_UNIT, Table, read_table
+from dhlog.io.exports.table import DEFAULT_LENGTH_UNIT, Table, read_table, read_text
 from dhlog.io.exports.targets import further_positions, further_topics, target_triples
 from dhlog.io.paths import same_file
+from dhlog.io.pointids import POINT_IDS_METADATA, point_ids_record
 from dhlog.model.dh import JointType
 
 #: The import's entry, as the command line takes it.
@@ -60,6 +64,8 @@ __all__ = [
     "write_imported",
 ]
 
+#: Length units as a note names them.
+UNIT_WORDS = {"um": "micrometres", "in": "inches"}
 #: A stop's length and its encoder rate (s, Hz), the target measured in its middle.
 STOP_SECONDS, STOP_RATE = 2.0, 20.0
 #: When in a stop its joint states are written (s): its start, the measurement, its end.
@@ -86,6 +92,8 @@ class Imported:
     notes: list[str] = field(default_factory=list)
     #: further targets' positions (k, m, 3), m, at the point stamps (``--targets``)
     further: NDArray[np.float64] | None = None
+    #: the export's point ids (its point-name column), one per target sample, or None
+    point_ids: list[str] | None = None
 
 
 def import_source(source: str | Path, opts: ImportOptions) -> Imported:
@@ -103,8 +111,15 @@ def import_source(source: str | Path, opts: ImportOptions) -> Imported:
                 f"{path}: a SpatialAnalyzer point list holds no joint values; give them with "
                 "--joints-file (matched by point name, or by row)."
             )
-        names, xyz, lines = spatialanalyzer_points(path, opts.length_unit or DEFAULT_LENGTH_UNIT)
-        src = Source(str(path), lines, names, xyz)
+        text = read_text(path)
+        comments = [
+            (i + 1, line.strip())
+            for i, line in enumerate(text.splitlines())
+            if line.lstrip().startswith(("#", "//"))
+        ]
+        unit, where = file_length_unit(str(path), opts, comment_length_unit(str(path), comments))
+        names, xyz, lines, read = spatialanalyzer_points(path, unit, where)
+        src = Source(str(path), lines, names, xyz, length_read=read)
     elif opts.targets:
         src = _with_targets(read_table(path), opts)
     else:
@@ -112,7 +127,22 @@ def import_source(source: str | Path, opts: ImportOptions) -> Imported:
     if opts.joints_file is not None:
         src = with_joints_file(src, opts)
     assert src.q is not None
-    src.unit_slips([JointType.parse(t) for t in opts.joint_types] or None)
+    types = [JointType.parse(t) for t in opts.joint_types] or None
+    src.unit_slips(types)
+    if src.length_read is not None:
+        unit, where = src.length_read
+        revolute = [
+            j
+            for j in range(src.q.shape[1])
+            if types is None or j >= len(types) or types[j] is JointType.REVOLUTE
+        ]
+        plausible_extent(src.path, src.xyz, src.q, revolute, unit, where)
+        if unit in ("in", "um"):
+            src.notes.append(
+                f"{src.path}: the positions were read in {UNIT_WORDS.get(unit, unit)} "
+                f"({where}{' states it' if where.startswith('line') else ''}) and converted "
+                "to metres."
+            )
     xyz, q = src.xyz, src.q
     if src.t_ns is not None:
         point_t, joint_t, joint_q, stepped = src.t_ns, src.t_ns, q, False
@@ -157,6 +187,7 @@ def import_source(source: str | Path, opts: ImportOptions) -> Imported:
         src.quat,
         list(src.notes),
         None if src.further is None else np.asarray(src.further, dtype=np.float64),
+        None if src.names is None else list(src.names),
     )
 
 
@@ -280,4 +311,8 @@ def write_imported(imported: Imported, out: str | Path) -> None:
         for i, t, s in ordered:
             add(channels[s], t, payloads[i], t)
         writer.add_metadata("dhlog.import", {**imported.provenance, "dhlog": __version__})
+        if imported.point_ids is not None:
+            writer.add_metadata(
+                POINT_IDS_METADATA, point_ids_record(imported.point_t_ns, imported.point_ids)
+            )
         writer.finish()  # type: ignore[no-untyped-call]

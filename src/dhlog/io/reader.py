@@ -48,6 +48,7 @@ from dhlog.io.jointnames import ChainOrder
 from dhlog.io.mcapscan import ZSTD_MAGIC, McapScan, scan_mcap
 from dhlog.io.mcapwalk import ChannelInfo, RawMessages
 from dhlog.io.pipeline import Pipeline, pipeline_by_name, shipped_pipelines
+from dhlog.io.pointids import POINT_IDS_METADATA, read_point_ids
 
 #: What the rest of dhlog reads from here (the columns of the point table among them).
 __all__ = [
@@ -91,6 +92,8 @@ class LogData:
     #: how the joint-state stream's joints were matched to the chain (None: no joint states,
     #: or not decided on reading: :func:`dhlog.io.jointnames.chain_order`)
     joint_order: ChainOrder | None = None
+    #: the export's point ids by stamp (``dhlog import``'s ``dhlog.point_ids``), or None
+    point_ids: dict[int, str] | None = None
 
 
 #: the schemas of camera images (those of :mod:`dhlog.io.images`, named here without its cv2)
@@ -475,6 +478,9 @@ def read_log(
             f"{name}: {bad} of {total} message(s) on {topic} could not be decoded and were "
             f"skipped (first at {first})."
         )
+    point_ids = None
+    if POINT_IDS_METADATA in scan.metadata_names:
+        point_ids = read_point_ids(path, warnings)
     return LogData(
         name,
         pipeline,
@@ -488,6 +494,7 @@ def read_log(
         reason,
         commanded,
         order,
+        point_ids,
     )
 
 

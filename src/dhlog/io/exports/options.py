@@ -62,9 +62,10 @@ def checked_options(opts: ImportOptions) -> None:
             continue
         try:
             unit = unit_name(value, kind)
-        except ValueError:
+        except ValueError as exc:
             known = ", ".join(LENGTH_UNITS if kind == "length" else ANGLE_UNITS)
-            raise InputError(f"{option} must be one of {known}, not '{value}'.") from None
+            why = f" ({exc})" if str(exc) else ""
+            raise InputError(f"{option} must be one of {known}, not '{value}'{why}.") from None
         if kind == "length":
             opts.length_unit = unit
         elif option == "--angle-unit":
