@@ -38,8 +38,8 @@ from dhlog.geometry.fitting import PlaneFit, fit_plane
 from dhlog.geometry.lines import ANGLE_TOL, DISTANCE_TOL, Line, Plane
 from dhlog.identify.check.footing import Placed, nominal_on_session, score_poses
 from dhlog.identify.check.holdout import Holdout, cross_validate
-from dhlog.identify.check.plausible import judge
 from dhlog.identify.check.named import name_outliers, pose_names, sample_names
+from dhlog.identify.check.plausible import judge
 from dhlog.identify.check.validate import (
     Validation,
     check_residual,

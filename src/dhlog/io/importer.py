@@ -48,7 +48,7 @@ from dhlog.io.exports.joints import with_joints_file
 from dhlog.io.exports.options import ImportOptions, checked_options
 from dhlog.io.exports.source import EPOCH_NS, Source, file_length_unit, from_table
 from dhlog.io.exports.spatialanalyzer import is_table, spatialanalyzer_points
-from dhlog.io.exports.table import DEFAULT_LENGTH_UNIT, Table, read_table, read_text
+from dhlog.io.exports.table import Table, read_table, read_text
 from dhlog.io.exports.targets import further_positions, further_topics, target_triples
 from dhlog.io.paths import same_file
 from dhlog.io.pointids import POINT_IDS_METADATA, point_ids_record
