@@ -168,6 +168,9 @@ def import_source(source: str | Path, opts: ImportOptions) -> Imported:
         else "from the source",
         **src.provenance,
     }
+    # the import put the joints in chain order (by their numbers, or as --joint-columns gives
+    # them): the reader keeps it over its own numbered-names rule
+    provenance["joint_order"] = "chain"
     if src.further is not None:
         provenance["targets"] = str(1 + len(src.further))
         provenance["further_target_topics"] = ",".join(further_topics(len(src.further)))

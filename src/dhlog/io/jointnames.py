@@ -10,7 +10,8 @@ publishes ``elbow_joint`` first, in the alphabetical order of ros2_control's int
   found in the stream, exactly, or each once behind a prefix (``left_shoulder_pan_joint``: a
   driver's ``tf_prefix``); the stream's other joints (a gripper's) are left out, named once;
 - else, names that only number the joints (``joint_1``, ``J2``, ``A3``, ``axis4``, ``q5``) in
-  the order of their numbers;
+  the order of their numbers — but for a ``dhlog import`` log, which wrote its joints in chain
+  order already (by their numbers, or as ``--joint-columns`` gave them: a rail's A7 first);
 - else, the stream's order (first seen): nothing names the chain, so a permutation is left to
   the data to reveal (:mod:`dhlog.identify.joints.permutation`).
 
@@ -114,11 +115,13 @@ def chain_order(
     topic: str,
     source: str = "model",
     pipeline: Sequence[str] | None = None,
+    in_chain_order: bool = False,
 ) -> ChainOrder:
     """The stream's joints (``found``, first seen first) in the chain order of a model named
     ``model`` (None or numbered names: no names to match), by the rules of the module
     docstring. ``pipeline``: the pipeline's ``[joints] names`` (the chain as the user gave it).
-    Raises :class:`JointNamesMismatchError` when the model and the stream name their joints
+    ``in_chain_order``: the stream's writer put its joints in chain order (``dhlog import``'s
+    record says ``joint_order = chain``), so numbered names do not reorder them. Raises :class:`JointNamesMismatchError` when the model and the stream name their joints
     differently."""
     found = list(found)
     if pipeline:
@@ -144,7 +147,7 @@ def chain_order(
             return ChainOrder(tuple(picked), "prefix", left, note + (f" {extra}" if extra else ""))
         if numbered is None:
             raise JointNamesMismatchError(path, topic, found, chain, source)
-    if numbered is not None:
+    if numbered is not None and not in_chain_order:
         chain = [n for _, n in sorted(zip(numbered, found, strict=True))]
         said = f"{topic}'s joints taken in the order of their numbers ({', '.join(chain)})."
         return ChainOrder(tuple(chain), "number", (), None if chain == found else said)

@@ -305,6 +305,7 @@ def read_log(
     warnings = list(scan.warnings)
     _unzstd_squeezed(scan.messages, name, unzstd)
     reason = None
+    record = import_record(path) if IMPORT_METADATA in scan.metadata_names else {}
     if pipeline is None:
         try:
             pipeline, why = choose_pipeline(name, scan.channels)
@@ -314,7 +315,6 @@ def read_log(
                 raise damage from None
             raise
         reason = f"using pipeline '{pipeline.name}' ({why})"
-        record = import_record(path) if IMPORT_METADATA in scan.metadata_names else {}
         if record.get("orientation") == "true":
             point = replace(pipeline.streams["point"], orientation=True)
             pipeline = replace(pipeline, streams={**pipeline.streams, "point": point})
@@ -431,7 +431,13 @@ def read_log(
     if "joints" in infos:
         topic = infos["joints"][0].topic
         joints, chain, order = joints_frame(
-            name, topic, blocks_of("joints"), pipeline, joint_names, joint_source
+            name,
+            topic,
+            blocks_of("joints"),
+            pipeline,
+            joint_names,
+            joint_source,
+            in_chain_order=record.get("joint_order") == "chain",
         )
         if order.note:
             warnings.append(f"{name}: {order.note}")

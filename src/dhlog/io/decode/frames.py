@@ -295,10 +295,12 @@ def joints_frame(
     pipeline: Pipeline,
     model: Sequence[str] | None = None,
     source: str = "model",
+    in_chain_order: bool = False,
 ) -> tuple[pl.DataFrame, list[str], ChainOrder]:
     """The joints table in chain order from blocks of (times, (names, positions)): the chain
     as :func:`dhlog.io.jointnames.chain_order` finds it in the stream's names for a model whose
-    joints are named ``model`` (its ``source`` for messages); messages that carry none of the
+    joints are named ``model`` (its ``source`` for messages; ``in_chain_order``: the writer's
+    order is the chain's, numbered names do not reorder it); messages that carry none of the
     chain's joints (a gripper's own joint states) are left out."""
     seen: list[str] = []
     for _, (names, _) in blocks:
@@ -306,7 +308,13 @@ def joints_frame(
     if not seen:
         raise JointNamesError(path, topic, list(pipeline.joint_names or []), seen)
     order = chain_order(
-        seen, model, path=path, topic=topic, source=source, pipeline=pipeline.joint_names
+        seen,
+        model,
+        path=path,
+        topic=topic,
+        source=source,
+        pipeline=pipeline.joint_names,
+        in_chain_order=in_chain_order,
     )
     expected = list(order.names)
     missing = [n for n in expected if n not in seen]
