@@ -241,7 +241,7 @@ def simulate(
     robot: str | Path | Robot = "kr5",
     out: str | Path = "session.mcap",
     *,
-    protocol: Literal["sweeps", "random-poses", "coupled", "iso9283"] = "sweeps",
+    protocol: Literal["sweeps", "random-poses", "coupled", "iso9283", "line", "curve"] = "sweeps",
     noise: float = 1e-5,
     seed: int = 0,
     encoding: Literal["ros2", "json", "protobuf"] = "ros2",

@@ -65,9 +65,32 @@ def simulate(
             "except joint 2: only with joint 3 as q3 = -q2); these two measure only at stops. "
             "iso9283: the ISO 9283 test program (dhlog plan --iso9283's) run by a robot of known "
             "repeatability, drift, overshoot and path error (--cycles, --repeatability-mm, …), "
-            "with the commanded joints on /joint_command and every attained pose in the truth."
+            "with the commanded joints on /joint_command and every attained pose in the truth. "
+            "line, curve: a task session, --poses still poses along a straight line or a "
+            "planar curve (--path-length-mm), the target's orientation held (the nominal's "
+            "inverse kinematics, as a controller's): a --validate log."
         ),
     ] = "sweeps",
+    path_length_mm: Annotated[
+        float,
+        typer.Option(help="--protocol line: the line's length; curve: its extent, mm."),
+    ] = 400.0,
+    restation: Annotated[
+        bool,
+        typer.Option(
+            "--restation",
+            help="The tracker re-stationed since the calibration (0.61 m away, turned 25° "
+            "about its vertical): another T_measurement_base, for a --validate log.",
+        ),
+    ] = False,
+    remount: Annotated[
+        bool,
+        typer.Option(
+            "--remount",
+            help="The probe re-mounted since the calibration: its point moved 0.95 mm on the "
+            "flange and, with --six-dof, its frame turned 1.6°.",
+        ),
+    ] = False,
     cycles: Annotated[
         int, typer.Option(help="--protocol iso9283: cycles of the pose test (P1 P5 P4 P3 P2).")
     ] = 30,
@@ -326,6 +349,9 @@ def simulate(
             protocol=protocol,  # type: ignore[arg-type]
             poses=len(pose_list) or int(poses),
             pose_list=pose_list,
+            path_length=path_length_mm * 1e-3,
+            restation=restation,
+            remount=remount,
             model_error=model_error_mm * 1e-3,
             tool_rotation=SIX_DOF_TOOL_ROTATION if six_dof else None,
             orientation_noise=math.radians(orientation_noise_deg),

@@ -34,7 +34,13 @@ from dhlog.errors import DhlogError, GeometryError, InputError
 from dhlog.geometry._checks import FloatArray
 from dhlog.geometry.fitting import PlaneFit, fit_plane
 from dhlog.geometry.lines import ANGLE_TOL, DISTANCE_TOL, Line, Plane
-from dhlog.identify.check.footing import Placed, nominal_on_session, score_poses
+from dhlog.identify.check.footing import (
+    NotScoredError,
+    Placed,
+    Unscored,
+    nominal_on_session,
+    score_poses,
+)
 from dhlog.identify.check.holdout import Holdout, cross_validate
 from dhlog.identify.check.validate import (
     Validation,
@@ -156,6 +162,8 @@ class ProcessResult:
     registration: Registration | None = None
     #: errors at poses not used to fit: K-fold cross-validation, held-out logs
     holdout: list[Holdout] = field(default_factory=list)
+    #: held-out logs given (``--validate``) but not scored, each with the reason
+    not_scored: list[Unscored] = field(default_factory=list)
     #: K of the K-fold cross-validation asked for (0: none)
     folds: int = 0
     #: the terms beyond the geometry asked for, the candidates tried, and the chosen terms in
@@ -301,6 +309,14 @@ def process_log(
         except DhlogError as exc:  # the calibration stands: the log is one line
             said = str(exc) if str(other) in str(exc) else f"{other}: {exc}"
             result.warnings.append(f"held-out log not scored: {said}")
+            unplaced = isinstance(exc, NotScoredError) and exc.unplaced
+            result.not_scored.append(Unscored(str(other), said, unplaced))
+            if unplaced:
+                result.implausible.append(
+                    f"the held-out log {other} could not be placed, so the calibration has no "
+                    "validation on it (it is not scored, never reported as the result's "
+                    "figure): " + said.removeprefix(f"{other}: ")
+                )
     return result
 
 
@@ -920,6 +936,8 @@ def _validate_log(
     if not placed:
         placed.append(_nominal_on_session(result))
     nominal = result.nominal
+    own = [result.validation.rms] if result.validation is not None else []
+    own += [h.calibrated.rms for h in result.holdout if h.kind == "cross-validation"]
     result.holdout.append(
         score_poses(
             Placed(ex.standard, ex.T_measurement_base, ex.tool_point, result.tool_orientation),
@@ -930,6 +948,7 @@ def _validate_log(
             rotations=None if rotations is None else rotations[primary],
             table_values=table_values(result, Q),
             nominal_values=None if nominal is None else nominal.joint_values(Q),
+            own_error=max(own) if own else None,
         )
     )
 
