@@ -79,7 +79,7 @@ def simulate(
         bool,
         typer.Option(
             "--restation",
-            help="The tracker re-stationed since the calibration (0.61 m away, turned 25° "
+            help="The tracker re-stationed since the calibration (0.61 m away, turned 125° "
             "about its vertical): another T_measurement_base, for a --validate log.",
         ),
     ] = False,

@@ -23,10 +23,10 @@ PATH_CENTRE = (0.1, -0.3, 0.4, 0.2, 0.5, 0.3)
 #: The line's direction in the robot's base frame (a unit vector); the curve's plane holds it.
 PATH_DIRECTION = (0.6, 0.64, 0.48)
 #: The tracker re-stationed since the calibration: moved by this (m, in the tracker's old frame)
-#: and turned by this (rad) about its old vertical axis (0.61 m, 25°).
+#: and turned by this (rad) about its old vertical axis (0.61 m, 125°: to the other side).
 RESTATION = ((0.42, -0.38, 0.22), math.radians(125.0))
 #: The probe re-mounted since the calibration: its point moved this much on the flange (m, in
-#: the last frame: 0.953 mm) …
+#: the last frame: 0.955 mm) …
 REMOUNT_SHIFT = (0.6e-3, 0.5e-3, 0.55e-3)
 #: … and its frame turned by this rotation vector (rad, in the probe's frame: 1.6°).
 REMOUNT_TURN = tuple(math.radians(1.6) * v for v in (0.0, 0.6, 0.8))
