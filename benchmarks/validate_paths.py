@@ -115,7 +115,7 @@ def main() -> None:
         "perturb_angle": math.radians(0.05),
         "seed": 5,
     }
-    cal = simulate_session(robot, SimulationConfig(protocol="random-poses", poses=60, **common))  # type: ignore[arg-type]
+    cal = simulate_session(robot, SimulationConfig(protocol="random-poses", poses=60, **common))
     write_session(cal, folder / "cal.mcap", point_type="pose")
     moved = {"restation": True, "remount": True}
     plans = {
@@ -125,7 +125,7 @@ def main() -> None:
     }
     sessions = {}
     for name, plan in plans.items():
-        cfg = SimulationConfig(**{**common, **moved, **plan})  # type: ignore[arg-type]
+        cfg = SimulationConfig(**{**common, **moved, **plan})
         sessions[name] = simulate_session(robot, cfg)
         assert np.array_equal(sessions[name].table.a, cal.table.a)  # the same robot
         write_session(sessions[name], folder / f"{name}.mcap", point_type="pose")
