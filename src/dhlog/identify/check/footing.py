@@ -30,6 +30,14 @@ measures a path's accuracy across it). Fewer than :data:`MIN_POSES` poses, or po
 points all within :data:`~dhlog.identify.fit.placement.POINT_SPREAD` of one point, cannot be
 scored (:class:`NotScoredError`).
 
+**How a freedom is placed**: by the one placement routine every caller shares
+(:func:`~dhlog.identify.fit.placement.place_on`: closed-form starts from the positions and the
+measured orientations, robust least squares; the tool point only along the directions the
+flange's orientation varies in). **Not scored**: when every freedom tried leaves the calibrated
+model beyond :data:`FAR_RATIO` times the calibration's own error and :data:`FAR_FLOOR` at the
+poses it was not placed on, no footing was found (another robot, unit or target) and the log is
+not scored (:class:`NotScoredError` with ``unplaced``), never given a figure.
+
 **Before.** The nominal comes to the log already placed: its base and tool point (and tool
 frame) registered on the calibration session's samples (:func:`nominal_on_session`), the
 session the calibrated model was fitted on. Neither model is ever placed on the poses it is scored

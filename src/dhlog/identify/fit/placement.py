@@ -56,6 +56,10 @@ PRIOR = 1e-3
 #: The flange's orientation must vary by this much (rad, RMS about its mean along a direction)
 #: for the poses to determine the tool point along that direction.
 TOOL_SPREAD = 0.02
+#: A further closed-form start is refined only when its median error is within this factor of
+#: the best placement's (a start far off, e.g. the model's old base after the tracker turned,
+#: gains nothing).
+FAR_START = 100.0
 #: Positions whose spread is less than this (m, RMS along the widest direction) are one point.
 POINT_SPREAD = 1e-3
 #: Positions whose spread across their widest direction is below this fraction of the spread
@@ -319,14 +323,18 @@ class _Fit:
             if not self.size:
                 break
             x = least_squares(partial(self.kept, keep=keep), x, x_scale="jac").x
-        # the starts compared by the median over the poses (a start stuck far away keeps most
-        # of them; the right one sets gross outliers aside): position and orientation error
+        return x, keep, self.median_error(x)
+
+    def median_error(self, x: FloatArray) -> float:
+        """The median over the poses of the squared position error and :data:`LEVER` × the
+        orientation error: how starts are compared (a start stuck far away keeps most poses;
+        the right one sets gross outliers aside)."""
         e2 = self.distances(x) ** 2
         T, _, Rt = self.unpack(x)
         if self.pb.R is not None and Rt is not None:
             frame = np.einsum("ij,kjl,lm->kim", T[:3, :3], self.pb.F, Rt)
             e2 = e2 + (LEVER * angles(np.einsum("kji,kjl->kil", self.pb.R, frame))) ** 2
-        return x, keep, float(np.median(e2))
+        return float(np.median(e2))
 
 
 def place_on(
@@ -357,6 +365,7 @@ def place_on(
     basis = tool_directions(F) if base else np.eye(3)  # a held base: the point is fixed
     pb = _Problem(F, f, P, used, base, point, frame, basis)
     best: tuple[float, FloatArray, _Fit, NDArray[np.bool_], str] | None = None
+    fits = []
     for name, R_start in _starts(pb, T0, t0, Rt0):
         if base:
             R_B, c, t = _closed_form(pb, R_start, t0, alternations)
@@ -364,6 +373,12 @@ def place_on(
             R_B, c = T0[:3, :3], T0[:3, 3]
             t = _tool_by_lstsq(pb, R_B, t0, c) if point else t0
         fit = _Fit(pb, R_B, c, t, Rt0)
+        fits.append((fit.median_error(np.zeros(fit.size)), name, fit))
+    # the best start in closed form refined first; another only where its closed form misses
+    # within FAR_START of the best placement found (one far off would crawl, and gain nothing)
+    for cost0, name, fit in sorted(fits, key=lambda c: c[0]):
+        if best is not None and cost0 > FAR_START**2 * max(best[0], SCALE_FLOOR**2):
+            continue
         x, keep, cost = fit.solve()
         if best is None or cost < best[0]:
             best = (cost, x, fit, keep, name)
