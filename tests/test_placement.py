@@ -63,7 +63,8 @@ def test_a_restationed_tracker_and_remounted_probe_are_placed(kind: str) -> None
         F, f, P, R, tool=ROBOT.tool_point, R_tool=START_R_TOOL, base=True, point=True, frame=True
     )
     assert got.rms < 1e-9 and got.inliers.all()
-    frames = np.einsum("ij,kjl,lm->kim", got.T[:3, :3], F, got.R_tool)
+    assert got.R_tool is not None
+    frames = np.einsum("ij,kjl,lm->kim", np.asarray(got.T[:3, :3]), F, got.R_tool)
     assert np.max(np.abs(frames - R)) < 1e-8
     if kind == "random":
         assert np.allclose(got.T, TRUE_T, atol=1e-8) and np.allclose(got.tool, TRUE_TOOL, atol=1e-8)
