@@ -37,6 +37,7 @@ from dhlog.model.dh import StandardDH
 from dhlog.model.fk import fk_frames
 from dhlog.model.robots import Robot, load_robot
 from dhlog.simulator.config import SimulationConfig
+from dhlog.simulator.exports import leica_export
 from dhlog.simulator.session import Session, simulate_session
 from dhlog.simulator.tracker import default_measurement_pose
 
@@ -85,6 +86,15 @@ def run(tmp_path_factory: pytest.TempPathFactory) -> Run:
         config = SimulationConfig(seed=30 + k, **{**COMMON, **QUIET, **plan})  # type: ignore[arg-type]
         sessions[name] = simulate_session(same, config)
         write_session(sessions[name], folder / f"{name}.mcap")
+    # the line again as the tracker's 6-DoF export (Q0 = w), imported as a user would
+    (folder / "line_export.csv").write_text(leica_export(sessions["line"]))
+    made = CliRunner().invoke(
+        app,
+        ["import", str(folder / "line_export.csv"), "--format", "leica", "-o",
+         str(folder / "line_export.mcap")],
+    )  # fmt: skip
+    assert made.exit_code == 0, made.output
+    sessions["line_export"] = sessions["line"]
     other = load_robot("ur5")  # another robot of six joints
     config = SimulationConfig(protocol="random-poses", poses=30, seed=40, **COMMON)  # type: ignore[arg-type]
     write_session(simulate_session(other, config), folder / "ur5.mcap")
@@ -93,7 +103,7 @@ def run(tmp_path_factory: pytest.TempPathFactory) -> Run:
         pipeline=parse_pipeline(SIX_DOF, "six_dof.toml"),
         nominal=nominal_of(robot),
         model=ModelRequest("geometric"),
-        validate=[folder / f"{name}.mcap" for name in (*plans, "ur5")],
+        validate=[folder / f"{name}.mcap" for name in (*plans, "line_export", "ur5")],
     )
     checks = {}
     for check in result.holdout:
@@ -176,13 +186,13 @@ def calibration_T() -> np.ndarray:
     return default_measurement_pose() @ load_robot("kr5").T_base
 
 
-@pytest.mark.parametrize("name", ["line", "curve", "random"])
+@pytest.mark.parametrize("name", ["line", "curve", "random", "line_export"])
 def test_a_path_session_is_scored_as_the_truth_says(run: Run, name: str) -> None:
     """A line (90 poses along 400 mm) and a planar curve (120 poses), the orientation constant,
     the tracker re-stationed and the probe re-mounted, and random poses for comparison: the
     base and the tool are placed for both models alike, and each figure is within 10 % of the
     model's error against the truth (main scored the line at 192.66 → 192.71 mm, the curve's
-    footing at 2.1 mm)."""
+    footing at 2.1 mm); the line as a Leica export, imported, scores as its MCAP log."""
     _, _, _, checks = run
     check = checks[name]
     assert check.registered and check.tool_replaced and check.components == "3-D"
@@ -243,17 +253,22 @@ def test_the_simulated_paths_are_what_they_say(run: Run) -> None:
 
 
 def test_simulate_writes_a_path_session(tmp_path: Path) -> None:
-    """``dhlog simulate --protocol line --restation --remount --six-dof`` writes the log and
-    its truth; a path the robot cannot reach is one line, exit 2."""
+    """``dhlog simulate --protocol curve --restation --remount --six-dof --leica-export``
+    writes the log, its truth and the Leica export; a path the robot cannot reach is one line,
+    exit 2."""
     out = tmp_path / "line.mcap"
     r = CliRunner().invoke(
         app,
         ["simulate", "kr5", "-o", str(out), "--protocol", "curve", "--poses", "20",
-         "--restation", "--remount", "--six-dof", "--tracker-rate", "10"],
+         "--restation", "--remount", "--six-dof", "--tracker-rate", "10", "--leica-export"],
     )  # fmt: skip
     assert r.exit_code == 0, r.output
     truth = json.loads(out.with_name("line.truth.json").read_text())
-    assert truth["simulation"]["protocol"] == "curve"
+    sim = truth["simulation"]
+    assert sim["protocol"] == "curve" and sim["restation"] and sim["remount"]
+    rows = out.with_name("line.leica.csv").read_text().splitlines()
+    assert rows[0].startswith("Point Name,X [mm],Y [mm],Z [mm],U(95)  [mm],Q0,Q1,Q2,Q3,j1")
+    assert len(rows) == 21  # a row a stop
     far = CliRunner().invoke(
         app,
         ["simulate", "kr5", "-o", str(tmp_path / "far.mcap"), "--protocol", "line",

@@ -83,6 +83,15 @@ def simulate(
             "about its vertical): another T_measurement_base, for a --validate log.",
         ),
     ] = False,
+    leica_export: Annotated[
+        bool,
+        typer.Option(
+            "--leica-export",
+            help="Also write <stem>.leica.csv: the still poses as a Leica 6-DoF export (Point "
+            "Name, X Y Z [mm], U(95), Q0..Q3 scalar first, j1.. in degrees) for dhlog import "
+            "--format leica; with --six-dof and a still-pose protocol.",
+        ),
+    ] = False,
     remount: Annotated[
         bool,
         typer.Option(
@@ -322,8 +331,9 @@ def simulate(
     harmonics = [(int(j), a, b) for j, a, b in tuples(harmonic, "--harmonic", 3)]
     truth_path = output.with_name(output.stem + ".truth.json")
     urdf_path = output.with_name(output.stem + ".urdf") if compliant else None
+    export_path = output.with_name(output.stem + ".leica.csv") if leica_export else None
     check_folder(output.parent)
-    for path in (output, truth_path, *([urdf_path] if urdf_path else [])):
+    for path in (output, truth_path, *(p for p in (urdf_path, export_path) if p)):
         refuse_existing(path, force)
     pose_file = None if poses.strip().isdigit() else Path(poses)
     if pose_file is not None and pose_file.resolve() in {
@@ -395,6 +405,7 @@ def simulate(
             cameras=cameras,
             exposure=exposure_ms * 1e-3,
             overwrite=True,  # refused above without --force
+            leica_export=leica_export,
         )
     except DhlogError as exc:
         fail(exc)
@@ -411,6 +422,12 @@ def simulate(
         ),
         markup=False,
     )
+    if found.export is not None:
+        stdout.print(
+            f"wrote {plain(found.export)} (a Leica 6-DoF export: dhlog import "
+            f"{plain(found.export)} --format leica)",
+            markup=False,
+        )
     if instrument == "camera":
         return
     if protocol == "iso9283":
