@@ -98,12 +98,14 @@ def run(tmp_path_factory: pytest.TempPathFactory) -> Run:
     other = load_robot("ur5")  # another robot of six joints
     config = SimulationConfig(protocol="random-poses", poses=30, seed=40, **COMMON)  # type: ignore[arg-type]
     write_session(simulate_session(other, config), folder / "ur5.mcap")
+    config = SimulationConfig(protocol="random-poses", poses=10, seed=41, **COMMON)  # type: ignore[arg-type]
+    write_session(simulate_session(load_robot("scara"), config), folder / "scara.mcap")
     result = process_log(
         folder / "cal.mcap",
         pipeline=parse_pipeline(SIX_DOF, "six_dof.toml"),
         nominal=nominal_of(robot),
         model=ModelRequest("geometric"),
-        validate=[folder / f"{name}.mcap" for name in (*plans, "line_export", "ur5")],
+        validate=[folder / f"{name}.mcap" for name in (*plans, "line_export", "ur5", "scara")],
     )
     checks = {}
     for check in result.holdout:
@@ -216,19 +218,24 @@ def test_a_path_at_one_orientation_says_the_tool_point_is_not_determined(run: Ru
 
 def test_a_session_of_another_robot_is_not_scored_and_implausible(run: Run) -> None:
     """A UR5's session given to a KR5's calibration: no footing places it (hundreds of mm at
-    best), so it is one warning line, no figure, an entry marked not scored in the JSON and a
-    reason in ``implausible``; the other logs are scored."""
+    best); a SCARA's has four joints. Each is one warning line, no figure, an entry marked not
+    scored in the JSON and a reason in ``implausible``; the other logs are scored."""
     from dhlog.result.document import result_document
 
     _, result, _, checks = run
-    assert "ur5" not in checks
+    assert "ur5" not in checks and "scara" not in checks
     lines = [w for w in result.warnings if w.startswith("held-out log not scored")]
-    assert len(lines) == 1 and "ur5.mcap" in lines[0] and "no footing" in lines[0]
-    assert len(result.implausible) == 1 and "ur5.mcap" in result.implausible[0]
+    assert len(lines) == 2
+    assert "ur5.mcap" in lines[0] and "no footing" in lines[0]
+    assert "scara.mcap: has 4 joints" in lines[1]
+    assert len(result.implausible) == 2
+    assert "ur5.mcap" in result.implausible[0] and "scara.mcap" in result.implausible[1]
     doc = json.loads(json.dumps(result_document(result)))
-    (entry,) = doc["validation"]["not_scored"]
-    assert entry["path"].endswith("ur5.mcap") and entry["scored"] is False and entry["unplaced"]
-    assert all(not h["path"].endswith("ur5.mcap") for h in doc["validation"]["holdout"])
+    ur5, scara = doc["validation"]["not_scored"]
+    assert ur5["path"].endswith("ur5.mcap") and ur5["scored"] is False and ur5["unplaced"]
+    assert scara["path"].endswith("scara.mcap") and scara["unplaced"]
+    scored = [h["path"] for h in doc["validation"]["holdout"]]
+    assert not any(p.endswith(("ur5.mcap", "scara.mcap")) for p in scored)
 
 
 def test_the_simulated_paths_are_what_they_say(run: Run) -> None:

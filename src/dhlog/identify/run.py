@@ -30,7 +30,7 @@ from typing import Any, cast
 import numpy as np
 from numpy.typing import NDArray
 
-from dhlog.errors import DhlogError, GeometryError, InputError
+from dhlog.errors import DhlogError, GeometryError
 from dhlog.geometry._checks import FloatArray
 from dhlog.geometry.fitting import PlaneFit, fit_plane
 from dhlog.geometry.lines import ANGLE_TOL, DISTANCE_TOL, Line, Plane
@@ -923,10 +923,11 @@ def _validate_log(
     log = read_log(path, pipeline, fast=fast)
     seg = segment_log(log, joint_types=list(ex.standard.joint_types))
     if seg.n_joints != ex.standard.n or not seg.has_encoders:
-        raise InputError(
+        raise NotScoredError(
             f"{path}: has {seg.n_joints} joints{'' if seg.has_encoders else ' and no encoders'}; "
             f"--validate needs a log of the same robot ({ex.standard.n} joints) with encoder "
-            "values."
+            "values.",
+            unplaced=True,
         )
     rows, Qs, Ps = samples_with_encoders(seg)
     which = target_labels(seg, rows)
