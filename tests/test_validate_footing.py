@@ -25,6 +25,7 @@ from scipy.spatial.transform import Rotation
 from typer.testing import CliRunner
 
 from dhlog.cli.app import app
+from dhlog.cli.common import EXIT_IMPLAUSIBLE
 from dhlog.identify.check.footing import LogHoldout
 from dhlog.identify.model.select import ModelRequest
 from dhlog.identify.run import ProcessResult, process_log
@@ -233,8 +234,10 @@ def test_a_log_that_cannot_be_scored_is_one_line_and_the_result_is_written(
     points: Checked, tmp_path: Path
 ) -> None:
     """Through the CLI: three poses, and eight position-only poses at one point, cannot be
-    scored: each is one warning line in the result and on the console, the calibration is
-    written with exit 0, and the other held-out log is scored."""
+    scored: each is one warning line in the result and on the console and an entry of
+    ``validation.not_scored`` (the point, which no base can be placed on, marked unplaced: the
+    result is implausible), the calibration is written, and the other held-out log is
+    scored."""
     result, _ = points
     folder = Path(result.path).parent
     out = tmp_path / "out"
@@ -258,12 +261,17 @@ def test_a_log_that_cannot_be_scored_is_one_line_and_the_result_is_written(
             str(folder / "moved.mcap"),
         ],
     )
-    assert r.exit_code == 0, r.output
     doc = json.loads((out / "cal.dh.json").read_text())
+    # a log that cannot be placed makes the result implausible: exit 4 once the JSON says so
+    assert r.exit_code == (EXIT_IMPLAUSIBLE if "plausible" in doc else 0), r.output
     lines = [w for w in doc["warnings"] if w.startswith("held-out log not scored")]
     assert len(lines) == 2
     assert "few.mcap: has 3 distinct pose(s)" in lines[0]
     assert "point.mcap" in lines[1] and "one point" in lines[1]
+    few, point = doc["validation"]["not_scored"]  # marked, with the reason: no figure
+    assert few["path"].endswith("few.mcap") and few["scored"] is False and not few["unplaced"]
+    assert point["path"].endswith("point.mcap") and point["unplaced"] is True
+    assert "one point" in point["reason"]
     flat = " ".join(r.output.split())
     assert flat.count("held-out log not scored") == 2
     (check,) = doc["validation"]["holdout"]

@@ -252,6 +252,8 @@ class Simulation:
     warnings: list[str] = field(default_factory=list)
     #: what the log holds, in words (the command's "wrote" line)
     described: str = ""
+    #: the session as a Leica 6-DoF export (``leica_export=True``: ``<stem>.leica.csv``)
+    export: Path | None = None
 
     def truth_model(self) -> Calibration:
         """The simulated robot's true model, read back (compare a calibration with it)."""
@@ -262,7 +264,7 @@ def simulate(
     robot: str | Path | Robot = "kr5",
     out: str | Path = "session.mcap",
     *,
-    protocol: Literal["sweeps", "random-poses", "coupled", "iso9283"] = "sweeps",
+    protocol: Literal["sweeps", "random-poses", "coupled", "iso9283", "line", "curve"] = "sweeps",
     noise: float = 1e-5,
     seed: int = 0,
     encoding: Literal["ros2", "json", "protobuf"] = "ros2",
@@ -330,9 +332,11 @@ def simulate_config(
     cameras: int = 1,
     exposure: float = 0.0,
     overwrite: bool = False,
+    leica_export: bool = False,
 ) -> Simulation:
     """:func:`simulate` with the simulator's configuration given whole (the command line's
-    path)."""
+    path). ``leica_export``: also the session's still poses as a Leica 6-DoF export beside the
+    log (``<stem>.leica.csv``: :mod:`dhlog.simulator.exports`)."""
     from dhlog._version import __version__
     from dhlog.io.writer import sha256_of, write_session, write_truth
     from dhlog.simulator.config import config_problems
@@ -346,7 +350,9 @@ def simulate_config(
         raise UsageError(f"simulate: point_type must be point or pose, not {point_type!r}.")
     truth_path = output.with_name(output.stem + ".truth.json")
     urdf_path = output.with_name(output.stem + ".urdf") if cfg.compliance else None
+    export_path = output.with_name(output.stem + ".leica.csv") if leica_export else None
     outputs = [output, truth_path, *([urdf_path] if urdf_path else [])]
+    outputs += [export_path] if export_path else []
     from dhlog.io.paths import refuse_inputs_as_outputs
 
     robot_file = Path(rob.source)
@@ -383,8 +389,17 @@ def simulate_config(
             notes.append(f"joint {k + 1}: {shown}, as its limits allow.")
     from dhlog.simulator.session import as_published
 
+    if export_path is not None:  # before the log: a session no export can hold writes nothing
+        from dhlog.simulator.exports import leica_export as export_text
+
+        text = export_text(session)
     written = as_published(session) if cfg.driver_joints else session
     write_session(written, output, encoding, point_type=point_type)  # type: ignore[arg-type]
+    if export_path is not None:
+        from dhlog.io.writer import atomic_output
+
+        with atomic_output(export_path) as f:
+            f.write(text.encode("utf-8"))
     pipeline = (
         "phase_markers"
         if not cfg.encoders
@@ -421,6 +436,7 @@ def simulate_config(
             else ""
         )
         + encoding,
+        export=export_path,
     )
 
 

@@ -65,9 +65,41 @@ def simulate(
             "except joint 2: only with joint 3 as q3 = -q2); these two measure only at stops. "
             "iso9283: the ISO 9283 test program (dhlog plan --iso9283's) run by a robot of known "
             "repeatability, drift, overshoot and path error (--cycles, --repeatability-mm, …), "
-            "with the commanded joints on /joint_command and every attained pose in the truth."
+            "with the commanded joints on /joint_command and every attained pose in the truth. "
+            "line, curve: a task session, --poses still poses along a straight line or a "
+            "planar curve (--path-length-mm), the target's orientation held (the nominal's "
+            "inverse kinematics, as a controller's): a --validate log."
         ),
     ] = "sweeps",
+    path_length_mm: Annotated[
+        float,
+        typer.Option(help="--protocol line: the line's length; curve: its extent, mm."),
+    ] = 400.0,
+    restation: Annotated[
+        bool,
+        typer.Option(
+            "--restation",
+            help="The tracker re-stationed since the calibration (0.61 m away, turned 125° "
+            "about its vertical): another T_measurement_base, for a --validate log.",
+        ),
+    ] = False,
+    leica_export: Annotated[
+        bool,
+        typer.Option(
+            "--leica-export",
+            help="Also write <stem>.leica.csv: the still poses as a Leica 6-DoF export (Point "
+            "Name, X Y Z [mm], U(95), Q0..Q3 scalar first, j1.. in degrees) for dhlog import "
+            "--format leica; with --six-dof and a still-pose protocol.",
+        ),
+    ] = False,
+    remount: Annotated[
+        bool,
+        typer.Option(
+            "--remount",
+            help="The probe re-mounted since the calibration: its point moved 0.95 mm on the "
+            "flange and, with --six-dof, its frame turned 1.6°.",
+        ),
+    ] = False,
     cycles: Annotated[
         int, typer.Option(help="--protocol iso9283: cycles of the pose test (P1 P5 P4 P3 P2).")
     ] = 30,
@@ -307,8 +339,9 @@ def simulate(
     harmonics = [(int(j), a, b) for j, a, b in tuples(harmonic, "--harmonic", 3)]
     truth_path = output.with_name(output.stem + ".truth.json")
     urdf_path = output.with_name(output.stem + ".urdf") if compliant else None
+    export_path = output.with_name(output.stem + ".leica.csv") if leica_export else None
     check_folder(output.parent)
-    for path in (output, truth_path, *([urdf_path] if urdf_path else [])):
+    for path in (output, truth_path, *(p for p in (urdf_path, export_path) if p)):
         refuse_existing(path, force)
     pose_file = None if poses.strip().isdigit() else Path(poses)
     if pose_file is not None and pose_file.resolve() in {
@@ -334,6 +367,9 @@ def simulate(
             protocol=protocol,  # type: ignore[arg-type]
             poses=len(pose_list) or int(poses),
             pose_list=pose_list,
+            path_length=path_length_mm * 1e-3,
+            restation=restation,
+            remount=remount,
             model_error=model_error_mm * 1e-3,
             tool_rotation=SIX_DOF_TOOL_ROTATION if six_dof else None,
             driver_joints=driver_joints,
@@ -378,6 +414,7 @@ def simulate(
             cameras=cameras,
             exposure=exposure_ms * 1e-3,
             overwrite=True,  # refused above without --force
+            leica_export=leica_export,
         )
     except DhlogError as exc:
         fail(exc)
@@ -394,6 +431,12 @@ def simulate(
         ),
         markup=False,
     )
+    if found.export is not None:
+        stdout.print(
+            f"wrote {plain(found.export)} (a Leica 6-DoF export: dhlog import "
+            f"{plain(found.export)} --format leica)",
+            markup=False,
+        )
     if instrument == "camera":
         return
     if protocol == "iso9283":

@@ -32,11 +32,17 @@ from typing import Any, cast
 import numpy as np
 from numpy.typing import NDArray
 
-from dhlog.errors import DhlogError, GeometryError, InputError
+from dhlog.errors import DhlogError, GeometryError
 from dhlog.geometry._checks import FloatArray
 from dhlog.geometry.fitting import PlaneFit, fit_plane
 from dhlog.geometry.lines import ANGLE_TOL, DISTANCE_TOL, Line, Plane
-from dhlog.identify.check.footing import Placed, nominal_on_session, score_poses
+from dhlog.identify.check.footing import (
+    NotScoredError,
+    Placed,
+    Unscored,
+    nominal_on_session,
+    score_poses,
+)
 from dhlog.identify.check.holdout import Holdout, cross_validate
 from dhlog.identify.check.named import name_outliers, pose_names, sample_names
 from dhlog.identify.check.plausible import judge
@@ -164,6 +170,8 @@ class ProcessResult:
     outlier_names: list[str] = field(default_factory=list)
     #: ... and their rows in the segmentation's point table
     outlier_rows: NDArray[np.intp] = field(default_factory=lambda: np.zeros(0, np.intp))
+    #: held-out logs given (``--validate``) but not scored, each with the reason
+    not_scored: list[Unscored] = field(default_factory=list)
     #: K of the K-fold cross-validation asked for (0: none)
     folds: int = 0
     #: the terms beyond the geometry asked for, the candidates tried, and the chosen terms in
@@ -314,6 +322,14 @@ def process_log(
         except DhlogError as exc:  # the calibration stands: the log is one line
             said = str(exc) if str(other) in str(exc) else f"{other}: {exc}"
             result.warnings.append(f"held-out log not scored: {said}")
+            unplaced = isinstance(exc, NotScoredError) and exc.unplaced
+            result.not_scored.append(Unscored(str(other), said, unplaced))
+            if unplaced:
+                result.implausible.append(
+                    f"the held-out log {other} could not be placed, so the calibration has no "
+                    "validation on it (it is not scored, never reported as the result's "
+                    "figure): " + said.removeprefix(f"{other}: ")
+                )
     return result
 
 
@@ -937,10 +953,11 @@ def _validate_log(
     )
     seg = segment_log(log, joint_types=list(ex.standard.joint_types))
     if seg.n_joints != ex.standard.n or not seg.has_encoders:
-        raise InputError(
+        raise NotScoredError(
             f"{path}: has {seg.n_joints} joints{'' if seg.has_encoders else ' and no encoders'}; "
             f"--validate needs a log of the same robot ({ex.standard.n} joints) with encoder "
-            "values."
+            "values.",
+            unplaced=True,
         )
     rows, Qs, Ps = samples_with_encoders(seg)
     which = target_labels(seg, rows)
@@ -950,6 +967,8 @@ def _validate_log(
     if not placed:
         placed.append(_nominal_on_session(result))
     nominal = result.nominal
+    own = [result.validation.rms] if result.validation is not None else []
+    own += [h.calibrated.rms for h in result.holdout if h.kind == "cross-validation"]
     result.holdout.append(
         score_poses(
             Placed(ex.standard, ex.T_measurement_base, ex.tool_point, result.tool_orientation),
@@ -960,6 +979,7 @@ def _validate_log(
             rotations=None if rotations is None else rotations[primary],
             table_values=table_values(result, Q),
             nominal_values=None if nominal is None else nominal.joint_values(Q),
+            own_error=max(own) if own else None,
         )
     )
     if log.point_ids is not None:  # the session's held-out poses by the export's ids

@@ -99,6 +99,11 @@ def result_document(result: ProcessResult) -> dict[str, Any]:
             "fk_max": None if val is None else val.max,
             "n_points": 0 if val is None else val.n_points,
             **({"holdout": [h.document() for h in result.holdout]} if result.holdout else {}),
+            **(
+                {"not_scored": [u.document() for u in result.not_scored]}
+                if result.not_scored
+                else {}
+            ),
         },
         "warnings": list(result.warnings),
         "notes": list(result.info),

@@ -12,7 +12,12 @@ import numpy as np
 from dhlog.model.dh import JointType
 from dhlog.model.robots import Robot
 
-PROTOCOLS = ("sweeps", "random-poses", "coupled", "iso9283")
+PROTOCOLS = ("sweeps", "random-poses", "coupled", "iso9283", "line", "curve")
+#: the protocols of still poses (step-and-measure, no sweep): random ones and the paths
+STILL_PROTOCOLS = ("random-poses", "line", "curve")
+#: the path protocols (:mod:`dhlog.simulator.paths`): still poses along a line or a planar
+#: curve, the target's orientation held
+PATH_PROTOCOLS = ("line", "curve")
 #: the ``coupled`` protocol's pair: joint 3 follows joint 2 as q3 = −q2 (the level forearm move)
 COUPLED_PAIR = (2, 3, -1.0)
 #: the target frame's fixed rotation in the flange frame (rotation vector, rad) of the command
@@ -38,9 +43,17 @@ class SimulationConfig:
     lock_poses: Literal["home", "random"] = "home"
     #: what the robot does (see the module docstring); ``random-poses`` and ``coupled`` are
     #: step-and-measure whatever ``motion`` says
-    protocol: Literal["sweeps", "random-poses", "coupled", "iso9283"] = "sweeps"
-    #: random still poses of the ``random-poses`` protocol
+    protocol: Literal["sweeps", "random-poses", "coupled", "iso9283", "line", "curve"] = "sweeps"
+    #: random still poses of the ``random-poses`` protocol (the path protocols: poses along
+    #: the path)
     poses: int = 40
+    #: the ``line`` protocol's length, the ``curve``'s extent along its direction (m)
+    path_length: float = 0.4
+    #: the tracker re-stationed since the calibration (:data:`dhlog.simulator.paths.RESTATION`)
+    restation: bool = False
+    #: the probe re-mounted since the calibration: its point moved and (6-DoF) its frame
+    #: turned on the flange (:data:`dhlog.simulator.paths.REMOUNT_SHIFT`, ``REMOUNT_TURN``)
+    remount: bool = False
     #: the ``random-poses`` protocol's still poses given, in their order (a planned list,
     #: ``simulate --poses CSV``), in place of ``poses`` drawn ones
     pose_list: tuple[tuple[float, ...], ...] = ()
@@ -222,6 +235,15 @@ def _protocol_problems(robot: Robot, cfg: SimulationConfig) -> list[str]:
         out.append(f"the coupled moves name joint(s) {bad}; {robot.name} has joints 1-{robot.n}")
     if cfg.pose_list:
         out += _pose_list_problems(robot, cfg)
+    if cfg.protocol in PATH_PROTOCOLS:
+        if not 3 <= cfg.poses <= 100_000:
+            out.append(f"a path's poses must be in [3, 100 000] (got {cfg.poses})")
+        if not 1e-3 <= cfg.path_length <= 5.0 or not math.isfinite(cfg.path_length):
+            out.append(
+                f"the path length must be in [1, 5000] mm (got {cfg.path_length * 1e3:g} mm)"
+            )
+        if cfg.skip_joints or cfg.coupled:
+            out.append("--skip-joints is for sweeps; a path protocol sweeps no joint")
     if cfg.protocol == "random-poses" and not cfg.pose_list:
         if not 1 <= cfg.poses <= 100_000:
             out.append(f"the number of poses must be in [1, 100 000] (got {cfg.poses})")
@@ -308,6 +330,7 @@ def _iso9283_problems(cfg: SimulationConfig) -> list[str]:
         (bool(cfg.pose_list), "--poses CSV"),
         (bool(cfg.skip_joints or cfg.coupled), "--skip-joints"),
         (cfg.instrument != "tracker", "--instrument camera"),
+        (cfg.restation or cfg.remount, "--restation/--remount"),
     ]
     out += [
         f"{what} is not simulated with the iso9283 protocol (it runs the ISO 9283 test program)"
@@ -343,6 +366,8 @@ def _camera_problems(cfg: SimulationConfig) -> list[str]:
         (bool(cfg.compliance or cfg.harmonic), "--compliance/--harmonic"),
         (bool(cfg.extra_tools) or cfg.tool_rotation is not None, "further or 6-DoF targets"),
         (not cfg.encoders, "--no-encoders"),
+        (cfg.protocol in PATH_PROTOCOLS, "a path protocol"),
+        (cfg.restation or cfg.remount, "--restation/--remount"),
     ]
     out += [
         f"{what} is for tracker logs; a camera is simulated without it"

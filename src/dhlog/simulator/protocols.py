@@ -12,16 +12,17 @@ from numpy.typing import NDArray
 from dhlog.geometry._checks import FloatArray
 from dhlog.model.dh import JointType
 from dhlog.model.robots import Robot
-from dhlog.simulator.config import COUPLED_PAIR, SimulationConfig
+from dhlog.simulator.config import COUPLED_PAIR, STILL_PROTOCOLS, SimulationConfig
 
 #: smallest change of every joint from one random pose to the next, as a fraction of its range
 MIN_POSE_CHANGE = 0.05
 
 
 def protocol_config(cfg: SimulationConfig) -> SimulationConfig:
-    """``cfg`` with what its protocol implies spelled out: step-and-measure for ``random-poses``
-    and ``coupled``; for ``coupled`` joint 2 never swept alone and moved together with 3."""
-    if cfg.protocol == "random-poses":
+    """``cfg`` with what its protocol implies spelled out: step-and-measure for ``random-poses``,
+    the paths (``line``, ``curve``) and ``coupled``; for ``coupled`` joint 2 never swept alone
+    and moved together with 3."""
+    if cfg.protocol in STILL_PROTOCOLS:
         return replace(cfg, motion="step")
     if cfg.protocol == "coupled":
         a, b, _ = COUPLED_PAIR
@@ -35,7 +36,7 @@ def protocol_config(cfg: SimulationConfig) -> SimulationConfig:
 
 def swept_joints(robot: Robot, cfg: SimulationConfig) -> list[int]:
     """The joints (1-based) a session of ``cfg`` sweeps alone."""
-    if cfg.protocol in ("random-poses", "iso9283"):
+    if cfg.protocol in (*STILL_PROTOCOLS, "iso9283"):
         return []
     skip = protocol_config(cfg).skip_joints
     return [j for j in range(1, robot.n + 1) if j not in skip]
@@ -120,7 +121,7 @@ def keyframes(
     # joints held at home in the lock poses: the coupled protocol's pair moves only together
     held = [j - 1 for a, b, _ in cfg.coupled for j in (a, b)] if cfg.protocol == "coupled" else []
     for k in range(n):
-        if k + 1 in cfg.skip_joints or cfg.protocol == "random-poses":
+        if k + 1 in cfg.skip_joints or cfg.protocol in STILL_PROTOCOLS:
             continue
         lock = home.copy()
         if cfg.lock_poses == "random":
@@ -168,7 +169,7 @@ def keyframes(
             go(coupled_at(s_end))
         hold(cfg.dwell)
     go(home, 1.5)
-    if cfg.protocol != "random-poses":  # the random poses end on the last of them
+    if cfg.protocol not in STILL_PROTOCOLS:  # still poses end on the last of them
         hold(cfg.dwell)
     return frames, marks, sweeps
 

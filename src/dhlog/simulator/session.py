@@ -15,7 +15,8 @@ from dhlog.model.dh import JointType, StandardDH
 from dhlog.model.fk import fk_point
 from dhlog.model.robots import Robot
 from dhlog.model.terms import Terms, table_deflection
-from dhlog.simulator.config import SimulationConfig
+from dhlog.simulator.config import PATH_PROTOCOLS, SimulationConfig
+from dhlog.simulator.paths import REMOUNT_SHIFT, path_poses, restationed
 from dhlog.simulator.protocols import joints_at, keyframes, protocol_config, random_poses, still_at
 from dhlog.simulator.robot import perturbed, smooth_model_error, truth_terms
 from dhlog.simulator.tracker import (
@@ -92,6 +93,8 @@ def simulate_session(
         raise ValueError("the iso9283 protocol: dhlog.simulator.iso9283.simulate_iso9283")
     rng = np.random.default_rng(cfg.seed)
     T_mr = default_measurement_pose() if T_measurement_robot is None else T_measurement_robot
+    if cfg.restation:  # the tracker re-stationed since the calibration
+        T_mr = restationed(T_mr)
     T_mb = T_mr @ robot.T_base
     table = (
         perturbed(robot.table, rng, cfg)
@@ -99,6 +102,8 @@ def simulate_session(
         else robot.table
     )
     tool = robot.tool_point if tool_point is None else tool_point
+    if cfg.remount:  # the probe re-mounted since the calibration: its point moved
+        tool = np.asarray(tool, dtype=np.float64) + np.asarray(REMOUNT_SHIFT)
     q_home = (
         np.clip(np.zeros(robot.n), robot.limits[:, 0], robot.limits[:, 1]) if home is None else home
     )
@@ -106,6 +111,8 @@ def simulate_session(
     poses = np.zeros((0, robot.n))
     if cfg.protocol == "random-poses":
         poses = random_poses(robot, cfg, q_home)
+    elif cfg.protocol in PATH_PROTOCOLS:
+        poses = path_poses(robot, cfg)
     frames, marks, sweeps = keyframes(robot, q_home, plan, rng, poses)
     duration = frames[-1][0]
     base_time = 2.0 if cfg.base_points else 0.0

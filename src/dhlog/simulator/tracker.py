@@ -52,12 +52,19 @@ def measured_rotations(
 ) -> tuple[FloatArray | None, FloatArray | None]:
     """A 6-DoF target's frame: its fixed rotation in the flange frame (``cfg.tool_rotation``)
     and its orientation in M at the joint values ``q_arm`` (m, n) as measured (tilted by
-    ``cfg.orientation_noise``); both None without a 6-DoF target."""
+    ``cfg.orientation_noise``; turned on the flange by the re-mount with ``cfg.remount``); both
+    None without a 6-DoF target."""
     if cfg.tool_rotation is None:
         return None, None
     from scipy.spatial.transform import Rotation
 
-    R_tool = rotation_from_vector(np.asarray(cfg.tool_rotation, dtype=np.float64))
+    from dhlog.simulator.paths import remounted_rotation
+
+    R_tool = (
+        remounted_rotation(cfg.tool_rotation)
+        if cfg.remount
+        else rotation_from_vector(np.asarray(cfg.tool_rotation, dtype=np.float64))
+    )
     point_rot = fk_frames(table, q_arm, T_base=T_mb)[:, -1, :3, :3] @ R_tool
     if cfg.orientation_noise > 0:
         tilt = rng.normal(scale=cfg.orientation_noise, size=(q_arm.shape[0], 3))

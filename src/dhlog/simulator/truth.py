@@ -9,6 +9,7 @@ from dhlog.geometry.lines import Line
 from dhlog.identify.read.extract import extract_dh
 from dhlog.model.fk import fk_point, joint_axes
 from dhlog.result.contract import RESULT_FORMAT, dh_documents, relation_documents
+from dhlog.simulator.config import PATH_PROTOCOLS
 from dhlog.simulator.protocols import protocol_config
 from dhlog.simulator.session import Session
 
@@ -72,6 +73,9 @@ def truth_document(
             "perturb_length_m": cfg.perturb_length,
             "perturb_angle_rad": cfg.perturb_angle,
             "protocol": cfg.protocol,
+            **({"path_length_m": cfg.path_length} if cfg.protocol in PATH_PROTOCOLS else {}),
+            "restation": cfg.restation,
+            "remount": cfg.remount,
             "poses": int(session.poses.shape[0]),
             "model_error_m": cfg.model_error,
             "steps": cfg.steps if plan.motion == "step" and not session.poses.size else None,

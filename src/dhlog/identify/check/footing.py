@@ -27,7 +27,16 @@ line and cannot tell a re-mounted probe from a moved tracker — only the base i
 there, and the errors across the line are scored (the component along it is left out: the
 placement's translation takes its mean, and along a path it is where a clock shows; ISO 9283
 measures a path's accuracy across it). Fewer than :data:`MIN_POSES` poses, or position-only
-points all within :data:`POINT_SPREAD` of one point, cannot be scored (:class:`NotScoredError`).
+points all within :data:`~dhlog.identify.fit.placement.POINT_SPREAD` of one point, cannot be
+scored (:class:`NotScoredError`).
+
+**How a freedom is placed**: by the one placement routine every caller shares
+(:func:`~dhlog.identify.fit.placement.place_on`: closed-form starts from the positions and the
+measured orientations, robust least squares; the tool point only along the directions the
+flange's orientation varies in). **Not scored**: when every freedom tried leaves the calibrated
+model beyond :data:`FAR_RATIO` times the calibration's own error and :data:`FAR_FLOOR` at the
+poses it was not placed on, no footing was found (another robot, unit or target) and the log is
+not scored (:class:`NotScoredError` with ``unplaced``), never given a figure.
 
 **Before.** The nominal comes to the log already placed: its base and tool point (and tool
 frame) registered on the calibration session's samples (:func:`nominal_on_session`), the
@@ -45,33 +54,30 @@ import numpy as np
 from numpy.typing import NDArray
 
 from dhlog.errors import InputError
-from dhlog.geometry._checks import FloatArray, nearest_rotation, rotation_from_vector
+from dhlog.geometry._checks import FloatArray, nearest_rotation
 from dhlog.identify.check.holdout import MIN_POSES, ErrorStats, Holdout
 from dhlog.identify.fit.leaveout import pose_groups, pose_means
-from dhlog.identify.fit.register import (
-    OUTLIER_SCALE,
-    ROBUST_SCALE,
-    SCALE_FLOOR,
-    register_nominal,
+from dhlog.identify.fit.placement import (
+    LEVER,
+    angles,
+    conditioning,
+    place_on,
+    tool_directions,
 )
+from dhlog.identify.fit.register import register_nominal
 from dhlog.model.dh import StandardDH
 from dhlog.model.fk import fk_frames, fk_point
 
 #: A freedom is taken when it lowers the error at the poses it was not placed on by more than
 #: this factor over the smaller freedoms (the tracker moved, the probe was re-mounted).
 MOVED_RATIO = 2.0
-#: Metres per radian when orientation and position errors are weighed together: 1 mrad of the
-#: probe's frame counts as 0.1 mm (a T-Mac's σ is about 0.2 mrad beside a tracker's 0.01–0.02 mm).
-LEVER = 0.1
-#: Position-only poses whose positions spread less than this (m, RMS along the widest direction)
-#: are one point: no base can be placed on them.
-POINT_SPREAD = 1e-3
-#: Poses whose spread across their widest direction is below this fraction of the spread along
-#: it lie on one line.
-LINE_RATIO = 0.01
-#: The placement's increments are held towards zero with this weight, so that what the poses do
-#: not determine (the rotation about a line) stays where the model put it.
-PRIOR = 1e-3
+#: A log is not scored when every footing tried leaves the calibrated model's error at the
+#: poses it was not placed on beyond this many times the calibration's own error (its held-out
+#: or in-sample FK RMS) …
+FAR_RATIO = 20.0
+#: … and beyond this (m): no footing was found (another robot's log, a wrong unit, poses the
+#: placement cannot use), and a figure would say nothing of the calibration.
+FAR_FLOOR = 1e-3
 #: At most this many poses enter each placement of the decision (evenly strided).
 DECISION_POSES = 3000
 
@@ -93,7 +99,33 @@ class LogHoldout(Holdout):
 
 
 class NotScoredError(InputError):
-    """A held-out log that cannot be scored (too few poses, one point without orientation)."""
+    """A held-out log that cannot be scored (too few poses, one point without orientation, no
+    footing found). ``unplaced``: the log could not be placed (one point without orientation,
+    every footing far off): the calibration's validation is then missing, which the result
+    says is implausible."""
+
+    def __init__(self, message: str, *, unplaced: bool = False) -> None:
+        super().__init__(message)
+        self.unplaced = unplaced
+
+
+@dataclass(frozen=True)
+class Unscored:
+    """A held-out log given but not scored: its ``path``, the ``reason`` (a sentence) and
+    whether it could not be placed (``unplaced``: one point without orientation, no footing
+    found), which makes the result implausible: its validation is missing."""
+
+    path: str
+    reason: str
+    unplaced: bool = False
+
+    def document(self) -> dict[str, object]:
+        return {
+            "path": self.path,
+            "scored": False,
+            "unplaced": self.unplaced,
+            "reason": self.reason,
+        }
 
 
 @dataclass(frozen=True)
@@ -185,29 +217,13 @@ def poses_of(
 
 
 def shape_of(P: FloatArray, oriented: bool) -> Shape:
-    """What the pose positions ``P`` (k, 3) determine (:class:`Shape`)."""
-    centred = P - P.mean(axis=0)
-    _, s, Vt = np.linalg.svd(centred, full_matrices=False)
-    spread = np.zeros(3)
-    spread[: s.size] = s / np.sqrt(max(P.shape[0], 1))
-    if spread[0] < POINT_SPREAD:
-        return Shape("point", oriented, spread)
-    if spread[1] < LINE_RATIO * spread[0]:
-        return Shape("line", oriented, spread, np.asarray(Vt[0], dtype=np.float64))
-    return Shape("spread", oriented, spread)
+    """What the pose positions ``P`` (k, 3) determine (:class:`Shape`, through
+    :func:`~dhlog.identify.fit.placement.conditioning`)."""
+    c = conditioning(P)
+    return Shape(c.kind, oriented, c.spread, c.direction)
 
 
-def _skew_part(R: FloatArray) -> FloatArray:
-    """The rotation vector of small rotations (k, 3, 3) from their antisymmetric part."""
-    return 0.5 * np.stack(
-        [R[:, 2, 1] - R[:, 1, 2], R[:, 0, 2] - R[:, 2, 0], R[:, 1, 0] - R[:, 0, 1]], axis=1
-    )
-
-
-def _angles(R: FloatArray) -> FloatArray:
-    """The angle (rad) of each rotation (k, 3, 3)."""
-    c = (np.trace(R, axis1=1, axis2=2) - 1.0) / 2.0
-    return np.asarray(np.arccos(np.clip(c, -1.0, 1.0)), dtype=np.float64)
+_angles = angles
 
 
 @dataclass(frozen=True)
@@ -250,74 +266,26 @@ def place(
 ) -> Placed:
     """``model`` with its base and/or tool (point; frame too when ``R`` is given and the model
     has one) placed on the poses (``flange`` of its table, measured positions ``P`` (k, 3) and
-    orientations ``R``): least squares (soft-L1 at :data:`ROBUST_SCALE`, then plain least squares
-    without the poses beyond :data:`OUTLIER_SCALE` robust scales, as the registration of the
-    nominal does) over the increments, held towards zero with the weight :data:`PRIOR` so that
-    what the poses do not determine stays as it was. The base turns about the poses' centroid."""
-    from scipy.optimize import least_squares
-
+    orientations ``R``) by the one placement routine
+    (:func:`~dhlog.identify.fit.placement.place_on`: closed-form starts from the positions and
+    the orientations, robust least squares; what the poses do not determine stays as it
+    was)."""
     if not (base or tool):
         return model
     oriented = R is not None and model.R_tool is not None
-    R0, c0 = model.T[:3, :3], model.T[:3, 3]
-    m = P.mean(axis=0)
-    nb = 6 if base else 0
-    nt = (6 if oriented else 3) if tool else 0
-
-    def unpack(x: FloatArray) -> Placed:
-        T, t, Rt = model.T, model.tool, model.R_tool
-        if base:
-            W = rotation_from_vector(x[:3])
-            T = np.eye(4)
-            T[:3, :3] = W @ R0
-            T[:3, 3] = W @ (c0 - m) + m + x[3:6]
-        if tool:
-            t = model.tool + x[nb : nb + 3]
-            if oriented:
-                assert Rt is not None
-                Rt = Rt @ rotation_from_vector(x[nb + 3 : nb + 6])
-        return replace(model, T=T, tool=np.asarray(t, dtype=np.float64), R_tool=Rt)
-
-    def residual(x: FloatArray) -> FloatArray:
-        pos, frame = _predict(unpack(x), flange, oriented)
-        parts = [(pos - P).reshape(-1)]
-        if frame is not None:
-            assert R is not None
-            parts.append(LEVER * _skew_part(np.einsum("kji,kjl->kil", R, frame)).reshape(-1))
-        prior = x.copy()
-        if base:
-            prior[:3] *= LEVER
-        if tool and oriented:
-            prior[nb + 3 : nb + 6] *= LEVER
-        parts.append(PRIOR * prior)
-        return np.concatenate(parts)
-
-    x = least_squares(
-        residual, np.zeros(nb + nt), loss="soft_l1", f_scale=ROBUST_SCALE, x_scale="jac"
-    ).x
-    k = P.shape[0]
-    for _ in range(3):  # the robust loss still leans towards gross outliers: refit without them
-        dist = np.linalg.norm(residual(x)[: 3 * k].reshape(-1, 3), axis=1)
-        keep = dist <= OUTLIER_SCALE * max(1.5 * float(np.median(dist)), SCALE_FLOOR)
-        if keep.all():
-            break
-
-        def on_kept(x: FloatArray, keep: NDArray[np.bool_] = keep) -> FloatArray:
-            return _kept(residual(x), keep, oriented)
-
-        x = least_squares(on_kept, x, x_scale="jac").x
-    return unpack(x)
-
-
-def _kept(r: FloatArray, keep: NDArray[np.bool_], oriented: bool) -> FloatArray:
-    """The placement's residual ``r`` (positions, orientations, prior) of the poses ``keep``."""
-    k = keep.size
-    parts = [r[: 3 * k].reshape(-1, 3)[keep].reshape(-1)]
-    rest = r[3 * k :]
-    if oriented:
-        parts.append(rest[: 3 * k].reshape(-1, 3)[keep].reshape(-1))
-        rest = rest[3 * k :]
-    return np.concatenate([*parts, rest])
+    got = place_on(
+        flange.R,
+        flange.p,
+        P,
+        R if oriented else None,
+        T=model.T,
+        tool=model.tool,
+        R_tool=model.R_tool,
+        base=base,
+        point=tool,
+        frame=tool and oriented,
+    )
+    return replace(model, T=got.T, tool=got.tool, R_tool=got.R_tool if oriented else model.R_tool)
 
 
 def _error(
@@ -393,14 +361,17 @@ def score_poses(
     rotations: FloatArray | None = None,
     table_values: FloatArray | None = None,
     nominal_values: FloatArray | None = None,
+    own_error: float | None = None,
 ) -> Holdout:
     """The calibrated model and the nominal (both as they stand in the calibration session's
     frame: the nominal placed there by :func:`nominal_on_session`) at the poses of another
     session (``Q``, ``P``: its samples of the primary target; ``rotations``: their measured
     orientations where the probe is 6-DoF), on one footing (see the module docstring).
     ``table_values`` / ``nominal_values`` (m, n): each model's joint values at ``Q`` when they
-    are not ``Q`` (fitted encoder scales, terms beyond the geometry). Raises :class:`NotScoredError`
-    when the log cannot be scored."""
+    are not ``Q`` (fitted encoder scales, terms beyond the geometry). ``own_error`` (m): the
+    calibration's own error (its held-out or in-sample FK RMS), against which a footing is
+    judged found (:data:`FAR_RATIO`, :data:`FAR_FLOOR`). Raises :class:`NotScoredError` when
+    the log cannot be scored."""
     groups = pose_groups(Q)
     Qc = Q if table_values is None else table_values
     Qn = Q if nominal_values is None else nominal_values
@@ -421,9 +392,13 @@ def score_poses(
         raise NotScoredError(
             f"{path}: its {k} poses put the target within {shape.spread[0] * 1e3:.3f} mm of one "
             "point and it carries no orientation: no base can be placed on them; measure poses "
-            "that spread, or with a 6-DoF probe."
+            "that spread, or with a 6-DoF probe.",
+            unplaced=True,
         )
     footing = decide(calibrated, poses, shape)
+    unfound = _unfound(footing, own_error, path)
+    if unfound is not None:
+        raise NotScoredError(unfound, unplaced=True)
     scored = ~footing.placing if footing.placed else np.ones(k, dtype=bool)
     R = poses.R if oriented else None
 
@@ -445,7 +420,8 @@ def score_poses(
     nom = None
     if nominal is not None:
         _, nom = scored_vectors(nominal, poses.Qn, Qn)
-    notes = _notes(footing, calibrated, cal_moved, k, nominal is not None)
+    fixed = tool_directions(_Flange.of(calibrated.table, poses.Q).R).shape[1] == 3
+    notes = _notes(footing, calibrated, cal_moved, k, nominal is not None, fixed)
     return LogHoldout(
         kind="log",
         nominal=None if nom is None else ErrorStats.of(np.linalg.norm(nom, axis=1)),
@@ -463,10 +439,34 @@ def score_poses(
     )
 
 
+def _unfound(footing: Footing, own_error: float | None, path: str) -> str | None:
+    """Why no footing of the log was found (every freedom tried leaves the calibrated model's
+    error beyond :data:`FAR_RATIO` × ``own_error`` and :data:`FAR_FLOOR`), None when one was."""
+    best_name = min(footing.errors, key=lambda name: footing.errors[name])
+    best = footing.errors[best_name]
+    limit = max(FAR_FLOOR, FAR_RATIO * (own_error or 0.0))
+    if best <= limit:
+        return None
+    own = "" if own_error is None else f" (the calibration's own error is {own_error * 1e3:.4f} mm)"
+    tried = ", ".join(f"{name} {v * 1e3:.1f} mm" for name, v in footing.errors.items())
+    return (
+        f"{path}: no footing places the calibrated model on its poses: every freedom tried "
+        f"leaves an error far beyond {limit * 1e3:.3g} mm at the poses it was not placed on "
+        f"({tried}){own}; it is not the same robot, unit or target as the calibration, or "
+        "its poses cannot place it — check the log's robot, joints and units"
+    ) + "."
+
+
 def _notes(
-    footing: Footing, before: Placed, after: Placed, k: int, with_nominal: bool
+    footing: Footing,
+    before: Placed,
+    after: Placed,
+    k: int,
+    with_nominal: bool,
+    point_fixed: bool = True,
 ) -> list[str]:
-    """What the log determines, what was placed on how many poses, and what "before" is."""
+    """What the log determines, what was placed on how many poses, and what "before" is
+    (``point_fixed``: the poses determine the tool point in every direction)."""
     shape, e = footing.shape, footing.errors
     notes = []
     if shape.kind == "line":
@@ -499,14 +499,17 @@ def _notes(
             parts.append("the base (the tracker moved)")
         if footing.tool:
             shift = np.linalg.norm(after.tool - before.tool) * 1e3
+            moved = f"its point moved {shift:.3f} mm"
+            if not point_fixed:
+                moved = (
+                    "its point not determined by these poses, at one orientation of the "
+                    "flange: the base's translation takes it up"
+                )
             turn = ""
             if after.R_tool is not None and before.R_tool is not None:
                 angle = _angles((before.R_tool.T @ after.R_tool)[None])[0]
                 turn = f", its frame turned {np.degrees(angle):.2f}°"
-            parts.append(
-                f"the tool (the probe was re-mounted: its point moved {shift:.3f} mm{turn} "
-                "on the flange)"
-            )
+            parts.append(f"the tool (the probe was re-mounted: {moved}{turn} on the flange)")
         what = (
             f"{' and '.join(parts)} placed again on {n_on} poses (every third), for both "
             f"models alike; the other {k - n_on} scored"
