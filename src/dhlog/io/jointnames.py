@@ -121,7 +121,8 @@ def chain_order(
     ``model`` (None or numbered names: no names to match), by the rules of the module
     docstring. ``pipeline``: the pipeline's ``[joints] names`` (the chain as the user gave it).
     ``in_chain_order``: the stream's writer put its joints in chain order (``dhlog import``'s
-    record says ``joint_order = chain``), so numbered names do not reorder them. Raises :class:`JointNamesMismatchError` when the model and the stream name their joints
+    record says ``joint_order = chain``), so numbered names do not reorder them. Raises
+    :class:`JointNamesMismatchError` when the model and the stream name their joints
     differently."""
     found = list(found)
     if pipeline:
