@@ -23,6 +23,8 @@ class ExportError(DhlogError):
 
 #: The 95 % radius of a 3-D isotropic Gaussian, in units of its σ per coordinate.
 U95_FACTOR = 2.7954834829151074
+#: the smallest U95 the export states, mm
+U95_FLOOR_MM = 0.005
 
 
 def stop_counts(session: Session) -> list[int]:
@@ -85,8 +87,11 @@ def leica_export(session: Session) -> str:
     n = Q.shape[1]
     header = ["Point Name", "X [mm]", "Y [mm]", "Z [mm]", "U(95)  [mm]", "Q0", "Q1", "Q2", "Q3"]
     counts = np.array([max(c, 1) for c in stop_counts(session)], dtype=np.float64)
-    # the 95 % radius of a 3-D Gaussian of σ per coordinate: 2.7955 σ; a tenth of a µm at least
-    u95 = np.maximum(U95_FACTOR * session.config.noise / np.sqrt(counts) * 1e3, 1e-4)
+    # the 95 % radius of a 3-D Gaussian of σ per coordinate: 2.7955 σ, never below the
+    # tracker's own floor (a tracker states no U95 under a few µm, whatever the scatter: a
+    # quieter simulated session still exports what a real one would; dhlog import refuses a
+    # U95 of under 1 µm σ as a unit slip)
+    u95 = np.maximum(U95_FACTOR * session.config.noise / np.sqrt(counts) * 1e3, U95_FLOOR_MM)
     rows = [",".join([*header, *(f"j{j + 1}" for j in range(n))])]
     for k in range(Q.shape[0]):
         cells = [f"P{k + 1:04d}", *(f"{v * 1e3:.6f}" for v in P[k]), f"{u95[k]:.4f}"]
