@@ -26,7 +26,8 @@ def simulate(
     robot: Annotated[
         str,
         typer.Argument(
-            help="A library robot (kr5, puma560, ur5, elbow, scara, stanford) or a DH file."
+            help="A library robot (kr5, kr210, puma560, ur5, elbow, scara, stanford, panda, "
+            "kr5rail, torso7) or a DH file."
         ),
     ],
     output: Annotated[
