@@ -120,6 +120,7 @@ from dhlog.io.dhfile import DHModel
 from dhlog.io.pipeline import Pipeline
 from dhlog.io.reader import LogData, camera_pipeline, read_log
 from dhlog.io.writer import sha256_of
+from dhlog.model.dh import JointType
 from dhlog.model.fk import fk_frames
 from dhlog.model.noise import NoiseModel
 from dhlog.model.terms import Terms, table_deflection, to_table
@@ -688,8 +689,14 @@ def _identify_whole(
     outer = None  # --holdout K: each sample's fold, the same for the selection and the check
     if result.folds > 1:
         outer = fold_of_poses(pose_groups(Q), result.folds, 0)
+    request = result.model_request
+    if result.parked and request.harmonic_joints is None:  # no harmonics on a parked joint
+        revolute = [k for k, t in enumerate(types) if t is JointType.REVOLUTE]
+        request = replace(
+            request, harmonic_joints=tuple(k for k in revolute if k not in result.parked)
+        )
     whole, result.selection = beyond_geometry(
-        result.model_request,
+        request,
         whole,
         Q,
         P,
