@@ -221,6 +221,7 @@ def test_a_parked_7_joint_log_processes_exports_and_loads_in_yourdfpy(tmp_path: 
     row = doc["standard_dh"][0]
     assert row["fixed"] == ["theta", "d", "a", "alpha"] and PARKED_REASON in row["fixed_reason"]
     assert all(v is None for v in row["std"].values())
+    assert doc["joints"][0]["parked"] == PARKED_REASON and "parked" not in doc["joints"][1]
     urdf = tmp_path / "t7.urdf"
     exported = runner.invoke(
         app,
