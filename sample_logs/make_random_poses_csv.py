@@ -7,8 +7,9 @@ A KUKA KR5 off its nominal (lengths σ 0.2 mm, angles σ 0.05°) leaving 0.03 mm
 error (what gravity and gears leave a geometric model), measured at 40 random static poses
 within its joint limits by a tracker of σ 0.01 mm with a 6-DoF probe (orientation σ 0.005°), one
 point a pose. The export as Tracker-Pilot-style software writes it: `;`-separated, a header with
-units in brackets, the 3-D U95 rounded to 1 µm (the probe's stated uncertainty, 1–10 µm, far
-below what the robot leaves: some read 0.000), the probe's orientation as a unit quaternion
+units in brackets, the 3-D U95 to 1 µm (the probe's stated uncertainty, 1–10 µm, far below what
+the robot leaves; at least 0.001: an export writing 0.000 is refused by ``dhlog import``), the
+probe's orientation as a unit quaternion
 `Q0 Q1 Q2 Q3` (scalar first), and the controller's joint values `j1 … j6` in degrees beside it.
 The truth goes to `<stem>.truth.json` (the result contract's shape).
 """
@@ -62,7 +63,8 @@ def main(csv_path: str) -> None:
     lines = [";".join(head)]
     for k in range(xyz.shape[0]):
         w, x, y, z = quat[k, 3], quat[k, 0], quat[k, 1], quat[k, 2]
-        cells = [f"P{k + 1:03d}", *(f"{v:.4f}" for v in xyz[k]), f"{u95[k]:.3f}"]
+        u = max(round(float(np.asarray(u95)[k]), 3), 0.001)
+        cells = [f"P{k + 1:03d}", *(f"{v:.4f}" for v in xyz[k]), f"{u:.3f}"]
         cells += [f"{v:.8f}" for v in (w, x, y, z)]
         cells += [f"{v:.4f}" for v in np.degrees(q[k])]
         lines.append(";".join(cells))

@@ -400,8 +400,9 @@ def _line(k: int, change: Any) -> Any:
 
 
 HOLDOUT_DAMAGE = [
-    ("cell", _line(4, lambda line: line.rsplit(",", 1)[0] + ",abc"), "line 4"),
-    ("negative", _line(5, lambda line: line.rsplit(",", 1)[0] + ",-1"), "line 5"),
+    # the calibrated error: the cell before the last (point_id)
+    ("cell", _line(4, lambda line: "{0},abc,{2}".format(*line.rsplit(",", 2))), "line 4"),
+    ("negative", _line(5, lambda line: "{0},-1,{2}".format(*line.rsplit(",", 2))), "line 5"),
     ("stale", lambda t: "\n".join(t.splitlines()[:-3]) + "\n", "from another run"),
     ("header", _line(1, lambda line: "a,b,c"), "the header"),
     ("ragged", _line(3, lambda line: line + ",1"), "line 3"),

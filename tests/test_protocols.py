@@ -325,7 +325,7 @@ def test_the_readme_random_poses_walkthrough(tmp_path: Path) -> None:
         app, ["import", str(samples / "kr5_random_poses.csv"), "-o", str(tmp_path / "poses.mcap")]
     )
     assert made.exit_code == 0, made.output
-    assert "floored" in made.output and "Q0, Q1, Q2, Q3" in made.output
+    assert "σ was read from U(95)" in made.output and "Q0, Q1, Q2, Q3" in made.output
     args = ["process", str(tmp_path / "poses.mcap"), "--nominal", "kr5", "--holdout", "5"]
     done = runner.invoke(app, [*args, "--out", str(tmp_path / "results"), "--no-rrd"])
     assert done.exit_code == 0, done.output

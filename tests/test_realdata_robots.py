@@ -164,6 +164,17 @@ def test_ur5_grid_cross_validated(ur5: dict[str, Any]) -> None:
     assert calibrated < 1.5 * ur5["validation"]["fk_rms"]
 
 
+def test_ur5_table_is_on_the_nominal_s_branch(ur5: dict[str, Any]) -> None:
+    """The manufacturer's DH has a2 = -425 mm, a3 = -392.25 mm, every θ offset 0: the table
+    shown (rows 2 on in the Hayati form, axes 2-3-4 nearly parallel) keeps those signs and
+    offsets; the other branch of the same lines (a2 = +424.7 mm, θ2 = 180°) was printed before."""
+    rows = (ur5.get("hayati_dh") or {}).get("rows") or ur5["standard_dh"]
+    assert rows[1]["a"] < -0.42 and rows[2]["a"] < -0.39, (rows[1]["a"], rows[2]["a"])
+    for i in (1, 2, 3):  # θ2 within 0.1°; θ3, θ4 anticorrelated (σ 0.5°) after the Hayati row
+        limit = math.radians(0.1 if i == 1 else 5.0)
+        assert abs(math.remainder(rows[i]["theta_offset"], 2 * math.pi)) < limit, i
+
+
 def test_ur5_random_poses_held_out(ur5: dict[str, Any]) -> None:
     """The 20 random poses, never fitted, scored by the grid's calibration (--validate)."""
     h = holdout(ur5, "log")

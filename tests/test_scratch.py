@@ -183,7 +183,7 @@ def test_a_frame_of_several_blocks_in_mm_with_orientation_is_the_in_memory_one()
 
     def frames() -> tuple[pl.DataFrame, pl.DataFrame]:
         points = points_frame(blocks, 1e-3, orientation=True)
-        table, _ = joints_frame("log", "/joint_states", joints, pipeline)
+        table, _, _ = joints_frame("log", "/joint_states", joints, pipeline)
         return points, table
 
     in_memory = frames()

@@ -146,7 +146,7 @@ def test_clock_offset_within_the_join_tolerance_and_its_correction() -> None:
     blocks = [
         (late.joints["t_ns"].to_numpy(), (late.joint_names, late.joints.drop("t_ns").to_numpy()))
     ]
-    late.joints, _ = joints_frame("crafted.mcap", "/joint_states", blocks, pipe)
+    late.joints, _, _ = joints_frame("crafted.mcap", "/joint_states", blocks, pipe)
     fixed = segment_log(late).table.filter(pl.col("segment") == 1)
     corners = np.array([k[0] for k in SESSION]) * S
     smooth = np.abs(fixed["t_ns"].to_numpy()[:, None] - corners).min(axis=1) > 0.011 * S

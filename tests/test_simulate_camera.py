@@ -34,7 +34,7 @@ from rosbags.typesys import Stores, get_typestore
 from typer.testing import CliRunner
 
 from dhlog.cli.app import app
-from dhlog.cli.common import EXIT_USAGE
+from dhlog.cli.common import EXIT_IMPLAUSIBLE, EXIT_USAGE
 from dhlog.io.images import ImageStream
 from dhlog.model.dh import JointType, StandardDH
 from dhlog.model.fk import fk_frames
@@ -171,8 +171,9 @@ def test_every_frame_shows_the_board_where_the_truth_puts_it(
 
 def test_process_calibrates_a_vision_log(tmp_path: Path) -> None:
     """dhlog process on a simulated vision log (the small camera, 16 poses, PNG): with the
-    shipped pipeline a warning names the board's size; with a pipeline giving the printed
-    board, the board found in every frame, a calibration with the camera block, the camera's
+    shipped pipeline the result is written marked implausible, the reason (the console's last
+    line) names the board's size, exit 4; with a pipeline giving the printed board, plausible,
+    exit 0, the board found in every frame, a calibration with the camera block, the camera's
     position within 5 mm of the truth (the pixel fit's σ is about 0.1 mm; the bound is loose
     because the base frame's d₁ and x₁ follow the nominal, not the truth)."""
     import json
@@ -182,13 +183,17 @@ def test_process_calibrates_a_vision_log(tmp_path: Path) -> None:
     )
     out = tmp_path / "out"
     # the shipped pipeline's board (40 mm squares) is not this preset's (60 mm): a camera
-    # cannot see that but through the robot's lengths, 2/3 of the nominal's — said in a warning
+    # cannot see that but through the robot's lengths, 2/3 of the nominal's: implausible
     wrong = runner.invoke(
         app, ["process", str(log), "--nominal", "kr5", "--out", str(out), "--no-rrd"]
     )
-    assert wrong.exit_code == 0, wrong.output
-    said = " ".join(wrong.output.split())
-    assert "lengths come out 0.66" in said and "about 60.0 mm" in said, said
+    assert wrong.exit_code == EXIT_IMPLAUSIBLE, wrong.output
+    last = wrong.output.strip().splitlines()[-1]
+    assert last.startswith("implausible result: ") and "exit 4" in last, last
+    assert "lengths come out 0.66" in last and "about 60.0 mm" in last, last
+    kept = json.loads((out / f"{log.stem}.dh.json").read_text())
+    assert kept["plausible"] is False and "about 60.0 mm" in kept["implausible"][0]
+    assert kept["camera"]["frames"] == 16  # the calibration is kept, marked
     shipped = Path(__file__).parents[1] / "pipelines" / "ros2_camera.toml"
     pipeline = tmp_path / "small_board.toml"
     pipeline.write_text(
@@ -204,9 +209,10 @@ def test_process_calibrates_a_vision_log(tmp_path: Path) -> None:
         ],
     )
     assert result.exit_code == 0, result.output
-    assert "lengths come out" not in result.output
+    assert "lengths come out" not in result.output and "implausible" not in result.output
     assert "Traceback" not in result.output
     doc = json.loads((out / f"{log.stem}.dh.json").read_text())
+    assert doc["plausible"] is True and doc["implausible"] == []
     cam = doc["camera"]
     truth = json.loads(log.with_suffix(".truth.json").read_text())["camera"]
     assert cam["setup"] == truth["setup"] == "eye-to-hand"

@@ -20,6 +20,7 @@ from scipy.spatial.transform import Rotation
 from typer.testing import CliRunner
 
 from dhlog.cli.app import app
+from dhlog.cli.common import EXIT_IMPLAUSIBLE
 from dhlog.io.decode.frames import COVARIANCE_COLUMNS, ORIENTATION_COLUMNS
 from dhlog.io.exports.slips import joint_unit_slip, orientation_unit_slip
 from dhlog.io.importer import STOP_JOINT_TIMES
@@ -230,9 +231,12 @@ def test_process_warns_on_a_log_read_in_the_wrong_unit(
     measured: tuple[np.ndarray, np.ndarray, np.ndarray], tmp_path: Path
 ) -> None:
     """The joints' radians forced through as degrees (``--joint-angle-unit deg``: said, so the
-    import lets it pass): ``dhlog process`` still exits 0, but a warning says the nominal and
-    the calibrated model miss the points by centimetres and names the joints' unit; the same
-    export read right gets no such warning (its FK RMS ≈ √3 · 0.03 mm)."""
+    import lets it pass): the calibrated model misses the points by half a metre, as the nominal
+    does, so ``dhlog process`` writes the result marked implausible, its last line names the
+    joints' unit, and it exits 4; the same export read right is plausible, exit 0 (its FK RMS ≈
+    √3 · 0.03 mm)."""
+    import json
+
     q, xyz, angles = measured
     src = write_export(tmp_path / "ur10.csv", q, xyz, angles)
     for unit, slipped in (("deg", True), ("rad", False)):
@@ -241,27 +245,84 @@ def test_process_warns_on_a_log_read_in_the_wrong_unit(
         assert code == 0, out
         args = ["process", str(log), "--nominal", "ur5", "--model", "geometric", "--no-rrd"]
         done = runner.invoke(app, [*args, "--out", str(tmp_path / unit)])
-        assert done.exit_code == 0, done.output
+        assert done.exit_code == (EXIT_IMPLAUSIBLE if slipped else 0), done.output
         text = " ".join(done.output.split())
         assert ("the inputs are likely read wrong" in text) == slipped, text
+        doc = json.loads((tmp_path / unit / f"{unit}.dh.json").read_text())
+        assert doc["plausible"] is not slipped and bool(doc["implausible"]) == slipped
         if slipped:
-            assert "--joint-angle-unit" in text and "misses them by" in text
+            last = done.output.strip().splitlines()[-1]
+            assert last.startswith("implausible result: the calibrated model misses its points")
+            assert "--joint-angle-unit" in last and "exit 4" in last
+            assert "more than any robot's nominal does" in doc["implausible"][0]
 
 
 def test_the_process_side_thresholds() -> None:
-    """Hand-computed cases: a heavy robot's nominal 8 mm off and its calibration 0.5 mm (the
-    FANUC R-2000iC of ../shared/realdata) gets no warning; a calibration 2.5 mm off, a
-    model-error σ of 1.2 mm, or a nominal 25 mm off each get one naming the slips."""
-    from dhlog.identify.joints.checks import check_slips
+    """Hand-computed cases of the FK check against the noise and the nominal's own miss
+    (identify/check/plausible.py). Plausible, no warning: a heavy robot's nominal 8 mm off and
+    its calibration 0.5 mm (the FANUC R-2000iC of ../shared/realdata); issue 39's geometric run,
+    2.1 mm FK on a robot whose nominal misses by 3.2 mm (a fixed 2 mm would call it a slip).
+    Implausible, naming the slips: 8 mm FK there (2.5 times the nominal's miss), 25 mm without
+    a nominal. A warning alone: a calibration 2.5 mm off without a nominal to compare with, a
+    model-error σ of 1.2 mm beyond a nominal's 1 mm, a nominal 25 mm off."""
+    from dhlog.identify.check.plausible import fk_beyond, slip_notes
 
-    notes: list[str] = []
-    check_slips(8e-3, 5e-4, 3e-4, notes)
-    check_slips(None, 5e-5, None, notes)
-    assert notes == []
-    for case in ((None, 2.5e-3, None), (1e-3, 5e-4, 1.2e-3), (25e-3, 5e-4, None)):
-        check_slips(*case, notes)
+    noise = math.sqrt(3.0) * 0.01e-3
+    for fk, miss in ((5e-4, 8e-3), (2.1e-3, 3.2e-3), (5e-5, None)):
+        assert fk_beyond(fk, noise, miss) is None
+        assert slip_notes(miss, fk, 3e-4, False) == []
+    said = fk_beyond(8e-3, noise, 3.2e-3)
+    assert said is not None and "2.5 times the nominal's own miss (3.20 mm)" in said, said
+    assert "joints in the wrong order or of the wrong sign" in said
+    said = fk_beyond(25e-3, noise, None)
+    assert said is not None and "more than any robot's nominal misses its points by" in said
+    assert fk_beyond(8e-3, 1e-3, 3.2e-3) is None  # within 10 times a noise of 1 mm
+    for miss, fk, model_error in ((None, 2.5e-3, None), (1e-3, 5e-4, 1.2e-3), (25e-3, 5e-4, None)):
+        notes = slip_notes(miss, fk, model_error, False)
         assert len(notes) == 1 and "joints in the wrong order or of the wrong sign" in notes[0]
-        notes.clear()
+        assert slip_notes(miss, fk, model_error, True) == []  # an implausible result says it
+
+
+def test_lengths_all_k_times_the_nominals_name_the_unit() -> None:
+    """A table whose lengths are all k times the nominal's (σ-sized errors on top) is
+    implausible, k's units named (1000: mm read as m; 1/25.4: inches read as mm); 1.3 times
+    names the nominal of another robot; 1.01 times (a robot off its nominal by 1 %), lengths
+    that disagree and lengths of the other sign (a DH branch) are not judged."""
+    from dhlog.identify.check.plausible import length_slip
+    from dhlog.io.dhfile import DHModel
+
+    ur5 = load_robot("ur5").table
+    nominal = DHModel(ur5, np.eye(4), np.zeros(3), UR_JOINTS, "ur5")
+    rng = np.random.default_rng(2)
+
+    def scaled(k: float, spread: float = 1e-4) -> StandardDH:
+        return StandardDH(
+            ur5.joint_types,
+            ur5.theta_offset,
+            k * ur5.d_offset + rng.normal(0, spread, 6),
+            k * ur5.a + rng.normal(0, spread, 6),
+            ur5.alpha,
+        )
+
+    for k, says in ((1000.0, "mm read as m"), (1 / 25.4, "inches read as mm")):
+        said = length_slip(scaled(k), nominal, set())
+        assert said is not None and says in said and "length_unit" in said, said
+    said = length_slip(scaled(1.3), nominal, set())
+    assert said is not None and "another robot" in said, said
+    assert length_slip(scaled(1.01), nominal, set()) is None
+    assert length_slip(scaled(1.0, spread=0.2), nominal, set()) is None
+    # a length's sign is a DH branch (a2 = +425 mm on the other branch of the line), no slip
+    flipped = scaled(1.0)
+    flipped = StandardDH(
+        flipped.joint_types, flipped.theta_offset, flipped.d_offset, -flipped.a, flipped.alpha
+    )
+    assert length_slip(flipped, nominal, set()) is None
+    slipped = scaled(1000.0)
+    slipped = StandardDH(
+        slipped.joint_types, slipped.theta_offset, slipped.d_offset, -slipped.a, slipped.alpha
+    )
+    said = length_slip(slipped, nominal, set())
+    assert said is not None and "mm read as m" in said
 
 
 def test_a_spherical_pipeline_on_cartesian_points_is_one_line(tmp_path: Path) -> None:

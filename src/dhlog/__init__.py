@@ -26,7 +26,7 @@ if TYPE_CHECKING:
     )
     from dhlog.cell.compensate import Compensation
     from dhlog.cell.plan import Plan, Tracker
-    from dhlog.errors import DhlogError, InputError, UsageError
+    from dhlog.errors import DhlogError, ImplausibleWarning, InputError, UsageError
     from dhlog.geometry.circles import fit_circle
     from dhlog.identify.read.extract import extract_dh
     from dhlog.iso9283.run import Iso9283Report
@@ -61,6 +61,7 @@ _PUBLIC = {
     "extract_dh": "dhlog.identify.read.extract",
     "DhlogError": "dhlog.errors",
     "InputError": "dhlog.errors",
+    "ImplausibleWarning": "dhlog.errors",
 }
 
 #: The public names (``tests/test_public_api.py`` fails when one disappears).
@@ -68,6 +69,7 @@ __all__ = [
     "Calibration",
     "Compensation",
     "DhlogError",
+    "ImplausibleWarning",
     "InputError",
     "Iso9283Report",
     "JointType",

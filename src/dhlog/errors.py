@@ -182,6 +182,13 @@ class FieldError(InputError):
         super().__init__(f"{where}: {field_name} {problem}; {todo}.")
 
 
+class ImplausibleWarning(UserWarning):
+    """A calibration dhlog judges implausible was made or read (``Calibration.plausible`` is
+    False; ``Calibration.implausible`` gives the reasons, each naming the evidence and the
+    fix): :func:`dhlog.process` and :func:`dhlog.load` warn with it, as ``dhlog process``
+    exits 4. ``warnings.simplefilter("error", dhlog.ImplausibleWarning)`` makes it an error."""
+
+
 class UsageError(DhlogError, ValueError):
     """An argument that cannot be used — of the Python API (``dhlog.process(holdout=1)``) or of
     a command; the message names it and what to give."""

@@ -128,6 +128,22 @@ class Calibration:
         return not any("error" in j for j in self.document.get("joints", []))
 
     @property
+    def plausible(self) -> bool:
+        """False when dhlog judges this calibration implausible (``dhlog process`` exits 4 on
+        it): :attr:`implausible` says why. True for a DH file and a result written before
+        results were judged."""
+        return not self.implausible
+
+    @property
+    def implausible(self) -> tuple[str, ...]:
+        """Why dhlog judges this calibration implausible, one sentence each naming the evidence
+        and the fix (lengths all k times the nominal's, an FK check far above the noise and the
+        nominal's own miss, a board of another size …); empty when plausible."""
+        from dhlog.result.check import implausible_reasons
+
+        return tuple(implausible_reasons(self.document))
+
+    @property
     def warnings(self) -> list[str]:
         """What may need the user's action (the console's warnings)."""
         return [str(w) for w in self.document.get("warnings", [])]
@@ -572,7 +588,7 @@ class Calibration:
             yield self.source
             return
         with tempfile.TemporaryDirectory(prefix="dhlog-") as folder:
-            stem = Path(self.source).name.removesuffix(".mcap") or "result"
+            stem = Path(self.source).name.removesuffix(".mcap").removesuffix(".db3") or "result"
             written = Path(folder) / f"{stem}.dh.json"
             written.write_text(json.dumps(self.document))
             yield str(written)

@@ -131,6 +131,25 @@ def process(
     found = calibration_of(result, limits=_library_limits(nominal))
     found._asked = (bool(holdout or validate), model != "geometric" and not analytic_only)
     found._inputs = tuple(str(v) for v in validate)
+    return _warned(found)
+
+
+def _warned(found: Calibration) -> Calibration:
+    """``found``, an :class:`~dhlog.errors.ImplausibleWarning` given first when dhlog judges it
+    implausible (the command line says so its own way, and exits 4)."""
+    if not found.plausible:
+        import warnings
+
+        from dhlog.errors import ImplausibleWarning
+        from dhlog.io.safetext import printable
+
+        warnings.warn(
+            ImplausibleWarning(
+                f"{printable(Path(found.source).name)}: implausible result: "
+                + " ".join(found.implausible)
+            ),
+            stacklevel=3,
+        )
     return found
 
 
@@ -194,12 +213,14 @@ def load(path: str | Path, *, nominal: str | Path | Robot | None = None) -> Cali
 
         document = load_result(path)
         model = parse_dh(document, printable(name))
-    return Calibration(
-        document=document,
-        model=model,
-        nominal=None if nominal is None else _dh_model(nominal),
-        source=name,
-        limits=_library_limits(nominal),
+    return _warned(
+        Calibration(
+            document=document,
+            model=model,
+            nominal=None if nominal is None else _dh_model(nominal),
+            source=name,
+            limits=_library_limits(nominal),
+        )
     )
 
 
@@ -360,7 +381,10 @@ def simulate_config(
                 else f"travel {got * 1e3:.1f} mm (asked {asked * 1e3:g} mm)"
             )
             notes.append(f"joint {k + 1}: {shown}, as its limits allow.")
-    write_session(session, output, encoding, point_type=point_type)  # type: ignore[arg-type]
+    from dhlog.simulator.session import as_published
+
+    written = as_published(session) if cfg.driver_joints else session
+    write_session(written, output, encoding, point_type=point_type)  # type: ignore[arg-type]
     pipeline = (
         "phase_markers"
         if not cfg.encoders
@@ -514,6 +538,7 @@ def acceptance_test(
     result: str | Path | Calibration | None = None,
     pipeline: str | Path | Pipeline | None = None,
     commanded: str | Path | None = None,
+    stops: bool | None = None,
 ) -> Iso9283Report:
     """The ISO 9283 acceptance test from tracker logs (``dhlog iso9283``): per pose P1–P5 the
     pose accuracy AP and repeatability RP (orientation parts with a 6-DoF target), stabilisation
@@ -527,7 +552,10 @@ def acceptance_test(
     result file or a :class:`Calibration`): its placement gives the base frame, and each
     accuracy figure is also given as the calibration's compensated commands would attain it.
     ``commanded``: the test program ``dhlog plan --iso9283`` wrote (names the poses, gives the
-    paths). Returns the report; ``.document()`` is the ``iso9283`` JSON block."""
+    paths). ``stops``: the logs are a tracker's static measurements, one point per stop (None:
+    detected where the samples are too sparse for a dwell; several targets each get their own
+    report in ``.further``). Returns the report; ``.document()`` is the ``iso9283`` JSON
+    block."""
     from dhlog.iso9283.run import run_logs
 
     if result is not None and nominal is None:
@@ -540,16 +568,25 @@ def acceptance_test(
         raise UsageError("acceptance_test: give at least one log.")
     pipe = _pipeline(pipeline)
     nom = None if nominal is None else _dh_model(nominal)
+    from dhlog.iso9283.stops import further_tool_points
+
     calibrated = None
-    if isinstance(result, Calibration):
-        calibrated = result.identified()
-    elif result is not None:
-        calibrated = load(result).identified()
+    further_tools: list[Any] = []
+    if result is not None:
+        cal = result if isinstance(result, Calibration) else load(result)
+        calibrated = cal.identified()
+        further_tools = further_tool_points(cal.document, str(cal.source))
     if nom is not None and calibrated is not None and nom.table.n != calibrated.table.n:
         raise UsageError(
             f"acceptance_test: the nominal {nom.source} has {nom.table.n} joints but the result "
             f"{calibrated.source} has {calibrated.table.n}; give the nominal of this robot."
         )
     return run_logs(
-        paths, pipeline=pipe, nominal=nom, calibrated=calibrated, commanded_csv=commanded
+        paths,
+        pipeline=pipe,
+        nominal=nom,
+        calibrated=calibrated,
+        commanded_csv=commanded,
+        stops=stops,
+        further_tools=further_tools,
     )

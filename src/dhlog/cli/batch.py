@@ -8,6 +8,7 @@ from typing import Annotated, NoReturn
 import typer
 
 from dhlog.cli.common import (
+    EXIT_IMPLAUSIBLE,
     EXIT_INTERRUPTED,
     EXIT_PARTIAL,
     EXIT_TERMINATED,
@@ -222,15 +223,21 @@ def batch(
             fail(OutputError(out, exc))
     except (KeyboardInterrupt, Terminated) as exc:  # the workers are stopped already
         _batch_stopped(exc, written_logs(work, before), len(work))
-    counts = {s: sum(1 for r in rows if r["status"] == s) for s in ("ok", "partial", "failed")}
+    counts = {
+        s: sum(1 for r in rows if r["status"] == s)
+        for s in ("ok", "partial", "implausible", "failed")
+    }
     stdout.print(
         f"{len(rows)} log(s) in {seconds:.1f} s {_where(executor, scheduler, jobs)}: "
-        f"{counts['ok']} ok, "
-        f"{counts['partial']} partial, {counts['failed']} failed; wrote "
+        f"{counts['ok']} ok, {counts['partial']} partial, "
+        + (f"{counts['implausible']} implausible, " if counts["implausible"] else "")
+        + f"{counts['failed']} failed; wrote "
         + ", ".join(plain(p) for p in paths)
     )
-    if counts["partial"] or counts["failed"]:
+    if counts["partial"] or counts["failed"]:  # results missing: 3, whatever else
         raise typer.Exit(EXIT_PARTIAL)
+    if counts["implausible"]:  # all written, some judged implausible
+        raise typer.Exit(EXIT_IMPLAUSIBLE)
 
 
 def _where(executor: str, scheduler: str | None, jobs: int) -> str:

@@ -32,8 +32,10 @@ EXIT_CODES = (
     "Exit codes: 0 success; 1 usage error (a bad option or argument, an output that exists "
     "without --force, an output folder that does not exist); 2 unreadable or unusable input, or "
     "an output that cannot be written; 3 partial result (joints not identified; in a batch, "
-    "logs that failed: the rest is written); 130 interrupted (Ctrl-C); 141 the standard output "
-    "was closed (| head: the results were written first); 143 terminated (SIGTERM)."
+    "logs that failed: the rest is written); 4 implausible result (written, marked plausible: "
+    "false with the reasons; it wins over 3; in a batch, a log judged implausible and none "
+    "failed or partial); 130 interrupted (Ctrl-C); 141 the standard output was closed (| head: the "
+    "results were written first); 143 terminated (SIGTERM)."
 )
 
 
@@ -148,7 +150,8 @@ def fail(exc: DhlogError, code: int = EXIT_INPUT) -> None:
 
 
 def check_folder(folder: Path) -> None:
-    """A command's output folder must exist (only ``process --out`` creates one)."""
+    """A command's output folder must exist (``process --out`` and ``iso9283 --out`` create
+    theirs: :func:`check_writable` before the work, the folder made before writing)."""
     _refuse_file(folder)
     if not folder.is_dir():
         stderr.print(f"error: the folder {plain(folder)} does not exist; create it first.")
@@ -193,12 +196,25 @@ def refuse_existing(path: Path, force: bool) -> None:
         raise typer.Exit(EXIT_USAGE)
 
 
+def say_implausible(reasons: list[str] | tuple[str, ...]) -> None:
+    """The last line of a command whose result dhlog judges implausible (exit 4 follows)."""
+    stderr.print(
+        "implausible result: " + " ".join(plain(r) for r in reasons) + " The result was "
+        "written, marked plausible: false; exit 4."
+    )
+
+
 def quiet_numerics() -> None:
     """Floating-point warnings of numpy on damaged data are not for the user: every result is
-    checked for finiteness where it matters, and what is set aside is counted."""
+    checked for finiteness where it matters, and what is set aside is counted. Nor is the
+    API's ImplausibleWarning: each command says an implausible result in its own words."""
     import warnings
 
+    from dhlog.errors import ImplausibleWarning
+
     warnings.filterwarnings("ignore", category=RuntimeWarning)
+    # the commands say an implausible result their own way (process's last line and exit 4)
+    warnings.filterwarnings("ignore", category=ImplausibleWarning)
     np.seterr(all="ignore")
 
 

@@ -9,7 +9,15 @@ from typing import Annotated
 
 import typer
 
-from dhlog.cli.common import EXIT_USAGE, check_folder, fail, plain, refuse_existing, stderr, stdout
+from dhlog.cli.common import (
+    EXIT_USAGE,
+    check_writable,
+    fail,
+    plain,
+    refuse_existing,
+    stderr,
+    stdout,
+)
 from dhlog.cli.options import PIPELINE_HELP, load_model, load_pipeline
 from dhlog.errors import DhlogError, OutputError
 
@@ -49,18 +57,29 @@ def iso9283(
     out: Annotated[
         Path | None,
         typer.Option(
-            metavar="DIR", help="Where <stem>.iso9283.json goes (default: beside the log)."
+            metavar="DIR",
+            help="Where <stem>.iso9283.json goes (default: beside the log; created when missing).",
         ),
     ] = None,
+    stops: Annotated[
+        bool,
+        typer.Option(
+            "--stops",
+            help="The log is a tracker's static measurements, one point per stop (as tracker "
+            "software exports them; detected when its samples are too sparse for a dwell): "
+            "each stop is a visit, grouped into poses by its joints.",
+        ),
+    ] = False,
     no_rrd: Annotated[
         bool, typer.Option("--no-rrd", help="Do not write the Rerun recording.")
     ] = False,
     force: Annotated[bool, typer.Option("--force", help="Overwrite the outputs.")] = False,
 ) -> None:
     """The ISO 9283 characteristics (AP, RP, vAP, AD/RD, stabilisation, overshoot, drift; AT,
-    RT with the test program) of a robot's test from tracker logs, before and after a
-    calibration; written as <stem>.iso9283.json and the recording <stem>.iso9283.rrd (the cube,
-    each pose's attained positions and RP sphere, the paths' deviations)."""
+    RT with the test program) of a robot's test from tracker logs (a time series, or static
+    measurements one per stop: --stops), before and after a calibration; written as
+    <stem>.iso9283.json and the recording <stem>.iso9283.rrd (the cube, each pose's attained
+    positions and RP sphere, the paths' deviations)."""
     from dhlog.api import acceptance_test
     from dhlog.iso9283.run import report_document, write_report
     from dhlog.present.console.iso9283 import print_iso9283
@@ -73,8 +92,8 @@ def iso9283(
         raise typer.Exit(EXIT_USAGE)
     first = logs[0]
     folder = out if out is not None else first.resolve().parent
-    check_folder(folder)
-    stem = first.name.removesuffix(".zstd").removesuffix(".mcap")
+    check_writable(folder)  # a file in the way, or no permission: refused before any work
+    stem = first.name.removesuffix(".zstd").removesuffix(".mcap").removesuffix(".db3")
     target = folder / f"{stem}.iso9283.json"
     recording = None if no_rrd else folder / f"{stem}.iso9283.rrd"
     outputs = [target] if recording is None else [target, recording]
@@ -91,6 +110,7 @@ def iso9283(
             result=result,
             pipeline=None if pipeline is None else load_pipeline(pipeline),
             commanded=commanded,
+            stops=True if stops else None,
         )
         source = {
             "logs": [str(p) for p in logs],
@@ -99,6 +119,10 @@ def iso9283(
             "commanded": None if commanded is None else str(commanded),
             "pipeline": pipeline,
         }
+        try:
+            folder.mkdir(parents=True, exist_ok=True)  # --out is created when missing
+        except OSError as exc:
+            raise OutputError(folder, exc) from None
         write_report(report_document(report, source), target)
         if recording is not None:
             from dhlog.present.recording.iso9283 import write_iso9283_recording

@@ -62,6 +62,15 @@ def import_(
     x: Annotated[str, typer.Option(help="The column of the target's x.")] = "x",
     y: Annotated[str, typer.Option(help="The column of the target's y.")] = "y",
     z: Annotated[str, typer.Option(help="The column of the target's z.")] = "z",
+    targets: Annotated[
+        str | None,
+        typer.Option(
+            metavar="PREFIX,…",
+            help="Several targets (reflectors) per row: the prefixes of their x, y, z columns, "
+            "comma-separated, the first the primary target (mA,mB,mC reads mA_x_m … mC_z_m); "
+            "the others go to /tracker/point_2, … and are read without a pipeline file.",
+        ),
+    ] = None,
     joint_columns: Annotated[
         str | None,
         typer.Option(
@@ -92,7 +101,8 @@ def import_(
         str | None,
         typer.Option(
             help="m, mm, um or in: positions, U95, prismatic joints, where the header states "
-            "no unit (default mm; a header that states another is an error)."
+            "no unit (default: a comment line's '# Units: …', else mm; a header or comment "
+            "that states another is an error)."
         ),
     ] = None,
     angle_unit: Annotated[
@@ -126,7 +136,10 @@ def import_(
     ] = "xyz",
     no_u95: Annotated[
         bool,
-        typer.Option("--no-u95", help="Leave the U95 columns out (the noise model applies)."),
+        typer.Option(
+            "--no-u95",
+            help="Leave the uncertainty columns (U95, unc, σ) out (the noise model applies).",
+        ),
     ] = False,
     force: Annotated[bool, typer.Option("--force", help="Overwrite the output.")] = False,
 ) -> None:
@@ -161,6 +174,7 @@ def import_(
         orientation_columns=listed(orientation_columns),
         euler=euler,
         no_u95=no_u95,
+        targets=listed(targets),
     )
     try:
         imported = import_source(source, opts)
@@ -186,6 +200,8 @@ def import_(
         if imported.orientation is not None
         else ""
     )
+    if imported.further is not None:
+        rot += f", {1 + len(imported.further)} targets"
     stdout.print(
         f"wrote {plain(out)}: {len(imported.xyz)} {kind}{u95}{rot}, joints "
         f"{plain(', '.join(imported.joint_names))}; next: dhlog process {plain(out)}"

@@ -10,11 +10,13 @@ import numpy as np
 import typer
 
 from dhlog.cli.common import (
+    EXIT_IMPLAUSIBLE,
     EXIT_PARTIAL,
     EXIT_USAGE,
     check_writable,
     fail,
     plain,
+    say_implausible,
     stderr,
     stdout,
     viewer,
@@ -32,7 +34,10 @@ from dhlog.errors import DhlogError, OutputError
 
 def process(
     log: Annotated[
-        Path, typer.Argument(metavar="LOG", help="The session log (.mcap, or a bag folder).")
+        Path,
+        typer.Argument(
+            metavar="LOG", help="The session log (.mcap or .db3, or a rosbag2 bag folder)."
+        ),
     ],
     pipeline: Annotated[
         str | None,
@@ -239,7 +244,7 @@ def process(
             raise typer.Exit(EXIT_USAGE)
         request = replace(request, masses=str(masses))
     folder = out if out is not None else log.parent
-    stem = log.name.removesuffix(".zstd").removesuffix(".mcap")
+    stem = log.name.removesuffix(".zstd").removesuffix(".mcap").removesuffix(".db3")
     outputs = output_names(
         folder / f"{stem}.dh.json",
         recording=not no_rrd,
@@ -332,4 +337,8 @@ def process(
     if not result.complete:
         names = ", ".join(f"joint {j.index} ({plain(j.name)})" for j in result.failed)
         stderr.print(f"partial result: {names} not identified; the rest was written.")
+    if not calibration.plausible:  # 4 wins over 3: what was written is not to be used
+        say_implausible(calibration.implausible)
+        raise typer.Exit(EXIT_IMPLAUSIBLE)
+    if not result.complete:
         raise typer.Exit(EXIT_PARTIAL)

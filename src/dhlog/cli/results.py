@@ -92,7 +92,8 @@ def export(
     refuse_existing(output, force)
     extra = ""
     try:
-        text = load(result).export(
+        loaded = load(result)
+        text = loaded.export(
             format,  # type: ignore[arg-type]
             limits_from=limits_from,
             template=template,
@@ -113,6 +114,8 @@ def export(
     stdout.print(f"wrote {plain(output)}{extra}", soft_wrap=True)  # a path never broken
     _terms_not_exported(result, format)
     _camera_not_exported(result, format)
+    if not loaded.plausible:  # exported as asked, but not silently
+        _said_implausible(result, "exported")
 
 
 def _terms_not_exported(result: Path, fmt: str) -> None:
@@ -310,6 +313,24 @@ def compare_results(
         stdout.print(f"changed beyond {threshold:g}σ: {plain(', '.join(significant))} (marked *).")
     else:
         stdout.print(f"no parameter changed beyond {threshold:g}σ.")
+    for path in (first, second):
+        _said_implausible(path, "compared")
+
+
+def _said_implausible(path: Path, done: str) -> None:
+    """A warning when the result at ``path`` is one dhlog judged implausible (``done``: what
+    the command did with it all the same)."""
+    from dhlog.result.check import implausible_reasons, load_result
+
+    try:
+        reasons = implausible_reasons(load_result(path))
+    except DhlogError:
+        return
+    if reasons:
+        stderr.print(
+            f"warning: {plain(path.name)} is a result dhlog judged implausible (dhlog process "
+            f"exited 4), {done} as asked: " + " ".join(plain(r) for r in reasons)
+        )
 
 
 #: The narrowest the parameter column of a value table may fold to (below it, a list).

@@ -149,6 +149,14 @@ def simulate(
             "orientation (PoseStamped / PoseInFrame).",
         ),
     ] = False,
+    driver_joints: Annotated[
+        bool,
+        typer.Option(
+            "--driver-joints",
+            help="Joint states as the robot's ROS 2 driver publishes them: its joint names "
+            "(ur5, kr5), in alphabetical order (a UR arm's elbow_joint first).",
+        ),
+    ] = False,
     orientation_noise_deg: Annotated[
         float, typer.Option(help="σ of the 6-DoF target's orientation noise, degrees.")
     ] = 0.0,
@@ -338,6 +346,7 @@ def simulate(
             pose_list=pose_list,
             model_error=model_error_mm * 1e-3,
             tool_rotation=SIX_DOF_TOOL_ROTATION if six_dof else None,
+            driver_joints=driver_joints,
             orientation_noise=math.radians(orientation_noise_deg),
             extra_tools=tuple((x * 1e-3, y * 1e-3, z * 1e-3) for x, y, z in extra_tools),
             base_points=base_points,

@@ -4,7 +4,9 @@ on a Dask cluster (:mod:`dhlog.fleet.executors`).
 Each log is one job in a worker: its results (``<stem>.dh.json``, ``.dh.csv``, and the
 recording unless ``no_rrd``) are written into the output folder as ``dhlog process --out`` writes
 them, and the job returns one summary row. A log that fails is a row with status ``failed`` and
-its one-line reason; nothing stops the batch. The summary (one row per log: its time, robot,
+its one-line reason; nothing stops the batch; a log whose result dhlog judges implausible is
+written and has status ``implausible``, its reasons the row's reason (over ``partial``, as
+``dhlog process`` exits 4 over 3). The summary (one row per log: its time, robot,
 every parameter with σ, FK residual, clock offset, status) is written as CSV and Parquet through
 polars, atomically, in the order the logs were given. Lengths in the summary are metres and
 times seconds, as its column names say (``fk_rms_m``, ``clock_offset_s``; the parameters, as in
@@ -56,7 +58,7 @@ class BatchJob:
 
 def stem_of(log: Path) -> str:
     """The results' name of a log (``run.mcap`` → ``run``; a bag folder by its name)."""
-    return log.name.removesuffix(".zstd").removesuffix(".mcap")
+    return log.name.removesuffix(".zstd").removesuffix(".mcap").removesuffix(".db3")
 
 
 def job_outputs(job: BatchJob) -> list[Path]:
@@ -107,6 +109,9 @@ def process_job(job: BatchJob, *, hold_signals: bool = False) -> dict[str, Any]:
         t0 = result.log.points["t_ns"].min() if result.log.points.height else None
         status = "ok" if result.complete else "partial"
         reason = "; ".join(f"joint {j.index} ({j.name}): {j.reason}" for j in result.failed)
+        if result.implausible:  # as dhlog process: implausible wins over partial
+            status = "implausible"
+            reason = " ".join([*result.implausible, *([reason] if reason else [])])
         return summary_row(
             log, document, status, reason, time.perf_counter() - start, t0, job.nominal
         )

@@ -10,7 +10,9 @@ the clock offset joined again if it moved; the terms beyond the geometry ``ident
 the weights ``identify.variance``), pairs the data cannot tell from parallel held parallel
 (``identify.relations``) → the DH model read off the fitted axes, its covariance and what is
 fixed (``identify.uncertainty``, ``identify.conditioning``) → forward kinematics of the table
-against every sample (``identify.validate``). The result document is ``result.document``.
+against every sample (``identify.validate``) → what makes the result implausible
+(``identify.check.plausible``: ``ProcessResult.implausible``). The result document is
+``result.document``.
 
 ``--analytic-only`` (and a log without encoders) stops at the analytic start, with its own
 propagated covariance. When some joints cannot be identified, what was identified is kept: their
@@ -36,6 +38,8 @@ from dhlog.geometry.fitting import PlaneFit, fit_plane
 from dhlog.geometry.lines import ANGLE_TOL, DISTANCE_TOL, Line, Plane
 from dhlog.identify.check.footing import Placed, nominal_on_session, score_poses
 from dhlog.identify.check.holdout import Holdout, cross_validate
+from dhlog.identify.check.named import name_outliers, pose_names, sample_names
+from dhlog.identify.check.plausible import judge
 from dhlog.identify.check.validate import (
     Validation,
     check_residual,
@@ -67,9 +71,9 @@ from dhlog.identify.joints.checks import (
     check_fit_noise,
     check_noise_model,
     check_sizes,
-    check_slips,
     check_units,
 )
+from dhlog.identify.joints.permutation import suspected_permutation
 from dhlog.identify.joints.sweeps import (
     JointReport,
     TargetAtReference,
@@ -167,6 +171,10 @@ class ProcessResult:
     parked: tuple[int, ...] = ()
     #: errors at poses not used to fit: K-fold cross-validation, held-out logs
     holdout: list[Holdout] = field(default_factory=list)
+    #: the whole-model fit's gross outliers by name (the export's point ids, else ``#k``)
+    outlier_names: list[str] = field(default_factory=list)
+    #: ... and their rows in the segmentation's point table
+    outlier_rows: NDArray[np.intp] = field(default_factory=lambda: np.zeros(0, np.intp))
     #: K of the K-fold cross-validation asked for (0: none)
     folds: int = 0
     #: the terms beyond the geometry asked for, the candidates tried, and the chosen terms in
@@ -257,6 +265,8 @@ def process_log(
             camera,
             jobs=jobs,
             progress=None if progress is None else (lambda f: progress("detecting", f)),
+            joint_names=None if nominal is None else nominal.joint_names,
+            joint_source="model" if nominal is None else nominal.source,
         )
         found = cast(
             ProcessResult,
@@ -290,6 +300,8 @@ def process_log(
         pipeline,
         fast=fast,
         progress=None if progress is None else (lambda f: progress("reading", f)),
+        joint_names=None if nominal is None else nominal.joint_names,
+        joint_source="model" if nominal is None else nominal.source,
     )
     result = process_data(
         log,
@@ -305,6 +317,7 @@ def process_log(
         model=model,
         progress=progress,
     )
+    judge(result)  # implausible lengths or FK check (a camera's are judged in its pixel fit)
     placed: list[Placed | None] = []  # the nominal on this session, placed once
     for other in validate or []:
         try:  # each log's own pipeline unless named
@@ -363,6 +376,12 @@ def process_data(
     check_units(seg, log, phases, notes)
     seg, timing = clock_start(seg, log, info, phases)
     check_sizes(name, n, nominal, reference_pose)
+    implausible = []
+    order = log.joint_order
+    if nominal is not None and (order is None or not order.by_name):  # the data may tell
+        permuted = suspected_permutation(seg, nominal)
+        if permuted is not None:
+            implausible.append(permuted.reason(seg.joint_names))
     every = shown_stride(seg.height)
     if every > 1:
         info.append(
@@ -430,6 +449,7 @@ def process_data(
         folds=holdout,
         model_request=model,
         parked=tuple(parked),
+        implausible=implausible,
     )
     kwargs: dict[str, Any] = {
         "angle_tol": angle_tol,
@@ -820,6 +840,11 @@ def _identify_whole(
         result.deflection_max_std, result.deflection_target_std = moved.joints_std, moved.target_std
         result.deflection_vectors = moved.vectors
     result.validation = validate_samples(seg, rows, Q_table, P, ex, whole.inliers, tools, which)
+    stamps = np.asarray(seg.column("t_ns", rows), dtype=np.int64)
+    names = sample_names(stamps, rows, result.log.point_ids)
+    norms = residual_norms(whole.model, Q, P, which=which, rates=rates)
+    out = name_outliers(names, norms, whole.inliers, result.info, notes)
+    result.outlier_names, result.outlier_rows = [names[i] for i in out.tolist()], rows[out]
     gap = table_gap(whole, ex, Q, Q_table)
     if gap > 1e-6:
         notes.append(
@@ -828,9 +853,6 @@ def _identify_whole(
             "relations and the FK check."
         )
     check_residual(result.validation, sigma, notes)
-    reg = result.registration
-    nominal_rms = None if reg is None else reg.rms
-    check_slips(nominal_rms, result.validation.rms, result.noise.model_error, notes)
     if result.folds > 1:
         stage("cross-validating", 0.0)
         held_in_fold: list[dict[int, str]] = []  # the pairs each fold holds, from its poses
@@ -889,6 +911,8 @@ def _identify_whole(
                 f"poses: {_tally(said, '; ')}."
             )
         check = result.holdout[-1]
+        if check.pose_samples is not None and result.log.point_ids is not None:
+            check.pose_names = [names[i] for i in check.pose_samples.tolist()]
         check.range_sd = range_sd(whole, Q)
         if check.expected_rms is not None and check.range_sd > 0.5 * check.calibrated.rms:
             check.notes.append(
@@ -960,7 +984,13 @@ def _validate_log(
     if ex is None or not result.complete:
         result.warnings.append(f"{path}: not scored: the result is not complete.")
         return
-    log = read_log(path, pipeline, fast=fast)
+    log = read_log(
+        path,
+        pipeline,
+        fast=fast,
+        joint_names=result.segmentation.joint_names,
+        joint_source=f"{result.path} (the calibrated log)",
+    )
     seg = segment_log(log, joint_types=list(ex.standard.joint_types))
     if seg.n_joints != ex.standard.n or not seg.has_encoders:
         raise InputError(
@@ -988,6 +1018,11 @@ def _validate_log(
             nominal_values=None if nominal is None else nominal.joint_values(Q),
         )
     )
+    if log.point_ids is not None:  # the session's held-out poses by the export's ids
+        mine = rows if which is None else rows[primary]
+        names = sample_names(np.asarray(seg.column("t_ns", mine), np.int64), mine, log.point_ids)
+        check = result.holdout[-1]
+        check.pose_names = pose_names(np.asarray(Q), np.asarray(P), names, check.positions)
 
 
 #: Largest number of the session's samples the nominal is placed on for ``--validate``.

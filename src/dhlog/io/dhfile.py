@@ -192,6 +192,14 @@ def parse_dh(data: dict[str, Any], source: str) -> DHModel:
                 continue
             out.append(f.number(row[name], f"{at}.{name}", scale, limit, unit))
         names.append(f.text(joint.get("name", f"joint_{i + 1}"), f"joints[{i}].name"))
+    twice = [k for k, name in enumerate(names) if name in names[:k]]
+    if twice:
+        k = twice[0]
+        raise f.error(
+            f"joints[{k}].name",
+            f"is {_shown(names[k])}, the name of joint {names.index(names[k]) + 1} too; name "
+            "each joint once (joint states are matched to the joints by name).",
+        )
     table = StandardDH(types, theta, d, a, alpha)
     base = f.table(data, "base", "base").get("T_measurement_base")
     T_base = np.eye(4) if base is None else _transform(f, base, length)
@@ -312,5 +320,5 @@ def dh_model_from(spec: str) -> DHModel:
     if Path(spec).suffix in (".json", ".toml") or Path(spec).exists():
         return load_dh(spec)
     robot = load_robot(spec)
-    names = tuple(f"joint_{i + 1}" for i in range(robot.n))
+    names = robot.joint_names or tuple(f"joint_{i + 1}" for i in range(robot.n))
     return DHModel(robot.table, robot.T_base, robot.tool_point, names, robot.name)

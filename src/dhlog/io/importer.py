@@ -22,7 +22,9 @@ The log is written as rosbag2 would (profile ``ros2``, CDR): the target on ``/tr
 ``PoseWithCovarianceStamped`` with the uncertainties, its pose holding the orientation when
 there is one), the joints on ``/joint_states`` (``sensor_msgs/msg/JointState``, SI units), with
 the conversion's provenance in an MCAP metadata record ``dhlog.import`` — whose ``orientation =
-true`` makes :func:`dhlog.io.reader.read_log` read the orientation without a pipeline saying so.
+true`` makes :func:`dhlog.io.reader.read_log` read the orientation without a pipeline saying so —
+and the export's point ids, when it names its points, in ``dhlog.point_ids``
+(:mod:`dhlog.io.pointids`: dhlog names outliers and held-out poses by them).
 Discrete points become stops: 2 s per point, the target measured in the middle, three joint
 states holding the point's joint values — at the stop's start, at the measurement and at its end
 one 20 Hz period before the next stop: what the segmentation sees of a step-and-measure cell's
@@ -33,7 +35,7 @@ a stop instead of 40, so that 200 000 stops write in seconds.
 from __future__ import annotations
 
 import json
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -41,12 +43,15 @@ from numpy.typing import NDArray
 
 from dhlog.errors import InputError
 from dhlog.io import ros2
+from dhlog.io.exports.checks import comment_length_unit, plausible_extent
 from dhlog.io.exports.joints import with_joints_file
 from dhlog.io.exports.options import ImportOptions, checked_options
-from dhlog.io.exports.source import EPOCH_NS, Source, from_table
+from dhlog.io.exports.source import EPOCH_NS, Source, file_length_unit, from_table
 from dhlog.io.exports.spatialanalyzer import is_table, spatialanalyzer_points
-from dhlog.io.exports.table import DEFAULT_LENGTH_UNIT, read_table
+from dhlog.io.exports.table import Table, read_table, read_text
+from dhlog.io.exports.targets import further_positions, further_topics, target_triples
 from dhlog.io.paths import same_file
+from dhlog.io.pointids import POINT_IDS_METADATA, point_ids_record
 from dhlog.model.dh import JointType
 
 #: The import's entry, as the command line takes it.
@@ -59,6 +64,8 @@ __all__ = [
     "write_imported",
 ]
 
+#: Length units as a note names them.
+UNIT_WORDS = {"um": "micrometres", "in": "inches"}
 #: A stop's length and its encoder rate (s, Hz), the target measured in its middle.
 STOP_SECONDS, STOP_RATE = 2.0, 20.0
 #: When in a stop its joint states are written (s): its start, the measurement, its end.
@@ -83,6 +90,10 @@ class Imported:
     warnings: list[str] = field(default_factory=list)
     orientation: NDArray[np.float64] | None = None
     notes: list[str] = field(default_factory=list)
+    #: further targets' positions (k, m, 3), m, at the point stamps (``--targets``)
+    further: NDArray[np.float64] | None = None
+    #: the export's point ids (its point-name column), one per target sample, or None
+    point_ids: list[str] | None = None
 
 
 def import_source(source: str | Path, opts: ImportOptions) -> Imported:
@@ -90,19 +101,48 @@ def import_source(source: str | Path, opts: ImportOptions) -> Imported:
     path = Path(source)
     checked_options(opts)
     if opts.format == "spatialanalyzer" and not is_table(path, opts):
+        if opts.targets:
+            raise InputError(
+                f"{path}: a SpatialAnalyzer point list holds one target per point; --targets "
+                "is for a table whose rows hold several targets' x, y, z columns."
+            )
         if opts.joints_file is None:
             raise InputError(
                 f"{path}: a SpatialAnalyzer point list holds no joint values; give them with "
                 "--joints-file (matched by point name, or by row)."
             )
-        names, xyz, lines = spatialanalyzer_points(path, opts.length_unit or DEFAULT_LENGTH_UNIT)
-        src = Source(str(path), lines, names, xyz)
+        text = read_text(path)
+        comments = [
+            (i + 1, line.strip())
+            for i, line in enumerate(text.splitlines())
+            if line.lstrip().startswith(("#", "//"))
+        ]
+        unit, where = file_length_unit(str(path), opts, comment_length_unit(str(path), comments))
+        names, xyz, lines, read = spatialanalyzer_points(path, unit, where)
+        src = Source(str(path), lines, names, xyz, length_read=read)
+    elif opts.targets:
+        src = _with_targets(read_table(path), opts)
     else:
         src = from_table(read_table(path), opts)
     if opts.joints_file is not None:
         src = with_joints_file(src, opts)
     assert src.q is not None
-    src.unit_slips([JointType.parse(t) for t in opts.joint_types] or None)
+    types = [JointType.parse(t) for t in opts.joint_types] or None
+    src.unit_slips(types)
+    if src.length_read is not None:
+        unit, where = src.length_read
+        revolute = [
+            j
+            for j in range(src.q.shape[1])
+            if types is None or j >= len(types) or types[j] is JointType.REVOLUTE
+        ]
+        plausible_extent(src.path, src.xyz, src.q, revolute, unit, where)
+        if unit in ("in", "um"):
+            src.notes.append(
+                f"{src.path}: the positions were read in {UNIT_WORDS.get(unit, unit)} "
+                f"({where}{' states it' if where.startswith('line') else ''}) and converted "
+                "to metres."
+            )
     xyz, q = src.xyz, src.q
     if src.t_ns is not None:
         point_t, joint_t, joint_q, stepped = src.t_ns, src.t_ns, q, False
@@ -128,6 +168,9 @@ def import_source(source: str | Path, opts: ImportOptions) -> Imported:
         else "from the source",
         **src.provenance,
     }
+    if src.further is not None:
+        provenance["targets"] = str(1 + len(src.further))
+        provenance["further_target_topics"] = ",".join(further_topics(len(src.further)))
     if opts.joints_file is not None:
         provenance["joints_file"] = str(Path(opts.joints_file).resolve())
         provenance["joints_file_sha256"] = _sha256(Path(opts.joints_file))
@@ -143,7 +186,31 @@ def import_source(source: str | Path, opts: ImportOptions) -> Imported:
         list(src.warnings),
         src.quat,
         list(src.notes),
+        None if src.further is None else np.asarray(src.further, dtype=np.float64),
+        None if src.names is None else list(src.names),
     )
+
+
+def _with_targets(table: Table, opts: ImportOptions) -> Source:
+    """A table's points with several targets (``--targets``): the first prefix's triple read
+    as the target (``--x/--y/--z``), the others' positions beside it."""
+    if (opts.x, opts.y, opts.z) != ("x", "y", "z"):
+        raise InputError(
+            f"{table.path}: --targets names the targets' columns; leave --x, --y, --z out."
+        )
+    triples = target_triples(table, opts.targets)
+    (x, y, z), further = triples[0], triples[1:]
+    src = from_table(table, replace(opts, x=x, y=y, z=z))
+    if further:
+        src.further = further_positions(table, further, opts)
+        if src.cov is not None:
+            src.notes.append(
+                f"{table.path}: the uncertainty columns are the first target's; the further "
+                "targets carry none (the noise model applies to them)."
+            )
+    shown = "; ".join(", ".join(t) for t in triples)
+    src.notes.append(f"{table.path}: {len(triples)} target(s) read from {shown}.")
+    return src
 
 
 def _sha256(path: Path) -> str:
@@ -203,7 +270,8 @@ def _joint_payloads(
 
 def write_imported(imported: Imported, out: str | Path) -> None:
     """Write ``imported`` as a ROS 2 MCAP log (atomically), with its provenance; the messages
-    in time order (points before joint states at the same stamp), ordered in one sort."""
+    in time order (points before joint states at the same stamp, further targets after them),
+    ordered in one sort."""
     from mcap.writer import CompressionType, Writer
 
     from dhlog._version import __version__
@@ -211,10 +279,15 @@ def write_imported(imported: Imported, out: str | Path) -> None:
 
     point_schema, points = _point_messages(imported)
     joints = _joint_payloads(imported.joint_t_ns, imported.joint_names, imported.joint_q)
-    times = np.concatenate([imported.point_t_ns, imported.joint_t_ns]).astype(np.int64)
-    stream = np.repeat([0, 1], [len(points), len(joints)])
+    further = [] if imported.further is None else list(imported.further)
+    extra = [ros2.encode_point_stamped(imported.point_t_ns, xyz, "tracker") for xyz in further]
+    times = np.concatenate(
+        [imported.point_t_ns, imported.joint_t_ns, *(imported.point_t_ns for _ in extra)]
+    ).astype(np.int64)
+    sizes = [len(points), len(joints), *(len(e) for e in extra)]
+    stream = np.repeat(np.arange(len(sizes)), sizes)
     order = np.lexsort((stream, times))  # stable: each stream keeps its own order
-    payloads = points + joints
+    payloads = points + joints + [p for e in extra for p in e]
     with atomic_output(out) as f:
         writer = Writer(f, compression=CompressionType.ZSTD, enable_crcs=False)
         writer.start(profile="ros2", library=f"dhlog import {__version__}")
@@ -222,13 +295,24 @@ def write_imported(imported: Imported, out: str | Path) -> None:
         jid = writer.register_schema(
             ros2.JOINT_STATE, "ros2msg", ros2.MSGDEFS[ros2.JOINT_STATE].encode()
         )
-        channels = (
+        channels = [
             writer.register_channel("/tracker/point", "cdr", pid),
             writer.register_channel("/joint_states", "cdr", jid),
-        )
+        ]
+        if extra:  # further targets: PointStamped at the point stamps
+            fid = writer.register_schema(
+                ros2.POINT_STAMPED, "ros2msg", ros2.MSGDEFS[ros2.POINT_STAMPED].encode()
+            )
+            channels += [
+                writer.register_channel(topic, "cdr", fid) for topic in further_topics(len(extra))
+            ]
         add = writer.add_message
         ordered = zip(order.tolist(), times[order].tolist(), stream[order].tolist(), strict=True)
         for i, t, s in ordered:
             add(channels[s], t, payloads[i], t)
         writer.add_metadata("dhlog.import", {**imported.provenance, "dhlog": __version__})
+        if imported.point_ids is not None:
+            writer.add_metadata(
+                POINT_IDS_METADATA, point_ids_record(imported.point_t_ns, imported.point_ids)
+            )
         writer.finish()  # type: ignore[no-untyped-call]

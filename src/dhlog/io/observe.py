@@ -26,7 +26,7 @@ import contextlib
 import multiprocessing
 import signal
 from collections import deque
-from collections.abc import Callable, Generator, Iterator
+from collections.abc import Callable, Generator, Iterator, Sequence
 from concurrent.futures import Future, ProcessPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
@@ -219,7 +219,13 @@ def _joints_spec(pipeline: Pipeline) -> StreamSpec:
     return spec if spec is not None else StreamSpec(DEFAULT_TOPICS["joints"], True)
 
 
-def _first_walk(name: str, pipeline: Pipeline, progress: Callable[[float], None]) -> _Small:
+def _first_walk(
+    name: str,
+    pipeline: Pipeline,
+    progress: Callable[[float], None],
+    joint_names: Sequence[str] | None = None,
+    joint_source: str = "model",
+) -> _Small:
     """The joint states and every camera info of the log (each camera's), walking it once:
     the other channels' payloads (the images) are offered to a sink that drops them."""
     # polars (the joints' table) imported here, not by the workers: 0.15 s a worker
@@ -281,7 +287,11 @@ def _first_walk(name: str, pipeline: Pipeline, progress: Callable[[float], None]
             f"{name}: {bad} of {total} message(s) on {topic} could not be decoded and were "
             f"skipped (first at {first})."
         )
-    frame, names = joints_frame(name, spec.topic, blocks, pipeline)
+    frame, names, order = joints_frame(
+        name, spec.topic, blocks, pipeline, joint_names, joint_source
+    )
+    if order.note:
+        warnings.append(f"{name}: {order.note}")
     set_aside: dict[str, int] = {}
     frame = clean(frame, "joints", set_aside)
     if set_aside:
@@ -464,6 +474,8 @@ def observe(
     jobs: int = 1,
     keep_frames: int = 200,
     progress: Callable[[float], None] | None = None,
+    joint_names: Sequence[str] | None = None,
+    joint_source: str = "model",
 ) -> list[Observations]:
     """The board's corners in every frame of the camera log at ``path`` (an MCAP file or a
     rosbag2 bag folder) read with the camera ``pipeline``, with the encoders at each frame's
@@ -498,7 +510,7 @@ def observe(
             progress(done[0])
 
     report(0.0)
-    small = _first_walk(name, pipeline, lambda f: report(FIRST_WALK * f))
+    small = _first_walk(name, pipeline, lambda f: report(FIRST_WALK * f), joint_names, joint_source)
     cameras = _cameras(name, pipeline, small.topics)
     share = (1.0 - FIRST_WALK) / len(cameras)
     out: list[Observations] = []

@@ -16,7 +16,7 @@ decoding itself is :mod:`dhlog.io.decode`.
 from __future__ import annotations
 
 import struct
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -44,9 +44,11 @@ from dhlog.io.decode.messages import (
     json_decoder,
     phase_value,
 )
+from dhlog.io.jointnames import ChainOrder
 from dhlog.io.mcapscan import ZSTD_MAGIC, McapScan, scan_mcap
 from dhlog.io.mcapwalk import ChannelInfo, RawMessages
 from dhlog.io.pipeline import Pipeline, pipeline_by_name, shipped_pipelines
+from dhlog.io.pointids import POINT_IDS_METADATA, read_point_ids
 
 #: What the rest of dhlog reads from here (the columns of the point table among them).
 __all__ = [
@@ -87,6 +89,11 @@ class LogData:
     warnings: list[str] = field(default_factory=list)
     pipeline_reason: str | None = None
     commanded: pl.DataFrame | None = None
+    #: how the joint-state stream's joints were matched to the chain (None: no joint states,
+    #: or not decided on reading: :func:`dhlog.io.jointnames.chain_order`)
+    joint_order: ChainOrder | None = None
+    #: the export's point ids by stamp (``dhlog import``'s ``dhlog.point_ids``), or None
+    point_ids: dict[int, str] | None = None
 
 
 #: the schemas of camera images (those of :mod:`dhlog.io.images`, named here without its cv2)
@@ -248,6 +255,8 @@ def read_log(
     progress: Callable[[float], None] | None = None,
     unzstd: bool = False,
     hint_unread: bool = True,
+    joint_names: Sequence[str] | None = None,
+    joint_source: str = "model",
 ) -> LogData:
     """Decode the streams of the log at ``path`` with ``pipeline`` (chosen from the log if None).
 
@@ -258,6 +267,9 @@ def read_log(
 
     ``hint_unread``: warn of topics beside the point stream's, of its type, that no stream reads
     (a further target the pipeline does not name).
+
+    ``joint_names``: the model's joint names (a nominal's, ``joint_source`` naming it): the
+    joint-state stream's joints matched to them by name (:func:`dhlog.io.jointnames.chain_order`).
 
     ``fast=False`` reads through the mcap library's per-message decoders (the reference path).
     Non-finite samples are set aside and counted; a truncated file keeps what precedes the damage.
@@ -270,8 +282,15 @@ def read_log(
             "tracker's: dhlog process calibrates from camera logs with it; this reads tracker "
             "logs.",
         )
-    if Path(path).is_dir():
-        return _read_bag(Path(path), pipeline, fast=fast, progress=progress)
+    if Path(path).is_dir() or Path(path).suffix == ".db3":  # a bag; a sqlite3 storage file
+        return _read_bag(
+            Path(path),
+            pipeline,
+            fast=fast,
+            progress=progress,
+            joint_names=joint_names,
+            joint_source=joint_source,
+        )
     topics = (
         None
         if pipeline is None
@@ -295,13 +314,25 @@ def read_log(
                 raise damage from None
             raise
         reason = f"using pipeline '{pipeline.name}' ({why})"
-        if IMPORT_METADATA in scan.metadata_names and _imported_orientation(path):
+        record = import_record(path) if IMPORT_METADATA in scan.metadata_names else {}
+        if record.get("orientation") == "true":
             point = replace(pipeline.streams["point"], orientation=True)
             pipeline = replace(pipeline, streams={**pipeline.streams, "point": point})
             reason += (
                 ", with the target's orientation (dhlog import wrote it from the export: "
                 "its dhlog.import record says orientation = true)"
             )
+        further = tuple(t for t in record.get("further_target_topics", "").split(",") if t)
+        if further and not pipeline.streams["point"].extra_topics:
+            point = replace(pipeline.streams["point"], extra_topics=further)
+            pipeline = replace(pipeline, streams={**pipeline.streams, "point": point})
+            reason += (
+                f", with the further targets on {', '.join(further)} (dhlog import wrote them "
+                "from the export's --targets)"
+            )
+            # read again with their topics named: the scan decoded the pipeline's streams only
+            again = read_log(path, pipeline, fast=fast, unzstd=unzstd, hint_unread=hint_unread)
+            return replace(again, pipeline_reason=reason)
     present = scan.topics()
     infos: dict[str, list[ChannelInfo]] = {}
     for stream, spec in pipeline.streams.items():
@@ -396,11 +427,14 @@ def read_log(
     if "base" in infos:
         base = clean(points_frame(blocks_of("base"), pipeline.length_scale), "base", set_aside)
     release("joints", "phase", "commanded")
-    joints, joint_names = None, list(pipeline.joint_names or [])
+    joints, chain, order = None, list(pipeline.joint_names or []), None
     if "joints" in infos:
-        joints, joint_names = joints_frame(
-            name, infos["joints"][0].topic, blocks_of("joints"), pipeline
+        topic = infos["joints"][0].topic
+        joints, chain, order = joints_frame(
+            name, topic, blocks_of("joints"), pipeline, joint_names, joint_source
         )
+        if order.note:
+            warnings.append(f"{name}: {order.note}")
         joints = clean(joints, "joints", set_aside)
     commanded = None
     if "commanded" in infos:  # decoded as the joint states are (a JointState stream)
@@ -418,15 +452,17 @@ def read_log(
             0,
             decoded,
         )
-        commanded, _ = joints_frame(name, infos["commanded"][0].topic, blocks, pipeline)
+        commanded, _, _ = joints_frame(
+            name, infos["commanded"][0].topic, blocks, pipeline, joint_names, joint_source
+        )
         commanded = clean(commanded, "commanded", set_aside)
     release("phase")
     phase = None
     if "phase" in infos:
         marks_blocks = blocks_of("phase")
         t = np.concatenate([b[0] for b in marks_blocks]) if marks_blocks else np.zeros(0, np.int64)
-        marks = [phase_value(v, joint_names) for b in marks_blocks for v in b[1]]
-        limit = len(joint_names) if joint_names else MAX_JOINTS
+        marks = [phase_value(v, chain) for b in marks_blocks for v in b[1]]
+        limit = len(chain) if chain else MAX_JOINTS
         absurd = sum(1 for m in marks if m is not None and m > limit)
         if absurd:  # a marker naming joint 999999999 is damage, not a joint to allocate
             set_aside["phase_beyond_joints"] = absurd
@@ -442,34 +478,40 @@ def read_log(
             f"{name}: {bad} of {total} message(s) on {topic} could not be decoded and were "
             f"skipped (first at {first})."
         )
+    point_ids = None
+    if POINT_IDS_METADATA in scan.metadata_names:
+        point_ids = read_point_ids(path, warnings)
     return LogData(
         name,
         pipeline,
         points,
         joints,
-        joint_names,
+        chain,
         base,
         phase,
         set_aside,
         warnings,
         reason,
         commanded,
+        order,
+        point_ids,
     )
 
 
-def _imported_orientation(path: str | Path) -> bool:
-    """True when the ``dhlog.import`` metadata record of the MCAP file at ``path`` says the
-    export carried the target's orientation (``orientation = "true"``)."""
+def import_record(path: str | Path) -> dict[str, str]:
+    """The ``dhlog.import`` metadata record of the MCAP file at ``path`` (empty when it has
+    none or it cannot be read): ``orientation = "true"`` where the export carried the target's
+    orientation, ``further_target_topics`` where it held several targets, ``timing``."""
     from mcap.reader import make_reader
 
     try:
         with open(path, "rb") as f:
             for record in make_reader(f).iter_metadata():
                 if record.name == IMPORT_METADATA:
-                    return record.metadata.get("orientation") == "true"
+                    return {str(k): str(v) for k, v in record.metadata.items()}
     except Exception:  # a record that cannot be read turns nothing on
-        return False
-    return False
+        return {}
+    return {}
 
 
 def _read_bag(
@@ -478,12 +520,36 @@ def _read_bag(
     *,
     fast: bool,
     progress: Callable[[float], None] | None,
+    joint_names: Sequence[str] | None = None,
+    joint_source: str = "model",
 ) -> LogData:
     """A rosbag2 folder as rosbag2 writes it: its ``metadata.yaml`` read by the rosbags library
     (which also decompresses a file-compressed bag), every split file read in order as one log;
-    per-message compressed payloads decompressed before decoding."""
+    per-message compressed payloads decompressed before decoding. A bag in sqlite3 storage
+    (its ``.db3`` files; or one ``.db3`` file) is read through a temporary MCAP copy
+    (:mod:`dhlog.io.sqlitebag`)."""
     from rosbags.rosbag2 import Reader, ReaderError
 
+    from dhlog.io.sqlitebag import as_mcap, sqlite3_storage
+
+    if sqlite3_storage(folder):  # read as the MCAP file it is copied into
+        with as_mcap(folder, progress) as copy:
+            log = read_log(
+                copy.path,
+                pipeline,
+                fast=fast,
+                progress=copy.reading,
+                joint_names=joint_names,
+                joint_source=joint_source,
+            )
+        return replace(
+            log,
+            path=str(folder),
+            warnings=[copy.renamed(w) for w in log.warnings],
+            pipeline_reason=None
+            if log.pipeline_reason is None
+            else f"{log.pipeline_reason}; {copy.stored}",
+        )
     try:
         with Reader(folder) as bag:
             paths = [Path(s.path) for s in bag.storage.storages]  # type: ignore[attr-defined]
@@ -505,6 +571,8 @@ def _read_bag(
                     progress=step,
                     unzstd=per_message,
                     hint_unread=k == 0,  # said once for the bag
+                    joint_names=joint_names,
+                    joint_source=joint_source,
                 )
                 pipeline = log.pipeline
                 if spill:
@@ -550,6 +618,7 @@ def _read_bag(
         else f"{first.pipeline_reason}; a rosbag2 bag of {len(parts)} file(s)"
         + (", messages zstd-compressed" if per_message else ""),
         joined([log.commanded for log in parts]),
+        first.joint_order,
     )
 
 

@@ -163,6 +163,9 @@ class Segmented:
     passes: list[PathPass] = field(default_factory=list)
     #: the program's paths (name, joint targets (m, n)); empty without a program
     paths: list[tuple[str, FloatArray]] = field(default_factory=list)
+    #: None: visits are dwells of a time series; else how the log was read as stops (static
+    #: measurements, one per stop: :mod:`dhlog.iso9283.stops`)
+    stops: str | None = None
 
     def of_pose(self, name: str) -> list[Visit]:
         """The visits to pose ``name``, in cycle order."""
@@ -313,19 +316,25 @@ def segment_log(
     settings: DwellSettings | None = None,
     program: CommandedProgram | None = None,
     program_source: str = "the commanded CSV",
+    stops: bool | None = None,
+    target: int = 0,
 ) -> Segmented:
     """The visits of ``log`` and its path passes (see the module docstring). ``program``: the
     test program (:func:`dhlog.iso9283.program.read_program`, named by ``program_source``):
     visits whose commanded joints match one of its poses take its name (other stops are no
-    test pose), and its paths' passes are cut out. Raises :class:`Iso9283Error` when the log
-    holds no dwell."""
+    test pose), and its paths' passes are cut out. ``stops``: the log is made of static
+    measurements, one per stop (:mod:`dhlog.iso9283.stops`; None: detected); ``target``: which
+    of several targets (0: the primary one). Raises :class:`Iso9283Error` when the log holds
+    no dwell and is not made of stops."""
+    from dhlog.iso9283.stops import stop_direction, stop_runs
+
     settings = settings or DwellSettings()
     name = log.path
     points = log.points
-    if "target" in points.columns:  # several targets: the primary one
+    if "target" in points.columns:  # several targets: the one asked for
         import polars as pl
 
-        points = points.filter(pl.col("target") == 0)
+        points = points.filter(pl.col("target") == target)
     t_ns = np.asarray(points["t_ns"].to_numpy(), dtype=np.int64)
     xyz = np.column_stack([np.asarray(points[c].to_numpy(), np.float64) for c in "xyz"])
     orientation = all(c in points.columns for c in ORIENTATION_COLUMNS)
@@ -342,7 +351,12 @@ def segment_log(
     t_s = (t_ns - t_ns[0]) * 1e-9
     steps = np.diff(t_s)
     rate = float(1.0 / np.median(steps[steps > 0])) if np.any(steps > 0) else 0.0
-    dwells = find_dwells(t_s, xyz, settings)
+    dwells = [] if stops else find_dwells(t_s, xyz, settings)
+    measured_as = None
+    if stops or (stops is None and not dwells):
+        dwells, measured_as = stop_runs(
+            name, t_s, gap=settings.gap, min_time=settings.min_time, explicit=bool(stops)
+        )
     if not dwells:
         raise Iso9283Error(
             name,
@@ -396,25 +410,30 @@ def segment_log(
     raw: list[dict[str, object]] = []
     previous_end = -np.inf
     for k, (s, e) in enumerate(dwells):
-        e = s + _departure(t_s[s:e], xyz[s:e])
-        first, band, settled = _settle(xyz[s:e], settings)
-        # the mean from settle_margin s later: a damped oscillation's tail inside the band
-        # would pull it towards the approach by up to band / (ω · dwell)
-        later = int(np.searchsorted(t_s[s:e], t_s[s + first] + settings.settle_margin))
-        if e - s - later < MIN_SETTLED:
-            later = first
+        if measured_as is None:
+            e = s + _departure(t_s[s:e], xyz[s:e])
+            first, band, settled = _settle(xyz[s:e], settings)
+            # the mean from settle_margin s later: a damped oscillation's tail inside the band
+            # would pull it towards the approach by up to band / (ω · dwell)
+            later = int(np.searchsorted(t_s[s:e], t_s[s + first] + settings.settle_margin))
+            if e - s - later < MIN_SETTLED:
+                later = first
+        else:  # a stop: its samples are the measurement (no arrival, no settling to find)
+            first, band, settled, later = 0, math.nan, True, 0
         kept = slice(s + later, e)
         position = xyz[kept].mean(axis=0)
         scatter = float(np.sqrt(np.mean(np.sum((xyz[kept] - position) ** 2, axis=1))))
         rotation = None if quats is None else _mean_rotation(quats[kept])
         a0 = max(t_s[s] - settings.approach, previous_end)
-        a = int(np.searchsorted(t_s, a0, side="left"))
+        a = int(np.searchsorted(t_s, a0, side="left")) if measured_as is None else s
         previous_end = t_s[e - 1]
         arrival_t = t_s[a:e] - t_s[s]
         arrival_xyz = xyz[a:e]
         direction = position - arrival_xyz[0]
         norm = float(np.linalg.norm(direction))
         direction = direction / norm if norm > 20 * max(scatter, BAND_FLOOR) else np.zeros(3)
+        if measured_as is not None:  # a stop is approached from the stop before it
+            direction = stop_direction(position, raw[-1]["position"] if raw else None)
         mid = int((t_ns[s] + t_ns[e - 1]) // 2)
         q: FloatArray | None = None
         if cmd is not None:
@@ -432,7 +451,7 @@ def segment_log(
                 ]
                 q = near[0] if near else q
         arrival = None
-        if enc is not None:
+        if enc is not None and measured_as is None:
             arrival = _encoders_stop(enc, int(t_ns[s]) + int(arrival_t[0] * 1e9), t_ns, s, e)
         raw.append(
             dict(
@@ -478,9 +497,11 @@ def segment_log(
         tol = SAME_TARGET if have_q else 5e-3  # positions: 5 mm apart at least
         clusters = _cluster(keys, tol)
         counts = np.bincount(clusters)
-        # a pose is visited more than once; the five most visited are the test poses
+        # a pose is visited more than once; the five most visited are the test poses (of
+        # stops, every one: a repeatability set of a tracker's, not only the standard's cube)
         order = [c for c in dict.fromkeys(clusters) if counts[c] >= 2]
-        if len(order) > 5:
+        many = measured_as is not None and len(order) > 5
+        if len(order) > 5 and not many:
             kept_clusters = sorted(order, key=lambda c: -counts[c])[:5]
             notes.append(
                 f"{name}: {len(order)} distinct targets visited more than once; the five most "
@@ -493,12 +514,19 @@ def segment_log(
                 f"{name}: no target is visited twice (one cycle at most): repeatability needs "
                 "two cycles or more."
             )
-        # named in the standard's cycle order, by first visit (clause 7.2.1)
-        label_of = {c: CYCLE_ORDER[i] for i, c in enumerate(order)}
+        # named in the standard's cycle order, by first visit (clause 7.2.1); more than five
+        # (stops) P1, P2, … as first visited
+        label_of = {c: (f"P{i + 1}" if many else CYCLE_ORDER[i]) for i, c in enumerate(order)}
         labels = [label_of.get(c, "") for c in clusters]
-        order = sorted(order, key=lambda c: label_of[c])
+        order = sorted(order, key=lambda c: int(label_of[c][1:]))
         names = [label_of[c] for c in order]
-        if len(order) > 1:
+        if many:
+            notes.append(
+                f"{name}: {len(order)} distinct targets visited more than once: each is a test "
+                f"pose, named P1 … P{len(order)} in the order first visited (AD/RD between P2 "
+                "and P4, drift at P1, as the standard places them)."
+            )
+        elif len(order) > 1:
             notes.append(
                 f"{name}: the poses are named in the standard's cycle order P1 → P5 → P4 → P3 → "
                 "P2 (clause 7.2.1) as first visited; give --commanded with the test program to "
@@ -537,6 +565,7 @@ def segment_log(
         notes,
         passes,
         program_paths,
+        measured_as,
     )
 
 

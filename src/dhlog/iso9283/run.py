@@ -43,6 +43,7 @@ from dhlog.iso9283.cycles import (
     Visit,
     segment_log,
 )
+from dhlog.iso9283.stops import NOT_DETERMINED
 from dhlog.model.fk import fk_point
 
 #: Stabilisation and overshoot are judged on the tracker's positions averaged over this period
@@ -234,10 +235,29 @@ class Iso9283Report:
     orientation: bool
     notes: list[str] = field(default_factory=list)
     paths: list[PathReport] = field(default_factory=list)
+    #: None: the visits are dwells of a time series; else how the log was read as stops
+    #: (:mod:`dhlog.iso9283.stops`)
+    stops: str | None = None
+    #: what the log does not determine, one line each (stops: stabilisation, paths)
+    not_determined: list[str] = field(default_factory=list)
+    #: which target of the log (1: the primary one) and the further targets' own reports
+    target: int = 1
+    further: list[Iso9283Report] = field(default_factory=list)
 
     def document(self) -> dict[str, Any]:
         """The ``iso9283`` block (docs/iso9283.md, src/dhlog/schemas/iso9283.schema.json)."""
+        extra: dict[str, Any] = {}
+        if self.stops is not None or self.further or self.target != 1:
+            extra = {
+                "measured_as": "dwells" if self.stops is None else "stops",
+                "stops": self.stops,
+                "not_determined": list(self.not_determined),
+                "target": self.target,
+            }
+        if self.further:
+            extra["further_targets"] = [r.document() for r in self.further]
         return {
+            **extra,
             "units": {"length": "m", "angle": "rad", "time": "s"},
             "frame": self.frame,
             "registration": self.registration,
@@ -501,6 +521,7 @@ def iso9283_report(
             [],
             passes,
             seg0.paths,
+            seg0.stops,
         )
     else:
         seg = seg0
@@ -532,8 +553,8 @@ def iso9283_report(
         assert T is not None
         return _moved(T, pred_m) - commanded_at(k)
 
-    stabilising = seg.rate_hz >= 0.99 * ARRIVAL_RATE  # 100 Hz give or take the clock
-    if not stabilising:
+    stabilising = seg.stops is None and seg.rate_hz >= 0.99 * ARRIVAL_RATE  # 100 Hz or so
+    if not stabilising and seg.stops is None:
         notes.append(
             f"the tracker samples at {seg.rate_hz:.0f} Hz: stabilisation time and overshoot need "
             f"{ARRIVAL_RATE:.0f} Hz or more and are not computed."
@@ -614,7 +635,7 @@ def iso9283_report(
             "vAP (multi-directional accuracy variation): not in this log (every pose is "
             "approached from one direction)."
         )
-    paths = _paths(seg, T, nominal, calibrated, notes)
+    paths = [] if seg.stops is not None else _paths(seg, T, nominal, calibrated, notes)
     distance = _distance(
         seg,
         T,
@@ -645,6 +666,8 @@ def iso9283_report(
         seg.orientation,
         notes,
         paths,
+        seg.stops,
+        [] if seg.stops is None else list(NOT_DETERMINED),
     )
 
 
@@ -928,17 +951,31 @@ def run_logs(
     calibrated: DHModel | None = None,
     commanded_csv: str | Path | None = None,
     settings: DwellSettings | None = None,
+    stops: bool | None = None,
+    further_tools: Sequence[FloatArray] = (),
 ) -> Iso9283Report:
     """``dhlog iso9283``: read each log, find its visits and path passes, and report.
     ``commanded_csv``: the test program ``dhlog plan --iso9283`` wrote
-    (:func:`dhlog.iso9283.program.read_program`)."""
+    (:func:`dhlog.iso9283.program.read_program`); ``stops``: the logs are static measurements,
+    one per stop (None: detected; :mod:`dhlog.iso9283.stops`). Several targets: the primary
+    one's report, each further target's in ``further``; ``further_tools``: the result's tool
+    points of targets 2, 3, … (its ``tool.further_targets``), which give their AP and AD
+    (with ``calibrated``)."""
     from dhlog.io.reader import read_log
     from dhlog.iso9283.program import read_program
+    from dhlog.iso9283.stops import synthetic_timing, target_count
 
     segmented = []
+    further: list[list[Segmented]] = []
     program = None
+    named = calibrated if calibrated is not None else nominal  # the joints matched by its names
     for log in logs:
-        data = read_log(log, pipeline)
+        data = read_log(
+            log,
+            pipeline,
+            joint_names=None if named is None else named.joint_names,
+            joint_source="model" if named is None else named.source,
+        )
         if commanded_csv is not None and program is None:
             n = nominal.table.n if nominal is not None else len(data.joint_names)
             if n == 0:
@@ -948,14 +985,17 @@ def run_logs(
             program = read_program(commanded_csv, n)
             if nominal is not None:
                 _program_is_the_nominals(program, nominal, commanded_csv)
-        segmented.append(
-            segment_log(
-                data,
-                settings=settings,
-                program=program,
-                program_source=f"the test program {commanded_csv}",
-            )
+        kw: dict[str, Any] = dict(
+            settings=settings,
+            program=program,
+            program_source=f"the test program {commanded_csv}",
+            stops=stops,
         )
+        segmented.append(segment_log(data, **kw))
+        for k in range(1, target_count(data.points)):
+            if len(further) < k:
+                further.append([])
+            further[k - 1].append(segment_log(data, **kw, target=k))
     if program is not None:
         names = {n for n, k in zip(program.name, program.kind, strict=True) if k == "pose"}
         matched = {v.pose for seg in segmented for v in seg.visits} & names
@@ -966,7 +1006,48 @@ def run_logs(
                 "check that the program is the one the robot ran (its joints in radians, this "
                 "robot's)",
             )
-    return iso9283_report(segmented, nominal=nominal, calibrated=calibrated)
+    if len(further) >= 2:  # three reflectors or more: the tool's orientation from them
+        from dhlog.iso9283.reflectors import with_reflector_frames
+
+        segmented = [
+            with_reflector_frames(seg, [further[0][i], further[1][i]], seg.notes)
+            for i, seg in enumerate(segmented)
+        ]
+    synthetic = all(synthetic_timing(log) for log in logs)
+    report = _timed(iso9283_report(segmented, nominal=nominal, calibrated=calibrated), synthetic)
+    if not further:
+        return report
+    from dhlog.iso9283.stops import further_note
+
+    others = []
+    placed = 0
+    for k, segs in enumerate(further, start=2):
+        nominal_k = calibrated_k = None
+        if nominal is not None and calibrated is not None and k - 2 < len(further_tools):
+            tool = np.asarray(further_tools[k - 2], dtype=np.float64)
+            nominal_k = replace(nominal, tool_point=tool)
+            calibrated_k = replace(calibrated, tool_point=tool)
+            placed += 1
+        got = iso9283_report(segs, nominal=nominal_k, calibrated=calibrated_k)
+        others.append(replace(_timed(got, synthetic), target=k))
+    note = further_note(1 + len(others), placed)
+    return replace(report, further=others, notes=[*report.notes, note])
+
+
+def _timed(report: Iso9283Report, synthetic: bool) -> Iso9283Report:
+    """Stops whose stamps are not times (``dhlog import``'s one stop every 2 s,
+    :func:`dhlog.iso9283.stops.synthetic_timing`): the drift's hours and rate not known (NaN:
+    null in the JSON), said in a note."""
+    if report.stops is None or report.drift is None or not synthetic:
+        return report
+    notes = [n for n in report.notes if not n.startswith("drift: the first and last cycles")]
+    notes.append(
+        "drift: the stops are in the export's row order, taken as time order; their stamps are "
+        "dhlog import's (one stop every 2 s), so the time between the first and last cycles is "
+        "not known (hours and rate_per_hour null): dAP and dRP are the change over the test."
+    )
+    drift = replace(report.drift, hours=math.nan, rate=math.nan)
+    return replace(report, drift=drift, notes=notes)
 
 
 def _program_is_the_nominals(program: Any, nominal: DHModel, source: str | Path) -> None:

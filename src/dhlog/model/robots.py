@@ -45,6 +45,8 @@ class Robot:
     #: payload (kg) at the tool point: the simulator's gravity compliance (empty: none given)
     masses: FloatArray = field(default_factory=lambda: np.zeros(0))
     payload: float = 0.0
+    #: the joints as the robot's ROS 2 driver names them (empty: none given)
+    joint_names: tuple[str, ...] = ()
 
     @property
     def n(self) -> int:
@@ -80,6 +82,7 @@ def _robot_from_entry(name: str, entry: dict[str, Any]) -> Robot:
         limits=limits,
         masses=np.asarray(entry.get("masses", []), dtype=np.float64),
         payload=float(entry.get("payload", 0.0)),
+        joint_names=tuple(str(n) for n in entry.get("joint_names", [])),
     )
 
 

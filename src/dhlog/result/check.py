@@ -211,7 +211,36 @@ def check_result(data: Any, source: str) -> dict[str, Any]:
                 if v is not None:
                     f.number(v, f"tool.std[{k}]", "length", sigma=True)
     _check_nongeometric(data, f, n)
+    _check_plausible(data, f)
     return data
+
+
+#: The reason a result marked ``plausible: false`` without reasons is given.
+UNSAID = "the result is marked implausible (plausible: false) without a reason"
+
+
+def _check_plausible(data: dict[str, Any], f: FieldReader) -> None:
+    """``plausible`` true or false and ``implausible`` a list of sentences, where present; a
+    result marked plausible cannot list reasons against it."""
+    flag = data.get("plausible")
+    if flag is not None and not isinstance(flag, bool):
+        f.mismatch(flag, "plausible", "true or false")
+    reasons = data.get("implausible")
+    if reasons is not None:
+        said = f.texts(reasons, "implausible")
+        if flag is True and said:
+            f.fail("implausible", "lists reasons while plausible is true")
+
+
+def implausible_reasons(data: dict[str, Any]) -> list[str]:
+    """Why the result ``data`` (read by :func:`check_result`) is judged implausible: its
+    ``implausible`` sentences (:data:`UNSAID` when it is marked ``plausible: false`` without
+    any); empty for a plausible result, a DH file, or a result written before results were
+    judged."""
+    reasons = [str(r) for r in data.get("implausible") or []]
+    if data.get("plausible") is False and not reasons:
+        return [UNSAID]
+    return reasons
 
 
 def _hayati_rows(data: dict[str, Any]) -> set[int]:

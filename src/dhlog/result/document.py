@@ -105,6 +105,9 @@ def result_document(result: ProcessResult) -> dict[str, Any]:
         },
         "warnings": list(result.warnings),
         "notes": list(result.info),
+        # what makes dhlog judge the result implausible (dhlog process exits 4); empty: none
+        "plausible": not result.implausible,
+        "implausible": list(result.implausible),
     }
     if result.selection is not None:
         doc["nongeometric"] = nongeometric_document(result)
@@ -154,12 +157,15 @@ def result_document(result: ProcessResult) -> dict[str, Any]:
         q = result.reference_pose
         doc["hayati"] = []
         for k, h in enumerate(result.hayati):
+            i = h.joints[0] - 1
+            offset = h.theta - (float(q[i]) if result.joints[i].type is JointType.REVOLUTE else 0.0)
+            if result.nominal is not None:  # within π of the nominal's, as the table
+                near = float(result.nominal.table.theta_offset[i])
+                offset = near + wrap_angle(offset - near)
             row: dict[str, Any] = {
                 "joints": list(h.joints),
                 "theta": h.theta,
-                "theta_offset": h.theta - float(q[h.joints[0] - 1])
-                if result.joints[h.joints[0] - 1].type is JointType.REVOLUTE
-                else h.theta,
+                "theta_offset": offset,
                 "a": h.a,
                 "alpha": h.alpha,
                 "beta": h.beta,
@@ -358,6 +364,7 @@ def _whole_fit_document(result: ProcessResult) -> dict[str, Any]:
     doc: dict[str, Any] = {
         "n_points": w.n_points,
         "n_outliers": int(np.count_nonzero(~w.inliers)),
+        "outliers": list(result.outlier_names),
         "iterations": w.iterations,
         "rms": None if result.validation is None else result.validation.rms,
     }
@@ -504,7 +511,8 @@ def terms_csv(result: ProcessResult) -> str:
 def holdout_csv(result: ProcessResult, *, units: str = "mm") -> str:
     """Every held-out pose as CSV: the check (``cross-validation`` or the log's name), the
     pose's measured position in M, the error vector (measured − predicted) and its length for
-    the nominal (empty without one) and the calibrated model."""
+    the nominal (empty without one) and the calibrated model; ``point_id`` last, the export's
+    id of the pose's point where the log carries ids (``dhlog import``), else empty."""
     _, _, lu, _ = display_scales(units)
     f = 1e3 if units == "mm" else 1.0
     axes = ("x", "y", "z")
@@ -514,7 +522,7 @@ def holdout_csv(result: ProcessResult, *, units: str = "mm") -> str:
             + [f"nominal_d{a}_{lu}" for a in axes]
             + [f"nominal_error_{lu}"]
             + [f"calibrated_d{a}_{lu}" for a in axes]
-            + [f"calibrated_error_{lu}"]
+            + [f"calibrated_error_{lu}", "point_id"]
         )
     ]
     for h in result.holdout:
@@ -528,7 +536,9 @@ def holdout_csv(result: ProcessResult, *, units: str = "mm") -> str:
             )
             cal = [f"{v * f:.9g}" for v in h.calibrated_vectors[k]]
             cal.append(f"{np.linalg.norm(h.calibrated_vectors[k]) * f:.9g}")
+            named = "" if h.pose_names is None else _csv_cell(h.pose_names[k])
             cells = [_csv_cell(check), str(k + 1), *(f"{v * f:.9g}" for v in pos), *nom, *cal]
+            cells.append(named)
             lines.append(",".join(cells))
     return "\n".join(lines) + "\n"
 

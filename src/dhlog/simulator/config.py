@@ -121,6 +121,10 @@ class SimulationConfig:
     #: and a random offset per path cycle of σ ``path_repeatability`` per coordinate (m)
     path_error: float = 200e-6
     path_repeatability: float = 20e-6
+    #: the joint states as the robot's ROS 2 driver publishes them: the library robot's joint
+    #: names (``robots.toml``'s ``joint_names``) in alphabetical order, as ros2_control's
+    #: joint_state_broadcaster lists a Universal Robots arm's (``elbow_joint`` first)
+    driver_joints: bool = False
     seed: int = 0
 
 
@@ -128,6 +132,11 @@ def config_problems(robot: Robot, cfg: SimulationConfig) -> list[str]:
     """What is wrong with ``cfg`` for ``robot`` (empty when it can be simulated): every rate,
     count, fraction, sweep and travel in its range, joints that exist."""
     out = []
+    if cfg.driver_joints and len(robot.joint_names) != robot.n:
+        out.append(
+            f"--driver-joints: {robot.name} has no driver's joint names (robots.toml's "
+            "joint_names: ur5, kr5)"
+        )
     finite = [
         cfg.noise,
         cfg.tracker_rate,

@@ -3,6 +3,7 @@ sampling it on their own clocks (:func:`simulate_session` → :class:`Session`).
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -153,7 +154,9 @@ def simulate_session(
     phase = [(start_ns + int((t + base_time) * 1e9), j) for t, j in marks] if cfg.phase else []
     return Session(
         robot_name=robot.name,
-        joint_names=[f"joint_{j + 1}" for j in range(robot.n)],
+        joint_names=list(robot.joint_names)
+        if cfg.driver_joints and len(robot.joint_names) == robot.n
+        else [f"joint_{j + 1}" for j in range(robot.n)],
         joint_types=table.joint_types,
         point_t_ns=t_trk_ns[keep],
         point_xyz=np.asarray(xyz[keep], dtype=np.float64),
@@ -179,4 +182,16 @@ def simulate_session(
         model_error_xyz=np.asarray(error[keep], dtype=np.float64),
         poses=poses,
         terms=terms,
+    )
+
+
+def as_published(session: Session) -> Session:
+    """The session's joint states as a ROS 2 driver publishes them (``driver_joints``): the
+    columns and names in the names' alphabetical order (ros2_control's), not the chain's; the
+    truth stays in chain order (write it from ``session``)."""
+    order = sorted(range(len(session.joint_names)), key=lambda k: session.joint_names[k])
+    return dataclasses.replace(
+        session,
+        joint_names=[session.joint_names[k] for k in order],
+        joint_q=np.asarray(session.joint_q[:, order], dtype=np.float64),
     )

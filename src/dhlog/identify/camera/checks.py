@@ -16,6 +16,8 @@ from numpy.typing import NDArray
 from dhlog.errors import DhlogError
 from dhlog.geometry._checks import FloatArray
 from dhlog.identify.camera.poses import corners_of
+from dhlog.identify.check.plausible import SCALE_MIN_LENGTH as SCALE_MIN_LENGTH
+from dhlog.identify.check.plausible import common_scale
 from dhlog.identify.fit.axismodel import AxisModel
 from dhlog.identify.fit.measure import place
 from dhlog.identify.fit.pixels import Corners, PixelFit, PixelModel
@@ -77,36 +79,23 @@ def frame_clustered(fit: PixelFit, frame: NDArray[np.intp], info: list[str]) -> 
 
 
 #: A camera measures lengths in units of the board's squares: the robot's lengths (d, a of at
-#: least :data:`SCALE_MIN_LENGTH`) coming out this far from the nominal's by one common factor
-#: mean the pipeline's board size is not the printed one's.
+#: least :data:`~dhlog.identify.check.plausible.SCALE_MIN_LENGTH`) coming out this far from the
+#: nominal's by one common factor mean the pipeline's board size is not the printed one's.
 SCALE_TOLERANCE = 0.01
-
-
-SCALE_MIN_LENGTH = 0.05
 
 
 def board_scale(
     ex: Extraction, nominal: StandardDH | None, obs: Observations, fixed: set[int]
 ) -> str | None:
-    """A warning when the calibrated lengths are the nominal's times one factor k ≠ 1 (by
-    more than :data:`SCALE_TOLERANCE`, each within a quarter of that of k): a camera cannot
-    tell a board k times larger seen k times further, so the pipeline's ``[target]`` size is
-    then most likely not the printed board's. ``fixed``: the table's entries (4 a row: θ, d,
-    a, α) held by convention, left out. None otherwise."""
+    """Why a calibration whose lengths are the nominal's times one factor k ≠ 1 (by more than
+    :data:`SCALE_TOLERANCE`: :func:`~dhlog.identify.check.plausible.common_scale`) is
+    implausible: a camera cannot tell a board k times larger seen k times further, so the
+    pipeline's ``[target]`` size is then most likely not the printed board's. ``fixed``: the
+    table's entries (4 a row: θ, d, a, α) held by convention, left out. None otherwise."""
     if nominal is None:
         return None
-    n = ex.standard.n
-    got = np.concatenate([ex.standard.d_offset, ex.standard.a])
-    ref = np.concatenate([nominal.d_offset, nominal.a])
-    free = np.array(
-        [4 * i + 1 not in fixed for i in range(n)] + [4 * i + 2 not in fixed for i in range(n)]
-    )
-    use = (np.abs(ref) >= SCALE_MIN_LENGTH) & free
-    if np.count_nonzero(use) < 2:
-        return None
-    ratio = got[use] / ref[use]
-    k = float(np.median(ratio))
-    if abs(k - 1.0) <= SCALE_TOLERANCE or np.max(np.abs(ratio - k)) > 0.25 * abs(k - 1.0):
+    k = common_scale(ex.standard, nominal, fixed)
+    if k is None or abs(k - 1.0) <= SCALE_TOLERANCE:
         return None
     b = obs.board
     return (

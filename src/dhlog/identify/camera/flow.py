@@ -292,8 +292,8 @@ def _pixel_stage(
     ex, found, extract = _adopt(result, fit.whole)
     T_fixed, T_mounted, fixed_std, mounted_std = hand_eye(fit, extract, setup, board_centre(obs))
     scaled = board_scale(ex, nominal_table, obs, set(found.fixed))
-    if scaled is not None:
-        result.warnings.insert(0, scaled)
+    if scaled is not None:  # the calibration is of a board of another size: implausible
+        result.implausible.append(scaled)
     moved = camera_moved(fit, data, obs, ex, ref)
     if moved is not None:
         result.warnings.insert(0, moved)

@@ -100,6 +100,10 @@ class Holdout:
     #: the calibrated model's RMS predicted FK σ (m) over every combination of the session's
     #: joint ranges (a cross-validation: poses the session may never have visited among them)
     range_sd: float | None = None
+    #: per scored pose (``positions``' order), the index of its first sample among those fitted
+    pose_samples: NDArray[np.int64] | None = None
+    #: per scored pose, its name (the export's point id of its first sample, else ``#k``)
+    pose_names: list[str] | None = None
 
     @property
     def expected_rms(self) -> float | None:
@@ -173,9 +177,12 @@ def cross_validate(
     if fold is None:
         fold = fold_of_poses(groups, folds, seed)
     positions, cal_vecs, nom_vecs = [], [], []
+    firsts: list[int] = []
     notes: list[str] = []
+    first_of = dict(zip(*np.unique(groups, return_index=True), strict=True))
     for k in range(folds):
         test = usable & (fold == k)
+        firsts.extend(first_of[g] for g in np.unique(groups[test]).tolist())
         train = whole.inliers & (fold != k)
         start = starts[k] if k < len(starts) else whole.model
         fit = fit_whole_model(start, Q, P, keep=train, which=which, **fit_options)  # type: ignore[arg-type]
@@ -207,4 +214,5 @@ def cross_validate(
         calibrated_vectors=cal,
         folds=folds,
         notes=notes,
+        pose_samples=np.asarray(firsts, dtype=np.int64),
     )

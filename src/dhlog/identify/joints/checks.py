@@ -123,12 +123,13 @@ def check_sizes(
         )
 
 
-#: Beyond these the inputs, not the robot, are wrong: the nominal placed on the points missing
-#: them by more than NOMINAL_SLIP (m, RMS 3-D; a real robot's published nominal, its base and
-#: tool fitted, misses by a few mm: 1 mm for the KR5 sample, 8 mm for the 165-kg FANUC
-#: R-2000iC of ../shared/realdata), the calibrated model by more than FIT_SLIP (m, FK RMS 3-D;
-#: a calibration with a tracker leaves a fraction of a mm: 0.5 mm on that FANUC), or a
-#: model-error σ above MODEL_ERROR_SLIP (m per coordinate).
+#: Beyond these the inputs, not the robot, are wrong (:mod:`dhlog.identify.check.plausible`
+#: judges by them): the nominal placed on the points missing them by more than NOMINAL_SLIP
+#: (m, RMS 3-D; a real robot's published nominal, its base and tool fitted, misses by a few
+#: mm: 1 mm for the KR5 sample, 8 mm for the 165-kg FANUC R-2000iC of ../shared/realdata), the
+#: calibrated model by more than FIT_SLIP (m, FK RMS 3-D, the figure without a nominal, whose
+#: own miss is the measure otherwise; a calibration with a tracker leaves a fraction of a mm:
+#: 0.5 mm on that FANUC), or a model-error σ above MODEL_ERROR_SLIP (m per coordinate).
 NOMINAL_SLIP = 0.02
 FIT_SLIP = 2e-3
 MODEL_ERROR_SLIP = 1e-3
@@ -139,29 +140,6 @@ LIKELY_SLIPS = (
     "(--length-unit, length_unit), joints in the wrong order or of the wrong sign "
     "(--joint-columns, the pipeline's joint names), or the nominal of another robot (--nominal)"
 )
-
-
-def check_slips(
-    nominal_rms: float | None, fk_rms: float, model_error: float | None, notes: list[str]
-) -> None:
-    """Warn, naming the likely slips, when the nominal placed on the points (its registration's
-    RMS, m; None without one) misses them by more than :data:`NOMINAL_SLIP`, the calibrated
-    model (its FK RMS, m) by more than :data:`FIT_SLIP`, or the model-error σ (m) exceeds
-    :data:`MODEL_ERROR_SLIP`: no robot leaves so much, so a log that does was read wrong."""
-    found = []
-    if nominal_rms is not None and nominal_rms > NOMINAL_SLIP:
-        found.append(
-            f"the nominal placed on the points misses them by {nominal_rms * 1e3:.1f} mm (RMS)"
-        )
-    if fk_rms > FIT_SLIP:
-        found.append(f"the calibrated model misses them by {fk_rms * 1e3:.1f} mm (FK RMS)")
-    if model_error is not None and model_error > MODEL_ERROR_SLIP:
-        found.append(f"the model-error σ is {model_error * 1e3:.2f} mm per coordinate")
-    if found:
-        notes.append(
-            f"{'; '.join(found)}: far more than any robot leaves (a few mm before calibration, "
-            f"a fraction of a mm after); the inputs are likely read wrong — {LIKELY_SLIPS}."
-        )
 
 
 def check_noise_model(noise: NoiseModel, chi2_dof: float, notes: list[str]) -> None:

@@ -16,7 +16,12 @@ from dhlog.geometry.fitting import PlaneFit
 from dhlog.geometry.lines import Line, Plane
 from dhlog.identify.joints.sweeps import JointReport, carried_axis
 from dhlog.identify.read.extract import Extraction, extract_dh
-from dhlog.identify.read.hayati import NEAR_PARALLEL, HayatiRow, hayati_parameters
+from dhlog.identify.read.hayati import (
+    NEAR_PARALLEL,
+    HayatiRow,
+    hayati_parameters,
+    row_reference,
+)
 from dhlog.identify.read.propagate import mixed_angles, mixed_vector, state_difference, state_vector
 from dhlog.io.dhfile import DHModel
 from dhlog.model.dh import JointType, StandardDH
@@ -124,9 +129,14 @@ def hayati_rows(ex: Extraction) -> frozenset[int]:
 
 
 def near_parallel(
-    axes: list[Line | None], ex: Extraction, std: FloatArray | None, notes: list[str]
+    axes: list[Line | None],
+    ex: Extraction,
+    std: FloatArray | None,
+    notes: list[str],
+    nominal: StandardDH | None = None,
 ) -> list[HayatiRow]:
-    """Hayati–Mirmirani rows for nearly parallel pairs, and a warning where d is ill-conditioned."""
+    """Hayati–Mirmirani rows for nearly parallel pairs (on the ``nominal``'s branch where one is
+    given), and a warning where d is ill-conditioned."""
     rows = []
     for rel in ex.relations:
         i, k = rel.joints
@@ -136,7 +146,8 @@ def near_parallel(
         axis = axes[k - 1]
         assert axis is not None
         try:
-            rows.append(hayati_parameters(ex.frames[i - 1], axis, (i, k)))
+            reference = row_reference(nominal, i - 1, ex.reference_pose)
+            rows.append(hayati_parameters(ex.frames[i - 1], axis, (i, k), reference))
         except DhlogError:
             continue
         if not rel.relation.kind.is_parallel:

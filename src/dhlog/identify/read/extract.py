@@ -24,7 +24,8 @@ The ambiguous choices follow ``shared/DESIGN.md`` and are deterministic:
   axis passes as close to the measurement origin as the remaining constraint allows.
 
 With a nominal table every ambiguous choice takes the branch that matches it: the sign of each
-``x_{i+1}`` (the sign of ``α_i`` for intersecting axes, of ``a_i`` otherwise), ``d_i`` of parallel
+``x_{i+1}`` (the one that puts row i's θ, a and α nearer the nominal's: :func:`_nearest_branch`),
+``d_i`` of parallel
 axes, ``d_1`` without base plane, ``θ_offset_1``, prismatic axes placed at the nominal ``a``/``d``,
 the last frame as frame n times the nominal ``A_n``, and angles reported nearest the nominal.
 """
@@ -45,6 +46,7 @@ from dhlog.geometry._checks import (
     cross3,
     perpendicular_basis,
     rotation_about,
+    wrap_angle,
 )
 from dhlog.geometry.lines import (
     ANGLE_TOL,
@@ -300,8 +302,10 @@ def extract_dh(
             # convention exactly even when the axes are only parallel within the tolerance
             o_next = intersect_line_plane(line_next, Plane(base, z_i))
             x_next = _unit(_reject(_reject(o_next - base, z_i), z_next))  # Eq. 18
-            if nominal is not None and nominal.a[i] < 0.0:
-                x_next = -x_next
+            if nominal is not None:
+                x_next = _nearest_branch(
+                    x_next, xs[i], z_i, z_next, o_next - o_i, nominal, i, desired_theta
+                )
             origins[i + 1], xs[i + 1] = o_next, x_next
         else:
             p_i, p_next = common_normal_feet(line_i, line_next)  # Eq. 14-15
@@ -310,13 +314,12 @@ def extract_dh(
                 sign = 1.0  # Eq. 17
             else:
                 sign = 1.0 if (p_next - p_i) @ normal >= 0.0 else -1.0  # Eq. 19
+            x_next = sign * normal
             if nominal is not None:
-                if rel.kind is RelationKind.SKEW and abs(nominal.a[i]) > distance_tol:
-                    a_here = float((p_next - p_i) @ normal)
-                    sign = 1.0 if a_here * nominal.a[i] >= 0.0 else -1.0
-                elif abs(np.sin(nominal.alpha[i])) > np.sin(angle_tol):
-                    sign = 1.0 if np.sin(nominal.alpha[i]) > 0.0 else -1.0
-            origins[i + 1], xs[i + 1] = p_next, sign * normal
+                x_next = _nearest_branch(
+                    x_next, xs[i], z_i, z_next, p_next - o_i, nominal, i, desired_theta
+                )
+            origins[i + 1], xs[i + 1] = p_next, x_next
         s_i = steady[i]
         if s_i is not None and i < n - 1 and _nearly_parallel(z_i, z_next):
             steady[i + 1] = intersect_line_plane(line_next, Plane(s_i, z_i))
@@ -422,6 +425,41 @@ def _place_with_nominal(
         x_next = rotation_about(z_i, float(desired_theta[i])) @ x_i
     point = o_i + nominal_d[i] * z_i + nominal.a[i] * x_next
     lines[i + 1] = Line(point, e)
+
+
+#: The length (m) that weighs as one radian when a row's two branches are compared with the
+#: nominal's (:func:`_nearest_branch`).
+BRANCH_LENGTH = 0.1
+
+
+def _nearest_branch(
+    x_next: FloatArray,
+    x_i: FloatArray | None,
+    z_i: FloatArray,
+    z_next: FloatArray,
+    offset: FloatArray,
+    nominal: StandardDH,
+    i: int,
+    desired_theta: FloatArray,
+) -> FloatArray:
+    """``x_next`` or its reverse, whichever makes row i nearer the nominal's: reversing
+    ``x_{i+1}`` turns ``a_i`` and ``α_i`` to ``−a_i`` and ``−α_i`` and adds π to ``θ_i``, so the
+    row's distance from the nominal, ``|Δθ_i| + |Δα_i| + |Δa_i| / BRANCH_LENGTH`` (angles
+    wrapped; θ_i from ``x_i``, left out while ``x_i`` is not known yet), decides; a term the
+    reversal leaves equal (a nominal ``a_i`` or ``α_i`` of zero) does not. ``offset`` is
+    ``o_{i+1} − o_i``."""
+
+    def distance(x: FloatArray) -> float:
+        a = float(offset @ x)  # Eq. 23
+        alpha = float(np.arctan2(cross3(z_i, z_next) @ x, z_i @ z_next))  # Eq. 24
+        out = abs(wrap_angle(alpha - float(nominal.alpha[i])))
+        out += abs(a - float(nominal.a[i])) / BRANCH_LENGTH
+        if x_i is not None:
+            theta = float(np.arctan2(cross3(x_i, x) @ z_i, x_i @ x))  # Eq. 22
+            out += abs(wrap_angle(theta - float(desired_theta[i])))
+        return out
+
+    return x_next if distance(x_next) <= distance(-x_next) else -x_next
 
 
 def _default_x(z: FloatArray) -> FloatArray:

@@ -28,6 +28,10 @@ from dhlog.model.dh import HayatiDH, JointType, StandardDH, standard_dh_transfor
 #: (:func:`~dhlog.identify.read.extract.hayati_table`).
 NEAR_PARALLEL = 0.01
 
+#: A reference row's ``a`` (m) at or below this has no sign to follow: the Hayati branch then
+#: follows its θ.
+ZERO_LENGTH = 1e-9
+
 
 def _near(value: float, reference: float | None) -> float:
     """``value`` wrapped to (−π, π], or to within π of ``reference`` when one is given."""
@@ -58,14 +62,18 @@ def table_from_frames(
     """Seed 000, Eq. 21–24, from consecutive frames; offsets from the reference pose. With
     ``hayati`` (0-based rows), those rows take the Hayati–Mirmirani form toward the next axis
     (:func:`hayati_parameters`) and the row after each is read from the Hayati frame, so the
-    :class:`HayatiDH` table has the same forward kinematics as the standard one."""
+    :class:`HayatiDH` table has the same forward kinematics as the standard one. With a
+    ``nominal``, each Hayati row takes the nominal row's branch (:func:`hayati_parameters`), each
+    θ offset and α is within π of the nominal's."""
     n = len(types)
     theta_off, d_off, a, alpha, beta = (np.zeros(n) for _ in range(5))
     F = frames[0]
     for i in range(n):
         if i in hayati:
             G = frames[i + 1]
-            h = hayati_parameters(F, Line(G[:3, 3], G[:3, 2]), (i + 1, i + 2))
+            h = hayati_parameters(
+                F, Line(G[:3, 3], G[:3, 2]), (i + 1, i + 2), row_reference(nominal, i, q_ref)
+            )
             theta_i, d_i, a[i], alpha_i, beta[i] = h.theta, 0.0, h.a, h.alpha, h.beta
             F = F @ hayati_transform(h.theta, h.a, h.alpha, h.beta)
         else:
@@ -113,13 +121,36 @@ class HayatiRow:
     beta: float
 
 
-def hayati_parameters(frame_i: FloatArray, line_next: Line, joints: tuple[int, int]) -> HayatiRow:
+def row_reference(
+    table: StandardDH | None, i: int, q_ref: FloatArray
+) -> tuple[float, float] | None:
+    """``(a, θ)`` of row ``i`` (0-based) of ``table`` at the joint values ``q_ref`` (θ offset plus
+    the joint value for a revolute joint): the branch :func:`hayati_parameters` follows; None
+    without a table."""
+    if table is None or i >= table.n:
+        return None
+    revolute = table.joint_types[i] is JointType.REVOLUTE
+    theta = float(table.theta_offset[i]) + (float(q_ref[i]) if revolute else 0.0)
+    return float(table.a[i]), theta
+
+
+def hayati_parameters(
+    frame_i: FloatArray,
+    line_next: Line,
+    joints: tuple[int, int],
+    reference: tuple[float, float] | None = None,
+) -> HayatiRow:
     """The Hayati–Mirmirani parameters of axis i+1 seen from DH frame i (4x4 in M).
 
     ``x'`` runs from ``o_i`` to where axis i+1 crosses the plane ``z_i``-normal through ``o_i``
     (angle θ about ``z_i``, length a); then ``z_{i+1} = Rx(α) Ry(β) z_i`` in the frame
     ``(x', z_i × x', z_i)``: ``β = asin(z·x')``, ``α = atan2(−z·y', z·z_i)``. Well conditioned
     when the axes are (nearly) parallel, where the DH ``d`` is not.
+
+    ``x'`` reversed describes the same line: ``(θ + π, −a, −α, −β)``, the frame turned by π about
+    ``z_{i+1}``. Without ``reference`` ``a ≥ 0``; with one, ``(a, θ)`` of the nominal's row
+    (:func:`row_reference`), the branch whose ``a`` has the reference's sign, or, where the
+    reference's ``a`` is zero (:data:`ZERO_LENGTH`), whose θ is nearer the reference's.
     """
     o, x, z = frame_i[:3, 3], frame_i[:3, 0], frame_i[:3, 2]
     e = line_next.direction
@@ -137,4 +168,12 @@ def hayati_parameters(frame_i: FloatArray, line_next: Line, joints: tuple[int, i
     theta = float(np.arctan2(cross3(x, xp) @ z, x @ xp))
     beta = float(np.arcsin(np.clip(e @ xp, -1.0, 1.0)))
     alpha = float(np.arctan2(-(e @ yp), e @ z))
+    if reference is not None:
+        a_ref, theta_ref = reference
+        if abs(a_ref) > ZERO_LENGTH:
+            flip = a_ref < 0.0
+        else:
+            flip = abs(wrap_angle(theta + math.pi - theta_ref)) < abs(wrap_angle(theta - theta_ref))
+        if flip:
+            theta, a, alpha, beta = wrap_angle(theta + math.pi), -a, -alpha, -beta
     return HayatiRow(joints, theta, a, alpha, beta)

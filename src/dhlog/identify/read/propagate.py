@@ -24,7 +24,7 @@ from dhlog.geometry.lines import Line, Plane
 from dhlog.identify.fit.axismodel import AxisModel
 from dhlog.identify.fit.whole import WholeFit
 from dhlog.identify.read.extract import Extraction, hayati_table
-from dhlog.identify.read.hayati import hayati_parameters
+from dhlog.identify.read.hayati import hayati_parameters, row_reference
 from dhlog.model.dh import HayatiDH, JointType, StandardDH
 
 #: A DH parameter whose derivatives with respect to every fitted quantity stay below this is
@@ -84,11 +84,15 @@ def state_difference(a: FloatArray, b: FloatArray, n: int) -> FloatArray:
     return diff
 
 
-def hayati_vector(ex: Extraction, pairs: list[tuple[int, int]]) -> FloatArray:
-    """θ, a, α, β of the Hayati–Mirmirani rows of ``pairs`` (1-based joints) in ``ex``."""
+def hayati_vector(
+    ex: Extraction, pairs: list[tuple[int, int]], nominal: StandardDH | None = None
+) -> FloatArray:
+    """θ, a, α, β of the Hayati–Mirmirani rows of ``pairs`` (1-based joints) in ``ex``, on the
+    ``nominal``'s branch where one is given."""
     out = []
     for i, k in pairs:
-        h = hayati_parameters(ex.frames[i - 1], ex.axes[k - 1], (i, k))
+        reference = row_reference(nominal, i - 1, ex.reference_pose)
+        h = hayati_parameters(ex.frames[i - 1], ex.axes[k - 1], (i, k), reference)
         out += [h.theta, h.a, h.alpha, h.beta]
     return np.asarray(out, dtype=np.float64)
 
@@ -155,10 +159,12 @@ def propagate(
     hayati_pairs: list[tuple[int, int]],
     rows: frozenset[int] = frozenset(),
     nominal_rows: StandardDH | None = None,
+    nominal: StandardDH | None = None,
 ) -> Propagation:
     """First-order covariance of the DH model extracted from ``fit`` (and the base plane); with
     ``rows``, also of the table with those rows in the Hayati–Mirmirani form
-    (:func:`mixed_vector`, θ kept near ``nominal_rows``)."""
+    (:func:`mixed_vector`, on the branch of ``nominal_rows``); the Hayati rows of
+    ``hayati_pairs`` on the ``nominal``'s branch."""
     model: AxisModel = fit.model
     layout, bases = fit.layout, fit.bases
     n = model.n
@@ -181,7 +187,7 @@ def propagate(
         ex = extract(list(moved.axes), moved.target, pl)
         parts = [state_vector(ex, R0)]
         if hayati_pairs:
-            parts.append(hayati_vector(ex, hayati_pairs))
+            parts.append(hayati_vector(ex, hayati_pairs, nominal))
         if rows:
             parts.append(mixed_vector(ex, rows, nominal_rows))
         if len(moved.extra_targets):  # further targets in the last frame (tool points)

@@ -93,7 +93,7 @@ def analytic_uncertainty(
         analytic, fixed, base_plane=base is not None, nominal=nominal is not None
     )
     std = np.where(fixed, np.nan, std)
-    hayati = near_parallel([j.axis for j in joints], analytic, std, info)
+    hayati = near_parallel([j.axis for j in joints], analytic, std, info, nominal)
     held = None
     if mixed_cov is not None:
         mixed_std = np.sqrt(np.clip(np.diag(mixed_cov), 0.0, None))
@@ -118,7 +118,7 @@ def whole_uncertainty(
     pairs = near_parallel_pairs(ex)
     h_rows = hayati_rows(ex)
     nominal_h = nominal_rows(nominal, ref, h_rows)
-    prop = propagate(whole, base, extract, ex, pairs, h_rows, nominal_h)
+    prop = propagate(whole, base, extract, ex, pairs, h_rows, nominal_h, nominal)
     std = np.sqrt(np.clip(np.diag(prop.covariance), 0.0, None))
     std = np.where(prop.fixed, np.nan, std)
     reasons = fixed_reasons(
@@ -130,7 +130,7 @@ def whole_uncertainty(
         undetermined=prop.undetermined,
         unseen=whole.held,
     )
-    hayati = near_parallel(list(ex.axes), ex, std, info)
+    hayati = near_parallel(list(ex.axes), ex, std, info, nominal)
     hayati_std = [
         np.sqrt(np.clip(np.diag(prop.hayati_covariance)[4 * k : 4 * k + 4], 0.0, None))
         for k in range(len(pairs))

@@ -8,7 +8,8 @@ from __future__ import annotations
 import functools
 import itertools
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -18,6 +19,7 @@ from numpy.typing import NDArray
 from dhlog.errors import JointNamesError, PipelineError
 from dhlog.io import scratch
 from dhlog.io.decode.blocks import Block
+from dhlog.io.jointnames import ChainOrder, chain_order
 from dhlog.io.pipeline import Pipeline
 from dhlog.model.dh import JointType
 
@@ -287,17 +289,47 @@ def merged(frames: list[pl.DataFrame], label: str | None = None) -> pl.DataFrame
 
 
 def joints_frame(
-    path: str, topic: str, blocks: list[Block], pipeline: Pipeline
-) -> tuple[pl.DataFrame, list[str]]:
-    """The joints table in chain order from blocks of (times, (names, positions))."""
+    path: str,
+    topic: str,
+    blocks: list[Block],
+    pipeline: Pipeline,
+    model: Sequence[str] | None = None,
+    source: str = "model",
+) -> tuple[pl.DataFrame, list[str], ChainOrder]:
+    """The joints table in chain order from blocks of (times, (names, positions)): the chain
+    as :func:`dhlog.io.jointnames.chain_order` finds it in the stream's names for a model whose
+    joints are named ``model`` (its ``source`` for messages); messages that carry none of the
+    chain's joints (a gripper's own joint states) are left out."""
     seen: list[str] = []
     for _, (names, _) in blocks:
         seen.extend(n for n in names if n not in seen)
-    expected = list(pipeline.joint_names) if pipeline.joint_names else seen
+    if not seen:
+        raise JointNamesError(path, topic, list(pipeline.joint_names or []), seen)
+    order = chain_order(
+        seen, model, path=path, topic=topic, source=source, pipeline=pipeline.joint_names
+    )
+    expected = list(order.names)
     missing = [n for n in expected if n not in seen]
     if missing or not expected:
         raise JointNamesError(path, topic, expected, seen)
     column = {n: i for i, n in enumerate(expected)}
+    kept = [b for b in blocks if any(n in column for n in b[1][0])]
+    if len(kept) < len(blocks):
+        dropped = sorted({n for b in blocks for n in b[1][0]} - set(column))
+        blocks = kept
+        order = replace(
+            order,
+            note=" ".join(
+                filter(
+                    None,
+                    [
+                        order.note,
+                        f"{topic}'s messages naming none of the chain's joints were left out"
+                        + (f" ({', '.join(dropped)})." if dropped else "."),
+                    ],
+                )
+            ),
+        )
     t = _joined([b[0] for b in blocks], np.int64)
     if len(blocks) == 1 and list(blocks[0][1][0]) == expected:  # one layout, in chain order
         q = [_column(blocks[0][1][1], j) for j in range(len(expected))]
@@ -327,4 +359,4 @@ def joints_frame(
     offset_ns = round(pipeline.segmentation.clock_offset * 1e9)
     data: dict[str, Any] = {"t_ns": scratch.mapped(t, lambda v: v + offset_ns) if offset_ns else t}
     data.update({f"q_{j + 1}": q[j] for j in range(len(expected))})
-    return pl.DataFrame(data), expected
+    return pl.DataFrame(data), expected, order

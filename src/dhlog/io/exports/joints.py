@@ -12,6 +12,7 @@ from dhlog.io.exports.layout import (
     JOINT_HEADER,
     NAME_HEADERS,
     claim,
+    given_order,
     joints_by_number,
     named_joints,
 )
@@ -48,6 +49,7 @@ def with_joints_file(src: Source, opts: ImportOptions) -> Source:
             k = joints.column(c, "a joint", "--joint-columns")
             claim(joints, claims, k, "--joint-columns")
             cols.append(k)
+        given_order(joints, cols, src.notes)
     else:
         cols = joints_by_number(
             joints,

@@ -1,6 +1,7 @@
 """What each column of an export holds, read from its header: the point name, x, y, z (or a
 prefixed triple such as ``measurement_x … measurement_z`` when the header has no plain x), U95 or
-standard deviations (``std x``, ``sigma_x``, ``measurement_std_x``), the orientation of a 6-DoF
+standard uncertainties of any prefix, per axis or one 3-D figure (``U95 X``, ``leica_uncX_m``,
+``std x``, ``sigma_x``, ``measurement_std_x``, ``leica_unc_m``), the orientation of a 6-DoF
 target (quaternion ``Q0 Q1 Q2 Q3`` scalar first as Leica writes it, ``Qw Qx Qy Qz`` in any
 order, or rotation angles ``Rx Ry Rz`` in the ``--euler`` sequence, with the position's prefix
 or without), the time, and the joints (``q1…``, ``j1…``, ``A1…``, ``joint_1…``, ``axis1…``, a
@@ -42,22 +43,22 @@ NAMED_JOINTS = (
     ),
     ("shoulderpan", "shoulderlift", "elbow", "wrist1", "wrist2", "wrist3"),
 )
-#: A standard deviation per coordinate, by its (normalised) header: ``{p}`` the position's
-#: prefix (``measurement`` of ``measurement_x``, or none), ``{a}`` the axis.
-SIGMA_HEADERS = (
-    "{p}std{a}",
-    "{p}sigma{a}",
-    "{p}stddev{a}",
-    "{p}{a}std",
-    "{p}{a}sigma",
-    "std{a}",
-    "sigma{a}",
-    "stddev{a}",
-    "{a}std",
-    "{a}sigma",
+#: An uncertainty column by its (normalised) header: any prefix (``leica_``, the position's
+#: ``measurement_``), the word — a U95 (``u95``, ``U(95)``), a standard uncertainty (``unc``,
+#: ``uncert``, ``uncertainty``) or a standard deviation (``std``, ``stddev``, ``sigma``, ``sd``) —
+#: and the axis before or after it (``uncX``, ``x_std``; an orientation's ``rx``), or none (one
+#: 3-D figure).
+_UNC_WORD = r"(?P<word>u95|uncertainty|uncert|unc|stddev|std|sigma)"
+UNCERTAINTY_HEADERS = (
+    re.compile(rf"^(?P<pre>[a-z]*?){_UNC_WORD}(?P<axis>[xyz])?$"),
+    re.compile(rf"^(?P<pre>[a-z]*?)(?P<axis>[xyz]){_UNC_WORD}$"),
+)
+#: An orientation's uncertainty: ``std_rx``, ``measurement_std_rotx``.
+_ROTATION_UNCERTAINTY = re.compile(
+    rf"^(?P<pre>[a-z]*?){_UNC_WORD}(?:r|rot|rotation)(?P<axis>[xyz])$"
 )
 #: Words that mark a column as an uncertainty (never a position, joint or orientation).
-UNCERTAINTY_WORDS = ("std", "sigma", "u95", "stddev", "uncert", "dev", "err", "rms")
+UNCERTAINTY_WORDS = ("std", "sigma", "u95", "stddev", "uncert", "unc", "dev", "err", "rms")
 #: What turns a position's prefix into an orientation's (``measurement`` → ``measurementr``).
 _ROTATION_TAILS = ("r", "rot", "rotation", "q", "angle")
 
@@ -69,7 +70,9 @@ class Layout:
     xyz: list[int]
     name: list[int]
     time: int | None
-    u95: tuple[str, list[int]] | None  # ("axes", [x, y, z]), ("sphere", [k]) or ("std", [x, y, z])
+    #: the position's uncertainty columns read: ("axes", [x, y, z]) a U95 per axis, ("sphere",
+    #: [k]) a 3-D U95, ("std", [x, y, z]) σ per axis, ("std3d", [k]) a 3-D standard uncertainty
+    u95: tuple[str, list[int]] | None
     orientation: tuple[str, list[int]] | None  # ("quaternion", [w, x, y, z]) or ("angles", …)
     joints: list[int]
     recognised: dict[int, str]  # every column the header says is not a joint, and what it is
@@ -133,6 +136,19 @@ def joints_by_number(table: Table, candidates: list[int], notes: list[str]) -> l
     return ordered
 
 
+def given_order(table: Table, cols: list[int], notes: list[str]) -> None:
+    """Say so in a note when ``--joint-columns`` names numbered joints out of their numbers'
+    order (``A7, A1, …``: a KUKA's linear unit first in the chain): the option's order is the
+    chain's, as given."""
+    numbers = [m[1] for k in cols if (m := JOINT_HEADER.match(table.heads[k].key))]
+    if len(numbers) == len(cols) and [int(n) for n in numbers] != sorted(int(n) for n in numbers):
+        notes.append(
+            f"{table.path}: the joints were taken in the order --joint-columns gives "
+            f"({', '.join(table.header[k] for k in cols)}), not by their numbers: the chain's "
+            "order, as the option says."
+        )
+
+
 def named_joints(table: Table, taken: dict[int, str], notes: list[str]) -> list[int]:
     """The joint columns named as :data:`NAMED_JOINTS` (a UR arm's ``shoulder_pan_joint …``),
     in chain order, said in a note; empty when the header holds none of those sets whole."""
@@ -186,46 +202,122 @@ def _xyz_names(table: Table, opts: ImportOptions, notes: list[str]) -> tuple[str
         raise ConversionError(
             table.path,
             f"has no column x but several triples that may be the target's position ({shown}); "
-            "name the right one with --x, --y, --z.",
+            "name the right one with --x, --y, --z (or several targets with --targets).",
         )
     x, y, z = triples[0]
     notes.append(f"{table.path}: the target's position was read from {x}, {y}, {z}.")
     return x, y, z
 
 
+@dataclass(frozen=True)
+class _Uncertainty:
+    """One uncertainty column as its header names it: the prefix, what it is (``u95``, ``unc``:
+    a standard uncertainty, ``std``: a standard deviation), its axis (``x``, ``y``, ``z``, or
+    ``""``: one 3-D figure) and whether it is the orientation's (``std_rx``)."""
+
+    k: int
+    prefix: str
+    word: str
+    axis: str
+    rotation: bool
+
+
+def _word_starts(text: str, word: str) -> bool:
+    """True when ``word`` starts a word of the header ``text``: after a separator or at a
+    camel-case step (``leica_unc``, ``leicaUnc``), not inside another (``func``)."""
+    low = text.lower()
+    at = low.find(word)
+    while at >= 0:
+        if at == 0 or not text[at - 1].isalpha() or (text[at].isupper() and text[at - 1].islower()):
+            return True
+        at = low.find(word, at + 1)
+    return False
+
+
+def _uncertainty_column(k: int, text: str, key: str, prefix: str) -> _Uncertainty | None:
+    """Column ``k`` (its header ``text``) read as an uncertainty by its ``key``, or None;
+    ``prefix``: the position's (``{prefix}…r{axis}`` is the orientation's, as
+    ``measurement_std_rx`` is). A prefix other than the position's starts the word at a word
+    boundary of the header (``leica_uncX``, not ``func``)."""
+    for pattern in (UNCERTAINTY_HEADERS[1], UNCERTAINTY_HEADERS[0], _ROTATION_UNCERTAINTY):
+        m = pattern.match(key)
+        if m is None:
+            continue
+        word = {"u95": "u95", "unc": "unc", "uncert": "unc", "uncertainty": "unc"}.get(
+            m["word"], "std"
+        )
+        pre, axis = m["pre"], m["axis"] or ""
+        rotation = pattern is _ROTATION_UNCERTAINTY
+        if pattern is UNCERTAINTY_HEADERS[1]:  # "rx_std": the orientation's r before the axis
+            for tail in _ROTATION_TAILS[:3]:
+                if pre.endswith(tail) and pre[: -len(tail)] in (prefix, ""):
+                    pre, rotation = pre[: -len(tail)], True
+                    break
+        if pre not in (prefix, "") and not _word_starts(text, m["word"]):
+            return None
+        return _Uncertainty(k, pre, word, axis, rotation)
+    return None
+
+
 def _uncertainty(
     table: Table, opts: ImportOptions, prefix: str, recognised: dict[int, str]
 ) -> tuple[tuple[str, list[int]] | None, list[int]]:
-    """The position's uncertainty columns — U95 per axis (``U95 X``), a 3D U95, or σ per axis
-    (:data:`SIGMA_HEADERS`), the first the header holds — and the uncertainty columns left
-    unread (the orientation's σ, σ beside a U95, any other column whose header says
-    uncertainty); every one of them recognised (never a joint)."""
-    heads = [prefix, ""] if prefix else [""]
-    axes = [table.key(*[f"{p}u95{a}" for p in heads]) for a in "xyz"]
-    sphere = table.key(*[f"{p}u95" for p in heads])
+    """The position's uncertainty columns — per axis (``U95 X``, ``std x``, ``leica_uncX_m``)
+    or one 3-D figure (``U95``, ``leica_unc_m``), of any prefix (:data:`UNCERTAINTY_HEADERS`) —
+    and the uncertainty columns left unread (the orientation's, a second set, a 3-D figure
+    beside the per-axis one), every one of them recognised (never a joint). Read, in this
+    order: a U95 per axis, a 3-D U95, σ per axis, a 3-D σ; of the position's prefix first, then
+    none, then any other (a 3-D σ of another prefix is not read: ``temp_std``)."""
+    found = [
+        u
+        for k, h in enumerate(table.heads)
+        if k not in recognised and (u := _uncertainty_column(k, h.text, h.key, prefix)) is not None
+    ]
+    for u in found:
+        what = "the U95" if u.word == "u95" else "the σ"
+        recognised[u.k] = (
+            f"the orientation's σ '{table.header[u.k]}'"
+            if u.rotation
+            else f"{what} '{table.header[u.k]}'"
+        )
+    position = [u for u in found if not u.rotation]
+    families: dict[tuple[str, str], dict[str, int]] = {}
+    for u in position:
+        family = families.setdefault((u.prefix, u.word), {})
+        if u.axis in family:  # two columns of one figure: which would be read?
+            table._one([family[u.axis], u.k])
+        family[u.axis] = u.k
 
-    def sigma_keys(a: str) -> list[str]:
-        return list(dict.fromkeys(h.format(p=prefix, a=a) for h in SIGMA_HEADERS))
+    def rank(family: tuple[str, str]) -> int:
+        pre, _ = family
+        return 0 if pre == prefix else 1 if pre == "" else 2
 
-    sigmas = [table.key(*sigma_keys(a)) for a in "xyz"]
     u95: tuple[str, list[int]] | None = None
-    if all(k is not None for k in axes):
-        u95 = ("axes", [k for k in axes if k is not None])
-    elif sphere is not None:
-        u95 = ("sphere", [sphere])
-    elif all(k is not None for k in sigmas):
-        u95 = ("std", [k for k in sigmas if k is not None])
-    for u in [*axes, sphere]:
-        if u is not None:
-            recognised[u] = f"the U95 '{table.header[u]}'"
-    for u in sigmas:
-        if u is not None:
-            recognised[u] = f"the σ '{table.header[u]}'"
-    for tail in ("r", "rot", "rotation"):
-        for a in "xyz":
-            u = table.key(*sigma_keys(tail + a))
-            if u is not None:
-                recognised[u] = f"the orientation's σ '{table.header[u]}'"
+    for kind, words, axes in (
+        ("axes", ("u95",), "xyz"),
+        ("sphere", ("u95",), ""),
+        ("std", ("std", "unc"), "xyz"),
+        ("std3d", ("std", "unc"), ""),
+    ):
+        # one 3-D σ of another prefix (``temp_std``) may be another quantity's spread: not
+        # read; an uncertainty (``leica_unc``, ``tracker_U95``) is the measurement's
+        hits = sorted(
+            (
+                f
+                for f, cols in families.items()
+                if f[1] in words
+                and (
+                    all(a in cols for a in axes)
+                    if axes
+                    else "" in cols and (rank(f) < 2 or f[1] != "std")
+                )
+            ),
+            key=rank,
+        )
+        if hits:
+            cols = families[hits[0]]
+            u95 = (kind, [cols[a] for a in axes] if axes else [cols[""]])
+            break
     for k, h in enumerate(table.heads):
         if k not in recognised and any(w in h.key for w in UNCERTAINTY_WORDS[:5]):
             recognised[k] = f"an uncertainty '{table.header[k]}'"
@@ -351,6 +443,7 @@ def column_layout(table: Table, opts: ImportOptions, *, joints: bool) -> Layout:
                 )
             claim(table, claims, k, "--joint-columns")
             cols.append(k)
+        given_order(table, cols, notes)
     elif joints:
         cols = joints_by_number(
             table,

@@ -24,7 +24,8 @@ class ImportOptions:
     (``--joint-angle-unit``); when not given, ``angle_unit`` covers the joints and the rotation
     angles alike (:func:`joint_angle_unit`). ``orientation_columns``: four (a quaternion,
     scalar first) or three (rotation angles in the ``euler`` sequence) columns, ``["none"]`` to
-    leave the orientation out, or empty to recognise it from the header."""
+    leave the orientation out, or empty to recognise it from the header. ``targets``: the
+    column prefixes of several targets' positions (:mod:`dhlog.io.exports.targets`)."""
 
     format: str = "csv"
     joints_file: Path | None = None
@@ -43,6 +44,8 @@ class ImportOptions:
     orientation_columns: list[str] = field(default_factory=list)
     euler: str = EULER_DEFAULT
     no_u95: bool = False
+    #: several targets: the prefixes of their x, y, z columns, the primary first (``--targets``)
+    targets: list[str] = field(default_factory=list)
 
 
 def checked_options(opts: ImportOptions) -> None:
@@ -59,9 +62,10 @@ def checked_options(opts: ImportOptions) -> None:
             continue
         try:
             unit = unit_name(value, kind)
-        except ValueError:
+        except ValueError as exc:
             known = ", ".join(LENGTH_UNITS if kind == "length" else ANGLE_UNITS)
-            raise InputError(f"{option} must be one of {known}, not '{value}'.") from None
+            why = f" ({exc})" if str(exc) else ""
+            raise InputError(f"{option} must be one of {known}, not '{value}'{why}.") from None
         if kind == "length":
             opts.length_unit = unit
         elif option == "--angle-unit":

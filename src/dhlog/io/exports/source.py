@@ -1,24 +1,29 @@
-"""An export's points in SI units (:class:`Source`): coordinates in their header's unit, U95
-or standard-deviation columns as each point's covariance, the orientation as unit quaternions,
+"""An export's points in SI units (:class:`Source`): coordinates in their header's unit (else
+``--length-unit``, else a comment line's ``# Units: …``, else mm; x, y, z in one unit), U95 or
+standard-uncertainty columns as each point's covariance, the orientation as unit quaternions,
 the time, and the joint values when the export holds them.
 
-U95 to σ: a per-coordinate U95 is 1.96 σ; a single (3D) U95 is the radius of the 95 % sphere
-of an isotropic normal distribution, 2.796 σ (√χ²₃(0.95)); a standard deviation per coordinate
-(``std x``, ``sigma_x``, ``measurement_std_x``) is σ. A value the export rounded to 0 is
-floored at the export's resolution (the last decimal written), and said in a note. Uncertainty
+U95 to σ (:data:`UNCERTAINTY_KINDS`): a per-coordinate U95 is 1.96 σ; a single (3D) U95 is the
+radius of the 95 % sphere of an isotropic normal distribution, 2.796 σ (√χ²₃(0.95)); a standard
+uncertainty or deviation per coordinate (``unc X``, ``std x``, ``sigma_x``,
+``measurement_std_x``) is σ; a single 3-D one (``leica_unc_m``, ``Uncertainty``) is the radial
+figure √(σx² + σy² + σz²): σ = u / √3. A value of 0 or below is refused naming its line, and so
+is a median σ no tracker gives in the unit read (:mod:`dhlog.io.exports.checks`). Uncertainty
 columns that cannot be used (an orientation's σ: the log carries the position's covariance
-only; σ beside a U95) are named in a warning as left out.
+only; a second set beside the one read) are named in a warning as left out.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import math
 import re
 from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
 
+from dhlog.io.exports.checks import comment_length_unit, one_unit, plausible_sigma
 from dhlog.io.exports.layout import JOINT_HEADER, Layout, column_layout
 from dhlog.io.exports.options import ImportOptions, joint_angle_unit
 from dhlog.io.exports.slips import joint_unit_slip, orientation_unit_slip
@@ -32,7 +37,7 @@ from dhlog.io.exports.table import (
     ConversionError,
     Table,
     column_unit,
-    resolution,
+    cut,
     stated_alike,
     without_unit,
 )
@@ -41,6 +46,15 @@ from dhlog.model.dh import JointType
 #: σ = U95 / this, per coordinate (1.96) or from a 3D radius (√χ²₃(0.95)).
 U95_PER_COORDINATE = 1.959963984540054
 U95_SPHERE = 2.7954834829151074
+#: Each kind of uncertainty column (:class:`~dhlog.io.exports.layout.Layout`'s ``u95``): the
+#: value over σ per coordinate, and what it is. A 3-D standard uncertainty (``unc``, ``std``,
+#: ``sigma`` alone) is the radial figure √(σx² + σy² + σz²) of an isotropic σ: σ = u / √3.
+UNCERTAINTY_KINDS = {
+    "axes": (U95_PER_COORDINATE, "U95 per axis: σ = U95 / 1.96"),
+    "sphere": (U95_SPHERE, "a 3-D U95 (the 95 % sphere's radius): σ = U95 / 2.796"),
+    "std": (1.0, "a standard uncertainty per axis: σ as written"),
+    "std3d": (math.sqrt(3.0), "a 3-D standard uncertainty (radial): σ = u / √3"),
+}
 #: The first stop's time (ns): 2020-01-01, so that stamps look like a real clock's.
 EPOCH_NS = 1_577_836_800_000_000_000
 #: A quaternion is normalised when its norm is this close to 1, else refused.
@@ -143,6 +157,11 @@ class Source:
     #: (``"the header"``, ``"--angle-unit"``, ``"--angle-unit (shared)"``, ``"the default"``)
     angles: NDArray[np.float64] | None = None
     angles_read: tuple[str, str, str] | None = None
+    #: further targets' positions (k, m, 3), m (``--targets``)
+    further: NDArray[np.float64] | None = None
+    #: the positions' unit as read and what stated it (``"the header"``, ``"--length-unit"``,
+    #: ``"line 2"``, ``"the default"``)
+    length_read: tuple[str, str] | None = None
 
     def take(self, rows: NDArray[np.int64]) -> Source:
         """The points at ``rows``, in that order."""
@@ -157,6 +176,7 @@ class Source:
             t_ns=None if self.t_ns is None else self.t_ns[rows],
             q=None if self.q is None else self.q[rows],
             angles=None if self.angles is None else self.angles[rows],
+            further=None if self.further is None else self.further[:, rows],
         )
 
     def unit_slips(self, types: list[JointType] | None = None) -> None:
@@ -182,60 +202,46 @@ class Source:
 
 
 def _u95_sigma(
-    table: Table, layout: Layout, xyz_unit: str, opts: ImportOptions
-) -> tuple[NDArray[np.float64], str | None]:
-    """σ per coordinate (m, 3) from the U95 (or σ) columns, and the note on values floored: a
-    value the export rounded to 0 is floored at the column's resolution (its last decimal as
-    written)."""
+    table: Table, layout: Layout, xyz_unit: str, xyz_where: str, opts: ImportOptions
+) -> NDArray[np.float64]:
+    """σ per coordinate (m, 3) from the uncertainty columns (:data:`UNCERTAINTY_KINDS`), each
+    in its header's unit, else the position's (``xyz_unit``, stated by ``xyz_where``). A value
+    of 0 or below is refused naming its line (no instrument measures without uncertainty: a
+    0.000 is a value the export lost); per-axis columns in different units, and a median σ no
+    tracker gives (:func:`~dhlog.io.exports.checks.plausible_sigma`), are refused."""
     assert layout.u95 is not None
     kind, cols = layout.u95
-    hint = "fix the export, or leave U95 out with --no-u95."
-    name = "a standard deviation" if kind == "std" else "a U95"
-    values, floored = [], []
+    hint = "fix the export, or leave the uncertainty out with --no-u95."
+    name = "a U95" if kind in ("axes", "sphere") else "an uncertainty"
+    values, units = [], []
     for k in cols:
         what = table.header[k]
         v = table.numbers(k, what, hint)
-        negative = np.flatnonzero(v < 0)
-        if negative.size:
-            i = int(negative[0])
+        bad = np.flatnonzero(~(v > 0))
+        if bad.size:
+            i = int(bad[0])
+            count = f" (and at {bad.size - 1} other row(s))" if bad.size > 1 else ""
             raise ConversionError(
                 table.path,
-                f"{what} is {table.texts(k)[i]}: {name} cannot be negative; {hint}",
+                f"{what} is {cut(table.texts(k)[i])}{count}: {name} must be above 0 (no "
+                "instrument measures without uncertainty; 0.000 is a value the export rounded "
+                "away or lost); export it with more decimals, or leave it out with --no-u95.",
                 table.lines[i],
             )
-        zero = v == 0
         unit = column_unit(table, k, "length", opts.length_unit, xyz_unit)
-        if np.all(zero):
-            raise ConversionError(
-                table.path,
-                f"{what} is 0 at every point: the export holds no uncertainty; export U95 with "
-                "more decimals, or leave it out with --no-u95.",
-            )
-        if np.any(zero):
-            step = resolution(table.texts(k))
-            v = np.where(zero, step, v)
-            floored.append((int(zero.sum()), step, unit, what))
+        units.append(unit)
         v = v * LENGTH_UNITS[unit]
         table.in_range(k, v, what, *U95_RANGE_M, "m")
         values.append(v)
-    if kind == "std":
-        sd = np.column_stack(values)
-    elif kind == "axes":
-        sd = np.column_stack(values) / U95_PER_COORDINATE
-    else:
-        sd = np.repeat(values[0][:, None], 3, axis=1) / U95_SPHERE
-    note = None
-    if floored:
-        count = sum(n for n, *_ in floored)
-        steps = sorted({f"{step:g} {unit}" for _, step, unit, _ in floored})
-        columns = ", ".join(what for *_, what in floored)
-        note = (
-            f"{table.path}: {count} {'σ' if kind == 'std' else 'U95'} value(s) read 0 (rounded by "
-            "the export) and were floored "
-            f"at the export's resolution, {' / '.join(steps)} (the last decimal written in "
-            f"{columns})."
-        )
-    return sd, note
+    one_unit(table, cols, units, "uncertainty")
+    sd = np.column_stack(values) / UNCERTAINTY_KINDS[kind][0]
+    if sd.shape[1] == 1:
+        sd = np.repeat(sd, 3, axis=1)
+    stated = table.heads[cols[0]].unit not in (None, *DIMENSIONLESS)
+    expanded = kind in ("axes", "sphere")
+    where = "the header" if stated else xyz_where
+    plausible_sigma(table, cols, sd, units[0], where, expanded=expanded)
+    return np.asarray(sd, dtype=np.float64)
 
 
 def _orientation(
@@ -313,14 +319,50 @@ def _times(table: Table, k: int, opts: ImportOptions) -> NDArray[np.int64]:
     return np.asarray(np.round(t - t[0]).astype(np.int64) + EPOCH_NS, dtype=np.int64)
 
 
+def file_length_unit(
+    path: str, opts: ImportOptions, commented: tuple[str, int] | None
+) -> tuple[str, str]:
+    """The length unit of a file's columns that state none, and what says so: ``--length-unit``,
+    else a comment line (``# Units: inch``; a contradiction with the option is refused), else
+    mm."""
+    if commented is not None:
+        if opts.length_unit is not None and opts.length_unit != commented[0]:
+            raise ConversionError(
+                path,
+                f"states {commented[0]} but --length-unit {opts.length_unit} was given; leave "
+                "--length-unit out (the file's unit is used) or correct the file.",
+                commented[1],
+            )
+        return commented[0], f"line {commented[1]}"
+    if opts.length_unit is not None:
+        return opts.length_unit, "--length-unit"
+    return DEFAULT_LENGTH_UNIT, "the default"
+
+
 def from_table(table: Table, opts: ImportOptions) -> Source:
     """The points (and joints, unless a joints file gives them) of a table with a header."""
     own_joints = opts.joints_file is None
     layout = column_layout(table, opts, joints=own_joints)
-    stated_alike(table, layout.xyz, "length", opts.length_unit, "coordinate")
-    units = [
-        column_unit(table, k, "length", opts.length_unit, DEFAULT_LENGTH_UNIT) for k in layout.xyz
-    ]
+    commented = comment_length_unit(table.path, table.comments)
+    fallback, where = file_length_unit(table.path, opts, commented)
+    if commented is not None:
+        for k in layout.xyz:
+            written = table.heads[k].unit
+            if (
+                written not in (None, *DIMENSIONLESS)
+                and column_unit(table, k, "length", None, fallback) != commented[0]
+            ):
+                raise ConversionError(
+                    table.path,
+                    f"the header '{table.header[k]}' contradicts line {commented[1]}, which "
+                    f"states {commented[0]}; correct the one that is wrong.",
+                )
+    else:
+        stated_alike(table, layout.xyz, "length", opts.length_unit, "coordinate")
+    units = [column_unit(table, k, "length", opts.length_unit, fallback) for k in layout.xyz]
+    one_unit(table, layout.xyz, units, "position")
+    if any(table.heads[k].unit not in (None, *DIMENSIONLESS) for k in layout.xyz):
+        where = "the header"
     xyz = np.column_stack(
         [
             table.numbers(k, table.header[k], f"is --{a} the right column?") * LENGTH_UNITS[u]
@@ -334,28 +376,37 @@ def from_table(table: Table, opts: ImportOptions) -> Source:
         columns = [table.texts(k) for k in layout.name]
         names = ["::".join(parts) for parts in zip(*columns, strict=True)]
     src = Source(table.path, list(table.lines), names, xyz, notes=list(layout.notes))
+    src.length_read = (units[0], where)
     src.named_by_option = opts.name_column is not None and table.find(opts.name_column) is not None
     if layout.u95 is not None and not opts.no_u95:
-        sd, note = _u95_sigma(table, layout, units[0], opts)
+        sd = _u95_sigma(table, layout, units[0], where, opts)
         src.cov = np.zeros((len(sd), 6))
         src.cov[:, 0], src.cov[:, 3], src.cov[:, 5] = sd[:, 0] ** 2, sd[:, 1] ** 2, sd[:, 2] ** 2
-        read = "sigma_columns" if layout.u95[0] == "std" else "u95_columns"
-        src.provenance[read] = ", ".join(table.header[k] for k in layout.u95[1])
-        if note:
-            src.notes.append(note)
+        kind = layout.u95[0]
+        read = "sigma_columns" if kind in ("std", "std3d") else "u95_columns"
+        read_columns = ", ".join(table.header[k] for k in layout.u95[1])
+        src.provenance[read] = read_columns
+        src.provenance["uncertainty"] = UNCERTAINTY_KINDS[kind][1]
+        src.notes.append(
+            f"{table.path}: each point's σ was read from {read_columns} "
+            f"({UNCERTAINTY_KINDS[kind][1]}) into its covariance."
+        )
     elif opts.format == "leica" and not opts.no_u95:
         raise ConversionError(
             table.path,
-            "has no U95 column (U95, U(95), or U95 X, U95 Y, U95 Z, with a unit or not); its "
+            "has no U95 column (U95, U(95), or U95 X, U95 Y, U95 Z, with a unit or not; or an "
+            "uncertainty per axis: unc X…, std x…, sigma_x…); its "
             f"columns are {', '.join(table.header)}; export the U95, or import it without "
             "with --no-u95 (or --format csv).",
         )
     if layout.unread and not opts.no_u95:
         unread = ", ".join(table.header[k] for k in layout.unread)
+        read_from = src.provenance.get("sigma_columns") or src.provenance.get("u95_columns")
         src.warnings.append(
             f"{table.path}: the uncertainty column(s) {unread} were left out: dhlog reads "
-            "the position's uncertainty per coordinate (U95 X/Y/Z, a 3D U95, or σ: std "
-            "x/y/z, sigma_x…) into each sample's covariance; an orientation's σ "
+            "one set of the position's uncertainty (U95 X/Y/Z, a 3-D U95, or σ: unc X…, "
+            "std x…, sigma_x…, a 3-D unc) into each sample's covariance"
+            f"{f', here {read_from}' if read_from else ' (none was read)'}; an orientation's σ "
             "is not carried (its noise is estimated from the data, or the pipeline's [noise] "
             "orientation)."
         )

@@ -12,7 +12,15 @@ from numpy.typing import NDArray
 
 from dhlog.io.exports.options import ImportOptions
 from dhlog.io.exports.source import MAX_COORDINATE_M
-from dhlog.io.exports.table import LENGTH_UNITS, ConversionError, cut, read_table, read_text
+from dhlog.io.exports.table import (
+    LENGTH_UNITS,
+    ConversionError,
+    cut,
+    parse_header,
+    read_table,
+    read_text,
+    unit_name,
+)
 
 _NUMBER = re.compile(r"^[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?$")
 
@@ -23,13 +31,55 @@ def read_spatialanalyzer(
     """Named points of a SpatialAnalyzer-style ASCII point list: per line a name (``A::B::C``,
     or collection, group and point as separate fields) and x, y, z as the last three fields,
     separated by commas, semicolons, tabs or spaces; a header line is skipped."""
-    names, xyz, _ = spatialanalyzer_points(path, length_unit)
+    names, xyz, _, _ = spatialanalyzer_points(path, length_unit)
     return names, xyz
 
 
+def header_unit(
+    path: str | Path, fields: list[str], line: int, length_unit: str, where: str
+) -> tuple[str, str]:
+    """The length unit of a point list whose header line (``fields``) states one for x, y, z
+    (``Name X[m] Y[m] Z[m]``), else ``length_unit``; x, y, z in different units, or a unit
+    that contradicts ``--length-unit`` or a comment line (``where``), are refused."""
+    heads = [parse_header(f) for f in fields]
+    stated = [h for h in heads if h.key in ("x", "y", "z") and h.unit not in (None, "", "-", "1")]
+    if not stated:
+        return length_unit, where
+    units = []
+    for h in stated:
+        try:
+            units.append(unit_name(h.unit or "", "length"))
+        except ValueError:
+            raise ConversionError(
+                path,
+                f"the header '{h.text}' states the unit '{h.unit}'; dhlog reads "
+                f"{', '.join(LENGTH_UNITS)} there; correct the header, or drop the unit and give "
+                "--length-unit.",
+                line,
+            ) from None
+    if len(set(units)) > 1 or len(stated) != 3:
+        raise ConversionError(
+            path,
+            f"the header states the unit of {', '.join(h.text for h in stated)} only or not "
+            "alike; state one unit for x, y and z (X [mm]), or give --length-unit.",
+            line,
+        )
+    if where != "the default" and units[0] != length_unit:
+        raise ConversionError(
+            path,
+            f"the header states {units[0]} but {where} states {length_unit}; correct the one "
+            "that is wrong.",
+            line,
+        )
+    return units[0], "the header"
+
+
 def spatialanalyzer_points(
-    path: str | Path, length_unit: str
-) -> tuple[list[str], NDArray[np.float64], list[int]]:
+    path: str | Path, length_unit: str, where: str = "the default"
+) -> tuple[list[str], NDArray[np.float64], list[int], tuple[str, str]]:
+    """The points of a point list (``read_spatialanalyzer``) with their lines, and the unit
+    they were read in and what stated it; a header line stating the unit (``Name X[m] Y[m]
+    Z[m]``) is obeyed (:func:`header_unit`)."""
     names, xyz, lines = [], [], []
     for i, line in enumerate(read_text(path).splitlines()):
         text = line.strip()
@@ -55,6 +105,7 @@ def spatialanalyzer_points(
             xyz.append(point)
             lines.append(i + 1)
         elif not names and not any(numeric):
+            length_unit, where = header_unit(path, fields, i + 1, length_unit, where)
             continue  # a header
         else:
             raise ConversionError(
@@ -66,7 +117,7 @@ def spatialanalyzer_points(
             )
     if not names:
         raise ConversionError(path, "holds no points; check --format.")
-    return names, np.asarray(xyz, dtype=np.float64), lines
+    return names, np.asarray(xyz, dtype=np.float64), lines, (length_unit, where)
 
 
 def is_table(path: Path, opts: ImportOptions) -> bool:

@@ -32,7 +32,13 @@ UNIT_SPELLINGS = {
     **dict.fromkeys(("in", "inch", "inches", '"'), "in"),
     **dict.fromkeys(("rad", "radian", "radians"), "rad"),
     **dict.fromkeys(("deg", "°", "º", "degree", "degrees"), "deg"),
-    **dict.fromkeys(("gon", "grad", "gons"), "gon"),
+    **dict.fromkeys(("gon", "gons", "gradian", "gradians"), "gon"),
+}
+#: Unit spellings refused as ambiguous, with why: ``grad`` is a degree in German software
+#: (``Grad``, ``Altgrad``) and a gon in English (grad, gradian).
+AMBIGUOUS_UNITS = {
+    "grad": "'grad' is a degree in German software (Grad) and a gon (gradian, 400 a turn) in "
+    "English; write deg or gon",
 }
 #: Header units that say "no unit" (a quaternion's).
 DIMENSIONLESS = ("", "-", "1")
@@ -70,7 +76,9 @@ def parse_header(text: str) -> Header:
     m = _TRAILING_BRACKET.match(name)
     if m and not re.fullmatch(r"[\d.,]+", m["unit"]):
         name, unit = m["name"], m["unit"].strip().lower() or None
-    elif (s := _SUFFIX_UNIT.match(name)) and s["unit"].lower() in UNIT_SPELLINGS:
+    elif (s := _SUFFIX_UNIT.match(name)) and (
+        s["unit"].lower() in UNIT_SPELLINGS or s["unit"].lower() in AMBIGUOUS_UNITS
+    ):
         name, unit = s["name"], s["unit"].lower()
     return Header(text.strip(), _KEY_DROPS.sub("", name.lower()), unit)
 
@@ -84,6 +92,8 @@ class Table:
     rows: list[list[str]]
     lines: list[int]
     sep: str = ","
+    #: the comment lines skipped (``#``, ``//``): their line numbers and text
+    comments: list[tuple[int, str]] = field(default_factory=list)
     heads: list[Header] = field(init=False)
 
     def __post_init__(self) -> None:
@@ -314,25 +324,15 @@ def read_table(path: str | Path, *, header: bool = True, option: str = "the sour
                 "the header's fields (check the separator and the export).",
                 line,
             )
-    table = Table(str(path), names, body, lines, sep)
+    comments = [
+        (i + 1, line.strip())
+        for i, line in enumerate(text.splitlines())
+        if line.lstrip().startswith(("#", "//"))
+    ]
+    table = Table(str(path), names, body, lines, sep, comments)
     if not body:
         raise ConversionError(path, "has a header but no rows; export the points too.")
     return table
-
-
-def resolution(texts: list[str]) -> float:
-    """The smallest step the numbers are written with: 10⁻ᵈ for d decimals (``0.001`` for
-    ``1.234``, ``1e-4`` for ``1.2e-3``), the finest over ``texts``."""
-    finest = math.inf
-    for text in texts:
-        mantissa, _, exponent = text.strip().lower().replace(",", ".").partition("e")
-        decimals = len(mantissa.partition(".")[2])
-        try:
-            shift = int(exponent) if exponent else 0
-        except ValueError:
-            continue
-        finest = min(finest, 10.0 ** max(min(shift - decimals, 300), -300))
-    return finest
 
 
 # ---------------------------------------------------------------------------------------------
@@ -345,7 +345,7 @@ def unit_name(text: str, kind: str) -> str:
     name = UNIT_SPELLINGS.get(text.strip().lower())
     known = LENGTH_UNITS if kind == "length" else ANGLE_UNITS
     if name not in known:
-        raise ValueError(text)
+        raise ValueError(AMBIGUOUS_UNITS.get(text.strip().lower(), ""))
     return name
 
 
@@ -361,13 +361,14 @@ def column_unit(
         return given or fallback
     try:
         unit = unit_name(written, kind)
-    except ValueError:
+    except ValueError as exc:
         known = ", ".join(LENGTH_UNITS if kind == "length" else ANGLE_UNITS)
+        why = f" ({exc})" if str(exc) else ""
         raise ConversionError(
             table.path,
-            f"the header '{table.header[k]}' states the unit '{written}'; dhlog reads {known} "
-            f"there; correct the header (the unit in brackets), or drop the unit and give "
-            f"{option}.",
+            f"the header '{table.header[k]}' states the unit '{written}'{why}; dhlog reads "
+            f"{known} there; correct the header (the unit in brackets), or drop the unit and "
+            f"give {option}.",
         ) from None
     if given is not None and given != unit:
         raise ConversionError(

@@ -93,11 +93,11 @@ class IsoDrift:
 
     pose: str
     group: int
-    hours: float
+    hours: float | None  # None: not known (stops whose stamps are no times)
     dAP: float | None
     dRP: float | None
     shift: float
-    rate_per_hour: float
+    rate_per_hour: float | None
 
 
 @dataclass(frozen=True)
@@ -277,10 +277,11 @@ def _drift(f: FieldReader, block: dict[str, Any]) -> IsoDrift | None:
     d = f.obj(v, at)
     shift = _size(f, d, "shift", at)
     rate = _size(f, d, "rate_per_hour", at)
-    hours = f.number(f.get(d, "hours", at), f"{at}.hours", sigma=True)
+    given = f.get(d, "hours", at, null=True)  # null: stops whose stamps are no times
+    hours = None if given is None else f.number(given, f"{at}.hours", sigma=True)
     if shift is None:
         f.fail(f"{at}.shift", "is null")
-    if rate is None:
+    if rate is None and hours is not None:
         f.fail(f"{at}.rate_per_hour", "is null")
     return IsoDrift(
         f.text(f.get(d, "pose", at), f"{at}.pose"),
@@ -376,7 +377,7 @@ def read_iso9283(document: Any, path: Path, sha256: str, modified: datetime) -> 
         _distance(f, block),
         _drift(f, block),
         paths,
-        f.texts(f.get(block, "notes", at), f"{at}.notes"),
+        [*_not_determined(f, block, at), *f.texts(f.get(block, "notes", at), f"{at}.notes")],
         None,
     )
     if frame != "base":
@@ -384,6 +385,15 @@ def read_iso9283(document: Any, path: Path, sha256: str, modified: datetime) -> 
     from dataclasses import replace
 
     return replace(shown, cube=cube_from_poses(poses))
+
+
+def _not_determined(f: FieldReader, block: dict[str, Any], at: str) -> list[str]:
+    """The report's ``not_determined`` lines (a test from stops: stabilisation, paths) as
+    notes, each marked so; none where the report has none."""
+    given = block.get("not_determined")
+    if given is None:
+        return []
+    return [f"Not determined: {t}." for t in f.texts(given, f"{at}.not_determined")]
 
 
 def load_iso9283(path: Path) -> Iso9283Shown:

@@ -181,6 +181,13 @@ def certificate_html(
         f'<div class="robot" id="robot">{escape(title)}<small>{result.n_joints} joints · report '
         f"{now.strftime('%Y-%m-%d')}</small></div></header>",
     ]
+    if result.implausible:
+        body.append(
+            '<div class="alert" id="implausible"><strong>Implausible result.</strong> dhlog '
+            "judges this calibration implausible (dhlog process exited 4): "
+            + " ".join(escape(r) for r in result.implausible)
+            + "</div>"
+        )
     if partial:
         body.append(
             '<div class="alert" id="partial"><strong>Partial result.</strong> Joint(s) '

@@ -133,6 +133,10 @@ def residual_bars_svg(residuals: list[JointResidual], prefix: str) -> str | None
     return _svg(fig, prefix, "per-joint residuals")
 
 
+#: The acceptance test's pose panels in a row of the plot.
+PANELS_PER_ROW = 6
+
+
 def iso9283_svg(poses: list[IsoPose], prefix: str) -> str | None:
     """The acceptance test's poses: with their attained positions, each pose's positions about
     their barycentre (base x and y, µm) and the circle of radius RP; without, the bars of AP
@@ -140,9 +144,14 @@ def iso9283_svg(poses: list[IsoPose], prefix: str) -> str | None:
     if not poses:
         return None
     clusters = [p for p in poses if p.attained is not None and len(p.attained) >= 2]
-    if clusters:
-        fig = _figure(10.6, 2.6)
-        axes = fig.subplots(1, len(clusters), squeeze=False)[0]
+    if clusters:  # at most six panels a row (a repeatability set of stops has dozens of poses)
+        cols = min(len(clusters), PANELS_PER_ROW)
+        rows = -(-len(clusters) // cols)
+        fig = _figure(10.6, 2.6 * rows)
+        grid = fig.subplots(rows, cols, squeeze=False)
+        for ax in grid.ravel()[len(clusters) :]:
+            ax.set_axis_off()
+        axes = grid.ravel()[: len(clusters)]
         for ax, p in zip(axes, clusters, strict=True):
             assert p.attained is not None
             d = (p.attained - p.attained.mean(axis=0)) * 1e6
@@ -156,7 +165,8 @@ def iso9283_svg(poses: list[IsoPose], prefix: str) -> str | None:
             ax.set_title(p.name, fontsize=9)
             ax.set_xlabel("x [µm]", fontsize=8)
             _style(ax)
-        axes[0].set_ylabel("y [µm]", fontsize=8)
+        for ax in grid[:, 0]:
+            ax.set_ylabel("y [µm]", fontsize=8)
         return _svg(fig, prefix, "attained positions of each test pose about their barycentre")
     series = [
         ("AP before", [p.AP_before for p in poses], NOMINAL_COLOUR),

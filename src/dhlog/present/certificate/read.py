@@ -13,6 +13,7 @@ import numpy as np
 
 from dhlog.errors import InputError
 from dhlog.geometry._checks import roll_pitch_yaw
+from dhlog.io.pointids import MAX_ID, listed
 from dhlog.present.certificate.camera import read_camera
 from dhlog.present.certificate.shown import (
     Check,
@@ -245,6 +246,10 @@ def _measurement(f: FieldReader, doc: dict[str, Any]) -> list[tuple[str, str]]:
                 text += (
                     f", {f.integer(out_, 'whole_fit.n_outliers', minimum=0)} held out as outliers"
                 )
+            named = f.get(whole, "outliers", "whole_fit", required=False)
+            if named is not None and f.texts(named, "whole_fit.outliers"):
+                ids = [t[:MAX_ID] for t in f.texts(named, "whole_fit.outliers")]
+                text += f": {listed(ids)}"
             lines.append(("Samples fitted", text))
         rot = f.get_number(whole, "sigma_rotation", "whole_fit", required=False, minimum=0.0)
         if rot is not None:
@@ -452,6 +457,13 @@ def read_result(document: Any, path: str) -> Result:
     notes_raw = doc.get("notes")
     notes = [] if notes_raw is None else f.texts(notes_raw, "notes")
     method = f.get_text(doc, "method", required=False)
+    flag = doc.get("plausible")
+    if flag is not None and not isinstance(flag, bool):
+        f.mismatch(flag, "plausible", "true or false")
+    reasons_raw = doc.get("implausible")
+    reasons = [] if reasons_raw is None else f.texts(reasons_raw, "implausible")
+    if flag is False and not reasons:
+        reasons = ["the result is marked implausible (plausible: false) without a reason"]
     return Result(
         version,
         log_name,
@@ -474,4 +486,5 @@ def read_result(document: Any, path: str) -> Result:
         _tool(f, doc, len(rows)),
         _nongeometric(f, doc),
         read_camera(f, doc),
+        reasons,
     )

@@ -130,6 +130,8 @@ class Result:
     nongeometric: dict[str, Any] | None
     #: a camera calibration's ``camera`` block (None: a tracker's result)
     camera: CameraShown | None = None
+    #: why dhlog judges the result implausible (``plausible: false``); empty: plausible
+    implausible: list[str] = field(default_factory=list)
 
 
 def nominal_deltas(

@@ -17,15 +17,18 @@ Entities (``world`` is the robot's base frame, DH frame 1, z up; ``world/m`` car
 measurement frame M into it, so everything below is logged in M):
 
 * ``world/m/samples/segment_<k>`` target samples of each sweep (joint colours, sized from the
-  robot's extent), ``world/m/samples/set_aside`` the others (dimmed), ``.../outliers`` (red);
+  robot's extent), ``world/m/samples/set_aside`` the others (dimmed), ``.../outliers`` (red:
+  the sweep fits'), ``.../fit_outliers`` (red: the whole-model fit's); the set-aside samples
+  and the fit's outliers labelled with the export's point ids where the log carries them;
 * ``world/m/joints/j<k>/fit`` the fitted arc over the swept range (or the line over the travel),
   thin and lighter than its samples; ``world/m/joints/j<k>/axis`` the axis, an arrow ``Jk``;
 * ``world/m/dh/frame_<i>`` DH frame i of the shown table (Hayati rows included), labelled once
   per place (``world/m/dh/labels``); ``world/m/robot/links`` segments between frame origins;
 * ``world/m/base_plane`` probed base points and the fitted plane's outline;
 * ``world/m/magnified/j<k>`` each sample at FK + k × FK residual (k in the view's name);
-* ``world/m/holdout/<check>/{poses,nominal,calibrated}`` held-out poses and their magnified
-  errors; ``world/m/deflection`` the target's displacement by the terms beyond the geometry;
+* ``world/m/holdout/<check>/{poses,nominal,calibrated}`` held-out poses (labelled with the
+  point ids where the log carries them) and their magnified errors; ``world/m/deflection``
+  the target's displacement by the terms beyond the geometry;
 * ``sweeps`` one text line per sweep on the sensor time line;
 * ``residuals/{fk,fit}/j<k>/{radial,axial,tangential}`` signed residual components (mm);
 * ``report/dh_table`` the DH tables, fits, set-aside counts and nominal as Markdown;

@@ -125,15 +125,29 @@ def log_samples(rec: rr.RecordingStream, shown: Shown) -> None:
         )
     aside = shown.drawn(np.flatnonzero(segment == 0))
     if aside.size:
+        ids = result.log.point_ids  # the static poses of an import, by the export's ids
+        labels = None if ids is None else [ids.get(int(s), "") for s in np.asarray(t)[aside]]
         rec.log(
             "world/m/samples/set_aside",
-            rr.Points3D(xyz[aside], colors=[DIM], radii=0.5 * scene.sample),
+            rr.Points3D(xyz[aside], colors=[DIM], radii=0.5 * scene.sample, labels=labels),
             static=True,
         )
     if np.any(outlier):  # every outlier, however many rows are drawn
         rec.log(
             "world/m/samples/outliers",
             rr.Points3D(xyz[outlier], colors=[[255, 0, 0]], radii=1.5 * scene.sample),
+            static=True,
+        )
+    rows = result.outlier_rows
+    if rows.size:  # the whole-model fit's, named as the export names them
+        rec.log(
+            "world/m/samples/fit_outliers",
+            rr.Points3D(
+                xyz[rows],
+                colors=[[255, 0, 0]],
+                radii=1.5 * scene.sample,
+                labels=list(result.outlier_names),
+            ),
             static=True,
         )
 
@@ -241,7 +255,12 @@ def log_holdout(rec: rr.RecordingStream, shown: Shown) -> None:
         path = f"world/m/holdout/{name}"
         rec.log(
             f"{path}/poses",
-            rr.Points3D(pos, colors=[[90, 90, 90]], radii=shown.scene.sample * 1.5),
+            rr.Points3D(
+                pos,
+                colors=[[90, 90, 90]],
+                radii=shown.scene.sample * 1.5,
+                labels=None if h.pose_names is None else list(h.pose_names),
+            ),
             static=True,
         )
         for model, vectors in (

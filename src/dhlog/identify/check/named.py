@@ -1,0 +1,90 @@
+"""The samples a fit set aside or kept far off it, named as the export names them: by its point ids
+(``dhlog import``'s ``dhlog.point_ids``, :mod:`dhlog.io.pointids`), else by their number in the
+log's point stream (``#14``).
+
+* :func:`sample_names`: each fitted sample's name;
+* :func:`pose_names`: each scored pose of another session (``--validate``) by its first sample's
+  name, the pose found by its measured position;
+* :func:`name_outliers`: a note naming the whole-model fit's gross outliers (set aside, with
+  their residual), and a warning naming the samples it kept though they lie more than
+  :data:`FAR` times its RMS off it (no noise puts a sample there: 5× the RMS of a 3-D residual
+  is 8.7 σ per coordinate) — a point the session or its source marks bad, pulling the model.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import NDArray
+
+from dhlog.identify.fit.leaveout import pose_groups, pose_means
+from dhlog.io.pointids import listed
+
+#: A kept sample farther than this many times the fit's RMS (3-D residual) is named.
+FAR = 5.0
+#: ... and farther than this (m): below it nothing is worth a warning.
+FAR_FLOOR = 1e-4
+
+
+def sample_names(
+    t_ns: NDArray[np.int64], rows: NDArray[np.intp], point_ids: dict[int, str] | None
+) -> list[str]:
+    """The name of each sample at point-stream ``rows`` (stamped ``t_ns``): the export's point
+    id, else ``#k`` (its 1-based row in the point stream)."""
+    if point_ids is None:
+        return [f"#{r + 1}" for r in rows.tolist()]
+    return [
+        point_ids.get(t, f"#{r + 1}") for t, r in zip(t_ns.tolist(), rows.tolist(), strict=True)
+    ]
+
+
+def _shown(names: list[str], norms: NDArray[np.float64], at: NDArray[np.intp]) -> str:
+    order = at[np.argsort(-norms[at], kind="stable")]
+    return listed([f"{names[i]} ({norms[i] * 1e3:.3g} mm)" for i in order.tolist()])
+
+
+def name_outliers(
+    names: list[str],
+    norms: NDArray[np.float64],
+    inliers: NDArray[np.bool_],
+    info: list[str],
+    warnings: list[str],
+) -> NDArray[np.intp]:
+    """Name the fit's outliers (``~inliers``; ``norms``: each sample's 3-D residual, m) in a note
+    to ``info`` and the kept samples beyond :data:`FAR` × the RMS in a warning; returns the
+    outliers' indices (into ``names``), largest residual first."""
+    out = np.flatnonzero(~inliers)
+    order = out[np.argsort(-norms[out], kind="stable")]
+    if out.size:
+        info.append(
+            f"the whole-model fit set aside {out.size} sample(s) as gross outliers (residual "
+            f"under the fitted model): {_shown(names, norms, out)}."
+        )
+    kept = np.flatnonzero(inliers)
+    if kept.size:
+        rms = float(np.sqrt(np.mean(norms[kept] ** 2)))
+        far = kept[(norms[kept] > FAR * rms) & (norms[kept] > FAR_FLOOR)]
+        if far.size:
+            warnings.append(
+                f"{far.size} sample(s) the fit kept lie over {FAR:g}× its RMS "
+                f"({rms * 1e3:.3g} mm) off it: {_shown(names, norms, far)}; no noise puts a "
+                "sample there — if the session or the export marks these points bad, leave "
+                "them out of the export (a gross error pulls the whole model)."
+            )
+    return np.asarray(order, dtype=np.intp)
+
+
+def pose_names(
+    Q: NDArray[np.float64], P: NDArray[np.float64], names: list[str], scored: NDArray[np.float64]
+) -> list[str]:
+    """The name of each ``scored`` pose position (k, 3, m): the name of the first sample of the
+    session's pose (:func:`~dhlog.identify.fit.leaveout.pose_groups` of ``Q``) whose mean
+    measured position it is (within 1 nm; ``""`` where none is)."""
+    groups = pose_groups(Q)
+    _, first = np.unique(groups, return_index=True)
+    means = pose_means(groups, P)[1]
+    out = []
+    for pos in np.asarray(scored, dtype=np.float64):
+        d = np.linalg.norm(means - pos, axis=1)
+        k = int(np.argmin(d)) if d.size else -1
+        out.append(names[int(first[k])] if k >= 0 and d[k] <= 1e-9 else "")
+    return out
