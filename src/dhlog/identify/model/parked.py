@@ -13,7 +13,9 @@ So the parked joint is held: its axis is placed by the nominal (the nominal's ax
 onto the fitted axes nearest it by the rigid motion that best lays the nominal's on them:
 :func:`~dhlog.identify.fit.start.align_lines`), the whole-model fit leaves it there
 (:attr:`~dhlog.identify.fit.axismodel.AxisModel.held_axes`: its Jacobian columns are zero) while
-still applying its small motion at the encoder values, and its row is marked fixed with
+still applying its small motion at the encoder values (through the nominal's axis rather than the
+true one, which errs by the span times the axis's misplacement: at most 1 mrad × (1 mm + 1 m ×
+1 mrad) = 2 µm for a nominal 1 mm and 1 mrad off), and its row is marked fixed with
 :data:`PARKED_REASON` (no σ). The base and the neighbouring rows absorb what the held row does
 not say. The reference pose takes the parked joint's median value, so the table reproduces the
 fit exactly at the parked value wherever the axis is placed.
