@@ -13,6 +13,7 @@ from dhlog.identify.check.validate import fk_prediction_std
 from dhlog.identify.fit.axismodel import AxisModel, ParameterLayout
 from dhlog.identify.fit.prediction import predict
 from dhlog.identify.fit.whole import fit_whole_model
+from dhlog.identify.model.parked import PARKED_REASON
 from dhlog.identify.model.select import ModelRequest
 from dhlog.identify.run import ProcessResult, process_data
 from dhlog.io.dhfile import DHModel
@@ -236,7 +237,8 @@ def test_a_discrete_point_protocol_with_six_stops_per_joint_works_with_the_defau
 def test_a_joint_never_moved_alone_is_identified_from_coupled_moves() -> None:
     """KR5 off its nominal; joint 3 is only moved together with joint 2 (q3 = −q2, the level
     forearm sweep): with the nominal, the whole-model fit identifies it and the FK error is
-    covered by the uncertainty. Without the coupled moves nothing determines it: partial result."""
+    covered by the uncertainty. Without the coupled moves joint 3 never moves at all: parked,
+    held at the nominal and said (:mod:`dhlog.identify.model.parked`)."""
     rob = load_robot("kr5")
     nominal = DHModel(
         rob.table, rob.T_base, rob.tool_point, tuple(f"joint_{i}" for i in range(6)), "kr5"
@@ -251,7 +253,8 @@ def test_a_joint_never_moved_alone_is_identified_from_coupled_moves() -> None:
     assert np.all(fk_error(result, session, Q) <= 4.0 * fk_prediction_std(result, Q))
     alone = simulate_session(rob, SimulationConfig(**base))  # type: ignore[arg-type]
     partial = process_data(log_data_from_session(alone), nominal=nominal)
-    assert not partial.complete and partial.failed[0].index == 3
+    assert partial.parked == (2,) and partial.fixed[8] == PARKED_REASON
+    assert any("joint 3 (joint_3" in w and "parked" in w for w in partial.warnings)
 
 
 def test_per_sample_covariance_of_pose_with_covariance_stamped_weighs_the_fit(tmp_path) -> None:  # type: ignore[no-untyped-def]

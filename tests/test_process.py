@@ -266,7 +266,8 @@ def test_partial_result_names_the_joint_and_exits_3(tmp_path: Path) -> None:
     assert "joint 4 (joint_4) not identified" in result.output
     doc = json.loads((tmp_path / "partial.dh.json").read_text())
     jsonschema.validate(doc, SCHEMA)
-    assert doc["joints"][3]["error"].startswith("it was never swept")
+    assert doc["joints"][3]["error"].startswith("it was parked in the session")
+    assert "give --nominal" in doc["joints"][3]["error"]
     assert doc["joints"][2]["axis"] is not None and len(doc["standard_dh"]) == 2
 
 

@@ -188,6 +188,12 @@ def plan_session(robot: Robot, cfg: SimulationConfig, tracker: Tracker | None = 
         model=ModelRequest("geometric"),
         known_noise=known,
     )
+    if result.parked:  # a run would hold it at the nominal: the plan does not identify it
+        still = ", ".join(f"joint {k + 1}" for k in result.parked)
+        raise InputError(
+            f"this plan never moves {still}: a session like it holds that row at the nominal "
+            "and identifies the rest; move every joint (sweeps or more varied poses)."
+        )
     if not result.complete or result.whole is None:
         missing = ", ".join(f"joint {j.index} ({j.reason})" for j in result.failed)
         raise InputError(

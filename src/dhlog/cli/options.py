@@ -126,6 +126,26 @@ def joint_numbers(text: str, what: str) -> list[int]:
     return [int(v) for v in values]
 
 
+def parked_joints(text: str) -> tuple[tuple[int, float], ...]:
+    """``--park-joints``: 'J' or 'J:VALUE' items, comma-separated (exit 1 naming the option
+    when one is not a joint number with an optional finite value)."""
+    out = []
+    for item in listed(text):
+        joint, _, value = item.partition(":")
+        try:
+            j, v = float(joint), float(value) if value else 0.0
+        except ValueError:
+            j, v = math.nan, math.nan
+        if not (math.isfinite(j) and j == int(j) and math.isfinite(v)):
+            stderr.print(
+                f"error: --park-joints takes J or J:VALUE (a joint number, a value in rad or "
+                f"m), comma-separated, not '{plain(item)}'."
+            )
+            raise typer.Exit(EXIT_USAGE)
+        out.append((int(j), v))
+    return tuple(out)
+
+
 def angles(values: np.ndarray, unit: str, types: Sequence[object] | None) -> np.ndarray:
     """``values`` in radians: revolute entries (all but declared prismatic ones) from degrees
     when ``unit`` is deg."""

@@ -18,7 +18,7 @@ from dhlog.cli.common import (
     stderr,
     stdout,
 )
-from dhlog.cli.options import joint_numbers, triples, tuples
+from dhlog.cli.options import joint_numbers, parked_joints, triples, tuples
 from dhlog.errors import DhlogError
 
 
@@ -26,7 +26,8 @@ def simulate(
     robot: Annotated[
         str,
         typer.Argument(
-            help="A library robot (kr5, puma560, ur5, elbow, scara, stanford) or a DH file."
+            help="A library robot (kr5, kr210, puma560, ur5, elbow, scara, stanford, panda, "
+            "kr5rail, torso7) or a DH file."
         ),
     ],
     output: Annotated[
@@ -222,6 +223,15 @@ def simulate(
             help="Joints (1-based, comma-separated) never swept, to make a partial session."
         ),
     ] = "",
+    park_joints: Annotated[
+        str,
+        typer.Option(
+            metavar="J[:VALUE],…",
+            help="Joints parked all session (a torso, a rail, an external axis): never swept, "
+            "the same in every random pose (a servo's 0.2 mrad or mm wander from pose to "
+            "pose), at VALUE (rad or m; default 0), e.g. '1' or '1:0.3'.",
+        ),
+    ] = "",
     clock_offset_ms: Annotated[
         float,
         typer.Option(
@@ -383,6 +393,7 @@ def simulate(
             perturb_length=perturb_mm * 1e-3,
             perturb_angle=math.radians(perturb_deg),
             skip_joints=tuple(joint_numbers(skip_joints, "--skip-joints")),
+            parked=parked_joints(park_joints),
             clock_offset=clock_offset_ms * 1e-3,
             start_day=start_day,
             compliance=tuple(compliant),

@@ -95,6 +95,14 @@ from dhlog.identify.model.beyond import (
 )
 from dhlog.identify.model.hold import hold_unseen, may_hold
 from dhlog.identify.model.pairs import decided_tolerances, fold_holds
+from dhlog.identify.model.parked import (
+    mark_parked,
+    no_nominal_reason,
+    parked_joints,
+    parked_pose,
+    parked_warning,
+    place_parked,
+)
 from dhlog.identify.model.relations import constrain_pairs, with_fixed_relations
 from dhlog.identify.model.select import AUTO, RANGE_POINTS, ModelRequest, Selection, term_std
 from dhlog.identify.read.analytic import (
@@ -122,6 +130,7 @@ from dhlog.io.dhfile import DHModel
 from dhlog.io.pipeline import Pipeline
 from dhlog.io.reader import LogData, camera_pipeline, read_log
 from dhlog.io.writer import sha256_of
+from dhlog.model.dh import JointType
 from dhlog.model.fk import fk_frames
 from dhlog.model.noise import NoiseModel
 from dhlog.model.terms import Terms, table_deflection, to_table
@@ -164,6 +173,8 @@ class ProcessResult:
     timing: Timing | None = None
     #: the nominal placed on the points (sessions without sweeps: the fit's start)
     registration: Registration | None = None
+    #: joints (0-based) parked in the session (:mod:`dhlog.identify.model.parked`)
+    parked: tuple[int, ...] = ()
     #: errors at poses not used to fit: K-fold cross-validation, held-out logs
     holdout: list[Holdout] = field(default_factory=list)
     #: the whole-model fit's gross outliers by name (the export's point ids, else ``#k``)
@@ -407,9 +418,17 @@ def process_data(
     whole_wanted = seg.has_encoders and not analytic_only
     max_points = START_FIT_POINTS if whole_wanted else None
     joints = [JointReport(k + 1, seg.joint_names[k]) for k in range(n)]
+    parked: list[int] = []
+    if seg.has_encoders:  # joints that never moved: held at the nominal
+        Q_all = samples_with_encoders(seg)[1][:]
+        parked = parked_joints(Q_all) if 0 < len(parked_joints(Q_all)) < n else []
+        if parked and nominal is not None:
+            ref = parked_pose(Q_all, ref, parked)
     for report in joints:
         stage("fitting", (report.index - 1) / n)
         fit_joint(report, seg, log, ref, joints, nominal, fit_method, notes, max_points)
+        if report.index - 1 in parked and not report.ok and nominal is None:
+            report.reason = no_nominal_reason(Q_all, report.index - 1, report.type)
     unidentified = [
         f"joint {report.index} ({report.name}) was not identified: {report.reason}."
         for report in joints
@@ -445,6 +464,7 @@ def process_data(
         noise=log.pipeline.noise,
         folds=holdout,
         model_request=model,
+        parked=tuple(parked),
         implausible=implausible,
     )
     kwargs: dict[str, Any] = {
@@ -464,7 +484,11 @@ def process_data(
         if whole_wanted and _from_a_start(result, kwargs, stage):
             return result
         notes.extend(unidentified)
-        if whole_wanted and nominal is None:
+        if (
+            whole_wanted
+            and nominal is None
+            and any(not j.ok and j.index - 1 not in parked for j in joints)
+        ):
             notes.append(
                 "the joints not swept alone need a start: pass --nominal (a library robot or "
                 "the robot's DH file) and the whole-model fit identifies them from the other "
@@ -541,7 +565,12 @@ def _from_a_start(result: ProcessResult, kwargs: dict[str, Any], stage: Stage) -
     warnings) when a joint never moved, there is no start, or the fit fails."""
     nominal = result.nominal
     start = start_unswept(
-        result.joints, result.segmentation, result.reference_pose, nominal, result.warnings
+        result.joints,
+        result.segmentation,
+        result.reference_pose,
+        nominal,
+        result.warnings,
+        result.parked,
     )
     if start is None:
         return False
@@ -554,18 +583,23 @@ def _from_a_start(result: ProcessResult, kwargs: dict[str, Any], stage: Stage) -
             f"{int(np.count_nonzero(reg.inliers))} samples) and every joint identified by the "
             "whole-model fit from there."
         )
-    missing = [j for j in result.joints if not j.ok]
+    missing = [j for j in result.joints if not j.ok and j.index - 1 not in result.parked]
     what = "the coupled moves" if nominal is None else "the nominal"
     if not _fit_from(result, start, kwargs, stage, what):
         result.registration = None
         return False
+    if result.parked:
+        _, Q, _ = samples_with_encoders(result.segmentation)
+        names_all = [j.name for j in result.joints]
+        types_all = [j.type for j in result.joints if j.type is not None]
+        result.warnings.append(parked_warning(names_all, result.parked, Q[:], types_all))
     names = ", ".join(f"joint {j.index} ({j.name})" for j in missing)
-    if nominal is None:
+    if missing and nominal is None:
         result.warnings.append(
             f"{names}: never moved alone; started from the circle its coupled move with a "
             "parallel neighbour traces, and identified by the whole-model fit from every sample."
         )
-    elif reg is None:
+    elif missing and reg is None:
         result.warnings.append(
             f"{names}: never moved alone; identified by the whole-model fit from the other "
             "samples (coupled moves, still poses), started from the nominal."
@@ -620,7 +654,17 @@ def _identify_whole(
     which = target_labels(seg, rows)
     rotations = measured_rotations(seg, rows)
     axes0 = [j.axis for j in joints]
-    start = start_model(axes0, types, result.target, ref, Q, P, which, rotations)  # type: ignore[arg-type]
+    start = start_model(
+        axes0,  # type: ignore[arg-type]
+        types,  # type: ignore[arg-type]
+        result.target,
+        ref,
+        Q,
+        P,
+        which,
+        rotations,
+        frozenset(result.parked),
+    )
     sample_cov = sample_covariance(seg, rows)
     if sample_cov is not None:
         result.noise = NoiseModel("per-sample")
@@ -681,8 +725,14 @@ def _identify_whole(
     outer = None  # --holdout K: each sample's fold, the same for the selection and the check
     if result.folds > 1:
         outer = fold_of_poses(pose_groups(Q), result.folds, 0)
+    request = result.model_request
+    if result.parked and request.harmonic_joints is None:  # no harmonics on a parked joint
+        revolute = [k for k, t in enumerate(types) if t is JointType.REVOLUTE]
+        request = replace(
+            request, harmonic_joints=tuple(k for k in revolute if k not in result.parked)
+        )
     whole, result.selection = beyond_geometry(
-        result.model_request,
+        request,
         whole,
         Q,
         P,
@@ -751,6 +801,9 @@ def _identify_whole(
 
     stage("uncertainty", 0.0)
     plane = None if base is None else base.plane
+    if result.parked and nominal is not None:  # placed by the nominal next to the fitted axes
+        axes = place_parked(whole.model.axes, result.parked, nominal, ref)
+        whole = replace(whole, model=replace(whole.model, axes=axes))
     ex = extract(list(whole.model.axes), whole.model.target, plane)
     # what the samples determine only beyond a physical bound: held at the nominal
     h_rows = hayati_rows(ex)
@@ -772,6 +825,9 @@ def _identify_whole(
             said = []
             found = whole_uncertainty(whole, base, extract, ex, ref, nominal_table, said)
     result.info.extend(said)
+    mark_parked(found.fixed, found.std, result.parked)
+    if found.conditioned is not None:
+        mark_parked(found.conditioned.fixed, found.conditioned.std, result.parked)
     result.method = "whole-model maximum likelihood"
     result.extraction, result.analytic, result.whole = ex, analytic, whole
     result.covariance, result.std, result.fixed = found.covariance, found.std, found.fixed

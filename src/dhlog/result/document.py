@@ -14,6 +14,7 @@ from dhlog._version import __version__
 from dhlog.geometry._checks import FloatArray, wrap_angle
 from dhlog.identify.check.validate import shown_stride
 from dhlog.identify.joints.sweeps import JointReport
+from dhlog.identify.model.parked import PARKED_REASON
 from dhlog.identify.read.hayati import NEAR_PARALLEL
 from dhlog.identify.read.propagate import state_difference, state_names, state_vector
 from dhlog.identify.run import ProcessResult
@@ -55,6 +56,7 @@ def result_document(result: ProcessResult) -> dict[str, Any]:
     val = result.validation
     per_joint = {} if val is None else val.per_joint
     t_ns = result.segmentation.t_ns
+    held = set(result.parked) if result.nominal is not None else set()  # parked joints held
     doc: dict[str, Any] = {
         "format": RESULT_FORMAT,
         "dhlog_version": __version__,
@@ -86,6 +88,7 @@ def result_document(result: ProcessResult) -> dict[str, Any]:
                     else {}
                 ),
                 **({"error": j.reason} if j.reason else {}),
+                **({"parked": PARKED_REASON} if j.index - 1 in held else {}),
             }
             for j in result.joints
         ],

@@ -23,6 +23,9 @@ COUPLED_PAIR = (2, 3, -1.0)
 #: the target frame's fixed rotation in the flange frame (rotation vector, rad) of the command
 #: line's ``--six-dof``
 SIX_DOF_TOOL_ROTATION = (0.3, -0.2, 0.5)
+#: the span (rad or m) a parked joint wanders over from random pose to random pose (a servo
+#: holding position; the real dual-arm torso of issue 39 spans 0.27 mrad)
+PARK_WANDER = 2e-4
 
 
 @dataclass(frozen=True)
@@ -73,6 +76,12 @@ class SimulationConfig:
     #: early, so a pipeline needs ``clock_offset`` = this value to put them right
     clock_offset: float = 0.0
     skip_joints: tuple[int, ...] = ()
+    #: joints parked all session (a torso, a rail, an external axis that stays where it is):
+    #: (joint, value in rad or m); never swept, the same in every random pose but for a servo's
+    #: wander within ±``PARK_WANDER``/2 from pose to pose
+    parked: tuple[tuple[int, float], ...] = ()
+    #: the span (rad or m) a parked joint wanders over from random pose to random pose
+    park_wander: float = PARK_WANDER
     coupled: tuple[tuple[int, int, float], ...] = ()
     extra_tools: tuple[tuple[float, float, float], ...] = ()
     tool_rotation: tuple[float, float, float] | None = None
@@ -194,6 +203,19 @@ def config_problems(robot: Robot, cfg: SimulationConfig) -> list[str]:
     bad = [j for j in cfg.skip_joints if not 1 <= j <= robot.n]
     if bad:
         out.append(f"--skip-joints names joint(s) {bad}; {robot.name} has joints 1-{robot.n}")
+    for j, value in cfg.parked:
+        if not 1 <= j <= robot.n:
+            out.append(f"--park-joints names joint {j}; {robot.name} has joints 1-{robot.n}")
+        elif not robot.limits[j - 1, 0] <= value <= robot.limits[j - 1, 1]:
+            lo, hi = robot.limits[j - 1]
+            out.append(
+                f"--park-joints parks joint {j} at {value:g}, outside its limits "
+                f"[{lo:g}, {hi:g}] (rad or m)"
+            )
+    if not 0 <= cfg.park_wander <= 1e-3:
+        out.append(f"the parked joints' wander must be in [0, 1e-3] (got {cfg.park_wander:g})")
+    if len({j for j, _ in cfg.parked}) >= robot.n:
+        out.append("--park-joints parks every joint: nothing would move")
     if not 0 < cfg.sweep <= 2 * math.pi:
         out.append(f"the sweep must be in (0, 360]°, not {math.degrees(cfg.sweep):g}°")
     if not 0 < cfg.travel <= 10.0:

@@ -38,8 +38,16 @@ def swept_joints(robot: Robot, cfg: SimulationConfig) -> list[int]:
     """The joints (1-based) a session of ``cfg`` sweeps alone."""
     if cfg.protocol in (*STILL_PROTOCOLS, "iso9283"):
         return []
-    skip = protocol_config(cfg).skip_joints
+    skip = {*protocol_config(cfg).skip_joints, *(j for j, _ in cfg.parked)}
     return [j for j in range(1, robot.n + 1) if j not in skip]
+
+
+def parked_home(home: FloatArray, cfg: SimulationConfig) -> FloatArray:
+    """``home`` with each parked joint at its parked value."""
+    out = np.array(home, dtype=np.float64)
+    for j, value in cfg.parked:
+        out[j - 1] = value
+    return out
 
 
 def random_poses(robot: Robot, cfg: SimulationConfig, home: FloatArray) -> FloatArray:
@@ -50,6 +58,8 @@ def random_poses(robot: Robot, cfg: SimulationConfig, home: FloatArray) -> Float
     if cfg.pose_list:
         return np.array(cfg.pose_list, dtype=np.float64)
     rng = np.random.default_rng([cfg.seed if cfg.pose_seed is None else cfg.pose_seed, 18])
+    if cfg.parked:
+        return _parked_poses(random_poses(robot, replace(cfg, parked=()), home), cfg, rng)
     lo, hi = robot.limits[:, 0], robot.limits[:, 1]
     least = MIN_POSE_CHANGE * (hi - lo)
     poses = np.empty((cfg.poses, robot.n))
@@ -63,6 +73,15 @@ def random_poses(robot: Robot, cfg: SimulationConfig, home: FloatArray) -> Float
             pose[close] = rng.uniform(lo[close], hi[close])
         poses[i] = previous = pose
     return poses
+
+
+def _parked_poses(poses: FloatArray, cfg: SimulationConfig, rng: np.random.Generator) -> FloatArray:
+    """``poses`` with each parked joint at its value, wandering within ±park_wander/2."""
+    out = poses.copy()
+    half = cfg.park_wander / 2
+    for j, value in cfg.parked:
+        out[:, j - 1] = value + rng.uniform(-half, half, len(out))
+    return out
 
 
 def coupled_range(
@@ -123,12 +142,16 @@ def keyframes(
     for k in range(n):
         if k + 1 in cfg.skip_joints or cfg.protocol in STILL_PROTOCOLS:
             continue
+        if any(j == k + 1 for j, _ in cfg.parked):
+            continue
         lock = home.copy()
         if cfg.lock_poses == "random":
             span = hi - lo
             lock = np.clip(home + rng.uniform(-0.15, 0.15, n) * span, lo, hi)
             if held:
                 lock[held] = home[held]
+            for j, _ in cfg.parked:
+                lock[j - 1] = home[j - 1]
         half = (cfg.sweep if revolute[k] else cfg.travel) / 2.0
         start = float(np.clip(lock[k] - half, lo[k], hi[k]))
         end = float(np.clip(lock[k] + half, lo[k], hi[k]))

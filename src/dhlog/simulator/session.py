@@ -17,7 +17,14 @@ from dhlog.model.robots import Robot
 from dhlog.model.terms import Terms, table_deflection
 from dhlog.simulator.config import PATH_PROTOCOLS, SimulationConfig
 from dhlog.simulator.paths import REMOUNT_SHIFT, path_poses, restationed
-from dhlog.simulator.protocols import joints_at, keyframes, protocol_config, random_poses, still_at
+from dhlog.simulator.protocols import (
+    joints_at,
+    keyframes,
+    parked_home,
+    protocol_config,
+    random_poses,
+    still_at,
+)
 from dhlog.simulator.robot import perturbed, smooth_model_error, truth_terms
 from dhlog.simulator.tracker import (
     add_outliers,
@@ -107,6 +114,7 @@ def simulate_session(
     q_home = (
         np.clip(np.zeros(robot.n), robot.limits[:, 0], robot.limits[:, 1]) if home is None else home
     )
+    q_home = parked_home(q_home, cfg)
     plan = protocol_config(cfg)
     poses = np.zeros((0, robot.n))
     if cfg.protocol == "random-poses":

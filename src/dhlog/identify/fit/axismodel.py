@@ -49,6 +49,10 @@ class AxisModel:
     #: joint-value terms beyond the geometry (compliance, harmonics; :mod:`dhlog.model.terms`),
     #: their lumps and gravity in M at the reference pose
     terms: Terms | None = None
+    #: joints (0-based) whose axes the fit holds where they are (a joint parked in the session:
+    #: its Jacobian columns are zero, so its parameters are undetermined and stay at the start);
+    #: their motion is still applied at the encoder values
+    held_axes: frozenset[int] = frozenset()
 
     @classmethod
     def of_table(
@@ -132,6 +136,7 @@ class AxisModel:
             rotation,
             clock,
             terms,
+            self.held_axes,
         )
 
     def moves(self, Q: FloatArray, rates: FloatArray | None) -> FloatArray:

@@ -277,9 +277,10 @@ def gradient(
             axis, k = model.axes[i], layout.axis_at[i]
             u, v = bases[i]
             q_i = moves[i]
+            held = i in model.held_axes  # a held axis: no gradient (its columns are zero)
             if model.types[i] is JointType.PRISMATIC:
                 t = rho @ dq[i]
-                for col, w in enumerate((u, v)):
+                for col, w in enumerate(() if held else (u, v)):
                     g[k + col] += np.cross(w, axis.direction) @ t
                 if layout.scale_at is not None:
                     g[layout.scale_at + i] += axis.direction @ (rho @ q_i)
@@ -291,7 +292,7 @@ def gradient(
             z = cross_rows(rel_i, rho)
             zs, zc, rs, rc = z @ sins[i], z @ coss[i], rho @ sins[i], rho @ coss[i]
             K = Ks[i]
-            for col, w in enumerate((u, v)):
+            for col, w in enumerate(() if held else (u, v)):
                 Kw, KKw = K @ w, K @ (K @ w)
                 g[k + col] -= Kw @ zs + KKw @ zc
                 g[k + 2 + col] -= Kw @ rs + KKw @ rc

@@ -186,9 +186,18 @@ def predict_orientation(
             if layout.clock_at is not None and rates is not None:
                 J[layout.clock_at] -= omega * (model.scales[i] * rates[:, i])
             _term_columns(J, layout, model, B, i, omega)
+    _zero_held(J, model, layout)
     r = layout.rotation_at
     J[r : r + 3] = np.moveaxis(eye if R_all is None else R_all, 1, 0)
     return R_pred, J
+
+
+def _zero_held(J: FloatArray, model: AxisModel, layout: ParameterLayout) -> None:
+    """Zero the axis columns of the joints ``model`` holds (a parked joint): the fit leaves
+    them where they are (:class:`~dhlog.identify.fit.whole.Determined`: undetermined)."""
+    for i in model.held_axes:
+        k = layout.axis_at[i]
+        J[k : k + (4 if model.types[i] is JointType.REVOLUTE else 2)] = 0.0
 
 
 def orientation_residual(R_pred: FloatArray, R_meas: FloatArray) -> FloatArray:
@@ -271,6 +280,7 @@ def predict_columns(
                 assert rates is not None
                 J[clock] -= turn * (model.scales[i] * rates[:, i])
             _term_columns(J, layout, model, B, i, turn)
+    _zero_held(J, model, layout)
     t = layout.target_at
     rot = np.broadcast_to(np.eye(3)[:, :, None], (3, 3, m)) if R_all is None else R_all
     J[t : t + 3] = np.moveaxis(rot, 1, 0)

@@ -90,6 +90,7 @@ def start_model(
     P: SampleArray,
     which: NDArray[np.int64] | None,
     rotations: FloatArray | None,
+    held_axes: frozenset[int] = frozenset(),
 ) -> AxisModel:
     """The whole model's start: ``axes``, ``types`` and ``target`` at the reference pose ``ref``,
     unit encoder scales, each further target (``which`` > 0) and the target frame's orientation
@@ -110,4 +111,5 @@ def start_model(
         np.ones(len(axes)),
         extra,
         None if rotations is None else rotation_at_reference(axes, types, Q, rotations, ref),
+        held_axes=held_axes,
     )

@@ -73,14 +73,19 @@ def start_unswept(
     ref: FloatArray,
     nominal: DHModel | None,
     warnings: list[str],
+    parked: Sequence[int] = (),
 ) -> Start | None:
     """The start of the ``joints`` the sweeps did not identify, from every sample with encoder
     values: the nominal's (:func:`start_from_nominal`) or, without one, a coupled move's
     (:func:`start_from_neighbours`). None when one of them never moved, the nominal cannot be
-    placed on the points (both said in ``warnings``), or a joint has no start."""
+    placed on the points (both said in ``warnings``), or a joint has no start. ``parked``
+    (0-based; with a nominal): joints that never moved and are held at the nominal's start."""
     rows, Qs, Ps = samples_with_encoders(seg)
     Q, P = Qs[:], Ps[:]  # the start reads every sample at once (a session of still poses)
-    if rows.size == 0 or _any_never_moved(joints, Q, warnings):
+    held = set(parked)  # said by their own line (held at the nominal, or: give --nominal)
+    if rows.size == 0 or _any_never_moved(
+        [j for j in joints if j.index - 1 not in held], Q, warnings
+    ):
         return None
     which = target_labels(seg, rows)
     primary = slice(None) if which is None else which == 0
@@ -106,7 +111,8 @@ def _any_never_moved(joints: Sequence[JointReport], Q: FloatArray, warnings: lis
     """Warn about (and return True for) a joint not identified whose encoder never moved."""
     still = never_moved(Q, [j.index - 1 for j in joints if not j.ok])
     if still:
-        names = ", ".join(f"joint {k + 1} ({joints[k].name})" for k in still)
+        by_index = {j.index - 1: j.name for j in joints}
+        names = ", ".join(f"joint {k + 1} ({by_index[k]})" for k in still)
         warnings.append(
             f"{names}: never moved in this log (its encoder values span less than "
             f"{NEVER_MOVED:g}): nothing in the samples measures it."

@@ -25,6 +25,7 @@ from dhlog.identify.fit.passes import Samples, accumulate, gradient
 from dhlog.identify.fit.prediction import orientation_residual, predict_orientation
 from dhlog.identify.segment.persample import SampleArray, blocks
 from dhlog.io import scratch
+from dhlog.model.dh import JointType
 from dhlog.model.noise import NoiseModel
 
 #: Median of a 3-dof chi variable (|r|/σ of an isotropic 3-D residual).
@@ -312,6 +313,9 @@ def fit_whole_model(
         terms=() if start.terms is None else start.terms.names(),
     )
 
+    if start.held_axes:  # held axes (parked joints): held, neither determined nor undetermined
+        within = _without_held(start, layout, within)
+
     def whiten(points: FloatArray, W: FloatArray | None) -> FloatArray | float:
         return W if W is not None else noise.whiten(points, sigma)
 
@@ -375,3 +379,17 @@ def fit_whole_model(
         determined=determined,
         limit=float(limit),
     )
+
+
+def _without_held(
+    model: AxisModel, layout: ParameterLayout, within: FloatArray | None
+) -> FloatArray:
+    """The directions (size, r) the fit may move along with the parameters of ``model``'s held
+    axes taken out of ``within`` (default: every direction)."""
+    free = np.ones(layout.size, dtype=bool)
+    for i in model.held_axes:
+        k = layout.axis_at[i]
+        free[k : k + (4 if model.types[i] is JointType.REVOLUTE else 2)] = False
+    if within is None:
+        return np.asarray(np.eye(layout.size)[:, free], dtype=np.float64)
+    return np.asarray(within * free[:, None], dtype=np.float64)

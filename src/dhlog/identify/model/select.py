@@ -171,10 +171,11 @@ class Selection:
 
 
 def default_gravity(whole: WholeFit) -> FloatArray:
-    """Gravity along the first joint's axis (a robot on the floor or the ceiling), pointing
-    against the measurement frame's z where the axis has a z component (a levelled tracker's z
-    is up)."""
-    d = whole.model.axes[0].direction
+    """Gravity along the first revolute joint's axis (a robot on the floor or the ceiling; on a
+    rail, the arm's first axis, not the rail's), pointing against the measurement frame's z
+    where the axis has a z component (a levelled tracker's z is up)."""
+    revolute = [i for i, t in enumerate(whole.model.types) if t is JointType.REVOLUTE]
+    d = whole.model.axes[revolute[0] if revolute else 0].direction
     return np.asarray(-d if d[2] >= 0 else d, dtype=np.float64)
 
 
