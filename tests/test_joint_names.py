@@ -335,6 +335,31 @@ def test_a_permutation_the_data_reveal_is_judged_implausible(
     assert permuted.as_given > 0.1 and permuted.rms < 5e-3  # decimetres against millimetres
 
 
+def test_a_permutation_the_data_reveal_exits_with_the_implausible_code(
+    session: Session, tmp_path: Path
+) -> None:
+    """The same through ``dhlog process``: columns numbered J1 … J6 in the driver's order and
+    ``--nominal ur5``: the result is written, marked ``plausible: false`` with the permutation
+    named, the console's last line says so, and the exit is 4 (EXIT_IMPLAUSIBLE), not 0."""
+    numbered = tmp_path / "numbered.mcap"
+    columns = dataclasses.replace(
+        reordered(session, ALPHABETICAL), joint_names=[f"J{k + 1}" for k in range(6)]
+    )
+    write_session(columns, numbered)
+    out = tmp_path / "o"
+    run = CliRunner().invoke(
+        app, ["process", str(numbered), "--nominal", "ur5", "--no-rrd", "--out", str(out)]
+    )
+    assert run.exit_code == 4, run.output
+    assert "Traceback" not in run.output
+    doc = json.loads((out / "numbered.dh.json").read_text())
+    assert doc["plausible"] is False
+    assert len(doc["implausible"]) == 1
+    assert "joint 1 = column 3" in doc["implausible"][0]
+    assert "implausible" in run.output.strip().splitlines()[-1]
+    assert (out / "numbered.dh.csv").is_file()  # the rest is written too
+
+
 @pytest.mark.parametrize(
     ("found", "model", "pipeline", "names", "how"),
     [
