@@ -45,7 +45,7 @@ from dhlog.identify.check.footing import (
 )
 from dhlog.identify.check.holdout import Holdout, cross_validate
 from dhlog.identify.check.named import name_outliers, pose_names, sample_names
-from dhlog.identify.check.plausible import judge
+from dhlog.identify.check.plausible import inlier_picks, judge
 from dhlog.identify.check.validate import (
     Validation,
     check_residual,
@@ -1057,16 +1057,7 @@ def _nominal_on_session(result: ProcessResult) -> Placed | None:
     if nominal is None or whole is None:
         return None
     rows, Q, P = samples_with_encoders(seg)
-    m = rows.size  # strided first: no array of every sample
-    first = np.arange(0, m, max(1, m // (4 * NOMINAL_SAMPLES)))
-    keep = np.ones(first.size, dtype=bool)
-    if whole.inliers.shape[0] == m:
-        keep &= np.asarray(whole.inliers[first], dtype=bool)
-    which = target_labels(seg, rows)
-    if which is not None:
-        keep &= which[first] == 0
-    pick = first[keep]
-    pick = pick[:: max(1, pick.size // NOMINAL_SAMPLES)]
+    pick = inlier_picks(seg, rows, whole, NOMINAL_SAMPLES)
     try:
         return nominal_on_session(
             nominal.table,

@@ -17,6 +17,7 @@ import math
 from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 
 from dhlog.errors import GeometryError
 from dhlog.identify.fit.register import register_nominal
@@ -101,6 +102,23 @@ def length_slip(table: StandardDH, nominal: DHModel, fixed: set[int]) -> str | N
     )
 
 
+def inlier_picks(seg: Any, rows: NDArray[np.intp], whole: Any, count: int) -> NDArray[np.intp]:
+    """Up to ``count`` of the session's samples with encoder values (indices into ``rows``,
+    evenly strided): the whole-model fit's inliers (``whole``, when it judged these rows) of
+    the primary target — what the nominal is placed on to measure its own miss. Strided
+    first, so no array of every sample is made."""
+    m = rows.size
+    pick = np.arange(0, m, max(1, m // (4 * count)))
+    keep = np.ones(pick.size, dtype=bool)
+    if whole is not None and whole.inliers.shape[0] == m:
+        keep &= np.asarray(whole.inliers[pick], dtype=bool)
+    which = target_labels(seg, rows)
+    if which is not None:
+        keep &= which[pick] == 0
+    pick = pick[keep]
+    return pick[:: max(1, pick.size // count)]
+
+
 def nominal_miss(result: Any) -> float | None:
     """The nominal's own miss of the session's points (m, RMS over the registration's inliers):
     the registration the run made (a session without sweeps), else the nominal placed on up to
@@ -112,19 +130,9 @@ def nominal_miss(result: Any) -> float | None:
     if nominal is None or not seg.has_encoders:
         return None
     rows, Q, P = samples_with_encoders(seg)
-    m = rows.size
-    if m < 3:
+    if rows.size < 3:
         return None
-    pick = np.arange(0, m, max(1, m // (4 * MISS_SAMPLES)))
-    keep = np.ones(pick.size, dtype=bool)
-    whole = result.whole
-    if whole is not None and whole.inliers.shape[0] == m:
-        keep &= np.asarray(whole.inliers[pick], dtype=bool)
-    which = target_labels(seg, rows)
-    if which is not None:
-        keep &= which[pick] == 0
-    pick = pick[keep]
-    pick = pick[:: max(1, pick.size // MISS_SAMPLES)]
+    pick = inlier_picks(seg, rows, result.whole, MISS_SAMPLES)
     try:
         reg = register_nominal(
             nominal.table,
