@@ -101,6 +101,11 @@ def robot_names() -> list[str]:
     return sorted(_library())
 
 
+def library_robots() -> list[Robot]:
+    """Every robot in the library, in name order."""
+    return [_robot_from_entry(name, _library()[name]) for name in robot_names()]
+
+
 def load_robot(name: str) -> Robot:
     """The library robot called ``name`` (case-insensitive), in SI units."""
     key = name.strip().lower().replace(" ", "").replace("-", "").replace("_", "")
