@@ -12,6 +12,7 @@ they move tool0 by under 1e-9 m on the largest arm, the tolerance.
 from __future__ import annotations
 
 import json
+import re
 import tomllib
 from pathlib import Path
 from typing import Any
@@ -23,7 +24,7 @@ from typer.testing import CliRunner
 
 from dhlog.cli.app import app
 from dhlog.geometry._checks import FloatArray
-from dhlog.io.dhfile import dh_model_from
+from dhlog.io.dhfile import DHFileError, dh_model_from, load_dh, robot_or_dh_file
 from dhlog.model.fk import fk_frames, fk_point
 from dhlog.model.robots import load_robot, robot_names
 
@@ -160,3 +161,72 @@ def test_a_ur5e_session_processes_with_its_nominal_and_its_driver_names(tmp_path
     assert error.max() < 50e-6
     nominal = fk_point(robot.table, Q, truth.tool_point, T_base=truth.T_base)
     assert np.linalg.norm(nominal - want, axis=1).mean() > 5 * error.mean()
+
+
+def docs_example(tmp_path: Path) -> Path:
+    """docs/dh-files.md's example DH file, as the page shows it."""
+    page = (Path(__file__).parents[1] / "docs" / "dh-files.md").read_text(encoding="utf-8")
+    blocks = re.findall(r"^```toml\n(.*?)^```$", page, re.S | re.M)
+    assert len(blocks) == 1
+    path = tmp_path / "ur5e.toml"
+    path.write_text(blocks[0], encoding="utf-8")
+    return path
+
+
+def test_the_docs_example_is_the_library_ur5e_with_limits_and_names(tmp_path: Path) -> None:
+    """The DH-file page's example (mm, degrees, names, limits) is ``--nominal ur5e``: the same
+    FK to rounding at random joint vectors, the driver's names, its limits in rad."""
+    model = load_dh(docs_example(tmp_path))
+    robot = load_robot("ur5e")
+    assert model.joint_names == UR_JOINT_NAMES
+    assert model.limits is not None
+    np.testing.assert_allclose(
+        np.degrees(model.limits), [[-360, 360]] * 2 + [[-180, 180]] + [[-360, 360]] * 3
+    )
+    Q = np.random.default_rng(3).uniform(model.limits[:, 0], model.limits[:, 1], (200, 6))
+    ours = fk_frames(model.table, Q, T_base=model.T_base)[..., -1, :, :]
+    library = fk_frames(robot.table, Q, T_base=robot.T_base)[..., -1, :, :]
+    assert np.abs(ours - library).max() < 1e-12
+    np.testing.assert_allclose(model.tool_point, [0, 0, 0.05])
+    # the file's limits are the robot dhlog simulate builds from it
+    assert np.array_equal(robot_or_dh_file(str(docs_example(tmp_path))).limits, model.limits)
+
+
+@pytest.mark.parametrize(
+    ("limits", "message"),
+    [
+        ("[10, -10]", r"joints\[1\]\.limits is \[10, -10\]; the lower limit must be below"),
+        ("[0]", r"joints\[1\]\.limits is \[0\]; give two numbers \[lower, upper\]"),
+        ('["a", 1]', r"joints\[1\]\.limits is \"a\", not a number"),
+        ("[-1000, 1000]", r"joints\[1\]\.limits is -1000, beyond"),
+    ],
+)
+def test_a_dh_files_bad_limits_are_one_error_naming_the_joint(
+    tmp_path: Path, limits: str, message: str
+) -> None:
+    path = tmp_path / "arm.toml"
+    path.write_text(
+        'units = { length = "mm", angle = "deg" }\n'
+        f'joints = [{{ name = "j1" }}, {{ name = "j2", limits = {limits} }}]\n'
+        "standard_dh = [{ d = 300, a = 0, alpha = 90 }, { a = 250, alpha = 0 }]\n",
+        encoding="utf-8",
+    )
+    with pytest.raises(DHFileError, match=message):
+        load_dh(path)
+
+
+def test_a_dh_file_without_limits_has_none_and_one_limit_is_completed(tmp_path: Path) -> None:
+    """No ``limits``: ``DHModel.limits`` is None and a robot built from it takes ±π, ±0.1 m; one
+    joint's limits given: the others take those defaults."""
+    path = tmp_path / "arm.toml"
+    rows = (
+        "standard_dh = [{ d = 0.3, a = 0, alpha = 1.5708 }, "
+        "{ type = 'prismatic', a = 0.2, alpha = 0 }]\n"
+    )
+    path.write_text(rows, encoding="utf-8")
+    assert load_dh(path).limits is None
+    np.testing.assert_allclose(robot_or_dh_file(str(path)).limits, [[-np.pi, np.pi], [-0.1, 0.1]])
+    path.write_text("joints = [{}, { limits = [0, 0.5] }]\n" + rows, encoding="utf-8")
+    limits = load_dh(path).limits
+    assert limits is not None
+    np.testing.assert_allclose(limits, [[-np.pi, np.pi], [0.0, 0.5]])
