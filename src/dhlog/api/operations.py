@@ -225,9 +225,10 @@ def load(path: str | Path, *, nominal: str | Path | Robot | None = None) -> Cali
 
 
 def robot(name: str | Path) -> Robot:
-    """A robot of the library (``kr5``, ``puma560``, ``ur5``, ``elbow``, ``scara``,
-    ``stanford``, ``kr210``; ``dhlog robots`` lists them) or one built from a DH file: its
-    standard DH table, base transform, a tool point and the joint limits (SI units)."""
+    """A robot of the library (``ur5e``, ``ur10e``, ``ur5``, ``kr5``, ``panda``, …; ``dhlog
+    robots`` lists them) or one built from a DH file: its standard DH table, base transform, a
+    tool point and the joint limits (SI units; a DH file's ``joints[].limits``, or ±π and
+    ±0.1 m)."""
     from dhlog.io.dhfile import robot_or_dh_file
 
     return robot_or_dh_file(str(name))

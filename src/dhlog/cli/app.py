@@ -38,7 +38,7 @@ from dhlog.cli.iso9283 import iso9283
 from dhlog.cli.logs import import_, pipelines
 from dhlog.cli.process import process
 from dhlog.cli.results import compare_results, export, report
-from dhlog.cli.robot import fk, show
+from dhlog.cli.robot import fk, robots, show
 from dhlog.cli.simulate import simulate
 from dhlog.errors import DhlogError
 
@@ -86,6 +86,7 @@ app.command(cls=Command, epilog=EXIT_CODES)(iso9283)
 app.command(name="import", cls=Command)(import_)
 app.command(name="compare", cls=Command)(compare_results)
 app.command(cls=Command)(show)
+app.command(cls=Command)(robots)
 
 
 def _stdout_replaced() -> bool:

@@ -1,8 +1,9 @@
-"""A robot's DH table on its own: ``dhlog fk`` (the pose and Jacobian at joint values) and
-``dhlog show`` (a recording of each joint swept in turn)."""
+"""A robot's DH table on its own: ``dhlog fk`` (the pose and Jacobian at joint values),
+``dhlog show`` (a recording of each joint swept in turn) and ``dhlog robots`` (the library)."""
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 from typing import Annotated
 
@@ -70,8 +71,7 @@ def show(
     dh: Annotated[
         str,
         typer.Argument(
-            help="A DH file, a result JSON, or a library robot "
-            "(elbow, scara, stanford, kr5, puma560, ur5)."
+            help="A DH file, a result JSON, or a library robot (dhlog robots lists them)."
         ),
     ],
     output: Annotated[
@@ -100,3 +100,44 @@ def show(
     except DhlogError as exc:
         fail(exc)
     stdout.print(f"wrote {plain(path)}; open it with: rerun {plain(path)}")
+
+
+def robots(
+    as_json: Annotated[
+        bool, typer.Option("--json", help="The list as JSON (one object per robot).")
+    ] = False,
+) -> None:
+    """The robot library: each robot's name (for --nominal and simulate), joints, source and the
+    vendor description its FK is tested against."""
+    from dhlog.model.robots import library_robots
+
+    entries = [
+        {
+            "name": r.name,
+            "title": r.title,
+            "joints": r.n,
+            "joint_types": "".join(t.value[0].upper() for t in r.table.joint_types),
+            "joint_names": list(r.joint_names),
+            "source": r.source,
+            "checked": r.checked or None,
+        }
+        for r in library_robots()
+    ]
+    if as_json:
+        stdout.print_json(json.dumps(entries))
+        return
+    from rich.table import Table
+    from rich.text import Text
+
+    grid = Table.grid(padding=(0, 2))
+    grid.add_column("robot", no_wrap=True)
+    grid.add_column("entry", overflow="fold")
+    for e in entries:
+        names = ", the ROS 2 driver's joint names" if e["joint_names"] else ""
+        checked = e["checked"] or "not checked against a vendor description"
+        entry = (
+            f"{e['title']}: {e['joints']} joints ({e['joint_types']}){names}\n"
+            f"source: {e['source']}\nFK checked: {checked}"
+        )
+        grid.add_row(Text(str(e["name"])), Text(entry))
+    stdout.print(grid)

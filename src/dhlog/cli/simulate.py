@@ -26,8 +26,7 @@ def simulate(
     robot: Annotated[
         str,
         typer.Argument(
-            help="A library robot (kr5, kr210, puma560, ur5, elbow, scara, stanford, panda, "
-            "kr5rail, torso7) or a DH file."
+            help="A library robot (dhlog robots lists them: kr5, ur5e, panda, …) or a DH file."
         ),
     ],
     output: Annotated[
@@ -186,7 +185,8 @@ def simulate(
         typer.Option(
             "--driver-joints",
             help="Joint states as the robot's ROS 2 driver publishes them: its joint names "
-            "(ur5, kr5), in alphabetical order (a UR arm's elbow_joint first).",
+            "(the UR arms, kr5, panda: dhlog robots), in alphabetical order (a UR arm's "
+            "elbow_joint first).",
         ),
     ] = False,
     orientation_noise_deg: Annotated[

@@ -3,8 +3,9 @@
 Each row has ``type`` (revolute/prismatic, default revolute), ``theta_offset`` (or ``theta``),
 ``d_offset`` (or ``d``), ``a`` and ``alpha`` in metres and radians, unless the file says
 ``units = {length = "mm", angle = "deg"}``. Optional: ``base.T_measurement_base`` (4×4),
-``tool.point``, ``joints[].name``, and a result's ``nongeometric`` block (its terms deflect the
-joint values: :meth:`DHModel.joint_values`).
+``tool.point``, ``joints[].name``, ``joints[].limits`` (``[lower, upper]`` in the file's angle
+unit, or its length unit for a prismatic joint), and a result's ``nongeometric`` block (its terms
+deflect the joint values: :meth:`DHModel.joint_values`).
 
 Every byte is untrusted: the file is read only when it is a regular file of at most
 :data:`MAX_BYTES`, as UTF-8; every value is checked for its type (a JSON ``true`` is not a
@@ -72,6 +73,9 @@ class DHModel:
     #: a result's joint-value terms beyond the geometry (compliance, harmonics) in the table's
     #: frames, from its ``nongeometric`` block (None: a geometric model)
     terms: Terms | None = None
+    #: the joint limits (n, 2) in rad or m, where the file gives any (``joints[].limits``; a
+    #: joint without them ±π or ±0.1 m); None: the file gives none
+    limits: FloatArray | None = None
 
     def joint_values(self, q: ArrayLike) -> FloatArray:
         """The table's joint values at encoder values ``q`` (..., n): ``q`` deflected by the
@@ -164,6 +168,7 @@ def parse_dh(data: dict[str, Any], source: str) -> DHModel:
         raise f.error("joints", "must be an array of objects ({name = …, type = …}).")
     types: list[JointType] = []
     names: list[str] = []
+    limits: list[tuple[float, float] | None] = []
     theta: list[float] = []
     d: list[float] = []
     a: list[float] = []
@@ -192,6 +197,7 @@ def parse_dh(data: dict[str, Any], source: str) -> DHModel:
                 continue
             out.append(f.number(row[name], f"{at}.{name}", scale, limit, unit))
         names.append(f.text(joint.get("name", f"joint_{i + 1}"), f"joints[{i}].name"))
+        limits.append(_limits(f, joint.get("limits"), i, types[-1], angle, length))
     twice = [k for k, name in enumerate(names) if name in names[:k]]
     if twice:
         k = twice[0]
@@ -221,7 +227,33 @@ def parse_dh(data: dict[str, Any], source: str) -> DHModel:
         except (ArithmeticError, LookupError, TypeError, ValueError, AttributeError) as exc:
             raise f.error("nongeometric", f"is malformed ({type(exc).__name__}).") from None
         terms = terms if terms.size else None
-    return DHModel(table, T_base, tool, tuple(names), source, terms)
+    given = None
+    if any(lim is not None for lim in limits):
+        pairs = zip(types, limits, strict=True)
+        given = np.array([_DEFAULT_LIMITS[t] if lim is None else lim for t, lim in pairs])
+    return DHModel(table, T_base, tool, tuple(names), source, terms, given)
+
+
+#: a joint's limits where a DH file gives none (rad or m)
+_DEFAULT_LIMITS = {JointType.REVOLUTE: (-math.pi, math.pi), JointType.PRISMATIC: (-0.1, 0.1)}
+
+
+def _limits(
+    f: _Fields, value: object, i: int, kind: JointType, angle: float, length: float
+) -> tuple[float, float] | None:
+    """``joints[i].limits``: [lower, upper] in the file's unit (angle, or length if prismatic)."""
+    if value is None:
+        return None
+    field = f"joints[{i}].limits"
+    if not isinstance(value, list) or len(value) != 2:
+        raise f.error(field, f"is {_shown(value)}; give two numbers [lower, upper].")
+    if kind is JointType.REVOLUTE:
+        lo, hi = (f.number(v, field, angle, MAX_ANGLE_RAD, "rad") for v in value)
+    else:
+        lo, hi = (f.number(v, field, length, MAX_LENGTH_M, "m") for v in value)
+    if not lo < hi:
+        raise f.error(field, f"is {_shown(value)}; the lower limit must be below the upper.")
+    return lo, hi
 
 
 def _transform(f: _Fields, value: object, length: float) -> FloatArray:
@@ -294,15 +326,13 @@ def load_dh(path: str | Path) -> DHModel:
 
 
 def robot_or_dh_file(spec: str) -> Robot:
-    """A library robot by name, or a robot built from a DH file (limits ±π, ±0.1 m)."""
+    """A library robot by name, or a robot built from a DH file (its ``joints[].limits``, or
+    ±π and ±0.1 m)."""
     if Path(spec).suffix in (".json", ".toml") or Path(spec).exists():
         model = load_dh(spec)
-        limits = np.array(
-            [
-                [-np.pi, np.pi] if t is JointType.REVOLUTE else [-0.1, 0.1]
-                for t in model.table.joint_types
-            ]
-        )
+        limits = model.limits
+        if limits is None:
+            limits = np.array([_DEFAULT_LIMITS[t] for t in model.table.joint_types])
         tool = model.tool_point if np.any(model.tool_point) else np.array([0.05, 0.03, 0.08])
         return Robot(
             Path(spec).stem, Path(spec).stem, spec, model.table, model.T_base, tool, limits
@@ -321,4 +351,6 @@ def dh_model_from(spec: str) -> DHModel:
         return load_dh(spec)
     robot = load_robot(spec)
     names = robot.joint_names or tuple(f"joint_{i + 1}" for i in range(robot.n))
-    return DHModel(robot.table, robot.T_base, robot.tool_point, names, robot.name)
+    return DHModel(
+        robot.table, robot.T_base, robot.tool_point, names, robot.name, limits=robot.limits
+    )

@@ -1,4 +1,5 @@
-"""The robot library: the seed robots as data (``robots.toml``), loadable by name."""
+"""The robot library: the seed robots and the arms users own as data (``robots.toml``), loadable
+by name."""
 
 from __future__ import annotations
 
@@ -47,6 +48,8 @@ class Robot:
     payload: float = 0.0
     #: the joints as the robot's ROS 2 driver names them (empty: none given)
     joint_names: tuple[str, ...] = ()
+    #: the vendor description the entry's FK is tested against, and the test (empty: not checked)
+    checked: str = ""
 
     @property
     def n(self) -> int:
@@ -83,6 +86,7 @@ def _robot_from_entry(name: str, entry: dict[str, Any]) -> Robot:
         masses=np.asarray(entry.get("masses", []), dtype=np.float64),
         payload=float(entry.get("payload", 0.0)),
         joint_names=tuple(str(n) for n in entry.get("joint_names", [])),
+        checked=str(entry.get("checked", "")),
     )
 
 
@@ -95,6 +99,11 @@ def _library() -> dict[str, dict[str, Any]]:
 def robot_names() -> list[str]:
     """Names of the robots in the library."""
     return sorted(_library())
+
+
+def library_robots() -> list[Robot]:
+    """Every robot in the library, in name order."""
+    return [_robot_from_entry(name, _library()[name]) for name in robot_names()]
 
 
 def load_robot(name: str) -> Robot:

@@ -148,7 +148,7 @@ def config_problems(robot: Robot, cfg: SimulationConfig) -> list[str]:
     if cfg.driver_joints and len(robot.joint_names) != robot.n:
         out.append(
             f"--driver-joints: {robot.name} has no driver's joint names (robots.toml's "
-            "joint_names: ur5, kr5)"
+            "joint_names; dhlog robots lists the robots that have them)"
         )
     finite = [
         cfg.noise,
