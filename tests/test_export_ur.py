@@ -216,3 +216,112 @@ def test_a_processed_ur5_exports_in_the_factory_shape_and_its_fk(
     for q, want in zip(Q, cal.fk(Q), strict=True):
         tool0 = base_link @ ur_description_tool0(kin, q)
         assert np.abs((tool0 @ np.r_[tcp, 1.0])[:3] - want).max() < 1e-9
+
+
+#: UR10e's nominal and a real UR10e's controller calibration (its calibration.conf deltas), as
+#: in ur_calibration's own test (Universal_Robots_ROS2_Driver, ur_calibration/test/
+#: calibration_test.cpp at 696e1a7): the factory's raw table puts joint 3's origin 439 m out
+#: along axis 2, which the factory's axis correction brings back.
+UR10E = {
+    "d": [0.1807, 0, 0, 0.17415, 0.11985, 0.11655],
+    "a": [0, -0.6127, -0.57155, 0, 0, 0],
+    "alpha": [1.570796327, 0, 0, 1.570796327, -1.570796327, 0],
+}
+UR10E_DELTA = {
+    "d": [
+        -0.000160188285741325043,
+        439.140974079900957,
+        -446.027059806332147,
+        6.88618689642360149,
+        -3.86588496858186748e-05,
+        -0.00087908274257374186,
+    ],
+    "a": [
+        2.12234865571205891e-05,
+        0.632017132627700651,
+        0.00229833638891230319,
+        -4.61409023720933908e-05,
+        -6.39280053471801522e-05,
+        0,
+    ],
+    "theta": [
+        -2.41478068943590252e-07,
+        1.60233952386694556,
+        -1.68607190752171299,
+        0.0837331147700118711,
+        -1.01260355871157781e-07,
+        3.91986209186123702e-08,
+    ],
+    "alpha": [
+        -0.000650246557584166496,
+        0.00139416666825590402,
+        0.00693818880325995126,
+        -0.000811641562390219562,
+        0.000411120504570705592,
+        0,
+    ],
+}
+
+
+def test_a_real_ur10e_factory_table_exported_as_the_factory_corrects_it(tmp_path: Path) -> None:
+    """A real UR10e's raw factory table (nominal + its controller's deltas; d2 = 439 m, d3 =
+    −446 m) as a DH file: the export moves d2 and d3 onto d4 (upper_arm.z = forearm.z = 0), every
+    entry lands within 5 mm and 0.5° of the UR10e's nominal entries, and composed as the
+    description does it is the raw table's FK to 1e-9 m (the factory's own test asks 1e-12 at
+    FK ~1 m; 1e-9 leaves room for the 446 m lever arms' rounding)."""
+    theta = UR10E_DELTA["theta"]
+    d, a, alpha = (list(np.add(UR10E[k], UR10E_DELTA[k])) for k in ("d", "a", "alpha"))
+    dh = _dh_file(tmp_path / "ur10e_raw.json", theta, d, a, alpha, [0.0, 0.0, 0.05])
+    out = tmp_path / "ur10e.yaml"
+    kin = _export(dh, out)
+    nominal = _export(
+        _dh_file(
+            tmp_path / "ur10e.json",
+            [0.0] * 6,
+            UR10E["d"],
+            UR10E["a"],
+            UR10E["alpha"],
+            [0.0, 0.0, 0.0],
+        ),
+        tmp_path / "ur10e_nominal.yaml",
+    )
+    assert kin["upper_arm"]["z"] == 0 and kin["forearm"]["z"] == 0
+    for entry in ("shoulder", "upper_arm", "forearm", "wrist_1", "wrist_2", "wrist_3"):
+        for key in ("x", "y", "z"):
+            assert abs(kin[entry][key] - nominal[entry][key]) < 5e-3, (entry, key)
+        for key in ("roll", "pitch", "yaw"):
+            assert abs(kin[entry][key] - nominal[entry][key]) < math.radians(0.5), (entry, key)
+    cal = dhlog.load(dh)
+    Q = np.random.default_rng(11).uniform(-2 * np.pi, 2 * np.pi, (200, 6))
+    base_link = _base_link(out)
+    tcp = _tcp(out)
+    for q, want in zip(Q, cal.fk(Q), strict=True):
+        tool0 = base_link @ ur_description_tool0(kin, q)
+        assert np.abs((tool0 @ np.r_[tcp, 1.0])[:3] - want).max() < 1e-9
+
+
+def test_the_nominal_for_the_flange_is_checked_and_reaches_the_api(
+    ur5_result: Path, tmp_path: Path
+) -> None:
+    """``--nominal`` with a robot that is not six-jointed is one line and exit 2; the Python
+    API's export takes the loaded nominal's d6 as the command does."""
+    made = runner.invoke(
+        app,
+        [
+            "export",
+            str(ur5_result),
+            "-o",
+            str(tmp_path / "u.yaml"),
+            "--format",
+            "ur",
+            "--nominal",
+            "scara",
+        ],
+    )
+    assert made.exit_code == 2 and "a UR has six" in made.output
+    assert not (tmp_path / "u.yaml").exists()
+    with_nominal = dhlog.load(ur5_result, nominal="ur5").export("ur")
+    assert "nominal's d6 = 0.0823 m" in with_nominal
+    without = yaml.safe_load(dhlog.load(ur5_result).export("ur"))["kinematics"]
+    assert abs(without["wrist_3"]["y"]) < 1e-12  # the result's own d6: the target's foot
+    assert yaml.safe_load(with_nominal)["kinematics"]["wrist_3"]["y"] == pytest.approx(0.0823)

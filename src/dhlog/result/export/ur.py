@@ -66,19 +66,10 @@ def _tz(d: float) -> FloatArray:
     return T
 
 
-def _segments(
-    table: StandardDH, T_base: FloatArray
-) -> tuple[list[FloatArray], list[FloatArray], list[bool], FloatArray]:
+def _segments(table: StandardDH) -> tuple[list[FloatArray], list[FloatArray], list[bool]]:
     """Each row at encoder zero as ``S_i = Rz(θ_i) Tz(d_i)`` and the rest ``P_i = S_i⁻¹ A_i``
-    (``Tx(a) Rx(α)`` on a DH row, ``Tx(a) Rx(α) Ry(β)`` on a Hayati row), on the UR arms' branch
-    of the table, whether a row is a DH row (the factory's axis correction applies to those),
-    and the base (DH frame 1 in M) on that branch.
-
-    A turn ``ψ_i`` of frame ``i + 1`` about its z axis (``A_i → Rz(−ψ_(i−1)) A_i Rz(ψ_i)``, the
-    base ``T_base Rz(ψ_0)``) changes no forward kinematics: ψ = π negates ``a_i`` and ``α_i``
-    and moves θ by π. The rows are turned so that α1 > 0, a2 < 0, a3 < 0, α4 > 0, α5 < 0 and θ1
-    is within π/2 of zero, as in UR's published tables; a fit may return any of these branches.
-    """
+    (``Tx(a) Rx(α)`` on a DH row, ``Tx(a) Rx(α) Ry(β)`` on a Hayati row), and whether a row is
+    a DH row (the factory's axis correction applies to those)."""
     rows = table.link_transforms(np.zeros(table.n))
     hayati = table.hayati if isinstance(table, HayatiDH) else [False] * table.n
     S, P = [], []
@@ -86,17 +77,28 @@ def _segments(
         s = _rz(float(table.theta_offset[i])) @ _tz(float(table.d_offset[i]))
         S.append(s)
         P.append(np.linalg.inv(s) @ rows[i])
+    return S, P, [not h for h in hayati]
+
+
+def _ur_branch(S: list[FloatArray], P: list[FloatArray], T_base: FloatArray) -> FloatArray:
+    """The segments turned (in place) onto the UR arms' branch, and the base on it.
+
+    A turn ``ψ_k`` of DH frame ``k + 1`` about its z axis (``S_k P_k → Rz(−ψ_(k−1)) S_k P_k
+    Rz(ψ_k)``, the base ``T_base Rz(ψ_0)``) changes no forward kinematics: ψ = π negates ``a``
+    and ``α`` of a row and moves θ by π. The rows are turned so that α1 > 0, a2 < 0, a3 < 0,
+    α4 > 0, α5 < 0 and θ1 is within π/2 of zero, as in UR's published tables; a fit may return
+    any of these branches."""
     # per row, the entry of P (sin α at [2, 1], a at [0, 3]) and the sign it must not have
     wrong = ((2, 1, -1.0), (0, 3, 1.0), (0, 3, 1.0), (2, 1, -1.0), (2, 1, 1.0))
     psi = [0.0] * 7  # psi[k]: the turn of DH frame k + 1 (psi[0]: the base)
     for row, (r, c, sign) in enumerate(wrong):
         psi[row + 1] = math.pi if sign * float(P[row][r, c]) > 0 else 0.0
-    theta1 = float(table.theta_offset[0]) + psi[1]
+    theta1 = math.atan2(float(S[0][1, 0]), float(S[0][0, 0])) + psi[1]
     psi[0] = math.pi if math.cos(theta1) < 0 else 0.0
-    for i in range(table.n):
+    for i in range(len(S)):
         S[i] = _rz(psi[i + 1] - psi[i]) @ S[i]
         P[i] = _rz(-psi[i + 1]) @ P[i] @ _rz(psi[i + 1])
-    return S, P, [not h for h in hayati], T_base @ _rz(psi[0])
+    return np.asarray(T_base @ _rz(psi[0]))
 
 
 def _correct_axis(S: list[FloatArray], P: list[FloatArray], i: int) -> None:
@@ -158,10 +160,11 @@ def ur_kinematics(
     target) is carried by the TCP. ``flange_d``: the flange's ``d6`` (the nominal's), for a
     result whose target point cannot place the flange along axis 6; the TCP takes the rest.
     """
-    S, P, dh_rows, base = _segments(table, T_base)
-    for i in (1, 2):
+    S, P, dh_rows = _segments(table)
+    for i in (1, 2):  # as the factory corrects its raw table, then onto UR's branch
         if dh_rows[i]:
             _correct_axis(S, P, i)
+    base = _ur_branch(S, P, T_base)
     d6 = float(S[5][2, 3]) if flange_d is None else float(flange_d)
     last = S[5] @ P[5]  # joint 6's row at q6 = 0 past wrist_3's origin
     S[5] = _tz(d6)
@@ -209,7 +212,7 @@ def ur_calibration(
     tcp = kin.tcp
     base = ", ".join(f"{float(v):.17g}" for v in kin.T_base.ravel())
     flange = (
-        f"# the flange at the nominal's d6 = {flange_d:.17g} m along axis 6."
+        f"# the flange at the nominal's d6 = {flange_d!r} m along axis 6."
         if flange_d is not None
         else "# d6 as the result has it (give the nominal, --nominal, for the flange's d6)."
     )
