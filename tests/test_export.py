@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 import pytest
@@ -145,54 +144,6 @@ def _export(result: Path, fmt: str, out: Path) -> str:
 def _joint_vectors(robot: str, n: int = 200) -> np.ndarray:
     rob = load_robot(robot)
     return np.random.default_rng(4).uniform(rob.limits[:, 0], rob.limits[:, 1], (n, rob.n))
-
-
-def test_the_ur_calibration_composed_as_the_ur_description_does(
-    ur5_result: Path, tmp_path: Path
-) -> None:
-    """The UR calibration YAML, composed as the UR description's ur_macro.xacro composes it
-    (base_link → base_link_inertia rpy (0, 0, π) → shoulder … wrist_3 origins, each joint about
-    z → flange rpy (0, −π/2, −π/2) → tool0 rpy (π/2, 0, π/2)), with the TCP printed by the
-    command: the target in base_link equals dhlog's FK to 1e-9 m at 200 joint vectors."""
-    import yaml
-
-    out = tmp_path / "ur5_calibration.yaml"
-    said = _export(ur5_result, "ur", out)
-    doc = yaml.safe_load(out.read_text())["kinematics"]
-    assert doc["hash"].startswith("dhlog_")
-    tcp = np.array([float(v) for v in out.read_text().split("tcp: [")[1].split("]")[0].split(",")])
-    assert f"{tcp[0] * 1e3:.4f}" in said
-
-    dh = load_dh(ur5_result)
-    Q = _joint_vectors("ur5")
-    want = fk_point(dh.table, Q, dh.tool_point, T_base=np.eye(4))  # in DH frame 1 = base_link
-    for q, p in zip(Q, want, strict=True):
-        assert np.abs(ur_target(doc, tcp, q) - p).max() < 1e-9
-
-
-def _origin(xyz: list[float], rpy: list[float]) -> np.ndarray:
-    from scipy.spatial.transform import Rotation
-
-    T = np.eye(4)
-    T[:3, :3] = Rotation.from_euler("xyz", rpy).as_matrix()  # URDF: fixed axes x, y, z
-    T[:3, 3] = xyz
-    return T
-
-
-def ur_target(kinematics: dict[str, Any], tcp: np.ndarray, q: np.ndarray) -> np.ndarray:
-    """The TCP in base_link at ``q``, composed as the UR description's ur_macro.xacro composes
-    it: base_link → base_link_inertia rpy (0, 0, π) → shoulder … wrist_3 origins, each joint
-    about z → flange rpy (0, −π/2, −π/2) → tool0 rpy (π/2, 0, π/2)."""
-    T = _origin([0, 0, 0], [0, 0, np.pi])
-    for k, entry in enumerate(
-        ("shoulder", "upper_arm", "forearm", "wrist_1", "wrist_2", "wrist_3")
-    ):
-        e = kinematics[entry]
-        T = T @ _origin([e["x"], e["y"], e["z"]], [e["roll"], e["pitch"], e["yaw"]])
-        T = T @ _origin([0, 0, 0], [0, 0, q[k]])
-    T = T @ _origin([0, 0, 0], [0, -np.pi / 2, -np.pi / 2])
-    T = T @ _origin([0, 0, 0], [np.pi / 2, 0, np.pi / 2])
-    return np.asarray((T @ np.r_[tcp, 1.0])[:3])
 
 
 def test_a_ur_calibration_needs_six_revolute_joints(tmp_path: Path) -> None:

@@ -350,7 +350,8 @@ class Calibration:
                 )
                 text = exports.urdf_document(result, limits=limits, zero_offsets=zero_offsets)
             elif format == "ur":
-                text = exports.ur_calibration(result)[0]
+                flange = None if self.nominal is None else self.nominal.table
+                text = exports.ur_calibration(result, flange)[0]
             elif format == "rtb":
                 text = exports.rtb_document(result)
             elif format == "tf":

@@ -57,6 +57,13 @@ def export(
             "<calibration rising>; URDF without --template)."
         ),
     ] = "origins",
+    nominal: Annotated[
+        str | None,
+        typer.Option(
+            help="ur: the robot's nominal (a library robot or DH file), whose d6 places the "
+            "flange (a target point cannot)."
+        ),
+    ] = None,
     force: Annotated[bool, typer.Option("--force", help="Overwrite the output.")] = False,
 ) -> None:
     """Write the identified model in a form a robot stack loads."""
@@ -85,6 +92,8 @@ def export(
     inputs = [(result, "result"), *([(template, "URDF template")] if template else [])]
     if limits_from and Path(limits_from).exists():
         inputs.append((Path(limits_from), "DH file of --limits-from"))
+    if nominal and Path(nominal).exists():
+        inputs.append((Path(nominal), "DH file of --nominal"))
     try:  # exit 2, with or without --force: the input stays as it is
         refuse_inputs_as_outputs(inputs, [output])
     except DhlogError as exc:
@@ -92,7 +101,7 @@ def export(
     refuse_existing(output, force)
     extra = ""
     try:
-        loaded = load(result)
+        loaded = load(result, nominal=nominal)
         text = loaded.export(
             format,  # type: ignore[arg-type]
             limits_from=limits_from,
@@ -100,7 +109,8 @@ def export(
             zero_offsets=zero_offsets,  # type: ignore[arg-type]
         )
         if format == "ur":
-            tcp = exports.ur_calibration(result)[1]
+            flange = None if loaded.nominal is None else loaded.nominal.table
+            tcp = exports.ur_calibration(result, flange)[1]
             extra = (
                 "; set the TCP on the controller to "
                 f"({tcp[0] * 1e3:.4f}, {tcp[1] * 1e3:.4f}, {tcp[2] * 1e3:.4f}) mm in tool0"
