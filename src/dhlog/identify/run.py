@@ -388,7 +388,7 @@ def process_data(
     n = seg.n_joints
     notes = list(seg.warnings)
     info: list[str] = []
-    phases = sweep_phases(seg, log) if seg.has_encoders else []
+    phases = sweep_phases(seg, log, types_hint) if seg.has_encoders else []
     check_units(seg, log, phases, notes)
     seg, timing = clock_start(seg, log, info, phases)
     check_sizes(name, n, nominal, reference_pose)

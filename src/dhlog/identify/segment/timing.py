@@ -24,6 +24,7 @@ then the pipeline's, and the result says why.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -38,6 +39,7 @@ from dhlog.identify.segment.persample import blocks, rows_where
 from dhlog.identify.segment.segment import BLOCK, Encoders, Segmentation
 from dhlog.io import scratch
 from dhlog.io.reader import LogData
+from dhlog.model.dh import JointType
 
 #: Fewest moving samples a sweep needs to estimate the lag from.
 MIN_MOVING = 20
@@ -173,9 +175,14 @@ class SweepPhase:
     samples: int
 
 
-def sweep_phases(seg: Segmentation, log: LogData) -> list[SweepPhase]:
+def sweep_phases(
+    seg: Segmentation, log: LogData, joint_types: Sequence[JointType | None] | None = None
+) -> list[SweepPhase]:
     """Per sweep: the points-only fit's angle (position) regressed on ``1, Q, q̇`` (see the
-    module); at most :data:`START_POINTS` evenly strided samples per sweep."""
+    module); at most :data:`START_POINTS` evenly strided samples per sweep. A joint
+    ``joint_types`` says is prismatic is fitted by a line only (a circle fitted to a line's
+    noisy points gives positions along an arc, not along the line: slopes of 0.24 to 2.0 for a
+    SCARA's prismatic joint)."""
     if log.joints is None or seg.encoders is None:
         return []
     rates = JointRates(seg.encoders)
@@ -193,7 +200,14 @@ def sweep_phases(seg: Segmentation, log: LogData) -> list[SweepPhase]:
         j = int(j1) - 1
         rate = rates.at(seg.t_ns[rows], [j])[:, 0]
         moving = int(np.count_nonzero(np.abs(rate) > MOVING_SPEED))
-        one = _sweep_lag(seg.xyz(rows), seg.q(rows, [j])[:, 0], rate, moving >= MIN_MOVING)
+        prismatic = (
+            bool(joint_types)
+            and j < len(joint_types or ())
+            and ((joint_types or ())[j] is JointType.PRISMATIC)
+        )
+        one = _sweep_lag(
+            seg.xyz(rows), seg.q(rows, [j])[:, 0], rate, moving >= MIN_MOVING, prismatic
+        )
         if one is not None:
             slope, delta, std = one
             out.append(SweepPhase(j + 1, slope, delta, std, moving, int(rows.size)))
@@ -227,15 +241,24 @@ def phase_lag(
     return delta, std
 
 
-def _sweep_lag(
-    points: FloatArray, q: FloatArray, rate: FloatArray, timed: bool
-) -> tuple[float, float | None, float | None] | None:
-    """Slope, ``δ`` and σ of one sweep: its points' angle (position) regressed on ``1, Q, q̇``
-    (on ``1, Q`` alone when it barely moves while sampled: ``timed`` False)."""
+def _arc_positions(points: FloatArray) -> FloatArray | None:
+    """The points' angles about the circle fitted to them (unwrapped), or None where none fits."""
     try:
         fit = fit_circle_algebraic(points, min_sweep=0.0)  # phases only: no scipy needed
-        phi = np.unwrap(fit.positions)
     except DhlogError:
+        return None
+    return np.asarray(np.unwrap(fit.positions), dtype=np.float64)
+
+
+def _sweep_lag(
+    points: FloatArray, q: FloatArray, rate: FloatArray, timed: bool, prismatic: bool = False
+) -> tuple[float, float | None, float | None] | None:
+    """Slope, ``δ`` and σ of one sweep: its points' angle (position) regressed on ``1, Q, q̇``
+    (on ``1, Q`` alone when it barely moves while sampled: ``timed`` False); the points'
+    position along a line for a ``prismatic`` joint, else along a circle (a line where no
+    circle fits)."""
+    phi = None if prismatic else _arc_positions(points)
+    if phi is None:
         try:
             phi = fit_line(points, min_travel=0.0).positions
         except DhlogError:
