@@ -179,10 +179,8 @@ def sweep_phases(
     seg: Segmentation, log: LogData, joint_types: Sequence[JointType | None] | None = None
 ) -> list[SweepPhase]:
     """Per sweep: the points-only fit's angle (position) regressed on ``1, Q, q̇`` (see the
-    module); at most :data:`START_POINTS` evenly strided samples per sweep. A joint
-    ``joint_types`` says is prismatic is fitted by a line only (a circle fitted to a line's
-    noisy points gives positions along an arc, not along the line: slopes of 0.24 to 2.0 for a
-    SCARA's prismatic joint)."""
+    module); at most :data:`START_POINTS` evenly strided samples per sweep, each read along a
+    line or a circle by its joint's type in ``joint_types`` (None, or a None entry: unknown)."""
     if log.joints is None or seg.encoders is None:
         return []
     rates = JointRates(seg.encoders)
@@ -200,11 +198,8 @@ def sweep_phases(
         j = int(j1) - 1
         rate = rates.at(seg.t_ns[rows], [j])[:, 0]
         moving = int(np.count_nonzero(np.abs(rate) > MOVING_SPEED))
-        prismatic = (
-            bool(joint_types)
-            and j < len(joint_types or ())
-            and ((joint_types or ())[j] is JointType.PRISMATIC)
-        )
+        kind = joint_types[j] if joint_types is not None and j < len(joint_types) else None
+        prismatic = None if kind is None else kind is JointType.PRISMATIC
         one = _sweep_lag(
             seg.xyz(rows), seg.q(rows, [j])[:, 0], rate, moving >= MIN_MOVING, prismatic
         )
@@ -241,28 +236,43 @@ def phase_lag(
     return delta, std
 
 
-def _arc_positions(points: FloatArray) -> FloatArray | None:
-    """The points' angles about the circle fitted to them (unwrapped), or None where none fits."""
-    try:
-        fit = fit_circle_algebraic(points, min_sweep=0.0)  # phases only: no scipy needed
-    except DhlogError:
+def _sweep_positions(points: FloatArray, prismatic: bool | None) -> FloatArray | None:
+    """The points' positions along their sweep: along a line for a ``prismatic`` joint, the
+    angles about the circle fitted to them (unwrapped) for a revolute one (a line where no
+    circle fits); of a joint of unknown type, along the line where it fits them within 2x the
+    circle's RMS (a circle fitted to a line's noisy points gives positions along an arc, not
+    along the line). None where neither fits."""
+    circle = line = None
+    if prismatic is not True:
+        try:
+            circle = fit_circle_algebraic(points, min_sweep=0.0)  # phases only: no scipy needed
+        except DhlogError:
+            pass
+    if circle is None or prismatic is None:
+        try:
+            line = fit_line(points, min_travel=0.0)
+        except DhlogError:
+            pass
+    if line is not None and (circle is None or line.rms <= 2.0 * circle.rms):
+        return np.asarray(line.positions, dtype=np.float64)
+    if circle is None:
         return None
-    return np.asarray(np.unwrap(fit.positions), dtype=np.float64)
+    return np.asarray(np.unwrap(circle.positions), dtype=np.float64)
 
 
 def _sweep_lag(
-    points: FloatArray, q: FloatArray, rate: FloatArray, timed: bool, prismatic: bool = False
+    points: FloatArray,
+    q: FloatArray,
+    rate: FloatArray,
+    timed: bool,
+    prismatic: bool | None = None,
 ) -> tuple[float, float | None, float | None] | None:
     """Slope, ``δ`` and σ of one sweep: its points' angle (position) regressed on ``1, Q, q̇``
-    (on ``1, Q`` alone when it barely moves while sampled: ``timed`` False); the points'
-    position along a line for a ``prismatic`` joint, else along a circle (a line where no
-    circle fits)."""
-    phi = None if prismatic else _arc_positions(points)
+    (on ``1, Q`` alone when it barely moves while sampled: ``timed`` False); positions along
+    the sweep by :func:`_sweep_positions` (``prismatic``: the joint's type, None unknown)."""
+    phi = _sweep_positions(points, prismatic)
     if phi is None:
-        try:
-            phi = fit_line(points, min_travel=0.0).positions
-        except DhlogError:
-            return None
+        return None
     columns = [np.ones(q.size), q - q.mean()] + ([rate] if timed else [])
     A = np.column_stack(columns)
     coef, *_ = np.linalg.lstsq(A, phi, rcond=None)
