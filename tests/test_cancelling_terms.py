@@ -11,9 +11,18 @@ import math
 import numpy as np
 import pytest
 
+from dhlog.identify.fit.axismodel import AxisModel
 from dhlog.identify.fit.prediction import predict
+from dhlog.identify.fit.whole import WholeFit
 from dhlog.identify.joints.sweeps import samples_with_encoders
-from dhlog.identify.model.beyond import TERM_BOUND, cancelling, determined, term_std
+from dhlog.identify.model.beyond import (
+    TERM_BOUND,
+    cancelling,
+    determined,
+    merge_cancelling,
+    term_reach,
+    term_std,
+)
 from dhlog.identify.model.select import ModelRequest
 from dhlog.identify.run import ProcessResult, process_data
 from dhlog.io.dhfile import DHModel
@@ -191,3 +200,24 @@ def test_the_rule_by_hand() -> None:
     assert bounded.kept is None and bounded.reach_std == pytest.approx(math.radians(0.2))
     narrow = math.radians(0.05) / 0.1
     assert cancelling(lone, np.array([[narrow**2]]), np.array([narrow]), reach) == []
+
+
+def test_no_terms_left_nothing_to_merge(short_wrist: tuple[Session, ProcessResult]) -> None:
+    """A fit whose terms were all left out (an empty set, not None: a KR5 log read in the wrong
+    length unit gets there) is returned as it is, without a refit or a warning (it raised
+    AssertionError in term_reach, then ValueError in cancelling)."""
+    session, result = short_wrist
+    whole = result.whole
+    assert whole is not None and whole.model.terms is not None
+    empty = whole.model.terms.without(lambda t: True)
+    assert empty.size == 0
+    fit = dataclasses.replace(whole, model=dataclasses.replace(whole.model, terms=empty))
+    Q = np.asarray(session.poses, dtype=np.float64)
+    assert term_reach(fit.model, Q).shape == (0,)
+
+    def refit(model: AxisModel) -> WholeFit:
+        raise AssertionError("nothing to refit")
+
+    warnings: list[str] = []
+    assert merge_cancelling(fit, Q, refit, warnings) is fit
+    assert warnings == []

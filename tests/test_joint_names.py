@@ -445,3 +445,27 @@ def test_the_simulator_writes_the_drivers_joint_states(tmp_path: Path) -> None:
         app, ["simulate", "puma560", "-o", str(tmp_path / "p.mcap"), "--driver-joints"]
     )
     assert refused.exit_code == 1 and "joint_names" in refused.output  # a usage error
+
+
+def test_a_drivers_bag_validates_a_calibration_whose_log_numbered_its_joints(
+    session: Session, logs: dict[str, Path], tmp_path: Path
+) -> None:
+    """A calibration from a log naming its joints joint_1 … joint_6 (an import's, a simulator's)
+    with --nominal ur5, validated on the UR driver's bag (alphabetical, UR names): matched by
+    the nominal's names, scored as the log in chain order (it was joined by position: 'no
+    footing places' it, 659 mm, exit 4)."""
+    numbered = tmp_path / "numbered.mcap"
+    write_session(
+        reordered(session, list(range(6)), [f"joint_{k + 1}" for k in range(6)]), numbered
+    )
+    result = process_log(
+        numbered,
+        nominal=dh_model_from("ur5"),
+        model=ModelRequest("geometric"),
+        validate=[logs["driver"], logs["ordered"]],
+    )
+    assert result.not_scored == [] and result.implausible == []
+    scored = [h for h in result.holdout if h.kind == "log"]
+    assert len(scored) == 2
+    assert scored[0].calibrated.rms == pytest.approx(scored[1].calibrated.rms, rel=1e-9)
+    assert scored[0].calibrated.rms < 1e-4

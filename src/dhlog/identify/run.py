@@ -388,7 +388,7 @@ def process_data(
     n = seg.n_joints
     notes = list(seg.warnings)
     info: list[str] = []
-    phases = sweep_phases(seg, log) if seg.has_encoders else []
+    phases = sweep_phases(seg, log, types_hint) if seg.has_encoders else []
     check_units(seg, log, phases, notes)
     seg, timing = clock_start(seg, log, info, phases)
     check_sizes(name, n, nominal, reference_pose)
@@ -1000,12 +1000,19 @@ def _validate_log(
     if ex is None or not result.complete:
         result.warnings.append(f"{path}: not scored: the result is not complete.")
         return
+    # the nominal's names where it has them (a UR driver's bag validating a calibration whose
+    # log numbered its joints), else the calibrated log's: matched by the reader's rules
+    named = result.nominal is not None and bool(result.nominal.joint_names)
     log = read_log(
         path,
         pipeline,
         fast=fast,
-        joint_names=result.segmentation.joint_names,
-        joint_source=f"{result.path} (the calibrated log)",
+        joint_names=result.nominal.joint_names
+        if named and result.nominal is not None
+        else result.segmentation.joint_names,
+        joint_source=result.nominal.source
+        if named and result.nominal is not None
+        else f"{result.path} (the calibrated log)",
     )
     seg = segment_log(log, joint_types=list(ex.standard.joint_types))
     if seg.n_joints != ex.standard.n or not seg.has_encoders:

@@ -292,7 +292,7 @@ def term_covariance(fit: WholeFit) -> FloatArray:
 def term_reach(model: AxisModel, Q: SampleArray) -> FloatArray:
     """Each term's largest ``|b|`` (m or 1) over the encoder values ``Q`` (at most
     :data:`REACH_SAMPLES` of them, evenly strided): how far a unit coefficient moves its joint."""
-    if model.terms is None:
+    if model.terms is None or not model.terms.size:
         return np.zeros(0)
     m = Q.shape[0]
     pick = np.unique(np.linspace(0, m - 1, min(REACH_SAMPLES, m)).astype(np.intp))
@@ -323,7 +323,7 @@ def merge_cancelling(
     alone exceeds :data:`TERM_BOUND` of its joint is held the same way (a DH entry beyond its
     physical bound is held at the nominal: :mod:`dhlog.identify.model.hold`)."""
     terms = fit.model.terms
-    if terms is None:
+    if terms is None or not terms.size:  # every term already left out: nothing to merge
         return fit
     holds = cancelling(terms, term_covariance(fit), term_std(fit), term_reach(fit.model, Q))
     if not holds:

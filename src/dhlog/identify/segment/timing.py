@@ -24,6 +24,7 @@ then the pipeline's, and the result says why.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -38,6 +39,7 @@ from dhlog.identify.segment.persample import blocks, rows_where
 from dhlog.identify.segment.segment import BLOCK, Encoders, Segmentation
 from dhlog.io import scratch
 from dhlog.io.reader import LogData
+from dhlog.model.dh import JointType
 
 #: Fewest moving samples a sweep needs to estimate the lag from.
 MIN_MOVING = 20
@@ -173,9 +175,12 @@ class SweepPhase:
     samples: int
 
 
-def sweep_phases(seg: Segmentation, log: LogData) -> list[SweepPhase]:
+def sweep_phases(
+    seg: Segmentation, log: LogData, joint_types: Sequence[JointType | None] | None = None
+) -> list[SweepPhase]:
     """Per sweep: the points-only fit's angle (position) regressed on ``1, Q, q̇`` (see the
-    module); at most :data:`START_POINTS` evenly strided samples per sweep."""
+    module); at most :data:`START_POINTS` evenly strided samples per sweep, each read along a
+    line or a circle by its joint's type in ``joint_types`` (None, or a None entry: unknown)."""
     if log.joints is None or seg.encoders is None:
         return []
     rates = JointRates(seg.encoders)
@@ -193,7 +198,11 @@ def sweep_phases(seg: Segmentation, log: LogData) -> list[SweepPhase]:
         j = int(j1) - 1
         rate = rates.at(seg.t_ns[rows], [j])[:, 0]
         moving = int(np.count_nonzero(np.abs(rate) > MOVING_SPEED))
-        one = _sweep_lag(seg.xyz(rows), seg.q(rows, [j])[:, 0], rate, moving >= MIN_MOVING)
+        kind = joint_types[j] if joint_types is not None and j < len(joint_types) else None
+        prismatic = None if kind is None else kind is JointType.PRISMATIC
+        one = _sweep_lag(
+            seg.xyz(rows), seg.q(rows, [j])[:, 0], rate, moving >= MIN_MOVING, prismatic
+        )
         if one is not None:
             slope, delta, std = one
             out.append(SweepPhase(j + 1, slope, delta, std, moving, int(rows.size)))
@@ -227,19 +236,43 @@ def phase_lag(
     return delta, std
 
 
+def _sweep_positions(points: FloatArray, prismatic: bool | None) -> FloatArray | None:
+    """The points' positions along their sweep: along a line for a ``prismatic`` joint, the
+    angles about the circle fitted to them (unwrapped) for a revolute one (a line where no
+    circle fits); of a joint of unknown type, along the line where it fits them within 2x the
+    circle's RMS (a circle fitted to a line's noisy points gives positions along an arc, not
+    along the line). None where neither fits."""
+    circle = line = None
+    if prismatic is not True:
+        try:
+            circle = fit_circle_algebraic(points, min_sweep=0.0)  # phases only: no scipy needed
+        except DhlogError:
+            pass
+    if circle is None or prismatic is None:
+        try:
+            line = fit_line(points, min_travel=0.0)
+        except DhlogError:
+            pass
+    if line is not None and (circle is None or line.rms <= 2.0 * circle.rms):
+        return np.asarray(line.positions, dtype=np.float64)
+    if circle is None:
+        return None
+    return np.asarray(np.unwrap(circle.positions), dtype=np.float64)
+
+
 def _sweep_lag(
-    points: FloatArray, q: FloatArray, rate: FloatArray, timed: bool
+    points: FloatArray,
+    q: FloatArray,
+    rate: FloatArray,
+    timed: bool,
+    prismatic: bool | None = None,
 ) -> tuple[float, float | None, float | None] | None:
     """Slope, ``δ`` and σ of one sweep: its points' angle (position) regressed on ``1, Q, q̇``
-    (on ``1, Q`` alone when it barely moves while sampled: ``timed`` False)."""
-    try:
-        fit = fit_circle_algebraic(points, min_sweep=0.0)  # phases only: no scipy needed
-        phi = np.unwrap(fit.positions)
-    except DhlogError:
-        try:
-            phi = fit_line(points, min_travel=0.0).positions
-        except DhlogError:
-            return None
+    (on ``1, Q`` alone when it barely moves while sampled: ``timed`` False); positions along
+    the sweep by :func:`_sweep_positions` (``prismatic``: the joint's type, None unknown)."""
+    phi = _sweep_positions(points, prismatic)
+    if phi is None:
+        return None
     columns = [np.ones(q.size), q - q.mean()] + ([rate] if timed else [])
     A = np.column_stack(columns)
     coef, *_ = np.linalg.lstsq(A, phi, rcond=None)
