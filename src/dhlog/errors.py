@@ -182,7 +182,31 @@ class FieldError(InputError):
         super().__init__(f"{where}: {field_name} {problem}; {todo}.")
 
 
-class ImplausibleWarning(UserWarning):
+class DhlogWarning(UserWarning):
+    """What may need the user's action, as the console's warnings say it (a joint swept too
+    little, samples set aside, a nominal far from the data …): :func:`dhlog.process`,
+    :func:`dhlog.load` and :func:`dhlog.simulate` give each of theirs through
+    :func:`warnings.warn` with this category and through the ``dhlog`` logger
+    (``logging.getLogger("dhlog")``, level WARNING). The text is the one
+    ``Calibration.warnings`` holds."""
+
+
+#: The logger every warning goes through too (a :class:`logging.NullHandler` by default, as a
+#: library's; the user's logging configuration decides where it goes).
+LOGGER_NAME = "dhlog"
+
+
+def give_warning(message: str, category: type[DhlogWarning] = DhlogWarning, stacklevel: int = 2) -> None:
+    """Give ``message`` as dhlog gives a warning: :func:`warnings.warn` with ``category``
+    (``stacklevel`` counted from the caller) and the ``dhlog`` logger at WARNING."""
+    import logging
+    import warnings
+
+    warnings.warn(category(message), stacklevel=stacklevel + 1)
+    logging.getLogger(LOGGER_NAME).warning(message, extra={"dhlog_category": category.__name__})
+
+
+class ImplausibleWarning(DhlogWarning):
     """A calibration dhlog judges implausible was made or read (``Calibration.plausible`` is
     False; ``Calibration.implausible`` gives the reasons, each naming the evidence and the
     fix): :func:`dhlog.process` and :func:`dhlog.load` warn with it, as ``dhlog process``
