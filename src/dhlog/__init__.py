@@ -34,9 +34,9 @@ if TYPE_CHECKING:
         InputError,
         UsageError,
     )
-    from dhlog.io.dhfile import DHModel
     from dhlog.geometry.circles import fit_circle
     from dhlog.identify.read.extract import extract_dh
+    from dhlog.io.dhfile import DHModel
     from dhlog.iso9283.run import Iso9283Report
     from dhlog.model.dh import JointType, ModifiedDH, StandardDH
     from dhlog.model.fk import fk_frames, fk_point

@@ -9,6 +9,9 @@ message and an exit code.
 from __future__ import annotations
 
 import math
+from collections.abc import Iterator
+from contextlib import contextmanager
+from contextvars import ContextVar
 
 
 class DhlogError(Exception):
@@ -196,11 +199,32 @@ class DhlogWarning(UserWarning):
 LOGGER_NAME = "dhlog"
 
 
-def give_warning(message: str, category: type[DhlogWarning] = DhlogWarning, stacklevel: int = 2) -> None:
+#: True while the caller prints dhlog's warnings itself (the command line): not given twice
+_PRINTED_BY_CALLER: ContextVar[bool] = ContextVar("dhlog_warnings_printed", default=False)
+
+
+@contextmanager
+def warnings_printed_by_caller() -> Iterator[None]:
+    """Within: :func:`give_warning` gives nothing — the caller (the command line) prints the
+    warnings in its own words, once."""
+    token = _PRINTED_BY_CALLER.set(True)
+    try:
+        yield
+    finally:
+        _PRINTED_BY_CALLER.reset(token)
+
+
+def give_warning(
+    message: str, category: type[DhlogWarning] = DhlogWarning, stacklevel: int = 2
+) -> None:
     """Give ``message`` as dhlog gives a warning: :func:`warnings.warn` with ``category``
-    (``stacklevel`` counted from the caller) and the ``dhlog`` logger at WARNING."""
+    (``stacklevel`` counted from the caller) and the ``dhlog`` logger at WARNING — unless
+    within :func:`warnings_printed_by_caller`."""
     import logging
     import warnings
+
+    if _PRINTED_BY_CALLER.get():
+        return
 
     warnings.warn(category(message), stacklevel=stacklevel + 1)
     logging.getLogger(LOGGER_NAME).warning(message, extra={"dhlog_category": category.__name__})

@@ -247,7 +247,7 @@ class Calibration:
         a nominal raises a :class:`~dhlog.UsageError`."""
         from dhlog.api.changes import changes_table
 
-        return changes_table(self)
+        return changes_table(self.parameters, self.nominal, self.document, self._result)
 
     @property
     def covariance(self) -> FloatArray | None:

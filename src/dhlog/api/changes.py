@@ -13,7 +13,7 @@ from dhlog.geometry._checks import wrap_angle
 if TYPE_CHECKING:
     import polars as pl
 
-    from dhlog.api.calibration import Calibration
+    from dhlog.io.dhfile import DHModel
     from dhlog.model.dh import StandardDH
 
 #: The columns of :func:`changes_table`, in order, with their polars types' names.
@@ -34,8 +34,12 @@ COLUMNS = (
 _NOMINAL = {"theta": "theta_offset", "d": "d_offset", "a": "a", "alpha": "alpha", "beta": "beta"}
 
 
-def changes_table(calibration: Calibration) -> pl.DataFrame:
-    """``calibration``'s measured − nominal, one row per parameter as
+def changes_table(
+    params: pl.DataFrame, nominal: DHModel | None, document: dict[str, Any], result: Any
+) -> pl.DataFrame:
+    """A calibration's measured − nominal from its :attr:`~dhlog.Calibration.parameters`
+    (``params``), ``nominal``, result ``document`` and run record (``result``; None: loaded),
+    one row per parameter as
     :attr:`~dhlog.Calibration.parameters` has them: ``joint``, ``name``, ``form``,
     ``parameter``, ``unit`` (m or rad), the change in its unit's column (``change_m`` or
     ``change_rad``, the other null; angles wrapped to ±π; null where the nominal has no such
@@ -43,21 +47,17 @@ def changes_table(calibration: Calibration) -> pl.DataFrame:
     A calibration without a nominal raises a :class:`~dhlog.UsageError`."""
     import polars as pl
 
-    from dhlog.api.operations import run_of
-
-    if calibration.nominal is None or calibration.model is None:
+    if nominal is None:
         raise UsageError(
             "changes: this calibration has no nominal to subtract; pass nominal= to "
             "dhlog.process or dhlog.load (a library robot name, a DH file or dhlog.robot(...))."
         )
-    params = calibration.parameters
-    result = run_of(calibration)
     shown = None
     if result is not None:
         from dhlog.result.document import nominal_difference
 
         shown = nominal_difference(result, shown=True)  # what the console's table prints
-    nominal, unknown = _nominal_in_form(calibration, params)
+    table, unknown = _nominal_in_form(nominal.table, document, params)
     order = ("theta", "d", "a", "alpha")
     rows: list[dict[str, Any]] = []
     for row in params.iter_rows(named=True):
@@ -66,10 +66,10 @@ def changes_table(calibration: Calibration) -> pl.DataFrame:
         change: float | None
         if shown is not None:
             change = float(shown[i, k]) if i < shown.shape[0] else None
-        elif i >= nominal.n or i in unknown:
+        elif i >= table.n or i in unknown:
             change = None
         else:
-            change = float(row["value"]) - _nominal_value(nominal, key, i)
+            change = float(row["value"]) - _nominal_value(table, key, i)
             if row["unit"] == "rad":
                 change = wrap_angle(change)
         if change is not None and not math.isfinite(change):
@@ -104,24 +104,20 @@ def changes_table(calibration: Calibration) -> pl.DataFrame:
     return pl.DataFrame(rows, schema=schema, orient="row")
 
 
-def _nominal_in_form(calibration: Calibration, params: pl.DataFrame) -> tuple[StandardDH, set[int]]:
-    """A loaded calibration's nominal in the form of its rows (the rows of nearly parallel
+def _nominal_in_form(
+    nominal: StandardDH, document: dict[str, Any], params: pl.DataFrame
+) -> tuple[StandardDH, set[int]]:
+    """A loaded calibration's ``nominal`` in the form of its rows (the rows of nearly parallel
     pairs in the Hayati form, at the result's reference pose, as the run took it), and the rows
     whose change is unknown: those rows and the next when the nominal has no such form."""
     import numpy as np
 
     from dhlog.identify.read.conditioning import nominal_rows
 
-    assert calibration.nominal is not None
-    nominal = calibration.nominal.table
-    hayati = frozenset(
-        int(j) - 1 for j in params.filter(form="hayati")["joint"].unique().to_list()
-    )
+    hayati = frozenset(int(j) - 1 for j in params.filter(form="hayati")["joint"].unique().to_list())
     if not hayati:
         return nominal, set()
-    ref = np.asarray(
-        calibration.document.get("reference_pose") or np.zeros(nominal.n), dtype=np.float64
-    )
+    ref = np.asarray(document.get("reference_pose") or np.zeros(nominal.n), dtype=np.float64)
     if ref.shape != (nominal.n,):
         ref = np.zeros(nominal.n)
     in_form = nominal_rows(nominal, ref, hayati)

@@ -26,9 +26,7 @@ def fk(
     angle_unit: Annotated[str, typer.Option(help="rad or deg: the unit of --q.")] = "rad",
     as_json: Annotated[
         bool,
-        typer.Option(
-            "--json", help="Print one JSON document (dhlog.fk/1, SI units; docs/cli.md)."
-        ),
+        typer.Option("--json", help="Print one JSON document (dhlog.fk/1, SI units; docs/cli.md)."),
     ] = False,
 ) -> None:
     """Pose of the last frame, the tool point and the spatial manipulator Jacobian at q."""
