@@ -16,7 +16,7 @@ if TYPE_CHECKING:
     from dhlog.io.dhfile import DHModel
     from dhlog.model.dh import StandardDH
 
-#: The columns of :func:`changes_table`, in order, with their polars types' names.
+#: The columns of :func:`changes_table`, in order.
 COLUMNS = (
     "joint",
     "name",
