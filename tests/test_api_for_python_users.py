@@ -237,3 +237,18 @@ def test_compare_json_and_fail_beyond(tmp_path: Path) -> None:
     assert same.exit_code == 0 and json.loads(same.stdout)["significant"] == []
     bad = runner.invoke(app, ["compare", str(a), str(b), "--fail-beyond", "-1"])
     assert bad.exit_code == EXIT_USAGE and "positive" in bad.stderr
+
+
+def test_si_columns_name_their_units() -> None:
+    """parameters and holdout keep their names and carry the same values with the unit in the
+    column's name (one unit per column)."""
+    found = dhlog.process(SAMPLE, holdout=3)
+    params = found.parameters
+    metres = params.filter(unit="m")
+    assert metres["value_m"].to_list() == metres["value"].to_list()
+    assert metres["value_rad"].null_count() == metres.height
+    radians = params.filter(unit="rad")
+    assert radians["sigma_rad"].to_list() == radians["sigma"].to_list()
+    held = found.holdout
+    assert held.height and held["rms_m"].to_list() == held["rms"].to_list()
+    assert 5e-6 < held.filter(model="calibrated")["rms_m"][0] < 5e-5  # the sample's 10 µm noise

@@ -271,7 +271,8 @@ class Calibration:
     def holdout(self) -> pl.DataFrame:
         """The errors at poses not used to fit (``holdout=K``, ``validate=[…]``), one row per
         check and model: ``check`` (``5-fold`` or the held-out log's name), ``model`` (nominal,
-        calibrated), ``n_poses``, ``mean``, ``rms``, ``p95``, ``max`` (m). Empty when the run
+        calibrated), ``n_poses``, ``mean``, ``rms``, ``p95``, ``max`` (m) — the same also with
+        the unit in the name: ``mean_m``, ``rms_m``, ``p95_m``, ``max_m``. Empty when the run
         made no held-out check."""
         import polars as pl
 
@@ -303,7 +304,8 @@ class Calibration:
             "p95": pl.Float64,
             "max": pl.Float64,
         }
-        return pl.DataFrame(rows, schema=schema, orient="row")
+        frame = pl.DataFrame(rows, schema=schema, orient="row")
+        return frame.with_columns(pl.col(k).alias(f"{k}_m") for k in ("mean", "rms", "p95", "max"))
 
     @property
     def fk_rms(self) -> float | None:
