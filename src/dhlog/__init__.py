@@ -10,6 +10,7 @@ handles signals."""
 
 from __future__ import annotations
 
+import logging
 from importlib import import_module
 from typing import TYPE_CHECKING
 
@@ -26,9 +27,16 @@ if TYPE_CHECKING:
     )
     from dhlog.cell.compensate import Compensation
     from dhlog.cell.plan import Plan, Tracker
-    from dhlog.errors import DhlogError, ImplausibleWarning, InputError, UsageError
+    from dhlog.errors import (
+        DhlogError,
+        DhlogWarning,
+        ImplausibleWarning,
+        InputError,
+        UsageError,
+    )
     from dhlog.geometry.circles import fit_circle
     from dhlog.identify.read.extract import extract_dh
+    from dhlog.io.dhfile import DHModel
     from dhlog.iso9283.run import Iso9283Report
     from dhlog.model.dh import JointType, ModifiedDH, StandardDH
     from dhlog.model.fk import fk_frames, fk_point
@@ -62,13 +70,17 @@ _PUBLIC = {
     "DhlogError": "dhlog.errors",
     "InputError": "dhlog.errors",
     "ImplausibleWarning": "dhlog.errors",
+    "DhlogWarning": "dhlog.errors",
+    "DHModel": "dhlog.io.dhfile",
 }
 
 #: The public names (``tests/test_public_api.py`` fails when one disappears).
 __all__ = [
     "Calibration",
     "Compensation",
+    "DHModel",
     "DhlogError",
+    "DhlogWarning",
     "ImplausibleWarning",
     "InputError",
     "Iso9283Report",
@@ -92,6 +104,10 @@ __all__ = [
     "robot",
     "simulate",
 ]
+
+
+# a library's logger: silent unless the user's logging configuration says where it goes
+logging.getLogger("dhlog").addHandler(logging.NullHandler())
 
 
 def __getattr__(name: str) -> object:

@@ -9,6 +9,9 @@ message and an exit code.
 from __future__ import annotations
 
 import math
+from collections.abc import Iterator
+from contextlib import contextmanager
+from contextvars import ContextVar
 
 
 class DhlogError(Exception):
@@ -182,7 +185,52 @@ class FieldError(InputError):
         super().__init__(f"{where}: {field_name} {problem}; {todo}.")
 
 
-class ImplausibleWarning(UserWarning):
+class DhlogWarning(UserWarning):
+    """What may need the user's action, as the console's warnings say it (a joint swept too
+    little, samples set aside, a nominal far from the data …): :func:`dhlog.process`,
+    :func:`dhlog.load` and :func:`dhlog.simulate` give each of theirs through
+    :func:`warnings.warn` with this category and through the ``dhlog`` logger
+    (``logging.getLogger("dhlog")``, level WARNING). The text is the one
+    ``Calibration.warnings`` holds."""
+
+
+#: The logger every warning goes through too (a :class:`logging.NullHandler` by default, as a
+#: library's; the user's logging configuration decides where it goes).
+LOGGER_NAME = "dhlog"
+
+
+#: True while the caller prints dhlog's warnings itself (the command line): not given twice
+_PRINTED_BY_CALLER: ContextVar[bool] = ContextVar("dhlog_warnings_printed", default=False)
+
+
+@contextmanager
+def warnings_printed_by_caller() -> Iterator[None]:
+    """Within: :func:`give_warning` gives nothing — the caller (the command line) prints the
+    warnings in its own words, once."""
+    token = _PRINTED_BY_CALLER.set(True)
+    try:
+        yield
+    finally:
+        _PRINTED_BY_CALLER.reset(token)
+
+
+def give_warning(
+    message: str, category: type[DhlogWarning] = DhlogWarning, stacklevel: int = 2
+) -> None:
+    """Give ``message`` as dhlog gives a warning: :func:`warnings.warn` with ``category``
+    (``stacklevel`` counted from the caller) and the ``dhlog`` logger at WARNING — unless
+    within :func:`warnings_printed_by_caller`."""
+    import logging
+    import warnings
+
+    if _PRINTED_BY_CALLER.get():
+        return
+
+    warnings.warn(category(message), stacklevel=stacklevel + 1)
+    logging.getLogger(LOGGER_NAME).warning(message, extra={"dhlog_category": category.__name__})
+
+
+class ImplausibleWarning(DhlogWarning):
     """A calibration dhlog judges implausible was made or read (``Calibration.plausible`` is
     False; ``Calibration.implausible`` gives the reasons, each naming the evidence and the
     fix): :func:`dhlog.process` and :func:`dhlog.load` warn with it, as ``dhlog process``

@@ -56,7 +56,9 @@ class Calibration:
     #: the model as forward kinematics reads it (None: a run that identified no joint — its
     #: warnings say why; the model's properties then raise a UsageError naming the joints)
     model: DHModel | None
-    #: the nominal the run followed (None when none was given or the file does not name one)
+    #: the nominal the run followed, a :class:`~dhlog.DHModel` (``dhlog.process(nominal=…)``,
+    #: ``dhlog.load(nominal=…)``; None when none was given — a result file does not carry it):
+    #: what :meth:`changes` subtracts and :meth:`compensate` takes as the controller's model
     nominal: DHModel | None = None
     #: where it came from: the log processed, or the file loaded
     source: str = ""
@@ -168,7 +170,9 @@ class Calibration:
         where a nearly parallel pair makes ``d`` ill-conditioned: ``beta``, a rotation about y,
         in its place), ``parameter`` (theta, d or beta, a, alpha; theta and d are the offsets at
         encoder zero), ``value``, ``sigma`` (null where fixed), ``fixed`` (a convention or gauge
-        the data cannot determine, never a measurement), ``unit`` (m or rad)."""
+        the data cannot determine, never a measurement), ``unit`` (m or rad) — and the same
+        value and σ with the unit in the column's name: ``value_m``, ``value_rad``,
+        ``sigma_m``, ``sigma_rad`` (the column of the other unit null)."""
         import polars as pl
 
         units = self.document.get("units") or {}
@@ -224,7 +228,26 @@ class Calibration:
             "fixed": pl.Boolean,
             "unit": pl.String,
         }
-        return pl.DataFrame(rows, schema=schema, orient="row")
+        frame = pl.DataFrame(rows, schema=schema, orient="row")
+        metres = pl.col("unit") == "m"
+        return frame.with_columns(
+            value_m=pl.when(metres).then(pl.col("value")),
+            value_rad=pl.when(~metres).then(pl.col("value")),
+            sigma_m=pl.when(metres).then(pl.col("sigma")),
+            sigma_rad=pl.when(~metres).then(pl.col("sigma")),
+        )
+
+    def changes(self) -> pl.DataFrame:
+        """Measured − nominal: each parameter's change from :attr:`nominal` with its σ and
+        whether it is fixed, one row per parameter as :attr:`parameters` has them — ``joint``,
+        ``name``, ``form``, ``parameter``, ``unit``, ``change_m`` / ``change_rad`` (the change
+        in its unit's column, the other null; angles wrapped to ±π; null where the nominal has
+        no such parameter, as β), ``sigma_m`` / ``sigma_rad`` (null where fixed), ``fixed``.
+        The console's "Measured − nominal" table to the digits it shows. A calibration without
+        a nominal raises a :class:`~dhlog.UsageError`."""
+        from dhlog.api.changes import changes_table
+
+        return changes_table(self.parameters, self.nominal, self.document, self._result)
 
     @property
     def covariance(self) -> FloatArray | None:
@@ -248,7 +271,8 @@ class Calibration:
     def holdout(self) -> pl.DataFrame:
         """The errors at poses not used to fit (``holdout=K``, ``validate=[…]``), one row per
         check and model: ``check`` (``5-fold`` or the held-out log's name), ``model`` (nominal,
-        calibrated), ``n_poses``, ``mean``, ``rms``, ``p95``, ``max`` (m). Empty when the run
+        calibrated), ``n_poses``, ``mean``, ``rms``, ``p95``, ``max`` (m) — the same also with
+        the unit in the name: ``mean_m``, ``rms_m``, ``p95_m``, ``max_m``. Empty when the run
         made no held-out check."""
         import polars as pl
 
@@ -280,7 +304,8 @@ class Calibration:
             "p95": pl.Float64,
             "max": pl.Float64,
         }
-        return pl.DataFrame(rows, schema=schema, orient="row")
+        frame = pl.DataFrame(rows, schema=schema, orient="row")
+        return frame.with_columns(pl.col(k).alias(f"{k}_m") for k in ("mean", "rms", "p95", "max"))
 
     @property
     def fk_rms(self) -> float | None:

@@ -131,23 +131,25 @@ def process(
     found = calibration_of(result, limits=_library_limits(nominal))
     found._asked = (bool(holdout or validate), model != "geometric" and not analytic_only)
     found._inputs = tuple(str(v) for v in validate)
-    return _warned(found)
+    return _warned(found, run=True)
 
 
-def _warned(found: Calibration) -> Calibration:
-    """``found``, an :class:`~dhlog.errors.ImplausibleWarning` given first when dhlog judges it
-    implausible (the command line says so its own way, and exits 4)."""
+def _warned(found: Calibration, *, run: bool = False) -> Calibration:
+    """``found``, a run's warnings (``run``; a loaded result's were given when it was made)
+    given first through :func:`warnings.warn` (a :class:`~dhlog.errors.DhlogWarning` each) and
+    the ``dhlog`` logger, and an :class:`~dhlog.errors.ImplausibleWarning` when dhlog judges
+    it implausible (the command line prints them its own way, and exits 4)."""
+    from dhlog.errors import ImplausibleWarning, give_warning
+    from dhlog.io.safetext import printable
+
+    name = printable(Path(found.source).name)
+    if run:
+        for message in found.warnings:
+            give_warning(f"{name}: {printable(message)}", stacklevel=3)
     if not found.plausible:
-        import warnings
-
-        from dhlog.errors import ImplausibleWarning
-        from dhlog.io.safetext import printable
-
-        warnings.warn(
-            ImplausibleWarning(
-                f"{printable(Path(found.source).name)}: implausible result: "
-                + " ".join(found.implausible)
-            ),
+        give_warning(
+            f"{name}: implausible result: " + " ".join(found.implausible),
+            ImplausibleWarning,
             stacklevel=3,
         )
     return found
@@ -307,7 +309,7 @@ def simulate(
         noise=noise, protocol=protocol, seed=seed, instrument=instrument, **options
     )
     rob = robot if not isinstance(robot, (str, Path)) else _robot(robot)
-    return simulate_config(
+    made = simulate_config(
         rob,
         cfg,
         Path(out),
@@ -319,6 +321,11 @@ def simulate(
         exposure=exposure,
         overwrite=overwrite,
     )
+    from dhlog.errors import give_warning
+
+    for message in made.warnings:
+        give_warning(f"{made.log.name}: {message}", stacklevel=2)
+    return made
 
 
 def simulate_config(

@@ -40,7 +40,7 @@ from dhlog.cli.process import process
 from dhlog.cli.results import compare_results, export, report
 from dhlog.cli.robot import fk, robots, show
 from dhlog.cli.simulate import simulate
-from dhlog.errors import DhlogError
+from dhlog.errors import DhlogError, warnings_printed_by_caller
 
 app = typer.Typer(
     name="dhlog",
@@ -116,7 +116,8 @@ def run() -> None:
     if len(sys.argv) <= 1:  # no arguments: the help, and success
         sys.argv.append("--help")
     try:
-        code = app(standalone_mode=False)
+        with warnings_printed_by_caller():  # each command prints its warnings, once
+            code = app(standalone_mode=False)
     except Ended as end:  # its message is printed
         sys.exit(end.code)
     except SystemExit as exc:  # rich and typer end a closed output (their help) with exit 1

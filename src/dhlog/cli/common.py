@@ -24,6 +24,8 @@ from dhlog.errors import DhlogError, OutputError
 EXIT_USAGE, EXIT_INPUT, EXIT_PARTIAL = 1, 2, 3
 #: the result was written but dhlog judges it implausible (``ProcessResult.implausible``)
 EXIT_IMPLAUSIBLE = 4
+#: ``dhlog compare --fail-beyond SIGMA``: a parameter changed beyond SIGMA combined σ
+EXIT_CHANGED = 5
 EXIT_INTERRUPTED, EXIT_OUTPUT_CLOSED, EXIT_TERMINATED = 130, 141, 143
 
 #: The epilog of ``dhlog --help``, ``process --help`` and ``batch --help`` (no square brackets:
@@ -34,7 +36,8 @@ EXIT_CODES = (
     "an output that cannot be written; 3 partial result (joints not identified; in a batch, "
     "logs that failed: the rest is written); 4 implausible result (written, marked plausible: "
     "false with the reasons; it wins over 3; in a batch, a log judged implausible and none "
-    "failed or partial); 130 interrupted (Ctrl-C); 141 the standard output was closed (| head: the "
+    "failed or partial); 5 a parameter changed beyond dhlog compare --fail-beyond σ; 130 "
+    "interrupted (Ctrl-C); 141 the standard output was closed (| head: the "
     "results were written first); 143 terminated (SIGTERM)."
 )
 
@@ -206,15 +209,16 @@ def say_implausible(reasons: list[str] | tuple[str, ...]) -> None:
 
 def quiet_numerics() -> None:
     """Floating-point warnings of numpy on damaged data are not for the user: every result is
-    checked for finiteness where it matters, and what is set aside is counted. Nor is the
-    API's ImplausibleWarning: each command says an implausible result in its own words."""
+    checked for finiteness where it matters, and what is set aside is counted. Nor are the
+    API's DhlogWarnings (ImplausibleWarning among them): each command prints its warnings and
+    says an implausible result in its own words, once."""
     import warnings
 
-    from dhlog.errors import ImplausibleWarning
+    from dhlog.errors import DhlogWarning
 
     warnings.filterwarnings("ignore", category=RuntimeWarning)
-    # the commands say an implausible result their own way (process's last line and exit 4)
-    warnings.filterwarnings("ignore", category=ImplausibleWarning)
+    # the commands print their warnings their own way (process's last line and exit 4)
+    warnings.filterwarnings("ignore", category=DhlogWarning)
     np.seterr(all="ignore")
 
 

@@ -3,15 +3,17 @@
 
 from __future__ import annotations
 
+import json
 import math
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
 import typer
 from rich.console import Console
 
 from dhlog.cli.common import (
+    EXIT_CHANGED,
     EXIT_USAGE,
     check_folder,
     fail,
@@ -23,6 +25,9 @@ from dhlog.cli.common import (
 )
 from dhlog.cli.options import load_model
 from dhlog.errors import DhlogError, OutputError
+
+if TYPE_CHECKING:
+    from dhlog.fleet.compare import Comparison
 
 EXPORT_FORMATS = ("urdf", "ur", "rtb", "dh-csv", "dh-json", "tf")
 
@@ -274,14 +279,38 @@ def compare_results(
     force: Annotated[
         bool, typer.Option("--force", help="Overwrite an existing recording.")
     ] = False,
+    as_json: Annotated[
+        bool,
+        typer.Option(
+            "--json",
+            help="Two results: print one JSON document (dhlog.compare/1, SI units; docs/cli.md).",
+        ),
+    ] = False,
+    fail_beyond: Annotated[
+        float | None,
+        typer.Option(
+            "--fail-beyond",
+            metavar="SIGMA",
+            help="Two results: exit 5 when a parameter changed beyond SIGMA combined σ.",
+        ),
+    ] = None,
 ) -> None:
     """Has the robot changed? Two results, or every parameter's trend over a batch summary."""
     from dhlog.fleet.compare import compare
     from dhlog.io.dhfile import robot_or_dh_file
 
+    if fail_beyond is not None and not (math.isfinite(fail_beyond) and fail_beyond > 0):
+        stderr.print(f"error: --fail-beyond must be a positive number of σ, not {fail_beyond:g}.")
+        raise typer.Exit(EXIT_USAGE)
     if second is None:
         if first.suffix not in (".csv", ".parquet"):
             stderr.print("error: give two results, or one batch summary (.csv or .parquet).")
+            raise typer.Exit(EXIT_USAGE)
+        if as_json or fail_beyond is not None:
+            stderr.print(
+                "error: --json and --fail-beyond compare two results; a batch summary's trends "
+                "are in the console and its --rrd recording."
+            )
             raise typer.Exit(EXIT_USAGE)
         _compare_trends(first, threshold, rrd, force)
         return
@@ -290,6 +319,62 @@ def compare_results(
         result = compare(first, second, limits=limits)
     except DhlogError as exc:
         fail(exc)
+    if as_json:
+        stdout.out(json.dumps(compare_document(result, first, second, threshold), indent=2))
+    else:
+        _print_comparison(result, threshold)
+    for path in (first, second):
+        _said_implausible(path, "compared")
+    beyond = [
+        c.name
+        for c in result.changes
+        if fail_beyond is not None and c.significance is not None and c.significance > fail_beyond
+    ]
+    if beyond:
+        stderr.print(
+            f"changed beyond --fail-beyond {fail_beyond:g}σ: {plain(', '.join(beyond))}; exit "
+            f"{EXIT_CHANGED}."
+        )
+        raise typer.Exit(EXIT_CHANGED)
+
+
+def compare_document(
+    result: Comparison, first: Path, second: Path, threshold: float
+) -> dict[str, object]:
+    """``dhlog compare --json``: the comparison as one JSON document (``dhlog.compare/1``, SI
+    units; docs/cli.md)."""
+    changes = [
+        {
+            "name": c.name,
+            "unit": "rad" if c.angular else "m",
+            "a": c.a,
+            "b": c.b,
+            "change": c.diff,
+            "sigma": c.sigma,
+            "significance": c.significance,
+            "significant": c.significance is not None and c.significance > threshold,
+        }
+        for c in result.changes
+    ]
+    return {
+        "schema": "dhlog.compare/1",
+        "a": plain(first),
+        "b": plain(second),
+        "threshold": threshold,
+        "changes": changes,
+        "significant": [c["name"] for c in changes if c["significant"]],
+        "fk": {
+            "samples": result.samples,
+            "rms": result.fk_rms,
+            "max": result.fk_max,
+            "max_at": [float(v) for v in result.fk_max_at],
+        },
+        "units": {"length": "m", "angle": "rad"},
+    }
+
+
+def _print_comparison(result: Comparison, threshold: float) -> None:
+    """The console's account of a comparison: the changes table and the FK difference."""
     rows = []
     significant = []
     for c in result.changes:
@@ -323,8 +408,6 @@ def compare_results(
         stdout.print(f"changed beyond {threshold:g}σ: {plain(', '.join(significant))} (marked *).")
     else:
         stdout.print(f"no parameter changed beyond {threshold:g}σ.")
-    for path in (first, second):
-        _said_implausible(path, "compared")
 
 
 def _said_implausible(path: Path, done: str) -> None:

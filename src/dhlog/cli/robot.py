@@ -25,8 +25,12 @@ def fk(
     ],
     units: Annotated[str, typer.Option(help="mm or m for the printed translation.")] = "m",
     angle_unit: Annotated[str, typer.Option(help="rad or deg: the unit of --q.")] = "rad",
+    as_json: Annotated[
+        bool,
+        typer.Option("--json", help="Print one JSON document (dhlog.fk/1, SI units; docs/cli.md)."),
+    ] = False,
 ) -> None:
-    """Pose of the last frame and the spatial manipulator Jacobian at q."""
+    """Pose of the last frame, the tool point and the spatial manipulator Jacobian at q."""
     from dhlog.model.fk import fk_frames, fk_point, spatial_jacobian
 
     try:
@@ -49,13 +53,32 @@ def fk(
         )
         raise typer.Exit(EXIT_USAGE)
     scale = 1e3 if units == "mm" else 1.0
+    given = values
     if model.terms is not None:  # the joints as they stand: deflected by the result's terms
         deflected = model.joint_values(values)
-        shown_dq = ", ".join(f"{v:+.3g}" for v in deflected - values)
-        stdout.print(f"joint deflection by the nongeometric terms (rad or m): {shown_dq}")
+        if not as_json:  # the JSON gives both: q and joint_values
+            shown_dq = ", ".join(f"{v:+.3g}" for v in deflected - values)
+            stdout.print(f"joint deflection by the nongeometric terms (rad or m): {shown_dq}")
         values = deflected
     T = fk_frames(model.table, values, T_base=model.T_base)[-1]
     J = spatial_jacobian(model.table, values, T_base=model.T_base)
+    if as_json:
+        import json
+
+        tool_m = fk_point(model.table, values, model.tool_point, T_base=model.T_base)
+        document = {
+            "schema": "dhlog.fk/1",
+            "model": plain(model.source or dh),
+            "joint_names": list(model.joint_names),
+            "q": given.tolist(),
+            "joint_values": values.tolist(),
+            "T_base_last": T.tolist(),
+            "tool_point": tool_m.tolist(),
+            "jacobian": J.tolist(),
+            "units": {"length": "m", "angle": "rad"},
+        }
+        stdout.out(json.dumps(document, indent=2), highlight=False)
+        return
     np.set_printoptions(precision=6, suppress=True, linewidth=120)
     shown = T.copy()
     shown[:3, 3] *= scale

@@ -63,7 +63,11 @@ class DHFileError(InputError):
 
 @dataclass(frozen=True, eq=False)
 class DHModel:
-    """A DH table with its optional base transform, tool point and joint names."""
+    """A robot model as forward kinematics reads it (public as ``dhlog.DHModel``; what
+    :attr:`dhlog.Calibration.model` and :attr:`dhlog.Calibration.nominal` are): the standard DH
+    ``table`` (offsets at encoder zero), ``T_base`` (DH frame 1 in the measurement frame, 4×4),
+    ``tool_point`` (the target in the last DH frame, m), ``joint_names``, ``source`` (the file
+    or library robot it came from) and ``terms`` beyond the geometry. SI units."""
 
     table: StandardDH
     T_base: FloatArray
