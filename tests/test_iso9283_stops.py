@@ -244,6 +244,31 @@ def test_simulated_stops_against_the_truth(
     assert report.not_determined and not report.paths
 
 
+def test_a_nominal_without_a_tool_carries_the_results(
+    simulated_stops: tuple[Path, Path, dict[str, Any], np.ndarray],
+) -> None:
+    """A nominal DH file to the flange (no tool point) with a result: AP before is the robot's
+    error at the result's tool point, not the tool's length (it printed 209.75 mm on the
+    FANUC set, whose tool is 210.6 mm); said in a note. The same as a nominal carrying that
+    tool itself."""
+    import dataclasses
+
+    import dhlog
+    from dhlog.io.dhfile import dh_model_from
+
+    log, truth_path, _, _ = simulated_stops
+    flange = dataclasses.replace(dh_model_from("kr5"), tool_point=np.zeros(3))
+    report = dhlog.acceptance_test(log, nominal=flange, result=truth_path)
+    tool = np.array(json.loads(truth_path.read_text())["tool"]["point"])
+    carried = dataclasses.replace(flange, tool_point=tool)
+    same = dhlog.acceptance_test(log, nominal=carried, result=truth_path)
+    assert any("the nominal gives no tool point" in n for n in report.notes)
+    for p, q in zip(report.poses, same.poses, strict=True):
+        assert p.before is not None and q.before is not None
+        assert p.before.AP == pytest.approx(q.before.AP, abs=1e-12)
+        assert p.before.AP < 1e-3  # the tool alone is 0.12 m
+
+
 def test_simulated_stops_without_a_result_register_the_nominal(
     simulated_stops: tuple[Path, Path, dict[str, Any], np.ndarray],
 ) -> None:

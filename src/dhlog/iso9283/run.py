@@ -969,6 +969,22 @@ def run_logs(
     further: list[list[Segmented]] = []
     program = None
     named = calibrated if calibrated is not None else nominal  # the joints matched by its names
+    said: list[str] = []
+    if (
+        nominal is not None
+        and calibrated is not None
+        and not np.any(nominal.tool_point)
+        and np.any(calibrated.tool_point)
+    ):
+        # a nominal without a tool (a DH file to the flange) scored against the target would
+        # measure the tool's length, not the robot's accuracy: the result's tool, as --validate
+        # gives the nominal
+        nominal = replace(nominal, tool_point=np.asarray(calibrated.tool_point, np.float64))
+        said.append(
+            "AP before: the nominal gives no tool point, so it carries the result's "
+            f"({_mm(calibrated.tool_point)} mm on the flange), as --validate does; the before "
+            "and after differ only by the robot's geometry."
+        )
     for log in logs:
         data = read_log(
             log,
@@ -1015,6 +1031,8 @@ def run_logs(
         ]
     synthetic = all(synthetic_timing(log) for log in logs)
     report = _timed(iso9283_report(segmented, nominal=nominal, calibrated=calibrated), synthetic)
+    if said:
+        report = replace(report, notes=[*said, *report.notes])
     if not further:
         return report
     from dhlog.iso9283.stops import further_note
@@ -1032,6 +1050,10 @@ def run_logs(
         others.append(replace(_timed(got, synthetic), target=k))
     note = further_note(1 + len(others), placed)
     return replace(report, further=others, notes=[*report.notes, note])
+
+
+def _mm(point: FloatArray) -> str:
+    return ", ".join(f"{1e3 * v:.3f}" for v in np.asarray(point, dtype=np.float64))
 
 
 def _timed(report: Iso9283Report, synthetic: bool) -> Iso9283Report:
