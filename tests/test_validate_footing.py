@@ -295,3 +295,33 @@ def test_a_remounted_probe_is_marked_placed_on_the_console(points: Checked, tmp_
     assert r.exit_code == 0, r.output
     assert "remounted.mcap" in r.output and "(placed)" in r.output  # the cell may wrap
     assert "re-mounted" in " ".join(r.output.split())
+
+
+def test_a_validation_asked_for_and_missing_is_never_exit_0(tmp_path: Path) -> None:
+    """``--validate`` of a path that does not exist is refused before any work (exit 2, nothing
+    written); of a file that cannot be read as a log (a tracker's CSV export not yet imported),
+    the calibration is written, the log is one line saying to convert it with dhlog import,
+    and the result is implausible (exit 4): the validation the user asked for is missing."""
+    sample = Path(__file__).parents[1] / "sample_logs"
+    out = tmp_path / "o"
+    missing = CliRunner().invoke(
+        app,
+        ["process", str(sample / "puma560_step.mcap"), "--no-rrd", "--out", str(out),
+         "--validate", str(tmp_path / "nowhere.mcap")],
+    )  # fmt: skip
+    assert missing.exit_code == 2, missing.output
+    assert "nowhere.mcap" in missing.output and "Traceback" not in missing.output
+    assert not out.exists()
+    export = tmp_path / "export.csv"
+    export.write_text((sample / "kr5_random_poses.csv").read_text())
+    run = CliRunner().invoke(
+        app,
+        ["process", str(sample / "puma560_step.mcap"), "--no-rrd", "--out", str(out),
+         "--validate", str(export)],
+    )  # fmt: skip
+    assert run.exit_code == EXIT_IMPLAUSIBLE, run.output
+    assert "dhlog import" in run.output and "Traceback" not in run.output
+    doc = json.loads((out / "puma560_step.dh.json").read_text())
+    assert doc["plausible"] is False
+    assert "could not be read" in doc["implausible"][0]
+    assert doc["validation"]["not_scored"][0]["path"].endswith("export.csv")

@@ -111,7 +111,8 @@ class NotMcapError(InputError):
     def __init__(self, path: str) -> None:
         super().__init__(
             f"{path}: not an MCAP file (no MCAP magic bytes at the start); give the .mcap file "
-            "the recorder wrote, or the rosbag2 bag folder."
+            "the recorder wrote, or the rosbag2 bag folder (a tracker program's export, CSV or "
+            "text: convert it with dhlog import first)."
         )
 
 

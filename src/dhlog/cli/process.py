@@ -11,6 +11,7 @@ import typer
 
 from dhlog.cli.common import (
     EXIT_IMPLAUSIBLE,
+    EXIT_INPUT,
     EXIT_PARTIAL,
     EXIT_USAGE,
     check_writable,
@@ -207,6 +208,14 @@ def process(
     if units not in ("mm", "m"):
         stderr.print(f"error: --units must be mm or m, not '{plain(units)}'.")
         raise typer.Exit(EXIT_USAGE)
+    for other in validate or []:  # a validation asked for and missing: refused before any work
+        if not other.exists():
+            stderr.print(
+                f"[bold red]error:[/] --validate {plain(other)}: no such file or folder; give "
+                "the held-out session's log (a tracker's export: convert it with dhlog import "
+                "first). Nothing was written."
+            )
+            raise typer.Exit(EXIT_INPUT)
     if angle_unit not in (None, "rad", "deg"):
         stderr.print(f"error: --angle-unit must be rad or deg, not '{plain(angle_unit)}'.")
         raise typer.Exit(EXIT_USAGE)

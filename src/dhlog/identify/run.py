@@ -341,6 +341,11 @@ def process_log(
                     "validation on it (it is not scored, never reported as the result's "
                     "figure): " + said.removeprefix(f"{other}: ")
                 )
+            elif not isinstance(exc, NotScoredError):  # asked for, and not read at all
+                result.implausible.append(
+                    f"the held-out log {other} could not be read, so the validation asked for "
+                    "is missing: " + said.removeprefix(f"{other}: ")
+                )
     return result
 
 
