@@ -228,7 +228,7 @@ def test_a_parked_7_joint_log_processes_exports_and_loads_in_yourdfpy(tmp_path: 
         ["export", str(out / "t7.dh.json"), "-o", str(urdf), "--limits-from", "torso7"],
     )
     assert exported.exit_code == 0, exported.output
-    calibration = load(out / "t7.dh.json")
+    calibration = load(out / "t7.dh.json", nominal="torso7")
     model = yourdfpy.URDF.load(str(urdf), load_meshes=False, build_scene_graph=True)
     assert len(model.actuated_joint_names) == 7
     robot = load_robot("torso7")
@@ -237,6 +237,17 @@ def test_a_parked_7_joint_log_processes_exports_and_loads_in_yourdfpy(tmp_path: 
     for q, p in zip(Q, want, strict=True):
         model.update_cfg(q)
         assert np.abs(model.get_transform("tool0", "measurement")[:3, 3] - p).max() < 1e-9
+    # compensation keeps the parked joint where commanded (it was not calibrated) and moves
+    # the six others so that the calibrated robot reaches the nominal's pose
+    assert calibration.model.parked == (0,)
+    targets = np.array(Q[:10])
+    targets[:, 0] = PARKED_AT
+    done_c = calibration.compensate(targets)
+    ok = np.array([k not in done_c.problems for k in range(len(targets))])
+    assert ok.sum() >= 8  # a random vector may lie near a singularity of the six free joints
+    assert np.array_equal(done_c.targets[ok, 0], targets[ok, 0])
+    assert np.abs(done_c.targets[ok, 1:] - targets[ok, 1:]).max() > 1e-5  # corrected
+    assert done_c.error[ok].max() < 1e-9  # the nominal's pose reached, the parked joint held
 
 
 #: shared/realdata beside the checkout (or beside the worktrees' folder)

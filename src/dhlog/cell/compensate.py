@@ -67,14 +67,22 @@ def _error(T: FloatArray, goal: FloatArray) -> FloatArray:
 
 
 def _solve(
-    model: DHModel, calibrated: bool, goal: FloatArray, start: FloatArray, *, far: bool = False
+    model: DHModel,
+    calibrated: bool,
+    goal: FloatArray,
+    start: FloatArray,
+    *,
+    far: bool = False,
+    held: tuple[int, ...] = (),
 ) -> tuple[FloatArray, FloatArray, dict[int, str]]:
     """The joint vectors (m, n) at which ``model`` puts its last frame at ``goal`` (m, 4, 4),
     by Newton's method with backtracking from ``start`` (m, n); the remaining pose error per row
     (m, rad) and one line per row that is too near a singularity or did not converge. ``far``:
     the start may be far from the solution (inverse kinematics): damped steps (Levenberg) while
-    the error is large, and the singularity judged at the solution only."""
+    the error is large, and the singularity judged at the solution only. ``held``: joints
+    (0-based) kept at their start (a result's parked joints: not calibrated)."""
     m, n = start.shape
+    free = [j for j in range(n) if j not in held]
     q = start.copy()
     active = np.ones(m, dtype=bool)
     problems: dict[int, str] = {}
@@ -85,13 +93,13 @@ def _solve(
         if not np.any(active):
             break
         rows = np.flatnonzero(active)
-        J = np.empty((rows.size, 6, n))
-        for j in range(n):
+        J = np.empty((rows.size, 6, len(free)))
+        for c, j in enumerate(free):
             step = np.zeros(n)
             step[j] = STEP
             plus = _error(_pose(model, q[rows] + step, calibrated), goal[rows])
             minus = _error(_pose(model, q[rows] - step, calibrated), goal[rows])
-            J[:, :, j] = (plus - minus) / (2 * STEP)
+            J[:, :, c] = (plus - minus) / (2 * STEP)
         for k, row in enumerate(rows):
             s = np.linalg.svd(J[k], compute_uv=False)
             near = float(np.max(np.abs(err[row]))) < 1e-6
@@ -103,9 +111,13 @@ def _solve(
                 continue
             if far and not near:  # Levenberg: a bounded step through near-singular iterates
                 damping = 1e-3 * s[0] ** 2
-                delta = np.linalg.solve(J[k].T @ J[k] + damping * np.eye(n), -J[k].T @ err[row])
+                step_free = np.linalg.solve(
+                    J[k].T @ J[k] + damping * np.eye(len(free)), -J[k].T @ err[row]
+                )
             else:
-                delta, *_ = np.linalg.lstsq(J[k], -err[row], rcond=None)
+                step_free, *_ = np.linalg.lstsq(J[k], -err[row], rcond=None)
+            delta = np.zeros(n)
+            delta[free] = step_free
             # backtracking: a full Newton step near a singularity can overshoot
             before = float(np.sum(err[row] ** 2))
             for _ in range(40):
@@ -119,7 +131,7 @@ def _solve(
             if np.max(np.abs(delta)) < CONVERGED:  # least squares (fewer than six joints)
                 active[row] = False
     size = np.max(np.abs(err), axis=1)
-    exact = n >= 6  # fewer joints reach the pose only in the least-squares sense
+    exact = len(free) >= 6  # fewer joints reach the pose only in the least-squares sense
     for bad in np.flatnonzero((active | exact) & (size > 1e-9)).tolist():
         if bad not in problems:
             problems[bad] = (
@@ -169,7 +181,7 @@ def compensate(
     ``nominal`` (see the module docstring); ``limits`` (n, 2): the joints' limits, when known."""
     Q = np.asarray(Q, dtype=np.float64)
     goal = _pose(nominal, Q, calibrated=False)
-    q, size, problems = _solve(result, True, goal, Q)
+    q, size, problems = _solve(result, True, goal, Q, held=result.parked)
     return _checked(q, size, problems, Q, limits)
 
 
@@ -233,7 +245,7 @@ def compensate_poses(
     problems = dict(nom_problems)
     if np.any(reached):
         rows = np.flatnonzero(reached)
-        q, s, solved = _solve(result, True, goal[rows], q_nom[rows])
+        q, s, solved = _solve(result, True, goal[rows], q_nom[rows], held=result.parked)
         q_cal[rows], size[rows] = q, s
         problems.update({int(rows[k]): why for k, why in solved.items()})
     # rows the nominal does not reach are NaN and already have their line in ``problems``

@@ -80,6 +80,9 @@ class DHModel:
     #: the joint limits (n, 2) in rad or m, where the file gives any (``joints[].limits``; a
     #: joint without them ±π or ±0.1 m); None: the file gives none
     limits: FloatArray | None = None
+    #: the joints (0-based) a result held at the nominal because they never moved in its session
+    #: (``joints[].parked``): not calibrated, so compensation keeps them where commanded
+    parked: tuple[int, ...] = ()
 
     def joint_values(self, q: ArrayLike) -> FloatArray:
         """The table's joint values at encoder values ``q`` (..., n): ``q`` deflected by the
@@ -173,6 +176,7 @@ def parse_dh(data: dict[str, Any], source: str) -> DHModel:
     types: list[JointType] = []
     names: list[str] = []
     limits: list[tuple[float, float] | None] = []
+    parked: list[int] = []
     theta: list[float] = []
     d: list[float] = []
     a: list[float] = []
@@ -202,6 +206,8 @@ def parse_dh(data: dict[str, Any], source: str) -> DHModel:
             out.append(f.number(row[name], f"{at}.{name}", scale, limit, unit))
         names.append(f.text(joint.get("name", f"joint_{i + 1}"), f"joints[{i}].name"))
         limits.append(_limits(f, joint.get("limits"), i, types[-1], angle, length))
+        if joint.get("parked"):
+            parked.append(i)
     twice = [k for k, name in enumerate(names) if name in names[:k]]
     if twice:
         k = twice[0]
@@ -235,7 +241,7 @@ def parse_dh(data: dict[str, Any], source: str) -> DHModel:
     if any(lim is not None for lim in limits):
         pairs = zip(types, limits, strict=True)
         given = np.array([_DEFAULT_LIMITS[t] if lim is None else lim for t, lim in pairs])
-    return DHModel(table, T_base, tool, tuple(names), source, terms, given)
+    return DHModel(table, T_base, tool, tuple(names), source, terms, given, tuple(parked))
 
 
 #: a joint's limits where a DH file gives none (rad or m)
