@@ -422,3 +422,18 @@ def test_import_targets_refuses_what_it_cannot_read(tmp_path: Path) -> None:
     a = points.filter(points["target"] == 0)
     b = points.filter(points["target"] == 1)
     assert a["x"].to_list() == pytest.approx([1.0, 1.001]) and b["x"].to_list() == [1.1, 1.2]
+
+
+def test_a_log_of_poses_never_repeated_is_not_an_iso9283_test(tmp_path: Path) -> None:
+    """A calibration session's 20 random poses, each visited once: no repeatability and no
+    test poses to speak of — one line and exit 2, not P1 … P5 made of five random poses."""
+    import dhlog
+
+    sim = dhlog.simulate("kr5", tmp_path / "rp.mcap", protocol="random-poses", poses=20, seed=3)
+    run = CliRunner().invoke(
+        app, ["iso9283", str(sim.log), "--nominal", "kr5", "--no-rrd", "--out", str(tmp_path)]
+    )
+    assert run.exit_code == 2, run.output
+    assert "none of its 20 distinct targets is visited twice" in run.output
+    assert "Traceback" not in run.output
+    assert not list(tmp_path.glob("*.iso9283.json"))

@@ -508,6 +508,14 @@ def segment_log(
                 "visited are taken as P1–P5 (give --commanded with the program to name them)."
             )
             order = [c for c in order if c in kept_clusters]
+        if not order and counts.size > 5:  # many targets, none repeated: not a test's visits
+            raise Iso9283Error(
+                name,
+                f"none of its {counts.size} distinct targets is visited twice, so the log is "
+                "not an ISO 9283 test (random poses? a calibration session?)",
+                "record the test's cycle program (dhlog plan --iso9283) or a tracker's repeated "
+                "stops, several visits to each pose",
+            )
         if not order:
             order = list(dict.fromkeys(clusters))[:5]
             notes.append(
