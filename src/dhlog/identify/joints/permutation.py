@@ -151,6 +151,11 @@ def suspected_permutation(seg: Segmentation, nominal: DHModel) -> Permutation | 
     Q, y = Q[keep], y[keep]
     if Q.shape[0] < 3 * n or float(np.ptp(y, axis=0).max()) <= 0.0:
         return None
+    # the stream's order first: where the nominal explains the points within FLOOR under it, no
+    # permutation is suspected whatever the others give (the rule below), so none is placed
+    # (0.004 s against 0.5 s for the 720 orders of six joints on every honest log)
+    if float(_placed(nominal, orders[:1], Q, y, nominal.tool_point)[0]) <= FLOOR:
+        return None
     rms = np.empty(len(orders))
     for lo in range(0, len(orders), BATCH):
         rms[lo : lo + BATCH] = _placed(nominal, orders[lo : lo + BATCH], Q, y, nominal.tool_point)
