@@ -9,3 +9,29 @@ for _threads in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_threads, "1")
 
 sys.path.insert(0, str(Path(__file__).parent))
+
+
+import pytest  # noqa: E402
+
+
+@pytest.fixture(scope="module")
+def ur5_result(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A UR5 off its nominal (0.2 mm, 0.02°), simulated and processed by the command line
+    (``tests/test_export.py``, ``tests/test_export_ur.py``): its table on the fit's own branch
+    (joints 2 and 3 in the Hayati form, the last frame aimed at the target: d6 = 0)."""
+    from typer.testing import CliRunner
+
+    from dhlog.cli.app import app
+
+    folder = tmp_path_factory.mktemp("ur5")
+    log = folder / "ur5.mcap"
+    runner = CliRunner()
+    made = runner.invoke(
+        app,
+        ["simulate", "ur5", "-o", str(log), "--perturb-mm", "0.2", "--perturb-deg", "0.02",
+         "--noise-mm", "0.01", "--seed", "3"],
+    )  # fmt: skip
+    assert made.exit_code == 0, made.output
+    done = runner.invoke(app, ["process", str(log), "--no-rrd", "--out", str(folder)])
+    assert done.exit_code == 0, done.output
+    return folder / "ur5.dh.json"

@@ -107,34 +107,6 @@ def test_compare_finds_the_changed_parameter_and_nothing_else(tmp_path: Path) ->
     assert len(others) > 10 and max(c.significance or 0 for c in others) < 4.0
 
 
-@pytest.fixture(scope="module")
-def ur5_result(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """A UR5 off its nominal (0.2 mm, 0.02°), simulated, processed by the command line."""
-    folder = tmp_path_factory.mktemp("ur5")
-    log = folder / "ur5.mcap"
-    made = runner.invoke(
-        app,
-        [
-            "simulate",
-            "ur5",
-            "-o",
-            str(log),
-            "--perturb-mm",
-            "0.2",
-            "--perturb-deg",
-            "0.02",
-            "--noise-mm",
-            "0.01",
-            "--seed",
-            "3",
-        ],
-    )
-    assert made.exit_code == 0, made.output
-    done = runner.invoke(app, ["process", str(log), "--no-rrd", "--out", str(folder)])
-    assert done.exit_code == 0, done.output
-    return folder / "ur5.dh.json"
-
-
 def _export(result: Path, fmt: str, out: Path) -> str:
     made = runner.invoke(app, ["export", str(result), "-o", str(out), "--format", fmt])
     assert made.exit_code == 0, made.output

@@ -151,36 +151,6 @@ def test_a_calibrated_ur5e_composed_as_the_description_does_is_dhlogs_fk(tmp_pat
         assert np.abs(tool0[:3, 3] - frame[-1][:3, 3]).max() < 1e-9  # the flange: a6 = 0
 
 
-@pytest.fixture(scope="module")
-def ur5_result(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """A UR5 off its nominal (0.2 mm, 0.02°), simulated and processed by the command line: its
-    table on the fit's own branch (α1 < 0, a2, a3 > 0, θ5 ≈ π), joints 2 and 3 in the Hayati
-    form, the last frame aimed at the target (d6 = 0, θ6 and a6 ≠ 0)."""
-    folder = tmp_path_factory.mktemp("ur5")
-    log = folder / "ur5.mcap"
-    made = runner.invoke(
-        app,
-        [
-            "simulate",
-            "ur5",
-            "-o",
-            str(log),
-            "--perturb-mm",
-            "0.2",
-            "--perturb-deg",
-            "0.02",
-            "--noise-mm",
-            "0.01",
-            "--seed",
-            "3",
-        ],
-    )
-    assert made.exit_code == 0, made.output
-    done = runner.invoke(app, ["process", str(log), "--no-rrd", "--out", str(folder)])
-    assert done.exit_code == 0, done.output
-    return folder / "ur5.dh.json"
-
-
 def test_a_processed_ur5_exports_in_the_factory_shape_and_its_fk(
     ur5_result: Path, tmp_path: Path
 ) -> None:
