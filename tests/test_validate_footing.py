@@ -262,8 +262,9 @@ def test_a_log_that_cannot_be_scored_is_one_line_and_the_result_is_written(
         ],
     )
     doc = json.loads((out / "cal.dh.json").read_text())
-    # a log that cannot be placed makes the result implausible: exit 4 once the JSON says so
-    assert r.exit_code == (EXIT_IMPLAUSIBLE if "plausible" in doc else 0), r.output
+    # a log that cannot be placed makes the result implausible: written, marked, exit 4
+    assert r.exit_code == EXIT_IMPLAUSIBLE, r.output
+    assert doc["plausible"] is False and any("point.mcap" in w for w in doc["implausible"])
     lines = [w for w in doc["warnings"] if w.startswith("held-out log not scored")]
     assert len(lines) == 2
     assert "few.mcap: has 3 distinct pose(s)" in lines[0]
