@@ -23,10 +23,11 @@ from scipy.spatial.transform import Rotation
 from typer.testing import CliRunner
 
 from dhlog.cli.app import app
+from dhlog.errors import DhlogError
 from dhlog.geometry._checks import FloatArray
 from dhlog.io.dhfile import DHFileError, dh_model_from, load_dh, robot_or_dh_file
 from dhlog.model.fk import fk_frames, fk_point
-from dhlog.model.robots import load_robot, robot_names
+from dhlog.model.robots import load_robot, merge_library, robot_names
 
 DATA = Path(__file__).parent / "data"
 UR = tomllib.loads((DATA / "ur_description.toml").read_text(encoding="utf-8"))
@@ -90,10 +91,26 @@ def test_a_ur_entry_is_ur_descriptions_arm_to_tool0(name: str) -> None:
 
 
 def test_the_checked_entries_are_the_described_ones() -> None:
-    """An entry says it is checked exactly when a test here checks it."""
+    """An entry says it is checked exactly when a test checks it: its ``checked`` text names the
+    test file (this one for the UR arms, ``tests/test_library_*.py`` for the other makers), and
+    that file names the entry."""
+    tests = Path(__file__).parent
     checked = {n for n in robot_names() if load_robot(n).checked}
-    assert checked == set(UR)
+    assert set(UR) <= checked
     assert {"ur3", "ur5", "ur10", "ur3e", "ur5e", "ur10e", "ur16e", "ur20", "ur30"} <= checked
+    for name in checked - set(UR):
+        files = re.findall(r"tests/(test_library_\w+\.py)", load_robot(name).checked)
+        assert files, f"{name}: its checked text names no tests/test_library_*.py"
+        assert f'"{name}"' in (tests / files[0]).read_text(encoding="utf-8"), name
+
+
+def test_a_name_in_two_makers_files_is_refused() -> None:
+    """The library's files are read together; a robot named twice is an error, not the later
+    file's table silently winning."""
+    names = robot_names()
+    assert len(names) == len(set(names)) and {"kr5", "ur5e", "panda"} <= set(names)
+    with pytest.raises(DhlogError, match=r"names 'kr5' twice \(library/b.toml\)"):
+        merge_library([("a.toml", "[kr5]\ntitle = 'x'\n"), ("b.toml", "[kr5]\ntitle = 'y'\n")])
 
 
 @pytest.mark.parametrize("spelling", ["UR5e", "ur5e", "UR-5e", "ur_5e"])

@@ -1,5 +1,5 @@
-"""The robot library: the seed robots and the arms users own as data (``robots.toml``), loadable
-by name."""
+"""The robot library: the seed robots and the arms users own as data (``dhlog/library/*.toml``,
+one file per maker, its format in that folder's README.md), loadable by name."""
 
 from __future__ import annotations
 
@@ -90,10 +90,27 @@ def _robot_from_entry(name: str, entry: dict[str, Any]) -> Robot:
     )
 
 
+def merge_library(files: list[tuple[str, str]]) -> dict[str, dict[str, Any]]:
+    """The entries of the makers' files (``(file name, TOML text)`` pairs) as one library; a name
+    in two files is an error (in the package's own data, so a test catches it before a user)."""
+    library: dict[str, dict[str, Any]] = {}
+    for file, text in files:
+        for name, entry in tomllib.loads(text).items():
+            if name in library:
+                raise DhlogError(f"the robot library names '{name}' twice (library/{file})")
+            library[name] = entry
+    return library
+
+
 @cache
 def _library() -> dict[str, dict[str, Any]]:
-    text = resources.files("dhlog").joinpath("robots.toml").read_text(encoding="utf-8")
-    return tomllib.loads(text)
+    folder = resources.files("dhlog").joinpath("library")
+    files = sorted(
+        (item.name, item.read_text(encoding="utf-8"))
+        for item in folder.iterdir()
+        if item.name.endswith(".toml")
+    )
+    return merge_library(files)
 
 
 def robot_names() -> list[str]:

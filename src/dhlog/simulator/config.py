@@ -135,7 +135,7 @@ class SimulationConfig:
     path_error: float = 200e-6
     path_repeatability: float = 20e-6
     #: the joint states as the robot's ROS 2 driver publishes them: the library robot's joint
-    #: names (``robots.toml``'s ``joint_names``) in alphabetical order, as ros2_control's
+    #: names (``library/*.toml``'s ``joint_names``) in alphabetical order, as ros2_control's
     #: joint_state_broadcaster lists a Universal Robots arm's (``elbow_joint`` first)
     driver_joints: bool = False
     seed: int = 0
@@ -147,7 +147,7 @@ def config_problems(robot: Robot, cfg: SimulationConfig) -> list[str]:
     out = []
     if cfg.driver_joints and len(robot.joint_names) != robot.n:
         out.append(
-            f"--driver-joints: {robot.name} has no driver's joint names (robots.toml's "
+            f"--driver-joints: {robot.name} has no driver's joint names (the library entry's "
             "joint_names; dhlog robots lists the robots that have them)"
         )
     finite = [
