@@ -66,3 +66,16 @@ def worst_fk_difference(
         worst_p = max(worst_p, float(np.abs(ours[:3, 3] - theirs[:3, 3]).max()))
         worst_r = max(worst_r, float(np.abs(ours[:3, :3] @ R_tip - theirs[:3, :3]).max()))
     return worst_p, worst_r
+
+
+def chain_joints(urdf: yourdfpy.URDF, base: str, tip: str) -> list[yourdfpy.Joint]:
+    """The description's moving joints from ``base`` to ``tip``, base first (its fixed joints and
+    any joint off that chain left out)."""
+    joints: list[yourdfpy.Joint] = []
+    link = tip
+    while link != base:
+        joint = next(j for j in urdf.robot.joints if j.child == link)
+        if joint.type != "fixed":
+            joints.insert(0, joint)
+        link = joint.parent
+    return joints
