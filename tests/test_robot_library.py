@@ -113,9 +113,27 @@ def test_a_name_in_two_makers_files_is_refused() -> None:
         merge_library([("a.toml", "[kr5]\ntitle = 'x'\n"), ("b.toml", "[kr5]\ntitle = 'y'\n")])
 
 
-@pytest.mark.parametrize("spelling", ["UR5e", "ur5e", "UR-5e", "ur_5e"])
-def test_a_ur_name_is_found_as_users_write_it(spelling: str) -> None:
-    assert load_robot(spelling).name == "ur5e"
+@pytest.mark.parametrize(
+    ("spelling", "name"),
+    [
+        *((s, "ur5e") for s in ("UR5e", "ur5e", "UR-5e", "ur_5e", "Universal Robots UR5e")),
+        ("R-2000iC/165F", "r2000ic165f"),
+        ("FANUC R-2000iC/165F", "r2000ic165f"),
+        ("IRB 1200-5/0.9", "irb1200"),
+        ("ABB IRB 120", "irb120"),
+        ("LR Mate 200iD", "lrmate200id"),
+        ("Yaskawa Motoman GP7", "gp7"),
+    ],
+)
+def test_a_robot_is_found_as_users_write_it(spelling: str, name: str) -> None:
+    """Case, spaces and punctuation aside, a maker's name before the model's, or the entry's
+    title (a variant's full name)."""
+    assert load_robot(spelling).name == name
+
+
+def test_an_unknown_robot_is_one_line_listing_the_library() -> None:
+    with pytest.raises(DhlogError, match=r"Unknown robot 'IRB 9999'; the library has .*irb120"):
+        load_robot("IRB 9999")
 
 
 def test_dhlog_robots_lists_the_library_with_sources_and_checks() -> None:

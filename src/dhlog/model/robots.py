@@ -4,6 +4,7 @@ one file per maker, its format in that folder's README.md), loadable by name."""
 from __future__ import annotations
 
 import math
+import re
 import tomllib
 from dataclasses import dataclass, field
 from functools import cache
@@ -123,10 +124,43 @@ def library_robots() -> list[Robot]:
     return [_robot_from_entry(name, _library()[name]) for name in robot_names()]
 
 
-def load_robot(name: str) -> Robot:
-    """The library robot called ``name`` (case-insensitive), in SI units."""
-    key = name.strip().lower().replace(" ", "").replace("-", "").replace("_", "")
+#: a maker's name before the model's ("ABB IRB 120", "Universal Robots UR5e") is not part of the key
+_MAKERS: tuple[str, ...] = ("universalrobots", "abb", "fanuc", "yaskawa", "motoman", "kuka")
+_MAKERS += ("franka", "kinova", "staubli", "stäubli")
+
+
+def _key(name: str) -> str:
+    """A name as the library keys it: lower case, letters and digits only."""
+    return re.sub(r"[^0-9a-zäöü]", "", name.strip().lower())
+
+
+def _without_maker(key: str) -> str:
+    maker = next((m for m in _MAKERS if key.startswith(m) and len(key) > len(m)), "")
+    return key[len(maker) :]
+
+
+def _aliases() -> dict[str, str]:
+    """Each entry's key, its title ("ABB IRB 1200-5/0.9", "FANUC R-2000iC/165F") and any
+    ``aliases`` it lists, keyed; a key is never another entry's alias."""
     library = _library()
-    if key not in library:
+    out: dict[str, str] = {}
+    for name, entry in library.items():
+        for alias in [entry.get("title", ""), *entry.get("aliases", [])]:
+            out.setdefault(_key(str(alias)), name)
+            out.setdefault(_without_maker(_key(str(alias))), name)
+    out.update({name: name for name in library})
+    return out
+
+
+def load_robot(name: str) -> Robot:
+    """The library robot called ``name`` as users write it: case, spaces and punctuation aside
+    ("UR-5e", "R-2000iC/165F"), a maker's name before it ("ABB IRB 120") or a variant's full name
+    where the entry lists it as an alias ("IRB 1200-5/0.9"); in SI units."""
+    key = _key(name)
+    aliases = _aliases()
+    if key not in aliases:
+        key = _without_maker(key)
+    if key not in aliases:
         raise UnknownRobotError(name, robot_names())
-    return _robot_from_entry(key, library[key])
+    real = aliases[key]
+    return _robot_from_entry(real, _library()[real])
