@@ -2,7 +2,8 @@
 them: ``python docs/notebooks/run.py``; strip before a commit with ``--strip``) and written
 against the public API alone (``import dhlog`` and its ``__all__``), as a user's code is.
 
-Executing them is not a test here (seconds each, and a kernel): .ci/run does it."""
+Executing them is not a test here (seconds each, and a kernel): the site's build does it
+(docs/hooks/notebooks.py, ``mkdocs build --strict`` in .ci/run), and renders their outputs."""
 
 from __future__ import annotations
 

@@ -9,7 +9,9 @@ Each notebook runs in a fresh kernel with the repository's root as its working d
 notebooks read ``sample_logs/...``); its time is printed. Any cell's error fails the run (exit 1)
 and so does a file a notebook left in the repository (the notebooks write into temporary
 folders only). The executed copies are not kept unless ``--executed DIR`` is given: the
-repository holds the notebooks without outputs (tests/test_notebooks.py checks it)."""
+repository holds the notebooks without outputs (tests/test_notebooks.py checks it). The site's
+build executes them the same way (docs/hooks/notebooks.py calls :func:`execute`) and renders the
+executed copies: CI's run of the notebooks is that build."""
 
 from __future__ import annotations
 
@@ -42,7 +44,7 @@ def strip(path: Path) -> bool:
     return after != before
 
 
-def _files_in_reach() -> set[Path]:
+def files_in_reach() -> set[Path]:
     """The files a notebook writing into the working directory would leave: the root's, and
     those of docs/notebooks/ and sample_logs/."""
     found = {p for p in ROOT.iterdir() if p.is_file()}
@@ -92,7 +94,7 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     from nbclient.exceptions import CellExecutionError
 
-    before = _files_in_reach()
+    before = files_in_reach()
     total = 0.0
     failed = []
     for path in paths:
@@ -104,7 +106,7 @@ def main(argv: list[str] | None = None) -> int:
             continue
         total += took
         print(f"{path.name}: {took:.1f} s", flush=True)
-    left = sorted(str(p.relative_to(ROOT)) for p in _files_in_reach() - before)
+    left = sorted(str(p.relative_to(ROOT)) for p in files_in_reach() - before)
     if left:
         print(f"the notebooks left files in the repository: {', '.join(left)}", file=sys.stderr)
         return 1
