@@ -153,14 +153,21 @@ def test_dhlog_robots_lists_the_library_with_sources_and_checks() -> None:
     text = CliRunner().invoke(app, ["robots"], env={"COLUMNS": "200"})
     assert text.exit_code == 0, text.output
     lines = text.stdout.splitlines()
-    for name in robot_names():  # each robot's block starts with its name
+    for name in robot_names():  # one row per robot, its name first
         assert any(line.split()[:1] == [name] for line in lines), name
     # the console's width is the one it started with (another test's, in one worker): the words
     # as printed, whatever the wrapping
     words = " ".join(text.stdout.split())
-    assert "FK checked: ur_description config/ur30" in words
+    assert "Universal Robots UR16e 6 RRRRRR ur_description" in words
+    assert "Elbow manipulator 6 RRRRRR -" in words
+    whole = CliRunner().invoke(app, ["robots", "UR16e", "scara"], env={"COLUMNS": "200"})
+    assert whole.exit_code == 0, whole.output
+    words = " ".join(whole.stdout.split())
+    assert "FK checked: ur_description config/ur16e" in words
     assert "FK checked: not checked against a vendor description" in words
-    assert "Universal Robots UR16e: 6 joints (RRRRRR), the ROS 2 driver's joint names" in words
+    assert "Universal Robots UR16e: 6 joints (RRRRRR), the driver's joint names" in words
+    unknown = CliRunner().invoke(app, ["robots", "IRB 9999"])
+    assert unknown.exit_code == 2 and "Unknown robot 'IRB 9999'" in unknown.output
 
 
 PERTURBED = ("--perturb-mm", "0.5", "--perturb-deg", "0.05")

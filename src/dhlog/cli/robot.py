@@ -126,14 +126,26 @@ def show(
 
 
 def robots(
+    names: Annotated[
+        list[str] | None,
+        typer.Argument(
+            metavar="[ROBOT]...",
+            help="Robots to show whole (their source and the check of their FK); none: the list.",
+        ),
+    ] = None,
     as_json: Annotated[
         bool, typer.Option("--json", help="The list as JSON (one object per robot).")
     ] = False,
 ) -> None:
-    """The robot library: each robot's name (for --nominal and simulate), joints, source and the
-    vendor description its FK is tested against."""
-    from dhlog.model.robots import library_robots
+    """The robot library: each robot's name (for --nominal and simulate), title, joints and
+    whether its FK is tested against the vendor's description; with names, each one's source and
+    check in full."""
+    from dhlog.model.robots import library_robots, load_robot
 
+    try:
+        chosen = [load_robot(n) for n in names] if names else library_robots()
+    except DhlogError as exc:
+        fail(exc)
     entries = [
         {
             "name": r.name,
@@ -144,7 +156,7 @@ def robots(
             "source": r.source,
             "checked": r.checked or None,
         }
-        for r in library_robots()
+        for r in chosen
     ]
     if as_json:
         stdout.print_json(json.dumps(entries))
@@ -152,15 +164,27 @@ def robots(
     from rich.table import Table
     from rich.text import Text
 
+    if not names:
+        table = Table(box=None, pad_edge=False, show_edge=False)
+        for column in ("robot", "title", "joints", "FK checked against"):
+            table.add_column(column, overflow="fold")
+        for e in entries:
+            # the description's package or repository: its first word, without the owner
+            checked = str(e["checked"]).split()[0].split("/")[-1] if e["checked"] else "-"
+            joints = f"{e['joints']} {e['joint_types']}"
+            table.add_row(Text(str(e["name"])), Text(str(e["title"])), joints, Text(checked))
+        stdout.print(table)
+        stdout.print("dhlog robots NAME: a robot's source and check in full; --json: as data.")
+        return
     grid = Table.grid(padding=(0, 2))
     grid.add_column("robot", no_wrap=True)
     grid.add_column("entry", overflow="fold")
     for e in entries:
-        names = ", the ROS 2 driver's joint names" if e["joint_names"] else ""
-        checked = e["checked"] or "not checked against a vendor description"
+        names_said = ", the driver's joint names" if e["joint_names"] else ""
+        said = e["checked"] or "not checked against a vendor description"
         entry = (
-            f"{e['title']}: {e['joints']} joints ({e['joint_types']}){names}\n"
-            f"source: {e['source']}\nFK checked: {checked}"
+            f"{e['title']}: {e['joints']} joints ({e['joint_types']}){names_said}\n"
+            f"source: {e['source']}\nFK checked: {said}"
         )
         grid.add_row(Text(str(e["name"])), Text(entry))
     stdout.print(grid)
