@@ -66,7 +66,7 @@ import json
 import math
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Literal
+from typing import Any, Literal
 
 import cv2
 import numpy as np
@@ -500,8 +500,10 @@ def _draw(rig: Rig, T_cam_board: FloatArray) -> NDArray[np.uint8]:
     maps = cv2.perspectiveTransform(xy.reshape(-1, 1, 2), A).reshape(*shape, 2)
     front = xy[..., 0] * np.float32(A[2, 0]) + xy[..., 1] * np.float32(A[2, 1]) > -A[2, 2]
     maps[~front] = -1e6
-    # one CV_32FC2 map and no second one (which the stubs do not allow)
-    image = cv2.remap(pixels, maps, None, cv2.INTER_LINEAR, borderValue=BACKGROUND)  # type: ignore[call-overload]
+    # one CV_32FC2 map and no second one, which some releases' stubs do not allow: called
+    # untyped so the check holds for every OpenCV the pins admit
+    remap: Any = cv2.remap
+    image = remap(pixels, maps, None, cv2.INTER_LINEAR, borderValue=BACKGROUND)
     return np.asarray(image, dtype=np.uint8)
 
 
