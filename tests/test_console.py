@@ -60,10 +60,13 @@ def hostile() -> ProcessResult:
     for joint, name in zip(result.joints, HOSTILE, strict=True):
         joint.name = name
     result.joints[-1].reason = "[i]why[/]\nnext\\"
-    result.info.append("note [bold]n[/] \x1b[2J end")
-    result.warnings.append("warn [/] end\\")
-    result.nominal = dataclasses.replace(result.nominal, source="[red]nominal[/]\r")
-    return result
+    assert result.nominal is not None
+    return dataclasses.replace(
+        result,
+        info=(*result.info, "note [bold]n[/] \x1b[2J end"),
+        warnings=(*result.warnings, "warn [/] end\\"),
+        nominal=dataclasses.replace(result.nominal, source="[red]nominal[/]\r"),
+    )
 
 
 def test_print_result_prints_user_text_literally(hostile: ProcessResult) -> None:

@@ -143,7 +143,7 @@ def test_the_drivers_order_gives_the_ordered_logs_table(
     assert [j.name for j in driver.joints] == UR
     assert driver.log.joint_order is not None and driver.log.joint_order.how == "name"
     assert_same_table(driver, ordered_result)
-    assert driver.implausible == []
+    assert driver.implausible == ()
     assert driver.validation is not None and driver.validation.rms < 1e-4
     assert fk_rms_against_truth(driver, session) < 1e-4
 
@@ -464,7 +464,7 @@ def test_a_drivers_bag_validates_a_calibration_whose_log_numbered_its_joints(
         model=ModelRequest("geometric"),
         validate=[logs["driver"], logs["ordered"]],
     )
-    assert result.not_scored == [] and result.implausible == []
+    assert result.not_scored == () and result.implausible == ()
     scored = [h for h in result.holdout if h.kind == "log"]
     assert len(scored) == 2
     assert scored[0].calibrated.rms == pytest.approx(scored[1].calibrated.rms, rel=1e-9)

@@ -8,7 +8,6 @@ along its x (about 1 px at the board's distance), so every error vector is a rea
 
 from __future__ import annotations
 
-import copy
 import dataclasses
 import math
 from pathlib import Path
@@ -272,8 +271,8 @@ def test_the_process_recording_draws_the_results_cameras(
     ``world/base``: the base's place in the 3D views' world), adds a tab per camera and shows
     the sensor_time line; the same result without cameras writes none of it."""
     result = process_log(SAMPLES / "scara.mcap")
-    with_cameras = copy.copy(result)
-    with_cameras.cameras = list(views)  # the field ProcessResult carries for a camera log
+    # the field ProcessResult carries for a camera log
+    with_cameras = dataclasses.replace(result, cameras=tuple(views))
     path = tmp_path / "run.rrd"
     write_process_recording(with_cameras, path)
     rrd_verify(path)

@@ -191,6 +191,19 @@ def calibration_of(result: Any, *, limits: Any = None) -> Calibration:
     return found
 
 
+def with_info(calibration: Calibration, said: str) -> Calibration:
+    """A run's calibration with a note added to its record, the document made again from
+    that one record (the console and the JSON read the same notes)."""
+    from dataclasses import replace
+
+    result = calibration._result
+    if result is None:
+        raise ValueError("with_info: a run's calibration (not a loaded one)")
+    found = calibration_of(replace(result, info=(*result.info, said)), limits=calibration.limits)
+    found._asked, found._inputs = calibration._asked, calibration._inputs
+    return found
+
+
 def run_of(calibration: Calibration) -> Any:
     """The identification's record behind a run's calibration (None: a loaded one); for the
     command line's console report."""

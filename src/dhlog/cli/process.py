@@ -202,7 +202,7 @@ def process(
 
     from dhlog.api.calibration import output_names, write_run
     from dhlog.api.operations import process as identify
-    from dhlog.api.operations import run_of
+    from dhlog.api.operations import run_of, with_info
     from dhlog.present.console import print_result
 
     if units not in ("mm", "m"):
@@ -312,15 +312,14 @@ def process(
                 jobs=jobs,
                 frames=frame_range,
             )
-            result = run_of(calibration)
             if refine:  # in the console's report and in the JSON the calibration writes
                 said = (
                     "--refine is a no-op: the fit of the whole model to every sample is the "
                     "default (--analytic-only gives the per-joint circle fits and line geometry "
                     "alone)."
                 )
-                result.info.append(said)
-                calibration.document["notes"].append(said)
+                calibration = with_info(calibration, said)
+            result = run_of(calibration)
             advance("writing", 0.0)
             try:
                 folder.mkdir(parents=True, exist_ok=True)  # --out is created when missing

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import replace
-from typing import Any, cast
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -212,9 +212,6 @@ def placed_nominal(
     from dhlog.identify.fit.measure import residuals as measured
     from dhlog.identify.fit.measure import rms
 
-    cached = getattr(start, "placed_nominal", None)
-    if cached is not None:  # one placement a start: the set-up's test and the second start
-        return cast(tuple[float, AxisModel | None], cached)
     whole, ex = start.whole, start.extraction
     if nominal is None or whole is None or ex is None or whole.model.tool_rotation is None:
         return math.inf, None
@@ -246,7 +243,6 @@ def placed_nominal(
         value = rms(measured(model, meas, data))
         if math.isfinite(value) and value < best[0]:
             best = (value, model)
-    start.placed_nominal = best
     return best
 
 

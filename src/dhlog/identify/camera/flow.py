@@ -25,7 +25,6 @@ from dataclasses import replace
 from typing import Any
 
 import numpy as np
-from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
 from dhlog.errors import DhlogError, InputError
@@ -37,7 +36,6 @@ from dhlog.identify.camera.checks import (
     camera_moved,
     frame_clustered,
     placed_nominal,
-    placed_nominal_px,
 )
 from dhlog.identify.camera.hand_eye import cameras_std, hand_eye
 from dhlog.identify.camera.holdout import cross_validate_cameras, cross_validate_pixels
@@ -54,7 +52,7 @@ from dhlog.identify.camera.poses import (
 )
 from dhlog.identify.camera.report import CameraResult
 from dhlog.identify.camera.view import camera_view
-from dhlog.identify.fit.axismodel import ParameterLayout
+from dhlog.identify.fit.axismodel import AxisModel, ParameterLayout
 from dhlog.identify.fit.pixels import CamerasModel, PixelFit, PixelModel, fit_pixels
 from dhlog.identify.fit.prediction import predict as predict_points
 from dhlog.identify.fit.prediction import predict_orientation
@@ -137,15 +135,17 @@ def process_observations(
     for s in candidates:
         log = pose_log(obs, T_cb, s, use)
         try:
-            starts[s] = process_data(
-                log,
-                sha256=sha256,
-                nominal=nominal,
-                reference_pose=reference_pose,
-                model=model_request,
-                progress=progress,
+            starts[s] = replace(
+                process_data(
+                    log,
+                    sha256=sha256,
+                    nominal=nominal,
+                    reference_pose=reference_pose,
+                    model=model_request,
+                    progress=progress,
+                ),
+                camera_setup=s,
             )
-            starts[s].camera_setup = s
         except DhlogError as exc:
             if len(candidates) == 1:
                 raise
@@ -165,10 +165,10 @@ def process_observations(
     # the one whose table is the nominal's: sweeps from one home pose fit either set-up (each
     # move is one joint's turn, about a line fixed in both the camera's and the board's frame),
     # but only the right one reads the nominal's table off them
-    gap = {
-        s: placed_nominal_px(r, nominal, obs) if len(usable) > 1 else math.nan
-        for s, r in usable.items()
+    placements = {  # the nominal on the corners: one placement a start
+        s: placed_nominal(r, nominal, obs) for s, r in usable.items() if len(usable) > 1
     }
+    gap = {s: placements[s][0] if s in placements else math.nan for s in usable}
     chosen = min(usable, key=lambda s: (gap[s], usable[s].validation.rms))
     if setup:
         reason = "given"
@@ -181,7 +181,8 @@ def process_observations(
         reason = f"decided from the data ({said})"
     result = usable[chosen]
     if pipeline is not None:  # the camera pipeline read, not the poses' internal one
-        result.log = replace(result.log, pipeline=replace(result.log.pipeline, name=pipeline))
+        piped = replace(result.log, pipeline=replace(result.log.pipeline, name=pipeline))
+        result = replace(result, log=piped)
     # what the start's run said is of the poses' fit (its noise, its pairs, its registration in
     # mm), not of the calibration: one line says how the start was made, the rest is the
     # pixel fit's
@@ -191,39 +192,46 @@ def process_observations(
         if swept
         else "the nominal placed on them"
     )
-    result.info = [
-        f"start: each frame's board pose (OpenCV PnP) as a 6-DoF target, the model from {how}; "
-        "then the whole model fitted to every corner in pixels."
-    ]
-    result.warnings = [*notes, *(w for w in result.warnings if "never moved alone" in w)]
-    fit = _pixel_stage(result, obs, T_cb, use, chosen, reason, refine_intrinsics, holdout, progress)
-    placed_px = getattr(result, "placed_nominal", (math.nan, None))[0]
+    result = replace(
+        result,
+        info=(
+            f"start: each frame's board pose (OpenCV PnP) as a 6-DoF target, the model from "
+            f"{how}; then the whole model fitted to every corner in pixels.",
+        ),
+        warnings=(*notes, *(w for w in result.warnings if "never moved alone" in w)),
+    )
+    placement = placements.get(chosen) or placed_nominal(result, nominal, obs)
+    result, fit = _pixel_stage(
+        result, obs, T_cb, placement[1], chosen, reason, refine_intrinsics, holdout, progress
+    )
+    placed_px = placement[0]
     if setup and nominal is not None and not placed_px < FAR_PX:
         # a set-up given wrongly fits by a free fit on sweeps, and shows only here
-        result.warnings.insert(
-            0,
+        said = (
             f"--camera-setup {setup}: the nominal, placed on the corners in that set-up, misses "
             f"them by {'over 10 000' if not placed_px < 1e4 else f'{placed_px:.1f}'} px RMS: is "
-            "the set-up right? Leave --camera-setup out and it is decided from the data.",
+            "the set-up right? Leave --camera-setup out and it is decided from the data."
         )
+        result = replace(result, warnings=(said, *result.warnings))
     if extra_cameras and chosen != "eye-to-hand":
-        result.warnings.append(
+        said = (
             f"the log has {len(observations)} cameras; several are fitted together fixed in the "
             f"cell (eye-to-hand) only: this calibration used {obs.camera} alone "
             f"({', '.join(extra_cameras)} not used)."
         )
+        result = replace(result, warnings=(*result.warnings, said))
     elif extra_cameras:
         rest = [o if frames is None else of_frames(o, frames) for o in observations[1:]]
-        _several_cameras(result, fit, [obs, *rest], holdout, progress)
+        result = _several_cameras(result, fit, [obs, *rest], holdout, progress)
     return result
 
 
 def _adopt(
     result: Any, whole: Any
-) -> tuple[Extraction, Any, Callable[[list[Line], FloatArray, Any], Extraction]]:
-    """Put the pixel fit ``whole`` in ``result``: its DH model read off as for a tracker, the
-    covariance and what is fixed, the FK check against the PnP poses. Returns the extraction,
-    the uncertainty and the extraction's function."""
+) -> tuple[Any, Extraction, Any, Callable[[list[Line], FloatArray, Any], Extraction]]:
+    """``result`` with the pixel fit ``whole`` in it: its DH model read off as for a tracker,
+    the covariance and what is fixed, the FK check against the PnP poses. Returns that result,
+    the extraction, the uncertainty and the extraction's function."""
     from dhlog.identify.check.validate import validate_samples
     from dhlog.identify.joints.sweeps import samples_with_encoders
 
@@ -240,37 +248,45 @@ def _adopt(
     ex = extract(list(whole.model.axes), whole.model.target, None)
     said: list[str] = []
     found = whole_uncertainty(whole, None, extract, ex, ref, nominal_table, said)
-    result.info.extend(said)
-    result.method = "whole-model maximum likelihood"  # in pixels: the camera block says so
-    result.extraction, result.whole = ex, whole
-    result.covariance, result.std, result.fixed = found.covariance, found.std, found.fixed
-    result.hayati, result.hayati_std = found.hayati, found.hayati_std
-    result.conditioned = found.conditioned
-    result.tool_orientation = found.tool_orientation
-    result.tool_orientation_std = found.tool_orientation_std
-    result.target = whole.model.target
-    result.selection = None
     seg = result.segmentation
     rows, Q, P = samples_with_encoders(seg)
     # the table's joint values are the encoders' (no scales, no terms in a camera's fit)
     inl = np.ones(len(rows), dtype=bool)
-    result.validation = validate_samples(seg, rows, Q, P, ex, inl, ex.tool_point[None])
-    return ex, found, extract
+    adopted = replace(
+        result,
+        info=(*result.info, *said),
+        method="whole-model maximum likelihood",  # in pixels: the camera block says so
+        extraction=ex,
+        whole=whole,
+        covariance=found.covariance,
+        std=found.std,
+        fixed=found.fixed,
+        hayati=tuple(found.hayati),
+        hayati_std=tuple(found.hayati_std),
+        conditioned=found.conditioned,
+        tool_orientation=found.tool_orientation,
+        tool_orientation_std=found.tool_orientation_std,
+        target=whole.model.target,
+        selection=None,
+        validation=validate_samples(seg, rows, Q, P, ex, inl, ex.tool_point[None]),
+    )
+    return adopted, ex, found, extract
 
 
 def _pixel_stage(
     result: Any,
     obs: Observations,
     T_cb: FloatArray,
-    use: NDArray[np.bool_],
+    placed: AxisModel | None,
     setup: str,
     reason: str,
     refine_intrinsics: bool,
     holdout: int,
     progress: Callable[[str, float], None] | None,
-) -> PixelFit:
-    """Refit ``result``'s whole model in pixels and put the DH model, σ and camera in it;
-    returns the fit."""
+) -> tuple[Any, PixelFit]:
+    """Refit ``result``'s whole model in pixels (and from ``placed``, the nominal placed on
+    the corners, when given); returns the result with the DH model, σ and camera in it, and
+    the fit."""
     assert result.whole is not None
     if progress is not None:
         progress("fitting pixels", 0.0)
@@ -280,23 +296,24 @@ def _pixel_stage(
     # a second start, the nominal placed on the corners: the start fit's model can sit in
     # another basin of the pixels' cost (a poor seed-method start eye-in-hand); the better
     # optimum, by the truncated cost at the first fit's cut, is kept
-    _, placed = placed_nominal(result, result.nominal, obs)
     if placed is not None:
         other = fit_pixels(placed, measurement, data)
         if _cost(other, fit.whole.limit) < _cost(fit, fit.whole.limit):
             fit = other
-    fit = frame_clustered(fit, data.frame, result.info)
+    info = list(result.info)
+    fit = frame_clustered(fit, data.frame, info)
+    result = replace(result, info=tuple(info))
     nominal = result.nominal
     nominal_table = nominal.table if nominal is not None else None
     ref = result.reference_pose
-    ex, found, extract = _adopt(result, fit.whole)
+    result, ex, found, extract = _adopt(result, fit.whole)
     T_fixed, T_mounted, fixed_std, mounted_std = hand_eye(fit, extract, setup, board_centre(obs))
     scaled = board_scale(ex, nominal_table, obs, set(found.fixed))
     if scaled is not None:  # the calibration is of a board of another size: implausible
-        result.implausible.append(scaled)
+        result = replace(result, implausible=(*result.implausible, scaled))
     moved = camera_moved(fit, data, obs, ex, ref)
     if moved is not None:
-        result.warnings.insert(0, moved)
+        result = replace(result, warnings=(moved, *result.warnings))
     check = None
     if holdout > 1:
         if progress is not None:
@@ -324,17 +341,21 @@ def _pixel_stage(
         setup_reason=reason,
         holdout=check,
     )
-    result.camera = cam
-    result.sigma = None
-    result.info.append(
+    said = (
         f"camera {obs.camera} ({setup}, {reason}): {cam.frames} frames, {cam.corners} corners "
         f"({cam.corners - cam.inlier_corners} held out as false detections); the whole model "
         f"fitted to the corners in pixels: σ {cam.sigma_px:.3f} px per coordinate. The FK "
         "check below is against the board's poses from PnP (mm), the fit's own is in pixels."
     )
-    result.cameras = [camera_view(fit, data, obs, cam, check)]
-    result.camera_results = [cam]
-    return fit
+    shown = replace(
+        result,
+        camera=cam,
+        sigma=None,
+        info=(*result.info, said),
+        cameras=(camera_view(fit, data, obs, cam, check),),
+        camera_results=(cam,),
+    )
+    return shown, fit
 
 
 def _cost(fit: PixelFit, limit: float) -> float:
@@ -349,9 +370,10 @@ def _several_cameras(
     observations: list[Observations],
     holdout: int,
     progress: Callable[[str, float], None] | None,
-) -> None:
-    """Fit the whole model to every camera's corners at once (:class:`CamerasModel`: M the
-    first camera's frame, each further camera's pose fitted with it), starting from the first
+) -> Any:
+    """``result`` with the whole model fitted to every camera's corners at once
+    (:class:`CamerasModel`: M the first camera's frame, each further camera's pose fitted with
+    it), starting from the first
     camera's fit and each further camera placed by its frames' PnP poses against where that
     fit puts the board; every camera's pose in the base frame with σ, the held-out check
     over all frames, a view per camera."""
@@ -388,9 +410,9 @@ def _several_cameras(
     # corners, would hold out whole), then everything together
     held = np.zeros((ParameterLayout.of(model.types, rotation=True).size, 0))
     placed = fit_measured(model, measurement, data, within=held, threshold=math.inf)
-    result.info = [line for line in result.info if "share their frame's error" not in line]
-    fit = frame_clustered(fit_measured(model, placed.measurement, data), data.frame, result.info)
-    ex, _, extract = _adopt(result, fit.whole)
+    info = [line for line in result.info if "share their frame's error" not in line]
+    fit = frame_clustered(fit_measured(model, placed.measurement, data), data.frame, info)
+    result, ex, _, extract = _adopt(replace(result, info=tuple(info)), fit.whole)
     _, T_mounted, _, mounted_std = hand_eye(fit, extract, "eye-to-hand", centre)
     cams_std = cameras_std(fit, extract)
     base: FloatArray = np.asarray(np.linalg.inv(ex.T_measurement_base), dtype=np.float64)
@@ -429,9 +451,15 @@ def _several_cameras(
         own = corners_of(o, np.ones(o.frames, dtype=bool))
         sub = replace(first, residuals=res, whole=replace(first.whole, model=fit.whole.model))
         views.append(camera_view(sub, own, o, cam, check, T_base_M=base))
-    result.camera, result.camera_results, result.cameras = results[0], results, views
-    result.info.append(
+    said = (
         f"{len(observations)} cameras fitted together ({', '.join(o.camera for o in observations)}"
         f"): {int(data.uv.shape[0])} corners, σ {fit.sigma:.3f} px per coordinate; each "
         "camera's pose in the base frame with its σ in the camera blocks."
+    )
+    return replace(
+        result,
+        camera=results[0],
+        camera_results=tuple(results),
+        cameras=tuple(views),
+        info=(*result.info, said),
     )

@@ -14,6 +14,7 @@ than the nominal does — and by far more than the noise — was fitted to input
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -212,24 +213,25 @@ def slip_notes(
     ]
 
 
-def judge(result: Any) -> None:
-    """Append to ``result.implausible`` (a tracker run's ``ProcessResult``) what makes it
-    implausible — lengths all k times the nominal's (:func:`length_slip`), an FK check far
+def judge(result: Any) -> Any:
+    """A tracker run's ``ProcessResult`` with what makes it implausible added to its
+    ``implausible`` — lengths all k times the nominal's (:func:`length_slip`), an FK check far
     above the noise and the nominal's own miss (:func:`fk_beyond`) — and to its warnings what
     the misses say short of that (:func:`slip_notes`)."""
     ex, nominal, val = result.extraction, result.nominal, result.validation
     named = bool(result.implausible)  # a cause already named (a joint permutation): said once
     if ex is None or not result.complete:
-        return
+        return result
+    implausible = list(result.implausible)
     if nominal is not None and nominal.table.n == ex.standard.n:
         said = length_slip(ex.standard, nominal, set(result.fixed))
         if said is not None:
-            result.implausible.append(said)
+            implausible.append(said)
     if val is None:
-        return
+        return replace(result, implausible=tuple(implausible))
     miss = nominal_miss(result) if nominal is not None else None
     beyond = fk_beyond(val.rms, noise_rms(result), miss)
     if beyond is not None and not named:
-        result.implausible.append(beyond)
-    said_again = bool(result.implausible)
-    result.warnings.extend(slip_notes(miss, val.rms, result.noise.model_error, said_again))
+        implausible.append(beyond)
+    slips = slip_notes(miss, val.rms, result.noise.model_error, bool(implausible))
+    return replace(result, implausible=tuple(implausible), warnings=(*result.warnings, *slips))

@@ -1,0 +1,175 @@
+"""``--validate LOG``: a result scored at the poses of other sessions of the same robot, the
+nominal and the calibrated model on one footing (:func:`validated`).
+
+Each log is read with the nominal's joint names where it has them (else the calibrated log's),
+segmented, and scored by :func:`~dhlog.identify.check.footing.score_poses` against the nominal
+placed once on the calibrated session's inlier samples. A log that cannot be scored is a
+warning; one that cannot be placed or read makes the result implausible.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+
+from dhlog.errors import DhlogError, GeometryError
+from dhlog.identify.check.footing import (
+    NotScoredError,
+    Placed,
+    Unscored,
+    nominal_on_session,
+    score_poses,
+)
+from dhlog.identify.check.holdout import Holdout
+from dhlog.identify.check.named import pose_names, sample_names
+from dhlog.identify.check.plausible import inlier_picks
+from dhlog.identify.fit.samples import measured_rotations
+from dhlog.identify.joints.sweeps import samples_with_encoders, target_labels
+from dhlog.identify.segment.segment import segment_log
+from dhlog.identify.stages import ProcessResult, table_values
+from dhlog.io.pipeline import Pipeline
+from dhlog.io.reader import read_log
+
+#: Largest number of the session's samples the nominal is placed on.
+NOMINAL_SAMPLES = 20000
+
+
+def validated(
+    result: ProcessResult, logs: list[str | Path], pipeline: Pipeline | None, fast: bool
+) -> ProcessResult:
+    """``result`` scored at the poses of each held-out log (``--validate``): a log that cannot
+    be scored is a warning and a ``not_scored`` entry — and makes the result implausible when
+    it could not be placed or read, since the validation asked for is missing."""
+    if not logs:
+        return result
+    if result.extraction is None or not result.complete:
+        said = tuple(f"{path}: not scored: the result is not complete." for path in logs)
+        return replace(result, warnings=(*result.warnings, *said))
+    #: the nominal on this session, placed once (or why it could not be)
+    placed: list[tuple[Placed | None, str | None]] = []
+    checks: list[Holdout] = []
+    warnings: list[str] = []
+    not_scored: list[Unscored] = []
+    implausible: list[str] = []
+    for other in logs:
+        try:  # each log's own pipeline unless named
+            checks.append(_validate_log(result, other, pipeline, fast, placed))
+        except DhlogError as exc:  # the calibration stands: the log is one line
+            said_one = str(exc) if str(other) in str(exc) else f"{other}: {exc}"
+            warnings.append(f"held-out log not scored: {said_one}")
+            unplaced = isinstance(exc, NotScoredError) and exc.unplaced
+            not_scored.append(Unscored(str(other), said_one, unplaced))
+            if unplaced:
+                implausible.append(
+                    f"the held-out log {other} could not be placed, so the calibration has no "
+                    "validation on it (it is not scored, never reported as the result's "
+                    "figure): " + said_one.removeprefix(f"{other}: ")
+                )
+            elif not isinstance(exc, NotScoredError):  # asked for, and not read at all
+                implausible.append(
+                    f"the held-out log {other} could not be read, so the validation asked for "
+                    "is missing: " + said_one.removeprefix(f"{other}: ")
+                )
+        if len(placed) == 1 and placed[0][1] is not None:  # said once, where it happened
+            warnings.append(placed[0][1])
+            placed[0] = (None, None)
+    return replace(
+        result,
+        holdout=(*result.holdout, *checks),
+        warnings=(*result.warnings, *warnings),
+        not_scored=(*result.not_scored, *not_scored),
+        implausible=(*result.implausible, *implausible),
+    )
+
+
+def _validate_log(
+    result: ProcessResult,
+    path: str | Path,
+    pipeline: Pipeline | None,
+    fast: bool,
+    placed: list[tuple[Placed | None, str | None]],
+) -> Holdout:
+    """Score ``result`` at the poses of the log at ``path`` (``--validate``), the nominal and
+    the calibrated model on one footing (:mod:`dhlog.identify.check.footing`); ``placed`` keeps the
+    nominal as placed on this session once it is, with the warning when it cannot be (one
+    item). Raises :class:`~dhlog.errors.DhlogError` when the log cannot be read or scored."""
+    ex = result.extraction
+    assert ex is not None
+    # the nominal's names where it has them (a UR driver's bag validating a calibration whose
+    # log numbered its joints), else the calibrated log's: matched by the reader's rules
+    named = result.nominal is not None and bool(result.nominal.joint_names)
+    log = read_log(
+        path,
+        pipeline,
+        fast=fast,
+        joint_names=result.nominal.joint_names
+        if named and result.nominal is not None
+        else result.segmentation.joint_names,
+        joint_source=result.nominal.source
+        if named and result.nominal is not None
+        else f"{result.path} (the calibrated log)",
+    )
+    seg = segment_log(log, joint_types=list(ex.standard.joint_types))
+    if seg.n_joints != ex.standard.n or not seg.has_encoders:
+        raise NotScoredError(
+            f"{path}: has {seg.n_joints} joints{'' if seg.has_encoders else ' and no encoders'}; "
+            f"--validate needs a log of the same robot ({ex.standard.n} joints) with encoder "
+            "values.",
+            unplaced=True,
+        )
+    rows, Qs, Ps = samples_with_encoders(seg)
+    which = target_labels(seg, rows)
+    rotations = measured_rotations(seg, rows)
+    primary = slice(None) if which is None else which == 0
+    Q, P = Qs[primary], Ps[primary]  # a session scored: its own poses, whole
+    if not placed:
+        placed.append(_nominal_on_session(result))
+    nominal = result.nominal
+    own = [result.validation.rms] if result.validation is not None else []
+    own += [h.calibrated.rms for h in result.holdout if h.kind == "cross-validation"]
+    check = score_poses(
+        Placed(ex.standard, ex.T_measurement_base, ex.tool_point, result.tool_orientation),
+        Q,
+        P,
+        path=str(path),
+        nominal=placed[0][0],
+        rotations=None if rotations is None else rotations[primary],
+        table_values=table_values(result, Q),
+        nominal_values=None if nominal is None else nominal.joint_values(Q),
+        own_error=max(own) if own else None,
+    )
+    if log.point_ids is not None:  # the session's held-out poses by the export's ids
+        mine = rows if which is None else rows[primary]
+        names = sample_names(np.asarray(seg.column("t_ns", mine), np.int64), mine, log.point_ids)
+        check = replace(
+            check, pose_names=pose_names(np.asarray(Q), np.asarray(P), names, check.positions)
+        )
+    return check
+
+
+def _nominal_on_session(result: ProcessResult) -> tuple[Placed | None, str | None]:
+    """The nominal placed on the session's samples (the fit's inliers of the primary target, at
+    most :data:`NOMINAL_SAMPLES`, evenly strided): the "before" a held-out log scores. None
+    without a nominal or a whole-model fit, or when it cannot be placed (with the warning)."""
+    nominal, whole, seg = result.nominal, result.whole, result.segmentation
+    if nominal is None or whole is None:
+        return None, None
+    rows, Q, P = samples_with_encoders(seg)
+    pick = inlier_picks(seg, rows, whole, NOMINAL_SAMPLES)
+    try:
+        placed = nominal_on_session(
+            nominal.table,
+            nominal.joint_values(Q[pick]),
+            P[pick],
+            measured_rotations(seg, rows[pick]),
+            tool_point=nominal.tool_point,
+            T_base=nominal.T_base,
+        )
+    except GeometryError as exc:
+        return None, (
+            f"the nominal could not be placed on this session ({exc}): held-out logs score "
+            "the calibrated model alone."
+        )
+    return placed, None

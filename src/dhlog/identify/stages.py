@@ -1,0 +1,240 @@
+"""The identification's stage values and its result, each frozen.
+
+:func:`dhlog.identify.run.process_data` composes the stages: the session segmented and its
+joints fitted one by one (:class:`Session`), then either the analytic result or the fit of the
+whole model (:class:`ModelFit`, :mod:`dhlog.identify.wholefit`), and builds the one
+:class:`ProcessResult` the document, the console, the recording and the API read. A stage that
+fails is a value (None and a warning), not a field restored by hand.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field, fields
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from dhlog.geometry._checks import FloatArray
+from dhlog.geometry.fitting import PlaneFit
+from dhlog.identify.check.footing import Unscored
+from dhlog.identify.check.holdout import Holdout
+from dhlog.identify.check.validate import Validation
+from dhlog.identify.fit.register import Registration
+from dhlog.identify.fit.whole import WholeFit
+from dhlog.identify.joints.sweeps import JointReport
+from dhlog.identify.model.select import ModelRequest, Selection
+from dhlog.identify.read.conditioning import Conditioned
+from dhlog.identify.read.extract import Extraction
+from dhlog.identify.read.hayati import HayatiRow
+from dhlog.identify.segment.segment import Segmentation
+from dhlog.identify.segment.timing import Timing
+from dhlog.io.dhfile import DHModel
+from dhlog.io.reader import LogData
+from dhlog.model.noise import NoiseModel
+from dhlog.model.terms import Terms, table_deflection
+
+
+@dataclass(frozen=True)
+class Session:
+    """The session as the whole-model fit starts from it: the log, its segmentation (joined
+    again at the fitted clock offset, when it moved), each joint's report, the reference pose,
+    the base plane, the nominal, the joints parked, the clock, the noise model and the target's
+    start (m, in M; None before the analytic start)."""
+
+    log: LogData
+    segmentation: Segmentation
+    joints: tuple[JointReport, ...]
+    reference_pose: FloatArray
+    base: PlaneFit | None
+    nominal: DHModel | None
+    parked: tuple[int, ...]
+    timing: Timing | None
+    noise: NoiseModel
+    target: FloatArray | None = None
+
+
+@dataclass(frozen=True)
+class FitRequest:
+    """What the run asks of the fit of the whole model: K of the cross-validation (0: none), the
+    terms beyond the geometry, encoder scales, the σ within which pairs are held parallel (None:
+    decided from held-out poses) and the extraction's tolerances (``angle_tol``,
+    ``distance_tol``, ``pair_tolerances``: keyword arguments of
+    :func:`~dhlog.identify.read.extract.extract_dh`)."""
+
+    folds: int
+    model: ModelRequest
+    fit_scales: bool
+    parallel_sigma: float | None
+    tolerances: Mapping[str, Any]
+
+
+@dataclass(frozen=True)
+class ModelFit:
+    """The fit of the whole model and what is read off it: the DH model with its covariance
+    and what is fixed, the terms beyond the geometry and what they move, the check at every
+    sample, the outliers by name, the cross-validation; with the warnings and the notes this
+    stage adds. Its fields are :class:`ProcessResult`'s of the same names."""
+
+    segmentation: Segmentation
+    timing: Timing | None
+    noise: NoiseModel
+    selection: Selection | None
+    extraction: Extraction
+    analytic: Extraction | None
+    whole: WholeFit
+    covariance: FloatArray | None
+    std: FloatArray | None
+    fixed: Mapping[int, str]
+    hayati: tuple[HayatiRow, ...]
+    hayati_std: tuple[FloatArray, ...]
+    conditioned: Conditioned | None
+    tool_orientation: FloatArray | None
+    tool_orientation_std: FloatArray | None
+    extra_tool_points: FloatArray
+    extra_tool_std: FloatArray
+    target: FloatArray
+    sigma: float
+    terms: Terms | None
+    terms_std: FloatArray
+    deflection_max: FloatArray
+    deflection_target: float
+    deflection_max_std: FloatArray
+    deflection_target_std: float
+    deflection_vectors: FloatArray
+    validation: Validation | None
+    outlier_names: tuple[str, ...]
+    outlier_rows: NDArray[np.intp]
+    holdout: tuple[Holdout, ...]
+    warnings: tuple[str, ...]
+    info: tuple[str, ...]
+    method: str = "whole-model maximum likelihood"
+
+    def fields(self) -> dict[str, Any]:
+        """The result's fields this stage sets (its notes aside: they are added, not set)."""
+        return {
+            f.name: getattr(self, f.name)
+            for f in fields(self)
+            if f.name not in ("warnings", "info")
+        }
+
+
+@dataclass(frozen=True)
+class ProcessResult:
+    """Everything ``dhlog process`` found, ready to be written and shown: built once, from the
+    stages' values (:class:`Session`, :class:`ModelFit`), and never changed after — a later step
+    (the plausibility judgement, a held-out log) makes a new one with
+    :func:`dataclasses.replace`."""
+
+    path: str
+    sha256: str
+    log: LogData
+    segmentation: Segmentation
+    joints: tuple[JointReport, ...]
+    reference_pose: FloatArray
+    extraction: Extraction | None
+    std: FloatArray | None
+    base: PlaneFit | None
+    target: FloatArray | None
+    validation: Validation | None
+    nominal: DHModel | None
+    warnings: tuple[str, ...]
+    covariance: FloatArray | None = None
+    hayati: tuple[HayatiRow, ...] = ()
+    hayati_std: tuple[FloatArray, ...] = ()
+    method: str = "analytic"
+    analytic: Extraction | None = None
+    whole: WholeFit | None = None
+    fixed: Mapping[int, str] = field(default_factory=dict)
+    noise: NoiseModel = field(default_factory=NoiseModel)
+    sigma: float | None = None
+    extra_tool_points: FloatArray = field(default_factory=lambda: np.zeros((0, 3)))
+    extra_tool_std: FloatArray = field(default_factory=lambda: np.zeros((0, 3)))
+    tool_orientation: FloatArray | None = None
+    tool_orientation_std: FloatArray | None = None
+    conditioned: Conditioned | None = None
+    timing: Timing | None = None
+    #: the nominal placed on the points (sessions without sweeps: the fit's start)
+    registration: Registration | None = None
+    #: joints (0-based) parked in the session (:mod:`dhlog.identify.model.parked`)
+    parked: tuple[int, ...] = ()
+    #: errors at poses not used to fit: K-fold cross-validation, held-out logs
+    holdout: tuple[Holdout, ...] = ()
+    #: the whole-model fit's gross outliers by name (the export's point ids, else ``#k``)
+    outlier_names: tuple[str, ...] = ()
+    #: ... and their rows in the segmentation's point table
+    outlier_rows: NDArray[np.intp] = field(default_factory=lambda: np.zeros(0, np.intp))
+    #: held-out logs given (``--validate``) but not scored, each with the reason
+    not_scored: tuple[Unscored, ...] = ()
+    #: K of the K-fold cross-validation asked for (0: none)
+    folds: int = 0
+    #: the terms beyond the geometry asked for, the candidates tried, and the chosen terms in
+    #: the table's frames (:func:`dhlog.model.terms.to_table`) with their σ
+    model_request: ModelRequest = field(default_factory=ModelRequest)
+    selection: Selection | None = None
+    terms: Terms | None = None
+    terms_std: FloatArray = field(default_factory=lambda: np.zeros(0))
+    #: the terms' largest deflection per joint (rad or m) and of the target (m) at the samples
+    deflection_max: FloatArray = field(default_factory=lambda: np.zeros(0))
+    deflection_target: float = 0.0
+    #: their σ at the sample where each is largest (NaN: a term it needs is undetermined)
+    deflection_max_std: FloatArray = field(default_factory=lambda: np.zeros(0))
+    deflection_target_std: float = 0.0
+    #: up to 2000 samples: the target where the model puts it and the terms' share of that
+    #: (k, 6: position, displacement; m, in M)
+    deflection_vectors: FloatArray = field(default_factory=lambda: np.zeros((0, 6)))
+    #: what a reader should know but need not act on (the method chosen, forms shown); the
+    #: ``warnings`` are for what may need action
+    info: tuple[str, ...] = ()
+    #: a camera calibration's product (:class:`~dhlog.identify.camera.report.CameraResult`: the
+    #: set-up, the camera's and the board's poses with σ, the corners' σ, the held-out check in
+    #: pixels) and what the recording shows of each camera; None and empty for a tracker log
+    camera: Any = None
+    cameras: tuple[Any, ...] = ()
+    #: with several cameras, each one's product (``camera`` is the first's)
+    camera_results: tuple[Any, ...] = ()
+    #: a camera calibration's start (the tracker's run on the board's poses): the set-up those
+    #: poses were made for; None for a tracker log
+    camera_setup: str | None = None
+    #: why dhlog judges this result implausible, one sentence each naming the evidence and the
+    #: fix (a suspected joint permutation or unit slip, a validation session no footing could
+    #: place, ...); empty when plausible. The result is still written, marked ``plausible: false``
+    #: in the JSON, and ``dhlog process`` exits with ``EXIT_IMPLAUSIBLE`` (4)
+    implausible: tuple[str, ...] = ()
+
+    @property
+    def complete(self) -> bool:
+        """True when every joint was identified."""
+        return all(j.ok for j in self.joints)
+
+    @property
+    def failed(self) -> list[JointReport]:
+        """The joints that could not be identified."""
+        return [j for j in self.joints if not j.ok]
+
+
+def table_values_of(
+    whole: WholeFit | None,
+    extraction: Extraction | None,
+    terms: Terms | None,
+    Q: FloatArray,
+    *,
+    deflected: bool = True,
+) -> FloatArray:
+    """The table's joint values at encoder values ``Q`` (m, n): ``ref + s (Q − ref)`` with the
+    fit's encoder scales, deflected by the terms beyond the geometry when there are any (and
+    ``deflected``)."""
+    Qt = Q
+    if whole is not None and whole.layout.scale_at is not None:
+        ref = whole.model.reference_pose
+        Qt = ref + whole.model.scales * (Q - ref)
+    if deflected and terms is not None and extraction is not None:
+        Qt = Qt + table_deflection(extraction.standard, terms, Q, Qt)
+    return np.asarray(Qt, dtype=np.float64)
+
+
+def table_values(result: ProcessResult, Q: FloatArray, *, deflected: bool = True) -> FloatArray:
+    """The result table's joint values at encoder values ``Q`` (m, n)
+    (:func:`table_values_of`)."""
+    return table_values_of(result.whole, result.extraction, result.terms, Q, deflected=deflected)

@@ -1,0 +1,532 @@
+"""The fit of the whole model to every sample with encoder values, and what is read off it
+(:func:`identify_whole` → :class:`~dhlog.identify.stages.ModelFit`).
+
+From the start (the per-joint axes or a nominal's): the maximum-likelihood fit
+(:mod:`dhlog.identify.fit.whole`), joined again at the fitted clock offset while it moves
+(:mod:`dhlog.identify.segment.timing`); the terms beyond the geometry tried or forced
+(:mod:`dhlog.identify.model.beyond`, :mod:`~dhlog.identify.model.select`); the weights
+(:mod:`dhlog.identify.fit.variance`); pairs the data cannot tell from parallel held parallel
+(:mod:`dhlog.identify.model.pairs`, :mod:`~dhlog.identify.model.relations`); the DH model
+read off the fitted axes with its covariance and what is fixed
+(:mod:`dhlog.identify.read.uncertainty`, :mod:`~dhlog.identify.read.conditioning`); the FK check
+at every sample, the outliers by name and the K-fold cross-validation
+(:mod:`dhlog.identify.check`).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, replace
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from dhlog.geometry._checks import FloatArray
+from dhlog.geometry.lines import Line, Plane
+from dhlog.identify.check.holdout import Holdout, cross_validate
+from dhlog.identify.check.named import name_outliers, sample_names
+from dhlog.identify.check.validate import check_residual, table_gap, validate_samples
+from dhlog.identify.fit.axismodel import AxisModel
+from dhlog.identify.fit.leaveout import fold_of_poses, pose_groups
+from dhlog.identify.fit.prediction import predict
+from dhlog.identify.fit.samples import (
+    measured_rotations,
+    sample_covariance,
+    start_model,
+)
+from dhlog.identify.fit.variance import (
+    pose_clustered,
+    residual_norms,
+    whitened_cost,
+    whitening,
+    with_model_error,
+)
+from dhlog.identify.fit.whole import CHI3_MEDIAN, WholeFit, fit_whole_model
+from dhlog.identify.joints.checks import check_noise_model
+from dhlog.identify.joints.sweeps import samples_with_encoders, target_labels
+from dhlog.identify.model.beyond import (
+    beyond_geometry,
+    deflections,
+    merge_cancelling,
+    term_covariance,
+)
+from dhlog.identify.model.hold import hold_unseen, may_hold
+from dhlog.identify.model.pairs import decided_tolerances, fold_holds
+from dhlog.identify.model.parked import mark_parked, place_parked
+from dhlog.identify.model.relations import constrain_pairs, with_fixed_relations
+from dhlog.identify.model.select import RANGE_POINTS, Selection, term_std
+from dhlog.identify.read.analytic import hayati_rows
+from dhlog.identify.read.conditioning import identifiability_notes, nominal_rows
+from dhlog.identify.read.extract import Extraction, extract_dh
+from dhlog.identify.read.uncertainty import whole_uncertainty
+from dhlog.identify.segment.persample import PerSample, SampleArray, blocks
+from dhlog.identify.segment.segment import Segmentation
+from dhlog.identify.segment.timing import (
+    MAX_REJOINS,
+    REJOIN_BELOW,
+    REJOIN_FIT,
+    JointRates,
+    Timing,
+    rejoin,
+)
+from dhlog.identify.stages import FitRequest, ModelFit, Session, table_values_of
+from dhlog.model.dh import JointType
+from dhlog.model.fk import fk_frames
+from dhlog.model.noise import NoiseModel
+from dhlog.model.terms import to_table
+
+#: ``stage(what, fraction)``: told as each stage advances.
+Stage = Callable[[str, float], None]
+
+#: Share of the fitted samples in single-joint sweeps above which the cross-validation's note
+#: says its poses lie on the sweeps.
+SWEPT_SHARE = 0.5
+
+
+@dataclass(frozen=True)
+class _Clocked:
+    """The fit as the clock left it: the fit, the samples (joined again when the offset
+    moved), the weights' inputs (the options every later fit takes), the noise's σ (m) and
+    model, and the clock."""
+
+    whole: WholeFit
+    segmentation: Segmentation
+    rows: NDArray[np.intp]
+    Q: PerSample
+    P: PerSample
+    which: NDArray[np.intp] | None
+    rotations: Any
+    sample_cov: Any
+    rates: PerSample | None
+    timing: Timing | None
+    options: dict[str, Any]
+    sigma: float
+    noise: NoiseModel
+
+
+def identify_whole(
+    session: Session,
+    analytic: Extraction | None,
+    request: FitRequest,
+    stage: Stage,
+) -> ModelFit:
+    """The maximum-likelihood fit of the whole model from ``session``'s axes and target (the
+    analytic start's, or a nominal's when ``analytic`` is None), its DH model, covariance and
+    check. Raises :class:`~dhlog.errors.GeometryError` or :class:`numpy.linalg.LinAlgError`
+    when the fit fails."""
+    joints, ref, base, nominal = (
+        session.joints,
+        session.reference_pose,
+        session.base,
+        session.nominal,
+    )
+    notes: list[str] = []  # this stage's warnings and notes, returned in its value
+    info: list[str] = []
+    types = tuple(j.type for j in joints)
+    assert session.target is not None and all(t is not None for t in types)
+    clocked = _fit_clocked(session, analytic, request.fit_scales, stage)
+    whole, seg, rows, Q, P = clocked.whole, clocked.segmentation, clocked.rows, clocked.Q, clocked.P
+    which, rotations, rates = clocked.which, clocked.rotations, clocked.rates
+    sample_cov, options, sigma = clocked.sample_cov, clocked.options, clocked.sigma
+    outer = None  # --holdout K: each sample's fold, the same for the selection and the check
+    if request.folds > 1:
+        outer = fold_of_poses(pose_groups(Q), request.folds, 0)
+    model_request = request.model
+    if session.parked and model_request.harmonic_joints is None:  # none on a parked joint
+        revolute = [k for k, t in enumerate(types) if t is JointType.REVOLUTE]
+        model_request = replace(
+            model_request,
+            harmonic_joints=tuple(k for k in revolute if k not in session.parked),
+        )
+    whole, selection = beyond_geometry(
+        model_request,
+        whole,
+        Q,
+        P,
+        sigma,
+        options,
+        folds=request.folds,
+        names=[j.name for j in joints],
+        warnings=notes,
+        info=info,
+        outer=outer,
+    )
+    whole, sample_cov, noise = with_model_error(
+        whole, Q, P, sample_cov, clocked.noise, which, rates, rotations, notes
+    )
+    final = {**options, "noise": noise, "sample_cov": sample_cov}  # the final fit's weights
+    whiten = whitening(noise, sample_cov, sigma)
+    squares = None  # the whitened cost of the fit's inliers, where the design effect found it
+    if rotations is None:
+        whole, squares = pose_clustered(whole, Q, P, whiten, which, rates, info)
+
+    def refit_terms(model: AxisModel) -> WholeFit:
+        """The fit again from ``model`` (lumps merged), weighted and scaled as the final fit."""
+        fit = fit_whole_model(model, Q, P, sigma=sigma, **final)
+        if rotations is None:
+            fit, _ = pose_clustered(fit, Q, P, whiten, which, rates, [])
+        return fit
+
+    # lumps of one joint the poses cannot tell apart (a cancelling pair): merged, said
+    merged = merge_cancelling(whole, Q, refit_terms, notes)
+    if merged is not whole:
+        whole, squares = merged, None
+    clustered = whole
+    nominal_table = nominal.table if nominal is not None else None
+    tolerances = decided_tolerances(
+        whole,
+        nominal,
+        request.tolerances["angle_tol"],
+        request.tolerances["distance_tol"],
+        Q,
+        P,
+        parallel_sigma=request.parallel_sigma,
+        sigma=sigma,
+        options=final,
+        info=info,
+    )
+
+    def cost(fit: WholeFit) -> float:
+        """The whitened sum of squares of ``whole``'s inliers under ``fit`` (positions)."""
+        if fit is clustered and squares is not None:
+            return squares
+        return whitened_cost(fit, clustered.inliers, Q, P, whiten, which=which, rates=rates)
+
+    whole, tolerances = with_fixed_relations(whole, tolerances, cost, info)
+    kw = {**request.tolerances, "pair_tolerances": tolerances}
+
+    def extract(axes: list[Line], target: FloatArray, plane: Plane | None) -> Extraction:
+        return extract_dh(
+            axes,
+            types,  # type: ignore[arg-type]
+            target=target,
+            reference_pose=ref,
+            base_plane=plane,
+            nominal=nominal_table,
+            **kw,
+        )
+
+    stage("uncertainty", 0.0)
+    plane = None if base is None else base.plane
+    if session.parked and nominal is not None:  # placed by the nominal next to the fitted axes
+        axes = place_parked(whole.model.axes, session.parked, nominal, ref)
+        whole = replace(whole, model=replace(whole.model, axes=axes))
+    ex = extract(list(whole.model.axes), whole.model.target, plane)
+    # what the samples determine only beyond a physical bound: held at the nominal
+    h_rows = hayati_rows(ex)
+    nominal_h = nominal_rows(nominal_table, ref, h_rows)
+
+    def refit(model: Any, within: FloatArray) -> Any:
+        """The fit again from ``model`` along ``within`` only, weighted as the final fit."""
+        return fit_whole_model(model, Q, P, sigma=sigma, within=within, **final).model
+
+    said: list[str] = []  # the uncertainty's notes, of the fit finally kept
+    found = whole_uncertainty(whole, base, extract, ex, ref, nominal_table, said)
+    if may_hold(found.shown_std, h_rows):
+        whole, _ = hold_unseen(
+            whole, extract, plane, h_rows, nominal_table, nominal_h, cost, notes, refit
+        )
+        if whole.held:
+            ex = extract(list(whole.model.axes), whole.model.target, plane)
+            said = []
+            found = whole_uncertainty(whole, base, extract, ex, ref, nominal_table, said)
+    info.extend(said)
+    mark_parked(found.fixed, found.std, session.parked)
+    if found.conditioned is not None:
+        mark_parked(found.conditioned.fixed, found.conditioned.std, session.parked)
+    identifiability_notes(whole, nominal is not None, notes, info)
+    check_noise_model(noise, whole.chi2_dof, notes)
+    stage("validating", 0.0)
+    tools = np.vstack([ex.tool_point[None], found.extra_tool_points])
+    terms, terms_std = None, np.zeros(0)
+    if whole.model.terms is not None:  # the terms in the table's frames
+        frames = fk_frames(ex.standard, ref, T_base=ex.T_measurement_base)
+        terms, terms_std = to_table(whole.model.terms, frames), term_std(whole)
+    # the table's joint values: ref + s (q − ref) with fitted scales, deflected by the terms
+    Q_table = Q.map(lambda q: table_values_of(whole, ex, terms, q), Q.shape)
+    moved = None
+    if terms is not None:  # what the terms move, at the samples
+        bare = Q.map(lambda q: table_values_of(whole, ex, terms, q, deflected=False), Q.shape)
+        moved = deflections(ex, Q, Q_table, bare, terms, term_covariance(whole), terms_std)
+    validation = validate_samples(seg, rows, Q_table, P, ex, whole.inliers, tools, which)
+    stamps = np.asarray(seg.column("t_ns", rows), dtype=np.int64)
+    names = sample_names(stamps, rows, session.log.point_ids)
+    norms = residual_norms(whole.model, Q, P, which=which, rates=rates)
+    out = name_outliers(names, norms, whole.inliers, info, notes)
+    gap = table_gap(whole, ex, Q, Q_table)
+    if gap > 1e-6:
+        notes.append(
+            f"the DH table departs from the fitted model by up to {gap * 1e3:.4f} mm: a pair "
+            "was classified (parallel / meeting) where the fitted axes are not; check the "
+            "relations and the FK check."
+        )
+    check_residual(validation, sigma, notes)
+    holdout: tuple[Holdout, ...] = ()
+    if request.folds > 1 and outer is not None:
+        stage("cross-validating", 0.0)
+        final_clock = replace(clocked, segmentation=seg, sample_cov=sample_cov, noise=noise)
+        check = _cross_validation(whole, clustered, session, request, final_clock, outer, selection)
+        holdout = (_with_notes(check, whole, session, final_clock, names, selection),)
+    none = np.zeros(0)
+    return ModelFit(
+        segmentation=seg,
+        timing=clocked.timing,
+        noise=noise,
+        selection=selection,
+        extraction=ex,
+        analytic=analytic,
+        whole=whole,
+        covariance=found.covariance,
+        std=found.std,
+        fixed=found.fixed,
+        hayati=tuple(found.hayati),
+        hayati_std=tuple(found.hayati_std),
+        conditioned=found.conditioned,
+        tool_orientation=found.tool_orientation,
+        tool_orientation_std=found.tool_orientation_std,
+        extra_tool_points=found.extra_tool_points,
+        extra_tool_std=found.extra_tool_std,
+        target=whole.model.target,
+        sigma=sigma * math.sqrt(whole.chi2_dof),
+        terms=terms,
+        terms_std=terms_std,
+        deflection_max=none if moved is None else moved.joints,
+        deflection_target=0.0 if moved is None else moved.target,
+        deflection_max_std=none if moved is None else moved.joints_std,
+        deflection_target_std=0.0 if moved is None else moved.target_std,
+        deflection_vectors=np.zeros((0, 6)) if moved is None else moved.vectors,
+        validation=validation,
+        outlier_names=tuple(names[i] for i in out.tolist()),
+        outlier_rows=rows[out],
+        holdout=holdout,
+        warnings=tuple(notes),
+        info=tuple(info),
+    )
+
+
+def _fit_clocked(
+    session: Session, analytic: Extraction | None, fit_scales: bool, stage: Stage
+) -> _Clocked:
+    """The first fit of the whole model from the session's start; with a clock offset
+    estimated from the data, the encoders joined again at the fitted offset and the fit
+    repeated while the offset moves (at most :data:`MAX_REJOINS` times)."""
+    seg, joints, ref = session.segmentation, session.joints, session.reference_pose
+    types = tuple(j.type for j in joints)
+    assert session.target is not None
+    rows, Q, P = samples_with_encoders(seg)
+    which = target_labels(seg, rows)
+    rotations = measured_rotations(seg, rows)
+    start = start_model(
+        [j.axis for j in joints],  # type: ignore[misc]
+        types,  # type: ignore[arg-type]
+        session.target,
+        ref,
+        Q,
+        P,
+        which,
+        rotations,
+        frozenset(session.parked),
+    )
+    sample_cov = sample_covariance(seg, rows)
+    noise = NoiseModel("per-sample") if sample_cov is not None else session.noise
+    fit_sigmas = [j.fit.sigma**2 for j in joints if j.fit is not None]
+    sigma = math.sqrt(np.mean(fit_sigmas)) if fit_sigmas else 1e-5
+    stage("identifying", 0.1)
+    timing = session.timing
+    clocked = timing is not None and timing.source == "estimated"
+    speeds = JointRates(seg.encoders) if clocked and seg.encoders is not None else None
+    for attempt in range(MAX_REJOINS + 1):
+        rates = None if speeds is None else _rates(speeds, seg, rows)
+        options: dict[str, Any] = {
+            "noise": noise,
+            "fit_scales": fit_scales,
+            "sample_cov": sample_cov,
+            "which": which,
+            "rotations": rotations,
+            "sigma_rotation": noise.orientation,
+            "rates": rates,
+        }
+        whole = fit_whole_model(
+            start,
+            Q,
+            P,
+            sigma=sigma,
+            threshold=math.inf if analytic is None else 5.0,
+            progress=lambda f: stage("identifying", 0.1 + 0.9 * f),
+            **options,
+        )
+        if analytic is None:
+            # started from the nominal (or a coupled move's circle): the start misses the
+            # samples it did not see by far more than the noise, so the first fit judged no
+            # sample an outlier; judge them at its optimum, on the noise's own scale
+            if not fit_sigmas:
+                norms = residual_norms(whole.model, Q, P, which=which, rates=rates)
+                sigma = max(float(np.median(norms)) / CHI3_MEDIAN, 1e-9)
+            whole = fit_whole_model(whole.model, Q, P, sigma=sigma, **options)
+        if not clocked or timing is None:
+            break
+        at = whole.layout.clock_at
+        assert at is not None
+        delta, sd = whole.model.clock, math.sqrt(max(float(whole.covariance[at, at]), 0.0))
+        offset = timing.offset + delta
+        timing = replace(timing, offset=offset, std=sd)
+        if abs(delta) <= max(REJOIN_BELOW * sd, REJOIN_FIT) or attempt == MAX_REJOINS:
+            break  # below REJOIN_FIT the fit's first-order move Q − δ q̇ is exact enough
+        # join the encoders again at the fitted offset and fit once more from there
+        seg = rejoin(seg, session.log, offset - timing.pipeline)
+        rows, Q, P = samples_with_encoders(seg)
+        which = target_labels(seg, rows)
+        rotations = measured_rotations(seg, rows)
+        sample_cov = sample_covariance(seg, rows)
+        start = replace(whole.model, clock=0.0)
+    return _Clocked(
+        whole, seg, rows, Q, P, which, rotations, sample_cov, rates, timing, options, sigma, noise
+    )
+
+
+def _cross_validation(
+    whole: WholeFit,
+    clustered: WholeFit,
+    session: Session,
+    request: FitRequest,
+    fit: _Clocked,
+    outer: NDArray[np.intp],
+    selection: Selection | None,
+) -> Holdout:
+    """``--holdout K``: the K-fold cross-validation of the whole procedure over the session's
+    poses (:func:`~dhlog.identify.check.holdout.cross_validate`), each fold held to the pairs
+    its own training poses hold parallel (decided again there unless ``parallel_sigma`` says)."""
+    nominal, Q, P = session.nominal, fit.Q, fit.P
+    final = {**fit.options, "noise": fit.noise, "sample_cov": fit.sample_cov}
+    held_in_fold: list[dict[int, str]] = []  # the pairs each fold holds, from its poses
+    if request.parallel_sigma is None:
+        held_in_fold = fold_holds(
+            clustered,
+            nominal,
+            request.tolerances["angle_tol"],
+            request.tolerances["distance_tol"],
+            Q,
+            P,
+            outer=outer,
+            folds=request.folds,
+            sigma=fit.sigma,
+            options=final,
+        )
+
+    def refine(fitted: WholeFit, k: int) -> WholeFit:
+        """Fold ``k``'s fit held to the pairs its own poses hold."""
+        held = held_in_fold[k] if held_in_fold else {}
+        if not held:
+            return fitted
+        parallel = [i for i, kind in held.items() if kind == "parallel"]
+        return constrain_pairs(fitted, parallel, [i for i in held if i not in parallel])
+
+    check = cross_validate(
+        whole,
+        Q,
+        P,
+        request.folds,
+        fit_options={
+            "noise": fit.noise,
+            "sigma": fit.sigma,
+            "fit_scales": request.fit_scales,
+            "sample_cov": fit.sample_cov,
+            "rotations": fit.rotations,
+            "sigma_rotation": fit.noise.orientation,
+            "rates": fit.rates,
+        },
+        nominal=None if nominal is None else (nominal.table, nominal.T_base, nominal.tool_point),
+        which=fit.which,
+        fold=outer,
+        starts=() if selection is None else selection.fold_starts,
+        refine=refine,
+    )
+    if any(held_in_fold):
+        said = [", ".join(f"{i + 1}–{i + 2}" for i in sorted(h)) or "none" for h in held_in_fold]
+        check = replace(
+            check,
+            notes=[
+                *check.notes,
+                "the pairs held parallel were decided again in each fold from its training "
+                f"poses: {_tally(said, '; ')}.",
+            ],
+        )
+    return check
+
+
+def _with_notes(
+    check: Holdout,
+    whole: WholeFit,
+    session: Session,
+    fit: _Clocked,
+    names: list[str],
+    selection: Selection | None,
+) -> Holdout:
+    """The cross-validation with its poses named by the export's ids, the model's own FK σ
+    over the session's joint ranges, and what a reader should know of its figure: the choice
+    made again in each fold, the share of samples in sweeps of one joint alone."""
+    notes = list(check.notes)
+    pose_names = check.pose_names
+    if check.pose_samples is not None and session.log.point_ids is not None:
+        pose_names = [names[i] for i in check.pose_samples.tolist()]
+    check = replace(check, pose_names=pose_names, range_sd=range_sd(whole, fit.Q))
+    assert check.range_sd is not None
+    if check.expected_rms is not None and check.range_sd > 0.5 * check.calibrated.rms:
+        notes.append(
+            f"over every combination of the session's joint ranges, poses it may never have "
+            f"visited among them, the model's own FK σ is {check.range_sd * 1e3:.4f} mm RMS: "
+            f"the error to expect there is about {check.expected_rms * 1e3:.4f} mm."
+        )
+    nested = [] if selection is None else selection.fold_choices
+    if nested:
+        notes.append(
+            "--model auto chose again in each fold from its training poses alone (nested "
+            f"cross-validation): {_tally(nested, ', ')}; the held-out error is that of the "
+            "whole procedure."
+        )
+    swept = swept_share(fit.segmentation, fit.rows)
+    if swept >= SWEPT_SHARE:
+        notes.append(
+            f"{swept:.0%} of the samples are in sweeps of one joint alone: the held-out "
+            "poses lie on the swept arcs, so an error of the joints together — at poses "
+            "the session never went to — is not in this figure; --validate a log of "
+            "random poses to see it."
+        )
+    return replace(check, notes=notes)
+
+
+def _tally(labels: list[str], sep: str) -> str:
+    """Each label with how many of ``labels`` it is, in the order met: "a in 4 of 5"."""
+    counts = {c: labels.count(c) for c in dict.fromkeys(labels)}
+    return sep.join(f"{c} in {k} of {len(labels)}" for c, k in counts.items())
+
+
+def range_sd(whole: WholeFit, Q: SampleArray) -> float:
+    """The RMS predicted FK σ (m) of ``whole`` at :data:`select.RANGE_POINTS` seeded joint
+    vectors uniform in the box of the joint ranges of ``Q`` (m, n)."""
+    lo, hi = np.full(Q.shape[1], np.inf), np.full(Q.shape[1], -np.inf)
+    for sl in blocks(Q.shape[0]):
+        q = Q[sl]
+        lo, hi = np.minimum(lo, q.min(axis=0)), np.maximum(hi, q.max(axis=0))
+    box = np.random.default_rng(0).uniform(lo, hi, (RANGE_POINTS, Q.shape[1]))
+    _, J = predict(whole.model, box, whole.layout, whole.bases)
+    assert J is not None
+    var = np.einsum("mij,jk,mik->m", J, whole.covariance, J)
+    return math.sqrt(max(float(np.mean(var)), 0.0))
+
+
+def swept_share(seg: Segmentation, rows: NDArray[np.intp]) -> float:
+    """The share of the samples ``rows`` that lie in a sweep of one joint alone."""
+    inside = 0
+    for sl in blocks(rows.size):
+        inside += int(np.count_nonzero(seg.joint(rows[sl]) > 0))
+    return inside / max(rows.size, 1)
+
+
+def _rates(speeds: JointRates, seg: Segmentation, rows: NDArray[np.intp]) -> PerSample:
+    """The joints' speeds (m, n) at the samples ``rows``, read a block at a time."""
+    return PerSample(
+        (rows.size, seg.n_joints), lambda index: speeds.at(seg.t_ns[rows[index]])
+    ).filled()
