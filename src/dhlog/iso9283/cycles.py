@@ -53,7 +53,8 @@ from numpy.typing import NDArray
 from dhlog.errors import Iso9283Error
 from dhlog.geometry._checks import FloatArray, nearest_rotation
 from dhlog.io.reader import ORIENTATION_COLUMNS, LogData
-from dhlog.iso9283.program import CYCLE_ORDER, CommandedProgram
+from dhlog.iso9283.commanded import CommandedProgram
+from dhlog.iso9283.cube import CYCLE_ORDER
 
 #: The band is this many times the settled samples' 3-D RMS scatter (noise alone leaves a band
 #: of 4·√3 σ ≈ 7 σ per coordinate about once in 10¹⁰ samples).

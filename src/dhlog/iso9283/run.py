@@ -292,7 +292,7 @@ def run_logs(
     points of targets 2, 3, … (its ``tool.further_targets``), which give their AP and AD
     (with ``calibrated``)."""
     from dhlog.io.reader import read_log
-    from dhlog.iso9283.program import read_program
+    from dhlog.iso9283.commanded import read_program
     from dhlog.iso9283.stops import synthetic_timing, target_count
 
     segmented = []

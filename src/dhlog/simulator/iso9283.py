@@ -39,7 +39,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from dhlog.geometry._checks import FloatArray, rotation_from_vector
-from dhlog.iso9283.program import CYCLE_ORDER, TestProgram
+from dhlog.iso9283.cube import CYCLE_ORDER, TestProgram
 from dhlog.model.dh import JointType, StandardDH
 from dhlog.model.fk import fk_frames
 from dhlog.model.robots import Robot
