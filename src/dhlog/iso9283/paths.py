@@ -15,10 +15,8 @@ from dhlog.errors import DhlogError
 from dhlog.geometry._checks import FloatArray
 from dhlog.io.dhfile import DHModel
 from dhlog.iso9283.baseframe import _moved
-from dhlog.iso9283.cycles import (
-    Segmented,
-    Visit,
-)
+from dhlog.iso9283.cycles import Segmented
+from dhlog.iso9283.dwells import Visit
 from dhlog.iso9283.report import (
     PathReport,
 )

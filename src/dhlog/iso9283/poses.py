@@ -17,11 +17,8 @@ import numpy as np
 from dhlog.errors import DhlogError
 from dhlog.geometry._checks import FloatArray
 from dhlog.iso9283.baseframe import _moved
-from dhlog.iso9283.cycles import (
-    SAME_DIRECTION,
-    Segmented,
-    Visit,
-)
+from dhlog.iso9283.cycles import SAME_DIRECTION, Segmented
+from dhlog.iso9283.dwells import Visit
 from dhlog.iso9283.report import (
     Accuracy,
     DistanceReport,

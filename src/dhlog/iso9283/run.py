@@ -28,15 +28,9 @@ from dhlog.geometry._checks import FloatArray
 from dhlog.io.dhfile import DHModel
 from dhlog.io.pipeline import Pipeline
 from dhlog.iso9283.baseframe import _base_positions, _moved
-from dhlog.iso9283.cycles import (
-    ARRIVAL_RATE,
-    ENCODER_MATCH,
-    DwellSettings,
-    PathPass,
-    Segmented,
-    Visit,
-    segment_log,
-)
+from dhlog.iso9283.cycles import ARRIVAL_RATE, ENCODER_MATCH, Segmented, segment_log
+from dhlog.iso9283.dwells import DwellSettings, Visit
+from dhlog.iso9283.passes import PathPass
 from dhlog.iso9283.paths import _paths
 from dhlog.iso9283.poses import (
     _accuracy,
