@@ -18,7 +18,6 @@ ALLOWED = {
     "io/pipeline.py": "being split along what its parts do",
     "io/images.py": "being split along what its parts do",
     "io/observe.py": "being split along what its parts do",
-    "simulator/iso9283.py": "being split along what its parts do",
     "identify/segment/segment.py": "being split along what its parts do",
 }
 
