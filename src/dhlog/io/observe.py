@@ -231,7 +231,7 @@ def _first_walk(
     # polars (the joints' table) imported here, not by the workers: 0.15 s a worker
     from dhlog.io.decode.blocks import decode_stream
     from dhlog.io.decode.frames import clean, joints_frame
-    from dhlog.io.reader import _unzstd_squeezed
+    from dhlog.io.payloads import _unzstd_squeezed
 
     spec = _joints_spec(pipeline)
     present: set[str] = set()
