@@ -7,12 +7,8 @@ from __future__ import annotations
 
 from importlib import resources
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 from dhlog.errors import PipelineError
-
-if TYPE_CHECKING:  # OpenCV imported only when a camera pipeline is read
-    pass
 from dhlog.io.pipeline.parse import parse_pipeline
 from dhlog.io.pipeline.spec import Pipeline
 

@@ -7,13 +7,9 @@ from __future__ import annotations
 
 import datetime
 import math
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 from dhlog.errors import PipelineError
-
-if TYPE_CHECKING:  # OpenCV imported only when a camera pipeline is read
-    pass
-
 
 #: The most characters a string value may have, and the most joints.
 MAX_TEXT, MAX_JOINTS = 1000, 64
