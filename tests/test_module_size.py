@@ -14,7 +14,6 @@ ALLOWED = {
     "identify/run.py": "the identification's flow, being reshaped into frozen stages",
     "api/calibration.py": "the Python API's Calibration, being rebuilt on the one result",
     "api/operations.py": "the Python API's operations, being rebuilt on typed options",
-    "identify/segment/segment.py": "being split along what its parts do",
 }
 
 
