@@ -118,7 +118,7 @@ def choose_pipeline(path: str, channels: dict[int, ChannelInfo]) -> tuple[Pipeli
             best = (score, pipeline)
     if best is None:
         images = sorted({c.topic for c in channels.values() if c.schema_name in _IMAGE_SCHEMAS})
-        if images:  # a vision log (issue 32): said so, not taken for a tracker log without one
+        if images:  # a vision log: said so, not taken for a tracker log without one
             described = [
                 p.name
                 for p in shipped_pipelines()
