@@ -41,8 +41,9 @@ from dhlog.iso9283.formulas import (
     pose_accuracy,
     pose_repeatability,
 )
+from dhlog.iso9283.poses import DISTANCE_POSES, DRIFT_POSE
 from dhlog.iso9283.program import program_csv, test_program
-from dhlog.iso9283.run import DISTANCE_POSES, DRIFT_POSE, run_logs
+from dhlog.iso9283.run import run_logs
 from dhlog.model.fk import fk_point
 from dhlog.model.robots import load_robot
 from dhlog.simulator.iso9283 import stabilisation_truth

@@ -258,7 +258,7 @@ def _compressed_case(
 
 def _info_case(data: bytes, rng: random.Random) -> tuple[str, bytes]:
     from dhlog.io import ros2
-    from dhlog.io.images import camera_info_cdr
+    from dhlog.io.imagedecode import camera_info_cdr
 
     info = camera_info_cdr(data)
     w, h, model, d, k = info.width, info.height, info.distortion_model, list(info.d), info.k

@@ -369,7 +369,7 @@ def test_simulated_paths_against_their_truth(simulated: tuple[Path, dict[str, An
         assert p.AT_after == pytest.approx(float(np.linalg.norm(left, axis=1).max()), abs=25e-6)
     # the paths' systematic error is 0.2 mm: AT is far above the tolerances
     assert min(p.AT for p in report.paths) > 1e-4
-    from dhlog.iso9283.run import report_document
+    from dhlog.iso9283.report import report_document
 
     schema_path = Path(__file__).parents[1] / "src/dhlog/schemas/iso9283.schema.json"
     document = json.loads(json.dumps(report_document(report, {"logs": [str(log)]})))
@@ -382,7 +382,7 @@ def test_the_noise_share_of_rt_is_the_rayleigh_figure() -> None:
     Rayleigh distributed (σ per coordinate), mean σ√(π/2) and standard deviation σ√(2 − π/2),
     so l̄ + 3 S_l = (1.2533 + 3 · 0.6551) σ = 3.218 σ; the tracker's σ from dwells of known
     scatter (3-D RMS = √3 σ)."""
-    from dhlog.iso9283.run import noise_rt
+    from dhlog.iso9283.paths import noise_rt
 
     assert noise_rt(2e-6, cycles=4000, points=1, draws=10) == pytest.approx(3.218 * 2e-6, rel=0.02)
     assert noise_rt(1.0, cycles=10, points=100) > noise_rt(1.0, cycles=10, points=1)

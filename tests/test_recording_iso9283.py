@@ -14,7 +14,7 @@ import pytest
 from rerun.chunk import RrdReader
 
 from dhlog.iso9283.formulas import pose_accuracy, pose_repeatability
-from dhlog.iso9283.run import Accuracy, Iso9283Report, PathReport, PoseReport
+from dhlog.iso9283.report import Accuracy, Iso9283Report, PathReport, PoseReport
 from dhlog.present.recording.iso9283 import magnifications, write_iso9283_recording
 from test_process import rrd_verify
 

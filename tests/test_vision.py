@@ -369,7 +369,7 @@ def test_board_image_by_width_and_camera_info_from_the_reader() -> None:
     with pytest.raises(BoardError, match="needs px_per_m or width_px"):
         board.image()
     # The reader's CameraInfo (dhlog.io.images) carries the fields from_camera_info takes.
-    from dhlog.io.images import CameraInfo
+    from dhlog.io.imagedecode import CameraInfo
 
     k = np.array([[810.0, 0, 330], [0, 812.0, 242], [0, 0, 1]])
     info = CameraInfo(

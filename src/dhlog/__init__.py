@@ -37,7 +37,7 @@ if TYPE_CHECKING:
     from dhlog.geometry.circles import fit_circle
     from dhlog.identify.read.extract import extract_dh
     from dhlog.io.dhfile import DHModel
-    from dhlog.iso9283.run import Iso9283Report
+    from dhlog.iso9283.report import Iso9283Report
     from dhlog.model.dh import JointType, ModifiedDH, StandardDH
     from dhlog.model.fk import fk_frames, fk_point
     from dhlog.model.robots import Robot
@@ -48,7 +48,7 @@ if TYPE_CHECKING:
 _PUBLIC = {
     "process": "dhlog.api",
     "acceptance_test": "dhlog.api",
-    "Iso9283Report": "dhlog.iso9283.run",
+    "Iso9283Report": "dhlog.iso9283.report",
     "load": "dhlog.api",
     "simulate": "dhlog.api",
     "plan": "dhlog.api",

@@ -81,7 +81,7 @@ def iso9283(
     <stem>.iso9283.json and the recording <stem>.iso9283.rrd (the cube, each pose's attained
     positions and RP sphere, the paths' deviations)."""
     from dhlog.api import acceptance_test
-    from dhlog.iso9283.run import report_document, write_report
+    from dhlog.iso9283.report import report_document, write_report
     from dhlog.present.console.iso9283 import print_iso9283
 
     if result is not None and nominal is None:

@@ -8,16 +8,17 @@ library's decoders (``mcap_ros2``, protobuf, JSON). JSON and protobuf messages a
 by one on both paths, by the same field extractors. Time is the message's own stamp where it has
 one, else log time.
 
-Here: the pipeline's choice, each stream's channels found and checked, the streams assembled
-into :class:`LogData`, a rosbag2 bag folder read as one log, per-message zstd payloads; the
-decoding itself is :mod:`dhlog.io.decode`.
+Here: each stream's channels found and checked, the streams assembled into
+:class:`~dhlog.io.logdata.LogData`, a rosbag2 bag folder read as one log; the pipeline's choice
+is :mod:`dhlog.io.choose`'s, the payloads made ready (decoded by the walk, decompressed, or read
+through the mcap library) :mod:`dhlog.io.payloads`', the decoding itself :mod:`dhlog.io.decode`'s.
+:data:`__all__` is what the rest of dhlog imports from here.
 """
 
 from __future__ import annotations
 
-import struct
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field, replace
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -26,7 +27,14 @@ import polars as pl
 
 from dhlog.errors import InputError, MissingTopicError, PipelineError
 from dhlog.io import scratch
-from dhlog.io.decode.blocks import Block, bulk_layout, decode_stream
+from dhlog.io.choose import (
+    IMPORT_METADATA,
+    _channels_for,
+    camera_pipeline,
+    choose_pipeline,
+    import_record,
+)
+from dhlog.io.decode.blocks import Block, decode_stream
 from dhlog.io.decode.columns import ColumnSink, layout_plan
 from dhlog.io.decode.frames import (
     COVARIANCE_COLUMNS,
@@ -41,13 +49,13 @@ from dhlog.io.decode.frames import (
 from dhlog.io.decode.messages import (
     TRANSFORM_LISTS,
     TRANSFORM_SCHEMAS,
-    json_decoder,
     phase_value,
 )
-from dhlog.io.jointnames import ChainOrder
-from dhlog.io.mcapscan import ZSTD_MAGIC, McapScan, scan_mcap
-from dhlog.io.mcapwalk import ChannelInfo, RawMessages
-from dhlog.io.pipeline import Pipeline, pipeline_by_name, shipped_pipelines
+from dhlog.io.logdata import LogData
+from dhlog.io.mcapscan import McapScan, scan_mcap
+from dhlog.io.mcapwalk import ChannelInfo
+from dhlog.io.payloads import _decoded_columns, _read_general, _unzstd_squeezed
+from dhlog.io.pipeline import Pipeline, shipped_pipelines
 from dhlog.io.pointids import POINT_IDS_METADATA, read_point_ids
 
 #: What the rest of dhlog reads from here (the columns of the point table among them).
@@ -56,172 +64,13 @@ __all__ = [
     "IMPORT_METADATA",
     "ORIENTATION_COLUMNS",
     "LogData",
+    "camera_pipeline",
     "choose_pipeline",
     "read_log",
 ]
 
-#: The metadata record ``dhlog import`` writes; ``orientation = "true"`` in it turns the point
-#: stream's orientation on when no pipeline is named (the export carried a 6-DoF target's).
-IMPORT_METADATA = "dhlog.import"
 #: No robot dhlog identifies has more joints than this (phase markers beyond it are damage).
 MAX_JOINTS = 64
-
-
-@dataclass
-class LogData:
-    """The decoded streams of one log, in SI units, sorted by time.
-
-    ``points``/``base``: ``t_ns, x, y, z``; ``joints``: ``t_ns, q_1 … q_n`` in chain order
-    (``joint_names``); ``phase``: ``t_ns, joint`` (1-based, null between sweeps);
-    ``commanded``: the controller's commanded joints (``[streams.commanded]``, an ISO 9283
-    test's), ``t_ns, q_1 … q_n`` as ``joints``, None where the log has no such stream.
-    ``set_aside`` counts samples dropped on reading, by reason.
-    """
-
-    path: str
-    pipeline: Pipeline
-    points: pl.DataFrame
-    joints: pl.DataFrame | None
-    joint_names: list[str]
-    base: pl.DataFrame | None
-    phase: pl.DataFrame | None
-    set_aside: dict[str, int] = field(default_factory=dict)
-    warnings: list[str] = field(default_factory=list)
-    pipeline_reason: str | None = None
-    commanded: pl.DataFrame | None = None
-    #: how the joint-state stream's joints were matched to the chain (None: no joint states,
-    #: or not decided on reading: :func:`dhlog.io.jointnames.chain_order`)
-    joint_order: ChainOrder | None = None
-    #: the export's point ids by stamp (``dhlog import``'s ``dhlog.point_ids``), or None
-    point_ids: dict[int, str] | None = None
-
-
-#: the schemas of camera images (those of :mod:`dhlog.io.images`, named here without its cv2)
-_IMAGE_SCHEMAS = frozenset(
-    {
-        "sensor_msgs/msg/Image",
-        "sensor_msgs/msg/CompressedImage",
-        "foxglove.RawImage",
-        "foxglove.CompressedImage",
-    }
-)
-
-
-def camera_pipeline(path: str | Path, pipeline: Pipeline | None) -> Pipeline | None:
-    """The camera pipeline to read ``path`` with, or None for a tracker log: ``pipeline``
-    when it is a camera's; without one, when the log's channels (the summary's, else those
-    before its 200th message) carry camera images, the shipped camera pipeline whose image
-    topic the log has, else the shipped ``ros2_camera`` (``io.observe`` takes the cameras on
-    topics like its image topic in other namespaces, e.g. ``/camera_1/…``, ``/camera_2/…``)."""
-    if pipeline is not None:
-        return pipeline if pipeline.is_camera else None
-    topics = _image_topics(Path(path))
-    if not topics:
-        return None
-    named = [
-        p
-        for p in shipped_pipelines()
-        if p.image is not None and {p.image.topic, *p.image.alternatives} & topics
-    ]
-    return pipeline_by_name(named[0].name if named else "ros2_camera")  # read whole
-
-
-def _image_topics(path: Path) -> set[str]:
-    """The topics of ``path`` (an MCAP file or a bag folder's first file) carrying camera
-    images, read from its summary or, without one, from the records before the 200th message;
-    an unreadable file gives none (the tracker reader then says what is wrong)."""
-    from mcap.exceptions import McapError
-    from mcap.reader import make_reader
-    from mcap.records import Channel, Message, Schema
-    from mcap.stream_reader import StreamReader
-
-    if path.is_dir():
-        files = sorted(path.glob("*.mcap"))
-        if not files:
-            return set()
-        path = files[0]
-    try:
-        with open(path, "rb") as f:
-            summary = make_reader(f).get_summary()
-            if summary is not None:
-                return {
-                    c.topic
-                    for c in summary.channels.values()
-                    if c.schema_id in summary.schemas
-                    and summary.schemas[c.schema_id].name in _IMAGE_SCHEMAS
-                }
-            f.seek(0)
-            schemas: dict[int, str] = {}
-            found: set[str] = set()
-            seen = 0
-            for record in StreamReader(f, skip_magic=False).records:
-                if isinstance(record, Schema):
-                    schemas[record.id] = record.name
-                elif isinstance(record, Channel) and schemas.get(record.schema_id) in (
-                    _IMAGE_SCHEMAS
-                ):
-                    found.add(record.topic)
-                elif isinstance(record, Message):
-                    seen += 1
-                    if seen >= 200:
-                        break
-            return found
-    except (McapError, OSError, ValueError, KeyError, EOFError, AssertionError, struct.error):
-        return set()  # a damaged summary or footer (struct.error from the mcap reader's reads)
-
-
-def _channels_for(scan_channels: dict[int, ChannelInfo], topic: str) -> list[ChannelInfo]:
-    return [c for c in scan_channels.values() if c.topic == topic]
-
-
-def choose_pipeline(path: str, channels: dict[int, ChannelInfo]) -> tuple[Pipeline, str]:
-    """The shipped pipeline that fits the log's topics and encodings best, and why."""
-    best: tuple[int, Pipeline] | None = None
-    for pipeline in shipped_pipelines():
-        if pipeline.is_camera:  # a camera log is read by io.observe, not here
-            continue
-        score = 0
-        fits = True
-        for spec in pipeline.streams.values():
-            found = [
-                c
-                for c in _channels_for(channels, spec.topic)
-                if c.message_encoding in pipeline.encodings
-            ]
-            if found:
-                score += 1
-            elif spec.required:
-                fits = False
-        if fits and (best is None or score > best[0]):
-            best = (score, pipeline)
-    if best is None:
-        images = sorted({c.topic for c in channels.values() if c.schema_name in _IMAGE_SCHEMAS})
-        if images:  # a vision log (issue 32): said so, not taken for a tracker log without one
-            described = [
-                p.name
-                for p in shipped_pipelines()
-                if p.image is not None and {p.image.topic, *p.image.alternatives} & set(images)
-            ]
-            named = f" (the shipped pipeline {described[0]} describes it)" if described else ""
-            raise PipelineError(
-                path,
-                f"a vision log (camera images on {', '.join(images)}){named}, not a tracker's: "
-                "calibrate from it with dhlog process; this reads tracker logs.",
-            )
-        listed = ", ".join(
-            sorted(
-                {f"{c.topic} ({c.schema_name or c.message_encoding})" for c in channels.values()}
-            )
-        )
-        raise PipelineError(
-            path,
-            f"no shipped pipeline matches its topics ({listed or 'none'}); "
-            "write a pipeline file for it and pass --pipeline.",
-        )
-    pipeline = best[1]
-    point = _channels_for(channels, pipeline.streams["point"].topic)[0]
-    reason = f"{pipeline.streams['point'].topic} is {point.schema_name} ({point.message_encoding})"
-    return pipeline, reason
 
 
 def _damage_error(scan: McapScan, lacking: str) -> InputError | None:
@@ -504,22 +353,6 @@ def read_log(
     )
 
 
-def import_record(path: str | Path) -> dict[str, str]:
-    """The ``dhlog.import`` metadata record of the MCAP file at ``path`` (empty when it has
-    none or it cannot be read): ``orientation = "true"`` where the export carried the target's
-    orientation, ``further_target_topics`` where it held several targets, ``timing``."""
-    from mcap.reader import make_reader
-
-    try:
-        with open(path, "rb") as f:
-            for record in make_reader(f).iter_metadata():
-                if record.name == IMPORT_METADATA:
-                    return {str(k): str(v) for k, v in record.metadata.items()}
-    except Exception:  # a record that cannot be read turns nothing on
-        return {}
-    return {}
-
-
 def _read_bag(
     folder: Path,
     pipeline: Pipeline | None,
@@ -656,105 +489,3 @@ def _size(path: Path) -> int:
         return path.stat().st_size
     except OSError:
         return 0
-
-
-def _decoded_columns(
-    sink: ColumnSink,
-    scan: McapScan,
-    infos: dict[str, list[ChannelInfo]],
-    targets: list[list[ChannelInfo]],
-    pipeline: Pipeline,
-    topics: list[str] | None,
-) -> dict[int, list[Block]]:
-    """The blocks of the streams' channels the walk decoded as the streams read them. A channel
-    decoded otherwise (its layout planned before the pipeline was chosen, or its definition
-    changed after) or refused part-way (a message that does not fit the bulk decode) has its
-    payloads read again, into ``scan.messages``: the per-message path decides on them."""
-    orientation = pipeline.streams["point"].orientation
-    needs: dict[int, set[str | None]] = {}
-    for stream, channels in [*infos.items(), *(("point", c) for c in targets)]:
-        fields = pipeline.streams[stream].fields
-        for info in channels:
-            needs.setdefault(info.id, set()).add(bulk_layout(stream, info, fields, orientation))
-    out: dict[int, list[Block]] = {}
-    again: set[int] = set()
-    for cid, layouts in needs.items():
-        done = sink.decoded(cid)
-        fits = done is not None and done[0] == scan.channels[cid] and layouts == {done[1]}
-        if cid in sink.refused or (done is not None and not fits):
-            again.add(cid)
-        elif fits:
-            out[cid] = sink.blocks(cid)
-    if again:
-        rescan = scan_mcap(scan.path, topics=topics, sink=lambda cid, _, __: cid not in again)
-        kept = {cid: raw for cid, raw in rescan.messages.items() if cid in again}
-        _unzstd_squeezed(kept, scan.path, False)
-        scan.messages.update(kept)
-    return out
-
-
-def _unzstd_squeezed(messages: dict[int, RawMessages], path: str, unzstd: bool) -> None:
-    """Payloads compressed one by one (rosbag2 --compression-mode message), decompressed in
-    place: said by the bag's metadata (``unzstd``), or seen in the payloads themselves (no CDR,
-    JSON or protobuf message starts with zstd's magic number)."""
-    squeezed = {
-        cid: raw
-        for cid, raw in messages.items()
-        if unzstd or (len(raw) and raw.payload(0)[:4] == ZSTD_MAGIC)
-    }
-    if squeezed:
-        messages.update(_unzstd_messages(squeezed, path))
-
-
-def _unzstd_messages(messages: dict[int, RawMessages], path: str) -> dict[int, RawMessages]:
-    """Payloads compressed one by one (rosbag2 ``--compression-mode message``), decompressed
-    into one buffer per channel; a payload that is not zstd is damage (left out, counted by
-    the decoders as an empty message)."""
-    import zstandard
-
-    out = {}
-    for cid, raw in messages.items():
-        d = zstandard.ZstdDecompressor()
-        parts = []
-        for i in range(len(raw)):
-            payload = raw.payload(i)
-            try:
-                parts.append(d.decompress(payload, max_output_size=64 * len(payload) + 4096))
-            except zstandard.ZstdError:
-                parts.append(b"")
-        lengths = np.array([len(p) for p in parts], dtype=np.int64)
-        starts = np.concatenate([[0], np.cumsum(lengths)[:-1]]).astype(np.int64)
-        data = np.frombuffer(b"".join(parts), dtype=np.uint8)
-        out[cid] = RawMessages(data, starts, lengths, raw.log_time)
-    return out
-
-
-def _read_general(path: str, infos: list[ChannelInfo]) -> dict[int, list[tuple[int, Any]]]:
-    """Every message of ``infos``' topics through the mcap library's reader and decoders."""
-    from mcap.decoder import DecoderFactory
-    from mcap.exceptions import McapError
-    from mcap.reader import make_reader
-    from mcap_protobuf.decoder import DecoderFactory as ProtobufFactory
-    from mcap_ros2.decoder import DecoderFactory as Ros2Factory
-
-    class JsonFactory(DecoderFactory):
-        def decoder_for(self, message_encoding: str, schema: Any) -> Callable[[bytes], Any] | None:
-            return json_decoder if message_encoding == "json" else None
-
-    out: dict[int, list[tuple[int, Any]]] = {}
-    topics = sorted({i.topic for i in infos})
-    by_topic = {(i.topic, i.schema_name): i.id for i in infos}
-    try:
-        with open(path, "rb") as f:
-            reader = make_reader(
-                f, decoder_factories=[Ros2Factory(), ProtobufFactory(), JsonFactory()]
-            )
-            for schema, channel, message, decoded in reader.iter_decoded_messages(
-                topics=topics, log_time_order=False
-            ):
-                key = by_topic.get((channel.topic, schema.name if schema else ""))
-                if key is not None:
-                    out.setdefault(key, []).append((message.log_time, decoded))
-    except (McapError, EOFError, ValueError) as exc:
-        raise InputError(f"{path}: the mcap library could not read it ({exc}).") from None
-    return out

@@ -98,7 +98,7 @@ def stop_direction(position: FloatArray, previous: object) -> FloatArray:
 def synthetic_timing(log: str | Path) -> bool:
     """Whether the log's stamps are ``dhlog import``'s one stop every 2 s (an export without a
     time column: the order is the export's, the spacing is not a time)."""
-    from dhlog.io.reader import import_record
+    from dhlog.io.choose import import_record
 
     if Path(log).is_dir():
         return False

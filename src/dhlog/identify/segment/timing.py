@@ -35,8 +35,9 @@ from dhlog.errors import DhlogError
 from dhlog.geometry._checks import FloatArray
 from dhlog.geometry.circles import fit_circle_algebraic
 from dhlog.geometry.fitting import fit_line
+from dhlog.identify.segment.encoders import BLOCK, Encoders
 from dhlog.identify.segment.persample import blocks, rows_where
-from dhlog.identify.segment.segment import BLOCK, Encoders, Segmentation
+from dhlog.identify.segment.segment import Segmentation
 from dhlog.io import scratch
 from dhlog.io.reader import LogData
 from dhlog.model.dh import JointType

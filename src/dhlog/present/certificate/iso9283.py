@@ -23,7 +23,7 @@ from dhlog.geometry._checks import FloatArray
 from dhlog.present.certificate.read import ResultFileError
 from dhlog.result.fields import WORDING_MUST, FieldReader
 
-#: The report file's format (:data:`dhlog.iso9283.run.FORMAT`).
+#: The report file's format (:data:`dhlog.iso9283.report.FORMAT`).
 ISO9283_FORMAT = "dhlog.iso9283/1"
 #: Largest report file read (one of a 30-cycle test is a few kB).
 MAX_ISO9283_BYTES = 16 << 20

@@ -12,7 +12,8 @@ from rich import box
 from rich.console import Console
 from rich.table import Table
 
-from dhlog.iso9283.run import DRIFT_HOURS, Accuracy, Iso9283Report
+from dhlog.iso9283.poses import DRIFT_HOURS
+from dhlog.iso9283.report import Accuracy, Iso9283Report
 from dhlog.present.console.notes import prose
 
 

@@ -46,7 +46,7 @@ from dhlog.present.recording.scene import _nice
 from dhlog.present.recording.stream import recording_file
 
 if TYPE_CHECKING:
-    from dhlog.iso9283.run import Iso9283Report
+    from dhlog.iso9283.report import Iso9283Report
 
 #: The application id of the acceptance test's recording.
 APPLICATION = "dhlog iso9283"
@@ -162,8 +162,8 @@ def _path_deviation(
     """The crossings (m', n, 3) of each pass with the planes normal to the command path and the
     commanded points they belong to (m', 3): ``used`` (first point, count: the report's), else
     the ends a pass stops short of left out as ``dhlog iso9283`` does; None when none works."""
-    from dhlog.iso9283.formulas import path_accuracy
-    from dhlog.iso9283.run import PATH_TRIMS
+    from dhlog.iso9283.formulas.paths import path_accuracy
+    from dhlog.iso9283.paths import PATH_TRIMS
 
     m = len(commanded)
     trims = list(PATH_TRIMS)
