@@ -218,6 +218,6 @@ def test_no_terms_left_nothing_to_merge(short_wrist: tuple[Session, ProcessResul
     def refit(model: AxisModel) -> WholeFit:
         raise AssertionError("nothing to refit")
 
-    warnings: list[str] = []
-    assert merge_cancelling(fit, Q, refit, warnings) is fit
-    assert warnings == []
+    merged, notes = merge_cancelling(fit, Q, refit)
+    assert merged is fit
+    assert notes == ()

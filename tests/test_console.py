@@ -11,6 +11,7 @@ from pathlib import Path
 import pytest
 from rich.console import Console
 
+from dhlog.errors import Note
 from dhlog.identify.run import ProcessResult, process_log
 from dhlog.io.dhfile import load_dh
 from dhlog.present.console import print_result
@@ -63,8 +64,11 @@ def hostile() -> ProcessResult:
     assert result.nominal is not None
     return dataclasses.replace(
         result,
-        info=(*result.info, "note [bold]n[/] \x1b[2J end"),
-        warnings=(*result.warnings, "warn [/] end\\"),
+        notes=(
+            *result.notes,
+            Note.info("note [bold]n[/] \x1b[2J end", "test"),
+            Note.warning("warn [/] end\\", "test"),
+        ),
         nominal=dataclasses.replace(result.nominal, source="[red]nominal[/]\r"),
     )
 

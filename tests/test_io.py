@@ -231,7 +231,10 @@ def test_a_sweep_with_too_few_samples_is_named(tmp_path: Path) -> None:
     )
     seg = segment_log(read_log(written(sess, tmp_path, "ros2"), pipe))
     assert seg.set_aside["too_few_samples"] > 0
-    assert any("joint 1 (joint_1): a sweep with only" in w for w in seg.warnings)
+    assert any(
+        n.code == "short-sweep" and "joint 1 (joint_1): a sweep with only" in n.text
+        for n in seg.notes
+    )
 
 
 @pytest.mark.parametrize(

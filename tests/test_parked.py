@@ -110,6 +110,8 @@ def _assert_parked(result: ProcessResult, joint: int) -> None:
         assert math.isnan(float(result.std[4 * joint + p]))  # type: ignore[index]
     said = [w for w in result.warnings if "parked" in w]
     assert len(said) == 1 and f"joint {joint + 1} (joint_{joint + 1}" in said[0]
+    coded = [n for n in result.notes if n.code == "parked"]  # the same warning, by its code
+    assert [(n.level, n.text) for n in coded] == [("warning", said[0])]
     assert all("not identified" not in w for w in result.warnings)
 
 

@@ -128,10 +128,11 @@ def test_a_far_sample_the_fit_kept_is_named() -> None:
     inliers[20] = False
     names = sample_names(np.arange(50, dtype=np.int64), np.arange(50), {7: "P-8", 20: "P-21"})
     assert names[:2] == ["#1", "#2"] and names[7] == "P-8"
-    info: list[str] = []
-    warnings: list[str] = []
-    out = name_outliers(names, norms, inliers, info, warnings)
+    out, notes = name_outliers(names, norms, inliers)
     assert out.tolist() == [20]
+    info = [n.text for n in notes if n.level == "info"]
+    warnings = [n.text for n in notes if n.level == "warning"]
+    assert [n.code for n in notes] == ["outliers", "far-samples"]
     assert len(info) == 1 and "P-21 (30 mm)" in info[0]
     assert len(warnings) == 1 and "P-8 (2 mm)" in warnings[0] and "#" not in warnings[0]
     # without ids: the samples' numbers

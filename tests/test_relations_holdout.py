@@ -89,6 +89,7 @@ def test_a_tilted_pair_the_2_sigma_rule_held_is_left_free_at_the_limit(
     assert result.whole is not None and before.whole is not None
     assert 2 in before.whole.constrained and 2 not in result.whole.constrained
     assert any("axes 3–4" in s and "left free" in s for s in result.info), result.info
+    assert any(n.code in ("pair-free", "pairs-free") and "axes 3–4" in n.text for n in result.notes)
     error, limit = _fk_rms(session, result)
     held, _ = _fk_rms(session, before)
     assert error < 1.1 * limit, (error, limit)
@@ -106,6 +107,9 @@ def test_pairs_parallel_in_truth_are_held() -> None:
     assert result.whole is not None
     assert result.whole.constrained == {1: "parallel", 2: "parallel"}
     assert sum("held parallel" in s for s in result.info) == 2, result.info
+    held = [n for n in result.notes if n.code == "held-parallel"]
+    assert [n.text.split(":")[0] for n in held] == ["axes 2–3", "axes 3–4"], held
+    assert all(n.level == "info" and "held parallel" in n.text for n in held)
     error, limit = _fk_rms(session, result)
     assert error < 0.9 * limit, (error, limit)
 

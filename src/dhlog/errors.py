@@ -3,15 +3,18 @@
 Every error dhlog raises on purpose derives from :class:`DhlogError`. Each class writes its own
 message from the facts it is given, as whole sentences that name the joint, file or topic at fault
 and say what to do. Only the command line catches ``DhlogError`` and turns it into a one-line
-message and an exit code.
+message and an exit code. What a run says without stopping (a warning, a note) is a
+:class:`Note`.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Iterator
+from collections.abc import Iterable, Iterator
 from contextlib import contextmanager
 from contextvars import ContextVar
+from dataclasses import dataclass
+from typing import Literal
 
 
 class DhlogError(Exception):
@@ -229,6 +232,44 @@ def give_warning(
 
     warnings.warn(category(message), stacklevel=stacklevel + 1)
     logging.getLogger(LOGGER_NAME).warning(message, extra={"dhlog_category": category.__name__})
+
+
+#: A note's level: ``"warning"``, what may need the user's action (the console's "Warning:",
+#: the JSON's ``warnings``, :class:`DhlogWarning`); ``"info"``, what a reader should know but
+#: need not act on (the console's "Note:", the JSON's ``notes``).
+NoteLevel = Literal["warning", "info"]
+
+
+@dataclass(frozen=True)
+class Note:
+    """One thing a run says without stopping: its ``level``, its ``text`` (a whole sentence, as
+    the console and the JSON show it) and its ``code``, a short stable identifier tests and
+    scripts match on (``"fit-noise"``, ``"parked"``, ``"clock-offset"``) while the text's
+    wording may change. Each stage of the identification returns its notes in order; the
+    result keeps them in the order the run said them."""
+
+    level: NoteLevel
+    text: str
+    code: str
+
+    def __post_init__(self) -> None:
+        if self.level not in ("warning", "info"):
+            raise ValueError(f"Note: level {self.level!r}, not 'warning' or 'info'")
+
+    @classmethod
+    def warning(cls, text: str, code: str) -> Note:
+        """A note of what may need the user's action."""
+        return cls("warning", text, code)
+
+    @classmethod
+    def info(cls, text: str, code: str) -> Note:
+        """A note of what a reader should know but need not act on."""
+        return cls("info", text, code)
+
+
+def texts(notes: Iterable[Note], level: NoteLevel) -> tuple[str, ...]:
+    """The texts of ``notes`` at ``level``, in their order."""
+    return tuple(n.text for n in notes if n.level == level)
 
 
 class ImplausibleWarning(DhlogWarning):

@@ -16,7 +16,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from dhlog.api.calibration import Calibration, UsageError, _dh_model, _library_limits
-from dhlog.errors import DhlogError
+from dhlog.errors import DhlogError, Note
 
 if TYPE_CHECKING:
     from dhlog.cell.plan import Plan, Tracker
@@ -191,15 +191,13 @@ def calibration_of(result: Any, *, limits: Any = None) -> Calibration:
     return found
 
 
-def with_info(calibration: Calibration, said: str) -> Calibration:
-    """A run's calibration with a note added to its record, the document made again from
-    that one record (the console and the JSON read the same notes)."""
-    from dataclasses import replace
-
+def with_info(calibration: Calibration, said: str, code: str) -> Calibration:
+    """A run's calibration with a note (``said``, its code ``code``) added to its record, the
+    document made again from that one record (the console and the JSON read the same notes)."""
     result = calibration._result
     if result is None:
         raise ValueError("with_info: a run's calibration (not a loaded one)")
-    found = calibration_of(replace(result, info=(*result.info, said)), limits=calibration.limits)
+    found = calibration_of(result.said(Note.info(said, code)), limits=calibration.limits)
     found._asked, found._inputs = calibration._asked, calibration._inputs
     return found
 

@@ -318,7 +318,7 @@ def process(
                     "default (--analytic-only gives the per-joint circle fits and line geometry "
                     "alone)."
                 )
-                calibration = with_info(calibration, said)
+                calibration = with_info(calibration, said, "refine-no-op")
             result = run_of(calibration)
             advance("writing", 0.0)
             try:

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from dhlog.errors import DhlogError, GeometryError
+from dhlog.errors import DhlogError, GeometryError, Note
 from dhlog.identify.check.footing import (
     NotScoredError,
     Placed,
@@ -45,12 +45,16 @@ def validated(
     if not logs:
         return result
     if result.extraction is None or not result.complete:
-        said = tuple(f"{path}: not scored: the result is not complete." for path in logs)
-        return replace(result, warnings=(*result.warnings, *said))
+        return result.said(
+            *(
+                Note.warning(f"{path}: not scored: the result is not complete.", "not-scored")
+                for path in logs
+            )
+        )
     #: the nominal on this session, placed once (or why it could not be)
     placed: list[tuple[Placed | None, str | None]] = []
     checks: list[Holdout] = []
-    warnings: list[str] = []
+    notes: list[Note] = []
     not_scored: list[Unscored] = []
     implausible: list[str] = []
     for other in logs:
@@ -58,7 +62,7 @@ def validated(
             checks.append(_validate_log(result, other, pipeline, fast, placed))
         except DhlogError as exc:  # the calibration stands: the log is one line
             said_one = str(exc) if str(other) in str(exc) else f"{other}: {exc}"
-            warnings.append(f"held-out log not scored: {said_one}")
+            notes.append(Note.warning(f"held-out log not scored: {said_one}", "not-scored"))
             unplaced = isinstance(exc, NotScoredError) and exc.unplaced
             not_scored.append(Unscored(str(other), said_one, unplaced))
             if unplaced:
@@ -73,12 +77,12 @@ def validated(
                     "is missing: " + said_one.removeprefix(f"{other}: ")
                 )
         if len(placed) == 1 and placed[0][1] is not None:  # said once, where it happened
-            warnings.append(placed[0][1])
+            notes.append(Note.warning(placed[0][1], "nominal-placement"))
             placed[0] = (None, None)
     return replace(
         result,
         holdout=(*result.holdout, *checks),
-        warnings=(*result.warnings, *warnings),
+        notes=(*result.notes, *notes),
         not_scored=(*result.not_scored, *not_scored),
         implausible=(*result.implausible, *implausible),
     )

@@ -31,7 +31,7 @@ from typing import Any, cast
 
 import numpy as np
 
-from dhlog.errors import GeometryError
+from dhlog.errors import GeometryError, Note
 from dhlog.geometry._checks import FloatArray
 from dhlog.geometry.fitting import fit_plane
 from dhlog.geometry.lines import ANGLE_TOL, DISTANCE_TOL, Line
@@ -166,13 +166,13 @@ def process_log(
                 f"--model {model.mode}: a camera calibration fits the geometric model; terms "
                 "beyond the geometry (gravity, gears) are not fitted from a camera's corners yet."
             )
-            found = replace(found, info=(*found.info, said))
+            found = found.said(Note.info(said, "camera-geometric"))
         if validate:
             said = (
                 "--validate: held-out logs score tracker calibrations; a camera's is scored by "
                 "--holdout K over its own frames (the held-out logs were not scored)."
             )
-            found = replace(found, warnings=(*found.warnings, said))
+            found = found.said(Note.warning(said, "camera-validate"))
         return found
     log = read_log(
         path,
@@ -242,11 +242,11 @@ def process_data(
     stage("segmenting", 0.0)
     seg = segment_log(log, joint_types=types_hint, reference_pose=reference_pose)
     n = seg.n_joints
-    notes = list(seg.warnings)
-    info: list[str] = []
+    notes = list(seg.notes)  # the run's notes, in the order said
     phases = sweep_phases(seg, log, types_hint) if seg.has_encoders else []
-    check_units(seg, log, phases, notes)
-    seg, timing = clock_start(seg, log, info, phases)
+    notes.extend(check_units(seg, log, phases))
+    seg, timing, said = clock_start(seg, log, phases)
+    notes.extend(said)
     check_sizes(name, n, nominal, reference_pose)
     implausible = []
     order = log.joint_order
@@ -256,21 +256,23 @@ def process_data(
             implausible.append(permuted.reason(seg.joint_names))
     every = shown_stride(seg.height)
     if every > 1:
-        info.append(
+        drawn = (
             f"the recording draws every {every}th sample ({-(-seg.height // every)} of "
             f"{seg.height}; outliers all): a viewer shows no more. Every sample enters the fit "
             "and the FK check."
         )
+        notes.append(Note.info(drawn, "recording-stride"))
     ref = (
         np.asarray(reference_pose, dtype=np.float64)
         if reference_pose is not None
         else (seg.reference_pose if seg.reference_pose is not None else np.zeros(n))
     )
     if not seg.has_encoders:
-        info.append(
+        said_ref = (
             "no encoders: the reference pose is the pose every sweep starts from (all zeros), "
             "and the sense of motion comes from time order."
         )
+        notes.append(Note.info(said_ref, "no-encoders"))
     whole_wanted = seg.has_encoders and not analytic_only
     max_points = START_FIT_POINTS if whole_wanted else None
     joints = [JointReport(k + 1, seg.joint_names[k]) for k in range(n)]
@@ -282,7 +284,7 @@ def process_data(
             ref = parked_pose(Q_all, ref, parked)
     for report in joints:
         stage("fitting", (report.index - 1) / n)
-        fit_joint(report, seg, log, ref, joints, nominal, fit_method, notes, max_points)
+        notes.extend(fit_joint(report, seg, log, ref, joints, nominal, fit_method, max_points))
         if report.index - 1 in parked and not report.ok and nominal is None:
             report.reason = no_nominal_reason(Q_all, report.index - 1, report.type)
     unidentified = [
@@ -290,7 +292,7 @@ def process_data(
         for report in joints
         if report.reason
     ]
-    check_fit_noise(joints, notes)
+    notes.extend(check_fit_noise(joints))
     base = None
     if log.base is not None and log.base.height >= 3:
         try:
@@ -300,7 +302,7 @@ def process_data(
                 sigma=known_noise,
             )
         except GeometryError as exc:
-            notes.append(f"the base plane was not used: {exc}")
+            notes.append(Note.warning(f"the base plane was not used: {exc}", "base-plane"))
     session = Session(
         log=log,
         segmentation=seg,
@@ -333,26 +335,26 @@ def process_data(
             return _built(
                 replace(session, joints=started.joints),
                 head,
-                [*notes, *started.warnings],
-                [*info, *started.info],
+                (*notes, *started.notes),
                 started.fit,
                 registration=started.registration,
             )
         if started is not None:
-            notes.extend(started.warnings)
-        notes.extend(unidentified)
+            notes.extend(started.notes)
+        notes.extend(Note.warning(said, "unidentified") for said in unidentified)
         if (
             whole_wanted
             and nominal is None
             and any(not j.ok and j.index - 1 not in parked for j in joints)
         ):
-            notes.append(
+            needs = (
                 "the joints not swept alone need a start: pass --nominal (a library robot or "
                 "the robot's DH file) and the whole-model fit identifies them from the other "
                 "samples (random static poses, coupled moves)."
             )
+            notes.append(Note.warning(needs, "needs-nominal"))
         extraction = partial_extraction(joints, ref, base, nominal_table, kwargs)
-        return _built(session, head, notes, info, extraction=extraction)
+        return _built(session, head, tuple(notes), extraction=extraction)
     stage("identifying", 0.0)
     target_at = TargetAtReference(seg, joints, ref, START_TARGET_POINTS if whole_wanted else None)
     target, target_cov = target_at()
@@ -368,15 +370,16 @@ def process_data(
     if whole_wanted:
         try:
             fit = identify_whole(replace(session, target=target), analytic, request, stage)
-            return _built(session, head, notes, info, fit)
+            return _built(session, head, tuple(notes), fit)
         except (GeometryError, np.linalg.LinAlgError) as exc:
-            notes.append(f"the whole-model fit failed ({exc}); the result is the analytic one.")
+            failed = f"the whole-model fit failed ({exc}); the result is the analytic one."
+            notes.append(Note.warning(failed, "whole-fit-failed"))
     elif seg.has_encoders:
-        info.append("--analytic-only: the seed method's result (per-joint fits, line geometry).")
+        only = "--analytic-only: the seed method's result (per-joint fits, line geometry)."
+        notes.append(Note.info(only, "analytic-only"))
     else:
-        info.append(
-            "no encoder values: the whole-model fit needs them; the result is the analytic one."
-        )
+        only = "no encoder values: the whole-model fit needs them; the result is the analytic one."
+        notes.append(Note.info(only, "analytic-only"))
 
     # the covariance perturbs every axis: the target's derivative is taken on an evenly strided
     # subset of the samples (the mean's derivative; the target itself is from every sample)
@@ -398,20 +401,20 @@ def process_data(
         kwargs,
         analytic,
         target_of if seg.has_encoders else None,
-        info,
     )
+    notes.extend(found.notes)
     stage("validating", 0.0)
     validation = validate_sweeps(seg, joints, analytic)
     if validation is not None:
         sigma = math.sqrt(np.mean([j.fit.sigma**2 for j in joints if j.fit is not None]))
-        check_residual(validation, sigma, notes)
+        notes.extend(check_residual(validation, sigma))
     else:
-        notes.append("no encoder values: FK of the result cannot be checked sample by sample.")
+        unchecked = "no encoder values: FK of the result cannot be checked sample by sample."
+        notes.append(Note.warning(unchecked, "no-fk-check"))
     return _built(
         session,
         head,
-        notes,
-        info,
+        tuple(notes),
         extraction=analytic,
         target=target,
         covariance=found.covariance,
@@ -437,13 +440,12 @@ class _Head:
 def _built(
     session: Session,
     head: _Head,
-    notes: list[str],
-    info: list[str],
+    notes: tuple[Note, ...],
     fit: ModelFit | None = None,
     **fields: Any,
 ) -> ProcessResult:
-    """The one result of the run: the session's, the fit's (when there is one; its warnings
-    and notes after the run's) and ``fields`` (the analytic result's, a registration)."""
+    """The one result of the run: the session's, the fit's (when there is one; its notes
+    after the run's) and ``fields`` (the analytic result's, a registration)."""
     found: dict[str, Any] = {
         "extraction": None,
         "std": None,
@@ -455,7 +457,7 @@ def _built(
     }
     if fit is not None:
         found |= fit.fields()
-        notes, info = [*notes, *fit.warnings], [*info, *fit.info]
+        notes = (*notes, *fit.notes)
     found |= fields
     return ProcessResult(
         path=session.log.path,
@@ -465,8 +467,7 @@ def _built(
         reference_pose=session.reference_pose,
         base=session.base,
         nominal=session.nominal,
-        warnings=tuple(notes),
-        info=tuple(info),
+        notes=notes,
         parked=session.parked,
         folds=head.folds,
         model_request=head.model_request,
@@ -479,13 +480,12 @@ def _built(
 class _Started:
     """The joints never moved alone, identified from a start: the fit (None when it failed or
     there was no start), the joints as it left them, the nominal's registration on the points
-    (a session with no sweep), and what it said."""
+    (a session with no sweep), and what it said before the fit's own notes."""
 
     fit: ModelFit | None
     joints: tuple[JointReport, ...]
     registration: Registration | None
-    warnings: tuple[str, ...]
-    info: tuple[str, ...]
+    notes: tuple[Note, ...]
 
 
 def _from_a_start(session: Session, request: FitRequest, stage: Stage) -> _Started:
@@ -495,21 +495,21 @@ def _from_a_start(session: Session, request: FitRequest, stage: Stage) -> _Start
     (:func:`~dhlog.identify.fit.start.start_unswept`). Its ``fit`` is None (and the session's
     joints unchanged) when a joint never moved, there is no start, or the fit fails."""
     nominal, joints = session.nominal, session.joints
-    notes: list[str] = []
-    start = start_unswept(
-        joints, session.segmentation, session.reference_pose, nominal, notes, session.parked
+    start, said = start_unswept(
+        joints, session.segmentation, session.reference_pose, nominal, session.parked
     )
     if start is None:
-        return _Started(None, joints, None, tuple(notes), ())
-    info: list[str] = []
+        return _Started(None, joints, None, said)
+    notes = list(said)
     reg = start.registration
     if reg is not None:
-        info.append(
+        placed = (
             f"no joint was swept alone: the nominal was placed on the points (tracker → base "
             f"by a robust registration; the nominal's RMS there {reg.rms * 1e3:.4f} mm over "
             f"{int(np.count_nonzero(reg.inliers))} samples) and every joint identified by the "
             "whole-model fit from there."
         )
+        notes.append(Note.info(placed, "nominal-placed"))
     missing = [j for j in joints if not j.ok and j.index - 1 not in session.parked]
     what = "the coupled moves" if nominal is None else "the nominal"
     # the joints the start gives take its axes and types; the fit's, if it succeeds
@@ -531,28 +531,31 @@ def _from_a_start(session: Session, request: FitRequest, stage: Stage) -> _Start
             replace(session, joints=started, target=start.target), None, from_start, stage
         )
     except (GeometryError, np.linalg.LinAlgError) as exc:
-        notes.append(f"the whole-model fit from {what} failed: {exc}")
-        return _Started(None, joints, None, tuple(notes), ())
+        notes.append(Note.warning(f"the whole-model fit from {what} failed: {exc}", "start-failed"))
+        return _Started(None, joints, None, tuple(notes))
     fitted = tuple(
         replace(j, axis=fit.whole.model.axes[k]) if k in start.sources else j
         for k, j in enumerate(started)
     )
-    after: list[str] = []  # said after the fit's own warnings
+    after: list[Note] = []  # said after the fit's own notes
     if session.parked:
         _, Q, _ = samples_with_encoders(session.segmentation)
         names_all = [j.name for j in joints]
         types_all = [j.type for j in started if j.type is not None]
-        after.append(parked_warning(names_all, session.parked, Q[:], types_all))
+        parked = parked_warning(names_all, session.parked, Q[:], types_all)
+        after.append(Note.warning(parked, "parked"))
     names = ", ".join(f"joint {j.index} ({j.name})" for j in missing)
     if missing and nominal is None:
-        after.append(
+        alone = (
             f"{names}: never moved alone; started from the circle its coupled move with a "
             "parallel neighbour traces, and identified by the whole-model fit from every sample."
         )
+        after.append(Note.warning(alone, "never-alone"))
     elif missing and reg is None:
-        after.append(
+        alone = (
             f"{names}: never moved alone; identified by the whole-model fit from the other "
             "samples (coupled moves, still poses), started from the nominal."
         )
-    fit = replace(fit, warnings=(*fit.warnings, *after))
-    return _Started(fit, fitted, reg, tuple(notes), tuple(info))
+        after.append(Note.warning(alone, "never-alone"))
+    fit = replace(fit, notes=(*fit.notes, *after))
+    return _Started(fit, fitted, reg, tuple(notes))

@@ -10,12 +10,13 @@ fails is a value (None and a warning), not a field restored by hand.
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field, fields, replace
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
+from dhlog.errors import Note, texts
 from dhlog.geometry._checks import FloatArray
 from dhlog.geometry.fitting import PlaneFit
 from dhlog.identify.check.footing import Unscored
@@ -74,8 +75,9 @@ class FitRequest:
 class ModelFit:
     """The fit of the whole model and what is read off it: the DH model with its covariance
     and what is fixed, the terms beyond the geometry and what they move, the check at every
-    sample, the outliers by name, the cross-validation; with the warnings and the notes this
-    stage adds. Its fields are :class:`ProcessResult`'s of the same names."""
+    sample, the outliers by name, the cross-validation; with the notes this stage adds
+    (warnings and what a reader should know, in the order said). Its fields are
+    :class:`ProcessResult`'s of the same names."""
 
     segmentation: Segmentation
     timing: Timing | None
@@ -107,17 +109,22 @@ class ModelFit:
     outlier_names: tuple[str, ...]
     outlier_rows: NDArray[np.intp]
     holdout: tuple[Holdout, ...]
-    warnings: tuple[str, ...]
-    info: tuple[str, ...]
+    notes: tuple[Note, ...]
     method: str = "whole-model maximum likelihood"
 
     def fields(self) -> dict[str, Any]:
         """The result's fields this stage sets (its notes aside: they are added, not set)."""
-        return {
-            f.name: getattr(self, f.name)
-            for f in fields(self)
-            if f.name not in ("warnings", "info")
-        }
+        return {f.name: getattr(self, f.name) for f in fields(self) if f.name != "notes"}
+
+    @property
+    def warnings(self) -> tuple[str, ...]:
+        """The texts of its warnings, in order."""
+        return texts(self.notes, "warning")
+
+    @property
+    def info(self) -> tuple[str, ...]:
+        """The texts of its notes a reader should know (level ``info``), in order."""
+        return texts(self.notes, "info")
 
 
 @dataclass(frozen=True)
@@ -139,7 +146,10 @@ class ProcessResult:
     target: FloatArray | None
     validation: Validation | None
     nominal: DHModel | None
-    warnings: tuple[str, ...]
+    #: what the run said, in the order it said it: warnings (what may need action) and notes
+    #: (what a reader should know but need not act on), each with its code
+    #: (:class:`~dhlog.errors.Note`); ``warnings`` and ``info`` give their texts
+    notes: tuple[Note, ...]
     covariance: FloatArray | None = None
     hayati: tuple[HayatiRow, ...] = ()
     hayati_std: tuple[FloatArray, ...] = ()
@@ -184,9 +194,6 @@ class ProcessResult:
     #: up to 2000 samples: the target where the model puts it and the terms' share of that
     #: (k, 6: position, displacement; m, in M)
     deflection_vectors: FloatArray = field(default_factory=lambda: np.zeros((0, 6)))
-    #: what a reader should know but need not act on (the method chosen, forms shown); the
-    #: ``warnings`` are for what may need action
-    info: tuple[str, ...] = ()
     #: a camera calibration's product (:class:`~dhlog.identify.camera.report.CameraResult`: the
     #: set-up, the camera's and the board's poses with σ, the corners' σ, the held-out check in
     #: pixels) and what the recording shows of each camera; None and empty for a tracker log
@@ -202,6 +209,22 @@ class ProcessResult:
     #: place, ...); empty when plausible. The result is still written, marked ``plausible: false``
     #: in the JSON, and ``dhlog process`` exits with ``EXIT_IMPLAUSIBLE`` (4)
     implausible: tuple[str, ...] = ()
+
+    @property
+    def warnings(self) -> tuple[str, ...]:
+        """The texts of the warnings, what may need action (the JSON's ``warnings``), in
+        order."""
+        return texts(self.notes, "warning")
+
+    @property
+    def info(self) -> tuple[str, ...]:
+        """The texts of the notes a reader should know but need not act on (the method
+        chosen, forms shown: the JSON's ``notes``), in order."""
+        return texts(self.notes, "info")
+
+    def said(self, *notes: Note) -> ProcessResult:
+        """This result with ``notes`` added after its own."""
+        return replace(self, notes=(*self.notes, *notes))
 
     @property
     def complete(self) -> bool:

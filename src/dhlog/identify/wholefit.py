@@ -23,6 +23,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from dhlog.errors import Note
 from dhlog.geometry._checks import FloatArray
 from dhlog.geometry.lines import Line, Plane
 from dhlog.identify.check.holdout import Holdout, cross_validate
@@ -122,8 +123,7 @@ def identify_whole(
         session.base,
         session.nominal,
     )
-    notes: list[str] = []  # this stage's warnings and notes, returned in its value
-    info: list[str] = []
+    notes: list[Note] = []  # this stage's notes, in the order said, returned in its value
     types = tuple(j.type for j in joints)
     assert session.target is not None and all(t is not None for t in types)
     clocked = _fit_clocked(session, analytic, request.fit_scales, stage)
@@ -140,7 +140,7 @@ def identify_whole(
             model_request,
             harmonic_joints=tuple(k for k in revolute if k not in session.parked),
         )
-    whole, selection = beyond_geometry(
+    whole, selection, said = beyond_geometry(
         model_request,
         whole,
         Q,
@@ -149,33 +149,35 @@ def identify_whole(
         options,
         folds=request.folds,
         names=[j.name for j in joints],
-        warnings=notes,
-        info=info,
         outer=outer,
     )
-    whole, sample_cov, noise = with_model_error(
-        whole, Q, P, sample_cov, clocked.noise, which, rates, rotations, notes
+    notes.extend(said)
+    whole, sample_cov, noise, said = with_model_error(
+        whole, Q, P, sample_cov, clocked.noise, which, rates, rotations
     )
+    notes.extend(said)
     final = {**options, "noise": noise, "sample_cov": sample_cov}  # the final fit's weights
     whiten = whitening(noise, sample_cov, sigma)
     squares = None  # the whitened cost of the fit's inliers, where the design effect found it
     if rotations is None:
-        whole, squares = pose_clustered(whole, Q, P, whiten, which, rates, info)
+        whole, squares, said = pose_clustered(whole, Q, P, whiten, which, rates)
+        notes.extend(said)
 
     def refit_terms(model: AxisModel) -> WholeFit:
         """The fit again from ``model`` (lumps merged), weighted and scaled as the final fit."""
         fit = fit_whole_model(model, Q, P, sigma=sigma, **final)
         if rotations is None:
-            fit, _ = pose_clustered(fit, Q, P, whiten, which, rates, [])
+            fit, _, _ = pose_clustered(fit, Q, P, whiten, which, rates)
         return fit
 
     # lumps of one joint the poses cannot tell apart (a cancelling pair): merged, said
-    merged = merge_cancelling(whole, Q, refit_terms, notes)
+    merged, said = merge_cancelling(whole, Q, refit_terms)
+    notes.extend(said)
     if merged is not whole:
         whole, squares = merged, None
     clustered = whole
     nominal_table = nominal.table if nominal is not None else None
-    tolerances = decided_tolerances(
+    tolerances, said = decided_tolerances(
         whole,
         nominal,
         request.tolerances["angle_tol"],
@@ -185,8 +187,8 @@ def identify_whole(
         parallel_sigma=request.parallel_sigma,
         sigma=sigma,
         options=final,
-        info=info,
     )
+    notes.extend(said)
 
     def cost(fit: WholeFit) -> float:
         """The whitened sum of squares of ``whole``'s inliers under ``fit`` (positions)."""
@@ -194,7 +196,8 @@ def identify_whole(
             return squares
         return whitened_cost(fit, clustered.inliers, Q, P, whiten, which=which, rates=rates)
 
-    whole, tolerances = with_fixed_relations(whole, tolerances, cost, info)
+    whole, tolerances, said = with_fixed_relations(whole, tolerances, cost)
+    notes.extend(said)
     kw = {**request.tolerances, "pair_tolerances": tolerances}
 
     def extract(axes: list[Line], target: FloatArray, plane: Plane | None) -> Extraction:
@@ -222,22 +225,21 @@ def identify_whole(
         """The fit again from ``model`` along ``within`` only, weighted as the final fit."""
         return fit_whole_model(model, Q, P, sigma=sigma, within=within, **final).model
 
-    said: list[str] = []  # the uncertainty's notes, of the fit finally kept
-    found = whole_uncertainty(whole, base, extract, ex, ref, nominal_table, said)
+    found = whole_uncertainty(whole, base, extract, ex, ref, nominal_table)
     if may_hold(found.shown_std, h_rows):
-        whole, _ = hold_unseen(
-            whole, extract, plane, h_rows, nominal_table, nominal_h, cost, notes, refit
+        whole, _, said = hold_unseen(
+            whole, extract, plane, h_rows, nominal_table, nominal_h, cost, refit
         )
+        notes.extend(said)
         if whole.held:
             ex = extract(list(whole.model.axes), whole.model.target, plane)
-            said = []
-            found = whole_uncertainty(whole, base, extract, ex, ref, nominal_table, said)
-    info.extend(said)
+            found = whole_uncertainty(whole, base, extract, ex, ref, nominal_table)
+    notes.extend(found.notes)  # the uncertainty's notes, of the fit finally kept
     mark_parked(found.fixed, found.std, session.parked)
     if found.conditioned is not None:
         mark_parked(found.conditioned.fixed, found.conditioned.std, session.parked)
-    identifiability_notes(whole, nominal is not None, notes, info)
-    check_noise_model(noise, whole.chi2_dof, notes)
+    notes.extend(identifiability_notes(whole, nominal is not None))
+    notes.extend(check_noise_model(noise, whole.chi2_dof))
     stage("validating", 0.0)
     tools = np.vstack([ex.tool_point[None], found.extra_tool_points])
     terms, terms_std = None, np.zeros(0)
@@ -254,15 +256,17 @@ def identify_whole(
     stamps = np.asarray(seg.column("t_ns", rows), dtype=np.int64)
     names = sample_names(stamps, rows, session.log.point_ids)
     norms = residual_norms(whole.model, Q, P, which=which, rates=rates)
-    out = name_outliers(names, norms, whole.inliers, info, notes)
+    out, said = name_outliers(names, norms, whole.inliers)
+    notes.extend(said)
     gap = table_gap(whole, ex, Q, Q_table)
     if gap > 1e-6:
-        notes.append(
+        departs = (
             f"the DH table departs from the fitted model by up to {gap * 1e3:.4f} mm: a pair "
             "was classified (parallel / meeting) where the fitted axes are not; check the "
             "relations and the FK check."
         )
-    check_residual(validation, sigma, notes)
+        notes.append(Note.warning(departs, "table-gap"))
+    notes.extend(check_residual(validation, sigma))
     holdout: tuple[Holdout, ...] = ()
     if request.folds > 1 and outer is not None:
         stage("cross-validating", 0.0)
@@ -301,8 +305,7 @@ def identify_whole(
         outlier_names=tuple(names[i] for i in out.tolist()),
         outlier_rows=rows[out],
         holdout=holdout,
-        warnings=tuple(notes),
-        info=tuple(info),
+        notes=tuple(notes),
     )
 
 

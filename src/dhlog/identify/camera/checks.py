@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from dhlog.errors import DhlogError
+from dhlog.errors import DhlogError, Note
 from dhlog.geometry._checks import FloatArray
 from dhlog.identify.camera.poses import corners_of
 from dhlog.identify.check.plausible import SCALE_MIN_LENGTH as SCALE_MIN_LENGTH
@@ -30,11 +30,11 @@ from dhlog.vision.observe import Observations
 SMALL_EFFECT = 1.1
 
 
-def frame_clustered(fit: PixelFit, frame: NDArray[np.intp], info: list[str]) -> PixelFit:
+def frame_clustered(fit: PixelFit, frame: NDArray[np.intp]) -> tuple[PixelFit, tuple[Note, ...]]:
     """``fit`` with every covariance times the design effect of corners grouped by frame,
-    where it reaches :data:`SMALL_EFFECT` (said in ``info``): a frame's corners share part of
-    their error (the detector's, the image's: blur, exposure, a board's print), which the
-    corners' scatter about the model does not show as independent. ``effect`` =
+    where it reaches :data:`SMALL_EFFECT` (said in a note, ``frame-clustered``): a frame's
+    corners share part of their error (the detector's, the image's: blur, exposure, a board's
+    print), which the corners' scatter about the model does not show as independent. ``effect`` =
     1 + (k̄ − 1) ρ, k̄ the corners a frame, ρ the share of the residual variance common to a
     frame's corners (as the tracker's design effect of samples a pose, identify.variance)."""
     use = fit.inliers & np.all(np.isfinite(fit.residuals), axis=1)
@@ -43,7 +43,7 @@ def frame_clustered(fit: PixelFit, frame: NDArray[np.intp], info: list[str]) -> 
     frames = np.unique(f)
     g = frames.size
     if g == 0 or n < 2 * g:
-        return fit
+        return fit, ()
     _, local = np.unique(f, return_inverse=True)
     count = np.bincount(local).astype(np.float64)
     sums = np.column_stack([np.bincount(local, weights=r[:, k]) for k in range(r.shape[1])])
@@ -59,23 +59,24 @@ def frame_clustered(fit: PixelFit, frame: NDArray[np.intp], info: list[str]) -> 
     msb = between / (d * g)
     msw = (squares - between) / (d * (n - g))
     if msw <= 0 or msb / msw <= float(f_dist.ppf(0.999, d * g, d * (n - g))):
-        return fit
+        return fit, ()
     k_bar = n / g
     sigma_b2 = (msb - msw) / k_bar
     rho = sigma_b2 / (sigma_b2 + msw)
     effect = 1.0 + (k_bar - 1.0) * rho
     if effect < SMALL_EFFECT:
-        return fit
-    info.append(
+        return fit, ()
+    said = (
         f"{n} corners in {g} frames ({n / g:.1f} a frame) share their frame's error "
         f"({rho:.0%} of the residual variance): the uncertainty is scaled by the design "
         f"effect, σ ×{math.sqrt(effect):.2f}."
     )
     whole = replace(fit.whole, covariance=fit.whole.covariance * effect)
     own = None if fit.own_covariance is None else fit.own_covariance * effect
-    return replace(
+    scaled = replace(
         fit, whole=whole, own_covariance=own, full_covariance=fit.full_covariance * effect
     )
+    return scaled, (Note.info(said, "frame-clustered"),)
 
 
 #: A camera measures lengths in units of the board's squares: the robot's lengths (d, a of at

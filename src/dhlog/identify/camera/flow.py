@@ -27,7 +27,7 @@ from typing import Any
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from dhlog.errors import DhlogError, InputError
+from dhlog.errors import DhlogError, InputError, Note
 from dhlog.geometry._checks import FloatArray
 from dhlog.geometry.lines import Line
 from dhlog.identify.camera.checks import (
@@ -106,16 +106,17 @@ def process_observations(
     T_cb, pnp_rms = board_poses(obs, obs.intrinsics)
     use = np.isfinite(pnp_rms) & (pnp_rms <= PNP_RMS)
     dropped = int(obs.frames - np.count_nonzero(use))
-    notes: list[str] = list(obs.warnings)
+    notes = [Note.warning(w, "log") for w in obs.warnings]
     # the further cameras' own (frames left out, unreadable images …), named by camera
-    notes += [f"{o.camera}: {w}" for o in observations[1:] for w in o.warnings]
+    notes += [Note.warning(f"{o.camera}: {w}", "log") for o in observations[1:] for w in o.warnings]
     if dropped:
         bad = ", ".join(str(int(obs.frame[k])) for k in np.flatnonzero(~use)[:3])
-        notes.append(
+        said = (
             f"{dropped} frame(s) left out of the start: the board's pose (PnP) misses its own "
             f"corners by more than {PNP_RMS} px there (frames {bad}"
             f"{', …' if dropped > 3 else ''}): false detections or wrong intrinsics."
         )
+        notes.append(Note.warning(said, "pnp-misses"))
     if np.count_nonzero(use) < MIN_FRAMES:
         raise InputError(
             f"{obs.path}: only {int(np.count_nonzero(use))} frame(s) of {obs.camera} give the "
@@ -192,14 +193,13 @@ def process_observations(
         if swept
         else "the nominal placed on them"
     )
-    result = replace(
-        result,
-        info=(
-            f"start: each frame's board pose (OpenCV PnP) as a 6-DoF target, the model from "
-            f"{how}; then the whole model fitted to every corner in pixels.",
-        ),
-        warnings=(*notes, *(w for w in result.warnings if "never moved alone" in w)),
+    begun = Note.info(
+        f"start: each frame's board pose (OpenCV PnP) as a 6-DoF target, the model from "
+        f"{how}; then the whole model fitted to every corner in pixels.",
+        "camera-start",
     )
+    kept = (n for n in result.notes if n.code == "never-alone")
+    result = replace(result, notes=(begun, *notes, *kept))
     placement = placements.get(chosen) or placed_nominal(result, nominal, obs)
     result, fit = _pixel_stage(
         result, obs, T_cb, placement[1], chosen, reason, refine_intrinsics, holdout, progress
@@ -212,14 +212,14 @@ def process_observations(
             f"them by {'over 10 000' if not placed_px < 1e4 else f'{placed_px:.1f}'} px RMS: is "
             "the set-up right? Leave --camera-setup out and it is decided from the data."
         )
-        result = replace(result, warnings=(said, *result.warnings))
+        result = replace(result, notes=(Note.warning(said, "camera-setup"), *result.notes))
     if extra_cameras and chosen != "eye-to-hand":
         said = (
             f"the log has {len(observations)} cameras; several are fitted together fixed in the "
             f"cell (eye-to-hand) only: this calibration used {obs.camera} alone "
             f"({', '.join(extra_cameras)} not used)."
         )
-        result = replace(result, warnings=(*result.warnings, said))
+        result = result.said(Note.warning(said, "cameras-unused"))
     elif extra_cameras:
         rest = [o if frames is None else of_frames(o, frames) for o in observations[1:]]
         result = _several_cameras(result, fit, [obs, *rest], holdout, progress)
@@ -246,15 +246,14 @@ def _adopt(
         )
 
     ex = extract(list(whole.model.axes), whole.model.target, None)
-    said: list[str] = []
-    found = whole_uncertainty(whole, None, extract, ex, ref, nominal_table, said)
+    found = whole_uncertainty(whole, None, extract, ex, ref, nominal_table)
     seg = result.segmentation
     rows, Q, P = samples_with_encoders(seg)
     # the table's joint values are the encoders' (no scales, no terms in a camera's fit)
     inl = np.ones(len(rows), dtype=bool)
     adopted = replace(
         result,
-        info=(*result.info, *said),
+        notes=(*result.notes, *found.notes),
         method="whole-model maximum likelihood",  # in pixels: the camera block says so
         extraction=ex,
         whole=whole,
@@ -300,9 +299,8 @@ def _pixel_stage(
         other = fit_pixels(placed, measurement, data)
         if _cost(other, fit.whole.limit) < _cost(fit, fit.whole.limit):
             fit = other
-    info = list(result.info)
-    fit = frame_clustered(fit, data.frame, info)
-    result = replace(result, info=tuple(info))
+    fit, clustered = frame_clustered(fit, data.frame)
+    result = result.said(*clustered)
     nominal = result.nominal
     nominal_table = nominal.table if nominal is not None else None
     ref = result.reference_pose
@@ -313,7 +311,7 @@ def _pixel_stage(
         result = replace(result, implausible=(*result.implausible, scaled))
     moved = camera_moved(fit, data, obs, ex, ref)
     if moved is not None:
-        result = replace(result, warnings=(moved, *result.warnings))
+        result = replace(result, notes=(Note.warning(moved, "camera-moved"), *result.notes))
     check = None
     if holdout > 1:
         if progress is not None:
@@ -351,7 +349,7 @@ def _pixel_stage(
         result,
         camera=cam,
         sigma=None,
-        info=(*result.info, said),
+        notes=(*result.notes, Note.info(said, "camera")),
         cameras=(camera_view(fit, data, obs, cam, check),),
         camera_results=(cam,),
     )
@@ -410,9 +408,10 @@ def _several_cameras(
     # corners, would hold out whole), then everything together
     held = np.zeros((ParameterLayout.of(model.types, rotation=True).size, 0))
     placed = fit_measured(model, measurement, data, within=held, threshold=math.inf)
-    info = [line for line in result.info if "share their frame's error" not in line]
-    fit = frame_clustered(fit_measured(model, placed.measurement, data), data.frame, info)
-    result, ex, _, extract = _adopt(replace(result, info=tuple(info)), fit.whole)
+    # the first camera's design effect is replaced by the cameras' together
+    kept = tuple(n for n in result.notes if n.code != "frame-clustered")
+    fit, clustered = frame_clustered(fit_measured(model, placed.measurement, data), data.frame)
+    result, ex, _, extract = _adopt(replace(result, notes=(*kept, *clustered)), fit.whole)
     _, T_mounted, _, mounted_std = hand_eye(fit, extract, "eye-to-hand", centre)
     cams_std = cameras_std(fit, extract)
     base: FloatArray = np.asarray(np.linalg.inv(ex.T_measurement_base), dtype=np.float64)
@@ -461,5 +460,5 @@ def _several_cameras(
         camera=results[0],
         camera_results=tuple(results),
         cameras=tuple(views),
-        info=(*result.info, said),
+        notes=(*result.notes, Note.info(said, "cameras")),
     )

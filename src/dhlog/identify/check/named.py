@@ -16,6 +16,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
+from dhlog.errors import Note
 from dhlog.identify.fit.leaveout import pose_groups, pose_means
 from dhlog.io.pointids import listed
 
@@ -46,31 +47,33 @@ def name_outliers(
     names: list[str],
     norms: NDArray[np.float64],
     inliers: NDArray[np.bool_],
-    info: list[str],
-    warnings: list[str],
-) -> NDArray[np.intp]:
-    """Name the fit's outliers (``~inliers``; ``norms``: each sample's 3-D residual, m) in a note
-    to ``info`` and the kept samples beyond :data:`FAR` × the RMS in a warning; returns the
-    outliers' indices (into ``names``), largest residual first."""
+) -> tuple[NDArray[np.intp], tuple[Note, ...]]:
+    """The fit's outliers (``~inliers``; ``norms``: each sample's 3-D residual, m) as indices
+    into ``names``, largest residual first, and what is said of them: the outliers named in a
+    note (``outliers``), the kept samples beyond :data:`FAR` × the RMS in a warning
+    (``far-samples``)."""
     out = np.flatnonzero(~inliers)
     order = out[np.argsort(-norms[out], kind="stable")]
+    notes: list[Note] = []
     if out.size:
-        info.append(
+        said = (
             f"the whole-model fit set aside {out.size} sample(s) as gross outliers (residual "
             f"under the fitted model): {_shown(names, norms, out)}."
         )
+        notes.append(Note.info(said, "outliers"))
     kept = np.flatnonzero(inliers)
     if kept.size:
         rms = float(np.sqrt(np.mean(norms[kept] ** 2)))
         far = kept[(norms[kept] > FAR * rms) & (norms[kept] > FAR_FLOOR)]
         if far.size:
-            warnings.append(
+            said = (
                 f"{far.size} sample(s) the fit kept lie over {FAR:g}× its RMS "
                 f"({rms * 1e3:.3g} mm) off it: {_shown(names, norms, far)}; no noise puts a "
                 "sample there — if the session or the export marks these points bad, leave "
                 "them out of the export (a gross error pulls the whole model)."
             )
-    return np.asarray(order, dtype=np.intp)
+            notes.append(Note.warning(said, "far-samples"))
+    return np.asarray(order, dtype=np.intp), tuple(notes)
 
 
 def pose_names(

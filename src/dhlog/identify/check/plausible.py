@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from dhlog.errors import GeometryError
+from dhlog.errors import GeometryError, Note
 from dhlog.identify.fit.register import register_nominal
 from dhlog.identify.joints.checks import FIT_SLIP, LIKELY_SLIPS, MODEL_ERROR_SLIP, NOMINAL_SLIP
 from dhlog.identify.joints.sweeps import samples_with_encoders, target_labels
@@ -234,4 +234,5 @@ def judge(result: Any) -> Any:
     if beyond is not None and not named:
         implausible.append(beyond)
     slips = slip_notes(miss, val.rms, result.noise.model_error, bool(implausible))
-    return replace(result, implausible=tuple(implausible), warnings=(*result.warnings, *slips))
+    told = tuple(Note.warning(slip, "input-slip") for slip in slips)
+    return replace(result, implausible=tuple(implausible), notes=(*result.notes, *told))

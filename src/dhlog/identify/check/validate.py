@@ -10,6 +10,7 @@ from typing import Protocol
 import numpy as np
 from numpy.typing import NDArray
 
+from dhlog.errors import Note
 from dhlog.geometry._checks import FloatArray, rotation_from_vector
 from dhlog.identify.fit.whole import WholeFit
 from dhlog.identify.joints.sweeps import JointReport
@@ -216,14 +217,18 @@ def validate_samples(
     return tally.validation()
 
 
-def check_residual(validation: Validation, sigma: float, notes: list[str]) -> None:
+def check_residual(validation: Validation, sigma: float) -> tuple[Note, ...]:
+    """A warning (``fk-residual``) when the FK residual RMS exceeds what the fit's noise σ
+    explains (1.5 × √3 σ, 3-D)."""
     expected = math.sqrt(3.0) * sigma
-    if validation.rms > 1.5 * expected:
-        notes.append(
-            f"the FK residual RMS ({validation.rms * 1e3:.4f} mm, 3-D) is larger than the fit "
-            f"noise explains ({expected * 1e3:.4f} mm): the axes disagree with one "
-            "kinematic chain more than the noise allows."
-        )
+    if validation.rms <= 1.5 * expected:
+        return ()
+    said = (
+        f"the FK residual RMS ({validation.rms * 1e3:.4f} mm, 3-D) is larger than the fit "
+        f"noise explains ({expected * 1e3:.4f} mm): the axes disagree with one "
+        "kinematic chain more than the noise allows."
+    )
+    return (Note.warning(said, "fk-residual"),)
 
 
 def table_gap(whole: WholeFit, ex: Extraction, Q: SampleArray, Q_table: SampleArray) -> float:

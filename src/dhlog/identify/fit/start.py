@@ -26,7 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from dhlog.errors import GeometryError
+from dhlog.errors import GeometryError, Note
 from dhlog.geometry._checks import FloatArray, nearest_rotation, rotation_about
 from dhlog.geometry.lines import Line
 from dhlog.identify.fit.register import Registration, register_nominal
@@ -72,28 +72,29 @@ def start_unswept(
     seg: Segmentation,
     ref: FloatArray,
     nominal: DHModel | None,
-    warnings: list[str],
     parked: Sequence[int] = (),
-) -> Start | None:
+) -> tuple[Start | None, tuple[Note, ...]]:
     """The start of the ``joints`` the sweeps did not identify, from every sample with encoder
     values: the nominal's (:func:`start_from_nominal`) or, without one, a coupled move's
     (:func:`start_from_neighbours`). None when one of them never moved, the nominal cannot be
-    placed on the points (both said in ``warnings``), or a joint has no start. ``parked``
+    placed on the points (both said in a warning: ``never-moved``, ``nominal-placement``), or a
+    joint has no start. ``parked``
     (0-based; with a nominal): joints that never moved and are held at the nominal's start."""
     rows, Qs, Ps = samples_with_encoders(seg)
     Q, P = Qs[:], Ps[:]  # the start reads every sample at once (a session of still poses)
     held = set(parked)  # said by their own line (held at the nominal, or: give --nominal)
-    if rows.size == 0 or _any_never_moved(
-        [j for j in joints if j.index - 1 not in held], Q, warnings
-    ):
-        return None
+    if rows.size == 0:
+        return None, ()
+    still = _never_moved_warning([j for j in joints if j.index - 1 not in held], Q)
+    if still:
+        return None, still
     which = target_labels(seg, rows)
     primary = slice(None) if which is None else which == 0
     known = [Known(j.index - 1, j.type, j.axis if j.ok else None) for j in joints]
     if nominal is None:
-        return start_from_neighbours(known, Q[primary], P[primary], ref)
+        return start_from_neighbours(known, Q[primary], P[primary], ref), ()
     try:
-        return start_from_nominal(
+        placed = start_from_nominal(
             known,
             Q[primary],
             P[primary],
@@ -103,21 +104,24 @@ def start_unswept(
             tool_point=nominal.tool_point,
         )
     except GeometryError as exc:
-        warnings.append(f"the nominal could not be placed on the points: {exc}")
-        return None
+        said = f"the nominal could not be placed on the points: {exc}"
+        return None, (Note.warning(said, "nominal-placement"),)
+    return placed, ()
 
 
-def _any_never_moved(joints: Sequence[JointReport], Q: FloatArray, warnings: list[str]) -> bool:
-    """Warn about (and return True for) a joint not identified whose encoder never moved."""
+def _never_moved_warning(joints: Sequence[JointReport], Q: FloatArray) -> tuple[Note, ...]:
+    """A warning (``never-moved``) naming the joints not identified whose encoder never
+    moved; empty when there is none."""
     still = never_moved(Q, [j.index - 1 for j in joints if not j.ok])
-    if still:
-        by_index = {j.index - 1: j.name for j in joints}
-        names = ", ".join(f"joint {k + 1} ({by_index[k]})" for k in still)
-        warnings.append(
-            f"{names}: never moved in this log (its encoder values span less than "
-            f"{NEVER_MOVED:g}): nothing in the samples measures it."
-        )
-    return bool(still)
+    if not still:
+        return ()
+    by_index = {j.index - 1: j.name for j in joints}
+    names = ", ".join(f"joint {k + 1} ({by_index[k]})" for k in still)
+    said = (
+        f"{names}: never moved in this log (its encoder values span less than "
+        f"{NEVER_MOVED:g}): nothing in the samples measures it."
+    )
+    return (Note.warning(said, "never-moved"),)
 
 
 def never_moved(Q: FloatArray, joints: Sequence[int]) -> list[int]:

@@ -25,6 +25,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from dhlog.errors import Note
 from dhlog.geometry._checks import FloatArray
 from dhlog.identify.fit.axismodel import AxisModel
 from dhlog.identify.fit.leaveout import pose_blocks
@@ -288,17 +289,16 @@ def with_model_error(
     which: NDArray[np.int64] | None,
     rates: SampleArray | None,
     rotations: FloatArray | None,
-    warnings: list[str],
-) -> tuple[WholeFit, FloatArray | None, NoiseModel]:
+) -> tuple[WholeFit, FloatArray | None, NoiseModel, tuple[Note, ...]]:
     """The model-error component (:func:`refit_with_model_error`) where the declared
     uncertainties (per-sample covariances, the tracker model ``noise``) are far below the
-    residuals, said in a warning. Returns the fit, the covariances it used and the noise model
-    (with its model-error σ)."""
+    residuals, said in a warning (``model-error``). Returns the fit, the covariances it used,
+    the noise model (with its model-error σ) and that warning."""
     declared = sample_cov
     if declared is None and noise.model == "tracker":
         declared = noise.covariance(P[:])  # (m, 3, 3): a tracker model's weighing holds them
     if declared is None:
-        return whole, sample_cov, noise
+        return whole, sample_cov, noise, ()
     options = {
         "noise": noise,
         "fit_scales": whole.layout.scale_at is not None,
@@ -307,16 +307,16 @@ def with_model_error(
     }
     found = refit_with_model_error(whole, Q, P, declared, options, which=which, rates=rates)
     if found is None:
-        return whole, sample_cov, noise
+        return whole, sample_cov, noise, ()
     noise = replace(noise, model_error=found.sigma)
-    warnings.append(
+    said = (
         f"the residuals are {math.sqrt(found.chi2_before):.1f}x what the declared "
         f"uncertainties ({noise.declared}) explain (χ²/dof {found.chi2_before:.1f}): "
         f"the model (or an optimistic noise model), not the tracker, limits the fit; a "
         f"model-error σ of {found.sigma * 1e3:.4f} mm per coordinate was estimated and added "
         f"to every sample's ({MODEL_ERROR_CAUSES})."
     )
-    return found.fit, found.sample_cov, noise
+    return found.fit, found.sample_cov, noise, (Note.warning(said, "model-error"),)
 
 
 def whitening(noise: NoiseModel, sample_cov: FloatArray | None, sigma: float) -> Whiten:
@@ -338,17 +338,17 @@ def pose_clustered(
     whiten: Whiten,
     which: NDArray[np.int64] | None,
     rates: SampleArray | None,
-    info: list[str],
-) -> tuple[WholeFit, float]:
+) -> tuple[WholeFit, float, tuple[Note, ...]]:
     """The covariance times the design effect of several samples a pose (:func:`design_effect`)
-    where it reaches :data:`SMALL_EFFECT`, said in a note; and the whitened sum of squares of
-    the fit's inliers, found on the way."""
+    where it reaches :data:`SMALL_EFFECT`, said in a note (``pose-clustered``); and the
+    whitened sum of squares of the fit's inliers, found on the way."""
     d = design_effect(whole, Q, P, whiten, which=which, rates=rates)
     if d.effect < SMALL_EFFECT:
-        return whole, d.squares
-    info.append(
+        return whole, d.squares, ()
+    said = (
         f"{d.samples} samples at {d.poses} poses ({d.per_pose:.1f} a pose) share their pose's "
         f"error ({d.rho:.0%} of the residual variance): the uncertainty is scaled by the "
         f"design effect, σ x{math.sqrt(d.effect):.2f}."
     )
-    return replace(whole, covariance=whole.covariance * d.effect), d.squares
+    clustered = replace(whole, covariance=whole.covariance * d.effect)
+    return clustered, d.squares, (Note.info(said, "pose-clustered"),)

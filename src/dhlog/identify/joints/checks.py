@@ -7,10 +7,11 @@ from __future__ import annotations
 
 import math
 import warnings
+from collections.abc import Sequence
 
 import numpy as np
 
-from dhlog.errors import InputError
+from dhlog.errors import InputError, Note
 from dhlog.geometry._checks import FloatArray
 from dhlog.identify.joints.sweeps import JointReport
 from dhlog.identify.segment.segment import BLOCK, Segmentation
@@ -33,20 +34,22 @@ LIKELY_CAUSES = (
 RMS_OUTLIER = 3.0
 
 
-def check_fit_noise(joints: list[JointReport], notes: list[str]) -> None:
-    """Warn for a joint whose fit RMS is far above the other joints' (the same tracker measured
-    them all), naming the likely causes."""
+def check_fit_noise(joints: Sequence[JointReport]) -> tuple[Note, ...]:
+    """A warning (``fit-noise``) for each joint whose fit RMS is far above the other joints'
+    (the same tracker measured them all), naming the likely causes."""
     rms = {j.index: j.fit.rms for j in joints if j.fit is not None and j.ok}
     if len(rms) < 3:
-        return
+        return ()
     typical = float(np.median(list(rms.values())))
-    for j in joints:
-        r = rms.get(j.index)
-        if r is not None and typical > 0 and r > RMS_OUTLIER * typical:
-            notes.append(
-                f"joint {j.index} ({j.name}): its fit RMS {r * 1e3:.4f} mm is "
-                f"{r / typical:.1f}x the joints' median ({typical * 1e3:.4f} mm); {LIKELY_CAUSES}."
-            )
+    return tuple(
+        Note.warning(
+            f"joint {j.index} ({j.name}): its fit RMS {r * 1e3:.4f} mm is "
+            f"{r / typical:.1f}x the joints' median ({typical * 1e3:.4f} mm); {LIKELY_CAUSES}.",
+            "fit-noise",
+        )
+        for j in joints
+        if (r := rms.get(j.index)) is not None and typical > 0 and r > RMS_OUTLIER * typical
+    )
 
 
 def _span(column: FloatArray) -> float:
@@ -60,13 +63,11 @@ def _span(column: FloatArray) -> float:
     return hi - lo if lo <= hi else math.nan
 
 
-def check_units(
-    seg: Segmentation, log: LogData, phases: list[SweepPhase], notes: list[str]
-) -> None:
+def check_units(seg: Segmentation, log: LogData, phases: list[SweepPhase]) -> tuple[Note, ...]:
     """Stop on a unit slip the geometry shows, naming the pipeline key and the value that
     fits: target samples spanning more than :data:`LARGEST_ROBOT` or less than
     :data:`SMALLEST_ROBOT`, or a joint whose samples turn (move) by 1/57.3, 57.3, 10⁻³ or 10³
-    per encoder unit; warn on any other encoder slope far from 1."""
+    per encoder unit; a warning (``encoder-slope``) for any other encoder slope far from 1."""
     pipe = log.pipeline
     columns = seg.xyz_columns
     extent = float(np.linalg.norm([_span(c) for c in columns])) if seg.height else 0
@@ -88,6 +89,7 @@ def check_units(
         1e-3: ("look like millimetres", 'set length_unit = "mm" and declare the type prismatic'),
         1e3: ("look like metres", 'set length_unit = "m" and declare the type prismatic'),
     }
+    notes: list[Note] = []
     by_joint: dict[int, list[float]] = {}
     for p in phases:
         by_joint.setdefault(p.joint, []).append(abs(p.slope))
@@ -102,9 +104,13 @@ def check_units(
                 )
         if not 0.8 < r < 1.25:
             notes.append(
-                f"joint {joint} ({name}): the target turns (moves) {r:.4g} per encoder unit, "
-                "not 1: check the joint's unit, type and name order in the pipeline."
+                Note.warning(
+                    f"joint {joint} ({name}): the target turns (moves) {r:.4g} per encoder "
+                    "unit, not 1: check the joint's unit, type and name order in the pipeline.",
+                    "encoder-slope",
+                )
             )
+    return tuple(notes)
 
 
 def check_sizes(
@@ -142,13 +148,17 @@ LIKELY_SLIPS = (
 )
 
 
-def check_noise_model(noise: NoiseModel, chi2_dof: float, notes: list[str]) -> None:
-    """Warn when a declared noise model (not the isotropic σ found from the residuals) is
-    contradicted by the whole-model fit's χ²/dof."""
+def check_noise_model(noise: NoiseModel, chi2_dof: float) -> tuple[Note, ...]:
+    """A warning (``noise-model``) when a declared noise model (not the isotropic σ found from
+    the residuals) is contradicted by the whole-model fit's χ²/dof."""
     declared = noise.model != "isotropic" or noise.sigma is not None
-    if declared and not 0.5 < chi2_dof < 2.0:
-        causes = f" ({LIKELY_CAUSES})" if chi2_dof >= 2.0 else " (the model's σ is too large)"
-        notes.append(
+    if not declared or 0.5 < chi2_dof < 2.0:
+        return ()
+    causes = f" ({LIKELY_CAUSES})" if chi2_dof >= 2.0 else " (the model's σ is too large)"
+    return (
+        Note.warning(
             f"χ²/dof = {chi2_dof:.2f} under the {noise.described} noise model: the "
-            f"residuals contradict it{causes}; the uncertainty is scaled by the residuals."
-        )
+            f"residuals contradict it{causes}; the uncertainty is scaled by the residuals.",
+            "noise-model",
+        ),
+    )

@@ -9,7 +9,7 @@ import numpy as np
 import polars as pl
 from numpy.typing import NDArray
 
-from dhlog.errors import GeometryError
+from dhlog.errors import GeometryError, Note
 from dhlog.geometry._checks import FloatArray
 from dhlog.geometry.axisfit import AxisFit
 from dhlog.geometry.fitting import detect_joint_type, fit_axis_robust, inlier_limit, within
@@ -77,20 +77,20 @@ def _lock_matches(lock: FloatArray, ref: FloatArray, joint: int, tol: float) -> 
 
 
 def _joint_type(
-    k: int, name: str, points: FloatArray, log: LogData, nominal: DHModel | None, notes: list[str]
-) -> tuple[JointType, str]:
+    k: int, name: str, points: FloatArray, log: LogData, nominal: DHModel | None
+) -> tuple[JointType, str, tuple[Note, ...]]:
     declared = log.pipeline.joint_types
     if declared is not None and k - 1 < len(declared) and declared[k - 1] is not None:
         jt = declared[k - 1]
         assert jt is not None
-        return jt, "pipeline"
+        return jt, "pipeline", ()
     if nominal is not None:
-        return nominal.table.joint_types[k - 1], "nominal"
+        return nominal.table.joint_types[k - 1], "nominal", ()
     kind, why = detect_joint_type(points, what=f"joint {k} ({name})")
     jt = JointType(kind)
-    if jt is JointType.PRISMATIC:
-        notes.append(f"joint {k} ({name}): detected as prismatic ({why}).")
-    return jt, f"detected: {why}"
+    said = f"joint {k} ({name}): detected as prismatic ({why})."
+    notes = (Note.warning(said, "prismatic"),) if jt is JointType.PRISMATIC else ()
+    return jt, f"detected: {why}", notes
 
 
 def fit_joint(
@@ -101,16 +101,19 @@ def fit_joint(
     identified: list[JointReport],
     nominal: DHModel | None,
     fit_method: str,
-    notes: list[str],
     max_points: int | None = None,
-) -> None:
+) -> tuple[Note, ...]:
+    """Fit joint ``report``'s axis from its sweeps (filling ``report``), and what the fit
+    said: a joint detected as prismatic (``prismatic``), the axis fit's warnings
+    (``axis-fit``), an axis carried from another pose (``carried``)."""
+    notes: list[Note] = []
     k, name = report.index, report.name
     tol = log.pipeline.segmentation.lock_tolerance
     what = f"joint {k} ({name})"
     groups = _groups_by_lock(seg, k, tol)
     if not groups:
         report.reason = "it was never swept (no segment in which it alone moved)"
-        return
+        return tuple(notes)
     segments = seg.segments
     chosen = groups[0]
     for group in groups:
@@ -141,7 +144,8 @@ def fit_joint(
     fitted = rows[::every]
     try:
         typed = rows[:: 1 if max_points is None else max(1, m // max_points)]
-        jt, source = _joint_type(k, name, seg.xyz(typed), log, nominal, notes)
+        jt, source, said = _joint_type(k, name, seg.xyz(typed), log, nominal)
+        notes.extend(said)
         report.type, report.type_source = jt, source
         settings = log.pipeline.segmentation
         fit, inliers = fit_axis_robust(
@@ -159,10 +163,9 @@ def fit_joint(
                 inliers[sl] = within(fit, seg.xyz(rows[sl]), limit)
     except GeometryError as exc:
         report.reason = str(exc).removeprefix(f"{what}: ")
-        return
+        return tuple(notes)
     report.fit, report.inliers = fit, inliers
-    for w in fit.warnings:
-        notes.append(w)
+    notes.extend(Note.warning(w, "axis-fit") for w in fit.warnings)
     report.lock_pose = np.where(np.isnan(lock), ref, lock)
     report.carried = bool(seg.has_encoders and not _lock_matches(lock, ref, k, tol))
     if report.carried:
@@ -172,12 +175,16 @@ def fit_joint(
                 "it was swept only from another pose, and an upstream joint needed to carry its "
                 "axis to the reference pose was not identified"
             )
-            return
+            return tuple(notes)
         notes.append(
-            f"{what}: swept from another pose; its axis was carried to the reference pose "
-            "through the upstream axes."
+            Note.warning(
+                f"{what}: swept from another pose; its axis was carried to the reference pose "
+                "through the upstream axes.",
+                "carried",
+            )
         )
     report.axis = carried_axis(report, fit.axis, identified, ref)
+    return tuple(notes)
 
 
 def carried_axis(

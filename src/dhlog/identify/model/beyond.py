@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from dhlog.errors import InputError
+from dhlog.errors import InputError, Note
 from dhlog.geometry._checks import FloatArray
 from dhlog.identify.fit.axismodel import AxisModel
 from dhlog.identify.fit.prediction import prefix_motions
@@ -47,26 +47,26 @@ def beyond_geometry(
     *,
     folds: int,
     names: Sequence[str],
-    warnings: list[str],
-    info: list[str],
     outer: NDArray[np.int64] | None = None,
-) -> tuple[WholeFit, Selection | None]:
+) -> tuple[WholeFit, Selection | None, tuple[Note, ...]]:
     """The terms beyond the geometry that ``--model`` (``request``) asks for or the session
     proves (:func:`select_model`), fitted to every sample, and the candidates tried (None with
     ``--model geometric``). ``options``: the whole-model fit's; ``folds``: the run's K-fold
     cross-validation (else :data:`SELECT_FOLDS`); ``names``: the joints' (a URDF's masses are
     matched by them); ``outer``: each sample's fold of ``--holdout K``, in which ``auto`` chooses
-    again from the fold's training poses (:func:`select_model`)."""
+    again from the fold's training poses (:func:`select_model`). Its notes: those of
+    :func:`link_masses`."""
     if request.mode == "geometric":
-        return whole, None
+        return whole, None, ()
     gravity = (
         default_gravity(whole)
         if request.gravity is None
         else np.asarray(request.gravity, dtype=np.float64)
     )
     masses: tuple[Lump, ...] = ()
+    notes: tuple[Note, ...] = ()
     if request.masses is not None:
-        masses, urdf_gravity = link_masses(request.masses, whole, names, warnings, info)
+        masses, urdf_gravity, notes = link_masses(request.masses, whole, names)
         if request.gravity is None:
             gravity = urdf_gravity
     # where the declared uncertainties are far below the residuals, the candidates are weighed
@@ -105,7 +105,7 @@ def beyond_geometry(
     chosen = selection.chosen
     terms = selected_terms(selection)
     if terms is None:
-        return whole, selection
+        return whole, selection, notes
     # the lumps again on the chosen candidate's axes (the geometric fit's may sit off where the
     # terms were missing), its coefficients kept where the terms are the same
     assert chosen.fit is not None
@@ -115,7 +115,7 @@ def beyond_geometry(
     if again is not None and again.names() == terms.names():
         again = again.with_coefficients(terms.coefficients)
     start = replace(whole.model, terms=again)
-    return fit_whole_model(start, Q, P, sigma=sigma, **options), selection
+    return fit_whole_model(start, Q, P, sigma=sigma, **options), selection, notes
 
 
 #: The URDF's joint axes farther than this (m, RMS) from the measured ones after placing it
@@ -124,11 +124,12 @@ URDF_MISFIT = 0.01
 
 
 def link_masses(
-    path: str, whole: WholeFit, names: Sequence[str], warnings: list[str], info: list[str]
-) -> tuple[tuple[Lump, ...], FloatArray]:
+    path: str, whole: WholeFit, names: Sequence[str]
+) -> tuple[tuple[Lump, ...], FloatArray, tuple[Note, ...]]:
     """The links' masses of the URDF at ``path`` as lumps in M (its joints matched by the
-    ``names``, its axes placed on the fitted ones: ``align_lines``), and gravity along its
-    root's −z in M."""
+    ``names``, its axes placed on the fitted ones: ``align_lines``), gravity along its root's
+    −z in M, and what was said: how they were placed (``masses``), and a warning when its axes
+    sit far from the measured ones (``masses-misfit``)."""
     from dhlog.io.urdfmasses import read_link_masses
 
     lm = read_link_masses(path, tuple(names), whole.model.reference_pose)
@@ -149,21 +150,26 @@ def link_masses(
         float(np.degrees(np.arccos(np.clip(abs((R @ d) @ a.direction), -1.0, 1.0))))
         for d, a in zip(lm.axis_dirs, whole.model.axes, strict=True)
     )
-    info.append(
-        f"--masses: {len(lm.masses)} link masses ({float(np.sum(lm.masses)):.1f} kg) from "
-        f"{path}, joints matched {lm.matched}, placed on the measured axes (RMS "
-        f"{rms * 1e3:.2f} mm, largest turn {turned:.3f}°); gravity along its base's −z."
-    )
+    notes = [
+        Note.info(
+            f"--masses: {len(lm.masses)} link masses ({float(np.sum(lm.masses)):.1f} kg) from "
+            f"{path}, joints matched {lm.matched}, placed on the measured axes (RMS "
+            f"{rms * 1e3:.2f} mm, largest turn {turned:.3f}°); gravity along its base's −z.",
+            "masses",
+        )
+    ]
     if rms > URDF_MISFIT:
-        warnings.append(
+        said = (
             f"--masses: the URDF's axes sit {rms * 1e3:.1f} mm RMS from the measured ones once "
             "placed: is it this robot's, with its joint zero at the encoder zero?"
         )
+        notes.append(Note.warning(said, "masses-misfit"))
     lumps = tuple(
         Lump(k, R @ c + t, float(m))
         for k, c, m in zip(lm.moved_by, lm.centres, lm.masses, strict=True)
     )
-    return lumps, np.asarray(R @ np.array([0.0, 0.0, -1.0]), dtype=np.float64)
+    gravity = np.asarray(R @ np.array([0.0, 0.0, -1.0]), dtype=np.float64)
+    return lumps, gravity, tuple(notes)
 
 
 #: Two compliance terms of one joint whose coefficients' correlation exceeds this in magnitude
@@ -302,11 +308,12 @@ def term_reach(model: AxisModel, Q: SampleArray) -> FloatArray:
 
 
 def merge_cancelling(
-    fit: WholeFit, Q: SampleArray, refit: Callable[[AxisModel], WholeFit], warnings: list[str]
-) -> WholeFit:
+    fit: WholeFit, Q: SampleArray, refit: Callable[[AxisModel], WholeFit]
+) -> tuple[WholeFit, tuple[Note, ...]]:
     """``fit`` with the terms of :func:`cancelling` held at zero: left out and the model fitted
     again by ``refit`` (with the run's weights and covariance scale: σ decides here, so the
-    caller's covariance must be the one it reports), one warning per held term (for a pair,
+    caller's covariance must be the one it reports), one warning (``cancelling``) per held
+    term (for a pair,
     naming both, their values before and the kept one's after). ``fit`` itself where none is.
     ``Q``: the encoder values of the samples (each term's reach, :func:`term_reach`).
 
@@ -324,10 +331,11 @@ def merge_cancelling(
     physical bound is held at the nominal: :mod:`dhlog.identify.model.hold`)."""
     terms = fit.model.terms
     if terms is None or not terms.size:  # every term already left out: nothing to merge
-        return fit
+        return fit, ()
     holds = cancelling(terms, term_covariance(fit), term_std(fit), term_reach(fit.model, Q))
     if not holds:
-        return fit
+        return fit, ()
+    notes: list[Note] = []
     held = {h.held for h in holds}
     kept = terms.without(lambda t: t.name(terms.lumps) in held)
     again = refit(replace(fit.model, terms=kept if kept.size else None))
@@ -341,17 +349,18 @@ def merge_cancelling(
     for h in holds:
         said = f"{h.held} ({h.value:+.4g} ± {h.std:.3g})"
         if h.kept is None:
-            warnings.append(
+            alone = (
                 f"{said}: its σ alone moves joint {h.joint + 1} by up to "
                 f"{math.degrees(h.reach_std):.3g}° at the samples (bound "
                 f"{math.degrees(TERM_BOUND):g}°): these samples do not determine it; held at "
                 f"zero (left out). To determine it, add poses that change its function over "
                 f"more of its range (the gravity torque about joint {h.joint + 1}, or its angle)."
             )
+            notes.append(Note.warning(alone, "cancelling"))
             continue
         value, sd = after.get(h.kept, (math.nan, math.nan))
         now_said = f"now {value:+.4g} ± {sd:.3g}" if h.kept in after else "held too"
-        warnings.append(
+        pair = (
             f"{said} and {h.kept} ({h.kept_value:+.4g} ± {h.kept_std:.3g}) cancel (correlation "
             f"{h.correlation:+.3f}): their lumps' lever arms about joint {h.joint + 1} are "
             "nearly proportional over these poses, which determine only the pair's "
@@ -359,7 +368,8 @@ def merge_cancelling(
             f"({now_said}). To tell them apart, add poses that turn the joints after joint "
             f"{h.joint + 1} over more of their range."
         )
-    return again
+        notes.append(Note.warning(pair, "cancelling"))
+    return again, tuple(notes)
 
 
 def determined(value: float, std: float) -> bool:

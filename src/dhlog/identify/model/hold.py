@@ -26,7 +26,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 from numpy.typing import NDArray
 
-from dhlog.errors import DhlogError
+from dhlog.errors import DhlogError, Note
 from dhlog.geometry._checks import FloatArray, wrap_angle
 from dhlog.geometry.lines import Line, Plane
 from dhlog.identify.fit.axismodel import AxisModel
@@ -284,14 +284,13 @@ def hold_unseen(
     nominal: StandardDH | None,
     nominal_rows: StandardDH | None,
     cost: Callable[[WholeFit], float],
-    warnings: list[str],
     refit: Callable[[AxisModel, FloatArray], AxisModel] | None = None,
-) -> tuple[WholeFit, list[Held]]:
+) -> tuple[WholeFit, list[Held], tuple[Note, ...]]:
     """The fit with every shown entry the samples do not determine (:func:`unseen`) held at
-    the nominal (:func:`hold_at`), and what was held; one warning naming each, its σ before,
-    and what would determine it. Entries without a nominal value, and all of them when holding
-    costs the samples more than the constraints' own χ² allows (the samples reject the
-    nominal there), are left as fitted and marked not determined (``at_nominal`` False).
+    the nominal (:func:`hold_at`), what was held, and one warning (``unseen``) naming each, its
+    σ before, and what would determine it. Entries without a nominal value, and all of them
+    when holding costs the samples more than the constraints' own χ² allows (the samples
+    reject the nominal there), are left as fitted and marked not determined (``at_nominal`` False).
 
     ``refit(model, within)``: the whole-model fit again from ``model``, moving only along
     ``within`` (the directions the held covariance leaves free: neither the held entries nor
@@ -302,7 +301,7 @@ def hold_unseen(
     J = shown_jacobian(fit, fit.model, extract, plane, rows, nominal_rows)
     chosen = unseen(fit, J, rows)
     if not chosen:
-        return fit, []
+        return fit, [], ()
     names = _names(n, rows)
     angular = mixed_angles(n, rows)
     target = nominal_vector(nominal, rows, nominal_rows)
@@ -344,7 +343,7 @@ def hold_unseen(
     )
     if at_nominal:
         kept = [h.name for h in held if not h.at_nominal]
-        warnings.append(
+        said = (
             f"these samples do not determine {listed} (σ beyond {math.degrees(BOUND_ANGLE):g}° "
             f"or {BOUND_LENGTH * 1e3:g} mm): held at the nominal and marked fixed"
             + (f" ({', '.join(kept)}: no nominal value in this form, not measured)" if kept else "")
@@ -356,9 +355,10 @@ def hold_unseen(
             if target is None
             else (why or "the nominal has no value for them in this form")
         )
-        warnings.append(
+        said = (
             f"these samples do not determine {listed} (σ beyond {math.degrees(BOUND_ANGLE):g}° "
             f"or {BOUND_LENGTH * 1e3:g} mm): {cause}, they are left as fitted and marked "
             f"fixed, not measurements; to determine them, {determine}."
         )
-    return replace(held_fit, held={h.index: h.reason for h in held}), held
+    held_fit = replace(held_fit, held={h.index: h.reason for h in held})
+    return held_fit, held, (Note.warning(said, "unseen"),)

@@ -51,6 +51,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from dhlog.errors import Note
 from dhlog.geometry._checks import FloatArray
 from dhlog.identify.fit.leaveout import (
     Linear,
@@ -248,30 +249,34 @@ def decided_tolerances(
     parallel_sigma: float | None,
     sigma: float,
     options: dict[str, Any],
-    info: list[str],
-) -> list[tuple[float, float]] | None:
+) -> tuple[list[tuple[float, float]] | None, tuple[Note, ...]]:
     """The pairs' tolerances for :func:`dhlog.identify.model.relations.with_fixed_relations`: those
     of the pairs the held-out poses hold (``parallel_sigma`` None; the candidates within
     :data:`CANDIDATE_SIGMA`), the others narrowed so that neither the fit nor the extraction
-    calls them parallel (said in a note). ``parallel_sigma`` K: the rule before, every pair
+    calls them parallel (each decision said in a note: ``held-parallel`` where held, else
+    ``pair-free``). ``parallel_sigma`` K: the rule before, every pair
     within K σ (2-D) of parallel (0: none). ``options``: the fit's keyword arguments (per-sample
     arrays over the samples ``Q``, ``P``) and ``sigma`` its σ, as it was weighted."""
     if parallel_sigma is not None:
-        return relation_tolerances(
+        given = relation_tolerances(
             whole, nominal, angle_tol, distance_tol, parallel_sigma=parallel_sigma
         )
+        return given, ()
     tolerances, candidates = _candidates(whole, nominal, angle_tol, distance_tol)
     if tolerances is None or not candidates:
-        return tolerances
+        return tolerances, ()
     d = linearised(whole, Q, P, sigma=sigma, options=options)
     trials = decide_pairs(d, candidates)
     freed = {t.pair for t in trials if not t.held}
-    for t in trials:
-        info.append(_said(t))
-    return [
+    notes = tuple(
+        Note.info(_said(t), "held-parallel" if t.held and not math.isnan(t.gain) else "pair-free")
+        for t in trials
+    )
+    narrowed = [
         (min(a, 1e-7), min(b, 1e-7)) if i in freed else (a, b)
         for i, (a, b) in enumerate(tolerances)
     ]
+    return narrowed, notes
 
 
 def _said(t: PairTrial) -> str:

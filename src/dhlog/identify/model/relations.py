@@ -13,6 +13,7 @@ from dataclasses import replace
 
 import numpy as np
 
+from dhlog.errors import Note
 from dhlog.geometry._checks import FloatArray
 from dhlog.geometry.lines import Line, RelationKind, classify_lines
 from dhlog.identify.fit.whole import WholeFit
@@ -187,8 +188,7 @@ def with_fixed_relations(
     whole: WholeFit,
     tolerances: list[tuple[float, float]] | None,
     cost: Callable[[WholeFit], float],
-    info: list[str],
-) -> tuple[WholeFit, list[tuple[float, float]] | None]:
+) -> tuple[WholeFit, list[tuple[float, float]] | None, tuple[Note, ...]]:
     """The fit constrained to the pair relations the data cannot reject: consecutive revolute
     axes within their tolerance of parallel are made parallel (collinear: the same line), so
     that the DH conventions of those pairs hold exactly and the table equals the model.
@@ -197,13 +197,13 @@ def with_fixed_relations(
     cost then grows by more than the relations' own χ² allows (the first order does not hold:
     parameters that only moved together, as in a coupled move, compensate far), the pairs are
     left free and their tolerances narrowed so that the extraction does not call them parallel
-    either (said in a note). Returns the fit and the tolerances."""
+    either (said in a note, ``pairs-free``). Returns the fit, the tolerances and that note."""
     if tolerances is None:
-        return whole, tolerances
+        return whole, tolerances, ()
     parallel, collinear = pairs_within(whole, tolerances)
     held = constrain_pairs(whole, parallel, collinear)
     if held is whole:
-        return whole, tolerances
+        return whole, tolerances, ()
     rows = 2 * len(parallel) + 4 * len(collinear)
     # χ² of `rows` degrees of freedom beyond its mean by 10 of its σ (P < 2e-5 for one pair):
     # only a hold the first order gets badly wrong, never a truly parallel pair's noise (at
@@ -211,15 +211,15 @@ def with_fixed_relations(
     allowed = whole.chi2_dof * (rows + 10.0 * math.sqrt(2.0 * rows))
     grown = cost(held) - cost(whole)
     if grown <= allowed:
-        return held, tolerances
+        return held, tolerances, ()
     pairs = sorted(set(parallel) | set(collinear))
     narrowed = [
         (min(a, 1e-7), min(d, 1e-7)) if i in pairs else (a, d)
         for i, (a, d) in enumerate(tolerances)
     ]
     names = ", ".join(f"{i + 1}–{i + 2}" for i in pairs)
-    info.append(
+    said = (
         f"axes {names}: within their tolerance of parallel, but holding them so costs the "
         f"samples χ² {grown:.1f} (the relation alone allows {allowed:.1f}): left free."
     )
-    return whole, narrowed
+    return whole, narrowed, (Note.info(said, "pairs-free"),)

@@ -10,7 +10,7 @@ from typing import Any
 
 import numpy as np
 
-from dhlog.errors import DhlogError
+from dhlog.errors import DhlogError, Note
 from dhlog.geometry._checks import FloatArray, wrap_angle
 from dhlog.geometry.fitting import PlaneFit
 from dhlog.geometry.lines import Line, Plane
@@ -132,12 +132,12 @@ def near_parallel(
     axes: list[Line | None],
     ex: Extraction,
     std: FloatArray | None,
-    notes: list[str],
     nominal: StandardDH | None = None,
-) -> list[HayatiRow]:
+) -> tuple[list[HayatiRow], tuple[Note, ...]]:
     """Hayati–Mirmirani rows for nearly parallel pairs (on the ``nominal``'s branch where one is
-    given), and a warning where d is ill-conditioned."""
+    given), and a note (``hayati``) for each pair whose d is ill-conditioned."""
     rows = []
+    notes: list[Note] = []
     for rel in ex.relations:
         i, k = rel.joints
         angle = min(rel.relation.angle, math.pi - rel.relation.angle)
@@ -156,12 +156,15 @@ def near_parallel(
                 float("nan") if std is None else std[4 * (i - 1) + 1],
             )
             notes.append(
-                f"joints {i} and {k} are nearly parallel ({math.degrees(angle):.4f}°, beyond what "
-                f"the noise explains): the DH d{i} ({d * 1e3:.1f} mm ± {sd * 1e3:.1f} mm) is "
-                f"ill-conditioned, so row {i} is given in the Hayati–Mirmirani form (β in place "
-                "of d; the JSON keeps both)."
+                Note.info(
+                    f"joints {i} and {k} are nearly parallel ({math.degrees(angle):.4f}°, beyond "
+                    f"what the noise explains): the DH d{i} ({d * 1e3:.1f} mm ± "
+                    f"{sd * 1e3:.1f} mm) is ill-conditioned, so row {i} is given in the "
+                    "Hayati–Mirmirani form (β in place of d; the JSON keeps both).",
+                    "hayati",
+                )
             )
-    return rows
+    return rows, tuple(notes)
 
 
 def prefix_table(table: StandardDH, k: int) -> StandardDH:

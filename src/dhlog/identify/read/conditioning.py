@@ -11,7 +11,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from dhlog.errors import DhlogError
+from dhlog.errors import DhlogError, Note
 from dhlog.geometry._checks import FloatArray
 from dhlog.identify.fit.whole import WholeFit
 from dhlog.identify.read.extract import Extraction, hayati_table
@@ -85,8 +85,9 @@ def near_parallel_pairs(ex: Extraction) -> list[tuple[int, int]]:
     return out
 
 
-def correlation_notes(cov: FloatArray, fixed: NDArray[np.bool_], n: int) -> list[str]:
-    """One warning naming the free parameter pairs correlated beyond ``CORRELATION_WARNING``."""
+def correlation_notes(cov: FloatArray, fixed: NDArray[np.bool_], n: int) -> tuple[Note, ...]:
+    """One note (``correlated``) naming the free parameter pairs correlated beyond
+    ``CORRELATION_WARNING``."""
     free = np.flatnonzero(~fixed)
     sd = np.sqrt(np.diag(cov)[free])
     ok = sd > 0
@@ -96,7 +97,7 @@ def correlation_notes(cov: FloatArray, fixed: NDArray[np.bool_], n: int) -> list
     iu = np.triu_indices(free.size, 1)
     strong = np.abs(corr[iu]) > CORRELATION_WARNING
     if not np.any(strong):
-        return []
+        return ()
     order = np.argsort(-np.abs(corr[iu][strong]))
     pairs = [
         f"{names[free[iu[0][strong][k]]]}–{names[free[iu[1][strong][k]]]} "
@@ -104,35 +105,38 @@ def correlation_notes(cov: FloatArray, fixed: NDArray[np.bool_], n: int) -> list
         for k in order[:4]
     ]
     more = int(np.count_nonzero(strong)) - len(pairs)
-    return [
+    said = (
         f"{int(np.count_nonzero(strong))} parameter pair(s) correlated beyond "
         f"{CORRELATION_WARNING}: {', '.join(pairs)}"
         + (f" and {more} more" if more > 0 else "")
         + " (full covariance in the JSON)."
-    ]
+    )
+    return (Note.info(said, "correlated"),)
 
 
-def identifiability_notes(
-    whole: WholeFit, nominal: bool, warnings: list[str], info: list[str]
-) -> None:
-    """What the poses determine: undetermined directions (a warning: held at the start, the
-    parameters they move fixed, held at the nominal when ``nominal``), and the condition number
-    with the weakest direction."""
+def identifiability_notes(whole: WholeFit, nominal: bool) -> tuple[Note, ...]:
+    """What the poses determine: undetermined directions (a warning, ``undetermined``: held
+    at the start, the parameters they move fixed, held at the nominal when ``nominal``), and
+    the condition number with the weakest direction (a note, ``identifiability``)."""
     d = whole.determined
     if d is None:
-        return
+        return ()
+    notes: list[Note] = []
     names = whole.layout.names
     weakest = ", ".join(f"{c:+.2f} {k}" for k, c in d.weakest_terms(names))
     k = d.null.shape[1]
     if k:
         held = "the nominal" if nominal else "the start"
-        warnings.append(
+        said = (
             f"these poses do not determine {k} direction(s) of the model's {d.scale.size} "
             f"parameters: held at {held}, and the parameters they move are fixed (reason "
             f"'{NOT_DETERMINED}'); move every joint over more of its range, or alone."
         )
+        notes.append(Note.warning(said, "undetermined"))
     if k or d.condition > CONDITION_NOTE:
-        info.append(
+        said = (
             f"identifiability: the scaled Jacobian's condition number is {d.condition:.3g}; "
             f"its weakest determined direction is {weakest}."
         )
+        notes.append(Note.info(said, "identifiability"))
+    return tuple(notes)

@@ -17,6 +17,7 @@ from typing import Any
 
 import numpy as np
 
+from dhlog.errors import Note
 from dhlog.geometry._checks import FloatArray
 from dhlog.geometry.fitting import PlaneFit
 from dhlog.geometry.lines import Line, Plane
@@ -55,6 +56,9 @@ class Uncertainty:
     extra_tool_std: FloatArray = field(default_factory=lambda: np.zeros((0, 3)))
     #: the σ of the shown table (4n: θ, d or β, a, α; NaN where fixed), from the whole-model fit
     shown_std: FloatArray | None = None
+    #: what a reader should know of it: the nearly parallel pairs given in the Hayati form
+    #: (``hayati``), the free parameters strongly correlated (``correlated``)
+    notes: tuple[Note, ...] = ()
 
 
 def analytic_uncertainty(
@@ -67,10 +71,9 @@ def analytic_uncertainty(
     extract_kwargs: dict[str, Any],
     analytic: Extraction,
     target_of: Callable[[list[Line | None]], FloatArray] | None,
-    info: list[str],
 ) -> Uncertainty:
     """The uncertainty of the ``analytic`` extraction (:func:`propagate_analytic`), of its
-    table in the Hayati form where pairs are nearly parallel (said in ``info``), and what the
+    table in the Hayati form where pairs are nearly parallel (said in its notes), and what the
     extraction's conventions fix."""
     rows = hayati_rows(analytic)
     nominal_h = nominal_rows(nominal, ref, rows)
@@ -93,12 +96,12 @@ def analytic_uncertainty(
         analytic, fixed, base_plane=base is not None, nominal=nominal is not None
     )
     std = np.where(fixed, np.nan, std)
-    hayati = near_parallel([j.axis for j in joints], analytic, std, info, nominal)
+    hayati, notes = near_parallel([j.axis for j in joints], analytic, std, nominal)
     held = None
     if mixed_cov is not None:
         mixed_std = np.sqrt(np.clip(np.diag(mixed_cov), 0.0, None))
         held = conditioned(analytic, rows, nominal_h, mixed_std, mixed_std < 1e-12, reasons)
-    return Uncertainty(covariance, std, reasons, hayati, held)
+    return Uncertainty(covariance, std, reasons, hayati, held, notes=notes)
 
 
 def whole_uncertainty(
@@ -108,12 +111,11 @@ def whole_uncertainty(
     ex: Extraction,
     ref: FloatArray,
     nominal: StandardDH | None,
-    info: list[str],
 ) -> Uncertainty:
     """The uncertainty of ``ex``, the DH model ``extract`` reads off the ``whole`` fit
     (:func:`propagate`), of its table in the Hayati form where pairs are nearly parallel, and what
     is fixed: by the extraction's conventions, by the relations the fit holds, or not determined
-    by the poses. Said in ``info``: the nearly parallel pairs, the free parameters correlated
+    by the poses. Said in its notes: the nearly parallel pairs, the free parameters correlated
     beyond :data:`~dhlog.identify.read.conditioning.CORRELATION_WARNING`."""
     pairs = near_parallel_pairs(ex)
     h_rows = hayati_rows(ex)
@@ -130,7 +132,7 @@ def whole_uncertainty(
         undetermined=prop.undetermined,
         unseen=whole.held,
     )
-    hayati = near_parallel(list(ex.axes), ex, std, info, nominal)
+    hayati, said = near_parallel(list(ex.axes), ex, std, nominal)
     hayati_std = [
         np.sqrt(np.clip(np.diag(prop.hayati_covariance)[4 * k : 4 * k + 4], 0.0, None))
         for k in range(len(pairs))
@@ -153,7 +155,6 @@ def whole_uncertainty(
         if prop.mixed_fixed is not None:
             shown_std = np.where(prop.mixed_fixed, np.nan, shown_std)
     extra_std = np.sqrt(np.clip(np.diag(prop.extra_tool_covariance), 0.0, None)).reshape(-1, 3)
-    info.extend(correlation_notes(prop.covariance, prop.fixed, ex.standard.n))
     return Uncertainty(
         prop.covariance,
         std,
@@ -166,4 +167,5 @@ def whole_uncertainty(
         prop.extra_tool_points,
         extra_std,
         shown_std,
+        (*said, *correlation_notes(prop.covariance, prop.fixed, ex.standard.n)),
     )

@@ -15,14 +15,14 @@ Nothing is dropped silently: every target sample not in a sweep is counted under
 from __future__ import annotations
 
 import warnings
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from functools import cached_property
 
 import numpy as np
 import polars as pl
 from numpy.typing import NDArray
 
-from dhlog.errors import InputError, TooFewSamplesError
+from dhlog.errors import InputError, Note, TooFewSamplesError
 from dhlog.identify.segment.encoders import BLOCK as BLOCK
 from dhlog.identify.segment.encoders import IDLE, TRANSITION, _label_encoder_samples, _runs
 from dhlog.identify.segment.encoders import Encoders as Encoders
@@ -45,7 +45,8 @@ class Segmentation:
     ``dhlog process`` never builds it whole: it reads the samples a block at a time.
     ``segments``: one row per sweep: ``segment, joint, n, q_start, q_end, sweep, t_start_ns,
     t_end_ns, lock_q_1 … lock_q_n``. ``set_aside``: target samples (and other samples) not
-    used, by reason. ``reference_pose``: the locked pose most sweeps share.
+    used, by reason. ``reference_pose``: the locked pose most sweeps share. ``notes``: what the
+    reader said of the log (``log``) and the sweeps set aside (``short-sweep``).
     """
 
     points: pl.DataFrame
@@ -57,7 +58,7 @@ class Segmentation:
     reference_pose: NDArray[np.float64] | None
     base: pl.DataFrame | None
     has_encoders: bool
-    warnings: list[str] = field(default_factory=list)
+    notes: tuple[Note, ...] = ()
     encoders: Encoders | None = None
 
     @property
@@ -193,16 +194,17 @@ def segment_log(
     if points.height < 3:
         raise TooFewSamplesError(f"{log.path}: point stream", points.height, 3)
     set_aside = dict(log.set_aside)
-    notes = list(log.warnings)
+    notes = [Note.warning(w, "log") for w in log.warnings]
     encoders = None
     if log.joints is not None and log.joints.height > 0:
-        table, seg_id, segments, n, names, encoders = _segment_with_encoders(
-            log, settings, joint_types, set_aside, notes
+        table, seg_id, segments, n, names, encoders, said = _segment_with_encoders(
+            log, settings, joint_types, set_aside
         )
     elif log.phase is not None:
-        table, seg_id, segments, n, names = _segment_with_phase(log, settings, set_aside, notes)
+        table, seg_id, segments, n, names, said = _segment_with_phase(log, settings, set_aside)
     else:
         raise TooFewSamplesError(f"{log.path}: joint-state and phase streams", 0, 1)
+    notes.extend(said)
     if n == 0:
         raise InputError(
             f"{log.path}: no joint is named by the log (no joint states, and no phase marker "
@@ -221,7 +223,7 @@ def segment_log(
         ref,
         log.base,
         log.joints is not None,
-        notes,
+        tuple(notes),
         encoders,
     )
 
@@ -231,8 +233,9 @@ def _segment_with_encoders(
     settings: SegmentationSettings,
     joint_types: list[JointType | None] | None,
     set_aside: dict[str, int],
-    notes: list[str],
-) -> tuple[pl.DataFrame, NDArray[np.int32], pl.DataFrame, int, list[str], Encoders]:
+) -> tuple[
+    pl.DataFrame, NDArray[np.int32], pl.DataFrame, int, list[str], Encoders, tuple[Note, ...]
+]:
     assert log.joints is not None
     n = len(log.joint_names)
     # the reader gives the stream sorted by time: the encoders are views of its columns
@@ -240,6 +243,7 @@ def _segment_with_encoders(
     encoders = Encoders.of(joints, n, int(settings.join_tolerance * 1e9))
     t_enc = encoders.t_ns
     labels, found = _label_encoder_samples(t_enc, encoders, settings)
+    notes: list[Note] = []
     points = log.points
     t = np.asarray(points["t_ns"].to_numpy(), dtype=np.int64)
     # a target sample takes the label of the encoder samples on both sides, if they agree;
@@ -270,8 +274,11 @@ def _segment_with_encoders(
         if count < settings.min_samples:
             set_aside["too_few_samples"] = set_aside.get("too_few_samples", 0) + count
             notes.append(
-                f"joint {joint + 1} ({name}): a sweep with only {count} target sample(s) "
-                f"(minimum {settings.min_samples}) was set aside."
+                Note.warning(
+                    f"joint {joint + 1} ({name}): a sweep with only {count} target sample(s) "
+                    f"(minimum {settings.min_samples}) was set aside.",
+                    "short-sweep",
+                )
             )
             continue
         sid = len(seg_rows) + 1
@@ -298,7 +305,8 @@ def _segment_with_encoders(
     for key, value in (("transition", TRANSITION), ("idle", IDLE), ("no_encoder", IDLE - 1)):
         _count(set_aside, key, _tally(label, value))
     del label
-    return points, seg_id, _segments_frame(seg_rows, n), n, list(log.joint_names), encoders
+    frame = _segments_frame(seg_rows, n)
+    return points, seg_id, frame, n, list(log.joint_names), encoders, tuple(notes)
 
 
 def _members(label: NDArray[np.int32], k: int, lo: int, hi: int) -> tuple[int, int, int]:
@@ -344,9 +352,9 @@ def _segment_with_phase(
     log: LogData,
     settings: SegmentationSettings,
     set_aside: dict[str, int],
-    notes: list[str],
-) -> tuple[pl.DataFrame, NDArray[np.int32], pl.DataFrame, int, list[str]]:
+) -> tuple[pl.DataFrame, NDArray[np.int32], pl.DataFrame, int, list[str], tuple[Note, ...]]:
     assert log.phase is not None
+    notes: list[Note] = []
     marks = log.phase.sort("t_ns")
     labelled = log.points.sort("t_ns").join_asof(marks, on="t_ns", strategy="backward")
     joint = labelled["joint"].to_numpy(allow_copy=True)
@@ -364,7 +372,12 @@ def _segment_with_phase(
             continue
         if end - start < settings.min_samples:
             _count(set_aside, "too_few_samples", end - start)
-            notes.append(f"joint {st}: a sweep with only {end - start} sample(s) was set aside.")
+            notes.append(
+                Note.warning(
+                    f"joint {st}: a sweep with only {end - start} sample(s) was set aside.",
+                    "short-sweep",
+                )
+            )
             continue
         sid = len(rows) + 1
         seg_id[start:end] = sid
@@ -381,7 +394,7 @@ def _segment_with_phase(
                 **{f"lock_q_{j + 1}": float("nan") for j in range(n)},
             }
         )
-    return labelled.drop("joint"), seg_id, _segments_frame(rows, n), n, names
+    return labelled.drop("joint"), seg_id, _segments_frame(rows, n), n, names, tuple(notes)
 
 
 def shared_locked_pose(segments: pl.DataFrame, n: int, tol: float) -> NDArray[np.float64]:

@@ -31,7 +31,7 @@ import numpy as np
 import polars as pl
 from numpy.typing import NDArray
 
-from dhlog.errors import DhlogError
+from dhlog.errors import DhlogError, Note
 from dhlog.geometry._checks import FloatArray
 from dhlog.geometry.circles import fit_circle_algebraic
 from dhlog.geometry.fitting import fit_line
@@ -297,15 +297,16 @@ def _sweep_lag(
 
 
 def clock_start(
-    seg: Segmentation, log: LogData, info: list[str], phases: list[SweepPhase] | None = None
-) -> tuple[Segmentation, Timing | None]:
+    seg: Segmentation, log: LogData, phases: list[SweepPhase] | None = None
+) -> tuple[Segmentation, Timing | None, tuple[Note, ...]]:
     """The clock offset's start estimate from the sweeps' phases (:func:`phase_lag`), the
-    encoders joined again at it; the pipeline's offset where it is fixed or cannot be told."""
+    encoders joined again at it; the pipeline's offset where it is fixed or cannot be told
+    (a step-and-measure log: a note, ``clock-offset``)."""
     pipe = log.pipeline.segmentation
     if not seg.has_encoders or log.joints is None:
-        return seg, None
+        return seg, None, ()
     if pipe.clock_offset_fixed:
-        return seg, Timing(pipe.clock_offset, None, "pipeline", pipe.clock_offset, "fixed")
+        return seg, Timing(pipe.clock_offset, None, "pipeline", pipe.clock_offset, "fixed"), ()
     total, std = 0.0, None
     for attempt in range(START_REJOINS):
         lag = phase_lag(seg, log, phases if attempt == 0 else None)
@@ -317,11 +318,11 @@ def clock_start(
         total += delta
         seg = rejoin(seg, log, total)
     if std is None:
-        info.append(
+        said = Note.info(
             "no sweep moves while the tracker samples it (step-and-measure): a clock offset "
-            "between tracker and joint states has no effect and is not estimated."
+            "between tracker and joint states has no effect and is not estimated.",
+            "clock-offset",
         )
-        return seg, Timing(
-            pipe.clock_offset, None, "pipeline", pipe.clock_offset, "step-and-measure"
-        )
-    return seg, Timing(pipe.clock_offset + total, std, "estimated", pipe.clock_offset)
+        timing = Timing(pipe.clock_offset, None, "pipeline", pipe.clock_offset, "step-and-measure")
+        return seg, timing, (said,)
+    return seg, Timing(pipe.clock_offset + total, std, "estimated", pipe.clock_offset), ()
