@@ -450,11 +450,11 @@ def _cross_validation(
         said = [", ".join(f"{i + 1}–{i + 2}" for i in sorted(h)) or "none" for h in held_in_fold]
         check = replace(
             check,
-            notes=[
+            notes=(
                 *check.notes,
                 "the pairs held parallel were decided again in each fold from its training "
                 f"poses: {_tally(said, '; ')}.",
-            ],
+            ),
         )
     return check
 
@@ -497,7 +497,7 @@ def _with_notes(
             "the session never went to — is not in this figure; --validate a log of "
             "random poses to see it."
         )
-    return replace(check, notes=notes)
+    return replace(check, notes=tuple(notes))
 
 
 def _tally(labels: list[str], sep: str) -> str:

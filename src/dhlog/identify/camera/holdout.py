@@ -6,6 +6,7 @@ on the same training frames (:func:`cross_validate_pixels`, :func:`cross_validat
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -95,9 +96,10 @@ def cross_validate_pixels(
         pnp_noise_mm=floor * 1e3,
         fit_mm=math.nan if in_mm is None else in_mm * 1e3,
     )
+    notes = []
     if np.any(~scored):
         frames = ", ".join(str(int(obs.frame[f])) for f in np.flatnonzero(bad_frame)[:5])
-        check.notes.append(
+        notes.append(
             f"{int(np.count_nonzero(~scored))} corner(s) not scored: false detections the fit "
             "held out"
             + (
@@ -108,7 +110,7 @@ def cross_validate_pixels(
             )
             + "."
         )
-    check.notes.append(
+    notes.append(
         "each fold refits the whole model in pixels on the other folds' frames; the nominal is "
         "placed on the same frames (the camera's pose and the board's mount fitted, its "
         "geometry held). Pixels: the corners' reprojection (2-D norm); mm: the board's corners "
@@ -117,7 +119,7 @@ def cross_validate_pixels(
         "errors, the in-sample figure what the frames' PnP poses give against the model "
         "fitted to them."
     )
-    return check
+    return replace(check, notes=tuple(notes))
 
 
 def cross_validate_cameras(
@@ -175,12 +177,12 @@ def cross_validate_cameras(
         calibrated_mm=math.nan,
         fit_px=fit.rms,
     )
-    check.notes.append(
+    said = (
         "the cameras together: each fold refits the model and the further cameras' poses on "
         "the other folds' frames of every camera; the nominal is placed on the same frames. "
         "Pixels only (the mm figure is a single camera's PnP)."
     )
-    return check
+    return replace(check, notes=(said,))
 
 
 def nominal_start(

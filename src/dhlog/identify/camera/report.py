@@ -6,7 +6,7 @@ check in pixels and mm), each with its JSON block.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 from dhlog.geometry._checks import FloatArray
 from dhlog.vision.camera import Intrinsics
@@ -33,7 +33,7 @@ class PixelHoldout:
     #: poses (what the PnP poses' own errors give when the model is not held out, correlated
     #: corner errors included)
     fit_mm: float = math.nan
-    notes: list[str] = field(default_factory=list)
+    notes: tuple[str, ...] = ()
 
     @property
     def model_mm(self) -> float:

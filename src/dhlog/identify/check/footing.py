@@ -432,7 +432,7 @@ def score_poses(
         path=path,
         registered=footing.base,
         n_registration_poses=int(np.count_nonzero(footing.placing)) if footing.placed else 0,
-        notes=notes,
+        notes=tuple(notes),
         T_measurement_base=cal_moved.T if footing.base else None,
         tool_replaced=footing.tool,
         components="across the line" if shape.across else "3-D",

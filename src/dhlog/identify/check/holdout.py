@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
@@ -93,7 +93,7 @@ class Holdout:
     path: str | None = None
     registered: bool = False
     n_registration_poses: int = 0
-    notes: list[str] = field(default_factory=list)
+    notes: tuple[str, ...] = ()
     #: where the positions' frame M stands (its ``T_measurement_base``) when it is not the
     #: result's own: another log measured after the tracker moved
     T_measurement_base: FloatArray | None = None
@@ -178,7 +178,7 @@ def cross_validate(
         fold = fold_of_poses(groups, folds, seed)
     positions, cal_vecs, nom_vecs = [], [], []
     firsts: list[int] = []
-    notes: list[str] = []
+    notes: tuple[str, ...] = ()
     first_of = dict(zip(*np.unique(groups, return_index=True), strict=True))
     for k in range(folds):
         test = usable & (fold == k)
@@ -201,9 +201,9 @@ def cross_validate(
     cal = np.vstack(cal_vecs)
     nom = np.vstack(nom_vecs) if nom_vecs else None
     if nominal is not None:
-        notes.append(
+        notes = (
             "the nominal's base and tool point were placed on each fold's fitted poses "
-            "(a robust registration), as a calibration would be judged without one."
+            "(a robust registration), as a calibration would be judged without one.",
         )
     return Holdout(
         kind="cross-validation",
