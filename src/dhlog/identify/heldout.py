@@ -9,6 +9,8 @@ warning; one that cannot be placed or read makes the result implausible.
 
 from __future__ import annotations
 
+import functools
+from collections.abc import Callable
 from dataclasses import replace
 from pathlib import Path
 
@@ -51,8 +53,10 @@ def validated(
                 for path in logs
             )
         )
-    #: the nominal on this session, placed once (or why it could not be)
-    placed: list[tuple[Placed | None, str | None]] = []
+    #: the nominal on this session, placed once when a log first needs it (or why it could not
+    #: be: said once, after the log that needed it)
+    placed = functools.cache(lambda: _nominal_on_session(result))
+    told = False
     checks: list[Holdout] = []
     notes: list[Note] = []
     not_scored: list[Unscored] = []
@@ -76,9 +80,10 @@ def validated(
                     f"the held-out log {other} could not be read, so the validation asked for "
                     "is missing: " + said_one.removeprefix(f"{other}: ")
                 )
-        if len(placed) == 1 and placed[0][1] is not None:  # said once, where it happened
-            notes.append(Note.warning(placed[0][1], "nominal-placement"))
-            placed[0] = (None, None)
+        if not told and placed.cache_info().currsize:  # said once, where it happened
+            told, why = True, placed()[1]
+            if why is not None:
+                notes.append(Note.warning(why, "nominal-placement"))
     return replace(
         result,
         holdout=(*result.holdout, *checks),
@@ -93,12 +98,13 @@ def _validate_log(
     path: str | Path,
     pipeline: Pipeline | None,
     fast: bool,
-    placed: list[tuple[Placed | None, str | None]],
+    placed: Callable[[], tuple[Placed | None, str | None]],
 ) -> Holdout:
     """Score ``result`` at the poses of the log at ``path`` (``--validate``), the nominal and
-    the calibrated model on one footing (:mod:`dhlog.identify.check.footing`); ``placed`` keeps the
-    nominal as placed on this session once it is, with the warning when it cannot be (one
-    item). Raises :class:`~dhlog.errors.DhlogError` when the log cannot be read or scored."""
+    the calibrated model on one footing (:mod:`dhlog.identify.check.footing`); ``placed()``
+    gives the nominal as placed on this session (placed at the first call), with the warning
+    when it cannot be. Raises :class:`~dhlog.errors.DhlogError` when the log cannot be read or
+    scored."""
     ex = result.extraction
     assert ex is not None
     # the nominal's names where it has them (a UR driver's bag validating a calibration whose
@@ -128,8 +134,6 @@ def _validate_log(
     rotations = measured_rotations(seg, rows)
     primary = slice(None) if which is None else which == 0
     Q, P = Qs[primary], Ps[primary]  # a session scored: its own poses, whole
-    if not placed:
-        placed.append(_nominal_on_session(result))
     nominal = result.nominal
     own = [result.validation.rms] if result.validation is not None else []
     own += [h.calibrated.rms for h in result.holdout if h.kind == "cross-validation"]
@@ -138,7 +142,7 @@ def _validate_log(
         Q,
         P,
         path=str(path),
-        nominal=placed[0][0],
+        nominal=placed()[0],
         rotations=None if rotations is None else rotations[primary],
         table_values=table_values(result, Q),
         nominal_values=None if nominal is None else nominal.joint_values(Q),
