@@ -174,6 +174,8 @@ def test_a_camera_that_moved_is_named() -> None:
     )
     said = [w for w in result.warnings if "moved during the session" in w]
     assert len(said) == 1, result.warnings
+    moved_notes = [n for n in result.notes if n.code == "camera-moved"]  # the same, by its code
+    assert [(n.level, n.text) for n in moved_notes] == [("warning", said[0])]
     import re
 
     m = re.search(r"between frames (\d+) and (\d+)", said[0])
@@ -238,6 +240,11 @@ def test_two_cameras_fitted_together() -> None:
     assert h is not None and h.calibrated_px < 0.35
     doc = result_document(both)
     assert [c["topic"] for c in doc["cameras"]] == [first.camera, second.camera]
+    # every note coded; the first camera's design effect replaced by the cameras' together
+    assert all(n.code for n in both.notes), both.notes
+    assert [n.code for n in both.notes].count("frame-clustered") <= 1
+    assert [n.code for n in both.notes if n.code.startswith("camera")][:1] == ["camera-start"]
+    assert doc["notes"] == list(both.info) and doc["warnings"] == list(both.warnings)
     assert len(both.cameras) == 2
 
 
