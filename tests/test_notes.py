@@ -62,6 +62,44 @@ def test_no_function_in_identify_takes_a_list_of_messages_to_append_to() -> None
     assert not found, "\n".join(found)
 
 
+def _appended_parameters(tree: ast.AST) -> list[tuple[str, int, str]]:
+    """Each function's ``list[...]``-annotated parameters, of any name, that its body appends
+    to (``.append``, ``.extend``, ``.insert``): a list handed in to be filled."""
+    found = []
+    for node in ast.walk(tree):
+        if not isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef):
+            continue
+        args = node.args
+        lists = {
+            arg.arg
+            for arg in [*args.posonlyargs, *args.args, *args.kwonlyargs]
+            if arg.annotation is not None and ast.unparse(arg.annotation).startswith("list[")
+        }
+        for call in ast.walk(node):
+            if (
+                isinstance(call, ast.Call)
+                and isinstance(call.func, ast.Attribute)
+                and call.func.attr in ("append", "extend", "insert")
+                and isinstance(call.func.value, ast.Name)
+                and call.func.value.id in lists
+            ):
+                found.append((node.name, call.lineno, call.func.value.id))
+    return found
+
+
+def test_no_function_in_identify_fills_a_list_it_is_handed() -> None:
+    """Of any name: what a stage finds comes back in its value (the check finds the form)."""
+    assert _appended_parameters(
+        ast.parse("def f(told: list[str]) -> None:\n    told.append('x')\n")
+    )
+    found = [
+        f"{path.relative_to(SRC)}:{line} {name}({arg})"
+        for path in sorted(SRC.rglob("*.py"))
+        for name, line, arg in _appended_parameters(ast.parse(path.read_text(encoding="utf-8")))
+    ]
+    assert not found, "\n".join(found)
+
+
 def test_a_note_has_a_level_a_text_and_a_code() -> None:
     said = Note.warning("joint 2: a sweep with only 3 sample(s) was set aside.", "short-sweep")
     assert (said.level, said.code) == ("warning", "short-sweep")
