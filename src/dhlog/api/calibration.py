@@ -70,6 +70,13 @@ class Calibration:
     #: the run's other inputs (held-out logs): never an output
     _inputs: tuple[str, ...] = field(default=(), repr=False, init=False)
 
+    @property
+    def run(self) -> ProcessResult | None:
+        """The run's one record (a :class:`dhlog.identify.run.ProcessResult`: everything the run
+        found, frozen) that this calibration's document, model, console report and recording
+        are all made from; None for a calibration loaded from a file."""
+        return self._result
+
     # ------------------------------------------------------------------ the model
 
     def identified(self) -> DHModel:
