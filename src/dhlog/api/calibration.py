@@ -368,12 +368,15 @@ class Calibration:
             _refuse_existing(target, overwrite, self.source, template, limits_from)
         with self._as_file() as result:
             if format == "urdf" and template is not None:
-                text = exports.urdf_from_template(result, template)
+                robot = robot_or_dh_file(limits_from) if limits_from else self._library_robot()
+                names = () if robot is None else robot.joint_names
+                text = exports.urdf_from_template(result, template, joint_names=names)
             elif format == "urdf":
-                limits = (
-                    robot_or_dh_file(limits_from).limits if limits_from is not None else self.limits
+                robot = robot_or_dh_file(limits_from) if limits_from else self._library_robot()
+                limits = robot.limits if robot is not None else self.limits
+                text = exports.urdf_document(
+                    result, limits=limits, zero_offsets=zero_offsets, robot=robot
                 )
-                text = exports.urdf_document(result, limits=limits, zero_offsets=zero_offsets)
             elif format == "ur":
                 flange = None if self.nominal is None else self.nominal.table
                 text = exports.ur_calibration(result, flange)[0]
@@ -386,6 +389,17 @@ class Calibration:
         if target is not None:
             _write_text(target, text)
         return text
+
+    def _library_robot(self) -> Robot | None:
+        """The nominal as a library robot (its name, joint names and limits), when it is one."""
+        from dhlog.model.robots import UnknownRobotError, load_robot
+
+        if self.nominal is None or Path(self.nominal.source).exists():
+            return None
+        try:
+            return load_robot(self.nominal.source)
+        except UnknownRobotError:
+            return None
 
     def compensate(
         self,

@@ -54,7 +54,12 @@ def _tz(t: float) -> FloatArray:
     return _h(p=np.array([0.0, 0.0, t]))
 
 
-def urdf_from_template(result_path: str | Path, template_path: str | Path) -> str:
+def urdf_from_template(
+    result_path: str | Path,
+    template_path: str | Path,
+    *,
+    joint_names: tuple[str, ...] = (),
+) -> str:
     """The template URDF with the result's kinematics: the template's joints matched by name get
     calibrated origins; links, meshes, inertials, limits and every other element stay.
 
@@ -66,18 +71,38 @@ def urdf_from_template(result_path: str | Path, template_path: str | Path) -> st
     are added as the links ``dhlog_measurement`` and ``dhlog_target``, a camera calibration's
     cameras and board as ``dhlog_<camera>_link``, ``dhlog_<camera>_optical_frame`` and
     ``dhlog_calibration_board`` (:mod:`.camera`) on the template's root (eye-to-hand) or last
-    link (eye-in-hand). Joint zero = encoder zero.
+    link (eye-in-hand). Joint zero = encoder zero. ``joint_names``: the names to match the
+    template's joints by, in the chain's order (the library robot's, as its ROS 2 driver
+    publishes them); default the result's.
     Only the ``<joint>`` elements of ``<robot>`` itself are changed (those of a
     ``<transmission>`` name joints, they are not joints).
     """
+    src = printable(str(template_path))
+    robot = read_template(template_path)
+    calibrate_template(result_path, robot, src, joint_names=joint_names)
+    return '<?xml version="1.0"?>\n' + ET.tostring(robot, encoding="unicode") + "\n"
+
+
+def calibrate_template(
+    result_path: str | Path,
+    robot: ET.Element,
+    src: str,
+    *,
+    joint_names: tuple[str, ...] = (),
+) -> list[str]:
+    """:func:`urdf_from_template` on a template already read: ``robot`` (its ``<robot>``
+    element) edited in place; ``src`` the template's name in messages. Returns the names of the
+    joints whose origins were calibrated (all but the first)."""
     from scipy.optimize import least_squares
 
-    src = printable(str(template_path))
     data, table, model = load_table(result_path)
     hand_eye = read_hand_eye(data, printable(str(result_path)))
-    robot = read_template(template_path)
     template = template_joints(robot, src)
-    names = list(model.joint_names)
+    names = list(joint_names or model.joint_names)
+    if len(names) != table.n:
+        raise TemplateError(
+            src, f"{len(names)} joint names were given to match it by, for {table.n} joints."
+        )
     if len(set(names)) != len(names):
         raise DHFileError(
             printable(str(result_path)),
@@ -219,4 +244,4 @@ def urdf_from_template(result_path: str | Path, template_path: str | Path) -> st
     )
     note.tail = "\n  "
     robot.insert(0, note)
-    return '<?xml version="1.0"?>\n' + ET.tostring(robot, encoding="unicode") + "\n"
+    return names[1:]
