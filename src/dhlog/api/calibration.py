@@ -8,7 +8,7 @@ from __future__ import annotations
 import json
 import math
 import tempfile
-from collections.abc import Iterator
+from collections.abc import Iterator, Mapping
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -337,16 +337,21 @@ class Calibration:
         limits_from: str | None = None,
         template: str | Path | None = None,
         zero_offsets: Literal["origins", "calibration"] = "origins",
+        xacro_args: Mapping[str, str] | None = None,
+        keep_xacro: bool | None = None,
         overwrite: bool = False,
     ) -> str:
         """The model in a form a robot stack loads (``dhlog export``): ``urdf``, ``ur`` (the UR
         description's calibration YAML), ``rtb`` (a roboticstoolbox ``DHRobot`` in Python),
-        ``dh-csv`` / ``dh-json`` (both DH tables), ``tf`` (a camera calibration's hand-eye poses
-        as a ROS 2 launch file). Returns the text; with ``path``, also writes it atomically
-        (``overwrite``: replace an existing file). ``limits_from``: a library robot or DH file
-        whose joint limits the URDF gets; ``template``: a URDF whose joints get the calibrated
-        origins; ``zero_offsets``: ``calibration`` puts the offsets in each joint's
-        ``<calibration rising>`` instead of the origins."""
+        ``dh-csv`` / ``dh-json`` (both DH tables), ``tf`` (a ROS 2 launch file: the tracker's
+        frame and the target in the robot's frames, or a camera calibration's hand-eye poses).
+        Returns the text; with ``path``, also writes it atomically (``overwrite``: replace an
+        existing file). ``limits_from``: a library robot or DH file whose name, joint names and
+        limits the URDF gets (default: the nominal, when it is a library robot); ``template``: a
+        URDF or xacro description whose joints get the calibrated origins (``xacro_args``: the
+        xacro's arguments; ``keep_xacro``: write a xacro, not the expanded URDF — default when
+        ``path`` ends in ``.xacro``); ``zero_offsets``: ``calibration`` puts the offsets in each
+        joint's ``<calibration rising>`` instead of the origins."""
         from dhlog.io.dhfile import robot_or_dh_file
         from dhlog.result import export as exports
 
@@ -361,18 +366,36 @@ class Calibration:
                 "export: zero_offsets must be 'origins' or 'calibration' (calibration: a URDF "
                 "without a template)."
             )
-        if template is not None and format != "urdf":
-            raise UsageError("export: a template is for the urdf format.")
+        if template is not None and format not in ("urdf", "tf"):
+            raise UsageError("export: a template is for the urdf and tf formats.")
         target = None if path is None else Path(path)
+        as_xacro = (
+            keep_xacro
+            if keep_xacro is not None
+            else bool(path and Path(path).name.endswith(".xacro"))
+        )
+        read = _template_files(template, xacro_args, as_xacro and format == "urdf")
         if target is not None:
-            _refuse_existing(target, overwrite, self.source, template, limits_from)
+            _refuse_existing(target, overwrite, self.source, template, limits_from, *read)
         with self._as_file() as result:
+            robot = robot_or_dh_file(limits_from) if limits_from else self._library_robot()
+            names = () if robot is None else robot.joint_names
             if format == "urdf" and template is not None:
-                robot = robot_or_dh_file(limits_from) if limits_from else self._library_robot()
-                names = () if robot is None else robot.joint_names
-                text = exports.urdf_from_template(result, template, joint_names=names)
+                text = (
+                    exports.xacro_from_template(
+                        result, template, args=xacro_args, joint_names=names
+                    )
+                    if as_xacro
+                    else exports.urdf_from_template(
+                        result, template, joint_names=names, xacro_args=xacro_args
+                    )
+                )
+            elif format == "urdf" and as_xacro:
+                raise UsageError(
+                    "export: a .xacro output is a xacro template's, calibrated; without a "
+                    "template the URDF is written: name it .urdf."
+                )
             elif format == "urdf":
-                robot = robot_or_dh_file(limits_from) if limits_from else self._library_robot()
                 limits = robot.limits if robot is not None else self.limits
                 text = exports.urdf_document(
                     result, limits=limits, zero_offsets=zero_offsets, robot=robot
@@ -383,7 +406,9 @@ class Calibration:
             elif format == "rtb":
                 text = exports.rtb_document(result)
             elif format == "tf":
-                text = exports.static_transforms_document(result)
+                text = exports.tf_document(
+                    result, template=template, joint_names=names, xacro_args=xacro_args
+                )
             else:
                 text = exports.dh_table_document(result, format)
         if target is not None:
@@ -712,6 +737,27 @@ def _library_limits(spec: object) -> FloatArray | None:
 
         return load_robot(spec).limits
     return None
+
+
+def _template_files(
+    template: str | Path | None, args: Mapping[str, str] | None, as_xacro: bool
+) -> list[str]:
+    """The files a xacro template reads (expanded once to find them: an output is never one of
+    them); a xacro output asked of a URDF template refused."""
+    from dhlog.result.export.expand import expand_xacro, is_xacro
+
+    if template is None:
+        if args:
+            raise UsageError("export: xacro arguments are for a xacro template; drop them.")
+        return []
+    if not is_xacro(template):
+        if as_xacro:
+            raise UsageError(
+                f"export: {template} is a URDF, not a xacro, so the output is a URDF: name it "
+                ".urdf."
+            )
+        return []
+    return expand_xacro(template, args).files[1:]
 
 
 def _refuse_existing(path: Path, overwrite: bool, *inputs: str | Path | None) -> None:

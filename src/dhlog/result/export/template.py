@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import math
 import xml.etree.ElementTree as ET
+from collections.abc import Mapping
 from pathlib import Path
 
 import numpy as np
@@ -14,12 +15,12 @@ from dhlog.io.dhfile import DHFileError
 from dhlog.io.safetext import printable, xml_comment_text
 from dhlog.model.dh import JointType
 from dhlog.result.export.camera import add_camera_links, camera_link_names, read_hand_eye
+from dhlog.result.export.expand import read_description
 from dhlog.result.export.source import load_table
 from dhlog.result.export.templatefile import (
     MOVING,
     TemplateError,
     TemplateFrames,
-    read_template,
     template_joints,
 )
 from dhlog.result.export.urdf import origin_element
@@ -59,9 +60,11 @@ def urdf_from_template(
     template_path: str | Path,
     *,
     joint_names: tuple[str, ...] = (),
+    xacro_args: Mapping[str, str] | None = None,
 ) -> str:
-    """The template URDF with the result's kinematics: the template's joints matched by name get
-    calibrated origins; links, meshes, inertials, limits and every other element stay.
+    """The template URDF (a xacro expanded first with ``xacro_args``: :mod:`.expand`) with the
+    result's kinematics: the template's joints matched by name get calibrated origins; links,
+    meshes, inertials, limits and every other element stay.
 
     Each link keeps the template's frame as closely as the calibration allows: its joint axis
     becomes the measured axis, its origin the nearest point on it, its turn about the axis the
@@ -77,8 +80,7 @@ def urdf_from_template(
     Only the ``<joint>`` elements of ``<robot>`` itself are changed (those of a
     ``<transmission>`` name joints, they are not joints).
     """
-    src = printable(str(template_path))
-    robot = read_template(template_path)
+    robot, src = read_description(template_path, xacro_args)
     calibrate_template(result_path, robot, src, joint_names=joint_names)
     return '<?xml version="1.0"?>\n' + ET.tostring(robot, encoding="unicode") + "\n"
 
@@ -186,10 +188,14 @@ def calibrate_template(
     for i in range(1, n):
         parent = W[i - 1] @ np.linalg.inv(L[i - 1]) @ Lp[i]  # rigid in link i-1
         element = by_name[names[i]]
-        for old in element.findall("origin"):
+        olds = element.findall("origin")
+        at = list(element).index(olds[0]) if olds else 0  # where the template has it
+        for old in olds:
             element.remove(old)
         origin_at = origin_element(np.linalg.inv(parent) @ W[i])
-        element.insert(0, origin_at)
+        if olds:
+            origin_at.tail = olds[0].tail
+        element.insert(at, origin_at)
     target = B @ F[n] @ np.r_[model.tool_point, 1.0]
     last = np.linalg.inv(W[n - 1]) @ target
     if len(robot):
