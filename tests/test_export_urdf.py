@@ -24,25 +24,6 @@ UR = tomllib.loads((DATA / "ur_description.toml").read_text(encoding="utf-8"))
 runner = CliRunner()
 
 
-@pytest.fixture(scope="module")
-def ur5e_result(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """A UR5e off its nominal (0.2 mm, 0.02°), simulated and processed with ``--nominal ur5e``;
-    the simulated log names its joints joint_1 … joint_6, not as the UR driver does."""
-    folder = tmp_path_factory.mktemp("ur5e")
-    log = folder / "run.mcap"
-    made = runner.invoke(
-        app,
-        ["simulate", "ur5e", "-o", str(log), "--perturb-mm", "0.2", "--perturb-deg", "0.02",
-         "--seed", "5"],
-    )  # fmt: skip
-    assert made.exit_code == 0, made.output
-    done = runner.invoke(
-        app, ["process", str(log), "--no-rrd", "--out", str(folder), "--nominal", "ur5e"]
-    )
-    assert done.exit_code == 0, done.output
-    return folder / "run.dh.json"
-
-
 def worst_fk_difference(urdf: Path, result: Path, names: list[str], tip: str = "tool0") -> float:
     """The largest distance (m) between yourdfpy's ``tip`` in ``measurement`` and the result's
     ``Calibration.fk`` at 200 random joint vectors within ±π (joints set by ``names``)."""

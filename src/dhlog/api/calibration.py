@@ -744,7 +744,7 @@ def _template_files(
 ) -> list[str]:
     """The files a xacro template reads (expanded once to find them: an output is never one of
     them); a xacro output asked of a URDF template refused."""
-    from dhlog.result.export.expand import expand_xacro, is_xacro
+    from dhlog.result.export.expand import files_read, is_xacro
 
     if template is None:
         if args:
@@ -757,7 +757,7 @@ def _template_files(
                 ".urdf."
             )
         return []
-    return expand_xacro(template, args).files[1:]
+    return files_read(template, args)
 
 
 def _refuse_existing(path: Path, overwrite: bool, *inputs: str | Path | None) -> None:

@@ -124,6 +124,13 @@ def export(
     if nominal and Path(nominal).exists():
         inputs.append((Path(nominal), "DH file of --nominal"))
     try:  # exit 2, with or without --force: the input stays as it is
+        if template is not None:
+            from dhlog.result.export.expand import files_read
+
+            inputs += [
+                (Path(f), "file the xacro template includes")
+                for f in files_read(template, xacro_args)
+            ]
         refuse_inputs_as_outputs(inputs, [output])
     except DhlogError as exc:
         fail(exc)

@@ -206,3 +206,9 @@ def read_description(
     if args:
         raise TemplateError(src, "is not a xacro, so --xacro-arg has nothing to set; drop it.")
     return read_template(path), src
+
+
+def files_read(path: str | Path, args: Mapping[str, str] | None = None) -> list[str]:
+    """The files a template reads besides itself (a xacro's includes, found by expanding it;
+    none for a URDF): an output is never one of them."""
+    return expand_xacro(path, args).files[1:] if is_xacro(path) else []

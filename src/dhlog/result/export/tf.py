@@ -126,7 +126,7 @@ def tf_document(
         "  - arg:",
         f"      name: {DESCRIPTION_ARG}",
         '      default: ""',
-        "      description: \"a calibrated URDF for robot_state_publisher (empty: none)\"",
+        '      description: "a calibrated URDF for robot_state_publisher (empty: none)"',
         "  - node:",
         "      pkg: robot_state_publisher",
         "      exec: robot_state_publisher",
