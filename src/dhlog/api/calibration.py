@@ -354,6 +354,7 @@ class Calibration:
         joint's ``<calibration rising>`` instead of the origins."""
         from dhlog.io.dhfile import robot_or_dh_file
         from dhlog.result import export as exports
+        from dhlog.result.export.expand import template_inputs
 
         if format not in EXPORT_FORMATS:
             raise UsageError(
@@ -374,7 +375,7 @@ class Calibration:
             if keep_xacro is not None
             else bool(path and Path(path).name.endswith(".xacro"))
         )
-        read = _template_files(template, xacro_args, as_xacro and format == "urdf")
+        read = template_inputs(template, xacro_args, xacro_out=as_xacro and format == "urdf")
         if target is not None:
             _refuse_existing(target, overwrite, self.source, template, limits_from, *read)
         with self._as_file() as result:
@@ -389,11 +390,6 @@ class Calibration:
                     else exports.urdf_from_template(
                         result, template, joint_names=names, xacro_args=xacro_args
                     )
-                )
-            elif format == "urdf" and as_xacro:
-                raise UsageError(
-                    "export: a .xacro output is a xacro template's, calibrated; without a "
-                    "template the URDF is written: name it .urdf."
                 )
             elif format == "urdf":
                 limits = robot.limits if robot is not None else self.limits
@@ -737,27 +733,6 @@ def _library_limits(spec: object) -> FloatArray | None:
 
         return load_robot(spec).limits
     return None
-
-
-def _template_files(
-    template: str | Path | None, args: Mapping[str, str] | None, as_xacro: bool
-) -> list[str]:
-    """The files a xacro template reads (expanded once to find them: an output is never one of
-    them); a xacro output asked of a URDF template refused."""
-    from dhlog.result.export.expand import files_read, is_xacro
-
-    if template is None:
-        if args:
-            raise UsageError("export: xacro arguments are for a xacro template; drop them.")
-        return []
-    if not is_xacro(template):
-        if as_xacro:
-            raise UsageError(
-                f"export: {template} is a URDF, not a xacro, so the output is a URDF: name it "
-                ".urdf."
-            )
-        return []
-    return files_read(template, args)
 
 
 def _refuse_existing(path: Path, overwrite: bool, *inputs: str | Path | None) -> None:

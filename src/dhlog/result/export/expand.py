@@ -21,6 +21,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from dhlog.errors import UsageError
 from dhlog.io.safetext import printable
 from dhlog.result.export.templatefile import TemplateError, parse_xml, read_template, read_xml
 
@@ -212,3 +213,23 @@ def files_read(path: str | Path, args: Mapping[str, str] | None = None) -> list[
     """The files a template reads besides itself (a xacro's includes, found by expanding it;
     none for a URDF): an output is never one of them."""
     return expand_xacro(path, args).files[1:] if is_xacro(path) else []
+
+
+def template_inputs(
+    template: str | Path | None, args: Mapping[str, str] | None, *, xacro_out: bool
+) -> list[str]:
+    """:func:`files_read` of an export's template; xacro arguments without a xacro template, or
+    a xacro output asked of a URDF template, refused (:class:`~dhlog.errors.UsageError`)."""
+    if template is None or not is_xacro(template):
+        if args:
+            raise UsageError("export: xacro arguments are for a xacro template; drop them.")
+        if xacro_out:
+            raise UsageError(
+                f"export: {printable(str(template))} is a URDF, not a xacro, so the output is a "
+                "URDF: name it .urdf."
+                if template is not None
+                else "export: a .xacro output is a xacro template's, calibrated; without a "
+                "template the URDF is written: name it .urdf."
+            )
+        return []
+    return files_read(template, args)
