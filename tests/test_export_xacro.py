@@ -231,7 +231,8 @@ def _refused(result: Path, out: Path, *extra: str, code: int = 2) -> str:
 
 
 def test_bad_templates_are_one_line(ur5e_result: Path, tmp_path: Path) -> None:
-    """Not XML; a xacro that does not expand (an argument missing, a macro undefined); joints
+    """Not XML; a xacro that does not expand (an argument missing, a macro undefined, a
+    package not found); joints
     not matching (named); the output the template or a file it includes; a xacro output of a
     URDF template and a --xacro-arg without ':=' (options: exit 1)."""
     out = tmp_path / "out.urdf"
@@ -246,6 +247,10 @@ def test_bad_templates_are_one_line(ur5e_result: Path, tmp_path: Path) -> None:
     )
     line = _refused(ur5e_result, out, "--template", str(broken))
     assert "cannot be expanded by xacro" in line and "no_such_macro" in line
+    elsewhere = tmp_path / "cell.urdf.xacro"  # includes $(find ur_description) from elsewhere
+    elsewhere.write_text(TOP.read_text())
+    line = _refused(ur5e_result, out, "--template", str(elsewhere), *ARGS)
+    assert "needs the ROS package ur_description" in line and "ROS_PACKAGE_PATH" in line
     line = _refused(ur5e_result, out, "--template", str(TOP), *ARGS)  # no --nominal: joint_1 …
     assert "has no joint joint_1, joint_2" in line and "shoulder_pan_joint" in line
     same = tmp_path / "mine.urdf.xacro"

@@ -76,12 +76,7 @@ def _package_folder(name: str, start: Path) -> str:
             continue
         if tag is not None and (tag.text or "").strip() == name:
             return str(folder)
-    raise TemplateError(
-        printable(name),
-        "is a package the xacro finds ($(find ...)) but neither the ament index nor "
-        "ROS_PACKAGE_PATH nor a folder above the template holds it; source its workspace or "
-        "add its folder to ROS_PACKAGE_PATH.",
-    )
+    raise LookupError(name)
 
 
 def _finder(start: Path) -> Any:
@@ -96,14 +91,20 @@ def _finder(start: Path) -> Any:
     def find(name: str) -> str:
         try:
             return str(get_package_share_directory(name))
-        except PackageNotFoundError:
+        except (PackageNotFoundError, ValueError, LookupError):
             return _package_folder(name, start)
 
     return find
 
 
 @contextlib.contextmanager
-def _hooked(xacro: Any, top: Path, files: list[str], top_include: dict[int, int]) -> Iterator[None]:
+def _hooked(
+    xacro: Any,
+    top: Path,
+    files: list[str],
+    top_include: dict[int, int],
+    missing: list[TemplateError],
+) -> Iterator[None]:
     """xacro with ``$(find)`` resolved here and every file it parses checked and its joints
     marked; restored after."""
     from xacro import substitution_args  # type: ignore[import-untyped]
@@ -130,7 +131,24 @@ def _hooked(xacro: Any, top: Path, files: list[str], top_include: dict[int, int]
         return doc
 
     xacro.parse = marked
-    substitution_args._eval_find = _finder(top.resolve().parent)
+    finder = _finder(top.resolve().parent)
+
+    def resolving(name: str) -> str:
+        try:
+            return str(finder(name))
+        except LookupError:  # xacro wraps what it catches: kept to be raised whole
+            missing.append(
+                TemplateError(
+                    printable(str(top)),
+                    f"needs the ROS package {printable(name)} ($(find {printable(name)})), which "
+                    "neither a sourced workspace's ament index nor ROS_PACKAGE_PATH nor a folder "
+                    "above the template holds; source its workspace or add the folder it is in "
+                    "to ROS_PACKAGE_PATH.",
+                )
+            )
+            raise
+
+    substitution_args._eval_find = resolving
     try:
         yield
     finally:
@@ -157,9 +175,11 @@ def expand_xacro(
         ) from None
     files: list[str] = []
     top_include: dict[int, int] = {}
+    missing: list[TemplateError] = []
     said = io.StringIO()
     try:
-        with _hooked(xacro, Path(path), files, top_include), contextlib.redirect_stderr(said):
+        hooked = _hooked(xacro, Path(path), files, top_include, missing)
+        with hooked, contextlib.redirect_stderr(said):
             if text is None:
                 doc = xacro.process_file(str(path), mappings=dict(args or {}))
             else:
@@ -169,7 +189,9 @@ def expand_xacro(
             expanded = doc.toxml()
     except TemplateError:
         raise
-    except Exception as exc:  # xacro raises XacroException, NameError, KeyError, … alike
+    except Exception as exc:
+        if missing:
+            raise missing[0] from None  # xacro raises XacroException, NameError, KeyError, … alike
         told = " ".join(str(exc).split()) or type(exc).__name__
         where = printable(Path(files[-1]).name) if len(files) > 1 else ""
         raise TemplateError(
