@@ -299,3 +299,37 @@ def test_a_joint_its_xacro_cannot_take_is_named(ur5e_result: Path, tmp_path: Pat
     assert "joint shoulder_lift_joint is written in arm.urdf.xacro without an <origin>" in line
     _export(ur5e_result, tmp_path / "x.urdf", "--template", str(template), "--nominal", "ur5e")
     assert ET.parse(tmp_path / "x.urdf").getroot().get("name") == "arm"
+
+
+def test_the_python_api_writes_the_xacro_and_refuses_a_vendor_file(
+    ur5e_result: Path, tmp_path: Path
+) -> None:
+    """``Calibration.export(template=…, xacro_args=…)``: a ``.xacro`` path gets the xacro (the
+    same text the command writes); a path that is a file the template includes is refused."""
+    calibration = dhlog.load(ur5e_result, nominal="ur5e")
+    args = {"ur_type": "ur5e", "name": "ur5e"}
+    out = tmp_path / "api.urdf.xacro"
+    text = calibration.export("urdf", out, template=TOP, xacro_args=args)
+    assert out.read_text() == text and 'xacro:macro name="ur_robot"' in text
+    cli = tmp_path / "cli.urdf.xacro"
+    _export(ur5e_result, cli, "--template", str(TOP), *ARGS, "--nominal", "ur5e")
+    assert cli.read_text() == text
+    with pytest.raises(dhlog.UsageError, match=r"ur_macro\.xacro"):
+        calibration.export(
+            "urdf", UR / "urdf" / "ur_macro.xacro", template=TOP, xacro_args=args, overwrite=True
+        )
+
+
+def test_an_included_file_with_a_doctype_is_refused(ur5e_result: Path, tmp_path: Path) -> None:
+    """Every file xacro reads is checked as the template is: an include with a DOCTYPE (the door
+    to entity expansion) is one line naming it, before xacro parses it."""
+    (tmp_path / "evil.xacro").write_text(
+        '<!DOCTYPE r [<!ENTITY a "aaaa">]><robot xmlns:xacro="http://wiki.ros.org/xacro"/>'
+    )
+    top = tmp_path / "top.urdf.xacro"
+    top.write_text(
+        '<robot xmlns:xacro="http://wiki.ros.org/xacro" name="r">'
+        '<xacro:include filename="evil.xacro"/></robot>'
+    )
+    line = _refused(ur5e_result, tmp_path / "x.urdf", "--template", str(top))
+    assert "evil.xacro" in line and "DOCTYPE" in line
