@@ -333,3 +333,84 @@ def test_an_included_file_with_a_doctype_is_refused(ur5e_result: Path, tmp_path:
     )
     line = _refused(ur5e_result, tmp_path / "x.urdf", "--template", str(top))
     assert "evil.xacro" in line and "DOCTYPE" in line
+
+
+#: A description in the style of the ROS-Industrial ``*_support`` packages' xacros (one file: its
+#: dimensions as xacro:property, a macro with ``${prefix}`` names and ``${…}`` origins, called
+#: once), with a UR5e's joint origins as ur_description's config/ur5e/default_kinematics.yaml
+#: gives them (tests/data/ur_description.toml), a mesh and an inertial on every link.
+ONE_FILE = """<?xml version="1.0"?>
+<robot xmlns:xacro="http://wiki.ros.org/xacro" name="ur5e_ros_industrial_style">
+  <xacro:property name="d1" value="0.1625"/>
+  <xacro:property name="a2" value="-0.425"/>
+  <xacro:property name="a3" value="-0.3922"/>
+  <xacro:property name="d4" value="0.1333"/>
+  <xacro:property name="d5" value="0.0997"/>
+  <xacro:property name="d6" value="0.0996"/>
+  <xacro:macro name="arm" params="prefix">
+    <link name="${prefix}base_link"/>
+    LINKS
+    JOINTS
+  </xacro:macro>
+  <xacro:arm prefix=""/>
+</robot>
+"""
+_ORIGINS = (
+    ("0 0 ${d1}", "0 0 0"),
+    ("0 0 0", "${pi/2} 0 0"),
+    ("${a2} 0 0", "0 0 0"),
+    ("${a3} 0 ${d4}", "0 0 0"),
+    ("0 ${-d5} 0", "${pi/2} 0 0"),
+    ("0 ${d6} 0", "${pi/2} ${pi} ${pi}"),
+)
+
+
+def _one_file_xacro() -> str:
+    links, joints = [], []
+    parent = "${prefix}base_link"
+    for k, (name, (xyz, rpy)) in enumerate(zip(NAMES, _ORIGINS, strict=True), start=1):
+        links.append(
+            f'<link name="${{prefix}}link_{k}"><visual><geometry><mesh filename="package://'
+            f'arm_support/meshes/link_{k}.stl"/></geometry></visual><inertial><mass value="{k}"/>'
+            f'<inertia ixx="0.{k}" ixy="0" ixz="0" iyy="0.{k}" iyz="0" izz="0.{k}"/></inertial>'
+            "</link>"
+        )
+        joints.append(
+            f'<joint name="${{prefix}}{name}" type="revolute">\n'
+            f'      <origin xyz="{xyz}" rpy="{rpy}"/>\n'
+            f'      <parent link="{parent}"/><child link="${{prefix}}link_{k}"/>'
+            f'<axis xyz="0 0 1"/>\n'
+            f'      <limit lower="${{-2*pi}}" upper="${{2*pi}}" effort="{k}" velocity="3.14"/>\n'
+            "    </joint>"
+        )
+        parent = f"${{prefix}}link_{k}"
+    return ONE_FILE.replace("LINKS", "\n    ".join(links)).replace("JOINTS", "\n    ".join(joints))
+
+
+def test_a_one_file_xacro_gets_its_own_origins_rewritten(ur5e_result: Path, tmp_path: Path) -> None:
+    """Joints written in the template itself: each calibrated ``<origin>`` line replaced by
+    numbers, every other line (the properties, the links, joint 1's origin) as it was; expanded
+    by xacro, FK = Calibration.fk to 1e-9 m, meshes, inertials and limits the template's."""
+    import xacro
+
+    template = tmp_path / "arm.urdf.xacro"
+    template.write_text(_one_file_xacro())
+    out = tmp_path / "arm_calibrated.urdf.xacro"
+    _export(ur5e_result, out, "--template", str(template), "--nominal", "ur5e")
+    before, after = template.read_text().splitlines(), out.read_text().splitlines()
+    assert "calibrated by dhlog export" in after.pop(2)  # the note after <robot>
+    block = next(k for k, line in enumerate(after) if 'name="dhlog_measurement"' in line)
+    assert after[-1] == "</robot>" and all("dhlog" in x or "<" in x for x in after[block:-1])
+    after = after[:block] + after[-1:]  # without the tracker's frame and the target (end)
+    assert len(after) == len(before)
+    changed = [(a, b) for a, b in zip(before, after, strict=True) if a != b]
+    assert len(changed) == 5, changed  # the calibrated joints' origins: joints 2 … 6
+    assert all(a.strip().startswith("<origin xyz=") and "${" not in b for a, b in changed)
+    expanded = xacro.process_file(str(out)).toxml()
+    xacro.init_stacks(None)
+    ours = _load(expanded, tmp_path, "ours.urdf")
+    vendor = _load(xacro.process_file(str(template)).toxml(), tmp_path, "vendor.urdf")
+    xacro.init_stacks(None)
+    worst = _worst(ours, ur5e_result)
+    assert worst < 1e-9, worst
+    _assert_vendors_but_origins(vendor, ours)
