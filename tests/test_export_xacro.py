@@ -414,3 +414,20 @@ def test_a_one_file_xacro_gets_its_own_origins_rewritten(ur5e_result: Path, tmp_
     worst = _worst(ours, ur5e_result)
     assert worst < 1e-9, worst
     _assert_vendors_but_origins(vendor, ours)
+
+
+def test_xacros_own_output_is_a_urdf(tmp_path: Path) -> None:
+    """A URDF that declares xacro's namespace (as xacro's output does) and uses nothing of it is
+    read as a URDF; a name in .xacro, an element of xacro's or a ${…} make a xacro."""
+    from dhlog.result.export.expand import is_xacro
+
+    plain = tmp_path / "expanded.urdf"
+    plain.write_text(
+        '<robot xmlns:xacro="http://wiki.ros.org/xacro" name="r"><link name="a"/></robot>'
+    )
+    assert not is_xacro(plain)
+    for name, body in (("a.xacro", "<link name='a'/>"), ("b.urdf", "<xacro:property name='x'/>"),
+                       ("c.urdf", "<link name='${x}'/>")):  # fmt: skip
+        path = tmp_path / name
+        path.write_text(f'<robot xmlns:xacro="http://wiki.ros.org/xacro" name="r">{body}</robot>')
+        assert is_xacro(path), name

@@ -23,7 +23,13 @@ from typing import Any
 
 from dhlog.errors import UsageError
 from dhlog.io.safetext import printable
-from dhlog.result.export.templatefile import TemplateError, parse_xml, read_template, read_xml
+from dhlog.result.export.templatefile import (
+    MAX_TEMPLATE_BYTES,
+    TemplateError,
+    parse_xml,
+    read_template,
+    read_xml,
+)
 
 #: the attribute that marks where an expanded ``<joint>`` was written: ``file:ordinal``
 SOURCE = "dhlog-source"
@@ -31,17 +37,18 @@ _INSTALL = "pip install 'dhlog[xacro]'"
 
 
 def is_xacro(path: str | Path) -> bool:
-    """Whether a description is a xacro: its name ends in ``.xacro``, or it declares xacro's
-    namespace."""
+    """Whether a description is a xacro: its name ends in ``.xacro``, or it uses xacro (a
+    ``<xacro:…>`` element, a ``${…}`` or ``$(…)``); a URDF that only declares xacro's namespace,
+    as xacro's own output does, is a URDF."""
     p = Path(path)
     if p.name.endswith(".xacro"):
         return True
     try:
         with open(p, "rb") as f:
-            head = f.read(4096)
+            text = f.read(MAX_TEMPLATE_BYTES + 1)
     except OSError:
         return False
-    return b"xmlns:xacro" in head
+    return b"<xacro:" in text or b"${" in text or b"$(" in text
 
 
 @dataclass
