@@ -17,7 +17,7 @@ from typer.testing import CliRunner
 
 import dhlog
 from dhlog.cli.app import app
-from dhlog.model.robots import load_robot
+from dhlog.model.robots import library_robots, load_robot
 
 DATA = Path(__file__).parent / "data"
 UR = tomllib.loads((DATA / "ur_description.toml").read_text(encoding="utf-8"))
@@ -88,3 +88,49 @@ def test_unknown_dynamics_are_said_on_each_joint(ur5e_result: Path, tmp_path: Pa
             assert (limit.get("effort"), limit.get("velocity")) == ("0", "0")
             comments = [c.text or "" for c in joint if c.tag is ET.Comment]  # type: ignore[comparison-overlap]
             assert any("not known" in c and why in c for c in comments), comments
+
+
+def test_the_library_carries_each_vendor_descriptions_velocity_and_effort() -> None:
+    """Every entry with a vendor description in tests/data/vendor has that description's
+    velocity limits (rad/s, written in °/s: 1e-12 relative) and its efforts where they are
+    given; where every effort there is 0 (the ROS-Industrial descriptions' "not given") the
+    library has none, and the URDF export says so instead of inventing one."""
+    from vendor_urdf import VENDOR, load_vendor_urdf
+
+    checked = 0
+    for robot in library_robots():
+        if not (VENDOR / f"{robot.name}.urdf").exists():
+            continue
+        joints = [load_vendor_urdf(robot.name).joint_map[n] for n in robot.joint_names]
+        velocity = [j.limit.velocity for j in joints]
+        effort = [j.limit.effort for j in joints]
+        assert robot.velocity_limits == pytest.approx(velocity, rel=1e-11), robot.name
+        if all(e > 0 for e in effort):
+            assert robot.effort_limits == pytest.approx(effort, rel=1e-12), robot.name
+        else:
+            assert len(robot.effort_limits) == 0 and not any(effort), robot.name
+        checked += 1
+    assert checked == 21  # the 22 fixtures less kr6r900sixx_kuka_experimental (a second KR 6)
+
+
+def test_known_velocity_and_unknown_effort_are_told_apart(tmp_path: Path) -> None:
+    """An ABB IRB 120 (its description gives velocities, not efforts): each joint's velocity
+    is the library's, its effort 0 with a comment that names the effort only."""
+    result = tmp_path / "irb120.dh.json"
+    made = runner.invoke(app, ["simulate", "irb120", "-o", str(tmp_path / "irb120.mcap")])
+    assert made.exit_code == 0, made.output
+    truth = tmp_path / "irb120.truth.json"
+    result.write_text(truth.read_text())
+    out = tmp_path / "irb120.urdf"
+    made = runner.invoke(app, ["export", str(result), "-o", str(out), "--nominal", "irb120"])
+    assert made.exit_code == 0, made.output
+    robot = load_robot("irb120")
+    parser = ET.XMLParser(target=ET.TreeBuilder(insert_comments=True))
+    root = ET.parse(out, parser=parser).getroot()
+    joints = [j for j in root.iter("joint") if j.get("type") != "fixed"]
+    for joint, velocity in zip(joints, robot.velocity_limits, strict=True):
+        limit = joint.find("limit")
+        assert limit is not None
+        assert float(limit.get("velocity", "nan")) == velocity and limit.get("effort") == "0"
+        told = [c.text or "" for c in joint if c.tag is ET.Comment]  # type: ignore[comparison-overlap]
+        assert len(told) == 1 and told[0].startswith(" effort limit not known"), told

@@ -94,17 +94,16 @@ def _without_offsets(table: StandardDH) -> StandardDH:
     return StandardDH(table.joint_types, theta, d, table.a, table.alpha)
 
 
-def unknown_dynamics(robot: Robot | None) -> str:
-    """A joint's comment where its velocity and effort limits are not known."""
+def unknown_dynamics(robot: Robot | None, which: str = "velocity and effort limits") -> str:
+    """A joint's comment where its velocity or effort limit (``which``) is not known."""
     why = (
         f"the library has none for {printable(robot.name)}"
         if robot is not None
         else "no library robot given to export as its nominal or limits-from"
     )
     return (
-        f" velocity and effort limits not known to dhlog ({why}): written 0; ros2_control's "
-        "joint limits hold a joint of velocity 0 still, MoveIt reads 0 as no velocity bound: "
-        "set the robot's values "
+        f" {which} not known to dhlog ({why}): written 0; ros2_control's joint limits hold a "
+        "joint of velocity 0 still, MoveIt reads 0 as no velocity bound: set the robot's values "
     )
 
 
@@ -164,7 +163,15 @@ def urdf_document(
     robot_name = printable(name or fallback) or "robot"
     velocity = robot.velocity_limits if robot is not None else np.zeros(0)
     effort = robot.effort_limits if robot is not None else np.zeros(0)
-    known = len(velocity) == n and len(effort) == n
+    known_velocity, known_effort = len(velocity) == n, len(effort) == n
+    given = " and ".join(
+        what for what, known in (("velocity", known_velocity), ("effort", known_effort)) if known
+    )
+    unknown = " and ".join(
+        what
+        for what, known in (("velocity", known_velocity), ("effort", known_effort))
+        if not known
+    )
     urdf = ET.Element("robot", name=robot_name)
     ET.SubElement(urdf, "link", name="measurement")
     ET.SubElement(urdf, "link", name="base_link")
@@ -189,11 +196,12 @@ def urdf_document(
             "limit",
             lower=f"{lo:.17g}",
             upper=f"{hi:.17g}",
-            effort=f"{effort[i]:.17g}" if known else "0",
-            velocity=f"{velocity[i]:.17g}" if known else "0",
+            effort=f"{effort[i]:.17g}" if known_effort else "0",
+            velocity=f"{velocity[i]:.17g}" if known_velocity else "0",
         )
-        if not known:
-            joint.append(ET.Comment(xml_comment_text(unknown_dynamics(robot))))
+        if unknown:
+            told = unknown_dynamics(robot, f"{unknown} limit" + ("s" if " and " in unknown else ""))
+            joint.append(ET.Comment(xml_comment_text(told)))
         if zero_offsets == "calibration":
             ET.SubElement(joint, "calibration", rising=f"{offsets[i]:.17g}")
         parent = child
@@ -222,8 +230,7 @@ def urdf_document(
             + "frame base_link = DH frame 1, flange = frame n+1, tool0 = the measured target"
             + (
                 f"; joint names and position limits of the library robot {robot.name} "
-                f"({robot.title})"
-                + (", velocity and effort limits its description's" if known else "")
+                f"({robot.title})" + (f", {given} limits its description's" if given else "")
                 if robot is not None
                 else ""
             )
