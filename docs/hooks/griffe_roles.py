@@ -14,6 +14,7 @@ import griffe
 ROLE = re.compile(r":(?:py:)?[a-z]+:`(~?)([A-Za-z_][\w.]*)(\(\))?`")
 SRC = Path(__file__).resolve().parents[2] / "src" / "dhlog"
 
+
 def _public() -> frozenset[str]:
     for node in ast.parse((SRC / "__init__.py").read_text(encoding="utf-8")).body:
         if isinstance(node, ast.Assign) and any(
