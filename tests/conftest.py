@@ -35,3 +35,27 @@ def ur5_result(tmp_path_factory: pytest.TempPathFactory) -> Path:
     done = runner.invoke(app, ["process", str(log), "--no-rrd", "--out", str(folder)])
     assert done.exit_code == 0, done.output
     return folder / "ur5.dh.json"
+
+
+@pytest.fixture(scope="module")
+def ur5e_result(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A UR5e off its nominal (0.2 mm, 0.02°), simulated and processed with ``--nominal ur5e``;
+    the simulated log names its joints joint_1 … joint_6, not as the UR driver does."""
+    from typer.testing import CliRunner
+
+    from dhlog.cli.app import app
+
+    runner = CliRunner()
+    folder = tmp_path_factory.mktemp("ur5e")
+    log = folder / "run.mcap"
+    made = runner.invoke(
+        app,
+        ["simulate", "ur5e", "-o", str(log), "--perturb-mm", "0.2", "--perturb-deg", "0.02",
+         "--seed", "5"],
+    )  # fmt: skip
+    assert made.exit_code == 0, made.output
+    done = runner.invoke(
+        app, ["process", str(log), "--no-rrd", "--out", str(folder), "--nominal", "ur5e"]
+    )
+    assert done.exit_code == 0, done.output
+    return folder / "run.dh.json"

@@ -39,12 +39,54 @@ def test_the_changelog_has_keep_a_changelogs_form() -> None:
     assert kinds <= KINDS, kinds - KINDS
 
 
-def test_deprecations_are_removed_one_minor_version_on() -> None:
-    """The deprecation notices (dhlog._deprecated) and the changelog name the same removal: the
-    minor version after the newest release."""
-    from dhlog._deprecated import REMOVED_IN
+def sections() -> dict[str, str]:
+    """Each heading's text ("Unreleased", "0.2.0", …) to its section's body."""
+    parts = re.split(r"^## \[([^\]]+)\].*$", CHANGELOG, flags=re.MULTILINE)
+    return dict(zip(parts[1::2], parts[2::2], strict=True))
 
+
+def kind(body: str, name: str) -> str:
+    """The ``### name`` subsection of a section ("" if it has none)."""
+    parts = re.split(r"^### (.+)$", body, flags=re.MULTILINE)
+    return dict(zip(parts[1::2], parts[2::2], strict=True)).get(name, "")
+
+
+def first_column_paths(table: str) -> set[str]:
+    """The import paths (`dhlog.…`) in the first column of a Markdown table's rows."""
+    rows = [line.split("|")[1] for line in table.splitlines() if line.strip().startswith("|")]
+    return {path for row in rows for path in re.findall(r"`(dhlog(?:\.\w+)+)`", row)}
+
+
+def test_deprecations_are_removed_one_minor_version_on() -> None:
+    """What a release deprecated ("will be removed in X.Y") goes in the release X.Y: once X.Y is
+    the next minor version (the unreleased section) or released, its "Removed" lists every path
+    of the deprecation's table, and each fails to import."""
+    import importlib
+    import sys
+
+    by_version = sections()
     major, minor, _ = RELEASED[0][0].split(".")
-    assert REMOVED_IN == f"{major}.{int(minor) + 1}"
-    newest = CHANGELOG.split("\n## [")[2]  # the newest release's section
-    assert f"will be removed in {REMOVED_IN}" in newest
+    upcoming = f"{major}.{int(minor) + 1}"
+    checked = 0
+    for version, body in by_version.items():
+        deprecated = kind(body, "Deprecated")
+        due = re.search(r"will be removed in (\d+\.\d+)", deprecated)
+        if version == "Unreleased" or not deprecated or due is None:
+            continue
+        paths = first_column_paths(deprecated)
+        assert paths, f"{version}'s Deprecated names no import path"
+        home = "Unreleased" if due[1] == upcoming else f"{due[1]}.0"
+        if home not in by_version:
+            continue  # due later than the next minor version
+        removed = first_column_paths(kind(by_version[home], "Removed"))
+        missing = paths - removed
+        assert not missing, f"deprecated in {version}, not removed in {home}: {missing}"
+        for path in sorted(paths):
+            sys.modules.pop(path, None)
+            try:
+                importlib.import_module(path)
+            except ModuleNotFoundError:
+                checked += 1
+            else:
+                raise AssertionError(f"{path} still imports; the changelog says it is removed")
+    assert checked >= 12, "0.2.0 deprecated twelve import paths"

@@ -64,8 +64,8 @@ def test_every_page_with_python_is_collected() -> None:
 def test_every_public_name_is_documented() -> None:
     """docs/api.md renders ``dhlog`` with mkdocstrings (``::: dhlog``, every member of
     ``__all__``; no ``members:`` list that could leave one out) and every public name has a
-    docstring to render. A name that a subpackage of the same name hides from ``::: dhlog``
-    (``dhlog.simulate``) has its own ``:::`` directive; ``__version__`` is named in the text."""
+    docstring to render. A name that a subpackage of the same name would hide from ``::: dhlog``
+    needs its own ``:::`` directive (none does); ``__version__`` is named in the text."""
     import inspect
 
     import dhlog

@@ -28,7 +28,8 @@ runner = CliRunner()
 def test_the_urdf_reproduces_the_result_exactly(log: str, robot: str, tmp_path: Path) -> None:
     """``dhlog process`` then ``dhlog export --format urdf``: yourdfpy loads the URDF, and the
     target's position (``tool0`` in ``measurement``) equals the result's FK to 1e-9 m at 200
-    random joint vectors within the robot's limits; the joint limits are the robot's."""
+    random joint vectors within the robot's limits; the joint names and limits are the library
+    robot's (``--limits-from``), the names as its ROS 2 driver publishes them where it has them."""
     out = tmp_path / "out"
     done = runner.invoke(
         app, ["process", str(SAMPLES / f"{log}.mcap"), "--no-rrd", "--out", str(out)]
@@ -41,9 +42,9 @@ def test_the_urdf_reproduces_the_result_exactly(log: str, robot: str, tmp_path: 
     )
     assert made.exit_code == 0, made.output
     model = yourdfpy.URDF.load(str(urdf), load_meshes=False, build_scene_graph=True)
-    names = [j["name"] for j in json.loads(result.read_text())["joints"]]
-    assert list(model.actuated_joint_names) == names
     rob = load_robot(robot)
+    names = list(rob.joint_names) or [j["name"] for j in json.loads(result.read_text())["joints"]]
+    assert list(model.actuated_joint_names) == names and model.robot.name == robot
     for k, name in enumerate(names):
         limit = model.joint_map[name].limit
         assert (limit.lower, limit.upper) == pytest.approx(tuple(rob.limits[k]))

@@ -8,11 +8,9 @@ from pathlib import Path
 
 SRC = Path(__file__).parents[1] / "src"
 FLOORS = (
-    "_version _deprecated errors geometry model vision io identify result iso9283 simulator present"
+    "_version errors geometry model vision io identify result iso9283 simulator present"
     " fleet"
     " cell api cli entry __main__"
-    # the top-level paths an earlier README documented: deprecated shims handing on moved modules
-    " kinematics robots dhfile extract segment simulate"
 )
 MODULES = {
     ".".join(path.relative_to(SRC).with_suffix("").parts).removesuffix(".__init__"): path
@@ -68,12 +66,6 @@ IDENTIFY_FLOORS = {
     "wholefit": 6,
     "heldout": 6,
     "run": 7,
-    # the paths the README documented before the regrouping: deprecated, handing on the moved
-    "extract": 7,
-    "axismodel": 7,
-    "whole": 7,
-    "noise": 7,
-    "vision": 7,
 }
 
 

@@ -1,6 +1,6 @@
-"""The measurement-model interface (identify.measure, issue 32 item 5): the tracker's point as a
+"""The measurement-model interface (identify.fit.measure): the tracker's point as a
 ``Measurement`` through the generic fit gives the tracker's own whole-model fit (its streamed
-fast path, identify.whole) — the same optimum and the same covariance — so a camera's pixels and
+fast path, identify.fit.whole) — the same optimum and the same covariance — so a camera's pixels and
 a tracker's points are one fit with two measurement models."""
 
 from __future__ import annotations

@@ -71,18 +71,6 @@ def test_import_dhlog_loads_nothing_heavy() -> None:
     assert out.stdout.strip() == "[]"
 
 
-def test_simulate_stays_callable_beside_its_deprecated_modules() -> None:
-    """``dhlog.simulate`` is the function; an old ``dhlog.simulate.config`` import (deprecated)
-    binds the name to the shim package, which runs the same function."""
-    code = (
-        "import warnings; warnings.simplefilter('ignore'); import dhlog; f = dhlog.simulate; "
-        "from dhlog.simulate.config import SimulationConfig; "
-        "print(callable(f), callable(dhlog.simulate), SimulationConfig.__module__)"
-    )
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
-    assert out.stdout.split() == ["True", "True", "dhlog.simulator.config"]
-
-
 @pytest.fixture(scope="module")
 def calibration() -> dhlog.Calibration:
     return dhlog.process(SAMPLE, nominal="kr5", holdout=5)

@@ -14,11 +14,6 @@ import griffe
 ROLE = re.compile(r":(?:py:)?[a-z]+:`(~?)([A-Za-z_][\w.]*)(\(\))?`")
 SRC = Path(__file__).resolve().parents[2] / "src" / "dhlog"
 
-#: Public names that a subpackage of the same name hides from ``::: dhlog`` (griffe takes
-#: ``dhlog.simulate`` for the deprecated package of the simulator's old module paths, until 0.3):
-#: docs/api.md documents each of them where it is defined, under this identifier.
-SHADOWED = {"simulate": "dhlog.api.operations.simulate"}
-
 
 def _public() -> frozenset[str]:
     for node in ast.parse((SRC / "__init__.py").read_text(encoding="utf-8")).body:
@@ -36,8 +31,6 @@ def _rewrite(match: re.Match[str]) -> str:
     tilde, target, call = match.group(1), match.group(2), match.group(3) or ""
     shown = (target.rsplit(".", 1)[-1] if tilde else target) + call
     name = target.removeprefix("dhlog.")
-    if name in SHADOWED:
-        return f"[`{shown}`][{SHADOWED[name]}]"
     if name in PUBLIC:
         return f"[`{shown}`][dhlog.{name}]"
     return f"`{shown}`"

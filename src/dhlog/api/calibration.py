@@ -8,7 +8,7 @@ from __future__ import annotations
 import json
 import math
 import tempfile
-from collections.abc import Iterator
+from collections.abc import Iterator, Mapping
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -69,6 +69,13 @@ class Calibration:
     _asked: tuple[bool, bool] = field(default=(False, False), repr=False, init=False)
     #: the run's other inputs (held-out logs): never an output
     _inputs: tuple[str, ...] = field(default=(), repr=False, init=False)
+
+    @property
+    def run(self) -> ProcessResult | None:
+        """The run's one record (a :class:`dhlog.identify.run.ProcessResult`: everything the run
+        found, frozen) that this calibration's document, model, console report and recording
+        are all made from; None for a calibration loaded from a file."""
+        return self._result
 
     # ------------------------------------------------------------------ the model
 
@@ -337,18 +344,24 @@ class Calibration:
         limits_from: str | None = None,
         template: str | Path | None = None,
         zero_offsets: Literal["origins", "calibration"] = "origins",
+        xacro_args: Mapping[str, str] | None = None,
+        keep_xacro: bool | None = None,
         overwrite: bool = False,
     ) -> str:
         """The model in a form a robot stack loads (``dhlog export``): ``urdf``, ``ur`` (the UR
         description's calibration YAML), ``rtb`` (a roboticstoolbox ``DHRobot`` in Python),
-        ``dh-csv`` / ``dh-json`` (both DH tables), ``tf`` (a camera calibration's hand-eye poses
-        as a ROS 2 launch file). Returns the text; with ``path``, also writes it atomically
-        (``overwrite``: replace an existing file). ``limits_from``: a library robot or DH file
-        whose joint limits the URDF gets; ``template``: a URDF whose joints get the calibrated
-        origins; ``zero_offsets``: ``calibration`` puts the offsets in each joint's
-        ``<calibration rising>`` instead of the origins."""
+        ``dh-csv`` / ``dh-json`` (both DH tables), ``tf`` (a ROS 2 launch file: the tracker's
+        frame and the target in the robot's frames, or a camera calibration's hand-eye poses).
+        Returns the text; with ``path``, also writes it atomically (``overwrite``: replace an
+        existing file). ``limits_from``: a library robot or DH file whose name, joint names and
+        limits the URDF gets (default: the nominal, when it is a library robot); ``template``: a
+        URDF or xacro description whose joints get the calibrated origins (``xacro_args``: the
+        xacro's arguments; ``keep_xacro``: write a xacro, not the expanded URDF — default when
+        ``path`` ends in ``.xacro``); ``zero_offsets``: ``calibration`` puts the offsets in each
+        joint's ``<calibration rising>`` instead of the origins."""
         from dhlog.io.dhfile import robot_or_dh_file
         from dhlog.result import export as exports
+        from dhlog.result.export.expand import template_inputs
 
         if format not in EXPORT_FORMATS:
             raise UsageError(
@@ -361,31 +374,60 @@ class Calibration:
                 "export: zero_offsets must be 'origins' or 'calibration' (calibration: a URDF "
                 "without a template)."
             )
-        if template is not None and format != "urdf":
-            raise UsageError("export: a template is for the urdf format.")
+        if template is not None and format not in ("urdf", "tf"):
+            raise UsageError("export: a template is for the urdf and tf formats.")
         target = None if path is None else Path(path)
+        as_xacro = (
+            keep_xacro
+            if keep_xacro is not None
+            else bool(path and Path(path).name.endswith(".xacro"))
+        )
+        read = template_inputs(template, xacro_args, xacro_out=as_xacro and format == "urdf")
         if target is not None:
-            _refuse_existing(target, overwrite, self.source, template, limits_from)
+            _refuse_existing(target, overwrite, self.source, template, limits_from, *read)
         with self._as_file() as result:
+            robot = robot_or_dh_file(limits_from) if limits_from else self._library_robot()
+            names = () if robot is None else robot.joint_names
             if format == "urdf" and template is not None:
-                text = exports.urdf_from_template(result, template)
-            elif format == "urdf":
-                limits = (
-                    robot_or_dh_file(limits_from).limits if limits_from is not None else self.limits
+                text = (
+                    exports.xacro_from_template(
+                        result, template, args=xacro_args, joint_names=names
+                    )
+                    if as_xacro
+                    else exports.urdf_from_template(
+                        result, template, joint_names=names, xacro_args=xacro_args
+                    )
                 )
-                text = exports.urdf_document(result, limits=limits, zero_offsets=zero_offsets)
+            elif format == "urdf":
+                limits = robot.limits if robot is not None else self.limits
+                text = exports.urdf_document(
+                    result, limits=limits, zero_offsets=zero_offsets, robot=robot
+                )
             elif format == "ur":
                 flange = None if self.nominal is None else self.nominal.table
                 text = exports.ur_calibration(result, flange)[0]
             elif format == "rtb":
                 text = exports.rtb_document(result)
             elif format == "tf":
-                text = exports.static_transforms_document(result)
+                text = exports.tf_document(
+                    result, template=template, joint_names=names, xacro_args=xacro_args
+                )
             else:
                 text = exports.dh_table_document(result, format)
         if target is not None:
             _write_text(target, text)
         return text
+
+    def _library_robot(self) -> Robot | None:
+        """The nominal as a library robot (its name, joint names and limits), when it is one."""
+        from dhlog.model.robots import UnknownRobotError, load_robot
+
+        if self.nominal is None or Path(self.nominal.source).exists():
+            return None
+        try:
+            return load_robot(self.nominal.source)
+        except UnknownRobotError:
+            return None
 
     def compensate(
         self,

@@ -165,24 +165,15 @@ def _pipeline(spec: str | Path | Pipeline | None) -> Pipeline | None:
 
 
 def calibration_of(result: Any, *, limits: Any = None) -> Calibration:
-    """A run's :class:`Calibration` (``result``: the identification's record)."""
-    from dhlog.io.dhfile import DHModel, parse_dh
+    """A run's :class:`Calibration` made from its one record ``result`` (a
+    :class:`~dhlog.identify.run.ProcessResult`): the document written from it, the model read
+    off it (:func:`~dhlog.result.model.model_of`, equal to what the document reads back as)."""
     from dhlog.result.document import result_document
+    from dhlog.result.model import model_of
 
-    document = result_document(result)
-    ex = result.extraction
-    model: DHModel | None = None
-    if ex is not None:  # None: no joint identified (the warnings say why); the rest is kept
-        try:
-            model = parse_dh(document, str(result.path))
-        except DhlogError:  # a result without a complete table: what was identified stays
-            names = tuple(j.name for j in result.joints)
-            model = DHModel(
-                ex.standard, ex.T_measurement_base, np.zeros(3), names, str(result.path)
-            )
     found = Calibration(
-        document=document,
-        model=model,
+        document=result_document(result),
+        model=model_of(result),
         nominal=result.nominal,
         source=str(result.path),
         limits=limits,
@@ -194,18 +185,12 @@ def calibration_of(result: Any, *, limits: Any = None) -> Calibration:
 def with_info(calibration: Calibration, said: str, code: str) -> Calibration:
     """A run's calibration with a note (``said``, its code ``code``) added to its record, the
     document made again from that one record (the console and the JSON read the same notes)."""
-    result = calibration._result
+    result = calibration.run
     if result is None:
         raise ValueError("with_info: a run's calibration (not a loaded one)")
     found = calibration_of(result.said(Note.info(said, code)), limits=calibration.limits)
     found._asked, found._inputs = calibration._asked, calibration._inputs
     return found
-
-
-def run_of(calibration: Calibration) -> Any:
-    """The identification's record behind a run's calibration (None: a loaded one); for the
-    command line's console report."""
-    return calibration._result
 
 
 def load(path: str | Path, *, nominal: str | Path | Robot | None = None) -> Calibration:

@@ -202,7 +202,7 @@ def process(
 
     from dhlog.api.calibration import output_names, write_run
     from dhlog.api.operations import process as identify
-    from dhlog.api.operations import run_of, with_info
+    from dhlog.api.operations import with_info
     from dhlog.present.console import print_result
 
     if units not in ("mm", "m"):
@@ -319,7 +319,9 @@ def process(
                     "alone)."
                 )
                 calibration = with_info(calibration, said, "refine-no-op")
-            result = run_of(calibration)
+            run = calibration.run
+            assert run is not None  # a run's calibration carries its record
+            result = run
             advance("writing", 0.0)
             try:
                 folder.mkdir(parents=True, exist_ok=True)  # --out is created when missing

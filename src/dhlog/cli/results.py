@@ -40,19 +40,33 @@ def export(
         typer.Option(
             "--format",
             help="urdf; ur (Universal Robots calibration YAML); rtb (a roboticstoolbox "
-            "DHRobot in Python); dh-csv or dh-json (standard and modified DH tables); tf (a "
-            "camera calibration's hand-eye poses as a ROS 2 launch file of static transforms).",
+            "DHRobot in Python); dh-csv or dh-json (standard and modified DH tables); tf (a ROS "
+            "2 launch file: the tracker's frame and the target as static transforms, the "
+            "calibrated URDF through robot_state_publisher; a camera's hand-eye poses).",
         ),
     ] = "urdf",
     limits_from: Annotated[
         str | None,
-        typer.Option(help="A library robot (or DH file) whose joint limits the URDF gets."),
+        typer.Option(
+            help="A library robot (or DH file) whose name, joint names and limits the URDF "
+            "gets (default: --nominal's)."
+        ),
     ] = None,
     template: Annotated[
         Path | None,
         typer.Option(
-            help="A URDF whose joints (matched by name) get the calibrated origins; its links, "
-            "meshes, inertials and limits stay."
+            help="A URDF or xacro description whose joints (matched by name) get the "
+            "calibrated origins; its links, meshes, inertials and limits stay. A xacro is "
+            "expanded; -o NAME.xacro writes the xacro back with only joint origins changed."
+        ),
+    ] = None,
+    xacro_arg: Annotated[
+        list[str] | None,
+        typer.Option(
+            "--xacro-arg",
+            metavar="NAME:=VALUE",
+            help="An argument of the xacro template (as xacro takes it: ur_type:=ur5e); "
+            "repeat for each.",
         ),
     ] = None,
     zero_offsets: Annotated[
@@ -65,8 +79,9 @@ def export(
     nominal: Annotated[
         str | None,
         typer.Option(
-            help="ur: the robot's nominal (a library robot or DH file), whose d6 places the "
-            "flange (a target point cannot)."
+            help="The robot's nominal (a library robot or DH file): ur: its d6 places the "
+            "flange (a target point cannot); urdf, tf: a library robot's name, joint names "
+            "and limits."
         ),
     ] = None,
     force: Annotated[bool, typer.Option("--force", help="Overwrite the output.")] = False,
@@ -85,9 +100,18 @@ def export(
             "without --template)."
         )
         raise typer.Exit(EXIT_USAGE)
-    if template is not None and format != "urdf":
-        stderr.print("error: --template is for --format urdf.")
+    if template is not None and format not in ("urdf", "tf"):
+        stderr.print("error: --template is for --format urdf and tf.")
         raise typer.Exit(EXIT_USAGE)
+    xacro_args: dict[str, str] = {}
+    for given in xacro_arg or []:
+        key, sep, value = given.partition(":=")
+        if not sep or not key.strip():
+            stderr.print(
+                f"error: --xacro-arg takes NAME:=VALUE (ur_type:=ur5e), not '{plain(given)}'."
+            )
+            raise typer.Exit(EXIT_USAGE)
+        xacro_args[key.strip()] = value
     if format not in EXPORT_FORMATS:
         stderr.print(
             f"error: --format must be one of {', '.join(EXPORT_FORMATS)}, not '{plain(format)}'."
@@ -100,6 +124,13 @@ def export(
     if nominal and Path(nominal).exists():
         inputs.append((Path(nominal), "DH file of --nominal"))
     try:  # exit 2, with or without --force: the input stays as it is
+        if template is not None:
+            from dhlog.result.export.expand import files_read
+
+            inputs += [
+                (Path(f), "file the xacro template includes")
+                for f in files_read(template, xacro_args)
+            ]
         refuse_inputs_as_outputs(inputs, [output])
     except DhlogError as exc:
         fail(exc)
@@ -112,6 +143,8 @@ def export(
             limits_from=limits_from,
             template=template,
             zero_offsets=zero_offsets,  # type: ignore[arg-type]
+            xacro_args=xacro_args,
+            keep_xacro=output.name.endswith(".xacro"),
         )
         if format == "ur":
             flange = None if loaded.nominal is None else loaded.nominal.table

@@ -1,24 +1,23 @@
 """``dhlog process``: from a calibration log to the DH model, its uncertainty and its check —
 the run's flow, top to bottom; each step's work is in the module named.
 
-read (``io.reader``) → segment (``identify.segment``) → the units checked (``identify.checks``),
-the clock offset's start (``identify.timing``) → per joint: pick the sweeps, decide the type,
-fit the axis robustly, bring it to the reference pose (``identify.sweeps``) → the analytic start:
-line geometry on those axes (``identify.extract``, seed 000) → the maximum-likelihood fit of the
-whole model to every sample with encoder values (``identify.whole``, from ``identify.samples``;
-the clock offset joined again if it moved; the terms beyond the geometry ``identify.beyond``;
-the weights ``identify.variance``), pairs the data cannot tell from parallel held parallel
-(``identify.relations``) → the DH model read off the fitted axes, its covariance and what is
-fixed (``identify.uncertainty``, ``identify.conditioning``) → forward kinematics of the table
-against every sample (``identify.validate``) → what makes the result implausible
-(``identify.check.plausible``: ``ProcessResult.implausible``). The result document is
-``result.document``.
+read (``io.reader``; a camera log: ``identify.camera.flow``) → segment
+(``identify.segment.segment``) → the units checked (``identify.joints.checks``), the clock
+offset's start (``identify.segment.timing``) → per joint: pick the sweeps, decide the type, fit
+the axis robustly, bring it to the reference pose (``identify.joints.sweeps``) → the
+:class:`~dhlog.identify.stages.Session` → the analytic start: line geometry on those axes
+(``identify.read.extract``, seed 000) → the fit of the whole model to every sample with encoder
+values and all read off it (``identify.wholefit``: a
+:class:`~dhlog.identify.stages.ModelFit`) → the one frozen
+:class:`~dhlog.identify.stages.ProcessResult` (``_built``) → what makes it implausible
+(``identify.check.plausible.judge``) → the held-out logs (``identify.heldout``). The result
+document is ``result.document``.
 
 ``--analytic-only`` (and a log without encoders) stops at the analytic start, with its own
 propagated covariance. When some joints cannot be identified, what was identified is kept: their
 fits and axes, and the DH rows that only need identified axes; the joints at fault are named with
 the reason — unless the other samples (coupled moves, static poses) determine them from a start
-(``identify.start``: the nominal, or a coupled move's circle).
+(``identify.fit.start``: the nominal, or a coupled move's circle).
 """
 
 from __future__ import annotations

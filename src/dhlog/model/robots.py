@@ -51,6 +51,10 @@ class Robot:
     joint_names: tuple[str, ...] = ()
     #: the vendor description the entry's FK is tested against, and the test (empty: not checked)
     checked: str = ""
+    #: each joint's velocity limit (rad/s or m/s) and effort limit (N·m or N), as the vendor's
+    #: description gives them (empty: the library has none)
+    velocity_limits: FloatArray = field(default_factory=lambda: np.zeros(0))
+    effort_limits: FloatArray = field(default_factory=lambda: np.zeros(0))
 
     @property
     def n(self) -> int:
@@ -88,6 +92,16 @@ def _robot_from_entry(name: str, entry: dict[str, Any]) -> Robot:
         payload=float(entry.get("payload", 0.0)),
         joint_names=tuple(str(n) for n in entry.get("joint_names", [])),
         checked=str(entry.get("checked", "")),
+        velocity_limits=np.array(
+            [
+                rad(v) if t is JointType.REVOLUTE else v * scale
+                for t, v in zip(types, entry.get("velocity", []), strict=True)
+            ]
+            if "velocity" in entry
+            else [],
+            dtype=np.float64,
+        ),
+        effort_limits=np.asarray(entry.get("effort", []), dtype=np.float64),
     )
 
 

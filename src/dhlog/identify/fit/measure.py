@@ -30,7 +30,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, Protocol, TypeVar
+from typing import Any, Generic, Protocol, TypeVar
 
 import numpy as np
 from numpy.typing import NDArray
@@ -38,6 +38,7 @@ from numpy.typing import NDArray
 from dhlog.errors import DegenerateGeometryError
 from dhlog.geometry._checks import FloatArray, rotation_from_vector
 from dhlog.identify.fit.axismodel import AxisModel, ParameterLayout
+from dhlog.identify.fit.lm import levenberg_marquardt
 from dhlog.identify.fit.prediction import predict_columns
 from dhlog.identify.fit.whole import Determined, WholeFit
 from dhlog.model.dh import StandardDH
@@ -212,6 +213,27 @@ def _moved(
     return model.moved(delta[:k], layout, model.bases()), measurement.moved(delta[k:])
 
 
+@dataclass(frozen=True)
+class _Point(Generic[M]):
+    """A point of the fit: the model, the measurement model and their normal equations."""
+
+    model: AxisModel
+    measurement: M
+    normal: _Normal
+
+    @property
+    def H(self) -> FloatArray:
+        return self.normal[0]
+
+    @property
+    def g(self) -> FloatArray:
+        return self.normal[1]
+
+    @property
+    def cost(self) -> float:
+        return self.normal[2]
+
+
 def _levenberg_marquardt(
     model: AxisModel,
     measurement: M,
@@ -222,35 +244,23 @@ def _levenberg_marquardt(
     max_iterations: int,
     scale: float,
 ) -> tuple[AxisModel, M, _Normal, int]:
-    state = _normal(model, layout, measurement, data, limit)
-    determined = Determined.of(state[0], within)
-    lam = 1e-6
-    it = 0
-    while it < max_iterations:
-        it += 1
-        H, g, cost = state[0], state[1], state[2]
-        try:
-            delta = determined.solve(H, g, lam)
-        except np.linalg.LinAlgError:
-            lam *= 10.0
-            continue
-        if float(-(g @ delta)) < CONVERGED * scale**2:
-            model, measurement = _moved(model, measurement, layout, delta)
-            state = _normal(model, layout, measurement, data, limit)
-            break
-        trial, trial_m = _moved(model, measurement, layout, delta)
-        ts = _normal(trial, layout, trial_m, data, limit)
-        if ts[2] <= cost + 1e-12 * max(cost, 1e-300):
-            done = cost - ts[2] < 1e-12 * cost
-            model, measurement, state = trial, trial_m, ts
-            lam = max(lam / 10.0, 1e-12)
-            if done:
-                break
-        else:
-            lam *= 10.0
-            if lam > 1e8:
-                break
-    return model, measurement, state, it
+    start = _Point(model, measurement, _normal(model, layout, measurement, data, limit))
+    determined = Determined.of(start.H, within)
+
+    def trial(point: _Point[M], delta: FloatArray) -> _Point[M]:
+        moved, moved_m = _moved(point.model, point.measurement, layout, delta)
+        return _Point(moved, moved_m, _normal(moved, layout, moved_m, data, limit))
+
+    final, it = levenberg_marquardt(
+        start,
+        solve=determined.solve,
+        trial=trial,
+        settle=trial,  # the last, small step evaluated too
+        small=CONVERGED * scale**2,
+        floor=1e-300,
+        max_iterations=max_iterations,
+    )
+    return final.model, final.measurement, final.normal, it
 
 
 def fit_measured(

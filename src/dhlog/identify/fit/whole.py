@@ -21,6 +21,7 @@ from numpy.typing import NDArray
 from dhlog.errors import DegenerateGeometryError
 from dhlog.geometry._checks import FloatArray
 from dhlog.identify.fit.axismodel import AxisModel, ParameterLayout
+from dhlog.identify.fit.lm import levenberg_marquardt
 from dhlog.identify.fit.passes import Samples, accumulate, gradient
 from dhlog.identify.fit.prediction import orientation_residual, predict_orientation
 from dhlog.identify.segment.persample import SampleArray, blocks
@@ -147,8 +148,11 @@ class WholeFit:
     limit: float = math.inf
 
 
-@dataclass
+@dataclass(frozen=True)
 class _State:
+    """A point of the fit: the model, its bases, the normal equations, the truncated cost, the
+    inliers' count and χ², every sample's residual norm, the iterations that led to it."""
+
     model: AxisModel
     bases: list[tuple[FloatArray, FloatArray]]
     H: FloatArray
@@ -181,37 +185,32 @@ def _levenberg_marquardt(
             "each) for "
             f"{layout.size} parameters."
         )
-    lam = 1e-6
     determined = Determined.of(st.H, within)  # the samples' symmetries: the same along the way
-    for it in range(1, max_iterations + 1):
-        st.iterations = it
-        if progress is not None:
-            progress(min(it / 3.0, 0.95))
-        try:
-            delta = determined.solve(st.H, st.g, lam)
-        except np.linalg.LinAlgError:
-            lam *= 10.0
-            continue
-        predicted = float(-(st.g @ delta))  # expected decrease of the cost (Gauss–Newton)
-        if predicted < CONVERGED:  # a step far below σ: take it, keep H (same to first order)
-            st.model = st.model.moved(delta, layout, st.bases)
-            st.bases = st.model.bases()
-            break
-        trial = st.model.moved(delta, layout, st.bases)
-        trial_bases = trial.bases()
+
+    def trial(state: _State, delta: FloatArray) -> _State:
+        moved = state.model.moved(delta, layout, state.bases)
+        moved_bases = moved.bases()
         tnorms = scratch.zeros(m)
-        H, g, cost, count, chi2 = accumulate(trial, layout, trial_bases, data, limit, tnorms)
-        if cost <= st.cost + 1e-12 * max(st.cost, 1.0):
-            converged = st.cost - cost < 1e-12 * st.cost
-            st = _State(trial, trial_bases, H, g, cost, count, chi2, tnorms, it)
-            lam = max(lam / 10.0, 1e-12)
-            if converged:
-                break
-        else:
-            lam *= 10.0
-            if lam > 1e8:
-                break
-    return st
+        return _State(
+            moved, moved_bases, *accumulate(moved, layout, moved_bases, data, limit, tnorms), tnorms
+        )
+
+    def settle(state: _State, delta: FloatArray) -> _State:
+        """A step far below σ: taken, H kept (the same to first order)."""
+        moved = state.model.moved(delta, layout, state.bases)
+        return replace(state, model=moved, bases=moved.bases())
+
+    final, iterations = levenberg_marquardt(
+        st,
+        solve=determined.solve,
+        trial=trial,
+        settle=settle,
+        small=CONVERGED,
+        floor=1.0,
+        max_iterations=max_iterations,
+        progress=None if progress is None else (lambda it: progress(min(it / 3.0, 0.95))),
+    )
+    return replace(final, iterations=iterations)
 
 
 def _orientation_scale(

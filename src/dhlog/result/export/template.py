@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import math
 import xml.etree.ElementTree as ET
+from collections.abc import Mapping
 from pathlib import Path
 
 import numpy as np
@@ -14,12 +15,12 @@ from dhlog.io.dhfile import DHFileError
 from dhlog.io.safetext import printable, xml_comment_text
 from dhlog.model.dh import JointType
 from dhlog.result.export.camera import add_camera_links, camera_link_names, read_hand_eye
+from dhlog.result.export.expand import read_description
 from dhlog.result.export.source import load_table
 from dhlog.result.export.templatefile import (
     MOVING,
     TemplateError,
     TemplateFrames,
-    read_template,
     template_joints,
 )
 from dhlog.result.export.urdf import origin_element
@@ -54,9 +55,16 @@ def _tz(t: float) -> FloatArray:
     return _h(p=np.array([0.0, 0.0, t]))
 
 
-def urdf_from_template(result_path: str | Path, template_path: str | Path) -> str:
-    """The template URDF with the result's kinematics: the template's joints matched by name get
-    calibrated origins; links, meshes, inertials, limits and every other element stay.
+def urdf_from_template(
+    result_path: str | Path,
+    template_path: str | Path,
+    *,
+    joint_names: tuple[str, ...] = (),
+    xacro_args: Mapping[str, str] | None = None,
+) -> str:
+    """The template URDF (a xacro expanded first with ``xacro_args``: :mod:`.expand`) with the
+    result's kinematics: the template's joints matched by name get calibrated origins; links,
+    meshes, inertials, limits and every other element stay.
 
     Each link keeps the template's frame as closely as the calibration allows: its joint axis
     becomes the measured axis, its origin the nearest point on it, its turn about the axis the
@@ -66,18 +74,37 @@ def urdf_from_template(result_path: str | Path, template_path: str | Path) -> st
     are added as the links ``dhlog_measurement`` and ``dhlog_target``, a camera calibration's
     cameras and board as ``dhlog_<camera>_link``, ``dhlog_<camera>_optical_frame`` and
     ``dhlog_calibration_board`` (:mod:`.camera`) on the template's root (eye-to-hand) or last
-    link (eye-in-hand). Joint zero = encoder zero.
+    link (eye-in-hand). Joint zero = encoder zero. ``joint_names``: the names to match the
+    template's joints by, in the chain's order (the library robot's, as its ROS 2 driver
+    publishes them); default the result's.
     Only the ``<joint>`` elements of ``<robot>`` itself are changed (those of a
     ``<transmission>`` name joints, they are not joints).
     """
+    robot, src = read_description(template_path, xacro_args)
+    calibrate_template(result_path, robot, src, joint_names=joint_names)
+    return '<?xml version="1.0"?>\n' + ET.tostring(robot, encoding="unicode") + "\n"
+
+
+def calibrate_template(
+    result_path: str | Path,
+    robot: ET.Element,
+    src: str,
+    *,
+    joint_names: tuple[str, ...] = (),
+) -> list[str]:
+    """:func:`urdf_from_template` on a template already read: ``robot`` (its ``<robot>``
+    element) edited in place; ``src`` the template's name in messages. Returns the names of the
+    joints whose origins were calibrated (all but the first)."""
     from scipy.optimize import least_squares
 
-    src = printable(str(template_path))
     data, table, model = load_table(result_path)
     hand_eye = read_hand_eye(data, printable(str(result_path)))
-    robot = read_template(template_path)
     template = template_joints(robot, src)
-    names = list(model.joint_names)
+    names = list(joint_names or model.joint_names)
+    if len(names) != table.n:
+        raise TemplateError(
+            src, f"{len(names)} joint names were given to match it by, for {table.n} joints."
+        )
     if len(set(names)) != len(names):
         raise DHFileError(
             printable(str(result_path)),
@@ -161,10 +188,14 @@ def urdf_from_template(result_path: str | Path, template_path: str | Path) -> st
     for i in range(1, n):
         parent = W[i - 1] @ np.linalg.inv(L[i - 1]) @ Lp[i]  # rigid in link i-1
         element = by_name[names[i]]
-        for old in element.findall("origin"):
+        olds = element.findall("origin")
+        at = list(element).index(olds[0]) if olds else 0  # where the template has it
+        for old in olds:
             element.remove(old)
         origin_at = origin_element(np.linalg.inv(parent) @ W[i])
-        element.insert(0, origin_at)
+        if olds:
+            origin_at.tail = olds[0].tail
+        element.insert(at, origin_at)
     target = B @ F[n] @ np.r_[model.tool_point, 1.0]
     last = np.linalg.inv(W[n - 1]) @ target
     if len(robot):
@@ -219,4 +250,4 @@ def urdf_from_template(result_path: str | Path, template_path: str | Path) -> st
     )
     note.tail = "\n  "
     robot.insert(0, note)
-    return '<?xml version="1.0"?>\n' + ET.tostring(robot, encoding="unicode") + "\n"
+    return names[1:]

@@ -63,6 +63,26 @@ class _TemplateBuilder(ET.TreeBuilder):
         )
 
 
+def parse_xml(raw: bytes | str, src: str) -> ET.Element:
+    """An untrusted XML text's root (with its comments): no DOCTYPE (no entity is ever expanded
+    or fetched), bounded nesting; one line naming ``src`` otherwise."""
+    parser = ET.XMLParser(target=_TemplateBuilder())
+    try:
+        parser.feed(raw)
+        return parser.close()
+    except _RefusedError as exc:
+        raise TemplateError(src, f"cannot be used as a template: {exc}; {_XACRO}.") from None
+    except ET.ParseError as exc:
+        raise TemplateError(src, f"is not well-formed XML ({exc}); {_XACRO}.") from None
+    except (ValueError, LookupError) as exc:  # an encoding the parser does not know
+        raise TemplateError(src, f"cannot be read as XML ({exc}).") from None
+
+
+def read_xml(path: str | Path) -> ET.Element:
+    """An untrusted XML file's root: its size before it is parsed, then :func:`parse_xml`."""
+    return parse_xml(read_limited(path, MAX_TEMPLATE_BYTES, "URDF template"), printable(str(path)))
+
+
 def read_template(template_path: str | Path) -> ET.Element:
     """A URDF template's ``<robot>`` element (with its comments), read as untrusted input: its
     size before it is parsed, no DOCTYPE (no entity is ever expanded or fetched), bounded

@@ -13,6 +13,13 @@ zero offsets are in the joint origins). An encoder scale (``--fit-encoder-scales
 in a URDF and is refused. A camera calibration's result adds each camera's ``<name>_link`` and
 ``<name>_optical_frame`` and the board's ``calibration_board`` as fixed links on ``base_link`` or
 ``flange`` (:mod:`.camera`).
+
+Given the library robot (``--nominal`` or ``--limits-from``), the URDF is that robot's: its name,
+the joint names its ROS 2 driver publishes, its position limits and, where the library has them,
+its velocity and effort limits. URDF's ``<limit>`` must carry ``effort`` and ``velocity``
+(urdfdom refuses a joint limit without them); where they are not known they are written 0 with a
+comment that says so on the joint, because consumers read 0 differently: ros2_control's joint
+limits from the URDF hold a joint of velocity limit 0 still, MoveIt reads it as no velocity bound.
 """
 
 from __future__ import annotations
@@ -27,6 +34,7 @@ from dhlog.geometry._checks import FloatArray, roll_pitch_yaw
 from dhlog.io.dhfile import DHFileError
 from dhlog.io.safetext import printable, xml_comment_text
 from dhlog.model.dh import HayatiDH, JointType, StandardDH
+from dhlog.model.robots import Robot
 from dhlog.result.export.camera import add_camera_links, read_hand_eye
 from dhlog.result.export.source import load_table
 
@@ -86,19 +94,47 @@ def _without_offsets(table: StandardDH) -> StandardDH:
     return StandardDH(table.joint_types, theta, d, table.a, table.alpha)
 
 
+def unknown_dynamics(robot: Robot | None, which: str = "velocity and effort limits") -> str:
+    """A joint's comment where its velocity or effort limit (``which``) is not known."""
+    why = (
+        f"the library has none for {printable(robot.name)}"
+        if robot is not None
+        else "no library robot given to export as its nominal or limits-from"
+    )
+    return (
+        f" {which} not known to dhlog ({why}): written 0; ros2_control's joint limits hold a "
+        "joint of velocity 0 still, MoveIt reads 0 as no velocity bound: set the robot's values "
+    )
+
+
+def _robot_of(robot: Robot | None, n: int, source: str) -> Robot | None:
+    """The library robot, refused when its joint count is not the result's."""
+    if robot is not None and robot.n != n:
+        raise DHFileError(
+            source,
+            f"has {n} joints, but {printable(robot.name)} has {robot.n}; give the library robot "
+            "this result is of (--nominal, --limits-from).",
+        )
+    return robot
+
+
 def urdf_document(
     result_path: str | Path,
     *,
     name: str | None = None,
     limits: FloatArray | None = None,
     zero_offsets: str = "origins",
+    robot: Robot | None = None,
 ) -> str:
     """The URDF text of a result (or DH) JSON; ``limits`` (n, 2) the joint limits (rad, m;
-    default ±π and ±1 m). ``zero_offsets``: ``origins`` (joint zero = encoder zero, the
-    offsets in the joint origins) or ``calibration`` (the origins without them; each joint's
-    ``<calibration rising="…"/>`` holds its offset: joint position = encoder value + rising)."""
+    default the ``robot``'s, else ±π and ±1 m). ``zero_offsets``: ``origins`` (joint zero =
+    encoder zero, the offsets in the joint origins) or ``calibration`` (the origins without them;
+    each joint's ``<calibration rising="…"/>`` holds its offset: joint position = encoder value +
+    rising). ``robot``: the library robot the result is of — the URDF takes its name, its joint
+    names (as its ROS 2 driver publishes them) and its position, velocity and effort limits."""
     source = str(result_path)
     data, table, model = load_table(result_path)
+    robot = _robot_of(robot, table.n, printable(source))
     hand_eye = read_hand_eye(data, printable(source))
     if zero_offsets not in ("origins", "calibration"):
         raise ValueError(f"zero_offsets must be origins or calibration, not {zero_offsets!r}")
@@ -108,6 +144,8 @@ def urdf_document(
     if zero_offsets == "calibration":
         table = _without_offsets(table)
     n = table.n
+    if limits is None and robot is not None:
+        limits = robot.limits
     if limits is None:
         limits = np.array(
             [
@@ -116,14 +154,28 @@ def urdf_document(
             ]
         )
     limits = _limits(limits, n, printable(source))
-    names = list(model.joint_names)
+    names = list(
+        robot.joint_names if robot is not None and robot.joint_names else model.joint_names
+    )
     if len(set(names)) != len(names):
         names = [f"joint_{i + 1}" for i in range(n)]
-    robot_name = printable(name or Path(source).name.split(".")[0]) or "robot"
-    robot = ET.Element("robot", name=robot_name)
-    ET.SubElement(robot, "link", name="measurement")
-    ET.SubElement(robot, "link", name="base_link")
-    fixed = ET.SubElement(robot, "joint", name="base_in_measurement", type="fixed")
+    fallback = robot.name if robot is not None else Path(source).name.split(".")[0]
+    robot_name = printable(name or fallback) or "robot"
+    velocity = robot.velocity_limits if robot is not None else np.zeros(0)
+    effort = robot.effort_limits if robot is not None else np.zeros(0)
+    known_velocity, known_effort = len(velocity) == n, len(effort) == n
+    given = " and ".join(
+        what for what, known in (("velocity", known_velocity), ("effort", known_effort)) if known
+    )
+    unknown = " and ".join(
+        what
+        for what, known in (("velocity", known_velocity), ("effort", known_effort))
+        if not known
+    )
+    urdf = ET.Element("robot", name=robot_name)
+    ET.SubElement(urdf, "link", name="measurement")
+    ET.SubElement(urdf, "link", name="base_link")
+    fixed = ET.SubElement(urdf, "joint", name="base_in_measurement", type="fixed")
     ET.SubElement(fixed, "parent", link="measurement")
     ET.SubElement(fixed, "child", link="base_link")
     _origin(fixed, model.T_base)
@@ -131,23 +183,31 @@ def urdf_document(
     parent = "base_link"
     for i in range(n):
         child = f"link_{i + 1}"
-        ET.SubElement(robot, "link", name=child)
+        ET.SubElement(urdf, "link", name=child)
         kind = "revolute" if table.joint_types[i] is JointType.REVOLUTE else "prismatic"
-        joint = ET.SubElement(robot, "joint", name=names[i], type=kind)
+        joint = ET.SubElement(urdf, "joint", name=names[i], type=kind)
         ET.SubElement(joint, "parent", link=parent)
         ET.SubElement(joint, "child", link=child)
         _origin(joint, np.eye(4) if i == 0 else rows[i - 1])
         ET.SubElement(joint, "axis", xyz="0 0 1")
         lo, hi = limits[i]
         ET.SubElement(
-            joint, "limit", lower=f"{lo:.17g}", upper=f"{hi:.17g}", effort="0", velocity="0"
+            joint,
+            "limit",
+            lower=f"{lo:.17g}",
+            upper=f"{hi:.17g}",
+            effort=f"{effort[i]:.17g}" if known_effort else "0",
+            velocity=f"{velocity[i]:.17g}" if known_velocity else "0",
         )
+        if unknown:
+            told = unknown_dynamics(robot, f"{unknown} limit" + ("s" if " and " in unknown else ""))
+            joint.append(ET.Comment(xml_comment_text(told)))
         if zero_offsets == "calibration":
             ET.SubElement(joint, "calibration", rising=f"{offsets[i]:.17g}")
         parent = child
     for link, origin in (("flange", rows[n - 1]), ("tool0", None)):
-        ET.SubElement(robot, "link", name=link)
-        joint = ET.SubElement(robot, "joint", name=f"{link}_fixed", type="fixed")
+        ET.SubElement(urdf, "link", name=link)
+        joint = ET.SubElement(urdf, "joint", name=f"{link}_fixed", type="fixed")
         ET.SubElement(joint, "parent", link=parent)
         ET.SubElement(joint, "child", link=link)
         if origin is None:
@@ -156,7 +216,7 @@ def urdf_document(
         _origin(joint, origin)
         parent = link
     if hand_eye is not None:
-        add_camera_links(robot, hand_eye, _origin)
+        add_camera_links(urdf, hand_eye, _origin)
     comment = ET.Comment(
         xml_comment_text(
             " written by dhlog export from "
@@ -169,6 +229,12 @@ def urdf_document(
             )
             + "frame base_link = DH frame 1, flange = frame n+1, tool0 = the measured target"
             + (
+                f"; joint names and position limits of the library robot {robot.name} "
+                f"({robot.title})" + (f", {given} limits its description's" if given else "")
+                if robot is not None
+                else ""
+            )
+            + (
                 "; <camera>_optical_frame = the calibrated camera frame (OpenCV's: x right, y "
                 "down, z forward; REP 103's optical frame), <camera>_link the same origin in "
                 "body axes (x forward, y left, z up), calibration_board the board's corner frame "
@@ -177,6 +243,6 @@ def urdf_document(
             )
         )
     )
-    robot.insert(0, comment)
-    ET.indent(robot)
-    return '<?xml version="1.0"?>\n' + ET.tostring(robot, encoding="unicode") + "\n"
+    urdf.insert(0, comment)
+    ET.indent(urdf)
+    return '<?xml version="1.0"?>\n' + ET.tostring(urdf, encoding="unicode") + "\n"
