@@ -46,6 +46,7 @@ from concurrent.futures import ProcessPoolExecutor
 import numpy as np
 
 from dhlog.identify.fit.axismodel import AxisModel
+from dhlog.identify.fit.data import FitData, FitOptions
 from dhlog.identify.fit.prediction import predict
 from dhlog.identify.fit.whole import fit_whole_model
 from dhlog.identify.joints.sweeps import samples_with_encoders
@@ -150,7 +151,7 @@ def one(
     ref = default.reference_pose
     truth = AxisModel.of_table(session.table, ref, session.tool_point, session.T_measurement_base)
     _, Qs, Ps = samples_with_encoders(default.segmentation)
-    limit = fit_whole_model(truth, Qs, Ps, noise=NoiseModel(), sigma=float(cfg.noise))
+    limit = fit_whole_model(truth, FitData(Qs, Ps), FitOptions(NoiseModel(), float(cfg.noise)))
     got, _ = predict(limit.model, Q)
     return error(default), error(analytic), np.sum((got - want) ** 2, axis=1), before
 
@@ -237,7 +238,7 @@ def beyond(job: tuple[str, str, int, int]) -> dict[str, object]:
     ref = auto.reference_pose
     truth = AxisModel.of_table(table, ref, session.tool_point, T, terms=terms)
     _, Qs, Ps = samples_with_encoders(auto.segmentation)
-    limit = fit_whole_model(truth, Qs, Ps, noise=NoiseModel(), sigma=float(cfg.noise))
+    limit = fit_whole_model(truth, FitData(Qs, Ps), FitOptions(NoiseModel(), float(cfg.noise)))
     got, _ = predict(limit.model, Q)
     chosen = auto.selection.chosen.name if auto.selection is not None else "none"
     return {

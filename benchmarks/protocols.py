@@ -35,6 +35,7 @@ import numpy as np
 
 from dhlog.identify.check.validate import fk_prediction_std
 from dhlog.identify.fit.axismodel import AxisModel
+from dhlog.identify.fit.data import FitData, FitOptions
 from dhlog.identify.fit.prediction import predict
 from dhlog.identify.fit.samples import measured_rotations
 from dhlog.identify.fit.whole import fit_whole_model
@@ -125,7 +126,9 @@ def one(job: tuple[str, int, int, int]) -> dict[str, float]:
     )
     # the limit weighs positions by what scatters them: the tracker and the unmodelled error
     sigma = math.hypot(cfg.noise, cfg.model_error)
-    limit = fit_whole_model(truth, Qs, Ps, noise=NoiseModel(), sigma=sigma, rotations=rotations)
+    limit = fit_whole_model(
+        truth, FitData(Qs, Ps, rotations=rotations), FitOptions(NoiseModel(), sigma)
+    )
     best, _ = predict(limit.model, Q)
     out = {
         "default": float(np.sum((got - want) ** 2)),

@@ -11,6 +11,7 @@ import pytest
 
 from dhlog.identify.check.validate import fk_prediction_std
 from dhlog.identify.fit.axismodel import AxisModel, ParameterLayout
+from dhlog.identify.fit.data import FitData, FitOptions
 from dhlog.identify.fit.prediction import predict
 from dhlog.identify.fit.whole import fit_whole_model
 from dhlog.identify.model.parked import PARKED_REASON
@@ -147,7 +148,7 @@ def test_from_a_start_a_millimetre_off_the_fit_reaches_the_truth_within_its_sigm
     start = truth.moved(
         np.random.default_rng(3).normal(size=layout.size) * 1e-3, layout, truth.bases()
     )
-    fit = fit_whole_model(start, Q, P.to_numpy(), noise=NoiseModel(), sigma=2e-5)
+    fit = fit_whole_model(start, FitData(Q, P.to_numpy()), FitOptions(NoiseModel(), 2e-5))
     dof = 3 * fit.n_points - layout.size
     assert abs(fit.chi2_dof - 1.0) < 4 * math.sqrt(2 / dof)
     # the truth in the fit's local coordinates: the first-order step from the fit to the truth

@@ -10,6 +10,7 @@ import math
 import numpy as np
 
 from dhlog.identify.fit.axismodel import AxisModel
+from dhlog.identify.fit.data import FitData, FitOptions
 from dhlog.identify.fit.measure import PointMeasurement, Points, fit_measured, residuals, rms
 from dhlog.identify.fit.prediction import predict
 from dhlog.identify.fit.whole import fit_whole_model
@@ -36,7 +37,7 @@ def test_point_measurement_is_the_trackers_fit() -> None:
     ref = np.zeros(robot.n)
     start = AxisModel.of_table(robot.table, ref, tool, np.eye(4))
     generic = fit_measured(start, PointMeasurement(), Points(Q, P))
-    tracker = fit_whole_model(start, Q, P, noise=NoiseModel(), sigma=SIGMA)
+    tracker = fit_whole_model(start, FitData(Q, P), FitOptions(NoiseModel(), SIGMA))
     Qr = rng.uniform(robot.limits[:, 0], robot.limits[:, 1], (200, robot.n))
     a, Ja = predict(generic.whole.model, Qr, generic.whole.layout, generic.whole.model.bases())
     b, Jb = predict(tracker.model, Qr, tracker.layout, tracker.model.bases())

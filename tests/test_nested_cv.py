@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from dhlog.identify.check.holdout import pose_groups
+from dhlog.identify.fit.data import FitData, FitOptions
 from dhlog.identify.fit.leaveout import fold_of_poses, linearise, pose_means
 from dhlog.identify.fit.whole import fit_whole_model
 from dhlog.identify.joints.sweeps import samples_with_encoders
@@ -61,9 +62,9 @@ def test_the_linearised_leave_out_is_the_refit(bending) -> None:  # type: ignore
     assert whole is not None
     _, Q, P = samples_with_encoders(result.segmentation)
     Q, P = Q[:], P[:]
-    options = {"noise": NoiseModel(), "sigma": result.sigma / math.sqrt(whole.chi2_dof)}
+    options = FitOptions(NoiseModel(), result.sigma / math.sqrt(whole.chi2_dof))
     box = np.random.default_rng(0).uniform(Q.min(axis=0), Q.max(axis=0), (50, Q.shape[1]))
-    lin = linearise(whole, Q, P, box, **options)  # type: ignore[arg-type]
+    lin = linearise(whole, FitData(Q, P), box, options)
     groups = pose_groups(Q)
     fold = fold_of_poses(groups, 5, 0)
     for k in range(5):
@@ -71,7 +72,7 @@ def test_the_linearised_leave_out_is_the_refit(bending) -> None:  # type: ignore
         A, g, _ = lin.normal(train)
         z, _ = lin.step(A, g)
         _, linear = pose_means(groups[test], lin.residuals(z, test))
-        refit = fit_whole_model(whole.model, Q, P, keep=train, **options)  # type: ignore[arg-type]
+        refit = fit_whole_model(whole.model, FitData(Q, P, keep=train), options)
         from dhlog.identify.fit.prediction import predict
 
         pred, _ = predict(refit.model, Q[test])
@@ -110,32 +111,14 @@ def test_the_selection_in_a_fold_is_the_selection_of_its_poses(bending) -> None:
     _, Q, P = samples_with_encoders(result.segmentation)
     Q, P = Q[:], P[:]
     fold = fold_of_poses(pose_groups(Q), 5, 0)
-    options = {
-        "noise": NoiseModel(),
-        "fit_scales": False,
-        "sample_cov": None,
-        "which": None,
-        "rotations": None,
-        "sigma_rotation": None,
-        "rates": None,
-    }
-    sigma = result.sigma / math.sqrt(whole.chi2_dof)
+    options = FitOptions(NoiseModel(), result.sigma / math.sqrt(whole.chi2_dof))
     geometric = fit_whole_model(
         sel.candidates[0].fit.model if sel.candidates[0].fit else whole.model,  # type: ignore[union-attr]
-        Q,
-        P,
-        sigma=sigma,
-        keep=fold != 0,
-        **options,  # type: ignore[arg-type]
+        FitData(Q, P, keep=fold != 0),
+        options,
     )
     alone = select_model(
-        "auto",
-        geometric,
-        Q,
-        P,
-        sigma=sigma,
-        options=options,
-        gravity=default_gravity(geometric),
+        "auto", geometric, FitData(Q, P), options, gravity=default_gravity(geometric)
     )
     assert alone.chosen.families != ()
     assert sel.fold_choices[0] == alone.chosen.name

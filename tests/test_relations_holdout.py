@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 from dhlog.identify.fit.axismodel import AxisModel
+from dhlog.identify.fit.data import FitData, FitOptions
 from dhlog.identify.fit.prediction import predict
 from dhlog.identify.fit.whole import fit_whole_model
 from dhlog.identify.joints.sweeps import samples_with_encoders
@@ -61,7 +62,7 @@ def _fk_rms(session: Session, result: ProcessResult) -> tuple[float, float]:
     got = fk_point(ex.standard, Q, ex.tool_point, T_base=ex.T_measurement_base)
     truth = AxisModel.of_table(session.table, result.reference_pose, tool, T)
     _, Qs, Ps = samples_with_encoders(result.segmentation)
-    limit = fit_whole_model(truth, Qs, Ps, noise=NoiseModel(), sigma=NOISE)
+    limit = fit_whole_model(truth, FitData(Qs, Ps), FitOptions(NoiseModel(), NOISE))
     best, _ = predict(limit.model, Q)
     rms = [math.sqrt(float(np.mean(np.sum((x - want) ** 2, axis=1)))) for x in (got, best)]
     return rms[0], rms[1]
@@ -127,7 +128,7 @@ def test_the_linearised_hold_is_the_first_order_of_constrain_pairs(
     whole = free.whole
     assert whole is not None and not whole.constrained
     _, Q, P = samples_with_encoders(free.segmentation)
-    d = linearised(whole, Q, P, sigma=NOISE, options={"noise": free.noise})
+    d = linearised(whole, FitData(Q, P), FitOptions(free.noise, NOISE))
     assert d.pick.size == Q.shape[0]  # 3 000 samples: no stride
     A, c0 = pair_constraints(whole, [2], [])
     every = np.ones(Q.shape[0], dtype=bool)
@@ -157,7 +158,7 @@ def test_the_decision_inside_a_fold_reads_its_training_poses_alone(
     whole = free.whole
     assert whole is not None
     _, Q, P = samples_with_encoders(free.segmentation)
-    d = linearised(whole, Q, P, sigma=NOISE, options={"noise": free.noise})
+    d = linearised(whole, FitData(Q, P), FitOptions(free.noise, NOISE))
     candidates = {2: "parallel"}
     everything = decide_pairs(d, candidates)
     assert [(t.pair, t.held) for t in everything] == [(2, False)]

@@ -30,6 +30,7 @@ from dhlog.identify.check.holdout import Holdout, cross_validate
 from dhlog.identify.check.named import name_outliers, sample_names
 from dhlog.identify.check.validate import check_residual, table_gap, validate_samples
 from dhlog.identify.fit.axismodel import AxisModel
+from dhlog.identify.fit.data import FitData, FitOptions
 from dhlog.identify.fit.leaveout import fold_of_poses, pose_groups
 from dhlog.identify.fit.prediction import predict
 from dhlog.identify.fit.samples import (
@@ -88,23 +89,16 @@ SWEPT_SHARE = 0.5
 
 @dataclass(frozen=True)
 class _Clocked:
-    """The fit as the clock left it: the fit, the samples (joined again when the offset
-    moved), the weights' inputs (the options every later fit takes), the noise's σ (m) and
-    model, and the clock."""
+    """The fit as the clock left it: the fit, the segmentation and its rows the samples are
+    (joined again when the offset moved), the samples and weights every later fit takes, and
+    the clock."""
 
     whole: WholeFit
     segmentation: Segmentation
     rows: NDArray[np.intp]
-    Q: PerSample
-    P: PerSample
-    which: NDArray[np.intp] | None
-    rotations: Any
-    sample_cov: Any
-    rates: PerSample | None
+    data: FitData
+    options: FitOptions
     timing: Timing | None
-    options: dict[str, Any]
-    sigma: float
-    noise: NoiseModel
 
 
 def identify_whole(
@@ -127,9 +121,10 @@ def identify_whole(
     types = tuple(j.type for j in joints)
     assert session.target is not None and all(t is not None for t in types)
     clocked = _fit_clocked(session, analytic, request.fit_scales, stage)
-    whole, seg, rows, Q, P = clocked.whole, clocked.segmentation, clocked.rows, clocked.Q, clocked.P
-    which, rotations, rates = clocked.which, clocked.rotations, clocked.rates
-    sample_cov, options, sigma = clocked.sample_cov, clocked.options, clocked.sigma
+    whole, seg, rows, data = clocked.whole, clocked.segmentation, clocked.rows, clocked.data
+    Q, P, which, rotations, rates = data.Q, data.P, data.which, data.rotations, data.rates
+    assert isinstance(Q, PerSample)  # the session's samples, read a block at a time
+    options, sigma = clocked.options, clocked.options.sigma
     outer = None  # --holdout K: each sample's fold, the same for the selection and the check
     if request.folds > 1:
         outer = fold_of_poses(pose_groups(Q), request.folds, 0)
@@ -143,9 +138,7 @@ def identify_whole(
     whole, selection, said = beyond_geometry(
         model_request,
         whole,
-        Q,
-        P,
-        sigma,
+        data,
         options,
         folds=request.folds,
         names=[j.name for j in joints],
@@ -153,10 +146,11 @@ def identify_whole(
     )
     notes.extend(said)
     whole, sample_cov, noise, said = with_model_error(
-        whole, Q, P, sample_cov, clocked.noise, which, rates, rotations
+        whole, Q, P, data.sample_cov, options.noise, which, rates, rotations
     )
     notes.extend(said)
-    final = {**options, "noise": noise, "sample_cov": sample_cov}  # the final fit's weights
+    # the final fit's samples and weights: the model-error component added
+    data, final = replace(data, sample_cov=sample_cov), replace(options, noise=noise)
     whiten = whitening(noise, sample_cov, sigma)
     squares = None  # the whitened cost of the fit's inliers, where the design effect found it
     if rotations is None:
@@ -165,7 +159,7 @@ def identify_whole(
 
     def refit_terms(model: AxisModel) -> WholeFit:
         """The fit again from ``model`` (lumps merged), weighted and scaled as the final fit."""
-        fit = fit_whole_model(model, Q, P, sigma=sigma, **final)
+        fit = fit_whole_model(model, data, final)
         if rotations is None:
             fit, _, _ = pose_clustered(fit, Q, P, whiten, which, rates)
         return fit
@@ -182,11 +176,9 @@ def identify_whole(
         nominal,
         request.tolerances["angle_tol"],
         request.tolerances["distance_tol"],
-        Q,
-        P,
+        data,
+        final,
         parallel_sigma=request.parallel_sigma,
-        sigma=sigma,
-        options=final,
     )
     notes.extend(said)
 
@@ -223,7 +215,7 @@ def identify_whole(
 
     def refit(model: Any, within: FloatArray) -> Any:
         """The fit again from ``model`` along ``within`` only, weighted as the final fit."""
-        return fit_whole_model(model, Q, P, sigma=sigma, within=within, **final).model
+        return fit_whole_model(model, data, final, within=within).model
 
     found = whole_uncertainty(whole, base, extract, ex, ref, nominal_table)
     if may_hold(found.shown_std, h_rows):
@@ -270,7 +262,7 @@ def identify_whole(
     holdout: tuple[Holdout, ...] = ()
     if request.folds > 1 and outer is not None:
         stage("cross-validating", 0.0)
-        final_clock = replace(clocked, segmentation=seg, sample_cov=sample_cov, noise=noise)
+        final_clock = replace(clocked, data=data, options=final)
         check = _cross_validation(whole, clustered, session, request, final_clock, outer, selection)
         holdout = (_with_notes(check, whole, session, final_clock, names, selection),)
     none = np.zeros(0)
@@ -340,25 +332,15 @@ def _fit_clocked(
     timing = session.timing
     clocked = timing is not None and timing.source == "estimated"
     speeds = JointRates(seg.encoders) if clocked and seg.encoders is not None else None
+    options = FitOptions(noise, sigma, sigma_rotation=noise.orientation, fit_scales=fit_scales)
     for attempt in range(MAX_REJOINS + 1):
         rates = None if speeds is None else _rates(speeds, seg, rows)
-        options: dict[str, Any] = {
-            "noise": noise,
-            "fit_scales": fit_scales,
-            "sample_cov": sample_cov,
-            "which": which,
-            "rotations": rotations,
-            "sigma_rotation": noise.orientation,
-            "rates": rates,
-        }
+        data = FitData(Q, P, sample_cov, which, rotations, rates)
         whole = fit_whole_model(
             start,
-            Q,
-            P,
-            sigma=sigma,
-            threshold=math.inf if analytic is None else 5.0,
+            data,
+            replace(options, threshold=math.inf if analytic is None else 5.0),
             progress=lambda f: stage("identifying", 0.1 + 0.9 * f),
-            **options,
         )
         if analytic is None:
             # started from the nominal (or a coupled move's circle): the start misses the
@@ -366,8 +348,8 @@ def _fit_clocked(
             # sample an outlier; judge them at its optimum, on the noise's own scale
             if not fit_sigmas:
                 norms = residual_norms(whole.model, Q, P, which=which, rates=rates)
-                sigma = max(float(np.median(norms)) / CHI3_MEDIAN, 1e-9)
-            whole = fit_whole_model(whole.model, Q, P, sigma=sigma, **options)
+                options = replace(options, sigma=max(float(np.median(norms)) / CHI3_MEDIAN, 1e-9))
+            whole = fit_whole_model(whole.model, data, options)
         if not clocked or timing is None:
             break
         at = whole.layout.clock_at
@@ -384,9 +366,7 @@ def _fit_clocked(
         rotations = measured_rotations(seg, rows)
         sample_cov = sample_covariance(seg, rows)
         start = replace(whole.model, clock=0.0)
-    return _Clocked(
-        whole, seg, rows, Q, P, which, rotations, sample_cov, rates, timing, options, sigma, noise
-    )
+    return _Clocked(whole, seg, rows, data, options, timing)
 
 
 def _cross_validation(
@@ -401,8 +381,7 @@ def _cross_validation(
     """``--holdout K``: the K-fold cross-validation of the whole procedure over the session's
     poses (:func:`~dhlog.identify.check.holdout.cross_validate`), each fold held to the pairs
     its own training poses hold parallel (decided again there unless ``parallel_sigma`` says)."""
-    nominal, Q, P = session.nominal, fit.Q, fit.P
-    final = {**fit.options, "noise": fit.noise, "sample_cov": fit.sample_cov}
+    nominal = session.nominal
     held_in_fold: list[dict[int, str]] = []  # the pairs each fold holds, from its poses
     if request.parallel_sigma is None:
         held_in_fold = fold_holds(
@@ -410,12 +389,10 @@ def _cross_validation(
             nominal,
             request.tolerances["angle_tol"],
             request.tolerances["distance_tol"],
-            Q,
-            P,
+            fit.data,
+            fit.options,
             outer=outer,
             folds=request.folds,
-            sigma=fit.sigma,
-            options=final,
         )
 
     def refine(fitted: WholeFit, k: int) -> WholeFit:
@@ -428,20 +405,10 @@ def _cross_validation(
 
     check = cross_validate(
         whole,
-        Q,
-        P,
+        fit.data,
+        replace(fit.options, fit_scales=request.fit_scales),
         request.folds,
-        fit_options={
-            "noise": fit.noise,
-            "sigma": fit.sigma,
-            "fit_scales": request.fit_scales,
-            "sample_cov": fit.sample_cov,
-            "rotations": fit.rotations,
-            "sigma_rotation": fit.noise.orientation,
-            "rates": fit.rates,
-        },
         nominal=None if nominal is None else (nominal.table, nominal.T_base, nominal.tool_point),
-        which=fit.which,
         fold=outer,
         starts=() if selection is None else selection.fold_starts,
         refine=refine,
@@ -474,7 +441,7 @@ def _with_notes(
     pose_names = check.pose_names
     if check.pose_samples is not None and session.log.point_ids is not None:
         pose_names = [names[i] for i in check.pose_samples.tolist()]
-    check = replace(check, pose_names=pose_names, range_sd=range_sd(whole, fit.Q))
+    check = replace(check, pose_names=pose_names, range_sd=range_sd(whole, fit.data.Q))
     assert check.range_sd is not None
     if check.expected_rms is not None and check.range_sd > 0.5 * check.calibrated.rms:
         notes.append(

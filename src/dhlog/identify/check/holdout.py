@@ -29,6 +29,7 @@ from numpy.typing import NDArray
 
 from dhlog.geometry._checks import FloatArray
 from dhlog.identify.fit.axismodel import AxisModel
+from dhlog.identify.fit.data import FitData, FitOptions
 from dhlog.identify.fit.leaveout import (
     fold_of_poses,
     pose_groups,
@@ -142,20 +143,18 @@ def _pose_errors(
 
 def cross_validate(
     whole: WholeFit,
-    Q: SampleArray,
-    P: SampleArray,
+    data: FitData,
+    options: FitOptions,
     folds: int,
     *,
-    fit_options: dict[str, object],
     nominal: tuple[StandardDH, FloatArray, FloatArray] | None = None,
-    which: NDArray[np.int64] | None = None,
     seed: int = 0,
     fold: NDArray[np.int64] | None = None,
     starts: Sequence[AxisModel] = (),
     refine: Callable[[WholeFit, int], WholeFit] | None = None,
 ) -> Holdout:
-    """K-fold cross-validation over poses (see the module docstring). ``fit_options`` are the
-    keyword arguments of the full fit (noise, σ, per-sample covariance, orientations, …);
+    """K-fold cross-validation over poses (see the module docstring) of the fit of ``data``
+    weighted by ``options`` (noise, σ, per-sample covariance, orientations, …);
     ``nominal`` = (table, T_base, tool point) to place on each fold's fitted poses. Only the
     full fit's inliers are used; with several targets only the primary one is scored.
     ``fold`` (m,): each sample's fold (default: :func:`fold_of_poses` of its pose, seeded);
@@ -164,6 +163,7 @@ def cross_validate(
     run would finish it from those poses (its pairs held parallel)."""
     from dhlog.errors import InputError
 
+    Q, P, which = data.Q, data.P, data.which
     groups = pose_groups(Q)
     usable = whole.inliers.copy()
     if which is not None:
@@ -185,7 +185,7 @@ def cross_validate(
         firsts.extend(first_of[g] for g in np.unique(groups[test]).tolist())
         train = whole.inliers & (fold != k)
         start = starts[k] if k < len(starts) else whole.model
-        fit = fit_whole_model(start, Q, P, keep=train, which=which, **fit_options)  # type: ignore[arg-type]
+        fit = fit_whole_model(start, data.kept(train), options)
         if refine is not None:
             fit = refine(fit, k)
         pred, _ = predict(fit.model, Q[test])

@@ -24,18 +24,17 @@ from __future__ import annotations
 import math
 from collections.abc import Iterator
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from dhlog.geometry._checks import FloatArray
+from dhlog.identify.fit.data import FitData, FitOptions
 from dhlog.identify.fit.passes import ROTATION_LIMIT, Samples, whitened_rows
 from dhlog.identify.fit.prediction import predict
 from dhlog.identify.fit.whole import WholeFit
-from dhlog.identify.segment.persample import PerSample, SampleArray, blocks
+from dhlog.identify.segment.persample import SampleArray, blocks
 from dhlog.io import scratch
-from dhlog.model.noise import NoiseModel
 
 
 @dataclass(frozen=True)
@@ -121,24 +120,10 @@ def _inverse(A: FloatArray) -> FloatArray:
     return np.asarray(np.linalg.pinv(A, rcond=1e-13, hermitian=True), dtype=np.float64)
 
 
-def linearise(
-    fit: WholeFit,
-    Q: SampleArray,
-    P: SampleArray,
-    box: FloatArray,
-    *,
-    noise: NoiseModel,
-    sigma: float,
-    sample_cov: FloatArray | None = None,
-    which: NDArray[np.int64] | None = None,
-    rotations: FloatArray | None = None,
-    rates: SampleArray | None = None,
-    **ignored: object,
-) -> Linear:
-    """``fit`` linearised over the samples ``Q``, ``P`` it was fitted to (weighted as the fit
-    was: ``noise``/``sigma`` or ``sample_cov``; ``rotations`` weighted by the fit's own σ), and
-    its positions' Jacobian at the joint vectors ``box`` (M, n); the fit's other options are
-    ignored (``ignored``)."""
+def linearise(fit: WholeFit, data: FitData, box: FloatArray, options: FitOptions) -> Linear:
+    """``fit`` linearised over the samples of ``data`` it was fitted to (weighted as the fit
+    was: ``options``' noise and σ, or the samples' covariances; orientations weighted by the
+    fit's own σ), and its positions' Jacobian at the joint vectors ``box`` (M, n)."""
     from dhlog.model.noise import whitening_from_std
 
     model, layout, bases = fit.model, fit.layout, fit.bases
@@ -147,23 +132,23 @@ def linearise(
         B = np.eye(layout.size)
     else:
         B = d.basis / d.scale[:, None]
-    m = Q.shape[0]
+    m, noise, sigma, sample_cov = data.m, options.noise, options.sigma, data.sample_cov
 
     def whiten(points: FloatArray, W: FloatArray | None) -> FloatArray | float:
         return W if W is not None else noise.whiten(points, sigma)
 
-    data = Samples(
-        Q,
-        P,
+    samples = Samples(
+        data.Q,
+        data.P,
         np.ones(m, dtype=bool),
         None if sample_cov is None else whitening_from_std(sample_cov),
         whiten,
-        which,
-        rotations,
+        data.which,
+        data.rotations,
         1.0 if fit.sigma_rotation is None else fit.sigma_rotation / math.sqrt(fit.chi2_dof),
-        rates,
+        data.rates,
     )
-    rows = whitened_rows(model, layout, bases, data, slice(0, m))
+    rows = whitened_rows(model, layout, bases, samples, slice(0, m))
     Jw, rw = rows.Jw, rows.rw  # (size, 3, m), (3, m)
     use = np.asarray(fit.inliers, dtype=bool).copy()
     if rows.ro is not None and rows.Jr is not None:
@@ -188,18 +173,6 @@ def linearise(
         chi2_dof=fit.chi2_dof,
         values=model_values(fit),
     )
-
-
-def strided(m: int, most: int, options: dict[str, Any]) -> tuple[NDArray[np.int64], dict[str, Any]]:
-    """At most ``most`` of ``m`` samples, evenly strided, and the fit's keyword arguments
-    ``options`` with their per-sample arrays (over all ``m`` samples) cut to them."""
-    stride = -(-m // most) if m > most else 1
-    pick = np.arange(0, m, stride)
-    sub = {
-        k: (v[pick] if isinstance(v, np.ndarray | PerSample) and v.shape[:1] == (m,) else v)
-        for k, v in options.items()
-    }
-    return pick, sub
 
 
 def model_values(fit: WholeFit) -> FloatArray:

@@ -20,7 +20,6 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, replace
-from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -28,6 +27,7 @@ from numpy.typing import NDArray
 from dhlog.errors import Note
 from dhlog.geometry._checks import FloatArray
 from dhlog.identify.fit.axismodel import AxisModel
+from dhlog.identify.fit.data import FitData, FitOptions
 from dhlog.identify.fit.leaveout import pose_blocks
 from dhlog.identify.fit.passes import CHUNK
 from dhlog.identify.fit.prediction import predict
@@ -60,30 +60,24 @@ class ModelError:
 
 
 def refit_with_model_error(
-    whole: WholeFit,
-    Q: SampleArray,
-    P: SampleArray,
-    declared: FloatArray,
-    fit_options: dict[str, Any],
-    *,
-    which: NDArray[np.int64] | None = None,
-    rates: SampleArray | None = None,
+    whole: WholeFit, data: FitData, declared: FloatArray, options: FitOptions
 ) -> ModelError | None:
-    """The model-error component (module docstring) of ``whole``, fitted with the declared
-    covariances ``declared`` (m, 3, 3); None when χ²/dof is at most :data:`MODEL_ERROR_CHI2`.
-    ``fit_options`` are the fit's other keyword arguments (noise, orientations, …)."""
+    """The model-error component (module docstring) of ``whole``, fitted to ``data`` with the
+    declared covariances ``declared`` (m, 3, 3) and the fit's other ``options`` (noise,
+    orientations, …); None when χ²/dof is at most :data:`MODEL_ERROR_CHI2`."""
     if whole.chi2_dof <= MODEL_ERROR_CHI2:
         return None
     before = whole.chi2_dof
     s, cov = 0.0, declared
     for _ in range(2):  # the residuals barely move with the weights: twice is converged
         inl = whole.inliers
-        r = residuals(whole.model, Q, P, inl, which=which, rates=rates)
+        r = residuals(whole.model, data.Q, data.P, inl, which=data.which, rates=data.rates)
         dof = max(3 * int(np.count_nonzero(inl)) - whole.layout.size, 1)
         s = model_error_sigma(r, declared[inl], dof)
         cov = declared + (s * s) * np.eye(3)[None]
-        options = {**fit_options, "sigma": s, "sample_cov": cov, "which": which, "rates": rates}
-        whole = fit_whole_model(whole.model, Q, P, **options)
+        whole = fit_whole_model(
+            whole.model, replace(data, sample_cov=cov, keep=None), replace(options, sigma=s)
+        )
     return ModelError(whole, s, cov, before)
 
 
@@ -299,13 +293,14 @@ def with_model_error(
         declared = noise.covariance(P[:])  # (m, 3, 3): a tracker model's weighing holds them
     if declared is None:
         return whole, sample_cov, noise, ()
-    options = {
-        "noise": noise,
-        "fit_scales": whole.layout.scale_at is not None,
-        "rotations": rotations,
-        "sigma_rotation": noise.orientation,
-    }
-    found = refit_with_model_error(whole, Q, P, declared, options, which=which, rates=rates)
+    data = FitData(Q, P, which=which, rotations=rotations, rates=rates)
+    options = FitOptions(
+        noise,
+        1.0,  # the model-error σ's, set by the refit
+        sigma_rotation=noise.orientation,
+        fit_scales=whole.layout.scale_at is not None,
+    )
+    found = refit_with_model_error(whole, data, declared, options)
     if found is None:
         return whole, sample_cov, noise, ()
     noise = replace(noise, model_error=found.sigma)

@@ -21,13 +21,13 @@ from numpy.typing import NDArray
 from dhlog.errors import DegenerateGeometryError
 from dhlog.geometry._checks import FloatArray
 from dhlog.identify.fit.axismodel import AxisModel, ParameterLayout
+from dhlog.identify.fit.data import FitData, FitOptions
 from dhlog.identify.fit.lm import levenberg_marquardt
 from dhlog.identify.fit.passes import Samples, accumulate, gradient
 from dhlog.identify.fit.prediction import orientation_residual, predict_orientation
-from dhlog.identify.segment.persample import SampleArray, blocks
+from dhlog.identify.segment.persample import blocks
 from dhlog.io import scratch
 from dhlog.model.dh import JointType
-from dhlog.model.noise import NoiseModel
 
 #: Median of a 3-dof chi variable (|r|/σ of an isotropic 3-D residual).
 CHI3_MEDIAN = 1.5382
@@ -269,43 +269,32 @@ def _finish_on_all(
 
 def fit_whole_model(
     start: AxisModel,
-    Q: SampleArray,
-    P: SampleArray,
+    data: FitData,
+    options: FitOptions,
     *,
-    noise: NoiseModel,
-    sigma: float,
-    keep: NDArray[np.bool_] | None = None,
-    sample_cov: FloatArray | None = None,
-    which: NDArray[np.int64] | None = None,
-    rotations: FloatArray | None = None,
-    sigma_rotation: float | None = None,
-    fit_scales: bool = False,
-    rates: SampleArray | None = None,
-    threshold: float = 5.0,
-    max_iterations: int = 30,
-    subsample: int = 40000,
     progress: Callable[[float], None] | None = None,
     within: FloatArray | None = None,
 ) -> WholeFit:
-    """Levenberg–Marquardt fit of ``start`` to the samples ``P`` (m, 3) at encoder values ``Q``
-    (m, n), weighted by ``noise`` (isotropic σ = ``sigma`` unless the model names its own), or by
-    ``sample_cov`` (m, 3) standard deviations or (m, 3, 3) covariances when the log carries them
-    per sample; ``which`` (m,) each sample's target (0 primary, j the j-th extra target of
-    ``start``); ``rotations`` (m, 3, 3) the measured orientation of a 6-DoF target, weighted by
-    ``sigma_rotation`` (rad; default: its scale in the data). ``keep`` marks the samples that may
-    enter (default: all). With ``rates`` (m, n: the joints' speeds at the samples) the residual
-    clock offset is fitted too (``model.clock``).
+    """Levenberg–Marquardt fit of ``start`` to ``data``'s samples (:class:`FitData`: points ``P``
+    at encoder values ``Q``; each sample's covariance, target, orientation and the joints' speeds
+    where given; the samples ``keep`` that may enter), weighted and judged as ``options`` says
+    (:class:`FitOptions`). With the joints' speeds the residual clock offset is fitted too
+    (``model.clock``).
 
-    With more than ``subsample`` samples the fit first converges on an evenly strided subset and
-    then finishes on every sample (usually one pass: the step left is far below σ). With
-    ``within`` (size, r) the fit moves along those directions only (parameter units): the
+    With more than ``options.subsample`` samples the fit first converges on an evenly strided
+    subset and then finishes on every sample (usually one pass: the step left is far below σ).
+    With ``within`` (size, r) the fit moves along those directions only (parameter units): the
     constrained fit of :mod:`dhlog.identify.model.hold`."""
     from dhlog.model.noise import whitening_from_std
 
+    Q, P, keep, which, rotations = data.Q, data.P, data.keep, data.which, data.rotations
+    sample_cov, rates, noise, sigma = data.sample_cov, data.rates, options.noise, options.sigma
+    sigma_rotation, threshold = options.sigma_rotation, options.threshold
+    max_iterations, subsample = options.max_iterations, options.subsample
     m = Q.shape[0]
     layout = ParameterLayout.of(
         start.types,
-        fit_scales=fit_scales,
+        fit_scales=options.fit_scales,
         extra_targets=len(start.extra_targets),
         rotation=rotations is not None,
         clock=rates is not None,
@@ -318,7 +307,7 @@ def fit_whole_model(
     def whiten(points: FloatArray, W: FloatArray | None) -> FloatArray | float:
         return W if W is not None else noise.whiten(points, sigma)
 
-    data = Samples(
+    samples = Samples(
         Q,
         P,
         scratch.full(m, True, np.bool_) if keep is None else scratch.moved(keep, copy=True),
@@ -331,8 +320,8 @@ def fit_whole_model(
     )
     stride = -(-m // subsample) if m > subsample else 1
     if rotations is not None and sigma_rotation is None:
-        data = replace(data, sigma_rot=_orientation_scale(start, layout, data, stride))
-    first = data.strided(stride) if stride > 1 else data
+        samples = replace(samples, sigma_rot=_orientation_scale(start, layout, samples, stride))
+    first = samples.strided(stride) if stride > 1 else samples
     probe = np.zeros(first.Q.shape[0])
     accumulate(start, layout, start.bases(), first, threshold, probe)
     kept = probe[first.keep]
@@ -341,17 +330,17 @@ def fit_whole_model(
     limit = threshold * scale if not 0.5 < scale < 2.0 else threshold
     on_subset = None if progress is None else (lambda f: progress(0.3 * f))
     st = _levenberg_marquardt(start, layout, first, limit, max_iterations, on_subset, within)
-    if data.R is not None and sigma_rotation is None:
+    if samples.R is not None and sigma_rotation is None:
         # the start's orientation scale includes the start's own error: judge it again at the
         # optimum of the subset and fit once more with it
-        data = replace(data, sigma_rot=_orientation_scale(st.model, layout, data, stride))
-        first = data.strided(stride) if stride > 1 else data
+        samples = replace(samples, sigma_rot=_orientation_scale(st.model, layout, samples, stride))
+        first = samples.strided(stride) if stride > 1 else samples
         st = _levenberg_marquardt(st.model, layout, first, limit, max_iterations, on_subset, within)
     iterations = st.iterations
     chi2 = st.chi2
     if stride > 1:
         on_all = None if progress is None else (lambda f: progress(0.3 + 0.7 * f))
-        st, chi2 = _finish_on_all(st, layout, data, limit, max_iterations, on_all, within)
+        st, chi2 = _finish_on_all(st, layout, samples, limit, max_iterations, on_all, within)
         iterations += st.iterations
     determined = Determined.of(st.H, within)
     if determined.basis.shape[1] == 0:
@@ -359,10 +348,10 @@ def fit_whole_model(
             f"the samples determine none of the whole model's {layout.size} parameters: "
             "measure more poses, moving every joint."
         )
-    inliers = scratch.empty(data.keep.size, np.bool_)
+    inliers = scratch.empty(samples.keep.size, np.bool_)
     for sl in blocks(inliers.size):
-        inliers[sl] = data.keep[sl] & (st.norms[sl] <= limit)
-    dof = max(data.per_sample * st.count - determined.basis.shape[1], 1)
+        inliers[sl] = samples.keep[sl] & (st.norms[sl] <= limit)
+    dof = max(samples.per_sample * st.count - determined.basis.shape[1], 1)
     chi2_dof = chi2 / dof
     covariance = determined.inverse(st.H) * chi2_dof
     return WholeFit(
@@ -374,7 +363,7 @@ def fit_whole_model(
         n_points=int(st.count),
         iterations=iterations,
         bases=st.bases,
-        sigma_rotation=None if data.R is None else data.sigma_rot * math.sqrt(chi2_dof),
+        sigma_rotation=None if samples.R is None else samples.sigma_rot * math.sqrt(chi2_dof),
         determined=determined,
         limit=float(limit),
     )

@@ -9,7 +9,6 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
-from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -17,6 +16,7 @@ from numpy.typing import NDArray
 from dhlog.errors import InputError, Note
 from dhlog.geometry._checks import FloatArray
 from dhlog.identify.fit.axismodel import AxisModel
+from dhlog.identify.fit.data import FitData, FitOptions
 from dhlog.identify.fit.prediction import prefix_motions
 from dhlog.identify.fit.start import align_lines
 from dhlog.identify.fit.variance import refit_with_model_error
@@ -40,10 +40,8 @@ from dhlog.model.terms import Lump, Terms, table_deflection
 def beyond_geometry(
     request: ModelRequest,
     whole: WholeFit,
-    Q: SampleArray,
-    P: SampleArray,
-    sigma: float,
-    options: dict[str, Any],
+    data: FitData,
+    options: FitOptions,
     *,
     folds: int,
     names: Sequence[str],
@@ -51,10 +49,11 @@ def beyond_geometry(
 ) -> tuple[WholeFit, Selection | None, tuple[Note, ...]]:
     """The terms beyond the geometry that ``--model`` (``request``) asks for or the session
     proves (:func:`select_model`), fitted to every sample, and the candidates tried (None with
-    ``--model geometric``). ``options``: the whole-model fit's; ``folds``: the run's K-fold
-    cross-validation (else :data:`SELECT_FOLDS`); ``names``: the joints' (a URDF's masses are
-    matched by them); ``outer``: each sample's fold of ``--holdout K``, in which ``auto`` chooses
-    again from the fold's training poses (:func:`select_model`). Its notes: those of
+    ``--model geometric``). ``data``, ``options``: the whole-model fit's samples and weights;
+    ``folds``: the run's K-fold cross-validation (else :data:`SELECT_FOLDS`); ``names``: the
+    joints' (a URDF's masses are matched by them); ``outer``: each sample's fold of
+    ``--holdout K``, in which ``auto`` chooses again from the fold's training poses
+    (:func:`select_model`). Its notes: those of
     :func:`link_masses`."""
     if request.mode == "geometric":
         return whole, None, ()
@@ -71,35 +70,25 @@ def beyond_geometry(
             gravity = urdf_gravity
     # where the declared uncertainties are far below the residuals, the candidates are weighed
     # with the model-error component as the final fit will be (U95 alone weighs badly)
-    declared = options.get("sample_cov")
-    noise = options["noise"]
+    declared = data.sample_cov
+    noise = options.noise
     if declared is None and noise.model == "tracker":
-        declared = noise.covariance(P[:])  # (m, 3, 3): a tracker model's weighing holds them
-    weighed = options
+        declared = noise.covariance(data.P[:])  # (m, 3, 3): a tracker model's weighing holds them
+    weighed = data
     if declared is not None:
-        found = refit_with_model_error(
-            whole,
-            Q,
-            P,
-            declared,
-            {k: options[k] for k in ("noise", "fit_scales", "rotations", "sigma_rotation")},
-            which=options["which"],
-            rates=options["rates"],
-        )
+        found = refit_with_model_error(whole, data, declared, options)
         if found is not None:
-            weighed = {**options, "sample_cov": found.sample_cov}
+            weighed = replace(data, sample_cov=found.sample_cov)
     selection = select_model(
         request.mode,
         whole,
-        Q,
-        P,
-        sigma=sigma,
-        options=weighed,
+        weighed,
+        options,
         gravity=gravity,
         harmonic_joints=request.harmonic_joints,
         folds=folds if folds > 1 else SELECT_FOLDS,
         masses=masses,
-        reuse=weighed is options,
+        reuse=weighed is data,
         outer=outer,
     )
     chosen = selection.chosen
@@ -115,7 +104,7 @@ def beyond_geometry(
     if again is not None and again.names() == terms.names():
         again = again.with_coefficients(terms.coefficients)
     start = replace(whole.model, terms=again)
-    return fit_whole_model(start, Q, P, sigma=sigma, **options), selection, notes
+    return fit_whole_model(start, data, options), selection, notes
 
 
 #: The URDF's joint axes farther than this (m, RMS) from the measured ones after placing it

@@ -46,24 +46,22 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, replace
-from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from dhlog.errors import Note
 from dhlog.geometry._checks import FloatArray
+from dhlog.identify.fit.data import FitData, FitOptions
 from dhlog.identify.fit.leaveout import (
     Linear,
     fold_of_poses,
     linearise,
     pose_groups,
     pose_means,
-    strided,
 )
 from dhlog.identify.fit.whole import WholeFit
 from dhlog.identify.model.relations import pair_constraints, pairs_within, relation_tolerances
-from dhlog.identify.segment.persample import SampleArray
 from dhlog.io.dhfile import DHModel
 
 #: Consecutive axes within this many σ (2-D) of parallel are tried held (the candidates); the
@@ -104,22 +102,15 @@ class PairDecision:
     pick: NDArray[np.int64]
 
 
-def linearised(
-    fit: WholeFit,
-    Q: SampleArray,
-    P: SampleArray,
-    *,
-    sigma: float,
-    options: dict[str, Any],
-) -> PairDecision:
-    """``fit`` linearised over at most :data:`PAIR_SAMPLES` of its samples (evenly strided):
-    ``options`` are its keyword arguments (per-sample arrays over all samples)."""
-    pick, sub = strided(Q.shape[0], PAIR_SAMPLES, options)
-    Qs, Ps = Q[pick], P[pick]
+def linearised(fit: WholeFit, data: FitData, options: FitOptions) -> PairDecision:
+    """``fit`` linearised over at most :data:`PAIR_SAMPLES` of its samples ``data`` (evenly
+    strided), weighted as it was fitted (``options``)."""
+    pick, sub = data.strided(PAIR_SAMPLES)
+    Qs = sub.Q
     part = replace(fit, inliers=np.asarray(fit.inliers[pick], dtype=bool))
     box = np.asarray(Qs[:1], dtype=np.float64)  # the range term is not used here
-    lin = linearise(part, Qs, Ps, box, sigma=sigma, **sub)
-    which = sub.get("which")
+    lin = linearise(part, sub, box, options)
+    which = sub.which
     primary = np.ones(pick.size, dtype=bool) if which is None else np.asarray(which) == 0
     return PairDecision(part, lin, pose_groups(Qs), primary, pick)
 
@@ -243,20 +234,18 @@ def decided_tolerances(
     nominal: DHModel | None,
     angle_tol: float,
     distance_tol: float,
-    Q: SampleArray,
-    P: SampleArray,
+    data: FitData,
+    options: FitOptions,
     *,
     parallel_sigma: float | None,
-    sigma: float,
-    options: dict[str, Any],
 ) -> tuple[list[tuple[float, float]] | None, tuple[Note, ...]]:
     """The pairs' tolerances for :func:`dhlog.identify.model.relations.with_fixed_relations`: those
     of the pairs the held-out poses hold (``parallel_sigma`` None; the candidates within
     :data:`CANDIDATE_SIGMA`), the others narrowed so that neither the fit nor the extraction
     calls them parallel (each decision said in a note: ``held-parallel`` where held, else
     ``pair-free``). ``parallel_sigma`` K: the rule before, every pair
-    within K σ (2-D) of parallel (0: none). ``options``: the fit's keyword arguments (per-sample
-    arrays over the samples ``Q``, ``P``) and ``sigma`` its σ, as it was weighted."""
+    within K σ (2-D) of parallel (0: none). ``data`` and ``options``: the fit's samples and
+    weights."""
     if parallel_sigma is not None:
         given = relation_tolerances(
             whole, nominal, angle_tol, distance_tol, parallel_sigma=parallel_sigma
@@ -265,7 +254,7 @@ def decided_tolerances(
     tolerances, candidates = _candidates(whole, nominal, angle_tol, distance_tol)
     if tolerances is None or not candidates:
         return tolerances, ()
-    d = linearised(whole, Q, P, sigma=sigma, options=options)
+    d = linearised(whole, data, options)
     trials = decide_pairs(d, candidates)
     freed = {t.pair for t in trials if not t.held}
     notes = tuple(
@@ -304,13 +293,11 @@ def fold_holds(
     nominal: DHModel | None,
     angle_tol: float,
     distance_tol: float,
-    Q: SampleArray,
-    P: SampleArray,
+    data: FitData,
+    options: FitOptions,
     *,
     outer: NDArray[np.int64],
     folds: int,
-    sigma: float,
-    options: dict[str, Any],
 ) -> list[dict[int, str]]:
     """Per fold of ``--holdout K`` (``outer``: each sample's fold), the pairs the held-out
     criterion holds when it sees that fold's training poses alone (the candidates those within
@@ -319,7 +306,7 @@ def fold_holds(
     _, candidates = _candidates(whole, nominal, angle_tol, distance_tol)
     if not candidates:
         return [{} for _ in range(folds)]
-    d = linearised(whole, Q, P, sigma=sigma, options=options)
+    d = linearised(whole, data, options)
     at = np.asarray(outer, dtype=np.int64)[d.pick]
     return [
         {t.pair: t.kind for t in decide_pairs(d, candidates, at != k, seed=1 + k) if t.held}

@@ -43,16 +43,15 @@ from numpy.typing import NDArray
 
 from dhlog.geometry._checks import FloatArray
 from dhlog.identify.fit.axismodel import AxisModel
+from dhlog.identify.fit.data import FitData, FitOptions
 from dhlog.identify.fit.leaveout import (
     Linear,
     fold_of_poses,
     linearise,
     pose_groups,
     pose_means,
-    strided,
 )
 from dhlog.identify.fit.whole import WholeFit, fit_whole_model
-from dhlog.identify.segment.persample import SampleArray
 from dhlog.model.dh import JointType
 from dhlog.model.terms import Lump, Term, Terms, design
 
@@ -213,11 +212,9 @@ def terms_for(
 def select_model(
     mode: str,
     whole: WholeFit,
-    Q: SampleArray,
-    P: SampleArray,
+    data: FitData,
+    options: FitOptions,
     *,
-    sigma: float,
-    options: dict[str, Any],
     gravity: FloatArray,
     harmonic_joints: tuple[int, ...] | None = None,
     folds: int = SELECT_FOLDS,
@@ -226,24 +223,26 @@ def select_model(
     outer: NDArray[np.int64] | None = None,
 ) -> Selection:
     """Score the candidates of ``mode`` (see the module docstring) on ``whole``'s inliers.
-    ``options``: the whole fit's keyword arguments (per-sample arrays over all samples);
-    ``reuse``: ``whole`` was fitted with exactly these options, so that on every sample it is
+    ``data`` and ``options``: the whole fit's samples and weights; ``reuse``: ``whole`` was
+    fitted with exactly these, so that on every sample it is
     the geometric candidate itself (no fit again); ``outer`` (m,): each sample's fold of the
     run's ``--holdout K`` — the choice of ``auto`` is then made again inside each fold from its
     training poses alone (``Selection.fold_starts``: nested cross-validation)."""
-    m = Q.shape[0]
-    pick, sub = strided(m, SELECT_SAMPLES, options)
+    Q = data.Q
+    pick, sub = data.strided(SELECT_SAMPLES)
     stride = int(pick[1] - pick[0]) if pick.size > 1 else 1
     keep = np.asarray(whole.inliers[pick], dtype=bool)
-    Qs, Ps = Q[pick], P[pick]
+    Qs = np.asarray(sub.Q)  # cut to the picked samples: an array
+    candidate = replace(sub, keep=keep)  # a candidate's fit: on the inliers, no cut
+    unbounded = replace(options, threshold=math.inf)
     used = Qs[keep] if np.any(keep) else Qs
     box = np.random.default_rng(0).uniform(
         used.min(axis=0), used.max(axis=0), (RANGE_POINTS, Q.shape[1])
     )
     groups = pose_groups(Qs)
-    which = sub.get("which")
+    which = sub.which
     primary = np.ones(pick.size, dtype=bool) if which is None else np.asarray(which) == 0
-    per = 3 if sub.get("rotations") is None else 6
+    per = sub.per_sample
     parents: dict[tuple[str, ...], tuple[WholeFit, Linear]] = {}
 
     def parent(families: tuple[str, ...]) -> tuple[WholeFit, Linear]:
@@ -255,10 +254,8 @@ def select_model(
                 fit = whole  # its optimum over its inliers is the candidate's
             else:
                 start = replace(whole.model, terms=terms)
-                fit = fit_whole_model(
-                    start, Qs, Ps, sigma=sigma, keep=keep, threshold=math.inf, **sub
-                )
-            parents[families] = (fit, linearise(fit, Qs, Ps, box, sigma=sigma, **sub))
+                fit = fit_whole_model(start, candidate, unbounded)
+            parents[families] = (fit, linearise(fit, sub, box, options))
         return parents[families]
 
     def held(fit: WholeFit, lin: Linear, dropped: frozenset[tuple[str, int]]) -> Constraint:
@@ -432,9 +429,7 @@ def select_model(
     if chosen.dropped:
         fit, _ = parent(chosen.families)
         start = replace(fit.model, terms=_kept_terms(fit, chosen.dropped))
-        chosen.fit = fit_whole_model(
-            start, Qs, Ps, sigma=sigma, keep=keep, threshold=math.inf, **sub
-        )
+        chosen.fit = fit_whole_model(start, candidate, unbounded)
     selection = Selection(mode, candidates, folds, int(np.count_nonzero(keep)))
     if outer is not None and mode == "auto":
         outer_pick = np.asarray(outer, dtype=np.int64)[pick]
