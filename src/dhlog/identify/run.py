@@ -69,7 +69,7 @@ from dhlog.identify.read.analytic import (
     pair_tolerances,
     partial_extraction,
 )
-from dhlog.identify.read.extract import extract_dh
+from dhlog.identify.read.extract import Tolerances
 from dhlog.identify.read.uncertainty import analytic_uncertainty
 from dhlog.identify.segment.segment import segment_log
 from dhlog.identify.segment.timing import (
@@ -314,10 +314,10 @@ def process_data(
         noise=log.pipeline.noise,
     )
     head = _Head(sha256, holdout, model, tuple(implausible))
-    kwargs: dict[str, Any] = {
-        "angle_tol": angle_tol,
-        "distance_tol": distance_tol,
-        "pair_tolerances": pair_tolerances(
+    tolerances = Tolerances(
+        angle_tol,
+        distance_tol,
+        pair_tolerances(
             [(j.fit.axis_covariance, j.fit.center) for j in joints if j.fit is not None]
             if all(j.fit is not None for j in joints)
             else None,
@@ -325,8 +325,8 @@ def process_data(
             angle_tol,
             distance_tol,
         ),
-    }
-    request = FitRequest(holdout, model, fit_scales, parallel_sigma, kwargs)
+    )
+    request = FitRequest(holdout, model, fit_scales, parallel_sigma, tolerances)
     nominal_table = nominal.table if nominal is not None else None
     if not all(j.ok for j in joints):
         started = _from_a_start(session, request, stage) if whole_wanted else None
@@ -352,19 +352,18 @@ def process_data(
                 "samples (random static poses, coupled moves)."
             )
             notes.append(Note.warning(needs, "needs-nominal"))
-        extraction = partial_extraction(joints, ref, base, nominal_table, kwargs)
+        extraction = partial_extraction(joints, ref, base, nominal_table, tolerances)
         return _built(session, head, tuple(notes), extraction=extraction)
     stage("identifying", 0.0)
     target_at = TargetAtReference(seg, joints, ref, START_TARGET_POINTS if whole_wanted else None)
     target, target_cov = target_at()
-    analytic = extract_dh(
+    analytic = tolerances.extract(
         [j.axis for j in joints],  # type: ignore[misc]
         [j.type for j in joints],  # type: ignore[misc]
         target=target,
         reference_pose=ref,
         base_plane=base.plane if base is not None else None,
         nominal=nominal_table,
-        **kwargs,
     )
     if whole_wanted:
         try:
@@ -397,7 +396,7 @@ def process_data(
         target_cov,
         base,
         nominal_table,
-        kwargs,
+        tolerances,
         analytic,
         target_of if seg.has_encoders else None,
     )

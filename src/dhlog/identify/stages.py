@@ -27,7 +27,7 @@ from dhlog.identify.fit.whole import WholeFit
 from dhlog.identify.joints.sweeps import JointReport
 from dhlog.identify.model.select import ModelRequest, Selection
 from dhlog.identify.read.conditioning import Conditioned
-from dhlog.identify.read.extract import Extraction
+from dhlog.identify.read.extract import Extraction, Tolerances
 from dhlog.identify.read.hayati import HayatiRow
 from dhlog.identify.segment.segment import Segmentation
 from dhlog.identify.segment.timing import Timing
@@ -60,15 +60,13 @@ class Session:
 class FitRequest:
     """What the run asks of the fit of the whole model: K of the cross-validation (0: none), the
     terms beyond the geometry, encoder scales, the σ within which pairs are held parallel (None:
-    decided from held-out poses) and the extraction's tolerances (``angle_tol``,
-    ``distance_tol``, ``pair_tolerances``: keyword arguments of
-    :func:`~dhlog.identify.read.extract.extract_dh`)."""
+    decided from held-out poses) and the extraction's tolerances."""
 
     folds: int
     model: ModelRequest
     fit_scales: bool
     parallel_sigma: float | None
-    tolerances: Mapping[str, Any]
+    tolerances: Tolerances
 
 
 @dataclass(frozen=True)

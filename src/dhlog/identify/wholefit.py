@@ -61,7 +61,7 @@ from dhlog.identify.model.relations import constrain_pairs, with_fixed_relations
 from dhlog.identify.model.select import RANGE_POINTS, Selection, term_std
 from dhlog.identify.read.analytic import hayati_rows
 from dhlog.identify.read.conditioning import identifiability_notes, nominal_rows
-from dhlog.identify.read.extract import Extraction, extract_dh
+from dhlog.identify.read.extract import Extraction
 from dhlog.identify.read.uncertainty import whole_uncertainty
 from dhlog.identify.segment.persample import PerSample, SampleArray, blocks
 from dhlog.identify.segment.segment import Segmentation
@@ -174,8 +174,8 @@ def identify_whole(
     tolerances, said = decided_tolerances(
         whole,
         nominal,
-        request.tolerances["angle_tol"],
-        request.tolerances["distance_tol"],
+        request.tolerances.angle_tol,
+        request.tolerances.distance_tol,
         data,
         final,
         parallel_sigma=request.parallel_sigma,
@@ -190,17 +190,16 @@ def identify_whole(
 
     whole, tolerances, said = with_fixed_relations(whole, tolerances, cost)
     notes.extend(said)
-    kw = {**request.tolerances, "pair_tolerances": tolerances}
+    decided = replace(request.tolerances, pair_tolerances=tolerances)
 
     def extract(axes: list[Line], target: FloatArray, plane: Plane | None) -> Extraction:
-        return extract_dh(
+        return decided.extract(
             axes,
             types,  # type: ignore[arg-type]
             target=target,
             reference_pose=ref,
             base_plane=plane,
             nominal=nominal_table,
-            **kw,
         )
 
     stage("uncertainty", 0.0)
@@ -387,8 +386,8 @@ def _cross_validation(
         held_in_fold = fold_holds(
             clustered,
             nominal,
-            request.tolerances["angle_tol"],
-            request.tolerances["distance_tol"],
+            request.tolerances.angle_tol,
+            request.tolerances.distance_tol,
             fit.data,
             fit.options,
             outer=outer,

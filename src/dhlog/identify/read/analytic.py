@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from typing import Any
 
 import numpy as np
 
@@ -15,7 +14,7 @@ from dhlog.geometry._checks import FloatArray, wrap_angle
 from dhlog.geometry.fitting import PlaneFit
 from dhlog.geometry.lines import Line, Plane
 from dhlog.identify.joints.sweeps import JointReport, carried_axis
-from dhlog.identify.read.extract import Extraction, extract_dh
+from dhlog.identify.read.extract import Extraction, Tolerances
 from dhlog.identify.read.hayati import (
     NEAR_PARALLEL,
     HayatiRow,
@@ -182,7 +181,7 @@ def partial_extraction(
     ref: FloatArray,
     base: PlaneFit | None,
     nominal_table: StandardDH | None,
-    kwargs: dict[str, Any],
+    tolerances: Tolerances,
 ) -> Extraction | None:
     """The rows that only need the identified prefix of the chain (or None)."""
     n = len(joints)
@@ -194,14 +193,13 @@ def partial_extraction(
     pre = joints[:prefix]
     last = pre[-1].fit
     assert last is not None
-    return extract_dh(
+    return tolerances.extract(
         [j.axis for j in pre],  # type: ignore[misc]
         [j.type for j in pre],  # type: ignore[misc]
         target=last.center + last.radius * last.basis[0] + 0.1 * last.basis[1],
         reference_pose=ref[:prefix],
         base_plane=base.plane if base is not None else None,
         nominal=None if nominal_table is None else prefix_table(nominal_table, prefix),
-        **kwargs,
     )
 
 
@@ -212,7 +210,7 @@ def propagate_analytic(
     target_cov: FloatArray,
     base: PlaneFit | None,
     nominal: StandardDH | None,
-    extract_kwargs: dict[str, Any],
+    tolerances: Tolerances,
     center: Extraction,
     target_of: Callable[[list[Line | None]], FloatArray] | None = None,
     rows: frozenset[int] = frozenset(),
@@ -278,14 +276,13 @@ def propagate_analytic(
                     plane = Plane(plane.point + sign * h * plane.normal, plane.normal)
             else:
                 tgt[p] += sign * h
-            ex = extract_dh(
+            ex = tolerances.extract(
                 ax,  # type: ignore[arg-type]
                 types,  # type: ignore[arg-type]
                 target=tgt,
                 reference_pose=ref,
                 base_plane=plane,
                 nominal=nominal,
-                **extract_kwargs,
             )
             outs.append(state_vector(ex, R0))
             if rows:

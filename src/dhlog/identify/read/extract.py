@@ -494,3 +494,38 @@ def hayati_table(
     """The extracted model with ``rows`` (0-based) in the Hayati–Mirmirani form: same frames 1
     and n+1, same forward kinematics (a :class:`HayatiDH`, or the standard table without rows)."""
     return table_from_frames(ex.frames, ex.standard.joint_types, ex.reference_pose, nominal, rows)
+
+
+@dataclass(frozen=True)
+class Tolerances:
+    """When the extraction calls two axes parallel or meeting: ``angle_tol`` (rad) and
+    ``distance_tol`` (m), and per pair of neighbouring axes its own (angle, distance) where the
+    fits' uncertainty or a decision from held-out poses gives one (``pair_tolerances[i]``: axes
+    i+1, i+2)."""
+
+    angle_tol: float = ANGLE_TOL
+    distance_tol: float = DISTANCE_TOL
+    pair_tolerances: Sequence[tuple[float, float]] | None = None
+
+    def extract(
+        self,
+        axes: Sequence[Line],
+        joint_types: Sequence[JointType | str],
+        *,
+        target: ArrayLike,
+        reference_pose: ArrayLike,
+        base_plane: Plane | None = None,
+        nominal: StandardDH | None = None,
+    ) -> Extraction:
+        """:func:`extract_dh` with these tolerances."""
+        return extract_dh(
+            axes,
+            joint_types,
+            target=target,
+            reference_pose=reference_pose,
+            base_plane=base_plane,
+            nominal=nominal,
+            angle_tol=self.angle_tol,
+            distance_tol=self.distance_tol,
+            pair_tolerances=self.pair_tolerances,
+        )

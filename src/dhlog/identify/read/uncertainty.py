@@ -13,7 +13,6 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any
 
 import numpy as np
 
@@ -31,7 +30,7 @@ from dhlog.identify.read.conditioning import (
     near_parallel_pairs,
     nominal_rows,
 )
-from dhlog.identify.read.extract import Extraction
+from dhlog.identify.read.extract import Extraction, Tolerances
 from dhlog.identify.read.hayati import HayatiRow
 from dhlog.identify.read.propagate import fixed_reasons, propagate
 from dhlog.model.dh import StandardDH
@@ -68,7 +67,7 @@ def analytic_uncertainty(
     target_cov: FloatArray,
     base: PlaneFit | None,
     nominal: StandardDH | None,
-    extract_kwargs: dict[str, Any],
+    tolerances: Tolerances,
     analytic: Extraction,
     target_of: Callable[[list[Line | None]], FloatArray] | None,
 ) -> Uncertainty:
@@ -84,7 +83,7 @@ def analytic_uncertainty(
         target_cov,
         base,
         nominal,
-        extract_kwargs,
+        tolerances,
         analytic,
         target_of,
         rows,
