@@ -51,7 +51,7 @@ from dhlog.identify.fit.prediction import predict
 from dhlog.identify.fit.whole import fit_whole_model
 from dhlog.identify.joints.sweeps import samples_with_encoders
 from dhlog.identify.read.analytic import AIC_SIGMA_2D
-from dhlog.identify.run import process_data
+from dhlog.identify.run import ProcessOptions, process_data
 from dhlog.io.memory import log_data_from_session
 from dhlog.model.fk import fk_point
 from dhlog.model.noise import NoiseModel
@@ -142,11 +142,11 @@ def one(
         got = fk_point(ex.standard, Q, ex.tool_point, T_base=ex.T_measurement_base)
         return np.asarray(np.sum((got - want) ** 2, axis=1))
 
-    default = process_data(log, nominal=nominal, parallel_sigma=parallel_sigma)
-    analytic = process_data(log, nominal=nominal, analytic_only=True)
+    default = process_data(log, ProcessOptions(nominal=nominal, parallel_sigma=parallel_sigma))
+    analytic = process_data(log, ProcessOptions(nominal=nominal, analytic_only=True))
     before = np.zeros(0)
     if compare is not None:
-        before = error(process_data(log, nominal=nominal, parallel_sigma=compare))
+        before = error(process_data(log, ProcessOptions(nominal=nominal, parallel_sigma=compare)))
     # the limit: the whole model fitted to the same samples from the truth
     ref = default.reference_pose
     truth = AxisModel.of_table(session.table, ref, session.tool_point, session.T_measurement_base)
@@ -232,9 +232,12 @@ def beyond(job: tuple[str, str, int, int]) -> dict[str, object]:
         return np.asarray(np.sum((got - want) ** 2, axis=1))
 
     auto = process_data(
-        log, nominal=nominal, model=ModelRequest("auto", masses=None if urdf is None else str(urdf))
+        log,
+        ProcessOptions(
+            nominal=nominal, model=ModelRequest("auto", masses=None if urdf is None else str(urdf))
+        ),
     )
-    geometric = process_data(log, nominal=nominal, model=ModelRequest("geometric"))
+    geometric = process_data(log, ProcessOptions(nominal=nominal, model=ModelRequest("geometric")))
     ref = auto.reference_pose
     truth = AxisModel.of_table(table, ref, session.tool_point, T, terms=terms)
     _, Qs, Ps = samples_with_encoders(auto.segmentation)

@@ -102,7 +102,7 @@ from dhlog.geometry._checks import FloatArray
 from dhlog.identify.check.holdout import pose_groups
 from dhlog.identify.joints.sweeps import samples_with_encoders
 from dhlog.identify.model.select import ModelRequest
-from dhlog.identify.run import ProcessResult, process_data, table_values
+from dhlog.identify.run import ProcessOptions, ProcessResult, process_data, table_values
 from dhlog.io.dhfile import DHModel
 from dhlog.io.memory import log_data_from_session
 from dhlog.model.fk import fk_point
@@ -204,7 +204,9 @@ def one(job: tuple[str, str, int, int, int]) -> dict[str, object]:
     names = tuple(f"joint_{i + 1}" for i in range(robot.n))
     nominal = DHModel(robot.table, robot.T_base, robot.tool_point, names, robot_name)
     started = time.perf_counter()
-    result = process_data(log, nominal=nominal, model=ModelRequest("auto"), holdout=folds)
+    result = process_data(
+        log, ProcessOptions(nominal=nominal, model=ModelRequest("auto"), holdout=folds)
+    )
     seconds = time.perf_counter() - started
     check = [h for h in result.holdout if h.kind == "cross-validation"]
     if not check:

@@ -22,7 +22,7 @@ from dataclasses import replace
 import numpy as np
 
 from dhlog.identify.fit.prediction import predict
-from dhlog.identify.run import ProcessResult, process_data
+from dhlog.identify.run import ProcessOptions, ProcessResult, process_data
 from dhlog.io.dhfile import DHModel
 from dhlog.io.memory import log_data_from_session
 from dhlog.model.dh import StandardDH
@@ -89,7 +89,7 @@ def _six(session: Session, robot: Robot, Q: np.ndarray) -> float:
     )
     nt, nb = _split(robot.table, robot.T_base)
     nominal = DHModel(nt, nb, robot.tool_point, tuple(reduced.joint_names), "6R")
-    ex = process_data(log_data_from_session(reduced), nominal=nominal).extraction
+    ex = process_data(log_data_from_session(reduced), ProcessOptions(nominal=nominal)).extraction
     assert ex is not None
     got = fk_point(ex.standard, Q[:, 1:], ex.tool_point, T_base=ex.T_measurement_base)
     return _rms(got, fk_point(table, Q[:, 1:], session.tool_point, T_base=T_base))
@@ -127,7 +127,9 @@ def main() -> None:
                 park_wander=wander,
             )
             session = simulate_session(robot, cfg)
-            result = process_data(log_data_from_session(session), nominal=_nominal(robot))
+            result = process_data(
+                log_data_from_session(session), ProcessOptions(nominal=_nominal(robot))
+            )
             ex = result.extraction
             assert ex is not None and result.complete, result.warnings
             Q = np.random.default_rng(99).uniform(

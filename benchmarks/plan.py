@@ -28,7 +28,7 @@ import numpy as np
 
 from dhlog.cell.plan import WORKSPACE_POINTS, plan_session, select_poses
 from dhlog.identify.model.select import ModelRequest
-from dhlog.identify.run import process_data
+from dhlog.identify.run import ProcessOptions, process_data
 from dhlog.io.dhfile import DHModel
 from dhlog.io.memory import log_data_from_session
 from dhlog.model.fk import fk_point
@@ -72,9 +72,13 @@ def one(job: tuple[str, float, int, Poses, int]) -> tuple[np.ndarray, np.ndarray
     geometric = ModelRequest("geometric")
     cfg = config(noise, poses, pose_list, seed, off=True)
     session = simulate_session(robot, cfg)
-    result = process_data(log_data_from_session(session), nominal=nominal, model=geometric)
+    result = process_data(
+        log_data_from_session(session), ProcessOptions(nominal=nominal, model=geometric)
+    )
     clean = simulate_session(robot, SimulationConfig(**{**cfg.__dict__, "noise": 0.0}))
-    truth = process_data(log_data_from_session(clean), nominal=nominal, model=geometric)
+    truth = process_data(
+        log_data_from_session(clean), ProcessOptions(nominal=nominal, model=geometric)
+    )
     values = np.array([r.values for r in display_rows(result, "m")])
     diff = values - np.array([r.values for r in display_rows(truth, "m")])
     diff[:, [0, 3]] = (diff[:, [0, 3]] + math.pi) % (2 * math.pi) - math.pi

@@ -40,7 +40,7 @@ from dhlog.identify.fit.prediction import predict
 from dhlog.identify.fit.samples import measured_rotations
 from dhlog.identify.fit.whole import fit_whole_model
 from dhlog.identify.joints.sweeps import samples_with_encoders
-from dhlog.identify.run import process_data
+from dhlog.identify.run import ProcessOptions, process_data
 from dhlog.io.dhfile import DHModel
 from dhlog.io.memory import log_data_from_session
 from dhlog.model.fk import fk_point
@@ -105,7 +105,9 @@ def one(job: tuple[str, int, int, int]) -> dict[str, float]:
     session = simulate_session(robot, cfg)
     names = tuple(f"joint_{i + 1}" for i in range(robot.n))
     nominal = DHModel(robot.table, robot.T_base, robot.tool_point, names, robot_name)
-    result = process_data(log_data_from_session(session), nominal=nominal, holdout=holdout)
+    result = process_data(
+        log_data_from_session(session), ProcessOptions(nominal=nominal, holdout=holdout)
+    )
     rng = np.random.default_rng(seed + 1)
     Q = rng.uniform(robot.limits[:, 0], robot.limits[:, 1], (points, robot.n))
     want = fk_point(session.table, Q, session.tool_point, T_base=session.T_measurement_base)

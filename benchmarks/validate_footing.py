@@ -28,7 +28,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from dhlog.identify.model.select import ModelRequest
-from dhlog.identify.run import process_log
+from dhlog.identify.run import ProcessOptions, process_log
 from dhlog.io.dhfile import DHModel
 from dhlog.io.pipeline import parse_pipeline
 from dhlog.io.writer import write_session
@@ -94,10 +94,12 @@ def run(seed: int, six_dof: bool, args: argparse.Namespace, folder: Path) -> Non
         paths.append(path)
     result = process_log(
         folder / "cal.mcap",
-        pipeline=parse_pipeline(SIX_DOF, "six_dof.toml") if six_dof else None,
-        nominal=nominal,
-        model=ModelRequest(args.model),
-        validate=list(paths),
+        ProcessOptions(
+            pipeline=parse_pipeline(SIX_DOF, "six_dof.toml") if six_dof else None,
+            nominal=nominal,
+            model=ModelRequest(args.model),
+            validate=tuple(paths),
+        ),
     )
     for name, check in zip(cases, result.holdout, strict=True):
         assert check.nominal is not None

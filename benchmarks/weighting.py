@@ -27,6 +27,7 @@ import polars as pl
 
 import dhlog.identify.fit.variance as variance
 from dhlog.identify import run as process
+from dhlog.identify.stages import ProcessOptions
 from dhlog.io.decode.frames import COVARIANCE_COLUMNS
 from dhlog.io.dhfile import DHModel
 from dhlog.io.memory import log_data_from_session
@@ -77,7 +78,7 @@ def main() -> None:
             ("U95 + model error", weighted, default_threshold),
         ):
             variance.MODEL_ERROR_CHI2 = threshold
-            result = process.process_data(data, nominal=nominal)
+            result = process.process_data(data, ProcessOptions(nominal=nominal))
             ex = result.extraction
             assert ex is not None
             got = fk_point(ex.standard, Q, ex.tool_point, T_base=ex.T_measurement_base)

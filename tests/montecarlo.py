@@ -16,7 +16,7 @@ import numpy as np
 from dhlog.geometry._checks import FloatArray
 from dhlog.identify.model.select import ModelRequest
 from dhlog.identify.read.analytic import NOMINAL_SIGMA_2D
-from dhlog.identify.run import process_data
+from dhlog.identify.run import ProcessOptions, process_data
 from dhlog.io.dhfile import DHModel
 from dhlog.io.memory import log_data_from_session
 from dhlog.model.robots import load_robot
@@ -57,11 +57,13 @@ def one_session(job: dict[str, object]) -> tuple[FloatArray, FloatArray]:
     )
     result = process_data(
         log_data_from_session(simulate_session(robot, cfg)),
-        nominal=nominal,
-        fit_method=str(job.get("fit_method", "auto")),
-        analytic_only=bool(job.get("analytic_only", False)),
-        parallel_sigma=float(job.get("parallel_sigma", NOMINAL_SIGMA_2D)),  # type: ignore[arg-type]
-        model=ModelRequest("geometric"),  # the geometric parameters' σ is what is judged
+        ProcessOptions(
+            nominal=nominal,
+            fit_method=str(job.get("fit_method", "auto")),
+            analytic_only=bool(job.get("analytic_only", False)),
+            parallel_sigma=float(job.get("parallel_sigma", NOMINAL_SIGMA_2D)),
+            model=ModelRequest("geometric"),
+        ),
     )
     diff = nominal_difference(result)
     assert diff is not None and result.std is not None

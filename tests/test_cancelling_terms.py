@@ -24,7 +24,7 @@ from dhlog.identify.model.beyond import (
     term_std,
 )
 from dhlog.identify.model.select import ModelRequest
-from dhlog.identify.run import ProcessResult, process_data
+from dhlog.identify.run import ProcessOptions, ProcessResult, process_data
 from dhlog.io.dhfile import DHModel
 from dhlog.io.memory import log_data_from_session
 from dhlog.model import terms as ng
@@ -76,7 +76,8 @@ def short_wrist() -> tuple[Session, ProcessResult]:
     names = tuple(f"joint_{i + 1}" for i in range(rob.n))
     nominal = DHModel(rob.table, rob.T_base, rob.tool_point, names, "kr5")
     result = process_data(
-        log_data_from_session(session), nominal=nominal, model=ModelRequest("compliance")
+        log_data_from_session(session),
+        ProcessOptions(nominal=nominal, model=ModelRequest("compliance")),
     )
     return session, result
 

@@ -14,7 +14,7 @@ from typer.testing import CliRunner
 from dhlog.cell.compensate import compensate, compensate_poses, read_poses
 from dhlog.cli.app import app
 from dhlog.identify.model.select import ModelRequest
-from dhlog.identify.run import process_data
+from dhlog.identify.run import ProcessOptions, process_data
 from dhlog.io.dhfile import DHModel, parse_dh
 from dhlog.io.memory import log_data_from_session
 from dhlog.model.fk import fk_frames
@@ -42,7 +42,8 @@ def _result(name: str, **options: object) -> DHModel:
     )
     session = simulate_session(load_robot(name), cfg)
     result = process_data(
-        log_data_from_session(session), nominal=_nominal(name), model=ModelRequest("auto")
+        log_data_from_session(session),
+        ProcessOptions(nominal=_nominal(name), model=ModelRequest("auto")),
     )
     doc = json.loads(json.dumps(result_document(result)))
     if name == "ur5":  # nearly parallel axes: rows in the Hayati form beside the standard table

@@ -12,7 +12,7 @@ import pytest
 from rich.console import Console
 
 from dhlog.errors import Note
-from dhlog.identify.run import ProcessResult, process_log
+from dhlog.identify.run import ProcessOptions, ProcessResult, process_log
 from dhlog.io.dhfile import load_dh
 from dhlog.present.console import print_result
 from dhlog.present.console.layout import NAME_WIDTH, literal, short_name
@@ -56,7 +56,9 @@ def test_a_long_name_is_cut_after_its_controls_are_made_visible() -> None:
 def hostile() -> ProcessResult:
     """kr5_0.1mm with its truth as nominal, every user text replaced by a hostile one."""
     log = SAMPLES / "kr5_0.1mm.mcap"
-    result = process_log(log, nominal=load_dh(log.with_name(log.stem + ".truth.json")))
+    result = process_log(
+        log, ProcessOptions(nominal=load_dh(log.with_name(log.stem + ".truth.json")))
+    )
     assert result.nominal is not None
     for joint, name in zip(result.joints, HOSTILE, strict=True):
         joint.name = name

@@ -26,7 +26,7 @@ from typer.testing import CliRunner
 import camera_rig as cams
 from dhlog.cli.app import app
 from dhlog.identify.camera.flow import process_observations
-from dhlog.identify.run import process_data
+from dhlog.identify.run import process_poses
 from dhlog.io.dhfile import DHModel, load_dh
 from dhlog.model.fk import fk_frames
 from dhlog.model.robots import load_robot
@@ -54,7 +54,7 @@ def _result(setup: str, folder: Path) -> Path:
     obs = cams.observations(robot, Q, ids, uv)
     nominal = DHModel(robot.table, np.eye(4), np.zeros(3), tuple(obs.joint_names), "library")
     result = process_observations(
-        start=process_data, observations=[obs], nominal=nominal, setup=setup
+        start=process_poses, observations=[obs], nominal=nominal, setup=setup
     )
     path = folder / f"{setup}.dh.json"
     path.write_text(json.dumps(result_document(result), allow_nan=False))

@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 from dhlog.identify.model import hold
-from dhlog.identify.run import ProcessResult, process_data, table_values
+from dhlog.identify.run import ProcessOptions, ProcessResult, process_data, table_values
 from dhlog.io.dhfile import dh_model_from
 from dhlog.io.memory import log_data_from_session
 from dhlog.model.fk import fk_frames, fk_point
@@ -40,7 +40,9 @@ ALPHA5, THETA5 = 4 * 4 + 3, 4 * 4 + 0
 
 
 def run(session: Session) -> ProcessResult:
-    return process_data(log_data_from_session(session), nominal=dh_model_from("ur5"))
+    return process_data(
+        log_data_from_session(session), ProcessOptions(nominal=dh_model_from("ur5"))
+    )
 
 
 @pytest.fixture(scope="module")

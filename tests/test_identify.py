@@ -16,7 +16,7 @@ from dhlog.identify.fit.prediction import predict
 from dhlog.identify.fit.whole import fit_whole_model
 from dhlog.identify.model.parked import PARKED_REASON
 from dhlog.identify.model.select import ModelRequest
-from dhlog.identify.run import ProcessResult, process_data
+from dhlog.identify.run import ProcessOptions, ProcessResult, process_data
 from dhlog.io.dhfile import DHModel
 from dhlog.io.memory import log_data_from_session
 from dhlog.model.fk import fk_point
@@ -139,7 +139,7 @@ def test_from_a_start_a_millimetre_off_the_fit_reaches_the_truth_within_its_sigm
     rob = load_robot("puma560")
     session = simulate_session(rob, SimulationConfig(seed=2, noise=2e-5, tracker_rate=50.0))
     seg_log = log_data_from_session(session)
-    result = process_data(seg_log, analytic_only=True)
+    result = process_data(seg_log, ProcessOptions(analytic_only=True))
     table = result.segmentation.table
     Q = table.select([f"q_{i + 1}" for i in range(rob.n)]).drop_nulls().to_numpy()
     P = table.drop_nulls(subset=[f"q_{i + 1}" for i in range(rob.n)]).select("x", "y", "z")
@@ -168,7 +168,7 @@ def test_the_table_equals_the_fitted_model_and_pairs_held_parallel_are_fixed() -
     rob = load_robot("kr5")
     nominal = DHModel(rob.table, rob.T_base, rob.tool_point, ("a",) * 6, "kr5")
     session = simulate_session(rob, SimulationConfig(seed=1, noise=2e-5))
-    result = process_data(log_data_from_session(session), nominal=nominal)
+    result = process_data(log_data_from_session(session), ProcessOptions(nominal=nominal))
     assert result.whole is not None and 1 in result.whole.constrained
     doc = result_document(result)
     row2 = doc["standard_dh"][1]
@@ -247,13 +247,13 @@ def test_a_joint_never_moved_alone_is_identified_from_coupled_moves() -> None:
     base = {"seed": 11, "noise": 2e-5, "skip_joints": (3,), "perturb_length": 5e-4}
     coupled = SimulationConfig(**base, coupled=((2, 3, -1.0),))  # type: ignore[arg-type]
     session = simulate_session(rob, coupled)
-    result = process_data(log_data_from_session(session), nominal=nominal)
+    result = process_data(log_data_from_session(session), ProcessOptions(nominal=nominal))
     assert result.complete and result.whole is not None
     assert any("never moved alone" in w for w in result.warnings)
     Q = np.random.default_rng(10).uniform(rob.limits[:, 0], rob.limits[:, 1], (200, 6))
     assert np.all(fk_error(result, session, Q) <= 4.0 * fk_prediction_std(result, Q))
     alone = simulate_session(rob, SimulationConfig(**base))  # type: ignore[arg-type]
-    partial = process_data(log_data_from_session(alone), nominal=nominal)
+    partial = process_data(log_data_from_session(alone), ProcessOptions(nominal=nominal))
     assert partial.parked == (2,) and partial.fixed[8] == PARKED_REASON
     assert any("joint 3 (joint_3" in w and "parked" in w for w in partial.warnings)
 
@@ -327,7 +327,11 @@ def test_per_sample_covariance_of_pose_with_covariance_stamped_weighs_the_fit(tm
     assert np.all(fk_error(result, session, Q) <= 4.0 * fk_prediction_std(result, Q))
     # the general reader (mcap's own decoders) gives the same covariance
     fast = result.segmentation.table.select("cxx", "cyz").to_numpy()
-    general = process_log(path, fast=False).segmentation.table.select("cxx", "cyz").to_numpy()
+    general = (
+        process_log(path, ProcessOptions(fast=False))
+        .segmentation.table.select("cxx", "cyz")
+        .to_numpy()
+    )
     assert np.allclose(fast, general, equal_nan=True)
 
 
@@ -357,14 +361,14 @@ def test_several_targets_are_fitted_jointly(tmp_path) -> None:  # type: ignore[n
         '[streams.base]\ntopic = "/tracker/base_plane"\n'
     )
     pipeline = parse_pipeline(text, "two_smr.toml")
-    both = process_log(path, pipeline=pipeline)
+    both = process_log(path, ProcessOptions(pipeline=pipeline))
     one = process_log(path)
     # read without the further target, the log says which topic was left and how to read it
     left = [w for w in one.warnings if "extra_topics" in w]
     assert len(left) == 1 and "/tracker/point_2 carries the target's message type" in left[0]
     assert not any("extra_topics" in w for w in both.warnings)
     # mcap's own decoders read the further target into the same table
-    general = process_log(path, pipeline=pipeline, fast=False).segmentation.table
+    general = process_log(path, ProcessOptions(pipeline=pipeline, fast=False)).segmentation.table
     assert general.select("t_ns", "x", "target").equals(
         both.segmentation.table.select("t_ns", "x", "target")
     )
@@ -422,7 +426,7 @@ def test_a_target_whose_orientation_is_measured_fixes_the_wrist(tmp_path) -> Non
         'orientation = true\n[streams.joints]\ntopic = "/joint_states"\n'
         '[streams.base]\ntopic = "/tracker/base_plane"\n'
     )
-    with_rot = process_log(path, pipeline=parse_pipeline(text, "six_dof.toml"))
+    with_rot = process_log(path, ProcessOptions(pipeline=parse_pipeline(text, "six_dof.toml")))
     plain = process_log(path)
     assert with_rot.whole is not None and with_rot.whole.sigma_rotation is not None
     assert 1.5e-4 < with_rot.whole.sigma_rotation < 2.5e-4
@@ -476,9 +480,9 @@ def test_encoder_scales_are_fitted_on_request() -> None:
     cfg = SimulationConfig(seed=19, noise=1e-5, tracker_rate=50.0, encoder_scales=scales)
     session = simulate_session(rob, cfg)
     log = log_data_from_session(session)
-    fitted = process_data(log, fit_scales=True)
+    fitted = process_data(log, ProcessOptions(fit_scales=True))
     # geometric: with --model auto the harmonics (sin q ≈ q) would take up part of a scale error
-    plain = process_data(log, model=ModelRequest("geometric"))
+    plain = process_data(log, ProcessOptions(model=ModelRequest("geometric")))
     assert fitted.whole is not None and plain.whole is not None
     doc = result_document(fitted)["whole_fit"]["encoder_scales"]
     value, std = np.array(doc["value"]), np.array(doc["std"])

@@ -15,7 +15,7 @@ from typer.testing import CliRunner
 
 from dhlog.cli.app import app
 from dhlog.identify.check.validate import fk_prediction_std
-from dhlog.identify.run import process_log
+from dhlog.identify.run import ProcessOptions, process_log
 from dhlog.io.reader import read_log
 from dhlog.model.fk import fk_point
 from dhlog.model.robots import load_robot
@@ -210,7 +210,7 @@ def test_the_readme_walkthrough_from_the_bundled_csv(tmp_path: Path) -> None:
     )
     assert made.exit_code == 0, made.output
     truth = load_dh(samples / "kr5_stops.truth.json")
-    result = process_log(tmp_path / "run.mcap", nominal=dh_model_from("kr5"))
+    result = process_log(tmp_path / "run.mcap", ProcessOptions(nominal=dh_model_from("kr5")))
     rob = load_robot("kr5")
     Q = np.random.default_rng(2).uniform(rob.limits[:, 0], rob.limits[:, 1], (200, 6))
     ex = result.extraction

@@ -19,7 +19,7 @@ from dhlog.cli.app import app
 from dhlog.errors import DhlogError
 from dhlog.identify.joints.permutation import suspected_permutation
 from dhlog.identify.model.select import ModelRequest
-from dhlog.identify.run import ProcessResult, process_log
+from dhlog.identify.run import ProcessOptions, ProcessResult, process_log
 from dhlog.identify.segment.segment import segment_log
 from dhlog.io.dhfile import DHModel, dh_model_from
 from dhlog.io.jointnames import JointNamesMismatchError, chain_order, numbers
@@ -112,7 +112,7 @@ def fk_rms_against_truth(result: ProcessResult, session: Session) -> float:
 def processed(path: Path, nominal: DHModel | None = None) -> ProcessResult:
     """``dhlog process PATH --nominal ur5 --model geometric``."""
     model = dh_model_from("ur5") if nominal is None else nominal
-    return process_log(path, nominal=model, model=ModelRequest("geometric"))
+    return process_log(path, ProcessOptions(nominal=model, model=ModelRequest("geometric")))
 
 
 @pytest.fixture(scope="module")
@@ -460,9 +460,11 @@ def test_a_drivers_bag_validates_a_calibration_whose_log_numbered_its_joints(
     )
     result = process_log(
         numbered,
-        nominal=dh_model_from("ur5"),
-        model=ModelRequest("geometric"),
-        validate=[logs["driver"], logs["ordered"]],
+        ProcessOptions(
+            nominal=dh_model_from("ur5"),
+            model=ModelRequest("geometric"),
+            validate=tuple([logs["driver"], logs["ordered"]]),
+        ),
     )
     assert result.not_scored == () and result.implausible == ()
     scored = [h for h in result.holdout if h.kind == "log"]

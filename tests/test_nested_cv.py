@@ -15,7 +15,7 @@ from dhlog.identify.fit.leaveout import fold_of_poses, linearise, pose_means
 from dhlog.identify.fit.whole import fit_whole_model
 from dhlog.identify.joints.sweeps import samples_with_encoders
 from dhlog.identify.model.select import ModelRequest, default_gravity, select_model
-from dhlog.identify.run import process_data
+from dhlog.identify.run import ProcessOptions, process_data
 from dhlog.io.dhfile import DHModel
 from dhlog.io.memory import log_data_from_session
 from dhlog.model.noise import NoiseModel
@@ -50,7 +50,7 @@ def _session(seed: int, poses: int, compliance: float):  # type: ignore[no-untyp
 @pytest.fixture(scope="module")
 def bending():  # type: ignore[no-untyped-def]
     log, nominal = _session(3, 60, 1.5e-6)
-    return log, nominal, process_data(log, nominal=nominal, holdout=5)
+    return log, nominal, process_data(log, ProcessOptions(nominal=nominal, holdout=5))
 
 
 def test_the_linearised_leave_out_is_the_refit(bending) -> None:  # type: ignore[no-untyped-def]
@@ -128,7 +128,9 @@ def test_a_rigid_robot_is_scored_geometric_in_its_folds() -> None:
     """No terms in the truth: the folds choose the geometric model (or a term they cannot
     prove is left out), and the held-out error stays at the noise of a pose."""
     log, nominal = _session(5, 60, 0.0)
-    result = process_data(log, nominal=nominal, model=ModelRequest("auto"), holdout=5)
+    result = process_data(
+        log, ProcessOptions(nominal=nominal, model=ModelRequest("auto"), holdout=5)
+    )
     sel = result.selection
     assert sel is not None and len(sel.fold_choices) == 5
     assert sel.fold_choices.count("geometric") >= 4, sel.fold_choices
@@ -143,7 +145,7 @@ def test_a_sweeps_session_says_its_held_out_poses_lie_on_the_sweeps(bending) -> 
     session = simulate_session(robot, SimulationConfig(seed=0, tracker_rate=20.0))
     names = tuple(f"joint_{i + 1}" for i in range(robot.n))
     nominal = DHModel(robot.table, robot.T_base, robot.tool_point, names, "kr5")
-    swept = process_data(log_data_from_session(session), nominal=nominal, holdout=5)
+    swept = process_data(log_data_from_session(session), ProcessOptions(nominal=nominal, holdout=5))
     (check,) = swept.holdout
     assert any("swept arcs" in n for n in check.notes), check.notes
     _, _, random_poses = bending
@@ -158,7 +160,8 @@ def test_each_fold_holds_the_pairs_its_own_poses_hold() -> None:
     names = tuple(f"joint_{i + 1}" for i in range(robot.n))
     nominal = DHModel(robot.table, robot.T_base, robot.tool_point, names, "ur5")
     result = process_data(
-        log_data_from_session(session), nominal=nominal, model=ModelRequest("geometric"), holdout=5
+        log_data_from_session(session),
+        ProcessOptions(nominal=nominal, model=ModelRequest("geometric"), holdout=5),
     )
     assert result.whole is not None and result.whole.constrained, "the run holds pairs"
     (check,) = result.holdout
@@ -183,7 +186,9 @@ def test_the_error_over_the_ranges_is_given_where_the_poses_do_not_span_them() -
     names = tuple(f"joint_{i + 1}" for i in range(robot.n))
     nominal = DHModel(robot.table, robot.T_base, robot.tool_point, names, "kr5")
     log = log_data_from_session(simulate_session(robot, cfg))
-    result = process_data(log, nominal=nominal, model=ModelRequest("geometric"), holdout=5)
+    result = process_data(
+        log, ProcessOptions(nominal=nominal, model=ModelRequest("geometric"), holdout=5)
+    )
     (check,) = result.holdout
     assert check.range_sd is not None and check.range_sd > 2 * check.calibrated.rms
     assert check.expected_rms is not None

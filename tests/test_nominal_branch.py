@@ -25,7 +25,7 @@ import pytest
 from dhlog.geometry._checks import wrap_angle
 from dhlog.geometry.lines import Line
 from dhlog.identify.read import analytic, extract, hayati, propagate
-from dhlog.identify.run import ProcessResult, process_data
+from dhlog.identify.run import ProcessOptions, ProcessResult, process_data
 from dhlog.io.dhfile import dh_model_from
 from dhlog.io.memory import log_data_from_session
 from dhlog.model.dh import HayatiDH, StandardDH
@@ -72,7 +72,7 @@ TURNED = np.array([0.3, -1.2, 2.8, 2.9, -2.5, 1.0])
 
 def _run(session: Session, robot: str, reference: np.ndarray | None = None) -> ProcessResult:
     log = log_data_from_session(session)
-    return process_data(log, nominal=dh_model_from(robot), reference_pose=reference)
+    return process_data(log, ProcessOptions(nominal=dh_model_from(robot), reference_pose=reference))
 
 
 def _unbranched(session: Session, robot: str, reference: np.ndarray | None = None) -> ProcessResult:
@@ -240,10 +240,10 @@ def test_a_previous_result_as_the_nominal(robot: str, tmp_path: Path) -> None:
     path.write_text(json.dumps(result_document(first)))
     session = simulate_session(load_robot(robot), _config("sweeps", seed=12))
     log = log_data_from_session(session)
-    result = process_data(log, nominal=dh_model_from(str(path)))
+    result = process_data(log, ProcessOptions(nominal=dh_model_from(str(path))))
     with pytest.MonkeyPatch.context() as mp:  # every x_{i+1} by a's sign, else α's
         mp.setattr(extract, "_nearest_branch", _by_signs)
-        before = process_data(log, nominal=dh_model_from(str(path)))
+        before = process_data(log, ProcessOptions(nominal=dh_model_from(str(path))))
     diff, diff0 = nominal_difference(result, shown=True), nominal_difference(before, shown=True)
     assert diff is not None and diff0 is not None
     assert np.max(np.abs(diff0[:, [0, 3]])) > 3.0  # the flip this guards against

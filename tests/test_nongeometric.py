@@ -18,7 +18,7 @@ from dhlog.errors import InputError
 from dhlog.identify.fit.axismodel import ParameterLayout
 from dhlog.identify.fit.prediction import predict
 from dhlog.identify.model.select import ModelRequest
-from dhlog.identify.run import ProcessResult, process_data
+from dhlog.identify.run import ProcessOptions, ProcessResult, process_data
 from dhlog.io.dhfile import DHModel, load_dh
 from dhlog.io.memory import log_data_from_session
 from dhlog.model import terms as ng
@@ -129,8 +129,8 @@ def compliant() -> tuple[Session, ProcessResult, ProcessResult]:
     session = _compliant_session(4, compliance=COMPLIANCE)
     log = log_data_from_session(session)
     nominal = _nominal("kr210")
-    auto = process_data(log, nominal=nominal)
-    geometric = process_data(log, nominal=nominal, model=ModelRequest("geometric"))
+    auto = process_data(log, ProcessOptions(nominal=nominal))
+    geometric = process_data(log, ProcessOptions(nominal=nominal, model=ModelRequest("geometric")))
     return session, auto, geometric
 
 
@@ -195,7 +195,9 @@ def test_auto_adds_nothing_to_a_rigid_robot() -> None:
     the geometric model, rejected by the BIC without a cross-validation."""
     for seed in (1, 2):
         session = _compliant_session(seed, robot="kr5")
-        result = process_data(log_data_from_session(session), nominal=_nominal("kr5"))
+        result = process_data(
+            log_data_from_session(session), ProcessOptions(nominal=_nominal("kr5"))
+        )
         assert result.selection is not None
         assert result.selection.chosen.families == (), result.selection.document()
         assert result.terms is None and "nongeometric" in result_document(result)
@@ -208,8 +210,7 @@ def test_harmonics_are_found_where_the_gears_err() -> None:
     session = _compliant_session(5, robot="kr5", harmonic=truth, poses=80)
     result = process_data(
         log_data_from_session(session),
-        nominal=_nominal("kr5"),
-        model=ModelRequest("auto", harmonic_joints=(1, 2)),
+        ProcessOptions(nominal=_nominal("kr5"), model=ModelRequest("auto", harmonic_joints=(1, 2))),
     )
     assert result.selection is not None and result.selection.chosen.families == ("harmonic",)
     assert result.terms is not None
@@ -322,8 +323,9 @@ def test_masses_from_a_urdf_give_each_joint_its_compliance(tmp_path: Path) -> No
     session = _compliant_session(4, compliance=COMPLIANCE)
     result = process_data(
         log_data_from_session(session),
-        nominal=_nominal("kr210"),
-        model=ModelRequest("compliance", masses=str(urdf)),
+        ProcessOptions(
+            nominal=_nominal("kr210"), model=ModelRequest("compliance", masses=str(urdf))
+        ),
     )
     assert result.terms is not None and any("--masses: 5 link masses" in n for n in result.info)
     assert not any("--masses" in w for w in result.warnings), result.warnings

@@ -13,7 +13,7 @@ import pytest
 
 from dhlog.errors import Note, texts
 from dhlog.identify.joints.checks import RMS_OUTLIER, check_fit_noise
-from dhlog.identify.run import ProcessResult, process_log
+from dhlog.identify.run import ProcessOptions, ProcessResult, process_log
 from dhlog.io.dhfile import load_dh
 from dhlog.result.document import result_document
 
@@ -115,7 +115,9 @@ def test_a_note_has_a_level_a_text_and_a_code() -> None:
 @pytest.fixture(scope="module")
 def kr5() -> ProcessResult:
     log = SAMPLES / "kr5_0.1mm.mcap"
-    return process_log(log, nominal=load_dh(log.with_name(log.stem + ".truth.json")))
+    return process_log(
+        log, ProcessOptions(nominal=load_dh(log.with_name(log.stem + ".truth.json")))
+    )
 
 
 def test_a_joint_far_noisier_than_the_others_is_a_fit_noise_warning(kr5: ProcessResult) -> None:

@@ -28,7 +28,7 @@ from dhlog.api.operations import load
 from dhlog.cli.app import app
 from dhlog.identify.fit.prediction import predict
 from dhlog.identify.model.parked import PARKED_REASON
-from dhlog.identify.run import ProcessResult, process_data
+from dhlog.identify.run import ProcessOptions, ProcessResult, process_data
 from dhlog.io.dhfile import DHModel
 from dhlog.io.memory import log_data_from_session
 from dhlog.model.dh import StandardDH
@@ -123,7 +123,7 @@ def test_a_parked_torso_is_held_and_the_arm_fits_as_the_6_joint_chain_without_it
     differs), both at the statistical limit."""
     robot = load_robot("torso7")
     session = _session(robot, 1, parked=((1, PARKED_AT),), park_wander=0.0)
-    result = process_data(log_data_from_session(session), nominal=_nominal(robot))
+    result = process_data(log_data_from_session(session), ProcessOptions(nominal=_nominal(robot)))
     _assert_parked(result, 0)
     Q = _joint_vectors(robot, parked=0)
     seven = _fk_rms(result, session, Q)
@@ -143,7 +143,7 @@ def test_a_parked_torso_is_held_and_the_arm_fits_as_the_6_joint_chain_without_it
     nominal = DHModel(
         nominal_table, nominal_base, robot.tool_point, tuple(reduced.joint_names), "6R"
     )
-    six_result = process_data(log_data_from_session(reduced), nominal=nominal)
+    six_result = process_data(log_data_from_session(reduced), ProcessOptions(nominal=nominal))
     assert six_result.extraction is not None
     got = six_result.extraction
     fk6 = fk_point(got.standard, Q[:, 1:], got.tool_point, T_base=got.T_measurement_base)
@@ -169,7 +169,7 @@ def test_a_parked_joint_is_held_wherever_it_is(robot_name: str, joint: int, prot
     joint's small motion is applied through the held axis, so its wander costs nothing."""
     robot = load_robot(robot_name)
     session = _session(robot, 0, protocol=protocol, parked=((joint + 1, PARKED_AT),))
-    result = process_data(log_data_from_session(session), nominal=_nominal(robot))
+    result = process_data(log_data_from_session(session), ProcessOptions(nominal=_nominal(robot)))
     _assert_parked(result, joint)
     Q = _joint_vectors(robot, parked=joint)
     assert _fk_rms(result, session, Q) <= WITHIN_PREDICTED * _predicted(result, Q)
@@ -193,7 +193,7 @@ def test_a_7_joint_arm_calibrates_at_the_statistical_limit(robot_name: str) -> N
     tracker's noise."""
     robot = load_robot(robot_name)
     session = _session(robot, 2)
-    result = process_data(log_data_from_session(session), nominal=_nominal(robot))
+    result = process_data(log_data_from_session(session), ProcessOptions(nominal=_nominal(robot)))
     assert result.complete and result.whole is not None and not result.parked
     Q = _joint_vectors(robot)
     error = _fk_rms(result, session, Q)

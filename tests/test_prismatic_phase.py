@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import pytest
 
-from dhlog.identify.run import process_data
+from dhlog.identify.run import ProcessOptions, process_data
 from dhlog.identify.segment.segment import segment_log
 from dhlog.identify.segment.timing import sweep_phases
 from dhlog.io.dhfile import DHModel
@@ -37,5 +37,5 @@ def test_a_prismatic_sweep_moves_one_per_encoder_unit(seed: int) -> None:
     assert all(abs(s - 1.0) < 0.01 for s in unknown.values()), unknown
     names = tuple(f"joint_{i + 1}" for i in range(robot.n))
     nominal = DHModel(robot.table, robot.T_base, robot.tool_point, names, "scara")
-    result = process_data(log, nominal=nominal)
+    result = process_data(log, ProcessOptions(nominal=nominal))
     assert not [w for w in result.warnings if "per encoder unit" in w], result.warnings

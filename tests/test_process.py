@@ -19,7 +19,7 @@ from typer.testing import CliRunner
 
 from dhlog.cli.app import app
 from dhlog.identify.check.validate import fk_prediction_std
-from dhlog.identify.run import ProcessResult, process_log
+from dhlog.identify.run import ProcessOptions, ProcessResult, process_log
 from dhlog.io.dhfile import load_dh
 from dhlog.io.writer import write_session
 from dhlog.model.fk import fk_point
@@ -70,7 +70,7 @@ def truth_of(path: Path) -> tuple[dict[str, object], object]:
 def processed(request: pytest.FixtureRequest) -> tuple[Path, ProcessResult, ProcessResult]:
     path: Path = request.param
     _, truth = truth_of(path)
-    return path, process_log(path), process_log(path, nominal=truth)  # type: ignore[arg-type]
+    return path, process_log(path), process_log(path, ProcessOptions(nominal=truth))  # type: ignore[arg-type]
 
 
 def test_fk_of_the_result_matches_the_truth_within_the_noise(processed) -> None:  # type: ignore[no-untyped-def]
@@ -331,7 +331,7 @@ def test_sweeps_from_anywhere_are_carried_to_the_reference_pose(robot: str) -> N
     nominal = DHModel(
         rob.table, rob.T_base, rob.tool_point, tuple(f"joint_{i + 1}" for i in range(rob.n)), robot
     )
-    result = process_data(log_data_from_session(session), nominal=nominal)
+    result = process_data(log_data_from_session(session), ProcessOptions(nominal=nominal))
     assert result.complete and sum(j.carried for j in result.joints) >= rob.n - 1
     ex = result.extraction
     assert ex is not None and result.std is not None
@@ -393,7 +393,7 @@ def test_the_whole_model_fit_is_closer_to_the_truth_than_the_seed_method() -> No
     rob = load_robot("kr5")
     session = simulate_session(rob, SimulationConfig(seed=5, noise=2e-5, sweep=math.radians(60)))
     log = log_data_from_session(session)
-    analytic = process_data(log, analytic_only=True)
+    analytic = process_data(log, ProcessOptions(analytic_only=True))
     whole = process_data(log)
     assert analytic.method == "analytic" and whole.method.startswith("whole-model")
     assert whole.validation is not None and analytic.validation is not None

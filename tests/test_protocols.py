@@ -19,7 +19,7 @@ from dhlog.identify.check.validate import fk_prediction_std
 from dhlog.identify.fit.leaveout import pose_groups
 from dhlog.identify.fit.register import register_nominal
 from dhlog.identify.read.propagate import NOT_DETERMINED
-from dhlog.identify.run import process_data
+from dhlog.identify.run import ProcessOptions, process_data
 from dhlog.io.decode.frames import COVARIANCE_COLUMNS
 from dhlog.io.dhfile import DHModel
 from dhlog.io.memory import log_data_from_session
@@ -85,7 +85,7 @@ def test_random_static_poses_are_identified_from_the_nominal() -> None:
     nominal the result is partial with one line naming --nominal."""
     robot, session = random_poses(1)
     log = log_data_from_session(session)
-    result = process_data(log, nominal=nominal_of(robot))
+    result = process_data(log, ProcessOptions(nominal=nominal_of(robot)))
     assert result.complete and result.whole is not None and result.registration is not None
     assert any("no joint was swept alone" in note for note in result.info)
     Q = np.random.default_rng(4).uniform(robot.limits[:, 0], robot.limits[:, 1], (200, 6))
@@ -103,7 +103,9 @@ def test_cross_validation_holds_out_poses_and_the_calibration_beats_the_nominal(
     millimetre of error, the calibrated model's a few times the noise (σ 10 µm: 3-D ≈ 17 µm),
     and above the in-sample FK RMS."""
     robot, session = random_poses(2, tracker_rate=6.0)
-    result = process_data(log_data_from_session(session), nominal=nominal_of(robot), holdout=5)
+    result = process_data(
+        log_data_from_session(session), ProcessOptions(nominal=nominal_of(robot), holdout=5)
+    )
     (h,) = result.holdout
     assert h.kind == "cross-validation" and h.folds == 5 and h.calibrated.n_poses == 40
     assert h.nominal is not None and 0.3e-3 < h.nominal.rms < 5e-3
@@ -138,8 +140,8 @@ def test_a_model_error_component_keeps_u95_weighting_from_hurting() -> None:
         log, points=log.points.with_columns(pl.Series(k, v) for k, v in cov.items())
     )
     nominal = nominal_of(robot)
-    plain = process_data(log, nominal=nominal)
-    u95 = process_data(weighted, nominal=nominal)
+    plain = process_data(log, ProcessOptions(nominal=nominal))
+    u95 = process_data(weighted, ProcessOptions(nominal=nominal))
     assert u95.noise.model == "per-sample" and u95.noise.model_error is not None
     assert 0.6 * 6e-5 < u95.noise.model_error < 1.4 * 6e-5
     assert any("model-error σ" in w for w in u95.warnings)
@@ -166,7 +168,7 @@ def test_what_the_poses_do_not_determine_is_held_at_the_nominal_and_marked() -> 
         **OFF,  # type: ignore[arg-type]
     )
     session = simulate_session(robot, cfg)
-    result = process_data(log_data_from_session(session), nominal=nominal_of(robot))
+    result = process_data(log_data_from_session(session), ProcessOptions(nominal=nominal_of(robot)))
     assert result.complete and result.whole is not None
     d = result.whole.determined
     assert d is not None and d.null.shape[1] >= 1
@@ -263,13 +265,13 @@ def test_samples_of_one_pose_share_its_error_and_the_uncertainty_says_so() -> No
     (about √5 here: the pose's error dominates the 10 µm noise) and covers the FK error at
     random joint vectors (4σ); with one sample a pose nothing is scaled."""
     robot, session = random_poses(7, model_error=6e-5, tracker_rate=10.0)
-    result = process_data(log_data_from_session(session), nominal=nominal_of(robot))
+    result = process_data(log_data_from_session(session), ProcessOptions(nominal=nominal_of(robot)))
     notes = [n for n in result.info if "design effect" in n]
     assert len(notes) == 1 and "5.0 a pose" in notes[0]
     Q = np.random.default_rng(8).uniform(robot.limits[:, 0], robot.limits[:, 1], (200, 6))
     assert np.all(fk_error(result, session, Q) <= 4.0 * fk_prediction_std(result, Q))
     robot, single = random_poses(7, model_error=6e-5)
-    once = process_data(log_data_from_session(single), nominal=nominal_of(robot))
+    once = process_data(log_data_from_session(single), ProcessOptions(nominal=nominal_of(robot)))
     assert not any("design effect" in n for n in once.info)
 
 
@@ -283,7 +285,7 @@ def test_the_design_effect_in_one_pass_is_the_direct_one(monkeypatch: pytest.Mon
     from dhlog.identify.joints.sweeps import samples_with_encoders
 
     robot, session = random_poses(7, model_error=6e-5, tracker_rate=10.0)
-    result = process_data(log_data_from_session(session), nominal=nominal_of(robot))
+    result = process_data(log_data_from_session(session), ProcessOptions(nominal=nominal_of(robot)))
     assert result.whole is not None
     _, Q, P = samples_with_encoders(result.segmentation)
     inliers = result.whole.inliers
@@ -334,7 +336,7 @@ def test_the_readme_random_poses_walkthrough(tmp_path: Path) -> None:
     printed = {line.rstrip() for line in done.output.splitlines()}
     for line in table.strip("\n").splitlines():
         assert line.rstrip() in printed, line
-    result = process_log(tmp_path / "poses.mcap", nominal=dh_model_from("kr5"))
+    result = process_log(tmp_path / "poses.mcap", ProcessOptions(nominal=dh_model_from("kr5")))
     assert result.tool_orientation is not None and result.noise.model_error is not None
     truth = load_dh(samples / "kr5_random_poses.truth.json")
     rob = load_robot("kr5")
@@ -354,7 +356,7 @@ def test_several_targets_at_random_poses_are_fitted_together() -> None:
     and its tool point's, together)."""
     extra = ((0.05, 0.0, 0.08), (-0.04, 0.03, 0.09))
     robot, session = random_poses(8, extra_tools=extra)
-    result = process_data(log_data_from_session(session), nominal=nominal_of(robot))
+    result = process_data(log_data_from_session(session), ProcessOptions(nominal=nominal_of(robot)))
     assert result.complete and result.whole is not None and result.extraction is not None
     assert result.extra_tool_points.shape == (2, 3)
     ex = result.extraction

@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 from rich.console import Console
 
-from dhlog.identify.run import ProcessResult, process_data
+from dhlog.identify.run import ProcessOptions, ProcessResult, process_data
 from dhlog.io.dhfile import DHModel
 from dhlog.io.memory import log_data_from_session
 from dhlog.model.dh import HayatiDH
@@ -45,7 +45,7 @@ def processed(session: Session, *, truth_nominal: bool) -> ProcessResult:
             ("simulated",) * session.table.n,
             "truth",
         )
-    return process_data(log_data_from_session(session), nominal=nominal)
+    return process_data(log_data_from_session(session), ProcessOptions(nominal=nominal))
 
 
 @pytest.fixture(scope="module")

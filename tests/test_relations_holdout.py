@@ -23,7 +23,7 @@ from dhlog.identify.model.pairs import (
     linearised,
 )
 from dhlog.identify.model.relations import constrain_pairs, pair_constraints
-from dhlog.identify.run import ProcessResult, process_data
+from dhlog.identify.run import ProcessOptions, ProcessResult, process_data
 from dhlog.io.dhfile import DHModel
 from dhlog.io.memory import log_data_from_session
 from dhlog.model.fk import fk_point
@@ -85,8 +85,8 @@ def test_a_tilted_pair_the_2_sigma_rule_held_is_left_free_at_the_limit(
     here, and 1.3× keeps it apart from the free fits' spread."""
     session, nominal = tilted
     log = log_data_from_session(session)
-    result = process_data(log, nominal=nominal)
-    before = process_data(log, nominal=nominal, parallel_sigma=2.0)
+    result = process_data(log, ProcessOptions(nominal=nominal))
+    before = process_data(log, ProcessOptions(nominal=nominal, parallel_sigma=2.0))
     assert result.whole is not None and before.whole is not None
     assert 2 in before.whole.constrained and 2 not in result.whole.constrained
     assert any("axes 3–4" in s and "left free" in s for s in result.info), result.info
@@ -104,7 +104,7 @@ def test_pairs_parallel_in_truth_are_held() -> None:
     its nominal span 0.98–1.02× the limit over six sessions, so 0.9× fails unless a pair is
     held."""
     session, nominal = _session(7000, off=False)
-    result = process_data(log_data_from_session(session), nominal=nominal)
+    result = process_data(log_data_from_session(session), ProcessOptions(nominal=nominal))
     assert result.whole is not None
     assert result.whole.constrained == {1: "parallel", 2: "parallel"}
     assert sum("held parallel" in s for s in result.info) == 2, result.info
@@ -124,7 +124,9 @@ def test_the_linearised_hold_is_the_first_order_of_constrain_pairs(
     change of second order, L θ² ≈ 1 m × (1.2e-4)² = 15 nm): within 0.1 µm of a move of
     several µm (a wrong sign or basis would be off by the move itself)."""
     session, nominal = tilted
-    free = process_data(log_data_from_session(session), nominal=nominal, parallel_sigma=0.0)
+    free = process_data(
+        log_data_from_session(session), ProcessOptions(nominal=nominal, parallel_sigma=0.0)
+    )
     whole = free.whole
     assert whole is not None and not whole.constrained
     _, Q, P = samples_with_encoders(free.segmentation)
@@ -154,7 +156,9 @@ def test_the_decision_inside_a_fold_reads_its_training_poses_alone(
     import dataclasses
 
     session, nominal = tilted
-    free = process_data(log_data_from_session(session), nominal=nominal, parallel_sigma=0.0)
+    free = process_data(
+        log_data_from_session(session), ProcessOptions(nominal=nominal, parallel_sigma=0.0)
+    )
     whole = free.whole
     assert whole is not None
     _, Q, P = samples_with_encoders(free.segmentation)

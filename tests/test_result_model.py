@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from dhlog.identify.model.select import ModelRequest
-from dhlog.identify.run import ProcessResult, process_data, process_log
+from dhlog.identify.run import ProcessOptions, ProcessResult, process_data, process_log
 from dhlog.io.dhfile import DHModel, dh_model_from, load_dh, parse_dh
 from dhlog.io.memory import log_data_from_session
 from dhlog.model.robots import load_robot
@@ -41,7 +41,7 @@ def _parked_run() -> ProcessResult:
     session = simulate_session(robot, cfg)
     names = tuple(f"joint_{i + 1}" for i in range(robot.n))
     nominal = DHModel(robot.table, robot.T_base, robot.tool_point, names, robot.name)
-    return process_data(log_data_from_session(session), nominal=nominal)
+    return process_data(log_data_from_session(session), ProcessOptions(nominal=nominal))
 
 
 def _library(name: str) -> DHModel:
@@ -53,7 +53,9 @@ def _kr5_truth() -> DHModel:
 
 
 RUNS = {
-    "nominal": lambda: process_log(SAMPLES / "kr5_0.1mm.mcap", nominal=_kr5_truth()),
+    "nominal": lambda: process_log(
+        SAMPLES / "kr5_0.1mm.mcap", ProcessOptions(nominal=_kr5_truth())
+    ),
     "free": lambda: process_log(SAMPLES / "scara.mcap"),
     "parked": _parked_run,
 }
@@ -90,7 +92,8 @@ def test_the_model_is_the_one_the_json_gives(kind: str) -> None:
 def test_terms_beyond_the_geometry_are_the_json_s() -> None:
     """kr5_real with --model compliance: the terms in the table's frames, as the JSON's."""
     result = process_log(
-        SAMPLES / "kr5_real.mcap", nominal=_library("kr5"), model=ModelRequest("compliance")
+        SAMPLES / "kr5_real.mcap",
+        ProcessOptions(nominal=_library("kr5"), model=ModelRequest("compliance")),
     )
     model = model_of(result)
     assert model is not None and model.terms is not None and model.terms.size

@@ -28,7 +28,7 @@ from dhlog.cli.app import app
 from dhlog.cli.common import EXIT_IMPLAUSIBLE
 from dhlog.identify.check.footing import LogHoldout
 from dhlog.identify.model.select import ModelRequest
-from dhlog.identify.run import ProcessResult, process_log
+from dhlog.identify.run import ProcessOptions, ProcessResult, process_log
 from dhlog.io.dhfile import DHModel
 from dhlog.io.pipeline import parse_pipeline
 from dhlog.io.writer import write_session
@@ -129,10 +129,12 @@ def calibrated(six_dof: bool, folder: Path) -> Checked:
     robot, _, paths = sessions(six_dof, folder)
     result = process_log(
         folder / "cal.mcap",
-        pipeline=parse_pipeline(SIX_DOF, "six_dof.toml") if six_dof else None,
-        nominal=nominal_of(robot),
-        model=ModelRequest("geometric"),
-        validate=list(paths.values()),
+        ProcessOptions(
+            pipeline=parse_pipeline(SIX_DOF, "six_dof.toml") if six_dof else None,
+            nominal=nominal_of(robot),
+            model=ModelRequest("geometric"),
+            validate=tuple(paths.values()),
+        ),
     )
     checks = {}
     for check in result.holdout:

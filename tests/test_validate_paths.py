@@ -29,7 +29,7 @@ from dhlog.cli.app import app
 from dhlog.geometry._checks import rotation_from_vector
 from dhlog.identify.check.footing import LogHoldout
 from dhlog.identify.model.select import ModelRequest
-from dhlog.identify.run import ProcessResult, process_log
+from dhlog.identify.run import ProcessOptions, ProcessResult, process_log
 from dhlog.io.dhfile import DHModel
 from dhlog.io.pipeline import parse_pipeline
 from dhlog.io.writer import write_session
@@ -102,10 +102,14 @@ def run(tmp_path_factory: pytest.TempPathFactory) -> Run:
     write_session(simulate_session(load_robot("scara"), config), folder / "scara.mcap")
     result = process_log(
         folder / "cal.mcap",
-        pipeline=parse_pipeline(SIX_DOF, "six_dof.toml"),
-        nominal=nominal_of(robot),
-        model=ModelRequest("geometric"),
-        validate=[folder / f"{name}.mcap" for name in (*plans, "line_export", "ur5", "scara")],
+        ProcessOptions(
+            pipeline=parse_pipeline(SIX_DOF, "six_dof.toml"),
+            nominal=nominal_of(robot),
+            model=ModelRequest("geometric"),
+            validate=tuple(
+                [folder / f"{name}.mcap" for name in (*plans, "line_export", "ur5", "scara")]
+            ),
+        ),
     )
     checks = {}
     for check in result.holdout:

@@ -73,7 +73,7 @@ def process(
     (:attr:`Calibration.complete` is False); bad input raises a :class:`~dhlog.DhlogError` whose
     message names the file or field and what to do."""
     from dhlog.identify.model.select import MODELS, ModelRequest
-    from dhlog.identify.run import process_log
+    from dhlog.identify.run import ProcessOptions, process_log
 
     if model not in MODELS:
         raise UsageError(f"process: model must be one of {', '.join(MODELS)}, not {model!r}.")
@@ -114,19 +114,21 @@ def process(
             )
     result = process_log(
         log,
-        pipeline=pipe,
-        nominal=nom,
-        reference_pose=ref,
-        analytic_only=analytic_only,
-        fit_scales=fit_encoder_scales,
-        holdout=holdout,
-        validate=list(validate),
-        model=request,
+        ProcessOptions(
+            pipeline=pipe,
+            nominal=nom,
+            reference_pose=ref,
+            analytic_only=analytic_only,
+            fit_scales=fit_encoder_scales,
+            holdout=holdout,
+            validate=tuple(validate),
+            model=request,
+            camera_setup=camera_setup,
+            refine_intrinsics=refine_intrinsics,
+            jobs=jobs,
+            frames=frames,
+        ),
         progress=progress,
-        camera_setup=camera_setup,
-        refine_intrinsics=refine_intrinsics,
-        jobs=jobs,
-        frames=frames,
     )
     found = calibration_of(result, limits=_library_limits(nominal))
     found._asked = (bool(holdout or validate), model != "geometric" and not analytic_only)

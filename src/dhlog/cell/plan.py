@@ -139,7 +139,7 @@ def plan_session(robot: Robot, cfg: SimulationConfig, tracker: Tracker | None = 
     from dhlog.identify.fit.leaveout import pose_groups
     from dhlog.identify.joints.sweeps import samples_with_encoders
     from dhlog.identify.model.select import ModelRequest
-    from dhlog.identify.run import process_data
+    from dhlog.identify.run import ProcessOptions, process_data
     from dhlog.io.dhfile import DHModel
     from dhlog.io.memory import log_data_from_session
     from dhlog.present.console import held_lines
@@ -184,9 +184,7 @@ def plan_session(robot: Robot, cfg: SimulationConfig, tracker: Tracker | None = 
     nominal = DHModel(robot.table, robot.T_base, robot.tool_point, names, robot.name)
     result = process_data(
         log_data_from_session(session, pipeline),
-        nominal=nominal,
-        model=ModelRequest("geometric"),
-        known_noise=known,
+        ProcessOptions(nominal=nominal, model=ModelRequest("geometric"), known_noise=known),
     )
     if result.parked:  # a run would hold it at the nominal: the plan does not identify it
         still = ", ".join(f"joint {k + 1}" for k in result.parked)

@@ -90,7 +90,7 @@ def process_job(job: BatchJob, *, hold_signals: bool = False) -> dict[str, Any]:
     outputs = job_outputs(job)
     try:
         from dhlog.identify.model.select import ModelRequest
-        from dhlog.identify.run import process_log
+        from dhlog.identify.run import ProcessOptions, process_log
         from dhlog.io.dhfile import dh_model_from
         from dhlog.io.pipeline import pipeline_from
 
@@ -98,11 +98,13 @@ def process_job(job: BatchJob, *, hold_signals: bool = False) -> dict[str, Any]:
         nom = dh_model_from(job.nominal) if job.nominal is not None else None
         result = process_log(
             log,
-            pipeline=pipe,
-            nominal=nom,
-            analytic_only=job.analytic_only,
-            holdout=job.holdout,
-            model=ModelRequest(job.model),
+            ProcessOptions(
+                pipeline=pipe,
+                nominal=nom,
+                analytic_only=job.analytic_only,
+                holdout=job.holdout,
+                model=ModelRequest(job.model),
+            ),
         )
         with _handlers_restored() if hold_signals else nullcontext():
             document = write_results(result, outputs, job.units, hold_signals=hold_signals)

@@ -33,7 +33,7 @@ import numpy as np
 from dhlog.errors import GeometryError, Note
 from dhlog.geometry._checks import FloatArray
 from dhlog.geometry.fitting import fit_plane
-from dhlog.geometry.lines import ANGLE_TOL, DISTANCE_TOL, Line
+from dhlog.geometry.lines import Line
 from dhlog.identify.check.plausible import judge
 from dhlog.identify.check.validate import (
     check_residual,
@@ -64,7 +64,7 @@ from dhlog.identify.model.parked import (
     parked_pose,
     parked_warning,
 )
-from dhlog.identify.model.select import AUTO, ModelRequest
+from dhlog.identify.model.select import ModelRequest
 from dhlog.identify.read.analytic import (
     pair_tolerances,
     partial_extraction,
@@ -77,19 +77,20 @@ from dhlog.identify.segment.timing import (
     sweep_phases,
 )
 from dhlog.identify.stages import (
+    DEFAULTS,
     FitRequest,
     ModelFit,
+    ProcessOptions,
     ProcessResult,
     Session,
     table_values,
 )
 from dhlog.identify.wholefit import identify_whole
 from dhlog.io.dhfile import DHModel
-from dhlog.io.pipeline import Pipeline
 from dhlog.io.reader import LogData, camera_pipeline, read_log
 from dhlog.io.writer import sha256_of
 
-__all__ = ["ProcessResult", "process_data", "process_log", "table_values"]
+__all__ = ["ProcessOptions", "ProcessResult", "process_data", "process_log", "table_values"]
 
 #: Largest number of samples per joint the per-joint fits (the whole-model fit's start) use.
 START_FIT_POINTS = 4000
@@ -100,36 +101,20 @@ Stage = Callable[[str, float], None]
 
 def process_log(
     path: str | Path,
+    options: ProcessOptions = DEFAULTS,
     *,
-    pipeline: Pipeline | None = None,
-    nominal: DHModel | None = None,
-    reference_pose: FloatArray | None = None,
-    fit_method: str = "auto",
-    angle_tol: float = ANGLE_TOL,
-    distance_tol: float = DISTANCE_TOL,
-    fast: bool = True,
-    analytic_only: bool = False,
-    fit_scales: bool = False,
-    holdout: int = 0,
-    validate: list[str | Path] | None = None,
-    model: ModelRequest = AUTO,
     progress: Stage | None = None,
-    camera_setup: str | None = None,
-    refine_intrinsics: bool = False,
-    jobs: int = 1,
-    frames: tuple[int | None, int | None] | None = None,
 ) -> ProcessResult:
-    """Run the whole identification on the log at ``path`` (see the module docstring).
+    """Run the whole identification on the log at ``path`` (see the module docstring), as
+    ``options`` asks (:class:`~dhlog.identify.stages.ProcessOptions`).
 
     A vision log (camera images; a camera pipeline) is calibrated from its detected board
-    corners (:mod:`dhlog.identify.camera.flow`): ``camera_setup`` eye-to-hand / eye-in-hand (None:
-    decided from the data), ``refine_intrinsics``, ``jobs`` processes decoding and detecting,
-    ``frames`` the range of frames (indices on the image topic, end excluded) calibrated from.
-
-    ``holdout`` K > 1: K-fold cross-validation over the session's poses; ``validate``: further
-    logs (other sessions of the same robot) whose poses score the result and the nominal on one
-    footing (:mod:`dhlog.identify.check.footing`; a log that cannot be scored is a warning).
+    corners (:mod:`dhlog.identify.camera.flow`). ``options.validate``: further logs (other
+    sessions of the same robot) whose poses score the result and the nominal on one footing
+    (:mod:`dhlog.identify.check.footing`; a log that cannot be scored is a warning).
     ``progress(stage, fraction)`` is called as each stage advances."""
+    pipeline, nominal, reference_pose = options.pipeline, options.nominal, options.reference_pose
+    model, validate, fast = options.model, options.validate, options.fast
     camera = camera_pipeline(path, pipeline)
     if camera is not None:  # one Observations a camera
         from dhlog.identify.camera.flow import process_observations
@@ -139,7 +124,7 @@ def process_log(
         observations = observe(
             path,
             camera,
-            jobs=jobs,
+            jobs=options.jobs,
             progress=None if progress is None else (lambda f: progress("detecting", f)),
             joint_names=None if nominal is None else nominal.joint_names,
             joint_source="model" if nominal is None else nominal.source,
@@ -151,12 +136,12 @@ def process_log(
                 sha256=digest,
                 nominal=nominal,
                 reference_pose=reference_pose,
-                setup=camera_setup,
-                refine_intrinsics=refine_intrinsics,
-                holdout=holdout,
-                frames=frames,
+                setup=options.camera_setup,
+                refine_intrinsics=options.refine_intrinsics,
+                holdout=options.holdout,
+                frames=options.frames,
                 progress=progress,
-                start=process_data,
+                start=process_poses,
                 pipeline=camera.name,
             ),
         )
@@ -181,54 +166,49 @@ def process_log(
         joint_names=None if nominal is None else nominal.joint_names,
         joint_source="model" if nominal is None else nominal.source,
     )
-    result = process_data(
-        log,
-        sha256=sha256_of(path),  # 0.03 s for a 55 MB log
-        nominal=nominal,
-        reference_pose=reference_pose,
-        fit_method=fit_method,
-        angle_tol=angle_tol,
-        distance_tol=distance_tol,
-        analytic_only=analytic_only,
-        fit_scales=fit_scales,
-        holdout=holdout,
-        model=model,
-        progress=progress,
-    )
+    result = process_data(log, options, sha256=sha256_of(path), progress=progress)  # 0.03 s/55 MB
     result = judge(result)  # implausible lengths or FK check (a camera's: in its pixel fit)
-    return validated(result, validate or [], pipeline, fast)
+    return validated(result, list(validate), pipeline, fast)
+
+
+def process_poses(
+    log: LogData,
+    *,
+    sha256: str,
+    nominal: DHModel | None,
+    reference_pose: FloatArray | None,
+    model: ModelRequest,
+    progress: Stage | None,
+) -> ProcessResult:
+    """The tracker's run on a camera's board poses (their log, as the camera flow writes it):
+    the start of the pixel fit, which :func:`dhlog.identify.camera.flow.process_observations`
+    takes as ``start``."""
+    asked = ProcessOptions(nominal=nominal, reference_pose=reference_pose, model=model)
+    return process_data(log, asked, sha256=sha256, progress=progress)
 
 
 def process_data(
     log: LogData,
+    options: ProcessOptions = DEFAULTS,
     *,
     sha256: str = "",
-    nominal: DHModel | None = None,
-    reference_pose: FloatArray | None = None,
-    fit_method: str = "auto",
-    angle_tol: float = ANGLE_TOL,
-    distance_tol: float = DISTANCE_TOL,
-    analytic_only: bool = False,
-    fit_scales: bool = False,
-    parallel_sigma: float | None = None,
-    holdout: int = 0,
-    model: ModelRequest = AUTO,
     progress: Stage | None = None,
-    known_noise: float | None = None,
 ) -> ProcessResult:
-    """The identification of :func:`process_log` on streams already decoded (``LogData``).
+    """The identification of :func:`process_log` on streams already decoded (``LogData``), as
+    ``options`` asks.
 
     Default: the maximum-likelihood fit of the whole model to every sample with encoder
     values, started from the analytic result (per-joint fits + line geometry). With
     ``analytic_only`` (or without encoders), the analytic result with its propagated covariance.
-    ``parallel_sigma``: None, nearly parallel pairs are held parallel in the whole-model fit
-    where that does not raise the error at held-out poses (:mod:`dhlog.identify.model.pairs`); K,
-    those within K σ (2-D) of parallel, whatever the nominal says (0: never). ``holdout`` K > 1:
-    K-fold cross-validation of the whole-model fit over the session's poses (``result.holdout``).
-    ``model``: the terms beyond the geometry to try or force (:mod:`dhlog.identify.model.select`).
-    ``known_noise``: the tracker's σ (m) where it is known rather than measured (a plan): the
-    base plane's covariance from it.
     """
+    nominal, reference_pose, fit_method = (
+        options.nominal,
+        options.reference_pose,
+        options.fit_method,
+    )
+    angle_tol, distance_tol = options.angle_tol, options.distance_tol
+    analytic_only, fit_scales, holdout = options.analytic_only, options.fit_scales, options.holdout
+    parallel_sigma, model, known_noise = options.parallel_sigma, options.model, options.known_noise
 
     def stage(what: str, fraction: float) -> None:
         if progress is not None:
