@@ -27,7 +27,7 @@ import polars as pl
 
 import dhlog.identify.fit.variance as variance
 from dhlog.identify import run as process
-from dhlog.identify.stages import ProcessOptions
+from dhlog.identify.options import ProcessOptions
 from dhlog.io.decode.frames import COVARIANCE_COLUMNS
 from dhlog.io.dhfile import DHModel
 from dhlog.io.memory import log_data_from_session

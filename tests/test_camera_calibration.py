@@ -24,6 +24,7 @@ from dhlog.identify.fit.axismodel import AxisModel
 from dhlog.identify.fit.measure import place, residuals
 from dhlog.identify.fit.pixels import PixelModel, fit_pixels
 from dhlog.identify.fit.prediction import predict
+from dhlog.identify.options import ProcessOptions
 from dhlog.identify.run import process_poses
 from dhlog.io.dhfile import DHModel
 from dhlog.result.document import result_document
@@ -122,7 +123,7 @@ def test_process_observations(setup: str) -> None:
     obs = cams.observations(robot, Q, ids, uv)
     nominal = DHModel(robot.table, np.eye(4), np.zeros(3), tuple(obs.joint_names), "library")
     result = process_observations(
-        start=process_poses, observations=[obs], nominal=nominal, holdout=5
+        [obs], ProcessOptions(nominal=nominal, holdout=5), start=process_poses
     )
     cam = result.camera
     assert cam.setup == setup and cam.setup_reason.startswith("decided")
@@ -160,17 +161,15 @@ def test_a_camera_that_moved_is_named() -> None:
     ids2, uv2 = cams.corners(moved, true, robot, Q[30:], rng)
     nominal = DHModel(robot.table, np.eye(4), np.zeros(3), tuple(f"j{k}" for k in range(6)), "lib")
     still = process_observations(
+        [cams.observations(robot, Q, ids, uv)],
+        ProcessOptions(nominal=nominal, camera_setup="eye-to-hand"),
         start=process_poses,
-        observations=[cams.observations(robot, Q, ids, uv)],
-        nominal=nominal,
-        setup="eye-to-hand",
     )
     assert not any("moved during the session" in w for w in still.warnings)
     result = process_observations(
+        [cams.observations(robot, Q, ids[:30] + ids2, uv[:30] + uv2)],
+        ProcessOptions(nominal=nominal, camera_setup="eye-to-hand"),
         start=process_poses,
-        observations=[cams.observations(robot, Q, ids[:30] + ids2, uv[:30] + uv2)],
-        nominal=nominal,
-        setup="eye-to-hand",
     )
     said = [w for w in result.warnings if "moved during the session" in w]
     assert len(said) == 1, result.warnings
@@ -183,11 +182,9 @@ def test_a_camera_that_moved_is_named() -> None:
     assert "--frames" in said[0]
     # the option it names calibrates from the part before the move, which is still
     before = process_observations(
+        [cams.observations(robot, Q, ids[:30] + ids2, uv[:30] + uv2)],
+        ProcessOptions(nominal=nominal, camera_setup="eye-to-hand", frames=(None, 30)),
         start=process_poses,
-        observations=[cams.observations(robot, Q, ids[:30] + ids2, uv[:30] + uv2)],
-        nominal=nominal,
-        setup="eye-to-hand",
-        frames=(None, 30),
     )
     assert not any("moved during the session" in w for w in before.warnings)
     assert before.camera.frames == 30
@@ -215,9 +212,13 @@ def test_two_cameras_fitted_together() -> None:
         cams.observations(robot, Q2, ids2, uv2), camera="/camera_2/image_raw/compressed"
     )
     nominal = DHModel(robot.table, np.eye(4), np.zeros(3), tuple(first.joint_names), "library")
-    alone = process_observations([first], start=process_poses, nominal=nominal, setup="eye-to-hand")
+    alone = process_observations(
+        [first], ProcessOptions(nominal=nominal, camera_setup="eye-to-hand"), start=process_poses
+    )
     both = process_observations(
-        [first, second], start=process_poses, nominal=nominal, setup="eye-to-hand", holdout=3
+        [first, second],
+        ProcessOptions(nominal=nominal, camera_setup="eye-to-hand", holdout=3),
+        start=process_poses,
     )
     assert len(both.camera_results) == 2
     truth = cams.model(rig, true, robot.n)
@@ -260,7 +261,7 @@ def test_a_wrong_camera_setup_is_said() -> None:
     nominal = DHModel(robot.table, np.eye(4), np.zeros(3), tuple(obs.joint_names), "library")
     try:
         result = process_observations(
-            [obs], start=process_poses, nominal=nominal, setup="eye-in-hand"
+            [obs], ProcessOptions(nominal=nominal, camera_setup="eye-in-hand"), start=process_poses
         )
     except DhlogError as exc:
         assert "--camera-setup" in str(exc)

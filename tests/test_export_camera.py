@@ -26,6 +26,7 @@ from typer.testing import CliRunner
 import camera_rig as cams
 from dhlog.cli.app import app
 from dhlog.identify.camera.flow import process_observations
+from dhlog.identify.options import ProcessOptions
 from dhlog.identify.run import process_poses
 from dhlog.io.dhfile import DHModel, load_dh
 from dhlog.model.fk import fk_frames
@@ -54,7 +55,7 @@ def _result(setup: str, folder: Path) -> Path:
     obs = cams.observations(robot, Q, ids, uv)
     nominal = DHModel(robot.table, np.eye(4), np.zeros(3), tuple(obs.joint_names), "library")
     result = process_observations(
-        start=process_poses, observations=[obs], nominal=nominal, setup=setup
+        [obs], ProcessOptions(nominal=nominal, camera_setup=setup), start=process_poses
     )
     path = folder / f"{setup}.dh.json"
     path.write_text(json.dumps(result_document(result), allow_nan=False))

@@ -52,8 +52,9 @@ def test_no_modules_import_each_other_in_a_circle() -> None:
 
 #: identify/ by stage (docs/architecture.md, "Layers"): a stage imports its own folder and the
 #: stages below it; model/ and check/ stand side by side (neither imports the other), as do
-#: camera/ and stages.py (the frozen stage values and the result), then the fit of the whole
-#: model (wholefit.py) and the held-out logs (heldout.py); run.py on top.
+#: options.py (what a run is asked) and stages.py (the frozen stage values and the result), then
+#: camera/, the fit of the whole model (wholefit.py) and the held-out logs (heldout.py); run.py on
+#: top.
 IDENTIFY_FLOORS = {
     "segment": 0,
     "joints": 1,
@@ -61,8 +62,9 @@ IDENTIFY_FLOORS = {
     "read": 3,
     "model": 4,
     "check": 4,
-    "camera": 5,
+    "options": 5,
     "stages": 5,
+    "camera": 6,
     "wholefit": 6,
     "heldout": 6,
     "run": 7,

@@ -26,7 +26,7 @@ import math
 from collections.abc import Callable
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Any, cast
+from typing import Any
 
 import numpy as np
 
@@ -65,6 +65,7 @@ from dhlog.identify.model.parked import (
     parked_warning,
 )
 from dhlog.identify.model.select import ModelRequest
+from dhlog.identify.options import DEFAULTS, ProcessOptions
 from dhlog.identify.read.analytic import (
     pair_tolerances,
     partial_extraction,
@@ -77,10 +78,8 @@ from dhlog.identify.segment.timing import (
     sweep_phases,
 )
 from dhlog.identify.stages import (
-    DEFAULTS,
     FitRequest,
     ModelFit,
-    ProcessOptions,
     ProcessResult,
     Session,
     table_values,
@@ -113,7 +112,7 @@ def process_log(
     sessions of the same robot) whose poses score the result and the nominal on one footing
     (:mod:`dhlog.identify.check.footing`; a log that cannot be scored is a warning).
     ``progress(stage, fraction)`` is called as each stage advances."""
-    pipeline, nominal, reference_pose = options.pipeline, options.nominal, options.reference_pose
+    pipeline, nominal = options.pipeline, options.nominal
     model, validate, fast = options.model, options.validate, options.fast
     camera = camera_pipeline(path, pipeline)
     if camera is not None:  # one Observations a camera
@@ -129,21 +128,13 @@ def process_log(
             joint_names=None if nominal is None else nominal.joint_names,
             joint_source="model" if nominal is None else nominal.source,
         )
-        found = cast(
-            ProcessResult,
-            process_observations(
-                observations,
-                sha256=digest,
-                nominal=nominal,
-                reference_pose=reference_pose,
-                setup=options.camera_setup,
-                refine_intrinsics=options.refine_intrinsics,
-                holdout=options.holdout,
-                frames=options.frames,
-                progress=progress,
-                start=process_poses,
-                pipeline=camera.name,
-            ),
+        found = process_observations(
+            observations,
+            options,
+            sha256=digest,
+            progress=progress,
+            start=process_poses,
+            pipeline=camera.name,
         )
         if model.mode != "geometric":
             said = (

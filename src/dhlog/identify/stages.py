@@ -11,7 +11,6 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass, field, fields, replace
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -20,66 +19,22 @@ from numpy.typing import NDArray
 from dhlog.errors import Note, texts
 from dhlog.geometry._checks import FloatArray
 from dhlog.geometry.fitting import PlaneFit
-from dhlog.geometry.lines import ANGLE_TOL, DISTANCE_TOL
 from dhlog.identify.check.footing import Unscored
 from dhlog.identify.check.holdout import Holdout
 from dhlog.identify.check.validate import Validation
 from dhlog.identify.fit.register import Registration
 from dhlog.identify.fit.whole import WholeFit
 from dhlog.identify.joints.sweeps import JointReport
-from dhlog.identify.model.select import AUTO, ModelRequest, Selection
+from dhlog.identify.model.select import ModelRequest, Selection
 from dhlog.identify.read.conditioning import Conditioned
 from dhlog.identify.read.extract import Extraction, Tolerances
 from dhlog.identify.read.hayati import HayatiRow
 from dhlog.identify.segment.segment import Segmentation
 from dhlog.identify.segment.timing import Timing
 from dhlog.io.dhfile import DHModel
-from dhlog.io.pipeline import Pipeline
 from dhlog.io.reader import LogData
 from dhlog.model.noise import NoiseModel
 from dhlog.model.terms import Terms, table_deflection
-
-
-@dataclass(frozen=True)
-class ProcessOptions:
-    """What a run is asked, built once (by ``dhlog process``, :func:`dhlog.process`, a batch's
-    job or a plan) and read by every stage.
-
-    ``nominal``: the robot's nominal model (its conventions, joint names, the start of joints
-    never moved alone); ``reference_pose``: the pose the DH table is read at (None: the
-    session's); ``fit_method``: the per-joint circle fit; ``angle_tol`` (rad), ``distance_tol``
-    (m): when the extraction calls axes parallel or meeting; ``analytic_only``: the seed method's
-    result alone; ``fit_scales``: encoder scales fitted; ``parallel_sigma``: None, nearly
-    parallel pairs held where that does not raise the error at held-out poses; K, those within
-    K σ (0: never); ``holdout`` K > 1: K-fold cross-validation over the session's poses;
-    ``model``: the terms beyond the geometry to try or force; ``known_noise``: the tracker's σ
-    (m) where it is known rather than measured (a plan). Reading the log: ``pipeline`` (None:
-    the log's own), ``fast`` (the column decoders), ``validate`` (further logs scored on one
-    footing), and a camera log's ``camera_setup``, ``refine_intrinsics``, ``jobs`` and
-    ``frames`` (the range of frames on the image topic, end excluded)."""
-
-    nominal: DHModel | None = None
-    reference_pose: FloatArray | None = None
-    fit_method: str = "auto"
-    angle_tol: float = ANGLE_TOL
-    distance_tol: float = DISTANCE_TOL
-    analytic_only: bool = False
-    fit_scales: bool = False
-    parallel_sigma: float | None = None
-    holdout: int = 0
-    model: ModelRequest = AUTO
-    known_noise: float | None = None
-    pipeline: Pipeline | None = None
-    fast: bool = True
-    validate: tuple[str | Path, ...] = ()
-    camera_setup: str | None = None
-    refine_intrinsics: bool = False
-    jobs: int = 1
-    frames: tuple[int | None, int | None] | None = None
-
-
-#: A run asked nothing beyond the defaults.
-DEFAULTS = ProcessOptions()
 
 
 @dataclass(frozen=True)

@@ -57,9 +57,10 @@ from dhlog.identify.fit.pixels import CamerasModel, PixelFit, PixelModel, fit_pi
 from dhlog.identify.fit.prediction import predict as predict_points
 from dhlog.identify.fit.prediction import predict_orientation
 from dhlog.identify.model.select import ModelRequest
+from dhlog.identify.options import DEFAULTS, ProcessOptions
 from dhlog.identify.read.extract import Extraction, extract_dh
 from dhlog.identify.read.uncertainty import whole_uncertainty
-from dhlog.io.dhfile import DHModel
+from dhlog.identify.stages import ProcessResult
 from dhlog.vision.observe import Observations
 
 #: the fewest frames with the board for a calibration
@@ -70,26 +71,29 @@ MIN_FRAMES = 8
 # the run
 
 
+#: The tracker's run on a camera's board poses (:func:`dhlog.identify.run.process_poses`): the
+#: start of the pixel fit, handed in by the run (this module is below it).
+PoseRun = Callable[..., ProcessResult]
+
+
 def process_observations(
     observations: list[Observations],
+    options: ProcessOptions = DEFAULTS,
     *,
     sha256: str = "",
-    nominal: DHModel | None = None,
-    reference_pose: FloatArray | None = None,
-    setup: str | None = None,
-    refine_intrinsics: bool = False,
-    holdout: int = 0,
-    frames: tuple[int | None, int | None] | None = None,
     progress: Callable[[str, float], None] | None = None,
-    start: Callable[..., Any] | None = None,
+    start: PoseRun | None = None,
     pipeline: str | None = None,
-) -> Any:
-    """The calibration of the module docstring from one camera's observations; returns the
-    :class:`~dhlog.identify.run.ProcessResult` with its ``camera`` and ``cameras`` filled.
-    ``start``: the tracker's run on the poses (:func:`dhlog.identify.run.process_data`, which
-    ``identify.run.process_log`` passes: this module is below the run and never imports it)."""
+) -> ProcessResult:
+    """The calibration of the module docstring from one camera's observations, as ``options``
+    asks (its nominal, reference pose, ``camera_setup`` — None: decided from the data —,
+    ``refine_intrinsics``, ``holdout`` K over the frames, ``frames``); returns the
+    :class:`~dhlog.identify.stages.ProcessResult` with its ``camera`` and ``cameras`` filled.
+    ``start``: the tracker's run on the poses (:func:`dhlog.identify.run.process_poses`)."""
+    nominal, reference_pose, setup = options.nominal, options.reference_pose, options.camera_setup
+    refine_intrinsics, holdout, frames = options.refine_intrinsics, options.holdout, options.frames
     if start is None:  # the tracker's run makes the start (identify.run passes itself)
-        raise ValueError("process_observations needs start= (identify.run.process_data)")
+        raise ValueError("process_observations needs start= (identify.run.process_poses)")
     process_data = start
     if not observations:
         raise InputError("the log holds no camera with detections.")
@@ -223,6 +227,7 @@ def process_observations(
     elif extra_cameras:
         rest = [o if frames is None else of_frames(o, frames) for o in observations[1:]]
         result = _several_cameras(result, fit, [obs, *rest], holdout, progress)
+    assert isinstance(result, ProcessResult)
     return result
 
 
