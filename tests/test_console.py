@@ -60,12 +60,14 @@ def hostile() -> ProcessResult:
         log, ProcessOptions(nominal=load_dh(log.with_name(log.stem + ".truth.json")))
     )
     assert result.nominal is not None
-    for joint, name in zip(result.joints, HOSTILE, strict=True):
-        joint.name = name
-    result.joints[-1].reason = "[i]why[/]\nnext\\"
-    assert result.nominal is not None
+    joints = [
+        dataclasses.replace(joint, name=name)
+        for joint, name in zip(result.joints, HOSTILE, strict=True)
+    ]
+    joints[-1] = dataclasses.replace(joints[-1], reason="[i]why[/]\nnext\\")
     return dataclasses.replace(
         result,
+        joints=tuple(joints),
         notes=(
             *result.notes,
             Note.info("note [bold]n[/] \x1b[2J end", "test"),

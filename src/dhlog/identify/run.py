@@ -245,18 +245,29 @@ def process_data(
         notes.append(Note.info(said_ref, "no-encoders"))
     whole_wanted = seg.has_encoders and not analytic_only
     max_points = START_FIT_POINTS if whole_wanted else None
-    joints = [JointReport(k + 1, seg.joint_names[k]) for k in range(n)]
     parked: list[int] = []
     if seg.has_encoders:  # joints that never moved: held at the nominal
         Q_all = samples_with_encoders(seg)[1][:]
         parked = parked_joints(Q_all) if 0 < len(parked_joints(Q_all)) < n else []
         if parked and nominal is not None:
             ref = parked_pose(Q_all, ref, parked)
-    for report in joints:
-        stage("fitting", (report.index - 1) / n)
-        notes.extend(fit_joint(report, seg, log, ref, joints, nominal, fit_method, max_points))
-        if report.index - 1 in parked and not report.ok and nominal is None:
-            report.reason = no_nominal_reason(Q_all, report.index - 1, report.type)
+    joints: list[JointReport] = []  # in chain order: a joint's axis is carried by those before
+    for k in range(n):
+        stage("fitting", k / n)
+        report, said = fit_joint(
+            JointReport(k + 1, seg.joint_names[k]),
+            seg,
+            log,
+            ref,
+            joints,
+            nominal,
+            fit_method,
+            max_points,
+        )
+        notes.extend(said)
+        if k in parked and not report.ok and nominal is None:
+            report = replace(report, reason=no_nominal_reason(Q_all, k, report.type))
+        joints.append(report)
     unidentified = [
         f"joint {report.index} ({report.name}) was not identified: {report.reason}."
         for report in joints

@@ -3,7 +3,7 @@ reference pose, and the target at the reference pose (the analytic start's input
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 import polars as pl
@@ -23,7 +23,7 @@ from dhlog.model.dh import JointType
 from dhlog.model.screws import chain_motion, points_at_reference
 
 
-@dataclass
+@dataclass(frozen=True)
 class JointReport:
     """What became of one joint: its type (and where the type came from), the fit, the axis at
     the reference pose, the sweeps used, the outliers set aside, or why it failed."""
@@ -102,8 +102,9 @@ def fit_joint(
     nominal: DHModel | None,
     fit_method: str,
     max_points: int | None = None,
-) -> tuple[Note, ...]:
-    """Fit joint ``report``'s axis from its sweeps (filling ``report``), and what the fit
+) -> tuple[JointReport, tuple[Note, ...]]:
+    """Joint ``report`` with its axis fitted from its sweeps (a new report: the sweeps used,
+    the type, the fit, the axis at the reference pose, or why it failed), and what the fit
     said: a joint detected as prismatic (``prismatic``), the axis fit's warnings
     (``axis-fit``), an axis carried from another pose (``carried``)."""
     notes: list[Note] = []
@@ -112,8 +113,8 @@ def fit_joint(
     what = f"joint {k} ({name})"
     groups = _groups_by_lock(seg, k, tol)
     if not groups:
-        report.reason = "it was never swept (no segment in which it alone moved)"
-        return tuple(notes)
+        report = replace(report, reason="it was never swept (no segment in which it alone moved)")
+        return report, tuple(notes)
     segments = seg.segments
     chosen = groups[0]
     for group in groups:
@@ -134,9 +135,10 @@ def fit_joint(
         .select([f"lock_q_{j + 1}" for j in range(seg.n_joints)])
         .to_numpy()[0]
     )
-    report.segments = chosen
+    report = replace(report, segments=chosen)
     # the per-joint fits use the primary target's circles
-    rows = report.rows = seg.rows_in(chosen, primary=True)
+    rows = seg.rows_in(chosen, primary=True)
+    report = replace(report, rows=rows)
     # the start fits take an evenly strided subset; every sample is judged against them in
     # blocks (a sweep of millions of samples is never whole in memory)
     m = rows.size
@@ -146,7 +148,7 @@ def fit_joint(
         typed = rows[:: 1 if max_points is None else max(1, m // max_points)]
         jt, source, said = _joint_type(k, name, seg.xyz(typed), log, nominal)
         notes.extend(said)
-        report.type, report.type_source = jt, source
+        report = replace(report, type=jt, type_source=source)
         settings = log.pipeline.segmentation
         fit, inliers = fit_axis_robust(
             seg.xyz(fitted),
@@ -162,20 +164,23 @@ def fit_joint(
             for sl in blocks(m):
                 inliers[sl] = within(fit, seg.xyz(rows[sl]), limit)
     except GeometryError as exc:
-        report.reason = str(exc).removeprefix(f"{what}: ")
-        return tuple(notes)
-    report.fit, report.inliers = fit, inliers
+        report = replace(report, reason=str(exc).removeprefix(f"{what}: "))
+        return report, tuple(notes)
+    report = replace(report, fit=fit, inliers=inliers)
     notes.extend(Note.warning(w, "axis-fit") for w in fit.warnings)
-    report.lock_pose = np.where(np.isnan(lock), ref, lock)
-    report.carried = bool(seg.has_encoders and not _lock_matches(lock, ref, k, tol))
+    report = replace(report, lock_pose=np.where(np.isnan(lock), ref, lock))
+    report = replace(
+        report, carried=bool(seg.has_encoders and not _lock_matches(lock, ref, k, tol))
+    )
     if report.carried:
         upstream = identified[: k - 1]
         if any(not j.ok for j in upstream):
-            report.reason = (
-                "it was swept only from another pose, and an upstream joint needed to carry its "
-                "axis to the reference pose was not identified"
+            report = replace(
+                report,
+                reason="it was swept only from another pose, and an upstream joint needed to "
+                "carry its axis to the reference pose was not identified",
             )
-            return tuple(notes)
+            return report, tuple(notes)
         notes.append(
             Note.warning(
                 f"{what}: swept from another pose; its axis was carried to the reference pose "
@@ -183,8 +188,8 @@ def fit_joint(
                 "carried",
             )
         )
-    report.axis = carried_axis(report, fit.axis, identified, ref)
-    return tuple(notes)
+    report = replace(report, axis=carried_axis(report, fit.axis, identified, ref))
+    return report, tuple(notes)
 
 
 def carried_axis(

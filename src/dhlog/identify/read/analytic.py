@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
+from dataclasses import replace
 
 import numpy as np
 
@@ -301,8 +302,9 @@ def _axes_with(
 ) -> list[Line | None]:
     """The axes at the reference pose with joint ``i``'s fitted axis replaced by ``fitted``:
     joints carried through it (swept from other poses) move with it."""
-    trial = [
-        JointReport(
+    trial: list[JointReport] = []  # in chain order: each carried by those before it
+    for k, j in enumerate(joints):
+        report = JointReport(
             j.index,
             j.name,
             j.type,
@@ -312,11 +314,9 @@ def _axes_with(
             lock_pose=j.lock_pose,
             carried=j.carried,
         )
-        for j in joints
-    ]
-    for k, report in enumerate(trial):
         assert report.fit is not None
         base = fitted if k == i else report.fit.axis
         if k == i or (k > i and report.carried):
-            report.axis = carried_axis(report, base, trial, ref)
+            report = replace(report, axis=carried_axis(report, base, trial, ref))
+        trial.append(report)
     return [t.axis for t in trial]
