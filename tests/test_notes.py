@@ -129,7 +129,10 @@ def test_a_joint_far_noisier_than_the_others_is_a_fit_noise_warning(kr5: Process
     typical = (rms[2] + rms[3]) / 2
     noisy = joints[2]
     assert noisy.fit is not None
-    noisy.fit = dataclasses.replace(noisy.fit, rms=2 * RMS_OUTLIER * typical)
+    noisy = dataclasses.replace(
+        noisy, fit=dataclasses.replace(noisy.fit, rms=2 * RMS_OUTLIER * typical)
+    )
+    joints[2] = noisy
     (said,) = check_fit_noise(joints)
     assert (said.level, said.code) == ("warning", "fit-noise")
     assert said.text.startswith(f"joint 3 ({noisy.name}): its fit RMS")

@@ -12,7 +12,7 @@ from dhlog.geometry._checks import FloatArray
 from dhlog.vision.camera import Intrinsics
 
 
-@dataclass
+@dataclass(frozen=True)
 class PixelHoldout:
     """The error at frames not used to fit (K-fold over the frames' poses): reprojection RMS
     (px, per corner: the 2-D norm) of the nominal placed on the training frames and of the
@@ -57,7 +57,7 @@ class PixelHoldout:
         }
 
 
-@dataclass
+@dataclass(frozen=True)
 class CameraResult:
     """One camera's product: the set-up, the intrinsics (held or refined, with σ), the fixed
     part's pose in the robot's base frame and the mounted part's on the flange (4×4, m) with

@@ -82,7 +82,7 @@ FAR_FLOOR = 1e-3
 DECISION_POSES = 3000
 
 
-@dataclass
+@dataclass(frozen=True)
 class LogHoldout(Holdout):
     """A held-out log's check: beyond :class:`~dhlog.identify.check.holdout.Holdout`'s, whether the
     tool was placed again (``tool_replaced``: the probe was re-mounted) and which components of

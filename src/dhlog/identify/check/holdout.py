@@ -77,7 +77,7 @@ class ErrorStats:
         }
 
 
-@dataclass
+@dataclass(frozen=True)
 class Holdout:
     """One held-out check: ``kind`` ``"cross-validation"`` (``folds``) or ``"log"`` (``path``;
     ``registered``: the base was placed again on ``n_registration_poses`` of its poses because

@@ -46,7 +46,7 @@ def shown_stride(height: int) -> int:
     return max(1, -(-height // SHOWN_SAMPLES))
 
 
-@dataclass
+@dataclass(frozen=True)
 class Validation:
     """FK of the result against each assigned sample with encoder values, summarised: RMS, max
     and count over the samples checked, per joint (``per_joint``: joint → RMS, max, count; 0 for

@@ -128,7 +128,7 @@ class PointMeasurement:
         return self
 
 
-@dataclass
+@dataclass(frozen=True)
 class MeasuredFit:
     """A fit by :func:`fit_measured`: ``whole`` (the kinematic model and its covariance —
     marginal over the measurement model's own parameters when they were fitted), the

@@ -120,7 +120,7 @@ class Determined:
         return np.asarray(B @ np.linalg.solve(B.T @ H @ B, B.T), dtype=np.float64)
 
 
-@dataclass
+@dataclass(frozen=True)
 class WholeFit:
     """The fitted model, its covariance (``layout`` order), and what the fit saw.
 

@@ -89,7 +89,7 @@ class PairTrial:
     held: bool
 
 
-@dataclass
+@dataclass(frozen=True)
 class PairDecision:
     """The linearised fit and what the held-out poses need: each sample's pose (``groups``),
     which samples are scored (``primary``: the first target's)."""

@@ -33,7 +33,7 @@ from dhlog.io.reader import LogData
 from dhlog.model.dh import JointType
 
 
-@dataclass
+@dataclass(frozen=True)
 class Segmentation:
     """The measurement table and what was found in it.
 
