@@ -390,3 +390,29 @@ def test_a_target_computed_at_run_time_is_named(
     before, after = text.splitlines(), out.read_text().splitlines()
     assert before[4:] == after[4:] and before[0] == after[0] and before[3] == after[3]
     assert before[1] != after[1] and before[2] != after[2]  # the pose and its qnear
+
+
+def test_a_target_not_corrected_is_a_warning(calibrated: tuple[DHModel, Path]) -> None:
+    """Through the Python API a target left out (the UR's wrist singularity, q5 = 0) is a
+    DhlogWarning and a record of the ``dhlog`` logger, as well as a row of ``problems``."""
+    import logging
+    import warnings
+
+    import dhlog
+
+    _, result = calibrated
+    calibration = dhlog.load(result, nominal="ur5e")
+    records: list[logging.LogRecord] = []
+    handler = logging.Handler()
+    handler.emit = records.append  # type: ignore[method-assign]
+    logging.getLogger("dhlog").addHandler(handler)
+    try:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            done = calibration.compensate([[0.3, -1.2, 1.5, 0.2, 0.0, 0.1], START])
+    finally:
+        logging.getLogger("dhlog").removeHandler(handler)
+    assert list(done.problems) == [0]
+    said = [str(w.message) for w in caught if issubclass(w.category, dhlog.DhlogWarning)]
+    assert len(said) == 1 and said[0].startswith("target 1 not corrected: too near a singularity")
+    assert [r.getMessage() for r in records] == said
