@@ -403,8 +403,12 @@ def test_a_target_not_corrected_is_a_warning(calibrated: tuple[DHModel, Path]) -
     _, result = calibrated
     calibration = dhlog.load(result, nominal="ur5e")
     records: list[logging.LogRecord] = []
-    handler = logging.Handler()
-    handler.emit = records.append  # type: ignore[method-assign]
+
+    class Keep(logging.Handler):
+        def emit(self, record: logging.LogRecord) -> None:
+            records.append(record)
+
+    handler = Keep()
     logging.getLogger("dhlog").addHandler(handler)
     try:
         with warnings.catch_warnings(record=True) as caught:
