@@ -25,6 +25,7 @@ corrects them: they carry their configuration.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -44,13 +45,18 @@ class Target:
     """One target of a program: a joint target ``joints`` (n,; rad or m) or a Cartesian
     ``pose`` (4, 4: the TCP in the nominal's base frame, m) with its ``tcp`` (4, 4: the TCP in
     the last frame) and optionally ``hint`` (n,: the controller's configuration near which the
-    pose is solved). ``where``: how a message names it (``line 12``, ``row 3``)."""
+    pose is solved). ``where``: how a message names it (``line 12``, ``row 3``). ``accepts``:
+    for a target that carries its own configuration data (RAPID's confdata), why the nominal's
+    joints found for it are not that configuration (None: they are); ``fallback`` then gives
+    the start (n,) to solve from instead, from the previous target's joints (or None)."""
 
     where: str
     joints: FloatArray | None = None
     pose: FloatArray | None = None
     tcp: FloatArray = field(default_factory=lambda: np.eye(4))
     hint: FloatArray | None = None
+    accepts: Callable[[FloatArray], str | None] | None = None
+    fallback: Callable[[FloatArray | None], FloatArray] | None = None
 
 
 @dataclass(frozen=True)
@@ -144,6 +150,29 @@ def _continued(
     return q, None
 
 
+def _accepted(
+    nominal: DHModel,
+    t: Target,
+    q: FloatArray,
+    previous: tuple[FloatArray, str] | None,
+) -> tuple[FloatArray | None, str | None]:
+    """``q`` when ``t`` accepts it as its configuration; else the nominal's solution from
+    ``t``'s fallback start when that one is accepted; else None and why."""
+    from dhlog.model.ik import solve
+
+    assert t.accepts is not None and t.pose is not None
+    why = t.accepts(q)
+    if why is None:
+        return q, None
+    if t.fallback is not None:
+        start = t.fallback(None if previous is None else previous[0])
+        goal = t.pose @ np.linalg.inv(t.tcp)
+        found = solve(nominal.table, goal[None], start[None], np.zeros(3), T_base=nominal.T_base)
+        if bool(found.converged[0]) and t.accepts(found.q[0]) is None:
+            return found.q[0], None
+    return None, why
+
+
 def _outside(q: FloatArray, limits: FloatArray | None) -> str | None:
     """Which joints ``q`` (n,) puts outside ``limits`` (n, 2), as words; None when inside."""
     if limits is None:
@@ -191,6 +220,8 @@ def filter_targets(
                         f"solution nearest home or a seeded start ({shown}°) — put a joint "
                         "target first to choose the branch"
                     )
+            if q_found is not None and t.accepts is not None:
+                q_found, why = _accepted(nominal, t, q_found, previous)
             if q_found is None:
                 problems[k] = why or "the nominal does not reach it"
                 continue

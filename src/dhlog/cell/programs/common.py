@@ -12,6 +12,7 @@ literals' numbers replaced.
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
@@ -57,20 +58,28 @@ class Motion:
     tcp: FloatArray
     hint: int | None = None
     why: str | None = None
+    #: the controller checks the configuration written with the pose (RAPID's ConfL/ConfJ on)
+    checked: bool = True
 
 
 @dataclass(frozen=True)
 class Units:
     """A format's numbers as SI and back: ``pose`` (the literal's values → the TCP pose, 4, 4,
-    m), ``pose_values`` (a pose and the old values → the new values, in the representation
-    nearest the old one), ``joints`` / ``joint_values`` (the literal's values ↔ rad or m) and
-    ``text`` (a value as the program writes it)."""
+    m), ``pose_values`` (a pose, the corrected joints and the old values → the new values, in
+    the representation nearest the old one, configuration data made the joints'), ``joints`` /
+    ``joint_values`` (the literal's values ↔ rad or m; the old values given) and ``text`` (the
+    k-th value of a literal as the program writes it). A format whose poses carry their
+    configuration: ``accepts`` (the old values and nominal joints → why those joints are not
+    the configuration written, or None) and ``fallback`` (the old values and the previous
+    target's joints → where to solve from instead)."""
 
     pose: Callable[[tuple[float, ...]], FloatArray]
-    pose_values: Callable[[FloatArray, tuple[float, ...]], list[float]]
+    pose_values: Callable[[FloatArray, FloatArray, tuple[float, ...]], list[float]]
     joints: Callable[[tuple[float, ...]], FloatArray]
-    joint_values: Callable[[FloatArray], list[float]]
-    text: Callable[[float], str]
+    joint_values: Callable[[FloatArray, tuple[float, ...]], list[float]]
+    text: Callable[[float, int], str]
+    accepts: Callable[[tuple[float, ...], FloatArray], str | None] | None = None
+    fallback: Callable[[tuple[float, ...], FloatArray | None], FloatArray] | None = None
 
 
 @dataclass(frozen=True)
@@ -132,7 +141,21 @@ def filtered(
             hint = None
             if motion.hint is not None:
                 hint = units.joints(program.literals[motion.hint].values)
-            targets.append(Target(where, pose=units.pose(lit.values), tcp=motion.tcp, hint=hint))
+            accepts = fallback = None
+            if units.accepts is not None and motion.checked:
+                accepts = functools.partial(units.accepts, lit.values)
+            if units.fallback is not None:
+                fallback = functools.partial(units.fallback, lit.values)
+            targets.append(
+                Target(
+                    where,
+                    pose=units.pose(lit.values),
+                    tcp=motion.tcp,
+                    hint=hint,
+                    accepts=accepts,
+                    fallback=fallback,
+                )
+            )
         runs.append(motion)
     done = filter_targets(result, nominal, targets, limits=limits)
     new: dict[int, tuple[list[float], int]] = {}
@@ -159,21 +182,23 @@ def filtered(
         lit = program.literals[motion.literal]
         q = done.joints[i]
         if lit.kind == "joints":
-            clash = put(motion.literal, units.joint_values(q), motion.line)
+            clash = put(motion.literal, units.joint_values(q, lit.values), motion.line)
         else:
-            clash = put(
-                motion.literal, units.pose_values(done.commanded[i], lit.values), motion.line
-            )
+            shown = units.pose_values(done.commanded[i], q, lit.values)
+            clash = put(motion.literal, shown, motion.line)
             if clash is None and motion.hint is not None:
-                clash = put(motion.hint, units.joint_values(q), motion.line)
+                near = program.literals[motion.hint].values
+                clash = put(motion.hint, units.joint_values(q, near), motion.line)
         if clash is not None:
             problems.append((motion.line, clash))
     text = program.text
     edits: list[tuple[int, int, str]] = []
     for index, (values, _) in new.items():
-        for (start, end), v in zip(program.literals[index].spans, values, strict=True):
-            edits.append((start, end, units.text(v)))
-    for start, end, shown in sorted(edits, reverse=True):
-        text = text[:start] + shown + text[end:]
+        lit = program.literals[index]
+        for k, ((start, end), v) in enumerate(zip(lit.spans, values, strict=True)):
+            if v != lit.values[k]:  # a number unchanged keeps its spelling
+                edits.append((start, end, units.text(v, k)))
+    for start, end, written in sorted(edits, reverse=True):
+        text = text[:start] + written + text[end:]
     notes = [*program.notes, *done.notes]
     return Corrected(text, done, [m.line for m in runs], sorted(problems), notes, changed=len(new))

@@ -91,7 +91,7 @@ def _pose(values: tuple[float, ...]) -> FloatArray:
     return T
 
 
-def _pose_values(T: FloatArray, old: tuple[float, ...]) -> list[float]:
+def _pose_values(T: FloatArray, q: FloatArray, old: tuple[float, ...]) -> list[float]:
     r = rotations.values(T[None, :3, :3], "rotvec", degrees=False)
     r = rotations.near(r, np.array([old[3:]]), "rotvec", degrees=False)[0]
     return [*(float(v) for v in T[:3, 3]), *(float(v) for v in r)]
@@ -101,8 +101,8 @@ UNITS = Units(
     pose=_pose,
     pose_values=_pose_values,
     joints=lambda values: np.array(values, dtype=np.float64),
-    joint_values=lambda q: [float(v) for v in q],
-    text=_number_text,
+    joint_values=lambda q, old: [float(v) for v in q],
+    text=lambda v, k: _number_text(v),
 )
 
 
