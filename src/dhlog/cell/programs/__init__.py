@@ -4,7 +4,8 @@ may change, the motions that use them, in order), :func:`~dhlog.cell.programs.co
 corrects it through :mod:`dhlog.cell.sequence` and writes the same text with the new numbers;
 :mod:`~dhlog.cell.programs.formats` says which format a file is and reads it.
 
-- :mod:`~dhlog.cell.programs.urscript`: URScript (``.script``, ``.urscript``).
+- :mod:`~dhlog.cell.programs.urscript`: URScript (``.script``, ``.urscript``);
+- :mod:`~dhlog.cell.programs.rapid`: ABB RAPID (``.mod``, ``.modx``, ``.prg``).
 """
 
 from __future__ import annotations

@@ -68,7 +68,7 @@ class Units:
     m), ``pose_values`` (a pose, the corrected joints and the old values → the new values, in
     the representation nearest the old one, configuration data made the joints'), ``joints`` /
     ``joint_values`` (the literal's values ↔ rad or m; the old values given) and ``text`` (the
-    k-th value of a literal as the program writes it). A format whose poses carry their
+    k-th value of a literal of a kind as the program writes it). A format whose poses carry their
     configuration: ``accepts`` (the old values and nominal joints → why those joints are not
     the configuration written, or None) and ``fallback`` (the old values and the previous
     target's joints → where to solve from instead)."""
@@ -77,7 +77,7 @@ class Units:
     pose_values: Callable[[FloatArray, FloatArray, tuple[float, ...]], list[float]]
     joints: Callable[[tuple[float, ...]], FloatArray]
     joint_values: Callable[[FloatArray, tuple[float, ...]], list[float]]
-    text: Callable[[float, int], str]
+    text: Callable[[float, int, str], str]
     accepts: Callable[[tuple[float, ...], FloatArray], str | None] | None = None
     fallback: Callable[[tuple[float, ...], FloatArray | None], FloatArray] | None = None
 
@@ -109,6 +109,10 @@ class Corrected:
     notes: list[str]
     changed: int
 
+
+#: Why a motion whose target (or TCP) is an expression is not corrected, and what to do.
+NUMBERS = "give it as numbers to correct it"
+RUNTIME = f"is computed when the program runs: {NUMBERS}"
 
 #: Corrected numbers of one literal needed by two motions agree to this (the format's units).
 AGREE = 1e-9
@@ -197,7 +201,7 @@ def filtered(
         lit = program.literals[index]
         for k, ((start, end), v) in enumerate(zip(lit.spans, values, strict=True)):
             if v != lit.values[k]:  # a number unchanged keeps its spelling
-                edits.append((start, end, units.text(v, k)))
+                edits.append((start, end, units.text(v, k, lit.kind)))
     for start, end, written in sorted(edits, reverse=True):
         text = text[:start] + written + text[end:]
     notes = [*program.notes, *done.notes]

@@ -5,13 +5,13 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from dhlog.cell.programs import urscript
+from dhlog.cell.programs import rapid, urscript
 from dhlog.cell.programs.common import Program, ProgramError
 from dhlog.errors import InputError
 from dhlog.geometry._checks import FloatArray
 
 #: The program formats by name, and the file suffixes that choose each.
-FORMATS = {"urscript": (".script", ".urscript")}
+FORMATS = {"urscript": (".script", ".urscript"), "rapid": (".mod", ".modx", ".prg")}
 
 
 def format_of(path: Path, given: str | None) -> str:
@@ -49,5 +49,5 @@ def read(path: Path, fmt: str, n: int, tcp: FloatArray | None) -> Program:
         raise ProgramError(
             str(path), line, "is not UTF-8 text; save the program as UTF-8"
         ) from None
-    readers = {"urscript": urscript.read_urscript}
+    readers = {"urscript": urscript.read_urscript, "rapid": rapid.read_rapid}
     return readers[fmt](str(path), text, n, tcp)

@@ -28,7 +28,15 @@ import re
 import numpy as np
 
 from dhlog.cell import rotations
-from dhlog.cell.programs.common import Literal, Motion, Program, ProgramError, Units
+from dhlog.cell.programs.common import (
+    NUMBERS,
+    RUNTIME,
+    Literal,
+    Motion,
+    Program,
+    ProgramError,
+    Units,
+)
 from dhlog.geometry._checks import FloatArray
 
 #: The motion functions and the names of their target arguments, in order.
@@ -102,7 +110,7 @@ UNITS = Units(
     pose_values=_pose_values,
     joints=lambda values: np.array(values, dtype=np.float64),
     joint_values=lambda q, old: [float(v) for v in q],
-    text=lambda v, k: _number_text(v),
+    text=lambda v, k, kind: _number_text(v),
 )
 
 
@@ -207,14 +215,14 @@ class _Reader:
         elif _NAME.fullmatch(expr):
             found = self.assigned.get(expr)
             if not found:
-                return None, f"its target '{shown}' is not assigned a literal; not corrected"
+                return None, f"its target '{shown}' is not assigned numbers: {NUMBERS}"
             earlier = [i for pos, i in found if pos < before]
             index, name = (earlier[-1] if earlier else found[0][1]), expr
         if index is None:
-            return None, f"its target '{shown}' is computed when the program runs; not corrected"
+            return None, f"its target '{shown}' {RUNTIME}"
         lit = self.literals[index]
         if not self.numeric[index]:
-            return None, f"its target '{shown}' is computed when the program runs; not corrected"
+            return None, f"its target '{shown}' {RUNTIME}"
         if lit.kind != kind and kind == "pose" and lit.kind == "joints":
             pass  # a motion given joints moves to their forward kinematics: a joint target
         want = 6 if lit.kind == "pose" else self.n
@@ -334,6 +342,6 @@ def _motion(
             line,
             None,
             tcp,
-            why=f"the TCP set at line {tcp_known} is computed when the program runs; not corrected",
+            why=f"the TCP set at line {tcp_known} {RUNTIME}",
         )
     return Motion(name, line, index, tcp, hint=hint)
