@@ -60,13 +60,15 @@ def compensate(
         Path | None,
         typer.Option(
             metavar="FILE",
-            help="A robot program (URScript .script/.urscript): written with only its "
-            "targets' numbers corrected.",
+            help="A robot program (URScript .script/.urscript, ABB RAPID .mod/.modx/.prg): "
+            "written with only its targets' numbers corrected.",
         ),
     ] = None,
     program_format: Annotated[
         str | None,
-        typer.Option(metavar="urscript", help="The program's format (default: by its suffix)."),
+        typer.Option(
+            metavar="urscript|rapid", help="The program's format (default: by its suffix)."
+        ),
     ] = None,
     rotation: Annotated[
         str | None,
@@ -84,7 +86,7 @@ def compensate(
             metavar="X,Y,Z[,RX,RY,RZ]|tool",
             help="The TCP in the flange (last) frame: mm, and a rotation vector in rad (as "
             "URScript's set_tcp and the pendant); tool: the result's tool point. Default: the "
-            "flange (a program's own set_tcp applies after it).",
+            "flange (a program's own set_tcp, or a RAPID tooldata, applies where it is used).",
         ),
     ] = None,
     angle_unit: Annotated[
