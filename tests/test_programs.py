@@ -426,3 +426,20 @@ def test_a_target_not_corrected_is_a_warning(calibrated: tuple[DHModel, Path]) -
     said = [str(w.message) for w in caught if issubclass(w.category, dhlog.DhlogWarning)]
     assert len(said) == 1 and said[0].startswith("target 1 not corrected: too near a singularity")
     assert [r.getMessage() for r in records] == said
+
+
+def test_pose_csv_units_from_the_header(tmp_path: Path) -> None:
+    """x_m, rx_deg and q1_deg … say the units; the output's own header reads back."""
+    from dhlog.cell.posecsv import read_pose_table
+
+    path = tmp_path / "p.csv"
+    path.write_text(
+        "row,q1_deg,q2_deg,q3_deg,q4_deg,q5_deg,q6_deg,x_m,y_m,z_m,rx_deg,ry_deg,rz_deg\n"
+        "1,90,0,0,0,45,0,0.1,0.2,0.3,0,0,90\n"
+    )
+    table = read_pose_table(path, 6, rotation="rotvec")
+    assert table.configuration is not None
+    assert np.allclose(table.configuration[0], np.radians([90, 0, 0, 0, 45, 0]))
+    assert np.allclose(table.poses[0, :3, 3], [0.1, 0.2, 0.3])
+    assert np.allclose(table.poses[0, :3, :3], [[0, -1, 0], [1, 0, 0], [0, 0, 1]])
+    assert table.lines == [2] and table.names == ("rx", "ry", "rz")

@@ -32,13 +32,15 @@ EULER_NAMES = (("r1", "r2", "r3"), ("rx", "ry", "rz"), ("a", "b", "c"))
 class PoseTable:
     """Targets read from a CSV: ``poses`` (m, 4, 4: the TCP in the base frame, m), the
     configurations (m, n; rad or m) or None, the file's ``lines`` of each row, the
-    ``convention`` and whether its angles were in ``degrees``."""
+    ``convention``, whether its angles were in ``degrees`` and the orientation's column names
+    (``names``, without units: ``a, b, c``)."""
 
     poses: FloatArray
     configuration: FloatArray | None
     lines: list[int]
     convention: str
     degrees: bool
+    names: tuple[str, ...] = ()
 
 
 def _split(cell: str) -> tuple[str, str | None]:
@@ -49,7 +51,7 @@ def _split(cell: str) -> tuple[str, str | None]:
 
 def _columns(
     name: str, header: list[str], line: int, rotation: str | None, n: int
-) -> tuple[list[int], str, bool, float, list[int] | None]:
+) -> tuple[list[int], str, bool, float, list[int] | None, tuple[str, ...], str | None]:
     """Where the position, orientation and configuration are, the convention, whether its
     angles are degrees, the length scale to m and the configuration's unit scale columns."""
     split = [_split(c) for c in header]
@@ -96,12 +98,17 @@ def _columns(
     degrees = angle_units == {"deg"} or (angle_units == {None} and default_deg)
     where = [bare.index(c) for c in ("x", "y", "z", *names)]
     config = None
+    config_unit: str | None = None
     for prefix in ("j", "q"):
         wanted = [f"{prefix}{j + 1}" for j in range(n)]
         if any(c in bare for c in wanted):
             if not all(c in bare for c in wanted):
                 raise InputError(f"{name}: the configuration needs all of {', '.join(wanted)}.")
             config = [bare.index(c) for c in wanted]
+            said = {unit[c] for c in wanted}
+            if len(said) != 1 or not said <= {None, "deg", "rad", "m"}:
+                raise InputError(f"{name}, line {line}: give {', '.join(wanted)} in one unit.")
+            config_unit = said.pop()
             break
     known = {*where, *(config or [])}
     extra = [header[k] for k in range(len(header)) if k not in known and bare[k] != "row"]
@@ -110,7 +117,7 @@ def _columns(
             f"{name}: column '{extra[0][:40]}' is not a position, {rotation} orientation or "
             "configuration column."
         )
-    return where, rotation, degrees, scale, config
+    return where, rotation, degrees, scale, config, tuple(names), config_unit
 
 
 def read_pose_table(
@@ -119,7 +126,7 @@ def read_pose_table(
     """The Cartesian targets of the CSV at ``path`` (see the module docstring); ``rotation``:
     the orientation's convention (None: from the header); ``joint_scale`` (n,): the
     configuration's values × this are rad or m (default 1). One-line errors name the file,
-    line or column."""
+    line or column. A configuration column's unit (``q1_deg``) wins over ``joint_scale``."""
     name = str(path)
     if rotation is not None:
         rotations.check_convention(rotation)
@@ -139,7 +146,9 @@ def read_pose_table(
             f"{name}: holds no target; give a header (x, y, z, qw, qx, qy, qz) and rows."
         )
     header = [c.strip().lower() for c in lines[0][1].replace(";", ",").split(",")]
-    where, convention, degrees, scale, config = _columns(name, header, lines[0][0], rotation, n)
+    where, convention, degrees, scale, config, names, config_unit = _columns(
+        name, header, lines[0][0], rotation, n
+    )
     rows, numbers = [], []
     for number, line in lines[1:]:
         cells = [c.strip() for c in line.replace(";", ",").split(",")]
@@ -176,16 +185,23 @@ def read_pose_table(
     T[:, :3, 3] = A[:, :3] * scale
     configuration = None
     if config is not None:
-        configuration = A[:, 3 + k :] * (1.0 if joint_scale is None else joint_scale)
-    return PoseTable(T, configuration, numbers, convention, degrees)
+        # the columns' own unit (q1_deg) wins over the caller's (--angle-unit)
+        given = 1.0 if joint_scale is None else joint_scale
+        if config_unit == "deg":
+            given = np.where(np.asarray(given) == 1.0, math.pi / 180, given)
+        elif config_unit in ("rad", "m"):
+            given = np.ones(A.shape[1] - 3 - k)
+        configuration = A[:, 3 + k :] * given
+    return PoseTable(T, configuration, numbers, convention, degrees, names)
 
 
-def orientation_names(convention: str, degrees: bool) -> list[str]:
-    """The output's orientation columns, their unit in the name."""
+def orientation_names(convention: str, degrees: bool, names: tuple[str, ...] = ()) -> list[str]:
+    """The output's orientation columns (the input's ``names``, else the convention's), their
+    unit in the name."""
     if convention == "quaternion":
         return ["qw", "qx", "qy", "qz"]
     unit = "deg" if degrees else "rad"
-    base = ("rx", "ry", "rz") if convention in ("rotvec", "extrinsic-xyz") else ("r1", "r2", "r3")
+    base = names or (("rx", "ry", "rz") if convention == "rotvec" else ("r1", "r2", "r3"))
     return [f"{c}_{unit}" for c in base]
 
 
@@ -202,7 +218,7 @@ def poses_table_csv(
     each name, the representation nearest the input's). Targets not corrected are left out."""
     old = rotations.values(table.poses[:, :3, :3], table.convention, degrees=table.degrees)
     head = ["row", *joint_names, "x_mm", "y_mm", "z_mm"]
-    head += orientation_names(table.convention, table.degrees)
+    head += orientation_names(table.convention, table.degrees, table.names)
     out = [",".join(head)]
     for k in range(len(joints)):
         if k in problems or not np.isfinite(joints[k, 0]):
