@@ -6,12 +6,12 @@ Per seed: a UR-style robot 0.5 mm / 0.05° off its nominal is simulated (sweeps,
 noise) and identified with ``--nominal``; a URScript program of 22 ``movel`` poses (a gripper
 100 mm along the flange's z, above / 46 mm above / at a pick and a place spot, a transfer,
 twice) is filtered by ``dhlog compensate --program``. The corrected program is then run as the
-controller would: each commanded pose (as computed; the program's text carries 1e-10 m and
-rad) through the nominal's inverse kinematics from the previous joints. Printed: the largest
-distance (µm) and rotation (µrad) of the calibrated TCP from the original targets there (before: the uncorrected program's), the flips (changes of the
-sign of the Jacobian's determinant between neighbours), the largest joint step between
-neighbours and at the 46 mm pairs; and, solved each pose alone (the earlier ``--poses``), the
-flips and the largest step.
+controller would: each commanded pose (as computed; the program's text carries 1e-10 m and rad)
+through the nominal's inverse kinematics from the previous joints. Printed: the largest distance
+(µm) and rotation (µrad) of the calibrated TCP from the original targets there (before: the
+uncorrected program's), the flips (changes of the sign of the Jacobian's determinant between
+neighbours), the largest joint step between neighbours and at the 46 mm pairs; and, solved each
+pose alone (the earlier ``--poses``), the flips and the largest step.
 """
 
 from __future__ import annotations
