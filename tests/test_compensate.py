@@ -159,8 +159,9 @@ def test_cartesian_csv(tmp_path: Path) -> None:
 
 
 def test_the_command(tmp_path: Path) -> None:
-    """dhlog compensate writes the corrected targets (degrees in, degrees out), lists the
-    targets it cannot correct one line each, and refuses a bad CSV in one line."""
+    """dhlog compensate writes the corrected targets (degrees in, degrees out, the unit in
+    each column's name), names each target it cannot correct on a line of its own and exits 3
+    (the rest written), and refuses a bad CSV in one line."""
     log = tmp_path / "kr5.mcap"
     assert (
         runner.invoke(app, ["simulate", "kr5", "-o", str(log), "--perturb-mm", "0.3"]).exit_code
@@ -183,9 +184,9 @@ def test_the_command(tmp_path: Path) -> None:
         str(targets),
     ]
     run = runner.invoke(app, [*args, "--angle-unit", "deg", "-o", str(out)])
-    assert run.exit_code == 0, run.output
+    assert run.exit_code == 3, run.output  # a target not corrected: partial, the rest written
     lines = out.read_text().splitlines()
-    assert lines[0] == "row,a1,a2,a3,a4,a5,a6"
+    assert lines[0] == "row,a1_deg,a2_deg,a3_deg,a4_deg,a5_deg,a6_deg"
     assert "row 2: not corrected:" in run.output and "singularity" in run.output
     assert [line.split(",")[0] for line in lines[1:]] == ["1", "3"]
     first = np.array([float(v) for v in lines[1].split(",")[1:]])

@@ -205,9 +205,16 @@ def test_the_public_api_gives_the_commands_report(simulated: tuple[Path, dict[st
 
     log, truth = simulated
     program = log.with_suffix(".program.csv")
-    report = dhlog.acceptance_test(log, nominal="kr5", commanded=program)
+    import warnings
+
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        report = dhlog.acceptance_test(log, nominal="kr5", commanded=program)
     assert isinstance(report, dhlog.Iso9283Report)
     assert [p.name for p in report.poses] == ["P1", "P2", "P3", "P4", "P5"]
+    # each of the report's notes is a DhlogWarning too (warnings.warn and the dhlog logger)
+    given = [str(w.message) for w in caught if issubclass(w.category, dhlog.DhlogWarning)]
+    assert given and given == [f"acceptance_test: {note}" for note in report.notes]
     for pose in report.poses:
         attained = np.array(
             [v["attained"] for v in truth["iso9283"]["visits"] if v["pose"] == pose.name]

@@ -191,8 +191,10 @@ class FieldError(InputError):
 
 class DhlogWarning(UserWarning):
     """What may need the user's action, as the console's warnings say it (a joint swept too
-    little, samples set aside, a nominal far from the data …): :func:`dhlog.process`,
-    :func:`dhlog.load` and :func:`dhlog.simulate` give each of theirs through
+    little, samples set aside, a nominal far from the data, a target not compensated …):
+    :func:`dhlog.process`, :func:`dhlog.load`, :func:`dhlog.simulate`, :func:`dhlog.plan`,
+    :func:`dhlog.acceptance_test` (its notes) and :meth:`dhlog.Calibration.compensate` /
+    ``compensate_poses`` (each target not corrected) give each of theirs through
     :func:`warnings.warn` with this category and through the ``dhlog`` logger
     (``logging.getLogger("dhlog")``, level WARNING). The text is the one
     ``Calibration.warnings`` holds."""

@@ -455,7 +455,7 @@ class Calibration:
             )
         if not np.all(np.isfinite(Q)):
             raise UsageError("compensate: targets must be finite numbers.")
-        return compensate(self.identified(), controller, Q, limits=bounds)
+        return _warned_rows(compensate(self.identified(), controller, Q, limits=bounds))
 
     def compensate_poses(
         self,
@@ -488,9 +488,10 @@ class Calibration:
                     f"compensate_poses: configuration must be finite ({len(T)}, {self.n}) joint "
                     f"vectors, one per pose, not shape {config.shape}."
                 )
-        return compensate_poses(
+        done = compensate_poses(
             self.identified(), controller, T, configuration=config, limits=bounds
         )[0]
+        return _warned_rows(done)
 
     def _controller(
         self,
@@ -768,3 +769,13 @@ def _write_text(path: Path, text: str) -> None:
 
 
 __all__ = ["EXPORT_FORMATS", "Calibration", "ExportFormat", "UsageError"]
+
+
+def _warned_rows(done: Compensation) -> Compensation:
+    """``done``, each target it did not correct given as a :class:`~dhlog.DhlogWarning`
+    (``warnings.warn`` and the ``dhlog`` logger; the command line names them itself)."""
+    from dhlog.errors import give_warning
+
+    for row, why in sorted(done.problems.items()):
+        give_warning(f"target {row + 1} not corrected: {why}", stacklevel=3)
+    return done

@@ -550,7 +550,16 @@ def plan(
     problems = config_problems(rob, cfg)
     if problems:
         raise UsageError(f"{problems[0]}.")
-    return plan_session(rob, cfg, tracker)
+    found = plan_session(rob, cfg, tracker)
+    if found.out_of_range:
+        from dhlog.errors import give_warning
+
+        give_warning(
+            f"plan: {found.out_of_range} of the drawn poses put the target beyond the "
+            "tracker's range and were left out.",
+            stacklevel=2,
+        )
+    return found
 
 
 def acceptance_test(
@@ -603,7 +612,7 @@ def acceptance_test(
             f"acceptance_test: the nominal {nom.source} has {nom.table.n} joints but the result "
             f"{calibrated.source} has {calibrated.table.n}; give the nominal of this robot."
         )
-    return run_logs(
+    report = run_logs(
         paths,
         pipeline=pipe,
         nominal=nom,
@@ -612,3 +621,8 @@ def acceptance_test(
         stops=stops,
         further_tools=further_tools,
     )
+    from dhlog.errors import give_warning
+
+    for note in report.notes:  # what is missing or was assumed, as the console says it
+        give_warning(f"acceptance_test: {note}", stacklevel=2)
+    return report

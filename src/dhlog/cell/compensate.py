@@ -253,120 +253,14 @@ def compensate_poses(
     return done, q_nom
 
 
-def read_poses(
-    path: str | Path, n: int, *, angle_unit: str = "rad"
-) -> tuple[FloatArray, FloatArray | None]:
-    """Cartesian targets from a CSV with a header: ``x, y, z`` (mm) and the orientation as a
-    quaternion ``qw, qx, qy, qz`` or as angles ``rx, ry, rz`` (degrees, fixed axes X then Y then
-    Z); optionally the controller's configuration ``j1 … jn`` (``angle_unit``). Returns the
-    poses (m, 4, 4, m) and the configurations (m, n) or None. One-line errors name the file,
-    line or column."""
-    from scipy.spatial.transform import Rotation
+def read_poses(path: str | Path, n: int) -> tuple[FloatArray, FloatArray | None]:
+    """Cartesian targets from a CSV (:func:`dhlog.cell.posecsv.read_pose_table`, the
+    convention from the header): the poses (m, 4, 4, m) and the configurations (m, n, as
+    written) or None."""
+    from dhlog.cell.posecsv import read_pose_table
 
-    from dhlog.errors import InputError
-
-    name = str(path)
-    try:
-        text = Path(path).read_text(encoding="utf-8-sig")
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InputError(
-            f"{name}: cannot be read ({exc}); give a CSV of Cartesian targets."
-        ) from None
-    lines = [
-        (k, line)
-        for k, line in enumerate(text.splitlines(), start=1)
-        if line.strip() and not line.lstrip().startswith("#")
-    ]
-    if not lines:
-        raise InputError(
-            f"{name}: holds no target; give a header (x, y, z, qw, qx, qy, qz) and rows."
-        )
-    header = [c.strip().lower() for c in lines[0][1].replace(";", ",").split(",")]
-    if len(set(header)) != len(header):
-        raise InputError(f"{name}, line {lines[0][0]}: a column is named twice; name each once.")
-    position = ["x", "y", "z"]
-    quaternion = ["qw", "qx", "qy", "qz"]
-    angles = ["rx", "ry", "rz"]
-    joints = [f"j{j + 1}" for j in range(n)]
-    if not all(c in header for c in position):
-        raise InputError(
-            f"{name}: its header ({', '.join(header)[:80]}) lacks x, y, z (mm); name the columns "
-            "x, y, z and qw, qx, qy, qz (or rx, ry, rz in degrees)."
-        )
-    has_q, has_r = all(c in header for c in quaternion), all(c in header for c in angles)
-    if has_q == has_r:
-        raise InputError(
-            f"{name}: give the orientation once, as qw, qx, qy, qz or as rx, ry, rz (degrees)."
-        )
-    has_j = any(c in header for c in joints)
-    if has_j and not all(c in header for c in joints):
-        raise InputError(f"{name}: the configuration needs all of {', '.join(joints)}.")
-    wanted = position + (quaternion if has_q else angles) + (joints if has_j else [])
-    unknown = [c for c in header if c not in wanted]
-    if unknown:
-        raise InputError(f"{name}: column '{unknown[0][:40]}' is not one of {', '.join(wanted)}.")
-    where = [header.index(c) for c in wanted]
-    rows = []
-    for number, line in lines[1:]:
-        cells = [c.strip() for c in line.replace(";", ",").split(",")]
-        try:
-            values = [float(cells[i]) for i in where]
-        except (ValueError, IndexError):
-            raise InputError(
-                f"{name}, line {number}: '{line.strip()[:60]}' is not {len(header)} numbers."
-            ) from None
-        if len(cells) != len(header) or not all(np.isfinite(values)):
-            raise InputError(
-                f"{name}, line {number}: has {len(cells)} values for {len(header)} columns "
-                "(finite numbers)."
-            )
-        if max(abs(v) for v in values[:3]) > 1e6:
-            raise InputError(f"{name}, line {number}: a position beyond 1 km; give mm.")
-        rows.append(values)
-    if not rows:
-        raise InputError(f"{name}: holds no target under its header.")
-    A = np.array(rows)
-    if has_q:
-        norm = np.linalg.norm(A[:, 3:7], axis=1)
-        bad = np.flatnonzero(np.abs(norm - 1.0) > 1e-3)
-        if bad.size:
-            raise InputError(
-                f"{name}, line {lines[1 + int(bad[0])][0]}: the quaternion has norm "
-                f"{norm[bad[0]]:.6g}, not 1."
-            )
-        R = Rotation.from_quat(A[:, 3:7], scalar_first=True).as_matrix()
-        rest = A[:, 7:]
-    else:
-        R = Rotation.from_euler("xyz", A[:, 3:6], degrees=True).as_matrix()
-        rest = A[:, 6:]
-    T = np.repeat(np.eye(4)[None], len(A), 0)
-    T[:, :3, :3] = R
-    T[:, :3, 3] = A[:, :3] * 1e-3
-    return T, (rest if has_j else None)
-
-
-def poses_csv(nominal: DHModel, done: Compensation, joint_scale: FloatArray) -> str:
-    """Per target reached: its row number, the corrected joint targets (shown ×
-    ``joint_scale``), and the Cartesian target a controller that takes only poses should run
-    instead (the nominal's pose at the corrected targets: x, y, z mm; qw, qx, qy, qz) —
-    the commercial "filter program" form."""
-    from scipy.spatial.transform import Rotation
-
-    n = done.targets.shape[1]
-    good = np.flatnonzero(np.isfinite(done.targets[:, 0]))
-    T = np.zeros((done.targets.shape[0], 4, 4))
-    if good.size:
-        T[good] = _pose(nominal, done.targets[good], calibrated=False)
-    head = ["row", *(f"j{j + 1}" for j in range(n)), "x", "y", "z", "qw", "qx", "qy", "qz"]
-    lines = [",".join(head)]
-    for k in range(T.shape[0]):
-        if k in done.problems:
-            continue
-        p = T[k, :3, 3] * 1e3
-        quat = Rotation.from_matrix(T[k, :3, :3]).as_quat(scalar_first=True)
-        cells = [*(done.targets[k] * joint_scale), *p, *quat]
-        lines.append(",".join([str(k + 1), *(f"{v:.15g}" for v in cells)]))
-    return "\n".join(lines) + "\n"
+    table = read_pose_table(path, n)
+    return table.poses, table.configuration
 
 
 def read_targets(path: str | Path, n: int) -> tuple[list[str] | None, FloatArray]:
@@ -415,11 +309,22 @@ def read_targets(path: str | Path, n: int) -> tuple[list[str] | None, FloatArray
     return header, np.array(rows)
 
 
-def targets_csv(header: list[str] | None, Q: FloatArray, problems: dict[int, str]) -> str:
+def targets_csv(
+    header: list[str] | None,
+    Q: FloatArray,
+    problems: dict[int, str],
+    units: list[str] | None = None,
+) -> str:
     """The corrected targets as CSV: the input's row number, then one column per joint (the
-    input's header, else ``q1 … qn``); targets not corrected are left out."""
+    input's header, else ``q1 … qn``; ``units``: each name's unit appended, ``a1_deg``, unless
+    the name already ends with it); targets not corrected are left out."""
     n = Q.shape[1]
-    names = header or [f"q{j + 1}" for j in range(n)]
+    names = list(header or [f"q{j + 1}" for j in range(n)])
+    if units is not None:
+        names = [
+            c if c.lower().endswith(f"_{u}") else f"{c}_{u}"
+            for c, u in zip(names, units, strict=True)
+        ]
     lines = [",".join(["row", *names])]
     for k, q in enumerate(Q):
         if k in problems:

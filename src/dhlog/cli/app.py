@@ -2,9 +2,10 @@
 
 This module builds the typer ``app`` from the commands of :mod:`dhlog.cli.simulate`,
 :mod:`~dhlog.cli.process`, :mod:`~dhlog.cli.robot`, :mod:`~dhlog.cli.logs`,
-:mod:`~dhlog.cli.results`, :mod:`~dhlog.cli.cell` and :mod:`~dhlog.cli.batch` (none of which
-imports it), and :func:`run` turns signals, a closed output and the parser's usage errors into the
-exit codes ``EXIT_CODES`` lists (:mod:`dhlog.cli.common`).
+:mod:`~dhlog.cli.results`, :mod:`~dhlog.cli.cell`, :mod:`~dhlog.cli.compensate` and
+:mod:`~dhlog.cli.batch` (none of which imports it), and :func:`run` turns signals, a closed
+output and the parser's usage errors into the exit codes ``EXIT_CODES`` lists
+(:mod:`dhlog.cli.common`).
 """
 
 from __future__ import annotations
@@ -17,7 +18,7 @@ import typer
 
 from dhlog._version import __version__
 from dhlog.cli.batch import batch
-from dhlog.cli.cell import compensate, plan
+from dhlog.cli.cell import plan
 from dhlog.cli.common import (
     EXIT_CODES,
     EXIT_INPUT,
@@ -34,6 +35,7 @@ from dhlog.cli.common import (
     stderr,
     stdout,
 )
+from dhlog.cli.compensate import compensate
 from dhlog.cli.iso9283 import iso9283
 from dhlog.cli.logs import import_, pipelines
 from dhlog.cli.process import process
