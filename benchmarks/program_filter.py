@@ -28,7 +28,7 @@ from scipy.spatial.transform import Rotation
 
 from dhlog.cell.compensate import compensate_poses
 from dhlog.cell.programs import filtered, read
-from dhlog.identify.run import process_data
+from dhlog.identify.run import ProcessOptions, process_data
 from dhlog.io.dhfile import DHModel, parse_dh
 from dhlog.io.memory import log_data_from_session
 from dhlog.model.fk import fk_frames
@@ -109,7 +109,9 @@ def main() -> int:
         session = simulate_session(rob, cfg)
         doc = json.loads(
             json.dumps(
-                result_document(process_data(log_data_from_session(session), nominal=nominal))
+                result_document(
+                    process_data(log_data_from_session(session), ProcessOptions(nominal=nominal))
+                )
             )
         )
         model = parse_dh(doc, f"seed {seed}")

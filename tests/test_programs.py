@@ -26,7 +26,7 @@ from dhlog.cell.compensate import compensate_poses
 from dhlog.cell.sequence import Target, filter_targets
 from dhlog.cli.app import app
 from dhlog.errors import UsageError
-from dhlog.identify.run import process_data
+from dhlog.identify.run import ProcessOptions, process_data
 from dhlog.io.dhfile import DHModel, parse_dh
 from dhlog.io.memory import log_data_from_session
 from dhlog.model.fk import fk_frames
@@ -55,7 +55,7 @@ def _calibrated(tmp: str) -> tuple[DHModel, Path]:
         perturb_length=5e-4, perturb_angle=math.radians(0.05), seed=11, noise=1e-5
     )
     session = simulate_session(load_robot("ur5e"), cfg)
-    result = process_data(log_data_from_session(session), nominal=_nominal())
+    result = process_data(log_data_from_session(session), ProcessOptions(nominal=_nominal()))
     doc = json.loads(json.dumps(result_document(result)))
     path = Path(tmp) / "ur5e.dh.json"
     path.write_text(json.dumps(doc))

@@ -24,7 +24,7 @@ from scipy.spatial.transform import Rotation
 from typer.testing import CliRunner
 
 from dhlog.cli.app import app
-from dhlog.identify.run import process_data
+from dhlog.identify.run import ProcessOptions, process_data
 from dhlog.io.dhfile import DHModel, parse_dh
 from dhlog.io.memory import log_data_from_session
 from dhlog.model.fk import fk_frames
@@ -59,7 +59,9 @@ def _calibrated(tmp: str) -> tuple[DHModel, Path]:
     session = simulate_session(load_robot(ROBOT), cfg)
     doc = json.loads(
         json.dumps(
-            result_document(process_data(log_data_from_session(session), nominal=_nominal()))
+            result_document(
+                process_data(log_data_from_session(session), ProcessOptions(nominal=_nominal()))
+            )
         )
     )
     path = Path(tmp) / "irb.dh.json"
