@@ -13,6 +13,7 @@ literals' numbers replaced.
 from __future__ import annotations
 
 import functools
+import re
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
@@ -20,6 +21,40 @@ from dhlog.cell.sequence import Filtered, Target, filter_targets
 from dhlog.errors import InputError
 from dhlog.geometry._checks import FloatArray
 from dhlog.io.dhfile import DHModel
+
+#: A number as a program writes it (sign, digits, decimals, exponent).
+NUMBER = re.compile(r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?")
+
+
+def closing(masked: str, after: int) -> int:
+    """The index of the bracket closing the one opened just before ``after`` in the program's
+    masked text (comments and strings blanked), -1: none."""
+    depth = 1
+    for k in range(after, len(masked)):
+        c = masked[k]
+        if c in "([":
+            depth += 1
+        elif c in ")]":
+            depth -= 1
+            if depth == 0:
+                return k
+    return -1
+
+
+def arguments(masked: str, start: int, end: int) -> list[tuple[int, int]]:
+    """The spans of the top-level, comma-separated arguments between ``start`` and ``end``."""
+    spans, depth, begin = [], 0, start
+    for k in range(start, end):
+        c = masked[k]
+        if c in "([":
+            depth += 1
+        elif c in ")]":
+            depth -= 1
+        elif c == "," and depth == 0:
+            spans.append((begin, k))
+            begin = k + 1
+    spans.append((begin, end))
+    return spans
 
 
 class ProgramError(InputError):

@@ -38,18 +38,20 @@ import numpy as np
 
 from dhlog.cell import rotations
 from dhlog.cell.programs.common import (
+    NUMBER,
     RUNTIME,
     Literal,
     Motion,
     Program,
     ProgramError,
     Units,
+    arguments,
+    closing,
 )
 from dhlog.geometry._checks import FloatArray
 
 #: Each motion's target arguments and its positional arguments before the tool.
 MOTIONS = {"movej": 1, "movel": 1, "movec": 2, "moveabsj": 1}
-_NUMBER = re.compile(r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?")
 _DECLARE = re.compile(
     r"(?im)^[ \t]*(?:(?:LOCAL|TASK)[ \t]+)?(?:CONST|PERS|VAR)[ \t]+"
     r"(robtarget|jointtarget|tooldata)[ \t]+([A-Za-z]\w*)[ \t]*:=[ \t]*(?=\[)"
@@ -149,19 +151,6 @@ UNITS = Units(
 )
 
 
-def _closing(masked: str, start: int) -> int:
-    """The index of the bracket closing the one at ``start`` (-1: none)."""
-    depth = 0
-    for k in range(start, len(masked)):
-        if masked[k] in "([":
-            depth += 1
-        elif masked[k] in ")]":
-            depth -= 1
-            if depth == 0:
-                return k
-    return -1
-
-
 class _Reader:
     """One module's declarations and motions, read from its masked text."""
 
@@ -188,7 +177,7 @@ class _Reader:
 
     def _lists(self, start: int) -> list[tuple[int, int]] | None:
         """The spans of the inner lists of the nested literal opening at ``start``."""
-        end = _closing(self.masked, start)
+        end = closing(self.masked, start + 1)
         if end < 0:
             raise ProgramError(self.path, self.line(start), "a '[' is never closed")
         inner = [m.span(1) for m in re.finditer(r"\[([^\[\]]*)\]", self.masked[start + 1 : end])]
@@ -221,7 +210,7 @@ class _Reader:
                 stripped = piece.strip()
                 at = offset + (len(piece) - len(piece.lstrip()))
                 offset += len(piece) + 1
-                if not _NUMBER.fullmatch(stripped):
+                if not NUMBER.fullmatch(stripped):
                     return None
                 value = float(stripped)
                 if not math.isfinite(value):
@@ -243,7 +232,7 @@ class _Reader:
 
     def _tool(self, start: int) -> FloatArray | None:
         """The TCP of a tooldata literal (None: not numbers)."""
-        body = self.masked[start : _closing(self.masked, start) + 1]
+        body = self.masked[start : closing(self.masked, start + 1) + 1]
         match = re.match(r"\[\s*\w+\s*,\s*\[\s*\[([^\]]*)\]\s*,\s*\[([^\]]*)\]", body)
         if match is None:
             return None
@@ -255,22 +244,6 @@ class _Reader:
         if len(xyz) != 3 or len(quat) != 4 or not all(map(math.isfinite, xyz + quat)):
             return None
         return _pose((*xyz, *quat))
-
-
-def _arguments(masked: str, start: int, end: int) -> list[tuple[int, int]]:
-    """The top-level comma-separated argument spans between ``start`` and ``end``."""
-    spans, depth, begin = [], 0, start
-    for k in range(start, end):
-        c = masked[k]
-        if c in "([":
-            depth += 1
-        elif c in ")]":
-            depth -= 1
-        elif c == "," and depth == 0:
-            spans.append((begin, k))
-            begin = k + 1
-    spans.append((begin, end))
-    return spans
 
 
 def read_rapid(path: str, text: str, n: int, tcp: FloatArray | None) -> Program:
@@ -293,7 +266,7 @@ def read_rapid(path: str, text: str, n: int, tcp: FloatArray | None) -> Program:
             for motion in ("movel", "movec") if name == "confl" else ("movej",):
                 checked[motion] = on
             continue
-        pieces = _arguments(masked, call.end(), end)
+        pieces = arguments(masked, call.end(), end)
         optional = " ".join(masked[a:b] for a, b in pieces)
         positional = []
         for a, b in pieces:

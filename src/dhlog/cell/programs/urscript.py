@@ -29,6 +29,7 @@ import numpy as np
 
 from dhlog.cell import rotations
 from dhlog.cell.programs.common import (
+    NUMBER,
     NUMBERS,
     RUNTIME,
     Literal,
@@ -36,6 +37,8 @@ from dhlog.cell.programs.common import (
     Program,
     ProgramError,
     Units,
+    arguments,
+    closing,
 )
 from dhlog.geometry._checks import FloatArray
 
@@ -46,7 +49,6 @@ MOTIONS = {
     "movep": ("pose",),
     "movec": ("pose_via", "pose_to"),
 }
-_NUMBER = re.compile(r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?")
 _NOT_FINITE = re.compile(r"[-+]?(?:nan|inf|infinity)", re.IGNORECASE)
 _LIST = re.compile(r"(\bp\s*)?\[([^\[\]]*)\]")
 _ASSIGN = re.compile(
@@ -114,36 +116,6 @@ UNITS = Units(
 )
 
 
-def _closing(masked: str, start: int) -> int:
-    """The index of the bracket closing the one opened just before ``start`` (-1: none)."""
-    depth = 1
-    for k in range(start, len(masked)):
-        c = masked[k]
-        if c in "([":
-            depth += 1
-        elif c in ")]":
-            depth -= 1
-            if depth == 0:
-                return k
-    return -1
-
-
-def _arguments(masked: str, start: int, end: int) -> list[tuple[int, int]]:
-    """The spans of the top-level, comma-separated arguments between ``start`` and ``end``."""
-    spans, depth, begin = [], 0, start
-    for k in range(start, end):
-        c = masked[k]
-        if c in "([":
-            depth += 1
-        elif c in ")]":
-            depth -= 1
-        elif c == "," and depth == 0:
-            spans.append((begin, k))
-            begin = k + 1
-    spans.append((begin, end))
-    return spans
-
-
 class _Reader:
     """One program's literals, assignments and motions, read from its masked text."""
 
@@ -182,7 +154,7 @@ class _Reader:
                     self.line(offset),
                     f"'{stripped[:12]}' is not a finite number; give the target's numbers",
                 )
-            if not _NUMBER.fullmatch(stripped):
+            if not NUMBER.fullmatch(stripped):
                 numeric = False
                 continue
             value = float(stripped)
@@ -260,13 +232,13 @@ def read_urscript(path: str, text: str, n: int, tcp: FloatArray | None) -> Progr
     told = tcp is not None
     for call in _CALL.finditer(masked):
         name = call.group(1)
-        close = _closing(masked, call.end())
+        close = closing(masked, call.end())
         line = reader.line(call.start())
         if close < 0:
             raise ProgramError(path, line, f"{name}( is never closed; close its parenthesis")
         args = [
             span
-            for span in _arguments(masked, call.end(), close)
+            for span in arguments(masked, call.end(), close)
             if not re.match(r"\s*[A-Za-z_]\w*\s*=(?!=)", masked[span[0] : span[1]])
             or re.match(r"\s*(q|pose|pose_via|pose_to)\s*=", masked[span[0] : span[1]])
         ]
@@ -313,12 +285,12 @@ def _motion(
     hint: int | None = None
     if ik is not None:
         open_at = start + (len(expr) - len(expr.lstrip())) + ik.end()
-        close = _closing(reader.masked, open_at)
+        close = closing(reader.masked, open_at)
         if close < 0 or close > end:
             raise ProgramError(reader.path, line, "get_inverse_kin( is never closed")
         inner = [
             s
-            for s in _arguments(reader.masked, open_at, close)
+            for s in arguments(reader.masked, open_at, close)
             if reader.masked[s[0] : s[1]].strip()
         ]
         near = None
