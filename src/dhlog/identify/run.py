@@ -397,11 +397,7 @@ def process_data(
         tuple(notes),
         extraction=analytic,
         target=target,
-        covariance=found.covariance,
-        std=found.std,
-        fixed=found.fixed,
-        hayati=tuple(found.hayati),
-        conditioned=found.conditioned,
+        **found.result_fields(),
         validation=validation,
     )
 
