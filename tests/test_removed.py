@@ -85,7 +85,7 @@ def test_simulate_is_the_function_after_an_old_import_fails() -> None:
         "    from dhlog.simulate.config import SimulationConfig\n"
         "except ModuleNotFoundError as e:\n"
         "    print(e.name)\n"
-        "from dhlog.api.operations import simulate\n"
+        "from dhlog.api.simulation import simulate\n"
         "print(dhlog.simulate is simulate, callable(dhlog.simulate))\n"
     )
     out = subprocess.run(

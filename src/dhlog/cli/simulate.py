@@ -303,7 +303,7 @@ def simulate(
     force: Annotated[bool, typer.Option("--force", help="Overwrite existing outputs.")] = False,
 ) -> None:
     """Write a simulated calibration session and its ground truth."""
-    from dhlog.api.operations import simulate_config
+    from dhlog.api.simulation import simulate_config
     from dhlog.io.dhfile import robot_or_dh_file
     from dhlog.simulator.config import (
         PROTOCOLS,
