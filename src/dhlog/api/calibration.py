@@ -6,7 +6,6 @@ the geometry, the held-out statistics, and the operations of the commands (``fk`
 from __future__ import annotations
 
 import json
-import math
 import tempfile
 from collections.abc import Iterator, Mapping
 from contextlib import contextmanager
@@ -17,7 +16,9 @@ from typing import TYPE_CHECKING, Any, Literal
 import numpy as np
 from numpy.typing import ArrayLike
 
-from dhlog.errors import DhlogError, UsageError
+from dhlog.api.models import _dh_model, _library_limits
+from dhlog.api.outputs import _refuse_existing, _write_text, output_names, write_run
+from dhlog.errors import UsageError
 from dhlog.geometry._checks import FloatArray
 from dhlog.model.dh import ModifiedDH, StandardDH, standard_to_modified
 from dhlog.model.fk import fk_frames, fk_point
@@ -180,69 +181,9 @@ class Calibration:
         the data cannot determine, never a measurement), ``unit`` (m or rad) — and the same
         value and σ with the unit in the column's name: ``value_m``, ``value_rad``,
         ``sigma_m``, ``sigma_rad`` (the column of the other unit null)."""
-        import polars as pl
+        from dhlog.api.tables import parameters_table
 
-        units = self.document.get("units") or {}
-        if units.get("length", "m") != "m" or units.get("angle", "rad") != "rad":
-            # a DH file in other units (mm, deg): its values as the model read them, in SI;
-            # such a file carries no σ
-            t = self.identified().table
-            table = [
-                {
-                    "theta_offset": t.theta_offset[i],
-                    "d_offset": t.d_offset[i],
-                    "a": t.a[i],
-                    "alpha": t.alpha[i],
-                }
-                for i in range(t.n)
-            ]
-        else:
-            conditioned = self.document.get("hayati_dh")
-            table = (
-                conditioned.get("rows", [])
-                if isinstance(conditioned, dict)
-                else self.document.get("standard_dh", [])
-            )
-        rows = []
-        names = self.joint_names
-        for i, row in enumerate(table):
-            std = row.get("std") or {}
-            fixed = set(row.get("fixed") or [])
-            form = str(row.get("form", "dh"))
-            second = ("beta", "rad") if form == "hayati" else ("d", "m")
-            for key, unit in (("theta", "rad"), second, ("a", "m"), ("alpha", "rad")):
-                value = row.get(f"{key}_offset", row.get(key))
-                sigma = std.get(key)
-                rows.append(
-                    {
-                        "joint": i + 1,
-                        "name": names[i] if i < len(names) else f"joint_{i + 1}",
-                        "form": form,
-                        "parameter": key,
-                        "value": math.nan if value is None else float(value),
-                        "sigma": None if sigma is None or key in fixed else float(sigma),
-                        "fixed": key in fixed,
-                        "unit": unit,
-                    }
-                )
-        schema = {
-            "joint": pl.Int64,
-            "name": pl.String,
-            "form": pl.String,
-            "parameter": pl.String,
-            "value": pl.Float64,
-            "sigma": pl.Float64,
-            "fixed": pl.Boolean,
-            "unit": pl.String,
-        }
-        frame = pl.DataFrame(rows, schema=schema, orient="row")
-        metres = pl.col("unit") == "m"
-        return frame.with_columns(
-            value_m=pl.when(metres).then(pl.col("value")),
-            value_rad=pl.when(~metres).then(pl.col("value")),
-            sigma_m=pl.when(metres).then(pl.col("sigma")),
-            sigma_rad=pl.when(~metres).then(pl.col("sigma")),
-        )
+        return parameters_table(self)
 
     def changes(self) -> pl.DataFrame:
         """Measured − nominal: each parameter's change from :attr:`nominal` with its σ and
@@ -281,38 +222,9 @@ class Calibration:
         calibrated), ``n_poses``, ``mean``, ``rms``, ``p95``, ``max`` (m) — the same also with
         the unit in the name: ``mean_m``, ``rms_m``, ``p95_m``, ``max_m``. Empty when the run
         made no held-out check."""
-        import polars as pl
+        from dhlog.api.tables import holdout_table
 
-        rows = []
-        for check in (self.document.get("validation") or {}).get("holdout", []):
-            what = (
-                f"{check.get('folds')}-fold"
-                if check.get("kind") == "cross-validation"
-                else Path(str(check.get("path", "log"))).name
-            )
-            for model in ("nominal", "calibrated"):
-                stats = check.get(model)
-                if not stats:
-                    continue
-                rows.append(
-                    {
-                        "check": what,
-                        "model": model,
-                        "n_poses": int(stats["n_poses"]),
-                        **{k: float(stats[k]) for k in ("mean", "rms", "p95", "max")},
-                    }
-                )
-        schema = {
-            "check": pl.String,
-            "model": pl.String,
-            "n_poses": pl.Int64,
-            "mean": pl.Float64,
-            "rms": pl.Float64,
-            "p95": pl.Float64,
-            "max": pl.Float64,
-        }
-        frame = pl.DataFrame(rows, schema=schema, orient="row")
-        return frame.with_columns(pl.col(k).alias(f"{k}_m") for k in ("mean", "rms", "p95", "max"))
+        return holdout_table(self)
 
     @property
     def fk_rms(self) -> float | None:
@@ -661,111 +573,6 @@ class Calibration:
             written = Path(folder) / f"{stem}.dh.json"
             written.write_text(json.dumps(self.document))
             yield str(written)
-
-
-def output_names(path: str | Path, *, recording: bool, heldout: bool, terms: bool) -> list[Path]:
-    """A run's outputs for ``path`` (``<stem>.dh.json``), in the order they are written: the JSON,
-    the CSV table, the recording, the held-out poses' CSV (``heldout``: asked for), the terms'
-    CSV (``terms``: terms beyond the geometry asked for)."""
-    from dhlog.fleet.batch import HOLDOUT_SUFFIX, TERMS_SUFFIX
-
-    target = Path(path)
-    stem = target.name.removesuffix(".json").removesuffix(".dh")
-    folder = target.parent
-    outputs = [target, folder / f"{stem}.dh.csv"]
-    if recording:
-        outputs.append(folder / f"{stem}.rrd")
-    if heldout:
-        outputs.append(folder / f"{stem}{HOLDOUT_SUFFIX}")
-    if terms:
-        outputs.append(folder / f"{stem}{TERMS_SUFFIX}")
-    return outputs
-
-
-def write_run(
-    calibration: Calibration,
-    outputs: list[Path],
-    units: str,
-    *,
-    with_log: bool = False,
-    hold_signals: bool = False,
-) -> None:
-    """Write a run's ``outputs`` (:func:`output_names`) together, atomically; ``hold_signals``:
-    an interrupt waits until they are in place (the command line)."""
-    from dhlog.errors import OutputError
-    from dhlog.fleet.batch import write_results
-
-    if calibration._result is None:
-        raise UsageError("a loaded calibration has no run to write; save() writes its JSON.")
-    try:
-        write_results(
-            calibration._result,
-            outputs,
-            units,
-            hold_signals=hold_signals,
-            with_log=with_log,
-            document=calibration.document,  # the JSON is the document the object shows
-        )
-    except OSError as exc:
-        raise OutputError(outputs[0].parent, exc) from None
-
-
-def _dh_model(spec: str | Path | DHModel | Robot | Calibration) -> DHModel:
-    """A DH model from a library robot name, a DH file, a :class:`Robot` or a model."""
-    from dhlog.io.dhfile import DHModel, dh_model_from
-    from dhlog.model.robots import Robot
-
-    if isinstance(spec, DHModel):
-        return spec
-    if isinstance(spec, Robot):
-        names = tuple(f"joint_{i + 1}" for i in range(spec.n))
-        return DHModel(spec.table, spec.T_base, spec.tool_point, names, spec.name)
-    if isinstance(spec, Calibration):
-        return spec.identified()
-    if isinstance(spec, (str, Path)):
-        return dh_model_from(str(spec))
-    raise UsageError(
-        f"a model must be a library robot name, a DH file's path or dhlog.robot(...), not "
-        f"{type(spec).__name__}."
-    )
-
-
-def _library_limits(spec: object) -> FloatArray | None:
-    """A library robot's joint limits (None for anything else)."""
-    from dhlog.model.robots import Robot, robot_names
-
-    if isinstance(spec, Robot):
-        return spec.limits
-    if isinstance(spec, str) and spec in robot_names():
-        from dhlog.model.robots import load_robot
-
-        return load_robot(spec).limits
-    return None
-
-
-def _refuse_existing(path: Path, overwrite: bool, *inputs: str | Path | None) -> None:
-    """An output that is one of the ``inputs`` (the log, a held-out log, a template …) is
-    refused whatever ``overwrite`` says; an existing one unless ``overwrite``."""
-    from dhlog.io.paths import refuse_inputs_as_outputs
-
-    given = [(Path(p), "input") for p in inputs if p]
-    try:
-        refuse_inputs_as_outputs([(p, label) for p, label in given if p.exists()], [path])
-    except DhlogError as exc:
-        raise UsageError(f"{exc} Choose another path.") from None
-    if path.exists() and not overwrite:
-        raise UsageError(f"{path} exists; pass overwrite=True to replace it.")
-
-
-def _write_text(path: Path, text: str) -> None:
-    from dhlog.errors import OutputError
-    from dhlog.io.writer import atomic_output
-
-    try:
-        with atomic_output(path) as f:
-            f.write(text.encode())
-    except OSError as exc:
-        raise OutputError(path.parent, exc) from None
 
 
 __all__ = ["EXPORT_FORMATS", "Calibration", "ExportFormat", "UsageError"]

@@ -13,7 +13,8 @@ from typing import TYPE_CHECKING, Any, Literal
 import numpy as np
 from numpy.typing import ArrayLike
 
-from dhlog.api.calibration import Calibration, UsageError, _dh_model, _library_limits
+from dhlog.api.calibration import Calibration, UsageError
+from dhlog.api.models import _dh_model, _library_limits
 from dhlog.errors import Note
 
 if TYPE_CHECKING:

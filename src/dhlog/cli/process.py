@@ -200,9 +200,9 @@ def process(
     """Identify the DH parameters from a calibration log and write <stem>.dh.json, .dh.csv, .rrd."""
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
-    from dhlog.api.calibration import output_names, write_run
     from dhlog.api.operations import process as identify
     from dhlog.api.operations import with_info
+    from dhlog.api.outputs import output_names, write_run
     from dhlog.present.console import print_result
 
     if units not in ("mm", "m"):
