@@ -136,7 +136,11 @@ def test_a_far_sample_the_fit_kept_is_named() -> None:
     assert len(info) == 1 and "P-21 (30 mm)" in info[0]
     assert len(warnings) == 1 and "P-8 (2 mm)" in warnings[0] and "#" not in warnings[0]
     # without ids: the samples' numbers
-    assert sample_names(np.arange(3, dtype=np.int64), np.arange(3), None) == ["#1", "#2", "#3"]
+    assert list(sample_names(np.arange(3, dtype=np.int64), np.arange(3), None)) == [
+        "#1",
+        "#2",
+        "#3",
+    ]
 
 
 def test_a_validation_session_s_poses_are_named_by_its_ids(

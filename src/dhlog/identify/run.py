@@ -59,6 +59,7 @@ from dhlog.identify.joints.sweeps import (
     samples_with_encoders,
 )
 from dhlog.identify.model.parked import (
+    encoder_spans,
     no_nominal_reason,
     parked_joints,
     parked_pose,
@@ -246,11 +247,13 @@ def process_data(
     whole_wanted = seg.has_encoders and not analytic_only
     max_points = START_FIT_POINTS if whole_wanted else None
     parked: list[int] = []
+    samples = None
     if seg.has_encoders:  # joints that never moved: held at the nominal
-        Q_all = samples_with_encoders(seg)[1][:]
-        parked = parked_joints(Q_all) if 0 < len(parked_joints(Q_all)) < n else []
+        samples = samples_with_encoders(seg)
+        spans = encoder_spans(samples[1])
+        parked = parked_joints(spans) if 0 < len(parked_joints(spans)) < n else []
         if parked and nominal is not None:
-            ref = parked_pose(Q_all, ref, parked)
+            ref = parked_pose(samples[1], ref, parked)
     joints: list[JointReport] = []  # in chain order: a joint's axis is carried by those before
     for k in range(n):
         stage("fitting", k / n)
@@ -266,7 +269,7 @@ def process_data(
         )
         notes.extend(said)
         if k in parked and not report.ok and nominal is None:
-            report = replace(report, reason=no_nominal_reason(Q_all, k, report.type))
+            report = replace(report, reason=no_nominal_reason(spans, k, report.type))
         joints.append(report)
     unidentified = [
         f"joint {report.index} ({report.name}) was not identified: {report.reason}."
@@ -294,6 +297,7 @@ def process_data(
         parked=tuple(parked),
         timing=timing,
         noise=log.pipeline.noise,
+        encoded=samples,
     )
     head = _Head(sha256, holdout, model, tuple(implausible))
     tolerances = Tolerances(
@@ -515,10 +519,10 @@ def _from_a_start(session: Session, request: FitRequest, stage: Stage) -> _Start
     )
     after: list[Note] = []  # said after the fit's own notes
     if session.parked:
-        _, Q, _ = samples_with_encoders(session.segmentation)
+        spans = encoder_spans(session.samples()[1])
         names_all = [j.name for j in joints]
         types_all = [j.type for j in started if j.type is not None]
-        parked = parked_warning(names_all, session.parked, Q[:], types_all)
+        parked = parked_warning(names_all, session.parked, spans, types_all)
         after.append(Note.warning(parked, "parked"))
     names = ", ".join(f"joint {j.index} ({j.name})" for j in missing)
     if missing and nominal is None:

@@ -24,11 +24,12 @@ from dhlog.identify.check.holdout import Holdout
 from dhlog.identify.check.validate import Validation
 from dhlog.identify.fit.register import Registration
 from dhlog.identify.fit.whole import WholeFit
-from dhlog.identify.joints.sweeps import JointReport
+from dhlog.identify.joints.sweeps import JointReport, samples_with_encoders
 from dhlog.identify.model.select import ModelRequest, Selection
 from dhlog.identify.read.conditioning import Conditioned
 from dhlog.identify.read.extract import Extraction, Tolerances
 from dhlog.identify.read.hayati import HayatiRow
+from dhlog.identify.segment.persample import PerSample
 from dhlog.identify.segment.segment import Segmentation
 from dhlog.identify.segment.timing import Timing
 from dhlog.io.dhfile import DHModel
@@ -41,8 +42,10 @@ from dhlog.model.terms import Terms, table_deflection
 class Session:
     """The session as the whole-model fit starts from it: the log, its segmentation (joined
     again at the fitted clock offset, when it moved), each joint's report, the reference pose,
-    the base plane, the nominal, the joints parked, the clock, the noise model and the target's
-    start (m, in M; None before the analytic start)."""
+    the base plane, the nominal, the joints parked, the clock, the noise model, the target's
+    start (m, in M; None before the analytic start) and the samples with every encoder value
+    as read once (``encoded``: :func:`~dhlog.identify.joints.sweeps.samples_with_encoders` of
+    the segmentation; :meth:`samples` reads them again when not given)."""
 
     log: LogData
     segmentation: Segmentation
@@ -54,6 +57,14 @@ class Session:
     timing: Timing | None
     noise: NoiseModel
     target: FloatArray | None = None
+    encoded: tuple[NDArray[np.intp], PerSample, PerSample] | None = None
+
+    def samples(self) -> tuple[NDArray[np.intp], PerSample, PerSample]:
+        """The rows of the segmentation with every encoder value, their encoder values (m, n)
+        and points (m, 3)."""
+        if self.encoded is not None:
+            return self.encoded
+        return samples_with_encoders(self.segmentation)
 
 
 @dataclass(frozen=True)

@@ -16,7 +16,7 @@ at every sample, the outliers by name and the K-fold cross-validation
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 from typing import Any
 
@@ -300,7 +300,7 @@ def _fit_clocked(
     seg, joints, ref = session.segmentation, session.joints, session.reference_pose
     types = tuple(j.type for j in joints)
     assert session.target is not None
-    rows, Q, P = samples_with_encoders(seg)
+    rows, Q, P = session.samples()
     which = target_labels(seg, rows)
     rotations = measured_rotations(seg, rows)
     start = start_model(
@@ -421,7 +421,7 @@ def _with_notes(
     whole: WholeFit,
     session: Session,
     fit: _Clocked,
-    names: list[str],
+    names: Sequence[str],
     selection: Selection | None,
 ) -> Holdout:
     """The cross-validation with its poses named by the export's ids, the model's own FK σ

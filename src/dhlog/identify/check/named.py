@@ -13,6 +13,9 @@ log's point stream (``#14``).
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+from typing import overload
+
 import numpy as np
 from numpy.typing import NDArray
 
@@ -26,25 +29,47 @@ FAR = 5.0
 FAR_FLOOR = 1e-4
 
 
+class SampleNames(Sequence[str]):
+    """The name of each sample at point-stream ``rows`` (stamped ``t_ns``): the export's point
+    id, else ``#k`` (its 1-based row in the point stream). Named when asked for: a run names
+    a handful of its million samples (the outliers, the far ones, a held-out pose)."""
+
+    def __init__(
+        self, t_ns: NDArray[np.int64], rows: NDArray[np.intp], point_ids: dict[int, str] | None
+    ) -> None:
+        self._t, self._rows, self._ids = t_ns, rows, point_ids
+
+    def __len__(self) -> int:
+        return int(self._rows.size)
+
+    @overload
+    def __getitem__(self, i: int) -> str: ...
+
+    @overload
+    def __getitem__(self, i: slice) -> list[str]: ...
+
+    def __getitem__(self, i: int | slice) -> str | list[str]:
+        if isinstance(i, slice):
+            return [self[k] for k in range(*i.indices(len(self)))]
+        row = int(self._rows[i])
+        own = f"#{row + 1}"
+        return own if self._ids is None else self._ids.get(int(self._t[i]), own)
+
+
 def sample_names(
     t_ns: NDArray[np.int64], rows: NDArray[np.intp], point_ids: dict[int, str] | None
-) -> list[str]:
-    """The name of each sample at point-stream ``rows`` (stamped ``t_ns``): the export's point
-    id, else ``#k`` (its 1-based row in the point stream)."""
-    if point_ids is None:
-        return [f"#{r + 1}" for r in rows.tolist()]
-    return [
-        point_ids.get(t, f"#{r + 1}") for t, r in zip(t_ns.tolist(), rows.tolist(), strict=True)
-    ]
+) -> SampleNames:
+    """Each sample's name (:class:`SampleNames`)."""
+    return SampleNames(t_ns, rows, point_ids)
 
 
-def _shown(names: list[str], norms: NDArray[np.float64], at: NDArray[np.intp]) -> str:
+def _shown(names: Sequence[str], norms: NDArray[np.float64], at: NDArray[np.intp]) -> str:
     order = at[np.argsort(-norms[at], kind="stable")]
     return listed([f"{names[i]} ({norms[i] * 1e3:.3g} mm)" for i in order.tolist()])
 
 
 def name_outliers(
-    names: list[str],
+    names: Sequence[str],
     norms: NDArray[np.float64],
     inliers: NDArray[np.bool_],
 ) -> tuple[NDArray[np.intp], tuple[Note, ...]]:
@@ -77,7 +102,10 @@ def name_outliers(
 
 
 def pose_names(
-    Q: NDArray[np.float64], P: NDArray[np.float64], names: list[str], scored: NDArray[np.float64]
+    Q: NDArray[np.float64],
+    P: NDArray[np.float64],
+    names: Sequence[str],
+    scored: NDArray[np.float64],
 ) -> list[str]:
     """The name of each ``scored`` pose position (k, 3, m): the name of the first sample of the
     session's pose (:func:`~dhlog.identify.fit.leaveout.pose_groups` of ``Q``) whose mean

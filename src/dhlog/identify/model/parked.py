@@ -30,6 +30,7 @@ import numpy as np
 from dhlog.geometry._checks import FloatArray
 from dhlog.geometry.lines import Line
 from dhlog.identify.fit.start import align_lines
+from dhlog.identify.segment.persample import SampleArray, blocks
 from dhlog.io.dhfile import DHModel
 from dhlog.model.dh import JointType
 
@@ -40,34 +41,48 @@ PARKED_SPAN = 1e-3
 PARKED_REASON = "joint parked in the session: held at the nominal"
 
 
-def parked_joints(Q: FloatArray) -> list[int]:
-    """The joints (0-based) whose encoder values ``Q`` (m, n) span less than
-    :data:`PARKED_SPAN`; none when there are no samples."""
-    if Q.shape[0] == 0:
-        return []
-    return [k for k in range(Q.shape[1]) if float(np.ptp(Q[:, k])) < PARKED_SPAN]
+def encoder_spans(Q: SampleArray) -> FloatArray:
+    """Each joint's span (max − min, rad or m) of the encoder values ``Q`` (m, n), read a
+    block at a time (zeros when there are no samples)."""
+    m, n = Q.shape[0], Q.shape[1]
+    lo, hi = np.full(n, np.inf), np.full(n, -np.inf)
+    for sl in blocks(m):
+        q = Q[sl]
+        lo, hi = np.minimum(lo, q.min(axis=0)), np.maximum(hi, q.max(axis=0))
+    return np.asarray(hi - lo if m else np.zeros(n), dtype=np.float64)
 
 
-def parked_pose(Q: FloatArray, ref: FloatArray, parked: Sequence[int]) -> FloatArray:
-    """``ref`` with each parked joint at its median encoder value (the pose it was parked at)."""
+def parked_joints(spans: FloatArray) -> list[int]:
+    """The joints (0-based) whose encoder ``spans`` (:func:`encoder_spans`) are less than
+    :data:`PARKED_SPAN`."""
+    return [k for k in range(spans.size) if float(spans[k]) < PARKED_SPAN]
+
+
+def parked_pose(Q: SampleArray, ref: FloatArray, parked: Sequence[int]) -> FloatArray:
+    """``ref`` with each parked joint at its median encoder value (the pose it was parked at),
+    the parked joints' columns of ``Q`` alone gathered a block at a time."""
     out = np.array(ref, dtype=np.float64)
-    for k in parked:
-        out[k] = float(np.median(Q[:, k]))
+    cols = list(parked)
+    if not cols or Q.shape[0] == 0:
+        return out
+    values = np.concatenate([Q[sl][:, cols] for sl in blocks(Q.shape[0])])
+    out[cols] = np.median(values, axis=0)
     return out
 
 
-def span_text(Q: FloatArray, k: int, joint_type: JointType) -> str:
+def span_text(spans: FloatArray, k: int, joint_type: JointType) -> str:
     """The span of joint ``k``'s (0-based) encoder values, in mrad or mm."""
-    span = float(np.ptp(Q[:, k])) * 1e3 if Q.shape[0] else 0.0
+    span = float(spans[k]) * 1e3
     return f"{span:.3g} {'mrad' if joint_type is JointType.REVOLUTE else 'mm'}"
 
 
 def parked_warning(
-    names: Sequence[str], parked: Sequence[int], Q: FloatArray, types: Sequence[JointType]
+    names: Sequence[str], parked: Sequence[int], spans: FloatArray, types: Sequence[JointType]
 ) -> str:
     """The one warning naming the parked joints of a run with a nominal."""
     which = ", ".join(
-        f"joint {k + 1} ({names[k]}, its encoder spans {span_text(Q, k, types[k])})" for k in parked
+        f"joint {k + 1} ({names[k]}, its encoder spans {span_text(spans, k, types[k])})"
+        for k in parked
     )
     return (
         f"{which}: parked in the session (spans under {PARKED_SPAN * 1e3:g} mrad or mm); its "
@@ -76,10 +91,10 @@ def parked_warning(
     )
 
 
-def no_nominal_reason(Q: FloatArray, k: int, joint_type: JointType | None) -> str:
+def no_nominal_reason(spans: FloatArray, k: int, joint_type: JointType | None) -> str:
     """Why a parked joint (0-based ``k``) is not identified without a nominal (one line, after
     "joint k (name) was not identified: ")."""
-    span = float(np.ptp(Q[:, k])) * 1e3 if Q.shape[0] else 0.0
+    span = float(spans[k]) * 1e3
     unit = {JointType.REVOLUTE: "mrad", JointType.PRISMATIC: "mm", None: "mrad or mm"}
     return (
         f"it was parked in the session (its encoder spans {span:.3g} {unit[joint_type]}), so "
