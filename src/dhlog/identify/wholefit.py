@@ -39,9 +39,10 @@ from dhlog.identify.fit.samples import (
     start_model,
 )
 from dhlog.identify.fit.variance import (
+    Pass,
     pose_clustered,
     residual_norms,
-    whitened_cost,
+    residual_pass,
     whitening,
     with_model_error,
 )
@@ -182,11 +183,15 @@ def identify_whole(
     )
     notes.extend(said)
 
+    passes: list[tuple[AxisModel, Pass]] = []  # the last pass over every sample, by its model
+
     def cost(fit: WholeFit) -> float:
         """The whitened sum of squares of ``whole``'s inliers under ``fit`` (positions)."""
         if fit is clustered and squares is not None:
             return squares
-        return whitened_cost(fit, clustered.inliers, Q, P, whiten, which=which, rates=rates)
+        done = residual_pass(fit, clustered.inliers, Q, P, whiten, which=which, rates=rates)
+        passes[:] = [(fit.model, done)]
+        return done.squares
 
     whole, tolerances, said = with_fixed_relations(whole, tolerances, cost)
     notes.extend(said)
@@ -246,7 +251,8 @@ def identify_whole(
     validation = validate_samples(seg, rows, Q_table, P, ex, whole.inliers, tools, which)
     stamps = np.asarray(seg.column("t_ns", rows), dtype=np.int64)
     names = sample_names(stamps, rows, session.log.point_ids)
-    norms = residual_norms(whole.model, Q, P, which=which, rates=rates)
+    known = [done.norms for model, done in passes if model is whole.model]
+    norms = known[0] if known else residual_norms(whole.model, Q, P, which=which, rates=rates)
     out, said = name_outliers(names, norms, whole.inliers)
     notes.extend(said)
     gap = table_gap(whole, ex, Q, Q_table)

@@ -180,7 +180,16 @@ def _whitened(
     return r * W if isinstance(W, float) else np.einsum("mij,mj->mi", W, r)
 
 
-def whitened_cost(
+@dataclass(frozen=True)
+class Pass:
+    """One pass over every sample under a model: each sample's 3-D residual (``norms``, m) and
+    the whitened sum of squares of the samples of a mask (``squares``)."""
+
+    norms: FloatArray
+    squares: float
+
+
+def residual_pass(
     fit: WholeFit,
     rows: NDArray[np.bool_],
     Q: SampleArray,
@@ -189,16 +198,21 @@ def whitened_cost(
     *,
     which: NDArray[np.int64] | None = None,
     rates: SampleArray | None = None,
-) -> float:
-    """The whitened sum of squares of the samples ``rows`` (a mask) under ``fit``, a block at a
-    time (nothing kept per sample)."""
+) -> Pass:
+    """:func:`residual_norms` and the whitened sum of squares of ``rows`` under ``fit``, in one pass
+    a block at a time
+    (what the relations' test and the outliers' names both read of the model they keep)."""
+    norms = np.empty(Q.shape[0])
     total = 0.0
     for sl in blocks(Q.shape[0], CHUNK):
-        at = sl.start + np.flatnonzero(rows[sl])
-        if at.size:
-            rw = _whitened(fit, at, Q, P, whiten, which, rates)
+        r, points = _residuals_at(fit.model, sl, Q, P, which, rates)
+        norms[sl] = np.linalg.norm(r, axis=1)
+        use = np.flatnonzero(rows[sl])
+        if use.size:
+            W = whiten(points[use], sl.start + use)
+            rw = r[use] * W if isinstance(W, float) else np.einsum("mij,mj->mi", W, r[use])
             total += float(np.sum(rw**2))
-    return total
+    return Pass(norms, total)
 
 
 @dataclass(frozen=True)
