@@ -79,9 +79,11 @@ from dhlog.identify.segment.timing import (
     sweep_phases,
 )
 from dhlog.identify.stages import (
+    Checks,
     FitRequest,
     ModelFit,
     ProcessResult,
+    Readout,
     Session,
     table_values,
 )
@@ -339,7 +341,7 @@ def process_data(
             )
             notes.append(Note.warning(needs, "needs-nominal"))
         extraction = partial_extraction(joints, ref, base, nominal_table, tolerances)
-        return _built(session, head, tuple(notes), extraction=extraction)
+        return _built(session, head, tuple(notes), readout=Readout(extraction))
     stage("identifying", 0.0)
     target_at = TargetAtReference(seg, joints, ref, START_TARGET_POINTS if whole_wanted else None)
     target, target_cov = target_at()
@@ -399,10 +401,8 @@ def process_data(
         session,
         head,
         tuple(notes),
-        extraction=analytic,
-        target=target,
-        **found.result_fields(),
-        validation=validation,
+        readout=Readout(analytic, found, target),
+        checks=Checks(validation),
     )
 
 
@@ -422,10 +422,14 @@ def _built(
     head: _Head,
     notes: tuple[Note, ...],
     fit: ModelFit | None = None,
-    **fields: Any,
+    *,
+    readout: Readout | None = None,
+    checks: Checks | None = None,
+    registration: Registration | None = None,
 ) -> ProcessResult:
-    """The one result of the run: the session's, the fit's (when there is one; its notes
-    after the run's) and ``fields`` (the analytic result's, a registration)."""
+    """The one result of the run: the session's; the fit's (when there is one; its notes
+    after the run's), else the analytic ``readout`` and ``checks``; the nominal's
+    ``registration`` on the points (a session with no sweep)."""
     found: dict[str, Any] = {
         "extraction": None,
         "std": None,
@@ -438,7 +442,9 @@ def _built(
     if fit is not None:
         found |= fit.fields()
         notes = (*notes, *fit.notes)
-    found |= fields
+    for stage in (readout, checks):
+        if stage is not None:
+            found |= stage.fields()
     return ProcessResult(
         path=session.log.path,
         sha256=head.sha256,
@@ -452,6 +458,7 @@ def _built(
         folds=head.folds,
         model_request=head.model_request,
         implausible=head.implausible,
+        registration=registration,
         **found,
     )
 

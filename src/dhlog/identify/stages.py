@@ -1,10 +1,17 @@
 """The identification's stage values and its result, each frozen.
 
-:func:`dhlog.identify.run.process_data` composes the stages: the session segmented and its
-joints fitted one by one (:class:`Session`), then either the analytic result or the fit of the
-whole model (:class:`ModelFit`, :mod:`dhlog.identify.wholefit`), and builds the one
-:class:`ProcessResult` the document, the console, the recording and the API read. A stage that
-fails is a value (None and a warning), not a field restored by hand.
+:func:`dhlog.identify.run.process_data` composes the stages:
+
+1. the session segmented and its joints fitted one by one (:class:`Session`);
+2. the fit of the whole model (:class:`ModelFit`, :mod:`dhlog.identify.wholefit`), which carries
+   what is read off it (:class:`Readout`: the table, its uncertainty, the terms) and its checks
+   (:class:`Checks`: the FK check of every sample, the outliers, the cross-validation) — or,
+   with ``--analytic-only`` or without encoders, the analytic :class:`Readout` and
+   :class:`Checks` alone;
+3. the one :class:`ProcessResult` built from them, which the document, the console, the
+   recording and the API read.
+
+A stage that fails is a value (None and a warning), not a field restored by hand.
 """
 
 from __future__ import annotations
@@ -25,10 +32,12 @@ from dhlog.identify.check.validate import Validation
 from dhlog.identify.fit.register import Registration
 from dhlog.identify.fit.whole import WholeFit
 from dhlog.identify.joints.sweeps import JointReport, samples_with_encoders
+from dhlog.identify.model.beyond import Deflection
 from dhlog.identify.model.select import ModelRequest, Selection
 from dhlog.identify.read.conditioning import Conditioned
 from dhlog.identify.read.extract import Extraction, Tolerances
 from dhlog.identify.read.hayati import HayatiRow
+from dhlog.identify.read.uncertainty import Uncertainty
 from dhlog.identify.segment.persample import PerSample
 from dhlog.identify.segment.segment import Segmentation
 from dhlog.identify.segment.timing import Timing
@@ -81,49 +90,83 @@ class FitRequest:
 
 
 @dataclass(frozen=True)
+class Readout:
+    """The DH model read off the fit of the whole model: the extraction (the table, the base,
+    the tool), its uncertainty (covariance, σ, what is fixed, the well-conditioned forms), the
+    target, and the terms beyond the geometry in the table's frames with their σ and what they
+    move at the samples (None without terms). A partial result (a joint not identified) has its
+    extraction alone, if any: no uncertainty, no target."""
+
+    extraction: Extraction | None
+    uncertainty: Uncertainty | None = None
+    target: FloatArray | None = None
+    terms: Terms | None = None
+    terms_std: FloatArray = field(default_factory=lambda: np.zeros(0))
+    deflection: Deflection | None = None
+
+    def fields(self) -> dict[str, Any]:
+        """:class:`ProcessResult`'s fields it sets."""
+        moved, none = self.deflection, np.zeros(0)
+        known = {} if self.uncertainty is None else self.uncertainty.result_fields()
+        return {
+            "extraction": self.extraction,
+            **known,
+            "target": self.target,
+            "terms": self.terms,
+            "terms_std": self.terms_std,
+            "deflection_max": none if moved is None else moved.joints,
+            "deflection_target": 0.0 if moved is None else moved.target,
+            "deflection_max_std": none if moved is None else moved.joints_std,
+            "deflection_target_std": 0.0 if moved is None else moved.target_std,
+            "deflection_vectors": np.zeros((0, 6)) if moved is None else moved.vectors,
+        }
+
+
+@dataclass(frozen=True)
+class Checks:
+    """The result checked: forward kinematics of the table at every sample, the outliers of the
+    fit by name and by row in the segmentation's point table, the errors at poses not used to
+    fit (the cross-validation)."""
+
+    validation: Validation | None
+    outlier_names: tuple[str, ...] = ()
+    outlier_rows: NDArray[np.intp] = field(default_factory=lambda: np.zeros(0, np.intp))
+    holdout: tuple[Holdout, ...] = ()
+
+    def fields(self) -> dict[str, Any]:
+        """:class:`ProcessResult`'s fields it sets."""
+        return {f.name: getattr(self, f.name) for f in fields(self)}
+
+
+@dataclass(frozen=True)
 class ModelFit:
-    """The fit of the whole model and what is read off it: the DH model with its covariance
-    and what is fixed, the terms beyond the geometry and what they move, the check at every
-    sample, the outliers by name, the cross-validation; with the notes this stage adds
-    (warnings and what a reader should know, in the order said). Its fields are
-    :class:`ProcessResult`'s of the same names."""
+    """The fit of the whole model (:mod:`dhlog.identify.wholefit`): the segmentation and clock
+    it was fitted on, the noise model, the terms chosen (the selection), the analytic start,
+    the fit itself and its σ; what is read off it (:class:`Readout`) and its checks
+    (:class:`Checks`); with the notes this stage adds (warnings and what a reader should know,
+    in the order said)."""
 
     segmentation: Segmentation
     timing: Timing | None
     noise: NoiseModel
     selection: Selection | None
-    extraction: Extraction
     analytic: Extraction | None
     whole: WholeFit
-    covariance: FloatArray | None
-    std: FloatArray | None
-    fixed: Mapping[int, str]
-    hayati: tuple[HayatiRow, ...]
-    hayati_std: tuple[FloatArray, ...]
-    conditioned: Conditioned | None
-    tool_orientation: FloatArray | None
-    tool_orientation_std: FloatArray | None
-    extra_tool_points: FloatArray
-    extra_tool_std: FloatArray
-    target: FloatArray
     sigma: float
-    terms: Terms | None
-    terms_std: FloatArray
-    deflection_max: FloatArray
-    deflection_target: float
-    deflection_max_std: FloatArray
-    deflection_target_std: float
-    deflection_vectors: FloatArray
-    validation: Validation | None
-    outlier_names: tuple[str, ...]
-    outlier_rows: NDArray[np.intp]
-    holdout: tuple[Holdout, ...]
+    readout: Readout
+    checks: Checks
     notes: tuple[Note, ...]
     method: str = "whole-model maximum likelihood"
 
     def fields(self) -> dict[str, Any]:
-        """The result's fields this stage sets (its notes aside: they are added, not set)."""
-        return {f.name: getattr(self, f.name) for f in fields(self) if f.name != "notes"}
+        """:class:`ProcessResult`'s fields this stage sets (its notes aside: they are added,
+        not set)."""
+        own = {
+            f.name: getattr(self, f.name)
+            for f in fields(self)
+            if f.name not in ("readout", "checks", "notes")
+        }
+        return own | self.readout.fields() | self.checks.fields()
 
     @property
     def warnings(self) -> tuple[str, ...]:

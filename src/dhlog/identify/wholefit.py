@@ -74,7 +74,14 @@ from dhlog.identify.segment.timing import (
     Timing,
     rejoin,
 )
-from dhlog.identify.stages import FitRequest, ModelFit, Session, table_values_of
+from dhlog.identify.stages import (
+    Checks,
+    FitRequest,
+    ModelFit,
+    Readout,
+    Session,
+    table_values_of,
+)
 from dhlog.model.dh import JointType
 from dhlog.model.fk import fk_frames
 from dhlog.model.noise import NoiseModel
@@ -270,29 +277,21 @@ def identify_whole(
         final_clock = replace(clocked, data=data, options=final)
         check = _cross_validation(whole, clustered, session, request, final_clock, outer, selection)
         holdout = (_with_notes(check, whole, session, final_clock, names, selection),)
-    none = np.zeros(0)
     return ModelFit(
         segmentation=seg,
         timing=clocked.timing,
         noise=noise,
         selection=selection,
-        extraction=ex,
         analytic=analytic,
         whole=whole,
-        **found.result_fields(),
-        target=whole.model.target,
         sigma=sigma * math.sqrt(whole.chi2_dof),
-        terms=terms,
-        terms_std=terms_std,
-        deflection_max=none if moved is None else moved.joints,
-        deflection_target=0.0 if moved is None else moved.target,
-        deflection_max_std=none if moved is None else moved.joints_std,
-        deflection_target_std=0.0 if moved is None else moved.target_std,
-        deflection_vectors=np.zeros((0, 6)) if moved is None else moved.vectors,
-        validation=validation,
-        outlier_names=tuple(names[i] for i in out.tolist()),
-        outlier_rows=rows[out],
-        holdout=holdout,
+        readout=Readout(ex, found, whole.model.target, terms, terms_std, moved),
+        checks=Checks(
+            validation,
+            outlier_names=tuple(names[i] for i in out.tolist()),
+            outlier_rows=rows[out],
+            holdout=holdout,
+        ),
         notes=tuple(notes),
     )
 
