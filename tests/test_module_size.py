@@ -2,6 +2,7 @@
 that grows past it is split along what its parts do. The allow-list names the modules not yet
 split and why; an entry fails once its module is under the limit, so the list only shrinks."""
 
+import re
 from pathlib import Path
 
 import pytest
@@ -31,3 +32,16 @@ def test_an_allowed_module_is_still_over_the_limit(module: str) -> None:
     path = SRC / module
     assert path.exists(), f"{module} is gone: remove it from ALLOWED"
     assert lines(path) >= LIMIT, f"{module} has {lines(path)} lines now: remove it from ALLOWED"
+
+
+def test_the_code_says_what_it_does_not_which_ticket_brought_it() -> None:
+    """Docstrings and comments describe the code as it is; the history (which issue added what)
+    is in git and CHANGELOG.md, where it cannot go stale."""
+    pattern = re.compile(r"\b(issue|ticket) #?\d+", re.IGNORECASE)
+    found = [
+        f"{path.relative_to(SRC)}:{k}"
+        for path in sorted(SRC.rglob("*.py"))
+        for k, line in enumerate(path.read_text(encoding="utf-8").splitlines(), 1)
+        if pattern.search(line)
+    ]
+    assert not found, f"ticket history in the code: {found}"

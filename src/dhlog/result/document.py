@@ -116,7 +116,7 @@ def result_document(result: ProcessResult) -> dict[str, Any]:
     }
     if result.selection is not None:
         doc["nongeometric"] = nongeometric_document(result)
-    if result.camera is not None:  # a camera calibration (issue 32): the hand-eye product
+    if result.camera is not None:  # a camera calibration: the hand-eye product
         doc["camera"] = result.camera.document()
         if len(result.camera_results) > 1:  # several cameras: each one's block, the first's too
             doc["cameras"] = [c.document() for c in result.camera_results]

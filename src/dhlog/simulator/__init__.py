@@ -10,7 +10,7 @@ A session moves the robot through piecewise-linear joint trajectories, by protoc
   from one to the next), each held for a dwell; no sweep.
 * ``coupled``: each joint swept alone in ``steps`` stops, except joint 2, which only moves
   together with joint 3 (q3 = −q2: the level forearm move), also in ``steps`` stops — the
-  industrial session of issue 17, where joints 1 and 3–6 had sweeps and joint 2 never moved
+  industrial session where joints 1 and 3–6 had sweeps and joint 2 never moved
   alone.
 
 Then come the coupled moves asked for (``coupled``: joints moved together, ``q_b = ratio · q_a``,

@@ -24,7 +24,7 @@ COUPLED_PAIR = (2, 3, -1.0)
 #: line's ``--six-dof``
 SIX_DOF_TOOL_ROTATION = (0.3, -0.2, 0.5)
 #: the span (rad or m) a parked joint wanders over from random pose to random pose (a servo
-#: holding position; the real dual-arm torso of issue 39 spans 0.27 mrad)
+#: holding position; a real dual-arm torso spans 0.27 mrad)
 PARK_WANDER = 2e-4
 
 

@@ -68,7 +68,7 @@ WRONG_DICTIONARY_MARKERS = 2
 
 #: The smallest marker side OpenCV looks for (px) on a large image. OpenCV's default
 #: (``minMarkerPerimeterRate`` 0.03 of the image's larger side) asks for 14.4 px on a full-HD
-#: frame, which issue 32's benchmark board (0.3 m at 2 m: 22 mm markers of about 17 px,
+#: frame, which the camera benchmark's board (0.3 m at 2 m: 22 mm markers of about 17 px,
 #: foreshortened by its tilt) fails in 2 frames of 6 (benchmarks/vision_detect.py), and a flat
 #: board of 14 px markers entirely (tests/test_vision.py). 10 px lies below the 13.5 px (2 px a
 #: cell) at which OpenCV decodes a 5×5 marker at all, so the decoding decides, at the same cost.

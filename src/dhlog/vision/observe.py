@@ -1,5 +1,5 @@
 """What a vision log holds for the calibration: each frame's detected board corners, the joint
-values at its stamp, the camera's intrinsics (issue 32).
+values at its stamp, the camera's intrinsics.
 
 :func:`dhlog.io.observe.observe` reads a camera log with a camera pipeline into
 :class:`Observations`: the images a block at a time (:class:`dhlog.io.images.ImageStream`), the

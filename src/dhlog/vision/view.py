@@ -1,4 +1,4 @@
-"""What the recording shows of a camera calibration (issue 32, item 7): the frames kept, each
+"""What the recording shows of a camera calibration: the frames kept, each
 with its detected corners and where the result reprojects them, and the camera and the board
 placed in the robot's base frame by the result. Filled by the calibration
 (:mod:`dhlog.identify`), drawn by :mod:`dhlog.present.recording`."""

@@ -1,5 +1,5 @@
 """A camera calibration: from a camera's detected board corners to the DH model, the camera's
-pose (the hand-eye calibration) and the error at held-out frames (issue 32).
+pose (the hand-eye calibration) and the error at held-out frames.
 
 1. Each frame's board pose in the camera by OpenCV's PnP (:func:`board_poses`).
 2. Those poses are a 6-DoF target's samples: the board's centre and orientation in the camera

@@ -1,5 +1,5 @@
 """One measurement model for every instrument: what a tracker's point, a 6-DoF probe and a
-camera's pixel have in common for the whole-model fit (issue 32, item 5).
+camera's pixel have in common for the whole-model fit.
 
 The kinematic model is one (:class:`~dhlog.identify.fit.axismodel.AxisModel`: the joint axes as
 lines in a measurement frame M and the frame the chain carries); an instrument is a

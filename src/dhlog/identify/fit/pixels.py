@@ -1,6 +1,6 @@
 """A camera's measurement model (:class:`PixelModel`, a
 :class:`~dhlog.identify.fit.measure.Measurement`): the whole model's maximum-likelihood fit in
-pixels, every detected board corner an observation (issue 32, item 4).
+pixels, every detected board corner an observation.
 
 The model is the tracker's (:class:`~dhlog.identify.fit.axismodel.AxisModel` with a target frame):
 the joint axes as lines in a measurement frame M, and the frame the chain carries (its origin
@@ -177,7 +177,7 @@ class PixelModel:
 
 @dataclass(frozen=True)
 class CamerasModel:
-    """Several fixed cameras seeing one board on the flange (eye-to-hand; issue 32 item 3), a
+    """Several fixed cameras seeing one board on the flange (eye-to-hand), a
     :class:`~dhlog.identify.fit.measure.Measurement`: M is the first camera's frame; camera k ≥ 1
     sits at ``poses[k]`` (4×4, in M), six parameters of its own each (a small rotation about
     M's axes, then a shift), fitted with the model; each camera's intrinsics held. The data are

@@ -167,7 +167,7 @@ def link_masses(
 #: of each term's, √(2(1 − 0.95)) for equal σ: the samples see their sum, not their split).
 CANCEL_CORRELATION = 0.95
 #: A term within this many σ of zero is not measured on its own. Two σ, not one: the Stäubli
-#: pair of issue 31 (+2.115 and −2.114 ± 1.73 rad/m) sat at 1.2 σ each, and a value inside 2 σ
+#: pair of a real session (+2.115 and −2.114 ± 1.73 rad/m) sat at 1.2 σ each, and a value inside 2 σ
 #: is what the usual test cannot tell from zero; holding it costs the samples at most 4 of χ².
 UNMEASURED_SIGMA = 2.0
 #: A deflection within this many σ of zero is said to be undetermined, not printed as one.
@@ -310,7 +310,7 @@ def merge_cancelling(
     proportional over the poses (a short range of the joints after it, a tool that keeps one
     direction, wrist lumps a few mm apart) give the samples one combination; the fit then splits
     it between them along a direction the samples barely see, often as a large pair of opposite
-    sign that cancels (issue 31: +2.115 and −2.114 ± 1.73 rad/m on a Stäubli), and where the
+    sign that cancels (+2.115 and −2.114 ± 1.73 rad/m on a Stäubli), and where the
     difference of the lever arms is nearly constant the geometry (a joint offset) absorbs what
     the pair moves, so that a "deflection" of a millimetre is reported that the samples never
     saw. Holding the unmeasured member at zero leaves the other carrying the combination (its

@@ -55,7 +55,7 @@ def bulk_layout(
     if stream in ("point", "base") and schema == ros2.POSE_WITH_COVARIANCE:
         return "point_cov"
     if stream in ("joints", "commanded") and schema == ros2.JOINT_STATE:
-        return "joints"  # the commanded joints (issue 34) are a JointState stream too
+        return "joints"  # the commanded joints (ISO 9283's) are a JointState stream too
     return None
 
 

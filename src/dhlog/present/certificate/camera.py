@@ -1,4 +1,4 @@
-"""The certificate's camera section (issue 32): a camera calibration's ``camera`` block read
+"""The certificate's camera section: a camera calibration's ``camera`` block read
 untrusted (:func:`read_camera`, through the report's :class:`~dhlog.result.fields.FieldReader`:
 a fault a :class:`~dhlog.present.certificate.read.ResultFileError` naming the field) and shown
 (:func:`camera_section`: the set-up, the detections, the hand-eye poses ±1σ, the intrinsics and

@@ -1,4 +1,4 @@
-"""The certificate's acceptance-test section (issue 34): a ``<stem>.iso9283.json`` written by
+"""The certificate's acceptance-test section: a ``<stem>.iso9283.json`` written by
 ``dhlog iso9283`` read untrusted (:func:`load_iso9283`: size, UTF-8, JSON, then every field the
 section shows through the shared :class:`~dhlog.result.fields.FieldReader`, a fault one
 :class:`~dhlog.present.certificate.read.ResultFileError` naming the file and the field) into

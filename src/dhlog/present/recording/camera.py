@@ -1,4 +1,4 @@
-"""The cameras of a camera calibration in a result's recording (issue 32, item 7), drawn from
+"""The cameras of a camera calibration in a result's recording, drawn from
 :class:`~dhlog.vision.view.CameraView`: each kept frame's image stored compressed (the log's
 JPEG or PNG bytes, never decoded pixels) with its detected corners, where the result reprojects
 them and the error vectors between them magnified; the camera as a pinhole (its frustum) at its

@@ -1,4 +1,4 @@
-"""A camera calibration's hand-eye product (issue 32) for the exports: the result's ``camera``
+"""A camera calibration's hand-eye product for the exports: the result's ``camera``
 block (or its ``cameras`` list) read untrusted (:func:`read_hand_eye`), placed in the URDF as
 fixed links (:func:`add_camera_links`) and written as ROS 2 static transforms
 (:func:`static_transforms_document`).
