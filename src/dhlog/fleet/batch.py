@@ -275,7 +275,7 @@ def _stamp(path: Path) -> Stamp | None:
 
 def check_paths(jobs: list[BatchJob], folder: Path) -> None:
     """Before any work: no input of the batch (a log, the nominal or pipeline file) may be one
-    of its outputs (:class:`~dhlog.result.check.InputIsOutputError`), and no output may be a
+    of its outputs (:class:`~dhlog.io.paths.InputIsOutputError`), and no output may be a
     folder (an :class:`~dhlog.errors.InputError`); nothing is written either way."""
     from dhlog.io.paths import refuse_inputs_as_outputs
     from dhlog.io.safetext import printable

@@ -108,7 +108,7 @@ def process_log(
     progress: Stage | None = None,
 ) -> ProcessResult:
     """Run the whole identification on the log at ``path`` (see the module docstring), as
-    ``options`` asks (:class:`~dhlog.identify.stages.ProcessOptions`).
+    ``options`` asks (:class:`~dhlog.identify.options.ProcessOptions`).
 
     A vision log (camera images; a camera pipeline) is calibrated from its detected board
     corners (:mod:`dhlog.identify.camera.flow`). ``options.validate``: further logs (other

@@ -189,7 +189,7 @@ def nominal_start(
     fit: PixelFit, nominal: DHModel, ref: FloatArray
 ) -> tuple[Any, FloatArray, FloatArray, FloatArray, FloatArray]:
     """Where the nominal's placement starts: the table with the fitted model's base in M and
-    carried frame on the flange (:func:`~dhlog.identify.fit.pixels.place`'s first five
+    carried frame on the flange (:func:`~dhlog.identify.fit.measure.place`'s first five
     arguments)."""
     whole = fit.whole
     ex = extract_dh(
