@@ -190,6 +190,56 @@ def test_the_result_carries_the_terms(
     assert abs(rms - auto.validation.rms) < 1e-9
 
 
+def test_the_selection_is_a_value_built_from_what_was_scored(
+    compliant: tuple[Session, ProcessResult, ProcessResult],
+) -> None:
+    """The selection and its candidates are frozen (assigning raises), and the candidates shown
+    carry what every later step of the choice added to them: the geometric one, cross-validated
+    only as the model compliance was judged against, keeps its held-out error; each held-out RMS
+    is that of its own per-pose errors and is the one its ``why`` quotes; the last family is
+    judged against the candidate kept before it; only the chosen one is marked, with the fit of
+    the terms it keeps (the others' fits their families' own, none where joints were dropped).
+    The run's document (``--model auto``) is the one the candidates give."""
+    _, auto, _ = compliant
+    sel = auto.selection
+    assert sel is not None
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        sel.fold_choices = ("harmonic",)  # type: ignore[misc]
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        sel.candidates[0].why = "changed"  # type: ignore[misc]
+    assert isinstance(sel.candidates, tuple) and sel.fold_choices == () == sel.fold_starts
+    doc = sel.document()
+    assert result_document(auto)["nongeometric"]["selection"] == doc
+    models = ["geometric", "compliance (not 6)", "harmonic", "compliance+harmonic"]
+    assert [c["model"] for c in doc["candidates"]] == models
+    assert [c["chosen"] for c in doc["candidates"]] == [False, True, False, False]
+    assert (doc["mode"], doc["chosen"], doc["folds"], doc["n_samples"]) == (
+        "auto",
+        "compliance (not 6)",
+        5,
+        1800,  # 60 poses x 30 samples
+    )
+    base, chosen, harmonic, both = sel.candidates
+    assert len({c.key for c in sel.candidates}) == 4
+    for c in (base, chosen, harmonic):  # cross-validated over the 60 poses
+        assert c.squared is not None and c.squared.shape == (60,) and c.holdout_rms is not None
+        assert c.holdout_rms == np.sqrt(np.mean(c.squared))
+    assert base.why == "" and both.holdout_rms is None and both.squared is None
+    for c in (chosen, harmonic):
+        assert base.holdout_rms is not None and c.holdout_rms is not None
+        assert c.why.startswith("BIC -") and c.why.endswith("mm² a pose)"), c.why
+        assert f"held-out RMS {base.holdout_rms * 1e3:.4f} → {c.holdout_rms * 1e3:.4f} mm" in c.why
+    assert both.why.startswith("BIC +") and both.why.endswith(" against compliance (not 6)")
+    assert chosen.dropped == frozenset({("compliance", 5)})
+    assert chosen.fit is not None and chosen.fit.model.terms is not None
+    kept = {(t.kind, t.joint) for t in chosen.fit.model.terms.terms}
+    assert ("compliance", 5) not in kept and ("compliance", 4) in kept
+    assert sel.chosen is chosen and auto.terms is not None
+    assert auto.terms.names() == chosen.fit.model.terms.names()
+    assert all(c.fit is not None and c.fit.model.terms is not None for c in (harmonic, both))
+    assert base.fit is not None and base.fit.model.terms is None
+
+
 def test_auto_adds_nothing_to_a_rigid_robot() -> None:
     """A robot without compliance or gear errors (KR5 off its nominal, σ 10 µm): auto keeps
     the geometric model, rejected by the BIC without a cross-validation."""

@@ -444,7 +444,7 @@ def _with_notes(
             f"visited among them, the model's own FK σ is {check.range_sd * 1e3:.4f} mm RMS: "
             f"the error to expect there is about {check.expected_rms * 1e3:.4f} mm."
         )
-    nested = [] if selection is None else selection.fold_choices
+    nested = () if selection is None else selection.fold_choices
     if nested:
         notes.append(
             "--model auto chose again in each fold from its training poses alone (nested "
@@ -462,7 +462,7 @@ def _with_notes(
     return replace(check, notes=tuple(notes))
 
 
-def _tally(labels: list[str], sep: str) -> str:
+def _tally(labels: Sequence[str], sep: str) -> str:
     """Each label with how many of ``labels`` it is, in the order met: "a in 4 of 5"."""
     counts = {c: labels.count(c) for c in dict.fromkeys(labels)}
     return sep.join(f"{c} in {k} of {len(labels)}" for c, k in counts.items())

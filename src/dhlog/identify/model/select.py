@@ -35,7 +35,7 @@ value the full fit gave it (as a fold's Levenberg–Marquardt fit from the full 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -88,7 +88,11 @@ class ModelRequest:
 AUTO = ModelRequest()
 
 
-@dataclass
+#: A candidate's identity: its families and the (family, joint) whose terms it leaves out.
+Key = tuple[tuple[str, ...], frozenset[tuple[str, int]]]
+
+
+@dataclass(frozen=True)
 class Candidate:
     """One model tried: its families, term count, determined parameters, BIC, held-out RMS (m;
     None when not cross-validated) and whether it was chosen."""
@@ -111,6 +115,11 @@ class Candidate:
     dropped: frozenset[tuple[str, int]] = frozenset()
     #: in-sample mean squared 3-D residual (m²)
     residual_ms: float = math.nan
+
+    @property
+    def key(self) -> Key:
+        """Its families and the terms it leaves out: one candidate per key in a selection."""
+        return self.families, self.dropped
 
     @property
     def expected(self) -> float:
@@ -142,18 +151,18 @@ class Candidate:
         }
 
 
-@dataclass
+@dataclass(frozen=True)
 class Selection:
     """What ``--model`` asked, the candidates tried in order, and the folds used."""
 
     mode: str
-    candidates: list[Candidate]
+    candidates: tuple[Candidate, ...]
     folds: int
     n_samples: int
     #: with ``--holdout K``: per fold, the candidate ``auto`` chose from that fold's training
     #: poses alone, and its model to start the fold's fit from (nested cross-validation)
-    fold_choices: list[str] = field(default_factory=list)
-    fold_starts: list[AxisModel] = field(default_factory=list)
+    fold_choices: tuple[str, ...] = ()
+    fold_starts: tuple[AxisModel, ...] = ()
 
     @property
     def chosen(self) -> Candidate:
@@ -293,11 +302,14 @@ def select_model(
             residual_ms=float(np.mean(np.sum(res**2, axis=1))) if res.size else math.nan,
         )
 
-    def cross_validated(c: Candidate, train: NDArray[np.bool_], fold: NDArray[np.int64]) -> None:
-        """``c``'s held-out RMS and squared errors per pose over the folds ``fold`` of the
-        samples ``train`` (each fold predicted by the candidate fitted to the others)."""
+    def cross_validated(
+        c: Candidate, train: NDArray[np.bool_], fold: NDArray[np.int64]
+    ) -> Candidate:
+        """``c`` with its held-out RMS and squared errors per pose over the folds ``fold`` of
+        the samples ``train`` (each fold predicted by the candidate fitted to the others);
+        ``c`` itself when it has them already."""
         if c.holdout_rms is not None:
-            return
+            return c
         fit, lin = parent(c.families)
         constraint = held(fit, lin, c.dropped)
         k_folds = int(fold[train].max(initial=-1)) + 1
@@ -311,25 +323,33 @@ def select_model(
             _, vec = pose_means(groups[test], lin.residuals(z, test))
             squared.append(np.sum(vec**2, axis=1))
         if not squared:
-            c.why = "not cross-validated: no poses to hold out"
-            return
-        c.squared = np.concatenate(squared)
-        c.holdout_rms = math.sqrt(float(np.mean(c.squared)))
+            return replace(c, why="not cross-validated: no poses to hold out")
+        errors = np.concatenate(squared)
+        return replace(c, squared=errors, holdout_rms=math.sqrt(float(np.mean(errors))))
 
     def chosen_on(
-        train: NDArray[np.bool_], fold: NDArray[np.int64], shown: list[Candidate] | None = None
-    ) -> Candidate:
-        """The candidate ``mode`` chooses from the samples ``train`` (inner folds ``fold``);
-        every candidate tried is appended to ``shown``."""
-        cache: dict[tuple[tuple[str, ...], frozenset[tuple[str, int]]], Candidate] = {}
+        train: NDArray[np.bool_], fold: NDArray[np.int64]
+    ) -> tuple[Candidate, tuple[Candidate, ...]]:
+        """The candidate ``mode`` chooses from the samples ``train`` (inner folds ``fold``),
+        and every candidate shown, in the order tried, as the choice left it."""
+        # each key's candidate as far as the choice has scored it: a step that adds to one
+        # (its held-out error, its why) stores the candidate with it in place of the one before
+        latest: dict[Key, Candidate] = {}
+
+        def kept(c: Candidate) -> Candidate:
+            latest[c.key] = c
+            return c
 
         def fitted(
             families: tuple[str, ...], dropped: frozenset[tuple[str, int]] = frozenset()
         ) -> Candidate:
             key = (families, dropped)
-            if key not in cache:
-                cache[key] = scored(families, dropped, train)
-            return cache[key]
+            if key not in latest:
+                latest[key] = scored(families, dropped, train)
+            return latest[key]
+
+        def validated(c: Candidate) -> Candidate:
+            return kept(cross_validated(latest[c.key], train, fold))
 
         def pruned(cand: Candidate, family: str) -> Candidate:
             """``cand`` without the joints of ``family`` the poses do not determine over the
@@ -355,13 +375,14 @@ def select_model(
         def proves(cand: Candidate, over: Candidate) -> bool:
             """Whether ``cand`` lowers both the BIC and the held-out error of ``over`` (its
             ``why`` says how it fared)."""
+            cand, over = latest[cand.key], latest[over.key]
             if cand.bic >= over.bic:
-                cand.why = f"BIC {cand.bic - over.bic:+.1f} against {over.name}"
+                kept(replace(cand, why=f"BIC {cand.bic - over.bic:+.1f} against {over.name}"))
                 return False
-            cross_validated(over, train, fold)
-            cross_validated(cand, train, fold)
+            over = validated(over)
+            cand = validated(cand)
             if over.holdout_rms is None or cand.holdout_rms is None:
-                cand.why = cand.why or "not cross-validated"
+                kept(replace(cand, why=cand.why or "not cross-validated"))
                 return False
             gain, spread = _paired_gain(over, cand)
             held_text = (
@@ -369,30 +390,30 @@ def select_model(
                 f"(mean squared error {gain * 1e6:+.4g} ± {spread * 1e6:.2g} mm² a pose)"
             )
             if gain + HELD_OUT_SIGMA * spread >= 0.0:
-                cand.why = (
-                    f"BIC {cand.bic - over.bic:+.1f} but {held_text}: not lower beyond its spread"
-                )
+                why = f"BIC {cand.bic - over.bic:+.1f} but {held_text}: not lower beyond its spread"
+                kept(replace(cand, why=why))
                 return False
             if cand.expected >= over.expected:
-                cand.why = (
+                why = (
                     f"BIC {cand.bic - over.bic:+.1f}, {held_text}, but its σ over the session's "
                     f"joint ranges is {cand.range_sd * 1e3:.4f} mm ({over.range_sd * 1e3:.4f} mm "
                     f"for {over.name}): the poses do not determine it where they did not go"
                 )
+                kept(replace(cand, why=why))
                 return False
-            cand.why = f"BIC {cand.bic - over.bic:+.1f} against {over.name}, {held_text}"
+            why = f"BIC {cand.bic - over.bic:+.1f} against {over.name}, {held_text}"
+            kept(replace(cand, why=why))
             return True
 
         base = fitted(())
-        candidates = [base]
+        shown = [base]
         if mode == "geometric":
             current = base
         elif mode != "auto":
             current = fitted(MODELS[mode])
-            cross_validated(base, train, fold)
-            cross_validated(current, train, fold)
-            current.why = f"forced by --model {mode}"
-            candidates.append(current)
+            validated(base)
+            current = kept(replace(validated(current), why=f"forced by --model {mode}"))
+            shown.append(current)
         else:
             # forward selection: each family alone, the best proven one kept, then the rest
             # added to it (compliance and a joint's first harmonic can look alike: cos of the
@@ -405,43 +426,47 @@ def select_model(
                     if cand.bic < current.bic:  # worth its best form: joints it cannot carry
                         cand = pruned(cand, family)  # dropped
                     tried.append(cand)
-                candidates += tried
-                proven = [c for c in tried if proves(c, current)]
+                shown += tried
+                proven = [latest[c.key] for c in tried if proves(c, current)]
                 if not proven:
                     break
                 best = min(proven, key=lambda c: (c.expected, c.bic))
                 left = [f for f in left if f not in best.families]
                 current = best
-            if current is base:
-                base.why = "no family lowered both the BIC and the held-out error"
-        if shown is not None:
-            shown += candidates
-        return current
+            if current.key == base.key:
+                kept(
+                    replace(
+                        latest[base.key],
+                        why="no family lowered both the BIC and the held-out error",
+                    )
+                )
+        return latest[current.key], tuple(latest[c.key] for c in shown)
 
     everything = keep.copy()
     fold = fold_of_poses(groups, folds, 0)
-    candidates: list[Candidate] = []
-    chosen = chosen_on(everything, fold, candidates)
-    chosen.chosen = True
-    for c in candidates:  # the exact fits of the candidates shown (the chosen one's for its terms)
-        if not c.dropped:
-            c.fit = parent(c.families)[0]
+    chosen, shown = chosen_on(everything, fold)
+    # the exact fits of the candidates shown (the chosen one's for its terms)
+    fits = {c.key: parent(c.families)[0] for c in shown if not c.dropped}
     if chosen.dropped:
         fit, _ = parent(chosen.families)
         start = replace(fit.model, terms=_kept_terms(fit, chosen.dropped))
-        chosen.fit = fit_whole_model(start, candidate, unbounded)
-    selection = Selection(mode, candidates, folds, int(np.count_nonzero(keep)))
+        fits[chosen.key] = fit_whole_model(start, candidate, unbounded)
+    candidates = tuple(replace(c, chosen=c.key == chosen.key, fit=fits.get(c.key)) for c in shown)
+    choices: list[str] = []
+    starts: list[AxisModel] = []
     if outer is not None and mode == "auto":
         outer_pick = np.asarray(outer, dtype=np.int64)[pick]
         for k in range(folds):
             train = keep & (outer_pick != k)
             inner = np.full(pick.size, -1, dtype=np.int64)
             inner[train] = fold_of_poses(groups[train], folds, 1 + k)
-            c = chosen_on(train, inner)
+            c, _ = chosen_on(train, inner)
             fit, _ = parent(c.families)
-            selection.fold_choices.append(c.name)
-            selection.fold_starts.append(replace(fit.model, terms=_kept_terms(fit, c.dropped)))
-    return selection
+            choices.append(c.name)
+            starts.append(replace(fit.model, terms=_kept_terms(fit, c.dropped)))
+    return Selection(
+        mode, candidates, folds, int(np.count_nonzero(keep)), tuple(choices), tuple(starts)
+    )
 
 
 #: A constraint on a linearised fit's ``z``: (C, d) for ``C z = d``, or None.
