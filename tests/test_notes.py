@@ -158,3 +158,25 @@ def test_a_step_and_measure_log_says_so_under_its_code() -> None:
     (said,) = [n for n in result.notes if n.code == "clock-offset"]
     assert said.level == "info" and "step-and-measure" in said.text
     assert said.text in result.info
+
+
+def test_every_dataclass_of_the_identification_is_frozen() -> None:
+    """A stage's value is built once and never changed (a later step makes a new one with
+    ``dataclasses.replace``): every dataclass under ``dhlog.identify`` is frozen."""
+    import importlib
+    import pkgutil
+
+    import dhlog.identify
+
+    mutable = []
+    for info in pkgutil.walk_packages(dhlog.identify.__path__, "dhlog.identify."):
+        module = importlib.import_module(info.name)
+        for name, obj in vars(module).items():
+            if (
+                isinstance(obj, type)
+                and obj.__module__ == info.name
+                and dataclasses.is_dataclass(obj)
+                and not obj.__dataclass_params__.frozen  # type: ignore[attr-defined]
+            ):
+                mutable.append(f"{info.name}.{name}")
+    assert not mutable, f"mutable dataclasses in the identification: {mutable}"
