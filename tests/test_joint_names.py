@@ -1,4 +1,4 @@
-"""Joints by name (io/jointnames.py), a permutation the data reveal (identify/joints/permutation),
+"""Joints by name (io/jointnames.py), a permutation the data reveal (identify/check/permutation),
 and ROS 2 bags in sqlite3 storage (io/sqlitebag.py): a simulated UR5 session recorded as
 Universal Robots' ROS 2 driver publishes it (its joint names, in alphabetical order), written by
 dhlog's MCAP writer and copied into rosbag2 sqlite3 bags by rosbags' writer."""
@@ -17,7 +17,7 @@ from typer.testing import CliRunner
 
 from dhlog.cli.app import app
 from dhlog.errors import DhlogError
-from dhlog.identify.joints.permutation import suspected_permutation
+from dhlog.identify.check.permutation import suspected_permutation
 from dhlog.identify.model.select import ModelRequest
 from dhlog.identify.run import ProcessOptions, ProcessResult, process_log
 from dhlog.identify.segment.segment import segment_log

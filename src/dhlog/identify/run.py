@@ -34,6 +34,7 @@ from dhlog.errors import GeometryError, Note
 from dhlog.geometry._checks import FloatArray
 from dhlog.geometry.fitting import fit_plane
 from dhlog.geometry.lines import Line
+from dhlog.identify.check.permutation import suspected_permutation
 from dhlog.identify.check.plausible import judge
 from dhlog.identify.check.validate import (
     check_residual,
@@ -51,7 +52,6 @@ from dhlog.identify.joints.checks import (
     check_sizes,
     check_units,
 )
-from dhlog.identify.joints.permutation import suspected_permutation
 from dhlog.identify.joints.sweeps import (
     JointReport,
     TargetAtReference,

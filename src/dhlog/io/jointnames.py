@@ -13,7 +13,7 @@ publishes ``elbow_joint`` first, in the alphabetical order of ros2_control's int
   the order of their numbers — but for a ``dhlog import`` log, which wrote its joints in chain
   order already (by their numbers, or as ``--joint-columns`` gave them: a rail's A7 first);
 - else, the stream's order (first seen): nothing names the chain, so a permutation is left to
-  the data to reveal (:mod:`dhlog.identify.joints.permutation`).
+  the data to reveal (:mod:`dhlog.identify.check.permutation`).
 
 Where the model and the stream both name their joints and the names do not match,
 :class:`JointNamesMismatchError` names both lists and the fix.

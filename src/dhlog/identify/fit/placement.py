@@ -194,28 +194,98 @@ def tool_directions(F: FloatArray) -> FloatArray:
     directions of the centred stack ``F − F̄`` with an RMS of :data:`TOOL_SPREAD` rad or more
     (none at a constant orientation: a line or a curve of a task, where the base's translation
     takes up the tool point)."""
-    k = max(F.shape[0], 1)
-    centred = (F - F.mean(axis=0)).reshape(-1, 3)
+    s, Vt = _orientation_spread(F[None])
+    return np.asarray(Vt[0][s[0] >= TOOL_SPREAD].T, dtype=np.float64)
+
+
+def _orientation_spread(F: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """The RMS spread (B, 3) of the flange frames ``F`` (B, k, 3, 3) about their mean along
+    the principal directions ``Vt`` (B, 3, 3) (rows): the singular values of the centred stack
+    over √k."""
+    k = max(F.shape[1], 1)
+    centred = (F - F.mean(axis=1, keepdims=True)).reshape(F.shape[0], -1, 3)
     _, s, Vt = np.linalg.svd(centred, full_matrices=False)
-    return np.asarray(Vt[s / np.sqrt(k) >= TOOL_SPREAD].T, dtype=np.float64)
+    return np.asarray(s / np.sqrt(k), dtype=np.float64), np.asarray(Vt, dtype=np.float64)
 
 
-def _tool_by_lstsq(
-    pb: _Problem, R_B: FloatArray, tool: FloatArray, c: FloatArray | None = None
-) -> FloatArray:
-    """The tool point that best carries the flange onto the points with the base's rotation
-    ``R_B`` held: with the base's translation ``c`` held too, ``R_B F t = P − c − R_B f``;
-    else with it eliminated (centred: ``R_B (F − F̄) t = (P − P̄) − R_B (f − f̄)``); changed
-    from ``tool`` only along the directions the poses determine (``pb.tool_basis``)."""
+def _rotations_nearest(A: FloatArray) -> FloatArray:
+    """The rotations (B, 3, 3) nearest the matrices ``A`` (B, 3, 3): each one's polar factor by
+    SVD (:func:`~dhlog.geometry._checks.nearest_rotation`, a batch at once)."""
+    U, _, Vt = np.linalg.svd(A)
+    U[:, :, 2] *= np.sign(np.linalg.det(U @ Vt))[:, None]
+    return np.asarray(U @ Vt, dtype=np.float64)
+
+
+def closed_form_placements(
+    F: FloatArray,
+    f: FloatArray,
+    P: FloatArray,
+    tool: FloatArray,
+    *,
+    rounds: int,
+    R_B: FloatArray | None = None,
+    rotate: bool = True,
+    directions: FloatArray | None = None,
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """A batch of rigid placements in closed form: B models' flange frames ``F`` (B, k, 3, 3)
+    and origins ``f`` (B, k, 3) at the same k poses placed on the points ``P`` (k, 3), the
+    tool point on the flange (start ``tool``, (B, 3)) placed with them. From the base rotation
+    ``R_B`` (B, 3, 3; None: Kabsch of the model's points at ``tool`` onto ``P``), ``rounds``
+    alternations of
+
+    - the tool point by linear least squares with the base's rotation held and its translation
+      eliminated (centred: ``(F − F̄) t = R_Bᵀ (P − P̄) − (f − f̄)``), changed only along
+      ``directions`` (B, 3, 3: projectors; None: the directions the flange's orientation
+      determines, as :func:`tool_directions`);
+    - the base's rotation by Kabsch where ``rotate`` (the points span a plane or more) and the
+      model's points at that tool point do too (:func:`conditioning`), else held.
+
+    Each step lowers the sum of squared distances, so the alternation converges on a
+    stationary point of it. Returns the base rotations (B, 3, 3), translations (B, 3) and
+    tool points (B, 3)."""
+    B, k = F.shape[:2]
+    F_mean, f_mean, P_mean = F.mean(axis=1), f.mean(axis=1), P.mean(axis=0)
+    A = (F - F_mean[:, None]).reshape(B, 3 * k, 3)  # the centred rotations, stacked
+    fc, Pc = f - f_mean[:, None], P - P_mean
+    if directions is None:
+        s, Vt = _orientation_spread(F)
+        directions = np.einsum("bji,bj,bjl->bil", Vt, (s >= TOOL_SPREAD).astype(float), Vt)
+    At = np.swapaxes(A, 1, 2)
+    normal = At @ A
+    # the least squares restricted to the directions: (Π N Π + I − Π)⁻¹ Π (Π a projector)
+    rest = np.eye(3) - directions
+    solve = np.linalg.solve(directions @ normal @ directions + rest, directions)
+    t = np.array(tool, dtype=np.float64, copy=True)
+
+    def turned(R: FloatArray | None) -> FloatArray:
+        local = (A @ t[..., None]).reshape(B, k, 3) + fc  # centred
+        held = np.broadcast_to(np.eye(3), (B, 3, 3)) if R is None else R
+        if not rotate:
+            return np.array(held, dtype=np.float64)
+        spread = np.sqrt(np.maximum(np.linalg.eigvalsh(np.swapaxes(local, 1, 2) @ local), 0))
+        spread = spread[:, ::-1] / np.sqrt(max(k, 1))
+        planar = (spread[:, 0] >= POINT_SPREAD) & (spread[:, 1] >= LINE_RATIO * spread[:, 0])
+        kabsch = _rotations_nearest(Pc.T @ local)
+        return np.asarray(np.where(planar[:, None, None], kabsch, held), dtype=np.float64)
+
+    R = turned(None) if R_B is None else np.array(R_B, dtype=np.float64, copy=True)
+    for _ in range(rounds):
+        g = (At @ (Pc @ R - fc).reshape(B, 3 * k, 1))[..., 0]
+        t = t + (solve @ (g - (normal @ t[..., None])[..., 0])[..., None])[..., 0]
+        R = turned(R)
+    c = P_mean - (R @ ((F_mean @ t[..., None])[..., 0] + f_mean)[..., None])[..., 0]
+    return R, np.asarray(c, dtype=np.float64), t
+
+
+def _tool_by_lstsq(pb: _Problem, R_B: FloatArray, tool: FloatArray, c: FloatArray) -> FloatArray:
+    """The tool point that best carries the flange onto the points with the base held (its
+    rotation ``R_B``, its translation ``c``): ``R_B F t = P − c − R_B f``, changed from ``tool``
+    only along the directions the poses determine (``pb.tool_basis``)."""
     V = pb.tool_basis
     if V.shape[1] == 0:
         return tool
-    if c is None:
-        G = np.einsum("ij,kjl->kil", R_B, pb.F - pb.F.mean(axis=0))
-        b = ((pb.P - pb.P.mean(axis=0)) - (pb.f - pb.f.mean(axis=0)) @ R_B.T).reshape(-1)
-    else:
-        G = np.einsum("ij,kjl->kil", R_B, pb.F)
-        b = (pb.P - c - pb.f @ R_B.T).reshape(-1)
+    G = np.einsum("ij,kjl->kil", R_B, pb.F)
+    b = (pb.P - c - pb.f @ R_B.T).reshape(-1)
     A = G.reshape(-1, 3) @ V
     y, *_ = np.linalg.lstsq(A, b - G.reshape(-1, 3) @ tool, rcond=None)
     return np.asarray(tool + V @ y, dtype=np.float64)
@@ -225,18 +295,21 @@ def _closed_form(
     pb: _Problem, R_B: FloatArray, tool: FloatArray, alternations: int
 ) -> tuple[FloatArray, FloatArray, FloatArray]:
     """From the base rotation ``R_B``: the translation and (where placed) the tool point,
-    alternated with Kabsch where the positions fix the rotation. Returns the base's rotation,
-    its translation and the tool point."""
-    shape = conditioning(pb.P)
-    t = tool
-    c = pb.P.mean(axis=0) - R_B @ pb.local(t).mean(axis=0)
-    for _ in range(alternations if pb.point else 0):
-        t = _tool_by_lstsq(pb, R_B, t)
-        local = pb.local(t)
-        if shape.kind == "spread" and conditioning(local).kind == "spread":
-            R_B = _kabsch(local, pb.P)
-        c = pb.P.mean(axis=0) - R_B @ local.mean(axis=0)
-    return R_B, c, t
+    alternated with Kabsch where the positions fix the rotation
+    (:func:`closed_form_placements`, a batch of one). Returns the base's rotation, its
+    translation and the tool point."""
+    V = pb.tool_basis
+    R, c, t = closed_form_placements(
+        pb.F[None],
+        pb.f[None],
+        pb.P,
+        tool[None],
+        rounds=alternations if pb.point else 0,
+        R_B=R_B[None],
+        rotate=conditioning(pb.P).kind == "spread",
+        directions=(V @ V.T)[None],
+    )
+    return R[0], c[0], t[0]
 
 
 class _Fit:

@@ -7,9 +7,10 @@ under the stream's order and by millimetres under the right one. :func:`suspecte
 places the nominal on a few hundred of the session's samples under every permutation of the
 joint columns that keeps each joint's type (all of them up to :data:`MAX_ALL` joints: 720 for a
 6-axis arm, 5040 for 7; beyond, every swap of two columns) and reports the one that explains the
-points far better than the stream's order. Each placement is rigid and closed form: the base
-by Kabsch's SVD, the target point on the flange by linear least squares, alternated
-(:data:`ROUNDS`), every permutation at once.
+points far better than the stream's order. Each placement is the one placement's closed form
+(:func:`~dhlog.identify.fit.placement.closed_form_placements`): the base by Kabsch's SVD, the
+target point on the flange by linear least squares, alternated (:data:`ROUNDS`), every
+permutation at once.
 """
 
 from __future__ import annotations
@@ -22,6 +23,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from dhlog.geometry._checks import FloatArray
+from dhlog.identify.fit.placement import closed_form_placements
 from dhlog.identify.segment.segment import Segmentation
 from dhlog.io.dhfile import DHModel
 from dhlog.model.dh import JointType, StandardDH
@@ -100,26 +102,13 @@ def _flange(table: StandardDH, q: FloatArray) -> tuple[FloatArray, FloatArray]:
 def placed_rms(R: FloatArray, p: FloatArray, y: FloatArray, start: FloatArray) -> FloatArray:
     """RMS (per permutation, the best :data:`SCORED` share of the samples) of the points ``y``
     (m, 3) from the flange frames ``R`` (P, m, 3, 3), ``p`` (P, m, 3) rigidly placed on them, with
-    the target point on the flange fitted too (started at ``start``)."""
+    the target point on the flange fitted too (started at ``start``): the placement's closed
+    form (:func:`~dhlog.identify.fit.placement.closed_form_placements`, :data:`ROUNDS`
+    alternations), every permutation at once."""
     P, m = p.shape[:2]
-    t = np.broadcast_to(np.asarray(start, dtype=np.float64), (P, 3)).copy()
-    y_mean = y.mean(axis=0)
-    yc = y - y_mean
-    Rt = np.swapaxes(R, -1, -2)
-    Rb = np.broadcast_to(np.eye(3), (P, 3, 3))
-    tb = np.zeros((P, 3))
-    for _ in range(ROUNDS + 1):
-        x = (R @ t[:, None, :, None])[..., 0] + p  # the target in the base frame (P, m, 3)
-        x_mean = x.mean(axis=1)
-        H = np.swapaxes(x - x_mean[:, None], 1, 2) @ yc  # (P, 3, 3)
-        U, _, Vt = np.linalg.svd(H)
-        V = np.swapaxes(Vt, 1, 2).copy()
-        V[:, :, 2] *= np.sign(np.linalg.det(V @ np.swapaxes(U, 1, 2)))[:, None]
-        Rb = V @ np.swapaxes(U, 1, 2)  # Kabsch: the base rotation taking x onto y
-        tb = y_mean - (Rb @ x_mean[..., None])[..., 0]
-        z = (y[None] - tb[:, None]) @ Rb - p  # Rbᵀ (y − tb) − p = R t
-        t = (Rt @ z[..., None])[..., 0].mean(axis=1)
-    x = (R @ t[:, None, :, None])[..., 0] + p
+    t0 = np.broadcast_to(np.asarray(start, dtype=np.float64), (P, 3))
+    Rb, tb, t = closed_form_placements(R, p, y, t0, rounds=ROUNDS)
+    x = (R @ t[:, None, :, None])[..., 0] + p  # the target in the base frame (P, m, 3)
     r = x @ np.swapaxes(Rb, 1, 2) + tb[:, None] - y[None]
     err = np.sort(np.einsum("pmi,pmi->pm", r, r), axis=1)[:, : max(3, int(SCORED * m))]
     return np.asarray(np.sqrt(err.mean(axis=1)), dtype=np.float64)
