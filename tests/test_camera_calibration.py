@@ -21,7 +21,7 @@ import pytest
 import camera_rig as cams
 from dhlog.identify.camera.flow import process_observations
 from dhlog.identify.fit.axismodel import AxisModel
-from dhlog.identify.fit.measure import place, residuals
+from dhlog.identify.fit.measure import residuals
 from dhlog.identify.fit.pixels import PixelModel, fit_pixels
 from dhlog.identify.fit.prediction import predict
 from dhlog.identify.options import ProcessOptions
@@ -82,9 +82,9 @@ def test_reported_sigma_matches_the_spread() -> None:
 
 
 def test_nominal_placed_keeps_its_geometry() -> None:
-    """Placing the nominal (``place``: the camera's pose and the board's mount from a start
-    10 mm and 1° off) keeps its table and finds the true placement the corners give; it fits
-    them far worse than the calibration."""
+    """Placing the nominal (``PixelModel.place``: the camera's pose and the board's mount from
+    a start 10 mm and 1° off) keeps its table and finds the true placement the corners give; it
+    fits them far worse than the calibration."""
     from scipy.spatial.transform import Rotation
 
     robot, true, rig, Q = cams.session("eye-to-hand", 4)
@@ -99,7 +99,7 @@ def test_nominal_placed_keeps_its_geometry() -> None:
     off[:3, :3] = Rotation.from_rotvec([0.0, 0.01, 0.01]).as_matrix() @ off[:3, :3]
     off[:3, 3] += [0.01, -0.01, 0.005]
     ref = np.zeros(robot.n)
-    placed, _ = place(robot.table, ref, off, mount[:3, 3], mount[:3, :3], measurement, data)
+    placed, _ = measurement.place(robot.table, ref, off, mount[:3, 3], mount[:3, :3], data)
     exact = AxisModel.of_table(robot.table, ref, mount[:3, 3], T0, tool_rotation=mount[:3, :3])
     Qr = np.random.default_rng(3).uniform(robot.limits[:, 0], robot.limits[:, 1], (200, robot.n))
     calibrated = fit_pixels(exact, measurement, data)

@@ -19,7 +19,6 @@ from dhlog.identify.camera.poses import corners_of
 from dhlog.identify.check.plausible import SCALE_MIN_LENGTH as SCALE_MIN_LENGTH
 from dhlog.identify.check.plausible import common_scale
 from dhlog.identify.fit.axismodel import AxisModel
-from dhlog.identify.fit.measure import place
 from dhlog.identify.fit.pixels import Corners, PixelFit, PixelModel
 from dhlog.identify.read.extract import Extraction
 from dhlog.io.dhfile import DHModel
@@ -126,11 +125,12 @@ def camera_moved(
     fit: PixelFit, data: Corners, obs: Observations, ex: Extraction, ref: FloatArray
 ) -> str | None:
     """A warning when the fixed part (the camera eye-to-hand, the board eye-in-hand) moved
-    during the session, else None: the calibrated table placed (:func:`place`: the fixed part's
-    pose and the mount) separately on the frames before and after a split (in time order)
-    explains the corners better than one placement by more than :data:`MOVED_DROP` σ². The
-    best of :data:`MOVED_SPLITS`, then narrowed by halving between its neighbours, names the
-    frames it moved between."""
+    during the session, else None: the calibrated table placed (its measurement's
+    :meth:`~dhlog.identify.fit.measure.Measurement.place`: the fixed part's pose and the mount)
+    separately on the frames before and after a split (in time order) explains the corners
+    better than one placement by more than :data:`MOVED_DROP` σ². The best of
+    :data:`MOVED_SPLITS`, then narrowed by halving between its neighbours, names the frames it
+    moved between."""
     from dhlog.identify.fit.measure import residuals as measured
 
     order = np.argsort(obs.t_ns, kind="stable")
@@ -155,7 +155,8 @@ def camera_moved(
         before = np.zeros(f, dtype=bool)
         before[order[:k]] = True
         sides = [data.of_frames(before), data.of_frames(~before)]
-        return (whole - sum(cost(place(*start, fit.measurement, c), c) for c in sides)) / sigma2
+        placed = [fit.measurement.place(*start, c) for c in sides]
+        return (whole - sum(cost(p, c) for p, c in zip(placed, sides, strict=True))) / sigma2
 
     splits = sorted(
         {round(q * f) for q in MOVED_SPLITS}
@@ -204,12 +205,13 @@ def placed_nominal(
     start: Any, nominal: DHModel | None, obs: Observations
 ) -> tuple[float, AxisModel | None]:
     """How well the nominal, placed on the corners in pixels
-    (:func:`~dhlog.identify.fit.measure.place`: the fixed part's pose and the mount, its geometry
-    held) from ``start``'s placement for its set-up, reproduces them: the RMS (px). The set-up a log
-    was recorded in lets the nominal fit to about its own error; the other needs the chain's mirror
-    image, which no placement gives (sweeps from one home pose fit either set-up by a free fit: each
-    move is one joint's turn, about a line fixed in both the camera's and the board's frame). inf
-    without a nominal or a start. Returns the RMS and the placed model (None: none)."""
+    (:meth:`~dhlog.identify.fit.pixels.PixelModel.place`: the fixed part's pose and the mount,
+    its geometry held) from ``start``'s placement for its set-up, reproduces them: the RMS (px).
+    The set-up a log was recorded in lets the nominal fit to about its own error; the other
+    needs the chain's mirror image, which no placement gives (sweeps from one home pose fit
+    either set-up by a free fit: each move is one joint's turn, about a line fixed in both the
+    camera's and the board's frame). inf without a nominal or a start. Returns the RMS and the
+    placed model (None: none)."""
     from dhlog.identify.fit.measure import residuals as measured
     from dhlog.identify.fit.measure import rms
 
@@ -229,15 +231,8 @@ def placed_nominal(
     best: tuple[float, AxisModel | None] = (math.inf, None)
     for T_mb, tool, R_tool in starts:
         try:
-            model, meas = place(
-                nominal.table,
-                start.reference_pose,
-                T_mb,
-                tool,
-                R_tool,
-                PixelModel(setup, obs.intrinsics),
-                data,
-                far=FAR_PX,
+            model, meas = PixelModel(setup, obs.intrinsics).place(
+                nominal.table, start.reference_pose, T_mb, tool, R_tool, data, far=FAR_PX
             )
         except (DhlogError, ValueError, np.linalg.LinAlgError):
             continue

@@ -15,7 +15,6 @@ from dhlog.geometry._checks import FloatArray
 from dhlog.identify.camera.poses import pnp_points, refined_poses
 from dhlog.identify.camera.report import PixelHoldout
 from dhlog.identify.fit.leaveout import fold_of_poses
-from dhlog.identify.fit.measure import place
 from dhlog.identify.fit.pixels import Corners, PixelFit, fit_pixels
 from dhlog.identify.read.extract import extract_dh
 from dhlog.io.dhfile import DHModel
@@ -63,7 +62,7 @@ def cross_validate_pixels(
         fits = {"calibrated": fit_pixels(fit.whole.model, fit.measurement, train_c)}
         models = {"calibrated": (fits["calibrated"].whole.model, fits["calibrated"].measurement)}
         if placing is not None:
-            models["nominal"] = place(*placing, fit.measurement, train_c)
+            models["nominal"] = fit.measurement.place(*placing, train_c)
         keep = scored[at]
         for name, (m, meas) in models.items():
             uv, _ = meas.predict(m, None, None, test_c, slice(None))
@@ -157,7 +156,7 @@ def cross_validate_cameras(
             np.sum(measured(again.whole.model, again.measurement, test_c) ** 2, axis=1)[keep]
         )
         if placing is not None:
-            m, meas = place(*placing, fit.measurement, train_c)
+            m, meas = fit.measurement.place(*placing, train_c)
             errs["nominal"].append(np.sum(measured(m, meas, test_c) ** 2, axis=1)[keep])
 
     def rms_of(parts: list[FloatArray]) -> float | None:
@@ -189,8 +188,8 @@ def nominal_start(
     fit: PixelFit, nominal: DHModel, ref: FloatArray
 ) -> tuple[Any, FloatArray, FloatArray, FloatArray, FloatArray]:
     """Where the nominal's placement starts: the table with the fitted model's base in M and
-    carried frame on the flange (:func:`~dhlog.identify.fit.measure.place`'s first five
-    arguments)."""
+    carried frame on the flange (:meth:`~dhlog.identify.fit.measure.Measurement.place`'s first
+    five arguments)."""
     whole = fit.whole
     ex = extract_dh(
         list(whole.model.axes),

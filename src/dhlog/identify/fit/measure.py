@@ -14,15 +14,18 @@ gives
   ``(JᵀJ)⁻¹ σ²``) — the :class:`~dhlog.identify.fit.whole.WholeFit` the DH extraction, the
   uncertainty (:func:`~dhlog.identify.read.uncertainty.whole_uncertainty`) and the result take;
 - :func:`residuals` and :func:`rms` for held-out scoring;
-- :func:`place`: a nominal table placed on the observations (the base in M and the carried
-  frame on the flange; its geometry held), the "before" of a held-out check.
+- each measurement's :meth:`Measurement.place`: a nominal table placed on the observations
+  (the base in M and the carried frame on the flange; its geometry held), the "before" of a
+  held-out check — the tracker's through the one placement of points
+  (:func:`~dhlog.identify.fit.placement.place_on`), a camera's by Levenberg–Marquardt in
+  pixels (:func:`place_by_lm`).
 
 Implementations: :class:`PointMeasurement` (a tracker's target point in M: the reference form of
 the tracker's fit, whose streamed, chunked fast path for logs of millions of samples is
 :func:`~dhlog.identify.fit.whole.fit_whole_model`; ``tests/test_measurement_model.py`` checks the
 two agree) and :class:`~dhlog.identify.fit.pixels.PixelModel` (a camera's corners). A further
 instrument (a stereo pair, a motion-capture marker set, a CMM probe) is one more class with
-``count``, ``dim``, ``observed``, ``predict``, ``extra`` and ``moved``.
+``count``, ``dim``, ``observed``, ``predict``, ``extra``, ``moved`` and ``place``.
 """
 
 from __future__ import annotations
@@ -39,6 +42,7 @@ from dhlog.errors import DegenerateGeometryError
 from dhlog.geometry._checks import FloatArray, rotation_from_vector
 from dhlog.identify.fit.axismodel import AxisModel, ParameterLayout
 from dhlog.identify.fit.lm import levenberg_marquardt
+from dhlog.identify.fit.placement import place_on
 from dhlog.identify.fit.prediction import predict_columns
 from dhlog.identify.fit.whole import Determined, WholeFit
 from dhlog.model.dh import StandardDH
@@ -91,6 +95,22 @@ class Measurement(Protocol):
         """The measurement model with its own parameters moved by ``delta`` (extra,)."""
         ...
 
+    def place(
+        self: M,
+        table: StandardDH,
+        reference_pose: FloatArray,
+        T_measurement_base: FloatArray,
+        tool_point: FloatArray,
+        tool_rotation: FloatArray | None,
+        data: Any,
+    ) -> tuple[AxisModel, M]:
+        """``table`` placed on the observations ``data``, its geometry held: the base's pose
+        in M and the carried frame on the flange (``tool_point``, ``tool_rotation``: the
+        start and what the observations do not determine), with the measurement model's own
+        parameters where it fits them — how a nominal is put on a session. Returns the placed
+        model (:meth:`AxisModel.of_table` at ``reference_pose``) and the measurement model."""
+        ...
+
 
 @dataclass(frozen=True)
 class Points:
@@ -126,6 +146,35 @@ class PointMeasurement:
 
     def moved(self, delta: FloatArray) -> PointMeasurement:
         return self
+
+    def place(
+        self,
+        table: StandardDH,
+        reference_pose: FloatArray,
+        T_measurement_base: FloatArray,
+        tool_point: FloatArray,
+        tool_rotation: FloatArray | None,
+        data: Points,
+    ) -> tuple[AxisModel, PointMeasurement]:
+        """The tracker's placement (:func:`~dhlog.identify.fit.placement.place_on`:
+        closed-form starts, robust least squares, the gross outliers set aside — as
+        :func:`~dhlog.identify.fit.register.register_nominal`): the base in M and the target
+        point on the flange; the carried frame's orientation kept (points have none)."""
+        from dhlog.model.fk import fk_frames
+
+        frames = fk_frames(table, data.Q)[:, -1]
+        got = place_on(
+            frames[:, :3, :3],
+            frames[:, :3, 3],
+            data.P,
+            T=T_measurement_base,
+            tool=tool_point,
+            point=True,
+        )
+        model = AxisModel.of_table(
+            table, reference_pose, got.tool, got.T, tool_rotation=tool_rotation
+        )
+        return model, self
 
 
 @dataclass(frozen=True)
@@ -347,7 +396,7 @@ def fit_measured(
     )
 
 
-def place(
+def place_by_lm(
     table: StandardDH,
     reference_pose: FloatArray,
     T_measurement_base: FloatArray,
@@ -362,7 +411,8 @@ def place(
 ) -> tuple[AxisModel, M]:
     """``table`` placed on the corners, its geometry held: the base's pose in M and the
     carried frame (``tool_point``, ``tool_rotation``) on the flange — the camera's pose and the
-    board's mount — by Levenberg–Marquardt in pixels along :func:`rigid_directions`, the model
+    board's mount — by Levenberg–Marquardt in pixels along :func:`rigid_directions` (a
+    camera's :meth:`Measurement.place`), the model
     rebuilt exactly from the table at each step (so the table never drifts); first on every
     corner, then with the corners beyond ``threshold`` times the robust scale held out (not when the
     first round's robust scale is ``far`` or more: no placement near the observations). How a

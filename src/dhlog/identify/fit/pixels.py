@@ -30,6 +30,7 @@ the covariance is ``(JᵀJ)⁻¹ σ²`` there.
 from __future__ import annotations
 
 import itertools
+import math
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -37,8 +38,9 @@ from numpy.typing import NDArray
 
 from dhlog.geometry._checks import FloatArray, rotation_from_vector
 from dhlog.identify.fit.axismodel import AxisModel, ParameterLayout
-from dhlog.identify.fit.measure import MeasuredFit, fit_measured
+from dhlog.identify.fit.measure import MeasuredFit, fit_measured, place_by_lm
 from dhlog.identify.fit.prediction import predict_columns, predict_orientation, prefix_motions
+from dhlog.model.dh import StandardDH
 from dhlog.vision.camera import Intrinsics
 
 SETUPS = ("eye-to-hand", "eye-in-hand")
@@ -117,6 +119,33 @@ class PixelModel:
         K[0, 2] += delta[2]
         K[1, 2] += delta[3]
         return replace(self, intrinsics=replace(c, K=K, coefficients=c.coefficients + delta[4:]))
+
+    def place(
+        self,
+        table: StandardDH,
+        reference_pose: FloatArray,
+        T_measurement_base: FloatArray,
+        tool_point: FloatArray,
+        tool_rotation: FloatArray | None,
+        data: Corners,
+        *,
+        far: float = math.inf,
+    ) -> tuple[AxisModel, PixelModel]:
+        """The camera's placement: Levenberg–Marquardt in pixels
+        (:func:`~dhlog.identify.fit.measure.place_by_lm`; ``far``: the robust scale, px, from
+        which no placement is near the corners)."""
+        if tool_rotation is None:
+            raise ValueError("a camera's placement carries a frame: give its tool_rotation.")
+        return place_by_lm(
+            table,
+            reference_pose,
+            T_measurement_base,
+            tool_point,
+            tool_rotation,
+            self,
+            data,
+            far=far,
+        )
 
     def in_camera(
         self,
@@ -207,6 +236,32 @@ class CamerasModel:
             T[:3, 3] = T[:3, 3] + d[3:]
             poses.append(T)
         return replace(self, poses=tuple(poses))
+
+    def place(
+        self,
+        table: StandardDH,
+        reference_pose: FloatArray,
+        T_measurement_base: FloatArray,
+        tool_point: FloatArray,
+        tool_rotation: FloatArray | None,
+        data: Corners,
+        *,
+        far: float = math.inf,
+    ) -> tuple[AxisModel, CamerasModel]:
+        """The cameras' placement: Levenberg–Marquardt in pixels, the
+        further cameras' poses with it (:func:`~dhlog.identify.fit.measure.place_by_lm`)."""
+        if tool_rotation is None:
+            raise ValueError("a camera's placement carries a frame: give its tool_rotation.")
+        return place_by_lm(
+            table,
+            reference_pose,
+            T_measurement_base,
+            tool_point,
+            tool_rotation,
+            self,
+            data,
+            far=far,
+        )
 
     def in_camera(
         self,
