@@ -2,7 +2,9 @@
 robot (``T_measurement_base``) and, where the probe was re-mounted, its point and frame on the
 flange — what every caller that puts a nominal or a result on a session uses (the start of a
 calibration from random poses, the nominal on a calibration session, a held-out log's footing,
-the cross-validation's folds, ISO 9283's registration, a camera's start in 3-D).
+the cross-validation's folds, ISO 9283's registration, a camera's start in 3-D, the tracker's
+``Measurement.place``; the joint-permutation check its closed form alone, every joint order
+at once).
 
 :func:`place_on` takes the model's flange frames at the poses (in its frame 1), the measured
 positions and, for a 6-DoF probe, the measured orientations, and uses what they determine
@@ -20,7 +22,8 @@ positions and, for a 6-DoF probe, the measured orientations, and uses what they 
 It starts in closed form, from every start the data allow — the model's own base, Kabsch on
 the positions, the rotation read off the orientations (on a line without orientation: the
 model's rotation turned to carry its line onto the measured one) — each followed by the tool
-point by linear least squares and a robust (soft-L1) nonlinear least squares over the freedoms,
+point by linear least squares alternated with Kabsch (:func:`closed_form_placements`, over a
+batch of models at once) and a robust (soft-L1) nonlinear least squares over the freedoms,
 then plain least squares without the poses beyond :data:`OUTLIER_SCALE` robust scales; the start
 leaving the smallest error wins. A local search from one start alone can stop hundreds of
 millimetres from the answer when the tracker was re-stationed (turned far about its vertical).
