@@ -233,8 +233,8 @@ def closed_form_placements(
     """A batch of rigid placements in closed form: B models' flange frames ``F`` (B, k, 3, 3)
     and origins ``f`` (B, k, 3) at the same k poses placed on the points ``P`` (k, 3), the
     tool point on the flange (start ``tool``, (B, 3)) placed with them. From the base rotation
-    ``R_B`` (B, 3, 3; None: Kabsch of the model's points at ``tool`` onto ``P``), ``rounds``
-    alternations of
+    ``R_B`` (B, 3, 3; None: Kabsch of the model's points at ``tool`` onto ``P``, the identity
+    where the rotation is not to be turned, below), ``rounds`` alternations of
 
     - the tool point by linear least squares with the base's rotation held and its translation
       eliminated (centred: ``(F − F̄) t = R_Bᵀ (P − P̄) − (f − f̄)``), changed only along
