@@ -187,9 +187,18 @@ def _worker_item(work: Callable[[Item], Row], item: Item) -> Row:
 
 
 def _stop_workers(pool: Any) -> None:
-    """Cancel what has not started and end every worker: SIGTERM, then SIGKILL after
-    ``STOP_GRACE`` seconds."""
+    """Cancel what has not started, end every worker (SIGTERM, then SIGKILL after
+    ``STOP_GRACE`` seconds), then wait (``STOP_GRACE`` seconds at most) for the pool's manager
+    thread to end.
+
+    That thread, seeing its workers gone, closes the pipe that wakes it, and the exit hook of
+    ``concurrent.futures`` (``_python_exit``) writes to that pipe without the lock the closing
+    takes (CPython 3.11; python/cpython gh-125451 gave the pipe its own lock in 3.12.8 and
+    3.13.1): an exit while the thread is closing it prints ``OSError: [Errno 9] Bad file
+    descriptor`` with a traceback. Once the thread has ended, the pipe is marked closed and the
+    hook leaves it alone."""
     processes = list((getattr(pool, "_processes", None) or {}).values())
+    manager = getattr(pool, "_executor_manager_thread", None)  # shutdown() forgets it
     pool.shutdown(wait=False, cancel_futures=True)
     for p in processes:
         if p.is_alive():
@@ -201,6 +210,8 @@ def _stop_workers(pool: Any) -> None:
         if p.is_alive():
             p.kill()
             p.join(1.0)
+    if manager is not None:
+        manager.join(STOP_GRACE)
 
 
 # ------------------------------------------------------------------------------------- Dask
