@@ -174,6 +174,67 @@ class PixelModel:
             J = np.concatenate([J, ji], axis=2)
         return uv, J
 
+    def normal_block(
+        self,
+        model: AxisModel,
+        layout: ParameterLayout,
+        bases: list[tuple[FloatArray, FloatArray]],
+        data: Corners,
+        sl: slice,
+        limit: float,
+    ) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """The corners ``sl``' residuals (c, 2: predicted − detected) and, over those whose
+        residual norm is within ``limit``, their ``JᵀJ`` (size + extra, size + extra) and
+        ``Jᵀr`` (size + extra,) — the sums :meth:`predict`'s Jacobian gives, taken by the chain
+        rule through each frame's Jacobian ``G`` (6, size) of the carried frame's motion (its
+        origin's shift and its turn in M): a corner's 2 × size row is ``B G`` with ``B`` its own
+        2 × 6, so a frame's corners enter as ``Gᵀ (Σ BᵀB) G`` instead of one wide row each."""
+        frames = data.frame[sl]
+        used, back = np.unique(frames, return_inverse=True)
+        Q = data.Q[used]
+        prefix = prefix_motions(model, Q)
+        p, Jp = predict_columns(model, Q, layout, bases, None, prefix)
+        R, Jo = predict_orientation(model, Q, layout, bases, prefix)
+        assert Jp is not None
+        c = data.points[sl].T  # (3, k)
+        Rk, pk = R[:, :, back], p[:, back]
+        if self.setup == "eye-to-hand":
+            w = np.einsum("ijk,jk->ik", Rk, c)  # X = p + R c: dX = dp − [R c]× dω
+            X = pk + w
+        else:
+            w = c - pk  # X = Rᵀ (c − p): dX = −Rᵀ (dp − [c − p]× dω)
+            X = np.einsum("jik,jk->ik", Rk, w)
+        uv, jp, ji = self.intrinsics.project_jacobian(X.T)
+        r = uv - data.uv[sl]
+        nrm = np.sqrt(np.sum(r**2, axis=1))
+        finite = np.isfinite(nrm)
+        use = finite & (nrm <= limit)
+        width = layout.size + self.extra
+        if limit == np.inf and not finite.all():
+            # a corner behind the camera taken in: its row of the Jacobian is NaN, so are the sums
+            return r, np.full((width, width), np.nan), np.full(width, np.nan)
+        jpu, wu, fu, ru = jp[use], w[:, use].T, back[use], r[use]
+        if self.setup != "eye-to-hand":
+            jpu = -np.einsum("kaj,ijk->kai", jpu, Rk[:, :, use])  # ∂uv/∂(c − p) of X = Rᵀ(c − p)
+        B = np.empty((jpu.shape[0], 2, 6))
+        B[:, :, :3] = jpu
+        B[:, :, 3:] = np.cross(wu[:, None, :], jpu)  # a (−[w]×) = w × a for a row a
+        f = used.size
+        BtB = _frame_sums(fu, np.einsum("kai,kaj->kij", B, B), f)  # (f, 6, 6)
+        Btr = _frame_sums(fu, np.einsum("kai,ka->ki", B, ru), f)  # (f, 6)
+        size = layout.size
+        G = np.concatenate([Jp, Jo], axis=1).transpose(2, 1, 0).reshape(6 * f, size)
+        Hk = G.T @ np.matmul(BtB, G.reshape(f, 6, size)).reshape(6 * f, size)
+        gk = G.T @ Btr.reshape(-1)
+        if not self.refine:
+            return r, Hk, gk
+        e = self.extra
+        jiu = ji[use].reshape(-1, e)
+        cross = _frame_sums(fu, np.einsum("kai,kaj->kij", B, ji[use]), f)  # (f, 6, e)
+        Hke = G.T @ cross.reshape(6 * f, e)
+        H = np.block([[Hk, Hke], [Hke.T, jiu.T @ jiu]])
+        return r, H, np.concatenate([gk, jiu.T @ ru.reshape(-1)])
+
 
 @dataclass(frozen=True)
 class CamerasModel:
@@ -276,6 +337,13 @@ class CamerasModel:
                 J[at, :, o : o + 3] = np.einsum("kab,cb,kcd->kad", jp, R, skew)
                 J[at, :, o + 3 : o + 6] = -np.einsum("kab,cb->kac", jp, R)
         return uv, J
+
+
+def _frame_sums(frame: NDArray[np.intp], values: FloatArray, frames: int) -> FloatArray:
+    """``values`` (k, …) summed per ``frame`` (k,) into (frames, …)."""
+    out = np.zeros((frames, *values.shape[1:]))
+    np.add.at(out, frame, values)
+    return out
 
 
 def _rotations(model: AxisModel, Q: FloatArray) -> FloatArray:
