@@ -340,9 +340,14 @@ class CamerasModel:
 
 
 def _frame_sums(frame: NDArray[np.intp], values: FloatArray, frames: int) -> FloatArray:
-    """``values`` (k, …) summed per ``frame`` (k,) into (frames, …)."""
+    """``values`` (k, …) summed per ``frame`` (k,) into (frames, …): by runs of one frame
+    where ``frame`` is in order (the corners stand in frame order), else unbuffered."""
     out = np.zeros((frames, *values.shape[1:]))
-    np.add.at(out, frame, values)
+    if frame.size and np.all(frame[1:] >= frame[:-1]):
+        starts = np.flatnonzero(np.concatenate([[True], frame[1:] != frame[:-1]]))
+        out[frame[starts]] = np.add.reduceat(values, starts, axis=0)
+    else:
+        np.add.at(out, frame, values)
     return out
 
 
