@@ -2,7 +2,8 @@
 (:meth:`dhlog.identify.fit.pixels.PixelModel.normal_block`) against the same sums over the full
 Jacobian of every corner (:meth:`~dhlog.identify.fit.pixels.PixelModel.predict`, built corner by
 corner with its own chain rule), on corners projected through the simulator's rig: both set-ups,
-the intrinsics held and refined, every corner and a cut that holds some out.
+the intrinsics held and refined, every corner and a cut that holds some out, each pose held for
+three frames (a still pose: the frames share their prediction, their noise their own).
 
 The two are the same sums in another order, so they agree to rounding: relative to the largest
 entry, 1e-9 (the entries span ~12 decades, px/rad against px/px; float64 rounding of a
@@ -23,8 +24,10 @@ from dhlog.simulator.camera import CAMERA
 @pytest.mark.parametrize("refine", [False, True])
 def test_frame_sums_are_the_full_jacobians(setup: str, refine: bool) -> None:
     robot, true, rig, Q = cams.session(setup, 5, poses=30)
+    Q = np.repeat(Q, 3, axis=0)
     ids, uv = cams.corners(rig, true, robot, Q, np.random.default_rng(2))
     data = cams.data(Q, ids, uv)
+    assert data.distinct()[0].shape[0] == Q.shape[0] // 3
     model = cams.model(rig, robot.table, robot.n)  # the nominal: residuals of a few px
     layout = ParameterLayout.of(model.types, rotation=True)
     bases = model.bases()

@@ -70,6 +70,18 @@ class Corners:
         edges = np.searchsorted(self.frame, np.arange(self.frames + 1)).tolist()
         return [slice(a, b) for a, b in itertools.pairwise(edges)]
 
+    def distinct(self) -> tuple[FloatArray, NDArray[np.intp], FloatArray, NDArray[np.intp]]:
+        """The distinct joint vectors (u, n) and each frame's (f,), the distinct board points
+        (P, 3) and each corner's (N,): equal values give equal predictions, so frames of a
+        still pose share theirs (computed once a set of corners, then kept)."""
+        kept = self.__dict__.get("_distinct")
+        if kept is None:
+            Qd, q_of = np.unique(self.Q, axis=0, return_inverse=True)
+            Pd, p_of = np.unique(self.points, axis=0, return_inverse=True)
+            kept = (Qd, q_of.reshape(-1).astype(np.intp), Pd, p_of.reshape(-1).astype(np.intp))
+            object.__setattr__(self, "_distinct", kept)
+        return kept
+
     def of_frames(self, chosen: NDArray[np.bool_]) -> Corners:
         """The observations of the frames ``chosen`` (f,) only, renumbered."""
         index = np.cumsum(chosen) - 1
@@ -188,15 +200,21 @@ class PixelModel:
         ``Jᵀr`` (size + extra,) — the sums :meth:`predict`'s Jacobian gives, taken by the chain
         rule through each frame's Jacobian ``G`` (6, size) of the carried frame's motion (its
         origin's shift and its turn in M): a corner's 2 × size row is ``B G`` with ``B`` its own
-        2 × 6, so a frame's corners enter as ``Gᵀ (Σ BᵀB) G`` instead of one wide row each."""
-        frames = data.frame[sl]
-        used, back = np.unique(frames, return_inverse=True)
-        Q = data.Q[used]
+        2 × 6, so a frame's corners enter as ``Gᵀ (Σ BᵀB) G`` instead of one wide row each. A
+        board point seen at one joint vector in several frames (a still pose held) is one site:
+        predicted once, its ``BᵀB`` counted once a corner within ``limit``, its ``Bᵀ`` times their
+        residuals' sum — the same sums."""
+        # the sites: each distinct (joint vector, board point) of the corners, predicted once
+        Qd, q_of, Pd, p_of = data.distinct()
+        key = q_of[data.frame[sl]] * Pd.shape[0] + p_of[sl]
+        site, inv = np.unique(key, return_inverse=True)
+        used, back = np.unique(site // Pd.shape[0], return_inverse=True)
+        Q = Qd[used]
         prefix = prefix_motions(model, Q)
         p, Jp = predict_columns(model, Q, layout, bases, None, prefix)
         R, Jo = predict_orientation(model, Q, layout, bases, prefix)
         assert Jp is not None
-        c = data.points[sl].T  # (3, k)
+        c = Pd[site % Pd.shape[0]].T  # (3, s)
         Rk, pk = R[:, :, back], p[:, back]
         if self.setup == "eye-to-hand":
             w = np.einsum("ijk,jk->ik", Rk, c)  # X = p + R c: dX = dp − [R c]× dω
@@ -205,7 +223,7 @@ class PixelModel:
             w = c - pk  # X = Rᵀ (c − p): dX = −Rᵀ (dp − [c − p]× dω)
             X = np.einsum("jik,jk->ik", Rk, w)
         uv, jp, ji = self.intrinsics.project_jacobian(X.T)
-        r = uv - data.uv[sl]
+        r = uv[inv] - data.uv[sl]
         nrm = np.sqrt(np.sum(r**2, axis=1))
         finite = np.isfinite(nrm)
         use = finite & (nrm <= limit)
@@ -213,14 +231,18 @@ class PixelModel:
         if limit == np.inf and not finite.all():
             # a corner behind the camera taken in: its row of the Jacobian is NaN, so are the sums
             return r, np.full((width, width), np.nan), np.full(width, np.nan)
-        jpu, wu, fu, ru = jp[use], w[:, use].T, back[use], r[use]
+        # a site's corners within the limit: their count and the sum of their residuals
+        n = np.bincount(inv[use], minlength=site.size).astype(np.float64)
+        rs = np.stack([np.bincount(inv[use], r[use, a], site.size) for a in (0, 1)], axis=1)
+        on = n > 0
+        jpu, wu, fu, nu, ru = jp[on], w[:, on].T, back[on], n[on], rs[on]
         if self.setup != "eye-to-hand":
-            jpu = -np.einsum("kaj,ijk->kai", jpu, Rk[:, :, use])  # ∂uv/∂(c − p) of X = Rᵀ(c − p)
+            jpu = -np.einsum("kaj,ijk->kai", jpu, Rk[:, :, on])  # ∂uv/∂(c − p) of X = Rᵀ(c − p)
         B = np.empty((jpu.shape[0], 2, 6))
         B[:, :, :3] = jpu
         B[:, :, 3:] = np.cross(wu[:, None, :], jpu)  # a (−[w]×) = w × a for a row a
         f = used.size
-        BtB = _frame_sums(fu, np.einsum("kai,kaj->kij", B, B), f)  # (f, 6, 6)
+        BtB = _frame_sums(fu, np.einsum("kai,kaj,k->kij", B, B, nu), f)  # (f, 6, 6)
         Btr = _frame_sums(fu, np.einsum("kai,ka->ki", B, ru), f)  # (f, 6)
         size = layout.size
         G = np.concatenate([Jp, Jo], axis=1).transpose(2, 1, 0).reshape(6 * f, size)
@@ -229,11 +251,12 @@ class PixelModel:
         if not self.refine:
             return r, Hk, gk
         e = self.extra
-        jiu = ji[use].reshape(-1, e)
-        cross = _frame_sums(fu, np.einsum("kai,kaj->kij", B, ji[use]), f)  # (f, 6, e)
+        jiu = ji[on]
+        cross = _frame_sums(fu, np.einsum("kai,kaj,k->kij", B, jiu, nu), f)  # (f, 6, e)
         Hke = G.T @ cross.reshape(6 * f, e)
-        H = np.block([[Hk, Hke], [Hke.T, jiu.T @ jiu]])
-        return r, H, np.concatenate([gk, jiu.T @ ru.reshape(-1)])
+        Hee = np.einsum("kai,kaj,k->ij", jiu, jiu, nu)
+        H = np.block([[Hk, Hke], [Hke.T, Hee]])
+        return r, H, np.concatenate([gk, np.einsum("kai,ka->i", jiu, ru)])
 
 
 @dataclass(frozen=True)
