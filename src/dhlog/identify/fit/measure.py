@@ -236,20 +236,28 @@ def _normal(
     N = measurement.count(data)
     norms = np.empty(N)
     cost, count, chi2 = 0.0, 0, 0.0
+    # a measurement may sum its block's normal equations itself (a camera: frame by frame)
+    block = getattr(measurement, "normal_block", None)
     for start in range(0, N, BLOCK):
         sl = slice(start, min(start + BLOCK, N))
-        pred, J = measurement.predict(model, layout, bases, data, sl)
-        assert J is not None
-        r = pred - measurement.observed(data, sl)
+        J: FloatArray | None = None
+        if block is not None:
+            r, Hb, gb = block(model, layout, bases, data, sl, limit)
+        else:
+            pred, J = measurement.predict(model, layout, bases, data, sl)
+            assert J is not None
+            r = pred - measurement.observed(data, sl)
         nrm = np.sqrt(np.sum(r**2, axis=1))
         nrm = np.where(np.isfinite(nrm), nrm, np.inf)  # no prediction (behind a camera): out
         norms[sl] = nrm
         use = nrm <= limit
         cost += float(np.sum(np.minimum(nrm, limit) ** 2))
-        Ju = J[use].reshape(-1, size)
         ru = r[use].reshape(-1)
-        H += Ju.T @ Ju
-        g += Ju.T @ ru
+        if J is not None:
+            Ju = J[use].reshape(-1, size)
+            Hb, gb = Ju.T @ Ju, Ju.T @ ru
+        H += Hb
+        g += gb
         count += int(np.count_nonzero(use))
         chi2 += float(ru @ ru)
     return H, g, cost, count, chi2, norms

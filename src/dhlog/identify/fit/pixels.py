@@ -72,6 +72,18 @@ class Corners:
         edges = np.searchsorted(self.frame, np.arange(self.frames + 1)).tolist()
         return [slice(a, b) for a, b in itertools.pairwise(edges)]
 
+    def distinct(self) -> tuple[FloatArray, NDArray[np.intp], FloatArray, NDArray[np.intp]]:
+        """The distinct joint vectors (u, n) and each frame's (f,), the distinct board points
+        (P, 3) and each corner's (N,): equal values give equal predictions, so frames of a
+        still pose share theirs (computed once a set of corners, then kept)."""
+        kept = self.__dict__.get("_distinct")
+        if kept is None:
+            Qd, q_of = np.unique(self.Q, axis=0, return_inverse=True)
+            Pd, p_of = np.unique(self.points, axis=0, return_inverse=True)
+            kept = (Qd, q_of.reshape(-1).astype(np.intp), Pd, p_of.reshape(-1).astype(np.intp))
+            object.__setattr__(self, "_distinct", kept)
+        return kept
+
     def of_frames(self, chosen: NDArray[np.bool_]) -> Corners:
         """The observations of the frames ``chosen`` (f,) only, renumbered."""
         index = np.cumsum(chosen) - 1
@@ -203,6 +215,78 @@ class PixelModel:
             J = np.concatenate([J, ji], axis=2)
         return uv, J
 
+    def normal_block(
+        self,
+        model: AxisModel,
+        layout: ParameterLayout,
+        bases: list[tuple[FloatArray, FloatArray]],
+        data: Corners,
+        sl: slice,
+        limit: float,
+    ) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """The corners ``sl``' residuals (c, 2: predicted − detected) and, over those whose
+        residual norm is within ``limit``, their ``JᵀJ`` (size + extra, size + extra) and
+        ``Jᵀr`` (size + extra,) — the sums :meth:`predict`'s Jacobian gives, taken by the chain
+        rule through each frame's Jacobian ``G`` (6, size) of the carried frame's motion (its
+        origin's shift and its turn in M): a corner's 2 × size row is ``B G`` with ``B`` its own
+        2 × 6, so a frame's corners enter as ``Gᵀ (Σ BᵀB) G`` instead of one wide row each. A
+        board point seen at one joint vector in several frames (a still pose held) is one site:
+        predicted once, its ``BᵀB`` counted once a corner within ``limit``, its ``Bᵀ`` times their
+        residuals' sum — the same sums."""
+        # the sites: each distinct (joint vector, board point) of the corners, predicted once
+        Qd, q_of, Pd, p_of = data.distinct()
+        key = q_of[data.frame[sl]] * Pd.shape[0] + p_of[sl]
+        site, inv = np.unique(key, return_inverse=True)
+        used, back = np.unique(site // Pd.shape[0], return_inverse=True)
+        Q = Qd[used]
+        prefix = prefix_motions(model, Q)
+        p, Jp = predict_columns(model, Q, layout, bases, None, prefix)
+        R, Jo = predict_orientation(model, Q, layout, bases, prefix)
+        assert Jp is not None
+        c = Pd[site % Pd.shape[0]].T  # (3, s)
+        Rk, pk = R[:, :, back], p[:, back]
+        if self.setup == "eye-to-hand":
+            w = np.einsum("ijk,jk->ik", Rk, c)  # X = p + R c: dX = dp − [R c]× dω
+            X = pk + w
+        else:
+            w = c - pk  # X = Rᵀ (c − p): dX = −Rᵀ (dp − [c − p]× dω)
+            X = np.einsum("jik,jk->ik", Rk, w)
+        uv, jp, ji = self.intrinsics.project_jacobian(X.T)
+        r = uv[inv] - data.uv[sl]
+        nrm = np.sqrt(np.sum(r**2, axis=1))
+        finite = np.isfinite(nrm)
+        use = finite & (nrm <= limit)
+        width = layout.size + self.extra
+        if limit == np.inf and not finite.all():
+            # a corner behind the camera taken in: its row of the Jacobian is NaN, so are the sums
+            return r, np.full((width, width), np.nan), np.full(width, np.nan)
+        # a site's corners within the limit: their count and the sum of their residuals
+        n = np.bincount(inv[use], minlength=site.size).astype(np.float64)
+        rs = np.stack([np.bincount(inv[use], r[use, a], site.size) for a in (0, 1)], axis=1)
+        on = n > 0
+        jpu, wu, fu, nu, ru = jp[on], w[:, on].T, back[on], n[on], rs[on]
+        if self.setup != "eye-to-hand":
+            jpu = -np.einsum("kaj,ijk->kai", jpu, Rk[:, :, on])  # ∂uv/∂(c − p) of X = Rᵀ(c − p)
+        B = np.empty((jpu.shape[0], 2, 6))
+        B[:, :, :3] = jpu
+        B[:, :, 3:] = np.cross(wu[:, None, :], jpu)  # a (−[w]×) = w × a for a row a
+        f = used.size
+        BtB = _frame_sums(fu, np.einsum("kai,kaj,k->kij", B, B, nu), f)  # (f, 6, 6)
+        Btr = _frame_sums(fu, np.einsum("kai,ka->ki", B, ru), f)  # (f, 6)
+        size = layout.size
+        G = np.concatenate([Jp, Jo], axis=1).transpose(2, 1, 0).reshape(6 * f, size)
+        Hk = G.T @ np.matmul(BtB, G.reshape(f, 6, size)).reshape(6 * f, size)
+        gk = G.T @ Btr.reshape(-1)
+        if not self.refine:
+            return r, Hk, gk
+        e = self.extra
+        jiu = ji[on]
+        cross = _frame_sums(fu, np.einsum("kai,kaj,k->kij", B, jiu, nu), f)  # (f, 6, e)
+        Hke = G.T @ cross.reshape(6 * f, e)
+        Hee = np.einsum("kai,kaj,k->ij", jiu, jiu, nu)
+        H = np.block([[Hk, Hke], [Hke.T, Hee]])
+        return r, H, np.concatenate([gk, np.einsum("kai,ka->i", jiu, ru)])
+
 
 @dataclass(frozen=True)
 class CamerasModel:
@@ -331,6 +415,18 @@ class CamerasModel:
                 J[at, :, o : o + 3] = np.einsum("kab,cb,kcd->kad", jp, R, skew)
                 J[at, :, o + 3 : o + 6] = -np.einsum("kab,cb->kac", jp, R)
         return uv, J
+
+
+def _frame_sums(frame: NDArray[np.intp], values: FloatArray, frames: int) -> FloatArray:
+    """``values`` (k, …) summed per ``frame`` (k,) into (frames, …): by runs of one frame
+    where ``frame`` is in order (the corners stand in frame order), else unbuffered."""
+    out = np.zeros((frames, *values.shape[1:]))
+    if frame.size and np.all(frame[1:] >= frame[:-1]):
+        starts = np.flatnonzero(np.concatenate([[True], frame[1:] != frame[:-1]]))
+        out[frame[starts]] = np.add.reduceat(values, starts, axis=0)
+    else:
+        np.add.at(out, frame, values)
+    return out
 
 
 def _rotations(model: AxisModel, Q: FloatArray) -> FloatArray:
