@@ -26,6 +26,7 @@ from numpy.typing import NDArray
 from dhlog.errors import Note, texts
 from dhlog.geometry._checks import FloatArray
 from dhlog.geometry.fitting import PlaneFit
+from dhlog.identify.camera.report import CameraResult
 from dhlog.identify.check.footing import Unscored
 from dhlog.identify.check.holdout import Holdout
 from dhlog.identify.check.validate import Validation
@@ -45,6 +46,7 @@ from dhlog.io.dhfile import DHModel
 from dhlog.io.reader import LogData
 from dhlog.model.noise import NoiseModel
 from dhlog.model.terms import Terms, table_deflection
+from dhlog.vision.view import CameraView
 
 
 @dataclass(frozen=True)
@@ -249,10 +251,10 @@ class ProcessResult:
     #: a camera calibration's product (:class:`~dhlog.identify.camera.report.CameraResult`: the
     #: set-up, the camera's and the board's poses with σ, the corners' σ, the held-out check in
     #: pixels) and what the recording shows of each camera; None and empty for a tracker log
-    camera: Any = None
-    cameras: tuple[Any, ...] = ()
+    camera: CameraResult | None = None
+    cameras: tuple[CameraView, ...] = ()
     #: with several cameras, each one's product (``camera`` is the first's)
-    camera_results: tuple[Any, ...] = ()
+    camera_results: tuple[CameraResult, ...] = ()
     #: a camera calibration's start (the tracker's run on the board's poses): the set-up those
     #: poses were made for; None for a tracker log
     camera_setup: str | None = None

@@ -18,7 +18,6 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
-from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -224,7 +223,7 @@ def identify_whole(
     h_rows = hayati_rows(ex)
     nominal_h = nominal_rows(nominal_table, ref, h_rows)
 
-    def refit(model: Any, within: FloatArray) -> Any:
+    def refit(model: AxisModel, within: FloatArray) -> AxisModel:
         """The fit again from ``model`` along ``within`` only, weighted as the final fit."""
         return fit_whole_model(model, data, final, within=within).model
 

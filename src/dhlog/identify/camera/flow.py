@@ -22,14 +22,13 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import replace
-from typing import Any
 
 import numpy as np
 from scipy.spatial.transform import Rotation
 
 from dhlog.errors import DhlogError, InputError, Note
 from dhlog.geometry._checks import FloatArray
-from dhlog.geometry.lines import Line
+from dhlog.geometry.lines import Line, Plane
 from dhlog.identify.camera.checks import (
     FAR_PX,
     board_scale,
@@ -56,10 +55,12 @@ from dhlog.identify.fit.axismodel import AxisModel, ParameterLayout
 from dhlog.identify.fit.pixels import CamerasModel, PixelFit, PixelModel, fit_pixels
 from dhlog.identify.fit.prediction import predict as predict_points
 from dhlog.identify.fit.prediction import predict_orientation
+from dhlog.identify.fit.whole import WholeFit
 from dhlog.identify.model.select import ModelRequest
 from dhlog.identify.options import DEFAULTS, ProcessOptions
 from dhlog.identify.read.extract import Extraction, extract_dh
-from dhlog.identify.read.uncertainty import whole_uncertainty
+from dhlog.identify.read.propagate import Extractor
+from dhlog.identify.read.uncertainty import Uncertainty, whole_uncertainty
 from dhlog.identify.stages import ProcessResult
 from dhlog.vision.observe import Observations
 
@@ -136,7 +137,7 @@ def process_observations(
             "--camera-setup eye-to-hand (the camera fixed, the board on the flange) or "
             "eye-in-hand (the camera on the flange), or --nominal."
         )
-    starts: dict[str, Any] = {}
+    starts: dict[str, ProcessResult | DhlogError] = {}
     for s in candidates:
         log = pose_log(obs, T_cb, s, use)
         try:
@@ -155,11 +156,13 @@ def process_observations(
             if len(candidates) == 1:
                 raise
             starts[s] = exc
+    # each usable start with its FK check's RMS (a start's fit of the poses)
     usable = {
         s: r
         for s, r in starts.items()
-        if not isinstance(r, Exception) and r.whole is not None and r.validation is not None
+        if isinstance(r, ProcessResult) and r.whole is not None and r.validation is not None
     }
+    fk_rms = {s: r.validation.rms for s, r in usable.items() if r.validation is not None}
     if not usable:
         why = "; ".join(f"{s}: {r}" for s, r in starts.items() if isinstance(r, Exception))
         raise InputError(
@@ -174,7 +177,7 @@ def process_observations(
         s: placed_nominal(r, nominal, obs) for s, r in usable.items() if len(usable) > 1
     }
     gap = {s: placements[s][0] if s in placements else math.nan for s in usable}
-    chosen = min(usable, key=lambda s: (gap[s], usable[s].validation.rms))
+    chosen = min(usable, key=lambda s: (gap[s], fk_rms[s]))
     if setup:
         reason = "given"
     else:
@@ -232,8 +235,8 @@ def process_observations(
 
 
 def _adopt(
-    result: Any, whole: Any
-) -> tuple[Any, Extraction, Any, Callable[[list[Line], FloatArray, Any], Extraction]]:
+    result: ProcessResult, whole: WholeFit
+) -> tuple[ProcessResult, Extraction, Uncertainty, Extractor]:
     """``result`` with the pixel fit ``whole`` in it: its DH model read off as for a tracker,
     the covariance and what is fixed, the FK check against the PnP poses. Returns that result,
     the extraction, the uncertainty and the extraction's function."""
@@ -245,7 +248,7 @@ def _adopt(
     ref = result.reference_pose
     types = tuple(whole.model.types)
 
-    def extract(axes: list[Line], target: FloatArray, plane: Any) -> Extraction:
+    def extract(axes: list[Line], target: FloatArray, plane: Plane | None) -> Extraction:
         return extract_dh(
             axes, types, target=target, reference_pose=ref, base_plane=plane, nominal=nominal_table
         )
@@ -271,7 +274,7 @@ def _adopt(
 
 
 def _pixel_stage(
-    result: Any,
+    result: ProcessResult,
     obs: Observations,
     T_cb: FloatArray,
     placed: AxisModel | None,
@@ -280,7 +283,7 @@ def _pixel_stage(
     refine_intrinsics: bool,
     holdout: int,
     progress: Callable[[str, float], None] | None,
-) -> tuple[Any, PixelFit]:
+) -> tuple[ProcessResult, PixelFit]:
     """Refit ``result``'s whole model in pixels (and from ``placed``, the nominal placed on
     the corners, when given); returns the result with the DH model, σ and camera in it, and
     the fit."""
@@ -361,12 +364,12 @@ def _cost(fit: PixelFit, limit: float) -> float:
 
 
 def _several_cameras(
-    result: Any,
+    result: ProcessResult,
     first: PixelFit,
     observations: list[Observations],
     holdout: int,
     progress: Callable[[str, float], None] | None,
-) -> Any:
+) -> ProcessResult:
     """``result`` with the whole model fitted to every camera's corners at once
     (:class:`CamerasModel`: M the first camera's frame, each further camera's pose fitted with
     it), starting from the first
@@ -418,6 +421,7 @@ def _several_cameras(
         if progress is not None:
             progress("cross-validating", 0.0)
         check = cross_validate_cameras(fit, data, holdout, result.nominal, result.reference_pose)
+    first_reason = result.camera.setup_reason if result.camera is not None else ""
     results = []
     views = []
     for k, o in enumerate(observations):
@@ -441,7 +445,7 @@ def _several_cameras(
             corners=int(np.count_nonzero(at)),
             inlier_corners=int(np.count_nonzero(inl)),
             tally=o.tally.summary(),
-            setup_reason=result.camera.setup_reason if k == 0 else "the first camera's",
+            setup_reason=first_reason if k == 0 else "the first camera's",
             holdout=check,
         )
         results.append(cam)

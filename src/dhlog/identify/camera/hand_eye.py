@@ -5,23 +5,19 @@ the flange, with σ propagated from the fit's covariance by central differences 
 
 from __future__ import annotations
 
-from collections.abc import Callable
-from typing import Any
-
 import numpy as np
 from scipy.spatial.transform import Rotation
 
 from dhlog.geometry._checks import FloatArray
-from dhlog.geometry.lines import Line
 from dhlog.identify.camera.poses import shift, transform
 from dhlog.identify.fit.axismodel import AxisModel
 from dhlog.identify.fit.pixels import PixelFit
-from dhlog.identify.read.extract import Extraction
+from dhlog.identify.read.propagate import Extractor
 
 
 def hand_eye(
     fit: PixelFit,
-    extract: Callable[[list[Line], FloatArray, Any], Extraction],
+    extract: Extractor,
     setup: str,
     centre: FloatArray,
 ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
@@ -68,9 +64,7 @@ def hand_eye(
     return T_fixed, T_mounted, std[:6], std[6:]
 
 
-def cameras_std(
-    fit: Any, extract: Callable[[list[Line], FloatArray, Any], Extraction]
-) -> list[FloatArray]:
+def cameras_std(fit: PixelFit, extract: Extractor) -> list[FloatArray]:
     """Each camera's pose in the base frame: its σ (rotation vector rad, translation m; 6) by
     central differences over every fitted parameter (the model's and the cameras' own)."""
     whole, meas = fit.whole, fit.measurement

@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import math
 from dataclasses import replace
-from typing import Any
 
 import numpy as np
 
@@ -18,6 +17,7 @@ from dhlog.identify.fit.leaveout import fold_of_poses
 from dhlog.identify.fit.pixels import Corners, PixelFit, fit_pixels
 from dhlog.identify.read.extract import extract_dh
 from dhlog.io.dhfile import DHModel
+from dhlog.model.dh import StandardDH
 from dhlog.vision.observe import Observations
 
 
@@ -122,7 +122,7 @@ def cross_validate_pixels(
 
 
 def cross_validate_cameras(
-    fit: Any, data: Corners, folds: int, nominal: DHModel | None, ref: FloatArray
+    fit: PixelFit, data: Corners, folds: int, nominal: DHModel | None, ref: FloatArray
 ) -> PixelHoldout:
     """K-fold over the frames of every camera: the joint fit again on the other folds' frames,
     the nominal placed there (with the further cameras' poses), both scored in pixels at the
@@ -186,7 +186,7 @@ def cross_validate_cameras(
 
 def nominal_start(
     fit: PixelFit, nominal: DHModel, ref: FloatArray
-) -> tuple[Any, FloatArray, FloatArray, FloatArray, FloatArray]:
+) -> tuple[StandardDH, FloatArray, FloatArray, FloatArray, FloatArray]:
     """Where the nominal's placement starts: the table with the fitted model's base in M and
     carried frame on the flange (:meth:`~dhlog.identify.fit.measure.Measurement.place`'s first
     five arguments)."""
