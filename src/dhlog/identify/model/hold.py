@@ -28,13 +28,14 @@ from numpy.typing import NDArray
 
 from dhlog.errors import DhlogError, Note
 from dhlog.geometry._checks import FloatArray, wrap_angle
-from dhlog.geometry.lines import Line, Plane
+from dhlog.geometry.lines import Plane
 from dhlog.identify.fit.axismodel import AxisModel
 from dhlog.identify.fit.whole import WholeFit
 from dhlog.identify.model.relations import constrain_pairs
 from dhlog.identify.read.extract import Extraction
 from dhlog.identify.read.propagate import (
     FIXED_BELOW,
+    Extractor,
     mixed_angles,
     mixed_vector,
     state_vector,
@@ -50,8 +51,6 @@ BOUND_LENGTH = 0.010
 MET = 1e-10
 #: Newton steps onto the held values at most (each one extraction per fitted parameter).
 MAX_STEPS = 12
-
-Extractor = Callable[[list[Line], FloatArray, Plane | None], Extraction]
 
 
 @dataclass(frozen=True)

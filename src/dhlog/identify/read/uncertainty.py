@@ -20,7 +20,7 @@ import numpy as np
 from dhlog.errors import Note
 from dhlog.geometry._checks import FloatArray
 from dhlog.geometry.fitting import PlaneFit
-from dhlog.geometry.lines import Line, Plane
+from dhlog.geometry.lines import Line
 from dhlog.identify.fit.whole import WholeFit
 from dhlog.identify.joints.sweeps import JointReport
 from dhlog.identify.read.analytic import hayati_rows, near_parallel, propagate_analytic
@@ -33,7 +33,7 @@ from dhlog.identify.read.conditioning import (
 )
 from dhlog.identify.read.extract import Extraction, Tolerances
 from dhlog.identify.read.hayati import HayatiRow
-from dhlog.identify.read.propagate import fixed_reasons, propagate
+from dhlog.identify.read.propagate import Extractor, fixed_reasons, propagate
 from dhlog.model.dh import StandardDH
 
 
@@ -123,7 +123,7 @@ def analytic_uncertainty(
 def whole_uncertainty(
     whole: WholeFit,
     base: PlaneFit | None,
-    extract: Callable[[list[Line], FloatArray, Plane | None], Extraction],
+    extract: Extractor,
     ex: Extraction,
     ref: FloatArray,
     nominal: StandardDH | None,
