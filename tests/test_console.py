@@ -65,15 +65,19 @@ def hostile() -> ProcessResult:
         for joint, name in zip(result.joints, HOSTILE, strict=True)
     ]
     joints[-1] = dataclasses.replace(joints[-1], reason="[i]why[/]\nnext\\")
+    session = dataclasses.replace(
+        result.session,
+        joints=tuple(joints),
+        nominal=dataclasses.replace(result.nominal, source="[red]nominal[/]\r"),
+    )
     return dataclasses.replace(
         result,
-        joints=tuple(joints),
+        session=session,
         notes=(
             *result.notes,
             Note.info("note [bold]n[/] \x1b[2J end", "test"),
             Note.warning("warn [/] end\\", "test"),
         ),
-        nominal=dataclasses.replace(result.nominal, source="[red]nominal[/]\r"),
     )
 
 

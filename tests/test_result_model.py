@@ -104,8 +104,9 @@ def test_a_partial_result_keeps_the_identified_rows() -> None:
     """A session in which one joint never moved alone and there is no nominal: the model has
     the table as far as identified and no tool point; the JSON has no complete table."""
     result = process_log(SAMPLES / "kr5_0.1mm.mcap")
+    joints = (*result.joints[:-1], dataclasses.replace(result.joints[-1], reason="x"))
     partial = dataclasses.replace(
-        result, joints=(*result.joints[:-1], dataclasses.replace(result.joints[-1], reason="x"))
+        result, session=dataclasses.replace(result.session, joints=joints)
     )
     model = model_of(partial)
     assert model is not None and not partial.complete

@@ -86,7 +86,7 @@ def validated(
                 notes.append(Note.warning(why, "nominal-placement"))
     return replace(
         result,
-        holdout=(*result.holdout, *checks),
+        checks=replace(result.checks, holdout=(*result.holdout, *checks)),
         notes=(*result.notes, *notes),
         not_scored=(*result.not_scored, *not_scored),
         implausible=(*result.implausible, *implausible),

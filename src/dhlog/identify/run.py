@@ -26,7 +26,6 @@ import math
 from collections.abc import Callable
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
@@ -430,36 +429,22 @@ def _built(
     """The one result of the run: the session's; the fit's (when there is one; its notes
     after the run's), else the analytic ``readout`` and ``checks``; the nominal's
     ``registration`` on the points (a session with no sweep)."""
-    found: dict[str, Any] = {
-        "extraction": None,
-        "std": None,
-        "target": None,
-        "validation": None,
-        "segmentation": session.segmentation,
-        "timing": session.timing,
-        "noise": session.noise,
-    }
     if fit is not None:
-        found |= fit.fields()
         notes = (*notes, *fit.notes)
-    for stage in (readout, checks):
-        if stage is not None:
-            found |= stage.fields()
+        readout = fit.readout if readout is None else readout
+        checks = fit.checks if checks is None else checks
     return ProcessResult(
         path=session.log.path,
         sha256=head.sha256,
-        log=session.log,
-        joints=session.joints,
-        reference_pose=session.reference_pose,
-        base=session.base,
-        nominal=session.nominal,
+        session=replace(session, encoded=None),
+        readout=Readout(None) if readout is None else readout,
+        checks=Checks(None) if checks is None else checks,
         notes=notes,
-        parked=session.parked,
+        fit=None if fit is None else replace(fit, notes=()),
         folds=head.folds,
         model_request=head.model_request,
         implausible=head.implausible,
         registration=registration,
-        **found,
     )
 
 

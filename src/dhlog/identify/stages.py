@@ -17,8 +17,7 @@ A stage that fails is a value (None and a warning), not a field restored by hand
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass, field, fields, replace
-from typing import Any
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from numpy.typing import NDArray
@@ -106,23 +105,6 @@ class Readout:
     terms_std: FloatArray = field(default_factory=lambda: np.zeros(0))
     deflection: Deflection | None = None
 
-    def fields(self) -> dict[str, Any]:
-        """:class:`ProcessResult`'s fields it sets."""
-        moved, none = self.deflection, np.zeros(0)
-        known = {} if self.uncertainty is None else self.uncertainty.result_fields()
-        return {
-            "extraction": self.extraction,
-            **known,
-            "target": self.target,
-            "terms": self.terms,
-            "terms_std": self.terms_std,
-            "deflection_max": none if moved is None else moved.joints,
-            "deflection_target": 0.0 if moved is None else moved.target,
-            "deflection_max_std": none if moved is None else moved.joints_std,
-            "deflection_target_std": 0.0 if moved is None else moved.target_std,
-            "deflection_vectors": np.zeros((0, 6)) if moved is None else moved.vectors,
-        }
-
 
 @dataclass(frozen=True)
 class Checks:
@@ -134,10 +116,6 @@ class Checks:
     outlier_names: tuple[str, ...] = ()
     outlier_rows: NDArray[np.intp] = field(default_factory=lambda: np.zeros(0, np.intp))
     holdout: tuple[Holdout, ...] = ()
-
-    def fields(self) -> dict[str, Any]:
-        """:class:`ProcessResult`'s fields it sets."""
-        return {f.name: getattr(self, f.name) for f in fields(self)}
 
 
 @dataclass(frozen=True)
@@ -154,21 +132,11 @@ class ModelFit:
     selection: Selection | None
     analytic: Extraction | None
     whole: WholeFit
-    sigma: float
+    sigma: float | None
     readout: Readout
     checks: Checks
     notes: tuple[Note, ...]
     method: str = "whole-model maximum likelihood"
-
-    def fields(self) -> dict[str, Any]:
-        """:class:`ProcessResult`'s fields this stage sets (its notes aside: they are added,
-        not set)."""
-        own = {
-            f.name: getattr(self, f.name)
-            for f in fields(self)
-            if f.name not in ("readout", "checks", "notes")
-        }
-        return own | self.readout.fields() | self.checks.fields()
 
     @property
     def warnings(self) -> tuple[str, ...]:
@@ -183,71 +151,36 @@ class ModelFit:
 
 @dataclass(frozen=True)
 class ProcessResult:
-    """Everything ``dhlog process`` found, ready to be written and shown: built once, from the
-    stages' values (:class:`Session`, :class:`ModelFit`), and never changed after — a later step
-    (the plausibility judgement, a held-out log) makes a new one with
-    :func:`dataclasses.replace`."""
+    """Everything ``dhlog process`` found, ready to be written and shown: built once from the
+    stages' values — the :class:`Session`, the :class:`ModelFit` (None: the analytic result
+    alone), its :class:`Readout` and :class:`Checks` — and never changed after: a later step
+    (the plausibility judgement, a held-out log, the camera's pixel fit) makes a new one with
+    :func:`dataclasses.replace`. What readers take of the stages (the table, its σ, the FK
+    check …) are properties of the stage that holds them."""
 
     path: str
     sha256: str
-    log: LogData
-    segmentation: Segmentation
-    joints: tuple[JointReport, ...]
-    reference_pose: FloatArray
-    extraction: Extraction | None
-    std: FloatArray | None
-    base: PlaneFit | None
-    target: FloatArray | None
-    validation: Validation | None
-    nominal: DHModel | None
+    #: the session (its encoder values as read not kept: ``encoded`` None)
+    session: Session
+    readout: Readout
+    checks: Checks
     #: what the run said, in the order it said it: warnings (what may need action) and notes
     #: (what a reader should know but need not act on), each with its code
-    #: (:class:`~dhlog.errors.Note`); ``warnings`` and ``info`` give their texts
+    #: (:class:`~dhlog.errors.Note`); ``warnings`` and ``info`` give their texts. The fit's
+    #: own notes are among them (the ``fit`` kept here carries none)
     notes: tuple[Note, ...]
-    covariance: FloatArray | None = None
-    hayati: tuple[HayatiRow, ...] = ()
-    hayati_std: tuple[FloatArray, ...] = ()
-    method: str = "analytic"
-    analytic: Extraction | None = None
-    whole: WholeFit | None = None
-    fixed: Mapping[int, str] = field(default_factory=dict)
-    noise: NoiseModel = field(default_factory=NoiseModel)
-    sigma: float | None = None
-    extra_tool_points: FloatArray = field(default_factory=lambda: np.zeros((0, 3)))
-    extra_tool_std: FloatArray = field(default_factory=lambda: np.zeros((0, 3)))
-    tool_orientation: FloatArray | None = None
-    tool_orientation_std: FloatArray | None = None
-    conditioned: Conditioned | None = None
-    timing: Timing | None = None
+    #: the fit of the whole model; None for the analytic result (``--analytic-only``, no
+    #: encoders, a fit that failed)
+    fit: ModelFit | None = None
     #: the nominal placed on the points (sessions without sweeps: the fit's start)
     registration: Registration | None = None
-    #: joints (0-based) parked in the session (:mod:`dhlog.identify.model.parked`)
-    parked: tuple[int, ...] = ()
-    #: errors at poses not used to fit: K-fold cross-validation, held-out logs
-    holdout: tuple[Holdout, ...] = ()
-    #: the whole-model fit's gross outliers by name (the export's point ids, else ``#k``)
-    outlier_names: tuple[str, ...] = ()
-    #: ... and their rows in the segmentation's point table
-    outlier_rows: NDArray[np.intp] = field(default_factory=lambda: np.zeros(0, np.intp))
     #: held-out logs given (``--validate``) but not scored, each with the reason
     not_scored: tuple[Unscored, ...] = ()
     #: K of the K-fold cross-validation asked for (0: none)
     folds: int = 0
-    #: the terms beyond the geometry asked for, the candidates tried, and the chosen terms in
-    #: the table's frames (:func:`dhlog.model.terms.to_table`) with their σ
+    #: the terms beyond the geometry asked for (the candidates tried and the terms chosen are
+    #: the fit's ``selection`` and the readout's ``terms``)
     model_request: ModelRequest = field(default_factory=ModelRequest)
-    selection: Selection | None = None
-    terms: Terms | None = None
-    terms_std: FloatArray = field(default_factory=lambda: np.zeros(0))
-    #: the terms' largest deflection per joint (rad or m) and of the target (m) at the samples
-    deflection_max: FloatArray = field(default_factory=lambda: np.zeros(0))
-    deflection_target: float = 0.0
-    #: their σ at the sample where each is largest (NaN: a term it needs is undetermined)
-    deflection_max_std: FloatArray = field(default_factory=lambda: np.zeros(0))
-    deflection_target_std: float = 0.0
-    #: up to 2000 samples: the target where the model puts it and the terms' share of that
-    #: (k, 6: position, displacement; m, in M)
-    deflection_vectors: FloatArray = field(default_factory=lambda: np.zeros((0, 6)))
     #: a camera calibration's product (:class:`~dhlog.identify.camera.report.CameraResult`: the
     #: set-up, the camera's and the board's poses with σ, the corners' σ, the held-out check in
     #: pixels) and what the recording shows of each camera; None and empty for a tracker log
@@ -263,6 +196,194 @@ class ProcessResult:
     #: place, ...); empty when plausible. The result is still written, marked ``plausible: false``
     #: in the JSON, and ``dhlog process`` exits with ``EXIT_IMPLAUSIBLE`` (4)
     implausible: tuple[str, ...] = ()
+
+    # the session's (the fit's segmentation, clock and noise where there is a fit: the session
+    # joined again at the fitted clock offset)
+
+    @property
+    def log(self) -> LogData:
+        return self.session.log
+
+    @property
+    def joints(self) -> tuple[JointReport, ...]:
+        return self.session.joints
+
+    @property
+    def reference_pose(self) -> FloatArray:
+        return self.session.reference_pose
+
+    @property
+    def base(self) -> PlaneFit | None:
+        return self.session.base
+
+    @property
+    def nominal(self) -> DHModel | None:
+        return self.session.nominal
+
+    @property
+    def parked(self) -> tuple[int, ...]:
+        """Joints (0-based) parked in the session (:mod:`dhlog.identify.model.parked`)."""
+        return self.session.parked
+
+    @property
+    def segmentation(self) -> Segmentation:
+        return self.session.segmentation if self.fit is None else self.fit.segmentation
+
+    @property
+    def timing(self) -> Timing | None:
+        return self.session.timing if self.fit is None else self.fit.timing
+
+    @property
+    def noise(self) -> NoiseModel:
+        return self.session.noise if self.fit is None else self.fit.noise
+
+    # the fit's
+
+    @property
+    def method(self) -> str:
+        return "analytic" if self.fit is None else self.fit.method
+
+    @property
+    def whole(self) -> WholeFit | None:
+        return None if self.fit is None else self.fit.whole
+
+    @property
+    def analytic(self) -> Extraction | None:
+        """The analytic start of the fit (None without a fit: ``extraction`` is the analytic
+        result then)."""
+        return None if self.fit is None else self.fit.analytic
+
+    @property
+    def sigma(self) -> float | None:
+        return None if self.fit is None else self.fit.sigma
+
+    @property
+    def selection(self) -> Selection | None:
+        """The candidates of ``--model`` tried and the one chosen."""
+        return None if self.fit is None else self.fit.selection
+
+    # the readout's
+
+    @property
+    def extraction(self) -> Extraction | None:
+        return self.readout.extraction
+
+    @property
+    def target(self) -> FloatArray | None:
+        return self.readout.target
+
+    @property
+    def terms(self) -> Terms | None:
+        """The chosen terms beyond the geometry in the table's frames
+        (:func:`dhlog.model.terms.to_table`)."""
+        return self.readout.terms
+
+    @property
+    def terms_std(self) -> FloatArray:
+        return self.readout.terms_std
+
+    @property
+    def std(self) -> FloatArray | None:
+        known = self.readout.uncertainty
+        return None if known is None else known.std
+
+    @property
+    def covariance(self) -> FloatArray | None:
+        known = self.readout.uncertainty
+        return None if known is None else known.covariance
+
+    @property
+    def fixed(self) -> Mapping[int, str]:
+        known = self.readout.uncertainty
+        return {} if known is None else known.fixed
+
+    @property
+    def hayati(self) -> tuple[HayatiRow, ...]:
+        known = self.readout.uncertainty
+        return () if known is None else tuple(known.hayati)
+
+    @property
+    def hayati_std(self) -> tuple[FloatArray, ...]:
+        known = self.readout.uncertainty
+        return () if known is None else tuple(known.hayati_std)
+
+    @property
+    def conditioned(self) -> Conditioned | None:
+        known = self.readout.uncertainty
+        return None if known is None else known.conditioned
+
+    @property
+    def tool_orientation(self) -> FloatArray | None:
+        known = self.readout.uncertainty
+        return None if known is None else known.tool_orientation
+
+    @property
+    def tool_orientation_std(self) -> FloatArray | None:
+        known = self.readout.uncertainty
+        return None if known is None else known.tool_orientation_std
+
+    @property
+    def extra_tool_points(self) -> FloatArray:
+        known = self.readout.uncertainty
+        return np.zeros((0, 3)) if known is None else known.extra_tool_points
+
+    @property
+    def extra_tool_std(self) -> FloatArray:
+        known = self.readout.uncertainty
+        return np.zeros((0, 3)) if known is None else known.extra_tool_std
+
+    @property
+    def deflection_max(self) -> FloatArray:
+        """The terms' largest deflection per joint (rad or m) at the samples."""
+        moved = self.readout.deflection
+        return np.zeros(0) if moved is None else moved.joints
+
+    @property
+    def deflection_target(self) -> float:
+        """The terms' largest deflection of the target (m) at the samples."""
+        moved = self.readout.deflection
+        return 0.0 if moved is None else moved.target
+
+    @property
+    def deflection_max_std(self) -> FloatArray:
+        """The σ of ``deflection_max`` at the sample where each is largest (NaN: a term it
+        needs is undetermined)."""
+        moved = self.readout.deflection
+        return np.zeros(0) if moved is None else moved.joints_std
+
+    @property
+    def deflection_target_std(self) -> float:
+        moved = self.readout.deflection
+        return 0.0 if moved is None else moved.target_std
+
+    @property
+    def deflection_vectors(self) -> FloatArray:
+        """Up to 2000 samples: the target where the model puts it and the terms' share of that
+        (k, 6: position, displacement; m, in M)."""
+        moved = self.readout.deflection
+        return np.zeros((0, 6)) if moved is None else moved.vectors
+
+    # the checks'
+
+    @property
+    def validation(self) -> Validation | None:
+        """The FK check of the table at every sample."""
+        return self.checks.validation
+
+    @property
+    def holdout(self) -> tuple[Holdout, ...]:
+        """Errors at poses not used to fit: K-fold cross-validation, held-out logs."""
+        return self.checks.holdout
+
+    @property
+    def outlier_names(self) -> tuple[str, ...]:
+        """The whole-model fit's gross outliers by name (the export's point ids, else ``#k``)."""
+        return self.checks.outlier_names
+
+    @property
+    def outlier_rows(self) -> NDArray[np.intp]:
+        """... and their rows in the segmentation's point table."""
+        return self.checks.outlier_rows
 
     @property
     def warnings(self) -> tuple[str, ...]:

@@ -190,7 +190,7 @@ def process_observations(
     result = usable[chosen]
     if pipeline is not None:  # the camera pipeline read, not the poses' internal one
         piped = replace(result.log, pipeline=replace(result.log.pipeline, name=pipeline))
-        result = replace(result, log=piped)
+        result = replace(result, session=replace(result.session, log=piped))
     # what the start's run said is of the poses' fit (its noise, its pairs, its registration in
     # mm), not of the calibration: one line says how the start was made, the rest is the
     # pixel fit's
@@ -259,16 +259,21 @@ def _adopt(
     rows, Q, P = samples_with_encoders(seg)
     # the table's joint values are the encoders' (no scales, no terms in a camera's fit)
     inl = np.ones(len(rows), dtype=bool)
+    assert result.fit is not None  # a start is a whole-model fit of the poses
     adopted = replace(
         result,
         notes=(*result.notes, *found.notes),
-        method="whole-model maximum likelihood",  # in pixels: the camera block says so
-        extraction=ex,
-        whole=whole,
-        **found.result_fields(),
-        target=whole.model.target,
-        selection=None,
-        validation=validate_samples(seg, rows, Q, P, ex, inl, ex.tool_point[None]),
+        # in pixels: the camera block says so
+        fit=replace(
+            result.fit, whole=whole, selection=None, method="whole-model maximum likelihood"
+        ),
+        readout=replace(
+            result.readout, extraction=ex, uncertainty=found, target=whole.model.target
+        ),
+        checks=replace(
+            result.checks,
+            validation=validate_samples(seg, rows, Q, P, ex, inl, ex.tool_point[None]),
+        ),
     )
     return adopted, ex, found, extract
 
@@ -346,10 +351,11 @@ def _pixel_stage(
         f"fitted to the corners in pixels: σ {cam.sigma_px:.3f} px per coordinate. The FK "
         "check below is against the board's poses from PnP (mm), the fit's own is in pixels."
     )
+    assert result.fit is not None
     shown = replace(
         result,
         camera=cam,
-        sigma=None,
+        fit=replace(result.fit, sigma=None),  # the pixels' σ is the camera block's
         notes=(*result.notes, Note.info(said, "camera")),
         cameras=(camera_view(fit, data, obs, cam, check),),
         camera_results=(cam,),

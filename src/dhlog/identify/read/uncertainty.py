@@ -13,7 +13,6 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any
 
 import numpy as np
 
@@ -59,22 +58,6 @@ class Uncertainty:
     #: what a reader should know of it: the nearly parallel pairs given in the Hayati form
     #: (``hayati``), the free parameters strongly correlated (``correlated``)
     notes: tuple[Note, ...] = ()
-
-    def result_fields(self) -> dict[str, Any]:
-        """What the run's result takes of it: the fields of
-        :class:`~dhlog.identify.stages.ProcessResult` of the same names."""
-        return {
-            "covariance": self.covariance,
-            "std": self.std,
-            "fixed": self.fixed,
-            "hayati": tuple(self.hayati),
-            "hayati_std": tuple(self.hayati_std),
-            "conditioned": self.conditioned,
-            "tool_orientation": self.tool_orientation,
-            "tool_orientation_std": self.tool_orientation_std,
-            "extra_tool_points": self.extra_tool_points,
-            "extra_tool_std": self.extra_tool_std,
-        }
 
 
 def analytic_uncertainty(
