@@ -70,7 +70,8 @@ def one_session(case: str, seed: int, poses: int) -> dict[str, float]:
     from dhlog.identify.fit.pixels import Corners, PixelModel, fit_pixels
     from dhlog.identify.fit.prediction import predict
     from dhlog.identify.read.extract import extract_dh
-    from dhlog.identify.run import process_data
+    from dhlog.identify.options import ProcessOptions
+    from dhlog.identify.run import process_poses
     from dhlog.io.dhfile import dh_model_from
     from dhlog.model.robots import load_robot
     from dhlog.simulator.camera import (
@@ -116,7 +117,7 @@ def one_session(case: str, seed: int, poses: int) -> dict[str, float]:
     nominal = dh_model_from(robot_name)
     t0 = time.perf_counter()
     result = process_observations(
-        start=process_data, observations=[obs], nominal=nominal, holdout=5
+        [obs], ProcessOptions(nominal=nominal, holdout=5), start=process_poses
     )
     seconds = time.perf_counter() - t0
     cam = result.camera

@@ -4,8 +4,9 @@ pose (the hand-eye calibration) and the error at held-out frames.
 1. Each frame's board pose in the camera by OpenCV's PnP (:func:`board_poses`).
 2. Those poses are a 6-DoF target's samples: the board's centre and orientation in the camera
    (eye-to-hand), or the camera's in the board's frame (eye-in-hand). The tracker's run
-   (:func:`dhlog.identify.run.process_data`, the geometric model) makes its start from them:
-   the seed method where joints were swept alone, the nominal placed on them otherwise.
+   (``start``: :func:`dhlog.identify.run.process_poses`, the geometric model) makes its start
+   from them: the seed method where joints were swept alone, the nominal placed on them
+   otherwise.
 3. The whole model is fitted again to every corner in pixels (:mod:`dhlog.identify.fit.pixels`):
    the maximum likelihood of the detections. Its DH table, covariance and fixed parameters are
    read off as for a tracker.
@@ -22,6 +23,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import replace
+from typing import Protocol
 
 import numpy as np
 from scipy.spatial.transform import Rotation
@@ -62,6 +64,8 @@ from dhlog.identify.read.extract import Extraction, extract_dh
 from dhlog.identify.read.propagate import Extractor
 from dhlog.identify.read.uncertainty import Uncertainty, whole_uncertainty
 from dhlog.identify.stages import ProcessResult
+from dhlog.io.dhfile import DHModel
+from dhlog.io.logdata import LogData
 from dhlog.vision.observe import Observations
 
 #: the fewest frames with the board for a calibration
@@ -72,9 +76,20 @@ MIN_FRAMES = 8
 # the run
 
 
-#: The tracker's run on a camera's board poses (:func:`dhlog.identify.run.process_poses`): the
-#: start of the pixel fit, handed in by the run (this module is below it).
-PoseRun = Callable[..., ProcessResult]
+class PoseRun(Protocol):
+    """The tracker's run on a camera's board poses (:func:`dhlog.identify.run.process_poses`):
+    the start of the pixel fit, handed in by the run (this module is below it)."""
+
+    def __call__(
+        self,
+        log: LogData,
+        *,
+        sha256: str,
+        nominal: DHModel | None,
+        reference_pose: FloatArray | None,
+        model: ModelRequest,
+        progress: Callable[[str, float], None] | None,
+    ) -> ProcessResult: ...
 
 
 def process_observations(
@@ -83,7 +98,7 @@ def process_observations(
     *,
     sha256: str = "",
     progress: Callable[[str, float], None] | None = None,
-    start: PoseRun | None = None,
+    start: PoseRun,
     pipeline: str | None = None,
 ) -> ProcessResult:
     """The calibration of the module docstring from one camera's observations, as ``options``
@@ -93,9 +108,6 @@ def process_observations(
     ``start``: the tracker's run on the poses (:func:`dhlog.identify.run.process_poses`)."""
     nominal, reference_pose, setup = options.nominal, options.reference_pose, options.camera_setup
     refine_intrinsics, holdout, frames = options.refine_intrinsics, options.holdout, options.frames
-    if start is None:  # the tracker's run makes the start (identify.run passes itself)
-        raise ValueError("process_observations needs start= (identify.run.process_poses)")
-    process_data = start
     if not observations:
         raise InputError("the log holds no camera with detections.")
     obs = observations[0]
@@ -142,7 +154,7 @@ def process_observations(
         log = pose_log(obs, T_cb, s, use)
         try:
             starts[s] = replace(
-                process_data(
+                start(
                     log,
                     sha256=sha256,
                     nominal=nominal,
