@@ -16,7 +16,7 @@ import pytest
 
 import camera_rig as cams
 from dhlog.identify.fit.axismodel import ParameterLayout
-from dhlog.identify.fit.pixels import PixelModel
+from dhlog.identify.fit.pixels import PixelModel, distinct_rows
 from dhlog.simulator.camera import CAMERA
 
 
@@ -46,3 +46,20 @@ def test_frame_sums_are_the_full_jacobians(setup: str, refine: bool) -> None:
         H_full, g_full = Ju.T @ Ju, Ju.T @ r_full[use].reshape(-1)
         assert np.max(np.abs(H - H_full)) < 1e-9 * np.max(np.abs(H_full))
         assert np.max(np.abs(g - g_full)) < 1e-9 * np.max(np.abs(g_full))
+
+
+@pytest.mark.parametrize("rows, width, repeats", [(0, 3, 1), (1, 6, 1), (54, 3, 500), (20, 6, 7)])
+def test_distinct_rows_are_numpys_unique_rows(rows: int, width: int, repeats: int) -> None:
+    """The corners' distinct board points and joint vectors by one lexsort: the rows and the
+    inverse ``np.unique(axis=0)`` gives (a signed zero counts as zero, as there)."""
+    rng = np.random.default_rng(rows + width)
+    base = rng.normal(size=(rows, width)).round(1)  # rounded: rows that share columns
+    if rows:
+        base[0, 0] = -0.0
+    A = base[rng.integers(0, max(rows, 1), rows * repeats)] if rows else base
+    if rows > 1:
+        A = np.vstack([A, np.abs(base[:1])])  # +0.0 where a row has −0.0
+    want, want_of = np.unique(A, axis=0, return_inverse=True)
+    got, got_of = distinct_rows(A)
+    np.testing.assert_array_equal(got, want)
+    np.testing.assert_array_equal(got_of, want_of.reshape(-1))

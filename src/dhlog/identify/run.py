@@ -89,7 +89,7 @@ from dhlog.identify.stages import (
 from dhlog.identify.wholefit import identify_whole
 from dhlog.io.dhfile import DHModel
 from dhlog.io.reader import LogData, camera_pipeline, read_log
-from dhlog.io.writer import sha256_of
+from dhlog.io.writer import sha256_begun, sha256_of
 
 __all__ = ["ProcessOptions", "ProcessResult", "process_data", "process_log", "table_values"]
 
@@ -121,7 +121,7 @@ def process_log(
         from dhlog.identify.camera.flow import process_observations
         from dhlog.io.observe import observe
 
-        digest = sha256_of(path)  # before the long walk: the log as it was read
+        digest = sha256_begun(path)  # beside the long walk: the log as it was read
         observations = observe(
             path,
             camera,
@@ -133,7 +133,7 @@ def process_log(
         found = process_observations(
             observations,
             options,
-            sha256=digest,
+            sha256=digest(),
             progress=progress,
             start=process_poses,
             pipeline=camera.name,

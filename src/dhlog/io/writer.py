@@ -20,7 +20,7 @@ import json
 import os
 import tempfile
 import threading
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 from typing import IO, Any, Literal
@@ -508,3 +508,29 @@ def sha256_of(path: str | Path) -> str:
                 "the log in place until dhlog process has finished."
             ) from None
     return digest.hexdigest()
+
+
+def sha256_begun(path: str | Path) -> Callable[[], str]:
+    """:func:`sha256_of` ``path`` begun in a thread of its own, beside a long walk of the same
+    log (a camera log's detection: the hash's reading and hashing release the GIL); the call
+    it returns waits for the digest, or raises what :func:`sha256_of` raised. The thread is a
+    daemon: a run that fails before it asks does not wait for the hash to exit."""
+    found: list[str] = []
+    failed: list[BaseException] = []
+
+    def work() -> None:
+        try:
+            found.append(sha256_of(path))
+        except BaseException as exc:  # handed to the caller, raised there
+            failed.append(exc)
+
+    thread = threading.Thread(target=work, name="dhlog-sha256", daemon=True)
+    thread.start()
+
+    def digest() -> str:
+        thread.join()
+        if failed:
+            raise failed[0]
+        return found[0]
+
+    return digest

@@ -78,9 +78,9 @@ class Corners:
         still pose share theirs (computed once a set of corners, then kept)."""
         kept = self.__dict__.get("_distinct")
         if kept is None:
-            Qd, q_of = np.unique(self.Q, axis=0, return_inverse=True)
-            Pd, p_of = np.unique(self.points, axis=0, return_inverse=True)
-            kept = (Qd, q_of.reshape(-1).astype(np.intp), Pd, p_of.reshape(-1).astype(np.intp))
+            Qd, q_of = distinct_rows(self.Q)
+            Pd, p_of = distinct_rows(self.points)
+            kept = (Qd, q_of, Pd, p_of)
             object.__setattr__(self, "_distinct", kept)
         return kept
 
@@ -95,6 +95,22 @@ class Corners:
             self.uv[keep],
             None if self.camera is None else self.camera[keep],
         )
+
+
+def distinct_rows(A: FloatArray) -> tuple[FloatArray, NDArray[np.intp]]:
+    """The distinct rows of ``A`` (m, k) in lexicographic order and each row's index among
+    them — ``np.unique(A, axis=0, return_inverse=True)`` by one ``lexsort`` of the columns
+    (``unique``'s sort of rows as records takes 12× as long on a camera log's corners)."""
+    if A.shape[0] == 0:
+        return A[:0], np.zeros(0, np.intp)
+    order = np.lexsort(A.T[::-1])
+    ranked = A[order]
+    new = np.empty(ranked.shape[0], dtype=bool)
+    new[0] = True
+    np.any(ranked[1:] != ranked[:-1], axis=1, out=new[1:])
+    index = np.empty(ranked.shape[0], dtype=np.intp)
+    index[order] = np.cumsum(new) - 1
+    return ranked[new], index
 
 
 @dataclass(frozen=True)
