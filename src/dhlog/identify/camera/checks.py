@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import replace
-from typing import Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
@@ -24,6 +24,9 @@ from dhlog.identify.read.extract import Extraction
 from dhlog.io.dhfile import DHModel
 from dhlog.model.dh import StandardDH
 from dhlog.vision.observe import Observations
+
+if TYPE_CHECKING:  # the run's result, which this module's checks read (stages is above it)
+    from dhlog.identify.stages import ProcessResult
 
 #: Below this design effect the corners of a frame are taken as independent (σ within 5 %).
 SMALL_EFFECT = 1.1
@@ -146,7 +149,7 @@ def camera_moved(
     def truncated(r: FloatArray) -> float:  # a corner behind the camera (NaN) costs the limit
         return float(np.sum(np.minimum(np.nan_to_num(np.sum(r**2, axis=1), nan=limit2), limit2)))
 
-    def cost(placed: tuple[AxisModel, Any], corners: Corners) -> float:
+    def cost(placed: tuple[AxisModel, PixelModel], corners: Corners) -> float:
         return truncated(measured(placed[0], placed[1], corners))
 
     whole = truncated(fit.residuals)
@@ -196,13 +199,13 @@ def camera_moved(
 FAR_PX = 20.0
 
 
-def placed_nominal_px(start: Any, nominal: DHModel | None, obs: Observations) -> float:
+def placed_nominal_px(start: ProcessResult, nominal: DHModel | None, obs: Observations) -> float:
     """:func:`placed_nominal`'s RMS (px)."""
     return placed_nominal(start, nominal, obs)[0]
 
 
 def placed_nominal(
-    start: Any, nominal: DHModel | None, obs: Observations
+    start: ProcessResult, nominal: DHModel | None, obs: Observations
 ) -> tuple[float, AxisModel | None]:
     """How well the nominal, placed on the corners in pixels
     (:meth:`~dhlog.identify.fit.pixels.PixelModel.place`: the fixed part's pose and the mount,
@@ -215,10 +218,11 @@ def placed_nominal(
     from dhlog.identify.fit.measure import residuals as measured
     from dhlog.identify.fit.measure import rms
 
-    whole, ex = start.whole, start.extraction
+    whole, ex, setup = start.whole, start.extraction, start.camera_setup
     if nominal is None or whole is None or ex is None or whole.model.tool_rotation is None:
         return math.inf, None
-    setup = start.camera_setup
+    if setup is None:  # not a camera's start
+        return math.inf, None
     data = corners_of(obs, np.ones(obs.frames, dtype=bool))
     # two places to start from: the start's own (its table's base and mount) and the nominal
     # registered on the PnP poses (robust; the start's may be poor where its fit was): the better
@@ -242,7 +246,9 @@ def placed_nominal(
     return best
 
 
-def _registered(start: Any, nominal: DHModel) -> tuple[FloatArray, FloatArray, FloatArray] | None:
+def _registered(
+    start: ProcessResult, nominal: DHModel
+) -> tuple[FloatArray, FloatArray, FloatArray] | None:
     """The nominal registered on the start's PnP poses (its log: positions and orientations of
     the carried frame at the frames' joint values): frame 1 in M, the carried frame's origin and
     orientation on the flange (the mean over the frames); None where it cannot be."""

@@ -238,8 +238,9 @@ def _normal(
     cost, count, chi2 = 0.0, 0, 0.0
     # a measurement may sum its block's normal equations itself (a camera: frame by frame)
     block = getattr(measurement, "normal_block", None)
-    for start in range(0, N, BLOCK):
-        sl = slice(start, min(start + BLOCK, N))
+    step = int(getattr(measurement, "block", BLOCK))
+    for start in range(0, N, step):
+        sl = slice(start, min(start + step, N))
         J: FloatArray | None = None
         if block is not None:
             r, Hb, gb = block(model, layout, bases, data, sl, limit)

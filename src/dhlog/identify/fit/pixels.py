@@ -32,6 +32,7 @@ from __future__ import annotations
 import itertools
 import math
 from dataclasses import dataclass, replace
+from typing import ClassVar
 
 import numpy as np
 from numpy.typing import NDArray
@@ -124,6 +125,10 @@ class PixelModel:
 
     #: a corner's pixel: two components
     dim: int = 2
+    #: corners per block of the normal equations (:meth:`normal_block`): its work is per
+    #: distinct joint vector and board point, its memory ~0.5 kB a site, so blocks larger than
+    #: a tracker's keep the calls few where still poses repeat one prediction over many frames
+    block: ClassVar[int] = 100_000
 
     def count(self, data: Corners) -> int:
         return int(data.uv.shape[0])
