@@ -46,6 +46,12 @@ def test_frame_sums_are_the_full_jacobians(setup: str, refine: bool) -> None:
         H_full, g_full = Ju.T @ Ju, Ju.T @ r_full[use].reshape(-1)
         assert np.max(np.abs(H - H_full)) < 1e-9 * np.max(np.abs(H_full))
         assert np.max(np.abs(g - g_full)) < 1e-9 * np.max(np.abs(g_full))
+    # the pixels alone, each site projected once and handed to its corners, are the same
+    # corners' pixels, over all of them and over a part that cuts a still pose in two
+    for part in (sl, slice(7, measurement.count(data) - 11)):
+        alone, none = measurement.predict(model, None, None, data, part)
+        assert none is None
+        np.testing.assert_allclose(alone, pred[part], rtol=0, atol=1e-9)
 
 
 @pytest.mark.parametrize("rows, width, repeats", [(0, 3, 1), (1, 6, 1), (54, 3, 500), (20, 6, 7)])

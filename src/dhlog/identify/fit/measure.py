@@ -211,8 +211,9 @@ def residuals(model: AxisModel, measurement: Measurement, data: Any) -> FloatArr
     """Each observation's residual (N, dim) at ``model``: predicted − observed."""
     N = measurement.count(data)
     out = np.empty((N, measurement.dim))
-    for start in range(0, N, BLOCK):
-        sl = slice(start, min(start + BLOCK, N))
+    step = int(getattr(measurement, "block", BLOCK))
+    for start in range(0, N, step):
+        sl = slice(start, min(start + step, N))
         pred, _ = measurement.predict(model, None, None, data, sl)
         out[sl] = pred - measurement.observed(data, sl)
     return out

@@ -85,6 +85,16 @@ class Corners:
             object.__setattr__(self, "_distinct", kept)
         return kept
 
+    def sites(self, sl: slice) -> tuple[FloatArray, NDArray[np.intp], FloatArray, NDArray[np.intp]]:
+        """The corners ``sl`` as sites — each distinct (joint vector, board point) among them,
+        whose prediction is one for all its corners: the distinct joint vectors (u, n), each
+        site's among them (s,), each site's board point (3, s) and each corner's site (c,)."""
+        Qd, q_of, Pd, p_of = self.distinct()
+        key = q_of[self.frame[sl]] * Pd.shape[0] + p_of[sl]
+        site, inv = np.unique(key, return_inverse=True)
+        used, back = np.unique(site // Pd.shape[0], return_inverse=True)
+        return Qd[used], back.astype(np.intp), Pd[site % Pd.shape[0]].T, inv.astype(np.intp)
+
     def of_frames(self, chosen: NDArray[np.bool_]) -> Corners:
         """The observations of the frames ``chosen`` (f,) only, renumbered."""
         index = np.cumsum(chosen) - 1
@@ -190,9 +200,20 @@ class PixelModel:
     ) -> tuple[FloatArray, FloatArray | None]:
         """The corners ``sl`` in the camera's frame (c, 3) and, with ``layout``, their
         Jacobian (size, 3, c) with respect to the model's local parameters."""
-        frames = data.frame[sl]
-        used, back = np.unique(frames, return_inverse=True)
-        Q = data.Q[used]
+        used, back = np.unique(data.frame[sl], return_inverse=True)
+        return self._seen(model, layout, bases, data.Q[used], back, data.points[sl].T)
+
+    def _seen(
+        self,
+        model: AxisModel,
+        layout: ParameterLayout | None,
+        bases: list[tuple[FloatArray, FloatArray]] | None,
+        Q: FloatArray,
+        back: NDArray[np.intp],
+        c: FloatArray,
+    ) -> tuple[FloatArray, FloatArray | None]:
+        """Board points ``c`` (3, k) seen at the joint vectors ``Q[back]`` in the camera's
+        frame (k, 3), and with ``layout`` their Jacobian (size, 3, k)."""
         prefix = prefix_motions(model, Q)
         p, Jp = predict_columns(model, Q, layout, bases, None, prefix)
         if layout is None or bases is None:
@@ -200,7 +221,6 @@ class PixelModel:
             Jo = None
         else:
             R, Jo = predict_orientation(model, Q, layout, bases, prefix)
-        c = data.points[sl].T  # (3, k)
         Rk, pk = R[:, :, back], p[:, back]
         if self.setup == "eye-to-hand":
             Rc = np.einsum("ijk,jk->ik", Rk, c)
@@ -227,9 +247,12 @@ class PixelModel:
     ) -> tuple[FloatArray, FloatArray | None]:
         """The corners ``sl``' pixels (c, 2) and, with ``layout``, their Jacobian
         (c, 2, size + extra) with respect to the model's and the intrinsics' parameters."""
+        if layout is None:  # each distinct (joint vector, board point) projected once
+            Q, back, c, inv = data.sites(sl)
+            X, _ = self._seen(model, None, None, Q, back, c)
+            return self.intrinsics.project(X)[inv], None
         X, JX = self.in_camera(model, layout, bases, data, sl)
-        if JX is None:
-            return self.intrinsics.project(X), None
+        assert JX is not None
         uv, jp, ji = self.intrinsics.project_jacobian(X)
         J = np.einsum("kab,sbk->kas", jp, JX)
         if self.refine:
@@ -255,16 +278,11 @@ class PixelModel:
         predicted once, its ``BᵀB`` counted once a corner within ``limit``, its ``Bᵀ`` times their
         residuals' sum — the same sums."""
         # the sites: each distinct (joint vector, board point) of the corners, predicted once
-        Qd, q_of, Pd, p_of = data.distinct()
-        key = q_of[data.frame[sl]] * Pd.shape[0] + p_of[sl]
-        site, inv = np.unique(key, return_inverse=True)
-        used, back = np.unique(site // Pd.shape[0], return_inverse=True)
-        Q = Qd[used]
+        Q, back, c, inv = data.sites(sl)
         prefix = prefix_motions(model, Q)
         p, Jp = predict_columns(model, Q, layout, bases, None, prefix)
         R, Jo = predict_orientation(model, Q, layout, bases, prefix)
         assert Jp is not None
-        c = Pd[site % Pd.shape[0]].T  # (3, s)
         Rk, pk = R[:, :, back], p[:, back]
         if self.setup == "eye-to-hand":
             w = np.einsum("ijk,jk->ik", Rk, c)  # X = p + R c: dX = dp − [R c]× dω
@@ -282,8 +300,9 @@ class PixelModel:
             # a corner behind the camera taken in: its row of the Jacobian is NaN, so are the sums
             return r, np.full((width, width), np.nan), np.full(width, np.nan)
         # a site's corners within the limit: their count and the sum of their residuals
-        n = np.bincount(inv[use], minlength=site.size).astype(np.float64)
-        rs = np.stack([np.bincount(inv[use], r[use, a], site.size) for a in (0, 1)], axis=1)
+        sites = c.shape[1]
+        n = np.bincount(inv[use], minlength=sites).astype(np.float64)
+        rs = np.stack([np.bincount(inv[use], r[use, a], sites) for a in (0, 1)], axis=1)
         on = n > 0
         jpu, wu, fu, nu, ru = jp[on], w[:, on].T, back[on], n[on], rs[on]
         if self.setup != "eye-to-hand":
@@ -291,7 +310,7 @@ class PixelModel:
         B = np.empty((jpu.shape[0], 2, 6))
         B[:, :, :3] = jpu
         B[:, :, 3:] = np.cross(wu[:, None, :], jpu)  # a (−[w]×) = w × a for a row a
-        f = used.size
+        f = Q.shape[0]
         BtB = _frame_sums(fu, np.einsum("kai,kaj,k->kij", B, B, nu), f)  # (f, 6, 6)
         Btr = _frame_sums(fu, np.einsum("kai,ka->ki", B, ru), f)  # (f, 6)
         size = layout.size
