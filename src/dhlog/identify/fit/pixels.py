@@ -47,6 +47,10 @@ from dhlog.vision.camera import Intrinsics
 SETUPS = ("eye-to-hand", "eye-in-hand")
 
 
+#: a block of corners as sites (:meth:`Corners.sites`)
+_Sites = tuple[FloatArray, NDArray[np.intp], FloatArray, NDArray[np.intp]]
+
+
 @dataclass(frozen=True)
 class Corners:
     """The pixel observations of one camera: ``Q`` (f, n) each frame's joint values;
@@ -88,12 +92,19 @@ class Corners:
     def sites(self, sl: slice) -> tuple[FloatArray, NDArray[np.intp], FloatArray, NDArray[np.intp]]:
         """The corners ``sl`` as sites — each distinct (joint vector, board point) among them,
         whose prediction is one for all its corners: the distinct joint vectors (u, n), each
-        site's among them (s,), each site's board point (3, s) and each corner's site (c,)."""
-        Qd, q_of, Pd, p_of = self.distinct()
-        key = q_of[self.frame[sl]] * Pd.shape[0] + p_of[sl]
-        site, inv = np.unique(key, return_inverse=True)
-        used, back = np.unique(site // Pd.shape[0], return_inverse=True)
-        return Qd[used], back.astype(np.intp), Pd[site % Pd.shape[0]].T, inv.astype(np.intp)
+        site's among them (s,), each site's board point (3, s) and each corner's site (c,).
+        Kept a slice once found: a fit asks for the same blocks at every step."""
+        kept: dict[tuple[int, int], _Sites] = self.__dict__.setdefault("_sites", {})
+        at = (int(sl.start or 0), int(sl.stop if sl.stop is not None else self.uv.shape[0]))
+        found = kept.get(at)
+        if found is None:
+            Qd, q_of, Pd, p_of = self.distinct()
+            key = q_of[self.frame[sl]] * Pd.shape[0] + p_of[sl]
+            site, inv = np.unique(key, return_inverse=True)
+            used, back = np.unique(site // Pd.shape[0], return_inverse=True)
+            found = (Qd[used], back.astype(np.intp), Pd[site % Pd.shape[0]].T, inv.astype(np.intp))
+            kept[at] = found
+        return found
 
     def of_frames(self, chosen: NDArray[np.bool_]) -> Corners:
         """The observations of the frames ``chosen`` (f,) only, renumbered."""
