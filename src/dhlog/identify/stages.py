@@ -25,7 +25,6 @@ from numpy.typing import NDArray
 from dhlog.errors import Note, texts
 from dhlog.geometry._checks import FloatArray
 from dhlog.geometry.fitting import PlaneFit
-from dhlog.identify.camera.report import CameraResult
 from dhlog.identify.check.footing import Unscored
 from dhlog.identify.check.holdout import Holdout
 from dhlog.identify.check.validate import Validation
@@ -45,6 +44,7 @@ from dhlog.io.dhfile import DHModel
 from dhlog.io.reader import LogData
 from dhlog.model.noise import NoiseModel
 from dhlog.model.terms import Terms, table_deflection
+from dhlog.vision.report import CameraResult
 from dhlog.vision.view import CameraView
 
 
@@ -181,7 +181,7 @@ class ProcessResult:
     #: the terms beyond the geometry asked for (the candidates tried and the terms chosen are
     #: the fit's ``selection`` and the readout's ``terms``)
     model_request: ModelRequest = field(default_factory=ModelRequest)
-    #: a camera calibration's product (:class:`~dhlog.identify.camera.report.CameraResult`: the
+    #: a camera calibration's product (:class:`~dhlog.vision.report.CameraResult`: the
     #: set-up, the camera's and the board's poses with σ, the corners' σ, the held-out check in
     #: pixels) and what the recording shows of each camera; None and empty for a tracker log
     camera: CameraResult | None = None

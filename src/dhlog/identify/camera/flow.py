@@ -51,7 +51,6 @@ from dhlog.identify.camera.poses import (
     stacked,
     transform,
 )
-from dhlog.identify.camera.report import CameraResult
 from dhlog.identify.camera.view import camera_view
 from dhlog.identify.fit.axismodel import AxisModel, ParameterLayout
 from dhlog.identify.fit.pixels import CamerasModel, PixelFit, PixelModel, fit_pixels
@@ -67,6 +66,7 @@ from dhlog.identify.stages import ProcessResult
 from dhlog.io.dhfile import DHModel
 from dhlog.io.logdata import LogData
 from dhlog.vision.observe import Observations
+from dhlog.vision.report import CameraResult
 
 #: the fewest frames with the board for a calibration
 MIN_FRAMES = 8
