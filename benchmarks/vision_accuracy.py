@@ -66,11 +66,11 @@ def _truth_model(rig: Any, table: Any, n: int, centre: np.ndarray) -> Any:
 
 def one_session(case: str, seed: int, poses: int) -> dict[str, float]:
     from dhlog.identify.camera.flow import process_observations
+    from dhlog.identify.camera.pixels import Corners, PixelModel, fit_pixels
     from dhlog.identify.camera.poses import board_centre, corners_of
-    from dhlog.identify.fit.pixels import Corners, PixelModel, fit_pixels
     from dhlog.identify.fit.prediction import predict
-    from dhlog.identify.read.extract import extract_dh
     from dhlog.identify.options import ProcessOptions
+    from dhlog.identify.read.extract import extract_dh
     from dhlog.identify.run import process_poses
     from dhlog.io.dhfile import dh_model_from
     from dhlog.model.robots import load_robot

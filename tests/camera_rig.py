@@ -1,7 +1,7 @@
 """A camera calibration's inputs for tests, without rendering: the simulator's rig (a KR5 off its
 nominal, its camera and board), still poses where the board is seen, and the corners projected
 through the true chain with Gaussian noise of ``SIGMA_PX`` per coordinate, as
-``vision.observe.Observations`` or ``identify.fit.pixels.Corners``; the model the truth is in
+``vision.observe.Observations`` or ``identify.camera.pixels.Corners``; the model the truth is in
 the fit's frames, and the truth read in the result's DH conventions."""
 
 from __future__ import annotations
@@ -11,8 +11,8 @@ from typing import Any
 
 import numpy as np
 
+from dhlog.identify.camera.pixels import Corners
 from dhlog.identify.fit.axismodel import AxisModel
-from dhlog.identify.fit.pixels import Corners
 from dhlog.identify.read.extract import extract_dh
 from dhlog.model.robots import load_robot
 from dhlog.simulator.camera import BOARD, CAMERA, Rig, camera_poses, flange_poses, place_rig

@@ -1,6 +1,6 @@
 """The camera calibration (issue 32): the whole model's maximum likelihood in pixels
-(identify.fit.pixels) and the run around it (identify.camera), on corners projected through a known
-robot, camera and board (the simulator's rig) with Gaussian noise of a known σ.
+(identify.camera.pixels) and the run around it (identify.camera), on corners projected through a
+known robot, camera and board (the simulator's rig) with Gaussian noise of a known σ.
 
 The fit is checked by forward kinematics against the truth at random joint vectors, against an
 ML fit of the same corners started from the truth, by the spread of repeated realisations
@@ -20,9 +20,9 @@ import pytest
 
 import camera_rig as cams
 from dhlog.identify.camera.flow import process_observations
+from dhlog.identify.camera.pixels import PixelModel, fit_pixels
 from dhlog.identify.fit.axismodel import AxisModel
 from dhlog.identify.fit.measure import residuals
-from dhlog.identify.fit.pixels import PixelModel, fit_pixels
 from dhlog.identify.fit.prediction import predict
 from dhlog.identify.options import ProcessOptions
 from dhlog.identify.run import process_poses

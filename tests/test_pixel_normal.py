@@ -1,6 +1,6 @@
 """The camera's normal equations summed frame by frame
-(:meth:`dhlog.identify.fit.pixels.PixelModel.normal_block`) against the same sums over the full
-Jacobian of every corner (:meth:`~dhlog.identify.fit.pixels.PixelModel.predict`, built corner by
+(:meth:`dhlog.identify.camera.pixels.PixelModel.normal_block`) against the same sums over the full
+Jacobian of every corner (:meth:`~dhlog.identify.camera.pixels.PixelModel.predict`, built corner by
 corner with its own chain rule), on corners projected through the simulator's rig: both set-ups,
 the intrinsics held and refined, every corner and a cut that holds some out, each pose held for
 three frames (a still pose: the frames share their prediction, their noise their own).
@@ -15,8 +15,8 @@ import numpy as np
 import pytest
 
 import camera_rig as cams
+from dhlog.identify.camera.pixels import PixelModel, distinct_rows
 from dhlog.identify.fit.axismodel import ParameterLayout
-from dhlog.identify.fit.pixels import PixelModel, distinct_rows
 from dhlog.simulator.camera import CAMERA
 
 

@@ -15,11 +15,11 @@ from numpy.typing import NDArray
 
 from dhlog.errors import DhlogError, Note
 from dhlog.geometry._checks import FloatArray
+from dhlog.identify.camera.pixels import Corners, PixelFit, PixelModel
 from dhlog.identify.camera.poses import corners_of
 from dhlog.identify.check.plausible import SCALE_MIN_LENGTH as SCALE_MIN_LENGTH
 from dhlog.identify.check.plausible import common_scale
 from dhlog.identify.fit.axismodel import AxisModel
-from dhlog.identify.fit.pixels import Corners, PixelFit, PixelModel
 from dhlog.identify.read.extract import Extraction
 from dhlog.io.dhfile import DHModel
 from dhlog.model.dh import StandardDH
@@ -208,7 +208,7 @@ def placed_nominal(
     start: ProcessResult, nominal: DHModel | None, obs: Observations
 ) -> tuple[float, AxisModel | None]:
     """How well the nominal, placed on the corners in pixels
-    (:meth:`~dhlog.identify.fit.pixels.PixelModel.place`: the fixed part's pose and the mount,
+    (:meth:`~dhlog.identify.camera.pixels.PixelModel.place`: the fixed part's pose and the mount,
     its geometry held) from ``start``'s placement for its set-up, reproduces them: the RMS (px).
     The set-up a log was recorded in lets the nominal fit to about its own error; the other
     needs the chain's mirror image, which no placement gives (sweeps from one home pose fit

@@ -7,7 +7,7 @@ pose (the hand-eye calibration) and the error at held-out frames.
    (``start``: :func:`dhlog.identify.run.process_poses`, the geometric model) makes its start
    from them: the seed method where joints were swept alone, the nominal placed on them
    otherwise.
-3. The whole model is fitted again to every corner in pixels (:mod:`dhlog.identify.fit.pixels`):
+3. The whole model is fitted again to every corner in pixels (:mod:`dhlog.identify.camera.pixels`):
    the maximum likelihood of the detections. Its DH table, covariance and fixed parameters are
    read off as for a tracker.
 4. The camera's and the board's poses with their σ (:func:`hand_eye`), the FK check against
@@ -40,6 +40,7 @@ from dhlog.identify.camera.checks import (
 )
 from dhlog.identify.camera.hand_eye import cameras_std, hand_eye
 from dhlog.identify.camera.holdout import cross_validate_cameras, cross_validate_pixels
+from dhlog.identify.camera.pixels import CamerasModel, PixelFit, PixelModel, fit_pixels
 from dhlog.identify.camera.poses import (
     PNP_RMS,
     board_centre,
@@ -53,7 +54,6 @@ from dhlog.identify.camera.poses import (
 )
 from dhlog.identify.camera.view import camera_view
 from dhlog.identify.fit.axismodel import AxisModel, ParameterLayout
-from dhlog.identify.fit.pixels import CamerasModel, PixelFit, PixelModel, fit_pixels
 from dhlog.identify.fit.prediction import predict as predict_points
 from dhlog.identify.fit.prediction import predict_orientation
 from dhlog.identify.fit.whole import WholeFit

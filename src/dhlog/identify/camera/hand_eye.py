@@ -9,9 +9,9 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from dhlog.geometry._checks import FloatArray
+from dhlog.identify.camera.pixels import PixelFit
 from dhlog.identify.camera.poses import shift, transform
 from dhlog.identify.fit.axismodel import AxisModel
-from dhlog.identify.fit.pixels import PixelFit
 from dhlog.identify.read.propagate import Extractor
 
 

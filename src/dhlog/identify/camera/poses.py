@@ -16,8 +16,8 @@ from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
 from dhlog.geometry._checks import FloatArray
+from dhlog.identify.camera.pixels import Corners, PixelFit
 from dhlog.identify.fit.axismodel import ParameterLayout
-from dhlog.identify.fit.pixels import Corners, PixelFit
 from dhlog.identify.fit.prediction import predict as predict_points
 from dhlog.identify.fit.prediction import predict_orientation
 from dhlog.io.pipeline import pipeline_by_name

@@ -23,7 +23,7 @@ gives
 Implementations: :class:`PointMeasurement` (a tracker's target point in M: the reference form of
 the tracker's fit, whose streamed, chunked fast path for logs of millions of samples is
 :func:`~dhlog.identify.fit.whole.fit_whole_model`; ``tests/test_measurement_model.py`` checks the
-two agree) and :class:`~dhlog.identify.fit.pixels.PixelModel` (a camera's corners). A further
+two agree) and :class:`~dhlog.identify.camera.pixels.PixelModel` (a camera's corners). A further
 instrument (a stereo pair, a motion-capture marker set, a CMM probe) is one more class with
 ``count``, ``dim``, ``observed``, ``predict``, ``extra``, ``moved`` and ``place``.
 """
