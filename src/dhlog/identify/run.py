@@ -1,13 +1,11 @@
 """``dhlog process``: from a calibration log to the DH model, its uncertainty and its check —
 the run's flow, top to bottom; each step's work is in the module named.
 
-read (``io.reader``; a camera log: ``identify.camera.flow``) → segment
-(``identify.segment.segment``) → the units checked (``identify.joints.checks``), the clock
-offset's start (``identify.segment.timing``) → per joint: pick the sweeps, decide the type, fit
-the axis robustly, bring it to the reference pose (``identify.joints.sweeps``) → the
-:class:`~dhlog.identify.stages.Session` → the analytic start: line geometry on those axes
-(``identify.read.extract``, seed 000) → the fit of the whole model to every sample with encoder
-values and all read off it (``identify.wholefit``: a
+read (``io.reader``; a camera log: ``identify.camera.flow``) → the log segmented, its units
+and clock (``identify.session.segmented``) → each joint fitted and the base plane: the
+:class:`~dhlog.identify.stages.Session` (``identify.session.session_of``) → the analytic
+start: line geometry on those axes (``identify.read.extract``, seed 000) → the fit of the whole
+model to every sample with encoder values and all read off it (``identify.wholefit``: a
 :class:`~dhlog.identify.stages.ModelFit`) → the one frozen
 :class:`~dhlog.identify.stages.ProcessResult` (``_built``) → what makes it implausible
 (``identify.check.plausible.judge``) → the held-out logs (``identify.heldout``). The result
@@ -23,7 +21,6 @@ the reason — unless the other samples (coupled moves, static poses) determine 
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -31,13 +28,10 @@ import numpy as np
 
 from dhlog.errors import GeometryError, Note
 from dhlog.geometry._checks import FloatArray
-from dhlog.geometry.fitting import fit_plane
 from dhlog.geometry.lines import Line
-from dhlog.identify.check.permutation import suspected_permutation
 from dhlog.identify.check.plausible import judge
 from dhlog.identify.check.validate import (
     check_residual,
-    shown_stride,
     validate_sweeps,
 )
 from dhlog.identify.fit.register import Registration
@@ -46,22 +40,12 @@ from dhlog.identify.fit.samples import (
 )
 from dhlog.identify.fit.start import start_unswept
 from dhlog.identify.heldout import validated
-from dhlog.identify.joints.checks import (
-    check_fit_noise,
-    check_sizes,
-    check_units,
-)
 from dhlog.identify.joints.sweeps import (
     JointReport,
     TargetAtReference,
-    fit_joint,
-    samples_with_encoders,
 )
 from dhlog.identify.model.parked import (
     encoder_spans,
-    no_nominal_reason,
-    parked_joints,
-    parked_pose,
     parked_warning,
 )
 from dhlog.identify.model.select import ModelRequest
@@ -70,13 +54,9 @@ from dhlog.identify.read.analytic import (
     pair_tolerances,
     partial_extraction,
 )
-from dhlog.identify.read.extract import Tolerances
+from dhlog.identify.read.extract import Extraction, Tolerances
 from dhlog.identify.read.uncertainty import analytic_uncertainty
-from dhlog.identify.segment.segment import segment_log
-from dhlog.identify.segment.timing import (
-    clock_start,
-    sweep_phases,
-)
+from dhlog.identify.session import Stage, segmented, session_of
 from dhlog.identify.stages import (
     Checks,
     FitRequest,
@@ -92,12 +72,6 @@ from dhlog.io.reader import LogData, camera_pipeline, read_log
 from dhlog.io.writer import sha256_begun, sha256_of
 
 __all__ = ["ProcessOptions", "ProcessResult", "process_data", "process_log", "table_values"]
-
-#: Largest number of samples per joint the per-joint fits (the whole-model fit's start) use.
-START_FIT_POINTS = 4000
-
-
-Stage = Callable[[str, float], None]
 
 
 def process_log(
@@ -194,113 +168,44 @@ def process_data(
     values, started from the analytic result (per-joint fits + line geometry). With
     ``analytic_only`` (or without encoders), the analytic result with its propagated covariance.
     """
-    nominal, reference_pose, fit_method = (
-        options.nominal,
-        options.reference_pose,
-        options.fit_method,
-    )
-    angle_tol, distance_tol = options.angle_tol, options.distance_tol
-    analytic_only, fit_scales, holdout = options.analytic_only, options.fit_scales, options.holdout
-    parallel_sigma, model, known_noise = options.parallel_sigma, options.model, options.known_noise
 
     def stage(what: str, fraction: float) -> None:
         if progress is not None:
             progress(what, fraction)
 
-    name = log.path
-    types_hint = list(log.pipeline.joint_types) if log.pipeline.joint_types else None
-    if types_hint is None and nominal is not None:
-        types_hint = list(nominal.table.joint_types)
-    stage("segmenting", 0.0)
-    seg = segment_log(log, joint_types=types_hint, reference_pose=reference_pose)
-    n = seg.n_joints
-    notes = list(seg.notes)  # the run's notes, in the order said
-    phases = sweep_phases(seg, log, types_hint) if seg.has_encoders else []
-    notes.extend(check_units(seg, log, phases))
-    seg, timing, said = clock_start(seg, log, phases)
-    notes.extend(said)
-    check_sizes(name, n, nominal, reference_pose)
-    implausible = []
-    order = log.joint_order
-    if nominal is not None and (order is None or not order.by_name):  # the data may tell
-        permuted = suspected_permutation(seg, nominal)
-        if permuted is not None:
-            implausible.append(permuted.reason(seg.joint_names))
-    every = shown_stride(seg.height)
-    if every > 1:
-        drawn = (
-            f"the recording draws every {every}th sample ({-(-seg.height // every)} of "
-            f"{seg.height}; outliers all): a viewer shows no more. Every sample enters the fit "
-            "and the FK check."
-        )
-        notes.append(Note.info(drawn, "recording-stride"))
-    ref = (
-        np.asarray(reference_pose, dtype=np.float64)
-        if reference_pose is not None
-        else (seg.reference_pose if seg.reference_pose is not None else np.zeros(n))
-    )
-    if not seg.has_encoders:
-        said_ref = (
-            "no encoders: the reference pose is the pose every sweep starts from (all zeros), "
-            "and the sense of motion comes from time order."
-        )
-        notes.append(Note.info(said_ref, "no-encoders"))
-    whole_wanted = seg.has_encoders and not analytic_only
-    max_points = START_FIT_POINTS if whole_wanted else None
-    parked: list[int] = []
-    samples = None
-    if seg.has_encoders:  # joints that never moved: held at the nominal
-        samples = samples_with_encoders(seg)
-        spans = encoder_spans(samples[1])
-        parked = parked_joints(spans) if 0 < len(parked_joints(spans)) < n else []
-        if parked and nominal is not None:
-            ref = parked_pose(samples[1], ref, parked)
-    joints: list[JointReport] = []  # in chain order: a joint's axis is carried by those before
-    for k in range(n):
-        stage("fitting", k / n)
-        report, said = fit_joint(
-            JointReport(k + 1, seg.joint_names[k]),
-            seg,
-            log,
-            ref,
-            joints,
-            nominal,
-            fit_method,
-            max_points,
-        )
-        notes.extend(said)
-        if k in parked and not report.ok and nominal is None:
-            report = replace(report, reason=no_nominal_reason(spans, k, report.type))
-        joints.append(report)
-    unidentified = [
-        f"joint {report.index} ({report.name}) was not identified: {report.reason}."
-        for report in joints
-        if report.reason
-    ]
-    notes.extend(check_fit_noise(joints))
-    base = None
-    if log.base is not None and log.base.height >= 3:
+    cut = segmented(log, options, stage)
+    session, said = session_of(log, cut, options, stage)
+    notes = [*cut.notes, *said]  # the run's notes, in the order said
+    head = _Head(sha256, options.holdout, options.model, cut.implausible)
+    request = _request(session, options)
+    whole_wanted = session.segmentation.has_encoders and not options.analytic_only
+    if not all(j.ok for j in session.joints):
+        return _partial(session, head, tuple(notes), request, whole_wanted, stage)
+    stage("identifying", 0.0)
+    start = _analytic_start(session, request.tolerances, whole_wanted)
+    if whole_wanted:
         try:
-            base = fit_plane(
-                log.base.select(["x", "y", "z"]).to_numpy(),
-                what=f"{name}: base plane",
-                sigma=known_noise,
+            fit = identify_whole(
+                replace(session, target=start.target), start.extraction, request, stage
             )
-        except GeometryError as exc:
-            notes.append(Note.warning(f"the base plane was not used: {exc}", "base-plane"))
-    session = Session(
-        log=log,
-        segmentation=seg,
-        joints=tuple(joints),
-        reference_pose=ref,
-        base=base,
-        nominal=nominal,
-        parked=tuple(parked),
-        timing=timing,
-        noise=log.pipeline.noise,
-        encoded=samples,
-    )
-    head = _Head(sha256, holdout, model, tuple(implausible))
+            return _built(session, head, tuple(notes), fit)
+        except (GeometryError, np.linalg.LinAlgError) as exc:
+            failed = f"the whole-model fit failed ({exc}); the result is the analytic one."
+            notes.append(Note.warning(failed, "whole-fit-failed"))
+    elif session.segmentation.has_encoders:
+        only = "--analytic-only: the seed method's result (per-joint fits, line geometry)."
+        notes.append(Note.info(only, "analytic-only"))
+    else:
+        only = "no encoder values: the whole-model fit needs them; the result is the analytic one."
+        notes.append(Note.info(only, "analytic-only"))
+    return _analytic_result(session, head, tuple(notes), start, request.tolerances, stage)
+
+
+def _request(session: Session, options: ProcessOptions) -> FitRequest:
+    """What the run asks of the fit of the whole model: ``options``' and the extraction's
+    tolerances, per pair from the joints' fits where every joint has one."""
+    joints, nominal = session.joints, session.nominal
+    angle_tol, distance_tol = options.angle_tol, options.distance_tol
     tolerances = Tolerances(
         angle_tol,
         distance_tol,
@@ -313,63 +218,111 @@ def process_data(
             distance_tol,
         ),
     )
-    request = FitRequest(holdout, model, fit_scales, parallel_sigma, tolerances)
-    nominal_table = nominal.table if nominal is not None else None
-    if not all(j.ok for j in joints):
-        started = _from_a_start(session, request, stage) if whole_wanted else None
-        if started is not None and started.fit is not None:
-            return _built(
-                replace(session, joints=started.joints),
-                head,
-                (*notes, *started.notes),
-                started.fit,
-                registration=started.registration,
-            )
-        if started is not None:
-            notes.extend(started.notes)
-        notes.extend(Note.warning(said, "unidentified") for said in unidentified)
-        if (
-            whole_wanted
-            and nominal is None
-            and any(not j.ok and j.index - 1 not in parked for j in joints)
-        ):
-            needs = (
-                "the joints not swept alone need a start: pass --nominal (a library robot or "
-                "the robot's DH file) and the whole-model fit identifies them from the other "
-                "samples (random static poses, coupled moves)."
-            )
-            notes.append(Note.warning(needs, "needs-nominal"))
-        extraction = partial_extraction(joints, ref, base, nominal_table, tolerances)
-        return _built(session, head, tuple(notes), readout=Readout(extraction))
-    stage("identifying", 0.0)
+    return FitRequest(
+        options.holdout, options.model, options.fit_scales, options.parallel_sigma, tolerances
+    )
+
+
+def _partial(
+    session: Session,
+    head: _Head,
+    notes: tuple[Note, ...],
+    request: FitRequest,
+    whole_wanted: bool,
+    stage: Stage,
+) -> ProcessResult:
+    """The result of a session some joints of which the sweeps did not identify: the whole
+    model fitted from a start (the nominal, a coupled move) where there is one, else what was
+    identified — the rows that need only identified axes — with each joint at fault named."""
+    joints, nominal = session.joints, session.nominal
+    started = _from_a_start(session, request, stage) if whole_wanted else None
+    if started is not None and started.fit is not None:
+        return _built(
+            replace(session, joints=started.joints),
+            head,
+            (*notes, *started.notes),
+            started.fit,
+            registration=started.registration,
+        )
+    said = [*notes, *(started.notes if started is not None else ())]
+    said += [
+        Note.warning(f"joint {j.index} ({j.name}) was not identified: {j.reason}.", "unidentified")
+        for j in joints
+        if j.reason
+    ]
+    if (
+        whole_wanted
+        and nominal is None
+        and any(not j.ok and j.index - 1 not in session.parked for j in joints)
+    ):
+        needs = (
+            "the joints not swept alone need a start: pass --nominal (a library robot or "
+            "the robot's DH file) and the whole-model fit identifies them from the other "
+            "samples (random static poses, coupled moves)."
+        )
+        said.append(Note.warning(needs, "needs-nominal"))
+    table = nominal.table if nominal is not None else None
+    extraction = partial_extraction(
+        list(joints), session.reference_pose, session.base, table, request.tolerances
+    )
+    return _built(session, head, tuple(said), readout=Readout(extraction))
+
+
+@dataclass(frozen=True)
+class _AnalyticStart:
+    """The seed method's result on a session whose joints were all identified: the target at
+    the reference pose (its mean over the samples, with its covariance; ``target_at`` gives it
+    for other axes, from an evenly strided subset of the samples when ``strided``) and the DH
+    model line geometry reads off the axes."""
+
+    target_at: TargetAtReference
+    strided: bool
+    target: FloatArray
+    target_cov: FloatArray
+    extraction: Extraction
+
+
+def _analytic_start(session: Session, tolerances: Tolerances, whole_wanted: bool) -> _AnalyticStart:
+    """The analytic start (module docstring): the target from every sample (its derivative, for
+    the covariance, from an evenly strided subset when the whole model is fitted after)."""
+    seg, joints, ref, base, nominal = (
+        session.segmentation,
+        list(session.joints),
+        session.reference_pose,
+        session.base,
+        session.nominal,
+    )
     target_at = TargetAtReference(seg, joints, ref, START_TARGET_POINTS if whole_wanted else None)
     target, target_cov = target_at()
-    analytic = tolerances.extract(
+    extraction = tolerances.extract(
         [j.axis for j in joints],  # type: ignore[misc]
         [j.type for j in joints],  # type: ignore[misc]
         target=target,
         reference_pose=ref,
         base_plane=base.plane if base is not None else None,
-        nominal=nominal_table,
+        nominal=nominal.table if nominal is not None else None,
     )
-    if whole_wanted:
-        try:
-            fit = identify_whole(replace(session, target=target), analytic, request, stage)
-            return _built(session, head, tuple(notes), fit)
-        except (GeometryError, np.linalg.LinAlgError) as exc:
-            failed = f"the whole-model fit failed ({exc}); the result is the analytic one."
-            notes.append(Note.warning(failed, "whole-fit-failed"))
-    elif seg.has_encoders:
-        only = "--analytic-only: the seed method's result (per-joint fits, line geometry)."
-        notes.append(Note.info(only, "analytic-only"))
-    else:
-        only = "no encoder values: the whole-model fit needs them; the result is the analytic one."
-        notes.append(Note.info(only, "analytic-only"))
+    return _AnalyticStart(target_at, whole_wanted, target, target_cov, extraction)
 
+
+def _analytic_result(
+    session: Session,
+    head: _Head,
+    notes: tuple[Note, ...],
+    start: _AnalyticStart,
+    tolerances: Tolerances,
+    stage: Stage,
+) -> ProcessResult:
+    """The analytic start as the result: its covariance propagated from the joints' fits and
+    the target's samples, and the FK check of its table on the sweeps."""
+    seg, joints, ref = session.segmentation, list(session.joints), session.reference_pose
+    nominal_table = session.nominal.table if session.nominal is not None else None
     # the covariance perturbs every axis: the target's derivative is taken on an evenly strided
     # subset of the samples (the mean's derivative; the target itself is from every sample)
     perturbed = (
-        target_at if whole_wanted else TargetAtReference(seg, joints, ref, START_TARGET_POINTS)
+        start.target_at
+        if start.strided
+        else TargetAtReference(seg, joints, ref, START_TARGET_POINTS)
     )
 
     def target_of(axes: list[Line | None]) -> FloatArray:
@@ -379,28 +332,28 @@ def process_data(
     found = analytic_uncertainty(
         joints,
         ref,
-        target,
-        target_cov,
-        base,
+        start.target,
+        start.target_cov,
+        session.base,
         nominal_table,
         tolerances,
-        analytic,
+        start.extraction,
         target_of if seg.has_encoders else None,
     )
-    notes.extend(found.notes)
+    said = [*notes, *found.notes]
     stage("validating", 0.0)
-    validation = validate_sweeps(seg, joints, analytic)
+    validation = validate_sweeps(seg, joints, start.extraction)
     if validation is not None:
         sigma = math.sqrt(np.mean([j.fit.sigma**2 for j in joints if j.fit is not None]))
-        notes.extend(check_residual(validation, sigma))
+        said.extend(check_residual(validation, sigma))
     else:
         unchecked = "no encoder values: FK of the result cannot be checked sample by sample."
-        notes.append(Note.warning(unchecked, "no-fk-check"))
+        said.append(Note.warning(unchecked, "no-fk-check"))
     return _built(
         session,
         head,
-        tuple(notes),
-        readout=Readout(analytic, found, target),
+        tuple(said),
+        readout=Readout(start.extraction, found, start.target),
         checks=Checks(validation),
     )
 

@@ -1,0 +1,163 @@
+"""The run's first stages: the log segmented (:func:`segmented` → :class:`Segmented`), then each
+joint fitted one by one and the base plane (:func:`session_of` →
+:class:`~dhlog.identify.stages.Session`), each with the notes it adds.
+
+segment (``identify.segment.segment``) → the units checked (``identify.joints.checks``), the
+clock offset's start (``identify.segment.timing``), the joint columns' order (``identify.check
+.permutation``) → the joints parked in the session (``identify.model.parked``) → per joint: pick
+the sweeps, decide the type, fit the axis robustly, bring it to the reference pose
+(``identify.joints.sweeps``) → the base plane (``geometry.fitting``).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from dhlog.errors import GeometryError, Note
+from dhlog.geometry._checks import FloatArray
+from dhlog.geometry.fitting import fit_plane
+from dhlog.identify.check.permutation import suspected_permutation
+from dhlog.identify.check.validate import shown_stride
+from dhlog.identify.joints.checks import check_fit_noise, check_sizes, check_units
+from dhlog.identify.joints.sweeps import JointReport, fit_joint, samples_with_encoders
+from dhlog.identify.model.parked import (
+    encoder_spans,
+    no_nominal_reason,
+    parked_joints,
+    parked_pose,
+)
+from dhlog.identify.options import ProcessOptions
+from dhlog.identify.segment.segment import Segmentation, segment_log
+from dhlog.identify.segment.timing import Timing, clock_start, sweep_phases
+from dhlog.identify.stages import Session
+from dhlog.io.reader import LogData
+
+#: Largest number of samples per joint the per-joint fits (the whole-model fit's start) use.
+START_FIT_POINTS = 4000
+
+Stage = Callable[[str, float], None]
+
+
+@dataclass(frozen=True)
+class Segmented:
+    """The log segmented: the segmentation (joined again at the clock offset's start), the
+    clock, the reference pose the table is read at, what is implausible already (a joint
+    permutation the data reveal) and the notes said, in order."""
+
+    segmentation: Segmentation
+    timing: Timing | None
+    reference_pose: FloatArray
+    implausible: tuple[str, ...]
+    notes: tuple[Note, ...]
+
+
+def segmented(log: LogData, options: ProcessOptions, stage: Stage) -> Segmented:
+    """``log`` segmented as ``options`` asks (the joint types of the pipeline, else of the
+    nominal; its reference pose), its units checked, the clock offset's start, the joint
+    columns' order against the nominal where no names decided it."""
+    nominal, reference_pose = options.nominal, options.reference_pose
+    types_hint = list(log.pipeline.joint_types) if log.pipeline.joint_types else None
+    if types_hint is None and nominal is not None:
+        types_hint = list(nominal.table.joint_types)
+    stage("segmenting", 0.0)
+    seg = segment_log(log, joint_types=types_hint, reference_pose=reference_pose)
+    n = seg.n_joints
+    notes = list(seg.notes)
+    phases = sweep_phases(seg, log, types_hint) if seg.has_encoders else []
+    notes.extend(check_units(seg, log, phases))
+    seg, timing, said = clock_start(seg, log, phases)
+    notes.extend(said)
+    check_sizes(log.path, n, nominal, reference_pose)
+    implausible = []
+    order = log.joint_order
+    if nominal is not None and (order is None or not order.by_name):  # the data may tell
+        permuted = suspected_permutation(seg, nominal)
+        if permuted is not None:
+            implausible.append(permuted.reason(seg.joint_names))
+    every = shown_stride(seg.height)
+    if every > 1:
+        drawn = (
+            f"the recording draws every {every}th sample ({-(-seg.height // every)} of "
+            f"{seg.height}; outliers all): a viewer shows no more. Every sample enters the fit "
+            "and the FK check."
+        )
+        notes.append(Note.info(drawn, "recording-stride"))
+    ref = (
+        np.asarray(reference_pose, dtype=np.float64)
+        if reference_pose is not None
+        else (seg.reference_pose if seg.reference_pose is not None else np.zeros(n))
+    )
+    if not seg.has_encoders:
+        said_ref = (
+            "no encoders: the reference pose is the pose every sweep starts from (all zeros), "
+            "and the sense of motion comes from time order."
+        )
+        notes.append(Note.info(said_ref, "no-encoders"))
+    return Segmented(seg, timing, ref, tuple(implausible), tuple(notes))
+
+
+def session_of(
+    log: LogData, cut: Segmented, options: ProcessOptions, stage: Stage
+) -> tuple[Session, tuple[Note, ...]]:
+    """The :class:`~dhlog.identify.stages.Session` of the segmented log: the joints parked in it
+    (held at the nominal's reference pose where there is one), each joint fitted one by one in
+    chain order (its samples capped at :data:`START_FIT_POINTS` when the whole model is fitted
+    after), the base plane; with the notes said."""
+    nominal, seg, ref = options.nominal, cut.segmentation, cut.reference_pose
+    n = seg.n_joints
+    notes: list[Note] = []
+    whole_wanted = seg.has_encoders and not options.analytic_only
+    max_points = START_FIT_POINTS if whole_wanted else None
+    parked: list[int] = []
+    samples = None
+    spans = None
+    if seg.has_encoders:  # joints that never moved: held at the nominal
+        samples = samples_with_encoders(seg)
+        spans = encoder_spans(samples[1])
+        parked = parked_joints(spans) if 0 < len(parked_joints(spans)) < n else []
+        if parked and nominal is not None:
+            ref = parked_pose(samples[1], ref, parked)
+    joints: list[JointReport] = []  # in chain order: a joint's axis is carried by those before
+    for k in range(n):
+        stage("fitting", k / n)
+        report, said = fit_joint(
+            JointReport(k + 1, seg.joint_names[k]),
+            seg,
+            log,
+            ref,
+            joints,
+            nominal,
+            options.fit_method,
+            max_points,
+        )
+        notes.extend(said)
+        if k in parked and not report.ok and nominal is None and spans is not None:
+            report = replace(report, reason=no_nominal_reason(spans, k, report.type))
+        joints.append(report)
+    notes.extend(check_fit_noise(joints))
+    base = None
+    if log.base is not None and log.base.height >= 3:
+        try:
+            base = fit_plane(
+                log.base.select(["x", "y", "z"]).to_numpy(),
+                what=f"{log.path}: base plane",
+                sigma=options.known_noise,
+            )
+        except GeometryError as exc:
+            notes.append(Note.warning(f"the base plane was not used: {exc}", "base-plane"))
+    session = Session(
+        log=log,
+        segmentation=seg,
+        joints=tuple(joints),
+        reference_pose=ref,
+        base=base,
+        nominal=nominal,
+        parked=tuple(parked),
+        timing=cut.timing,
+        noise=log.pipeline.noise,
+        encoded=samples,
+    )
+    return session, tuple(notes)
