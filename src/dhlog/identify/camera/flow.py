@@ -107,7 +107,7 @@ def process_observations(
     :class:`~dhlog.identify.stages.ProcessResult` with its ``camera`` and ``cameras`` filled.
     ``start``: the tracker's run on the poses (:func:`dhlog.identify.run.process_poses`)."""
     nominal, reference_pose, setup = options.nominal, options.reference_pose, options.camera_setup
-    refine_intrinsics, holdout, frames = options.refine_intrinsics, options.holdout, options.frames
+    holdout, frames = options.holdout, options.frames
     if not observations:
         raise InputError("the log holds no camera with detections.")
     obs = observations[0]
@@ -220,9 +220,7 @@ def process_observations(
     kept = (n for n in result.notes if n.code == "never-alone")
     result = replace(result, notes=(begun, *notes, *kept))
     placement = placements.get(chosen) or placed_nominal(result, nominal, obs)
-    result, fit = _pixel_stage(
-        result, obs, T_cb, placement[1], chosen, reason, refine_intrinsics, holdout, progress
-    )
+    result, fit = _pixel_stage(result, obs, T_cb, placement[1], (chosen, reason), options, progress)
     placed_px = placement[0]
     if setup and nominal is not None and not placed_px < FAR_PX:
         # a set-up given wrongly fits by a free fit on sweeps, and shows only here
@@ -295,15 +293,15 @@ def _pixel_stage(
     obs: Observations,
     T_cb: FloatArray,
     placed: AxisModel | None,
-    setup: str,
-    reason: str,
-    refine_intrinsics: bool,
-    holdout: int,
+    chosen: tuple[str, str],
+    options: ProcessOptions,
     progress: Callable[[str, float], None] | None,
 ) -> tuple[ProcessResult, PixelFit]:
     """Refit ``result``'s whole model in pixels (and from ``placed``, the nominal placed on
-    the corners, when given); returns the result with the DH model, σ and camera in it, and
-    the fit."""
+    the corners, when given) in the set-up ``chosen`` (its name and why), with the intrinsics
+    refined and the frames cross-validated as ``options`` asks; returns the result with the DH
+    model, σ and camera in it, and the fit."""
+    (setup, reason), refine_intrinsics, holdout = chosen, options.refine_intrinsics, options.holdout
     assert result.whole is not None
     if progress is not None:
         progress("fitting pixels", 0.0)
