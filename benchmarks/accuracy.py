@@ -314,7 +314,7 @@ def main() -> None:
         main_beyond(args)
         return
     context = multiprocessing.get_context("spawn")
-    rule = f"{args.compare_sigma:g}σ rule"
+    rule = "" if args.compare_sigma is None else f"{args.compare_sigma:g}σ rule"
     more = "" if args.compare_sigma is None else f" default, {rule} / limit | worst session |"
     print(
         "| case | sessions | default [µm] | analytic [µm] | limit [µm] | default / limit | "
