@@ -71,6 +71,17 @@ def test_import_dhlog_loads_nothing_heavy() -> None:
     assert out.stdout.strip() == "[]"
 
 
+def test_a_trackers_run_does_not_load_opencv() -> None:
+    """The identification loads OpenCV only for a camera's log: the result's camera blocks are
+    typed without importing it (OpenCV is ~20 MiB of a 1.1 M-sample run's peak)."""
+    code = (
+        "import sys, dhlog.identify.run, dhlog.result.document, dhlog.present.console; "
+        "print('cv2' in sys.modules)"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "False"
+
+
 @pytest.fixture(scope="module")
 def calibration() -> dhlog.Calibration:
     return dhlog.process(SAMPLE, nominal="kr5", holdout=5)

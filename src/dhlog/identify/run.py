@@ -389,7 +389,12 @@ def _built(
     return ProcessResult(
         path=session.log.path,
         sha256=head.sha256,
-        session=replace(session, encoded=None),
+        # one segmentation kept: the fit's (joined again at its clock offset) where there is one
+        session=replace(
+            session,
+            encoded=None,
+            segmentation=session.segmentation if fit is None else fit.segmentation,
+        ),
         readout=Readout(None) if readout is None else readout,
         checks=Checks(None) if checks is None else checks,
         notes=notes,

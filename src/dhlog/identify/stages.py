@@ -18,6 +18,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
@@ -44,8 +45,10 @@ from dhlog.io.dhfile import DHModel
 from dhlog.io.reader import LogData
 from dhlog.model.noise import NoiseModel
 from dhlog.model.terms import Terms, table_deflection
-from dhlog.vision.report import CameraResult
-from dhlog.vision.view import CameraView
+
+if TYPE_CHECKING:  # a camera's product: typed, without loading OpenCV for a tracker's run
+    from dhlog.vision.report import CameraResult
+    from dhlog.vision.view import CameraView
 
 
 @dataclass(frozen=True)
