@@ -168,7 +168,19 @@ class _Problem:
     tool_basis: FloatArray
 
     def local(self, tool: FloatArray) -> FloatArray:
-        return np.asarray(np.einsum("kij,j->ki", self.F, tool) + self.f, dtype=np.float64)
+        return _carried(self.F, self.f, tool)
+
+
+def _carried(F: FloatArray, f: FloatArray, tool: FloatArray) -> FloatArray:
+    """The tool point at each pose in the model's frame 1 (k, 3): the flange's frames ``F``,
+    ``f`` carrying ``tool``."""
+    return np.asarray(np.einsum("kij,j->ki", F, tool) + f, dtype=np.float64)
+
+
+def _inliers(dist: FloatArray) -> NDArray[np.bool_]:
+    """The poses within :data:`OUTLIER_SCALE` robust scales (1.5 × the median residual, never
+    below :data:`SCALE_FLOOR`)."""
+    return np.asarray(dist <= OUTLIER_SCALE * max(1.5 * float(np.median(dist)), SCALE_FLOOR))
 
 
 def _starts(
@@ -399,7 +411,7 @@ class _Fit:
             ).x
         for round_ in range(3):  # the robust loss still leans towards gross outliers: refit
             dist = self.distances(x)
-            new = dist <= OUTLIER_SCALE * max(1.5 * float(np.median(dist)), SCALE_FLOOR)
+            new = _inliers(dist)
             if round_ > 0 and np.array_equal(new, keep):
                 break
             keep = new
@@ -458,11 +470,8 @@ def place_on(
             frame=frame,
             alternations=alternations,
         )
-        dist = np.linalg.norm(
-            (np.einsum("kij,j->ki", F, got.tool) + f) @ got.T[:3, :3].T + got.T[:3, 3] - P,
-            axis=1,
-        )
-        keep = dist <= OUTLIER_SCALE * max(1.5 * float(np.median(dist)), SCALE_FLOOR)
+        dist = np.linalg.norm(_carried(F, f, got.tool) @ got.T[:3, :3].T + got.T[:3, 3] - P, axis=1)
+        keep = _inliers(dist)
         rms = float(np.sqrt(np.mean(dist[keep] ** 2))) if np.any(keep) else float("nan")
         return Placement(got.T, got.tool, got.R_tool, dist, keep, rms, got.start)
     T0 = np.eye(4) if T is None else np.asarray(T, dtype=np.float64)
