@@ -102,7 +102,7 @@ from dhlog.geometry._checks import FloatArray
 from dhlog.identify.check.holdout import pose_groups
 from dhlog.identify.joints.sweeps import samples_with_encoders
 from dhlog.identify.model.select import ModelRequest
-from dhlog.identify.run import ProcessOptions, ProcessResult, process_data, table_values
+from dhlog.identify.run import Identification, ProcessOptions, process_data, table_values
 from dhlog.io.dhfile import DHModel
 from dhlog.io.memory import log_data_from_session
 from dhlog.model.fk import fk_point
@@ -183,7 +183,7 @@ def truth_at(session: Session, robot: Robot, cfg: SimulationConfig, Q: FloatArra
     return want
 
 
-def got_at(result: ProcessResult, Q: FloatArray) -> FloatArray:
+def got_at(result: Identification, Q: FloatArray) -> FloatArray:
     """Where the result predicts the target at encoder values ``Q`` (m, n), in M."""
     ex = result.extraction
     assert ex is not None

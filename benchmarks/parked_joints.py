@@ -22,7 +22,7 @@ from dataclasses import replace
 import numpy as np
 
 from dhlog.identify.fit.prediction import predict
-from dhlog.identify.run import ProcessOptions, ProcessResult, process_data
+from dhlog.identify.run import Identification, ProcessOptions, process_data
 from dhlog.io.dhfile import DHModel
 from dhlog.io.memory import log_data_from_session
 from dhlog.model.dh import StandardDH
@@ -95,7 +95,7 @@ def _six(session: Session, robot: Robot, Q: np.ndarray) -> float:
     return _rms(got, fk_point(table, Q[:, 1:], session.tool_point, T_base=T_base))
 
 
-def _predicted(result: ProcessResult, Q: np.ndarray) -> float:
+def _predicted(result: Identification, Q: np.ndarray) -> float:
     w = result.whole
     assert w is not None
     _, J = predict(w.model, Q, w.layout, w.bases)

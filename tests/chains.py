@@ -8,7 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from dhlog.geometry.lines import Line, Plane
-from dhlog.identify.run import ProcessResult
+from dhlog.identify.run import Identification
 from dhlog.model.dh import JointType, StandardDH
 from dhlog.model.fk import fk_point, joint_axes
 from dhlog.simulator.session import Session
@@ -131,7 +131,7 @@ def arbitrary_chain(rng: np.random.Generator) -> Chain:
     return Chain(StandardDH(types, theta, d, a, alpha), random_pose(rng), tool, q_ref, kinds)
 
 
-def fk_error(result: ProcessResult, session: Session, Q: np.ndarray) -> np.ndarray:
+def fk_error(result: Identification, session: Session, Q: np.ndarray) -> np.ndarray:
     """3-D distance (m) between the result's FK and the simulator's truth at joint vectors
     ``Q`` (m, n): the FK round trip every accuracy test judges by."""
     ex = result.extraction

@@ -24,7 +24,7 @@ from dhlog.identify.model.beyond import (
     term_std,
 )
 from dhlog.identify.model.select import ModelRequest
-from dhlog.identify.run import ProcessOptions, ProcessResult, process_data
+from dhlog.identify.run import Identification, ProcessOptions, process_data
 from dhlog.io.dhfile import DHModel
 from dhlog.io.memory import log_data_from_session
 from dhlog.model import terms as ng
@@ -62,7 +62,7 @@ def _flange_down_poses(seed: int, count: int, spread: float) -> tuple[tuple[floa
 
 
 @pytest.fixture(scope="module")
-def short_wrist() -> tuple[Session, ProcessResult]:
+def short_wrist() -> tuple[Session, Identification]:
     cfg = SimulationConfig(
         protocol="random-poses",
         pose_list=_flange_down_poses(1, 40, 0.5),
@@ -94,7 +94,7 @@ def _truth_deflection(session: Session, Q: np.ndarray) -> tuple[np.ndarray, floa
 
 
 def test_cancelling_lumps_are_merged_and_the_deflection_is_the_truths(
-    short_wrist: tuple[Session, ProcessResult],
+    short_wrist: tuple[Session, Identification],
 ) -> None:
     """Before: the candidate with every lump (the selection's fit of ``--model compliance``)
     splits two of joint 2's wrist lumps as a large pair of opposite sign, each within 2σ of
@@ -152,7 +152,7 @@ def test_cancelling_lumps_are_merged_and_the_deflection_is_the_truths(
     assert abs(got - want_target) < 3 * sd_t + 0.1 * want_target, (got, sd_t, want_target)
 
 
-def test_what_is_left_is_measured_or_bounded(short_wrist: tuple[Session, ProcessResult]) -> None:
+def test_what_is_left_is_measured_or_bounded(short_wrist: tuple[Session, Identification]) -> None:
     """After the merge no pair of the result's lumps still cancels within 2σ, and no term's σ
     alone moves its joint by more than the 0.1° bound (the rule run again on the result finds
     nothing to hold); the JSON-facing σ of every deflection is finite or said undetermined."""
@@ -203,7 +203,7 @@ def test_the_rule_by_hand() -> None:
     assert cancelling(lone, np.array([[narrow**2]]), np.array([narrow]), reach) == []
 
 
-def test_no_terms_left_nothing_to_merge(short_wrist: tuple[Session, ProcessResult]) -> None:
+def test_no_terms_left_nothing_to_merge(short_wrist: tuple[Session, Identification]) -> None:
     """A fit whose terms were all left out (an empty set, not None: a KR5 log read in the wrong
     length unit gets there) is returned as it is, without a refit or a warning (it raised
     AssertionError in term_reach, then ValueError in cancelling)."""

@@ -12,7 +12,7 @@ import pytest
 from rich.console import Console
 
 from dhlog.errors import Note
-from dhlog.identify.run import ProcessOptions, ProcessResult, process_log
+from dhlog.identify.run import Identification, ProcessOptions, process_log
 from dhlog.io.dhfile import load_dh
 from dhlog.present.console import print_result
 from dhlog.present.console.layout import NAME_WIDTH, literal, short_name
@@ -53,7 +53,7 @@ def test_a_long_name_is_cut_after_its_controls_are_made_visible() -> None:
 
 
 @pytest.fixture(scope="module")
-def hostile() -> ProcessResult:
+def hostile() -> Identification:
     """kr5_0.1mm with its truth as nominal, every user text replaced by a hostile one."""
     log = SAMPLES / "kr5_0.1mm.mcap"
     result = process_log(
@@ -81,7 +81,7 @@ def hostile() -> ProcessResult:
     )
 
 
-def test_print_result_prints_user_text_literally(hostile: ProcessResult) -> None:
+def test_print_result_prints_user_text_literally(hostile: Identification) -> None:
     out = io.StringIO()
     print_result(Console(file=out, width=100, emoji=False), hostile)
     text = out.getvalue()

@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 from dhlog.identify.model import hold
-from dhlog.identify.run import ProcessOptions, ProcessResult, process_data, table_values
+from dhlog.identify.run import Identification, ProcessOptions, process_data, table_values
 from dhlog.io.dhfile import dh_model_from
 from dhlog.io.memory import log_data_from_session
 from dhlog.model.fk import fk_frames, fk_point
@@ -39,7 +39,7 @@ SESSION = {
 ALPHA5, THETA5 = 4 * 4 + 3, 4 * 4 + 0
 
 
-def run(session: Session) -> ProcessResult:
+def run(session: Session) -> Identification:
     return process_data(
         log_data_from_session(session), ProcessOptions(nominal=dh_model_from("ur5"))
     )
@@ -51,12 +51,12 @@ def position_only() -> Session:
 
 
 @pytest.fixture(scope="module")
-def held(position_only: Session) -> ProcessResult:
+def held(position_only: Session) -> Identification:
     return run(position_only)
 
 
 @pytest.fixture(scope="module")
-def unheld(position_only: Session) -> ProcessResult:
+def unheld(position_only: Session) -> Identification:
     with pytest.MonkeyPatch.context() as mp:  # the bound out of reach: the fit as it was
         mp.setattr(hold, "BOUND_ANGLE", math.inf)
         mp.setattr(hold, "BOUND_LENGTH", math.inf)
@@ -69,7 +69,7 @@ def truth_difference(session: Session) -> np.ndarray:
     return np.column_stack([t.theta_offset - nominal.theta_offset, t.alpha - nominal.alpha])
 
 
-def fk_errors(result: ProcessResult, session: Session) -> tuple[np.ndarray, np.ndarray]:
+def fk_errors(result: Identification, session: Session) -> tuple[np.ndarray, np.ndarray]:
     """At 300 random joint vectors: the target's FK error against the truth (m) and the angle
     between the result's axis 6 and the truth's (rad)."""
     Q = np.random.default_rng(100).uniform(-math.pi, math.pi, (300, 6))
@@ -85,7 +85,7 @@ def fk_errors(result: ProcessResult, session: Session) -> tuple[np.ndarray, np.n
 
 
 def test_the_wrist_the_target_cannot_see_is_held_at_the_nominal_with_a_warning(
-    held: ProcessResult, unheld: ProcessResult, position_only: Session
+    held: Identification, unheld: Identification, position_only: Session
 ) -> None:
     assert unheld.whole is not None and unheld.conditioned is not None
     assert held.whole is not None and held.conditioned is not None
@@ -114,7 +114,7 @@ def test_the_wrist_the_target_cannot_see_is_held_at_the_nominal_with_a_warning(
 
 
 def test_holding_is_closer_to_the_truth_than_the_unheld_fit(
-    held: ProcessResult, unheld: ProcessResult, position_only: Session
+    held: Identification, unheld: Identification, position_only: Session
 ) -> None:
     """The held wrist is the nominal's: within the truth's own offsets (0.05° σ) of the truth,
     where the unheld one was degrees off; the FK error at the target, at 300 random joint

@@ -16,7 +16,7 @@ from dhlog.identify.fit.prediction import predict
 from dhlog.identify.fit.whole import fit_whole_model
 from dhlog.identify.model.parked import PARKED_REASON
 from dhlog.identify.model.select import ModelRequest
-from dhlog.identify.run import ProcessOptions, ProcessResult, process_data
+from dhlog.identify.run import Identification, ProcessOptions, process_data
 from dhlog.io.dhfile import DHModel
 from dhlog.io.memory import log_data_from_session
 from dhlog.model.fk import fk_point
@@ -394,7 +394,7 @@ def test_several_targets_are_fitted_jointly(tmp_path) -> None:  # type: ignore[n
     assert np.sqrt(np.trace(axis6_cov(both))) < 0.3 * np.sqrt(np.trace(axis6_cov(one)))
 
 
-def axis6_cov(result: ProcessResult) -> np.ndarray:
+def axis6_cov(result: Identification) -> np.ndarray:
     from dhlog.identify.model.relations import axis_covariances
 
     assert result.whole is not None

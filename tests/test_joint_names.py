@@ -19,7 +19,7 @@ from dhlog.cli.app import app
 from dhlog.errors import DhlogError
 from dhlog.identify.check.permutation import suspected_permutation
 from dhlog.identify.model.select import ModelRequest
-from dhlog.identify.run import ProcessOptions, ProcessResult, process_log
+from dhlog.identify.run import Identification, ProcessOptions, process_log
 from dhlog.identify.segment.segment import segment_log
 from dhlog.io.dhfile import DHModel, dh_model_from
 from dhlog.io.jointnames import JointNamesMismatchError, chain_order, numbers
@@ -97,7 +97,7 @@ def sqlite3_bag(mcap: Path, bag: Path, compression: str = "none") -> Path:
     return bag
 
 
-def fk_rms_against_truth(result: ProcessResult, session: Session) -> float:
+def fk_rms_against_truth(result: Identification, session: Session) -> float:
     """RMS (m) of the result's FK from the truth's at random joint vectors within the limits."""
     ex = result.extraction
     assert ex is not None
@@ -109,18 +109,18 @@ def fk_rms_against_truth(result: ProcessResult, session: Session) -> float:
     return float(np.sqrt(np.mean(np.sum((got - truth) ** 2, axis=1))))
 
 
-def processed(path: Path, nominal: DHModel | None = None) -> ProcessResult:
+def processed(path: Path, nominal: DHModel | None = None) -> Identification:
     """``dhlog process PATH --nominal ur5 --model geometric``."""
     model = dh_model_from("ur5") if nominal is None else nominal
     return process_log(path, ProcessOptions(nominal=model, model=ModelRequest("geometric")))
 
 
 @pytest.fixture(scope="module")
-def ordered_result(logs: dict[str, Path]) -> ProcessResult:
+def ordered_result(logs: dict[str, Path]) -> Identification:
     return processed(logs["ordered"])
 
 
-def assert_same_table(a: ProcessResult, b: ProcessResult) -> None:
+def assert_same_table(a: Identification, b: Identification) -> None:
     """Two results of the same samples: the same table, base and tool (to rounding: the
     decoded columns are the same numbers, the fit the same arithmetic)."""
     assert a.extraction is not None and b.extraction is not None
@@ -133,7 +133,7 @@ def assert_same_table(a: ProcessResult, b: ProcessResult) -> None:
 
 
 def test_the_drivers_order_gives_the_ordered_logs_table(
-    logs: dict[str, Path], session: Session, ordered_result: ProcessResult
+    logs: dict[str, Path], session: Session, ordered_result: Identification
 ) -> None:
     """The UR driver's alphabetical /joint_states with --nominal ur5: matched by name, the
     same table as the log in chain order, at the statistical limit (FK against the truth
@@ -166,7 +166,7 @@ def test_a_sqlite3_bag_reads_as_its_mcap(
 
 
 def test_a_sqlite3_bag_processes_to_the_ordered_logs_table(
-    logs: dict[str, Path], tmp_path: Path, ordered_result: ProcessResult
+    logs: dict[str, Path], tmp_path: Path, ordered_result: Identification
 ) -> None:
     """``dhlog process BAG --nominal ur5`` on the driver's bag in sqlite3 storage, the bag
     folder and its .db3 file alone (without message definitions, as Humble writes it): the

@@ -25,7 +25,7 @@ import pytest
 from dhlog.geometry._checks import wrap_angle
 from dhlog.geometry.lines import Line
 from dhlog.identify.read import analytic, extract, hayati, propagate
-from dhlog.identify.run import ProcessOptions, ProcessResult, process_data
+from dhlog.identify.run import Identification, ProcessOptions, process_data
 from dhlog.io.dhfile import dh_model_from
 from dhlog.io.memory import log_data_from_session
 from dhlog.model.dh import HayatiDH, StandardDH
@@ -70,12 +70,14 @@ def _by_signs(
 TURNED = np.array([0.3, -1.2, 2.8, 2.9, -2.5, 1.0])
 
 
-def _run(session: Session, robot: str, reference: np.ndarray | None = None) -> ProcessResult:
+def _run(session: Session, robot: str, reference: np.ndarray | None = None) -> Identification:
     log = log_data_from_session(session)
     return process_data(log, ProcessOptions(nominal=dh_model_from(robot), reference_pose=reference))
 
 
-def _unbranched(session: Session, robot: str, reference: np.ndarray | None = None) -> ProcessResult:
+def _unbranched(
+    session: Session, robot: str, reference: np.ndarray | None = None
+) -> Identification:
     """The same run with the Hayati rows on their own branch (a ≥ 0): no reference row."""
     with pytest.MonkeyPatch.context() as mp:
         for module in (hayati, analytic, propagate):
@@ -97,14 +99,14 @@ def _shown(doc: dict[str, object]) -> StandardDH:
     )
 
 
-def _fk(table: StandardDH, result: ProcessResult, Q: np.ndarray) -> np.ndarray:
+def _fk(table: StandardDH, result: Identification, Q: np.ndarray) -> np.ndarray:
     ex = result.extraction
     assert ex is not None
     return fk_point(table, Q, ex.tool_point, T_base=ex.T_measurement_base)
 
 
 @pytest.fixture(scope="module", params=["sweeps", "random-poses", "sweeps, turned"])
-def ur5(request: pytest.FixtureRequest) -> tuple[ProcessResult, ProcessResult]:
+def ur5(request: pytest.FixtureRequest) -> tuple[Identification, Identification]:
     protocol, _, turned = str(request.param).partition(", ")
     session = _session("ur5", protocol)
     reference = TURNED if turned else None
@@ -112,7 +114,7 @@ def ur5(request: pytest.FixtureRequest) -> tuple[ProcessResult, ProcessResult]:
 
 
 def test_ur5_table_has_the_nominal_signs_and_offsets(
-    ur5: tuple[ProcessResult, ProcessResult],
+    ur5: tuple[Identification, Identification],
 ) -> None:
     result, _ = ur5
     doc = result_document(result)
@@ -136,7 +138,7 @@ def test_ur5_table_has_the_nominal_signs_and_offsets(
 
 
 def test_ur5_branch_keeps_the_forward_kinematics_and_the_sigma(
-    ur5: tuple[ProcessResult, ProcessResult],
+    ur5: tuple[Identification, Identification],
 ) -> None:
     result, before = ur5
     table, other = _shown(result_document(result)), _shown(result_document(before))
@@ -158,7 +160,7 @@ def test_ur5_branch_keeps_the_forward_kinematics_and_the_sigma(
 
 
 def test_ur5_measured_minus_nominal_is_the_table_minus_the_nominal(
-    ur5: tuple[ProcessResult, ProcessResult],
+    ur5: tuple[Identification, Identification],
 ) -> None:
     result, _ = ur5
     table = _shown(result_document(result))

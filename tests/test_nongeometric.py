@@ -18,7 +18,7 @@ from dhlog.errors import InputError
 from dhlog.identify.fit.axismodel import ParameterLayout
 from dhlog.identify.fit.prediction import predict
 from dhlog.identify.model.select import ModelRequest
-from dhlog.identify.run import ProcessOptions, ProcessResult, process_data
+from dhlog.identify.run import Identification, ProcessOptions, process_data
 from dhlog.io.dhfile import DHModel, load_dh
 from dhlog.io.memory import log_data_from_session
 from dhlog.model import terms as ng
@@ -115,7 +115,7 @@ def _fk_truth(session: Session, Q: np.ndarray) -> np.ndarray:
     return fk_point(session.table, q, session.tool_point, T_base=session.T_measurement_base)
 
 
-def _fk_result(result: ProcessResult, Q: np.ndarray) -> np.ndarray:
+def _fk_result(result: Identification, Q: np.ndarray) -> np.ndarray:
     """The result's FK through its JSON, as a user's stack loads it (DHModel.joint_values)."""
     doc = json.loads(json.dumps(result_document(result)))
     from dhlog.io.dhfile import parse_dh
@@ -125,7 +125,7 @@ def _fk_result(result: ProcessResult, Q: np.ndarray) -> np.ndarray:
 
 
 @pytest.fixture(scope="module")
-def compliant() -> tuple[Session, ProcessResult, ProcessResult]:
+def compliant() -> tuple[Session, Identification, Identification]:
     session = _compliant_session(4, compliance=COMPLIANCE)
     log = log_data_from_session(session)
     nominal = _nominal("kr210")
@@ -135,7 +135,7 @@ def compliant() -> tuple[Session, ProcessResult, ProcessResult]:
 
 
 def test_auto_keeps_compliance_where_the_robot_bends(
-    compliant: tuple[Session, ProcessResult, ProcessResult],
+    compliant: tuple[Session, Identification, Identification],
 ) -> None:
     """A KR210-like robot bending ≈ 0.3 mm under gravity (σ 10 µm, 60 random poses): auto
     chooses compliance (its BIC and held-out error both lower) and not the harmonics; at 300
@@ -162,7 +162,7 @@ def test_auto_keeps_compliance_where_the_robot_bends(
 
 
 def test_the_result_carries_the_terms(
-    compliant: tuple[Session, ProcessResult, ProcessResult], tmp_path: Path
+    compliant: tuple[Session, Identification, Identification], tmp_path: Path
 ) -> None:
     """The JSON's nongeometric block validates and names what was tried; the CSV lists each
     term with σ; a result read back (load_dh) deflects the joints as the result did."""
@@ -191,7 +191,7 @@ def test_the_result_carries_the_terms(
 
 
 def test_the_selection_is_a_value_built_from_what_was_scored(
-    compliant: tuple[Session, ProcessResult, ProcessResult],
+    compliant: tuple[Session, Identification, Identification],
 ) -> None:
     """The selection and its candidates are frozen (assigning raises), and the candidates shown
     carry what every later step of the choice added to them: the geometric one, cross-validated

@@ -13,7 +13,7 @@ import pytest
 
 from dhlog.errors import Note, texts
 from dhlog.identify.joints.checks import RMS_OUTLIER, check_fit_noise
-from dhlog.identify.run import ProcessOptions, ProcessResult, process_log
+from dhlog.identify.run import Identification, ProcessOptions, process_log
 from dhlog.io.dhfile import load_dh
 from dhlog.result.document import result_document
 
@@ -113,14 +113,14 @@ def test_a_note_has_a_level_a_text_and_a_code() -> None:
 
 
 @pytest.fixture(scope="module")
-def kr5() -> ProcessResult:
+def kr5() -> Identification:
     log = SAMPLES / "kr5_0.1mm.mcap"
     return process_log(
         log, ProcessOptions(nominal=load_dh(log.with_name(log.stem + ".truth.json")))
     )
 
 
-def test_a_joint_far_noisier_than_the_others_is_a_fit_noise_warning(kr5: ProcessResult) -> None:
+def test_a_joint_far_noisier_than_the_others_is_a_fit_noise_warning(kr5: Identification) -> None:
     """The fit-noise check on the sample's six joints: silent as measured; joint 3's fit RMS
     made 2 × :data:`RMS_OUTLIER` the others' median gives one warning, coded, naming it."""
     assert check_fit_noise(kr5.joints) == ()
@@ -138,7 +138,7 @@ def test_a_joint_far_noisier_than_the_others_is_a_fit_noise_warning(kr5: Process
     assert said.text.startswith(f"joint 3 ({noisy.name}): its fit RMS")
 
 
-def test_the_result_s_warnings_and_notes_are_its_notes_texts_in_order(kr5: ProcessResult) -> None:
+def test_the_result_s_warnings_and_notes_are_its_notes_texts_in_order(kr5: Identification) -> None:
     """``warnings`` and ``info`` are read off ``notes``, as the JSON's ``warnings`` and
     ``notes`` are; every note of a run carries a code."""
     assert kr5.notes and all(n.code for n in kr5.notes), kr5.notes

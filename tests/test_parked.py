@@ -28,7 +28,7 @@ from dhlog.api.operations import load
 from dhlog.cli.app import app
 from dhlog.identify.fit.prediction import predict
 from dhlog.identify.model.parked import PARKED_REASON
-from dhlog.identify.run import ProcessOptions, ProcessResult, process_data
+from dhlog.identify.run import Identification, ProcessOptions, process_data
 from dhlog.io.dhfile import DHModel
 from dhlog.io.memory import log_data_from_session
 from dhlog.model.dh import StandardDH
@@ -69,7 +69,7 @@ def _joint_vectors(robot: Robot, parked: int | None = None) -> np.ndarray:
     return Q
 
 
-def _fk_rms(result: ProcessResult, session: Session, Q: np.ndarray) -> float:
+def _fk_rms(result: Identification, session: Session, Q: np.ndarray) -> float:
     ex = result.extraction
     assert ex is not None
     got = fk_point(ex.standard, Q, ex.tool_point, T_base=ex.T_measurement_base)
@@ -77,7 +77,7 @@ def _fk_rms(result: ProcessResult, session: Session, Q: np.ndarray) -> float:
     return float(np.sqrt(np.mean(np.sum((got - want) ** 2, axis=1))))
 
 
-def _predicted(result: ProcessResult, Q: np.ndarray) -> float:
+def _predicted(result: Identification, Q: np.ndarray) -> float:
     """The fit's own RMS FK σ (m) at ``Q``."""
     w = result.whole
     assert w is not None
@@ -99,7 +99,7 @@ def _without_row_1(table: StandardDH, T_base: np.ndarray) -> tuple[StandardDH, n
     return rest, fk_frames(first, np.array([PARKED_AT]), T_base=T_base)[-1]
 
 
-def _assert_parked(result: ProcessResult, joint: int) -> None:
+def _assert_parked(result: Identification, joint: int) -> None:
     """Exit 0's conditions: a whole model, every joint identified, the parked row fixed with
     the reason and no σ, one warning naming it."""
     assert result.whole is not None and result.extraction is not None

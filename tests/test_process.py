@@ -19,7 +19,7 @@ from typer.testing import CliRunner
 
 from dhlog.cli.app import app
 from dhlog.identify.check.validate import fk_prediction_std
-from dhlog.identify.run import ProcessOptions, ProcessResult, process_log
+from dhlog.identify.run import Identification, ProcessOptions, process_log
 from dhlog.io.dhfile import load_dh
 from dhlog.io.writer import write_session
 from dhlog.model.fk import fk_point
@@ -47,7 +47,7 @@ def rrd_verify(path: Path) -> None:
     assert check.returncode == 0, check.stderr
 
 
-def assert_within_3_sigma(result: ProcessResult) -> np.ndarray:
+def assert_within_3_sigma(result: Identification) -> np.ndarray:
     """Every parameter with an uncertainty is within 3 reported σ of the nominal; the others
     (fixed by a convention or by the nominal) equal it. Returns the mask of free parameters."""
     diff = nominal_difference(result, shown=True)  # the well-conditioned form, when there is one
@@ -67,7 +67,7 @@ def truth_of(path: Path) -> tuple[dict[str, object], object]:
 
 
 @pytest.fixture(scope="module", params=LOGS, ids=lambda p: p.stem)
-def processed(request: pytest.FixtureRequest) -> tuple[Path, ProcessResult, ProcessResult]:
+def processed(request: pytest.FixtureRequest) -> tuple[Path, Identification, Identification]:
     path: Path = request.param
     _, truth = truth_of(path)
     return path, process_log(path), process_log(path, ProcessOptions(nominal=truth))  # type: ignore[arg-type]
@@ -420,7 +420,7 @@ def test_the_whole_model_fit_is_closer_to_the_truth_than_the_seed_method() -> No
     Q = np.random.default_rng(3).uniform(rob.limits[:, 0], rob.limits[:, 1], (200, rob.n))
     want = fk_point(session.table, Q, session.tool_point, T_base=session.T_measurement_base)
 
-    def err(r: ProcessResult) -> np.ndarray:
+    def err(r: Identification) -> np.ndarray:
         ex = r.extraction
         assert ex is not None
         got = fk_point(ex.standard, Q, ex.tool_point, T_base=ex.T_measurement_base)

@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 from rich.console import Console
 
-from dhlog.identify.run import ProcessOptions, ProcessResult, process_data
+from dhlog.identify.run import Identification, ProcessOptions, process_data
 from dhlog.io.dhfile import DHModel
 from dhlog.io.memory import log_data_from_session
 from dhlog.model.dh import HayatiDH
@@ -35,7 +35,7 @@ def perturbed(robot: str, seed: int, deg: float = 0.05, mm: float = 0.5) -> Sess
     )
 
 
-def processed(session: Session, *, truth_nominal: bool) -> ProcessResult:
+def processed(session: Session, *, truth_nominal: bool) -> Identification:
     nominal = None
     if truth_nominal:
         nominal = DHModel(
@@ -49,14 +49,14 @@ def processed(session: Session, *, truth_nominal: bool) -> ProcessResult:
 
 
 @pytest.fixture(scope="module")
-def kr5() -> tuple[Session, ProcessResult]:
+def kr5() -> tuple[Session, Identification]:
     """The issue's case: KR5, lengths off by σ 0.5 mm and angles by σ 0.05°, seed 13."""
     session = perturbed("kr5", 13)
     return session, processed(session, truth_nominal=True)
 
 
 def test_a_nearly_parallel_pair_takes_the_hayati_form_within_its_sigma_of_the_truth(
-    kr5: tuple[Session, ProcessResult],
+    kr5: tuple[Session, Identification],
 ) -> None:
     """Axes 2 and 3 of the perturbed KR5 are 0.0094° from parallel: the DH d2 is
     ill-conditioned (σ of metres), the Hayati row 2 is not, and every entry of the rows 2-5 of
@@ -89,7 +89,7 @@ def test_a_nearly_parallel_pair_takes_the_hayati_form_within_its_sigma_of_the_tr
     assert np.sqrt(np.mean(np.sum((want - truth) ** 2, axis=1))) < 50e-6
 
 
-def test_every_output_shows_the_well_conditioned_form(kr5: tuple[Session, ProcessResult]) -> None:
+def test_every_output_shows_the_well_conditioned_form(kr5: tuple[Session, Identification]) -> None:
     """Console, CSV and JSON: row 2 carries β with its σ, labelled; the console never prints the
     ill-conditioned d2 and fits 80 columns on a pipe; the JSON keeps both tables."""
     _, result = kr5
@@ -139,7 +139,7 @@ def test_robots_with_parallel_axes_stay_right_when_not_their_nominal(robot: str)
     assert np.sqrt(np.mean(np.sum((got - want) ** 2, axis=1))) < 50e-6
 
 
-def fk_rms(result: ProcessResult, session: Session, seed: int = 5) -> float:
+def fk_rms(result: Identification, session: Session, seed: int = 5) -> float:
     """RMS FK error (m, 3-D) of the result against the truth at random joint vectors."""
     ex = result.extraction
     assert ex is not None

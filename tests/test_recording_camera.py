@@ -271,7 +271,7 @@ def test_the_process_recording_draws_the_results_cameras(
     ``world/base``: the base's place in the 3D views' world), adds a tab per camera and shows
     the sensor_time line; the same result without cameras writes none of it."""
     result = process_log(SAMPLES / "scara.mcap")
-    # the field ProcessResult carries for a camera log
+    # the field Identification carries for a camera log
     with_cameras = dataclasses.replace(result, cameras=tuple(views))
     path = tmp_path / "run.rrd"
     write_process_recording(with_cameras, path)

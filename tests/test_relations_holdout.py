@@ -23,7 +23,7 @@ from dhlog.identify.model.pairs import (
     linearised,
 )
 from dhlog.identify.model.relations import constrain_pairs, pair_constraints
-from dhlog.identify.run import ProcessOptions, ProcessResult, process_data
+from dhlog.identify.run import Identification, ProcessOptions, process_data
 from dhlog.io.dhfile import DHModel
 from dhlog.io.memory import log_data_from_session
 from dhlog.model.fk import fk_point
@@ -50,7 +50,7 @@ def _session(seed: int, off: bool) -> tuple[Session, DHModel]:
     )
 
 
-def _fk_rms(session: Session, result: ProcessResult) -> tuple[float, float]:
+def _fk_rms(session: Session, result: Identification) -> tuple[float, float]:
     """The RMS FK error (m) of ``result``'s DH table and of the limit (the whole model fitted to
     the same samples from the truth) at 300 random joint vectors within the UR5's limits."""
     robot = load_robot("ur5")

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from dhlog.identify.model.select import ModelRequest
-from dhlog.identify.run import ProcessOptions, ProcessResult, process_data, process_log
+from dhlog.identify.run import Identification, ProcessOptions, process_data, process_log
 from dhlog.io.dhfile import DHModel, dh_model_from, load_dh, parse_dh
 from dhlog.io.memory import log_data_from_session
 from dhlog.model.robots import load_robot
@@ -26,7 +26,7 @@ from dhlog.simulator.session import simulate_session
 SAMPLES = Path(__file__).parents[1] / "sample_logs"
 
 
-def _parked_run() -> ProcessResult:
+def _parked_run() -> Identification:
     robot = load_robot("kr5")
     cfg = SimulationConfig(
         seed=3,

@@ -28,7 +28,7 @@ from dhlog.cli.app import app
 from dhlog.cli.common import EXIT_IMPLAUSIBLE
 from dhlog.identify.check.footing import LogHoldout
 from dhlog.identify.model.select import ModelRequest
-from dhlog.identify.run import ProcessOptions, ProcessResult, process_log
+from dhlog.identify.run import Identification, ProcessOptions, process_log
 from dhlog.io.dhfile import DHModel
 from dhlog.io.pipeline import parse_pipeline
 from dhlog.io.writer import write_session
@@ -49,7 +49,7 @@ TURN = math.radians(1.6) * np.array([0.0, 0.6, 0.8])  # … and 1.6°
 #: the calibrated held-out RMS the noise allows (see the module docstring)
 AT_NOISE = 4e-5
 Q0 = np.array([0.1, -0.3, 0.4, 0.2, 0.5, 0.3])
-Checked = tuple[ProcessResult, dict[str, LogHoldout]]
+Checked = tuple[Identification, dict[str, LogHoldout]]
 Plan = tuple[tuple[float, ...], ...]
 
 

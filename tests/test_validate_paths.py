@@ -29,7 +29,7 @@ from dhlog.cli.app import app
 from dhlog.geometry._checks import rotation_from_vector
 from dhlog.identify.check.footing import LogHoldout
 from dhlog.identify.model.select import ModelRequest
-from dhlog.identify.run import ProcessOptions, ProcessResult, process_log
+from dhlog.identify.run import Identification, ProcessOptions, process_log
 from dhlog.io.dhfile import DHModel
 from dhlog.io.pipeline import parse_pipeline
 from dhlog.io.writer import write_session
@@ -56,7 +56,7 @@ COMMON: dict[str, object] = {
 QUIET = {"noise": 3e-8, "orientation_noise": 1e-6}
 #: the validation's figure against the truth's: within 10 % (issue 39's "done when")
 WITHIN = 0.10
-Run = tuple[Robot, ProcessResult, dict[str, Session], dict[str, LogHoldout]]
+Run = tuple[Robot, Identification, dict[str, Session], dict[str, LogHoldout]]
 
 
 def nominal_of(robot: Robot) -> DHModel:

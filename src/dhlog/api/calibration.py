@@ -28,7 +28,7 @@ if TYPE_CHECKING:
     import rerun as rr
 
     from dhlog.cell.compensate import Compensation
-    from dhlog.identify.run import ProcessResult
+    from dhlog.identify.run import Identification
     from dhlog.io.dhfile import DHModel
     from dhlog.model.robots import Robot
     from dhlog.model.terms import Terms
@@ -65,15 +65,15 @@ class Calibration:
     source: str = ""
     #: the nominal's joint limits (n, 2; rad or m) when it is a library robot
     limits: FloatArray | None = None
-    _result: ProcessResult | None = field(default=None, repr=False, init=False)
+    _result: Identification | None = field(default=None, repr=False, init=False)
     #: what the run was asked that adds outputs: a held-out check, terms beyond the geometry
     _asked: tuple[bool, bool] = field(default=(False, False), repr=False, init=False)
     #: the run's other inputs (held-out logs): never an output
     _inputs: tuple[str, ...] = field(default=(), repr=False, init=False)
 
     @property
-    def run(self) -> ProcessResult | None:
-        """The run's one record (a :class:`dhlog.identify.run.ProcessResult`: everything the run
+    def run(self) -> Identification | None:
+        """The run's one record (a :class:`dhlog.identify.run.Identification`: everything the run
         found, frozen) that this calibration's document, model, console report and recording
         are all made from; None for a calibration loaded from a file."""
         return self._result

@@ -20,7 +20,7 @@ from dhlog.errors import Note
 if TYPE_CHECKING:
     from dhlog.cell.plan import Plan, Tracker
     from dhlog.geometry._checks import FloatArray
-    from dhlog.identify.stages import ProcessResult
+    from dhlog.identify.stages import Identification
     from dhlog.io.dhfile import DHModel
     from dhlog.io.pipeline import Pipeline
     from dhlog.iso9283.run import Iso9283Report
@@ -166,9 +166,9 @@ def _pipeline(spec: str | Path | Pipeline | None) -> Pipeline | None:
     return pipeline_from(str(spec))
 
 
-def calibration_of(result: ProcessResult, *, limits: FloatArray | None = None) -> Calibration:
+def calibration_of(result: Identification, *, limits: FloatArray | None = None) -> Calibration:
     """A run's :class:`Calibration` made from its one record ``result`` (a
-    :class:`~dhlog.identify.run.ProcessResult`): the document written from it, the model read
+    :class:`~dhlog.identify.run.Identification`): the document written from it, the model read
     off it (:func:`~dhlog.result.model.model_of`, equal to what the document reads back as)."""
     from dhlog.result.document import result_document
     from dhlog.result.model import model_of

@@ -10,7 +10,7 @@ from typing import TYPE_CHECKING, Any, Protocol
 from dhlog.errors import DhlogError, UsageError
 
 if TYPE_CHECKING:
-    from dhlog.identify.stages import ProcessResult
+    from dhlog.identify.stages import Identification
 
 
 class RunCalibration(Protocol):
@@ -18,7 +18,7 @@ class RunCalibration(Protocol):
     record and the document it shows."""
 
     @property
-    def run(self) -> ProcessResult | None: ...
+    def run(self) -> Identification | None: ...
 
     document: dict[str, Any]
 

@@ -22,7 +22,7 @@ from typer.core import TyperArgument, TyperCommand, TyperGroup
 from dhlog.errors import DhlogError, OutputError
 
 EXIT_USAGE, EXIT_INPUT, EXIT_PARTIAL = 1, 2, 3
-#: the result was written but dhlog judges it implausible (``ProcessResult.implausible``)
+#: the result was written but dhlog judges it implausible (``Identification.implausible``)
 EXIT_IMPLAUSIBLE = 4
 #: ``dhlog compare --fail-beyond SIGMA``: a parameter changed beyond SIGMA combined σ
 EXIT_CHANGED = 5

@@ -30,7 +30,7 @@ from dhlog.identify.check.plausible import inlier_picks
 from dhlog.identify.fit.samples import measured_rotations
 from dhlog.identify.joints.sweeps import samples_with_encoders, target_labels
 from dhlog.identify.segment.segment import segment_log
-from dhlog.identify.stages import ProcessResult, table_values
+from dhlog.identify.stages import Identification, table_values
 from dhlog.io.pipeline import Pipeline
 from dhlog.io.reader import read_log
 
@@ -39,8 +39,8 @@ NOMINAL_SAMPLES = 20000
 
 
 def validated(
-    result: ProcessResult, logs: list[str | Path], pipeline: Pipeline | None, fast: bool
-) -> ProcessResult:
+    result: Identification, logs: list[str | Path], pipeline: Pipeline | None, fast: bool
+) -> Identification:
     """``result`` scored at the poses of each held-out log (``--validate``): a log that cannot
     be scored is a warning and a ``not_scored`` entry — and makes the result implausible when
     it could not be placed or read, since the validation asked for is missing."""
@@ -94,7 +94,7 @@ def validated(
 
 
 def _validate_log(
-    result: ProcessResult,
+    result: Identification,
     path: str | Path,
     pipeline: Pipeline | None,
     fast: bool,
@@ -157,7 +157,7 @@ def _validate_log(
     return check
 
 
-def _nominal_on_session(result: ProcessResult) -> tuple[Placed | None, str | None]:
+def _nominal_on_session(result: Identification) -> tuple[Placed | None, str | None]:
     """The nominal placed on the session's samples (the fit's inliers of the primary target, at
     most :data:`NOMINAL_SAMPLES`, evenly strided): the "before" a held-out log scores. None
     without a nominal or a whole-model fit, or when it cannot be placed (with the warning)."""

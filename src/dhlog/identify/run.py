@@ -7,7 +7,7 @@ and clock (``identify.session.segmented``) → each joint fitted and the base pl
 start: line geometry on those axes (``identify.read.extract``, seed 000) → the fit of the whole
 model to every sample with encoder values and all read off it (``identify.wholefit``: a
 :class:`~dhlog.identify.stages.ModelFit`) → the one frozen
-:class:`~dhlog.identify.stages.ProcessResult` (``_built``) → what makes it implausible
+:class:`~dhlog.identify.stages.Identification` (``_built``) → what makes it implausible
 (``identify.check.plausible.judge``) → the held-out logs (``identify.heldout``). The result
 document is ``result.document``.
 
@@ -60,8 +60,8 @@ from dhlog.identify.session import Stage, segmented, session_of
 from dhlog.identify.stages import (
     Checks,
     FitRequest,
+    Identification,
     ModelFit,
-    ProcessResult,
     Readout,
     Session,
     table_values,
@@ -71,7 +71,7 @@ from dhlog.io.dhfile import DHModel
 from dhlog.io.reader import LogData, camera_pipeline, read_log
 from dhlog.io.writer import sha256_begun, sha256_of
 
-__all__ = ["ProcessOptions", "ProcessResult", "process_data", "process_log", "table_values"]
+__all__ = ["Identification", "ProcessOptions", "process_data", "process_log", "table_values"]
 
 
 def process_log(
@@ -79,7 +79,7 @@ def process_log(
     options: ProcessOptions = DEFAULTS,
     *,
     progress: Stage | None = None,
-) -> ProcessResult:
+) -> Identification:
     """Run the whole identification on the log at ``path`` (see the module docstring), as
     ``options`` asks (:class:`~dhlog.identify.options.ProcessOptions`).
 
@@ -146,7 +146,7 @@ def process_poses(
     reference_pose: FloatArray | None,
     model: ModelRequest,
     progress: Stage | None,
-) -> ProcessResult:
+) -> Identification:
     """The tracker's run on a camera's board poses (their log, as the camera flow writes it):
     the start of the pixel fit, which :func:`dhlog.identify.camera.flow.process_observations`
     takes as ``start``."""
@@ -160,7 +160,7 @@ def process_data(
     *,
     sha256: str = "",
     progress: Stage | None = None,
-) -> ProcessResult:
+) -> Identification:
     """The identification of :func:`process_log` on streams already decoded (``LogData``), as
     ``options`` asks.
 
@@ -230,7 +230,7 @@ def _partial(
     request: FitRequest,
     whole_wanted: bool,
     stage: Stage,
-) -> ProcessResult:
+) -> Identification:
     """The result of a session some joints of which the sweeps did not identify: the whole
     model fitted from a start (the nominal, a coupled move) where there is one, else what was
     identified — the rows that need only identified axes — with each joint at fault named."""
@@ -312,7 +312,7 @@ def _analytic_result(
     start: _AnalyticStart,
     tolerances: Tolerances,
     stage: Stage,
-) -> ProcessResult:
+) -> Identification:
     """The analytic start as the result: its covariance propagated from the joints' fits and
     the target's samples, and the FK check of its table on the sweeps."""
     seg, joints, ref = session.segmentation, list(session.joints), session.reference_pose
@@ -378,7 +378,7 @@ def _built(
     readout: Readout | None = None,
     checks: Checks | None = None,
     registration: Registration | None = None,
-) -> ProcessResult:
+) -> Identification:
     """The one result of the run: the session's; the fit's (when there is one; its notes
     after the run's), else the analytic ``readout`` and ``checks``; the nominal's
     ``registration`` on the points (a session with no sweep)."""
@@ -386,7 +386,7 @@ def _built(
         notes = (*notes, *fit.notes)
         readout = fit.readout if readout is None else readout
         checks = fit.checks if checks is None else checks
-    return ProcessResult(
+    return Identification(
         path=session.log.path,
         sha256=head.sha256,
         # one segmentation kept: the fit's (joined again at its clock offset) where there is one

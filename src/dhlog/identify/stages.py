@@ -8,7 +8,7 @@
    (:class:`Checks`: the FK check of every sample, the outliers, the cross-validation) — or,
    with ``--analytic-only`` or without encoders, the analytic :class:`Readout` and
    :class:`Checks` alone;
-3. the one :class:`ProcessResult` built from them, which the document, the console, the
+3. the one :class:`Identification` built from them, which the document, the console, the
    recording and the API read.
 
 A stage that fails is a value (None and a warning), not a field restored by hand.
@@ -153,7 +153,7 @@ class ModelFit:
 
 
 @dataclass(frozen=True)
-class ProcessResult:
+class Identification:
     """Everything ``dhlog process`` found, ready to be written and shown: built once from the
     stages' values — the :class:`Session`, the :class:`ModelFit` (None: the analytic result
     alone), its :class:`Readout` and :class:`Checks` — and never changed after: a later step
@@ -400,7 +400,7 @@ class ProcessResult:
         chosen, forms shown: the JSON's ``notes``), in order."""
         return texts(self.notes, "info")
 
-    def said(self, *notes: Note) -> ProcessResult:
+    def said(self, *notes: Note) -> Identification:
         """This result with ``notes`` added after its own."""
         return replace(self, notes=(*self.notes, *notes))
 
@@ -435,7 +435,7 @@ def table_values_of(
     return np.asarray(Qt, dtype=np.float64)
 
 
-def table_values(result: ProcessResult, Q: FloatArray, *, deflected: bool = True) -> FloatArray:
+def table_values(result: Identification, Q: FloatArray, *, deflected: bool = True) -> FloatArray:
     """The result table's joint values at encoder values ``Q`` (m, n)
     (:func:`table_values_of`)."""
     return table_values_of(result.whole, result.extraction, result.terms, Q, deflected=deflected)

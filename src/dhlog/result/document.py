@@ -17,7 +17,7 @@ from dhlog.identify.joints.sweeps import JointReport
 from dhlog.identify.model.parked import PARKED_REASON
 from dhlog.identify.read.hayati import NEAR_PARALLEL
 from dhlog.identify.read.propagate import state_difference, state_names, state_vector
-from dhlog.identify.run import ProcessResult
+from dhlog.identify.run import Identification
 from dhlog.model.dh import JointType
 from dhlog.result.contract import RESULT_FORMAT, dh_documents, relation_documents
 
@@ -42,7 +42,7 @@ def _fit_doc(j: JointReport, t_ns: NDArray[np.int64]) -> dict[str, Any] | None:
     }
 
 
-def result_document(result: ProcessResult) -> dict[str, Any]:
+def result_document(result: Identification) -> dict[str, Any]:
     """The ``<stem>.dh.json`` document (the result contract, ``dhlog.result/1``)."""
     ex = result.extraction
     n_rows = 0 if ex is None else (ex.standard.n if result.complete else ex.standard.n - 1)
@@ -219,7 +219,7 @@ HAYATI_DESCRIPTION = (
 )
 
 
-def _conditioned_document(result: ProcessResult, n_rows: int) -> dict[str, Any]:
+def _conditioned_document(result: Identification, n_rows: int) -> dict[str, Any]:
     """``hayati_dh``: the table of :class:`~dhlog.identify.read.conditioning.Conditioned`, row
     by row."""
     c = result.conditioned
@@ -259,7 +259,7 @@ def _conditioned_document(result: ProcessResult, n_rows: int) -> dict[str, Any]:
     return {"description": HAYATI_DESCRIPTION, "rows": out}
 
 
-def frame_1_origin(result: ProcessResult) -> str:
+def frame_1_origin(result: Identification) -> str:
     """How frame 1's origin (on axis 1) was placed: by the base plane when the log has base
     points, else by a convention, which the sentence names."""
     if result.base is not None:
@@ -283,7 +283,7 @@ def _num_or_none(value: float) -> float | None:
     return float(value) if math.isfinite(value) else None
 
 
-def _encoder_scales(doc: dict[str, Any], result: ProcessResult) -> None:
+def _encoder_scales(doc: dict[str, Any], result: Identification) -> None:
     """With fitted encoder scales, each row's ``encoder_scale`` (and σ) and its offset at
     encoder zero such that ``θ_i = θ_offset_i + encoder_scale_i · q_i`` (prismatic: ``d``)."""
     w = result.whole
@@ -299,7 +299,7 @@ def _encoder_scales(doc: dict[str, Any], result: ProcessResult) -> None:
         row["encoder_scale_std"] = float(math.sqrt(max(w.covariance[k + i, k + i], 0.0)))
 
 
-def _mark_fixed(doc: dict[str, Any], result: ProcessResult) -> None:
+def _mark_fixed(doc: dict[str, Any], result: Identification) -> None:
     """``fixed`` / ``fixed_reason`` on each DH row, on the tool and on the base."""
     names = ("theta", "d", "a", "alpha")
     n = len(doc["standard_dh"])
@@ -314,7 +314,7 @@ def _mark_fixed(doc: dict[str, Any], result: ProcessResult) -> None:
         doc["tool"]["fixed_reason"] = tool[0][1]
 
 
-def _covariance_document(result: ProcessResult) -> dict[str, Any]:
+def _covariance_document(result: Identification) -> dict[str, Any]:
     """The covariance of every free parameter (names as :func:`state_names`, SI units)."""
     cov = result.covariance
     assert cov is not None
@@ -327,7 +327,7 @@ def _covariance_document(result: ProcessResult) -> dict[str, Any]:
     }
 
 
-def _analytic_document(result: ProcessResult) -> dict[str, Any]:
+def _analytic_document(result: Identification) -> dict[str, Any]:
     """The seed method's table (the start of the whole-model fit) and its distance from the
     result in the result's σ."""
     an, ex, std = result.analytic, result.extraction, result.std
@@ -347,7 +347,7 @@ def _analytic_document(result: ProcessResult) -> dict[str, Any]:
     }
 
 
-def _noise_document(result: ProcessResult) -> dict[str, Any]:
+def _noise_document(result: Identification) -> dict[str, Any]:
     doc: dict[str, Any] = {"model": result.noise.model, **result.noise.document()}
     if result.whole is not None:
         doc["chi2_dof"] = result.whole.chi2_dof
@@ -363,7 +363,7 @@ def _noise_document(result: ProcessResult) -> dict[str, Any]:
     return doc
 
 
-def _whole_fit_document(result: ProcessResult) -> dict[str, Any]:
+def _whole_fit_document(result: Identification) -> dict[str, Any]:
     w = result.whole
     assert w is not None
     doc: dict[str, Any] = {
@@ -407,7 +407,7 @@ class DisplayRow:
     held: list[bool]
 
 
-def display_rows(result: ProcessResult, units: str = "mm") -> list[DisplayRow]:
+def display_rows(result: Identification, units: str = "mm") -> list[DisplayRow]:
     """The rows to show: the standard DH table, or, when nearly parallel pairs make a DH ``d``
     ill-conditioned, the same table with those rows in the Hayati–Mirmirani form."""
     length, angle, _, _ = display_scales(units)
@@ -438,7 +438,7 @@ def display_rows(result: ProcessResult, units: str = "mm") -> list[DisplayRow]:
     return out
 
 
-def result_csv(result: ProcessResult, *, units: str = "mm") -> str:
+def result_csv(result: Identification, *, units: str = "mm") -> str:
     """The DH table as CSV, in mm and degrees (or m and rad), with ±1σ columns; a parameter
     held by a convention has ``fixed`` in its σ column. The last three columns give each row's
     form: ``dh``, or ``hayati`` for a row of a nearly parallel pair, whose ``d`` is then empty
@@ -466,7 +466,7 @@ def result_csv(result: ProcessResult, *, units: str = "mm") -> str:
     return "\n".join(lines) + "\n"
 
 
-def nongeometric_document(result: ProcessResult) -> dict[str, Any]:
+def nongeometric_document(result: Identification) -> dict[str, Any]:
     """The ``nongeometric`` block: the model asked and chosen with every candidate tried (BIC,
     held-out RMS), and the chosen terms in the table's frames with σ, as the forward kinematics
     applies them (``Δq`` added to the table's joint values)."""
@@ -496,7 +496,7 @@ def nongeometric_document(result: ProcessResult) -> dict[str, Any]:
     return doc
 
 
-def terms_csv(result: ProcessResult) -> str:
+def terms_csv(result: Identification) -> str:
     """The chosen terms beyond the geometry, one a row (SI: rad/m or rad), with σ; only the
     header when the geometric model was chosen."""
     lines = ["name,kind,joint,lump,value,std,unit"]
@@ -513,7 +513,7 @@ def terms_csv(result: ProcessResult) -> str:
     return "\n".join(lines) + "\n"
 
 
-def holdout_csv(result: ProcessResult, *, units: str = "mm") -> str:
+def holdout_csv(result: Identification, *, units: str = "mm") -> str:
     """Every held-out pose as CSV: the check (``cross-validation`` or the log's name), the
     pose's measured position in M, the error vector (measured − predicted) and its length for
     the nominal (empty without one) and the calibrated model; ``point_id`` last, the export's
@@ -554,7 +554,7 @@ def _csv_cell(text: str) -> str:
     return text
 
 
-def nominal_difference(result: ProcessResult, *, shown: bool = False) -> FloatArray | None:
+def nominal_difference(result: Identification, *, shown: bool = False) -> FloatArray | None:
     """measured − nominal per row (n, 4) in SI units, angles wrapped; None without nominal.
     ``shown``: in the form :func:`display_rows` shows (β in place of d on Hayati rows; NaN on
     the rows whose nominal has no such form)."""

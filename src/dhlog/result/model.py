@@ -6,12 +6,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from dhlog.identify.stages import ProcessResult
+from dhlog.identify.stages import Identification
 from dhlog.io.dhfile import DHModel
 from dhlog.model.dh import StandardDH
 
 
-def model_of(result: ProcessResult) -> DHModel | None:
+def model_of(result: Identification) -> DHModel | None:
     """The model of ``result``: its standard table (offsets at encoder zero), frame 1 in M, the
     tool point, the joints' names, the terms beyond the geometry in the table's frames and the
     joints held at the nominal because they never moved. None when no joint was identified; a

@@ -26,7 +26,7 @@ from dhlog.model.dh import StandardDH
 from dhlog.vision.observe import Observations
 
 if TYPE_CHECKING:  # the run's result, which this module's checks read (stages is above it)
-    from dhlog.identify.stages import ProcessResult
+    from dhlog.identify.stages import Identification
 
 #: Below this design effect the corners of a frame are taken as independent (σ within 5 %).
 SMALL_EFFECT = 1.1
@@ -199,13 +199,13 @@ def camera_moved(
 FAR_PX = 20.0
 
 
-def placed_nominal_px(start: ProcessResult, nominal: DHModel | None, obs: Observations) -> float:
+def placed_nominal_px(start: Identification, nominal: DHModel | None, obs: Observations) -> float:
     """:func:`placed_nominal`'s RMS (px)."""
     return placed_nominal(start, nominal, obs)[0]
 
 
 def placed_nominal(
-    start: ProcessResult, nominal: DHModel | None, obs: Observations
+    start: Identification, nominal: DHModel | None, obs: Observations
 ) -> tuple[float, AxisModel | None]:
     """How well the nominal, placed on the corners in pixels
     (:meth:`~dhlog.identify.camera.pixels.PixelModel.place`: the fixed part's pose and the mount,
@@ -247,7 +247,7 @@ def placed_nominal(
 
 
 def _registered(
-    start: ProcessResult, nominal: DHModel
+    start: Identification, nominal: DHModel
 ) -> tuple[FloatArray, FloatArray, FloatArray] | None:
     """The nominal registered on the start's PnP poses (its log: positions and orientations of
     the carried frame at the frames' joint values): frame 1 in M, the carried frame's origin and

@@ -62,7 +62,7 @@ from dhlog.identify.options import DEFAULTS, ProcessOptions
 from dhlog.identify.read.extract import Extraction, extract_dh
 from dhlog.identify.read.propagate import Extractor
 from dhlog.identify.read.uncertainty import Uncertainty, whole_uncertainty
-from dhlog.identify.stages import ProcessResult
+from dhlog.identify.stages import Identification
 from dhlog.io.dhfile import DHModel
 from dhlog.io.logdata import LogData
 from dhlog.vision.observe import Observations
@@ -89,7 +89,7 @@ class PoseRun(Protocol):
         reference_pose: FloatArray | None,
         model: ModelRequest,
         progress: Callable[[str, float], None] | None,
-    ) -> ProcessResult: ...
+    ) -> Identification: ...
 
 
 def process_observations(
@@ -100,11 +100,11 @@ def process_observations(
     progress: Callable[[str, float], None] | None = None,
     start: PoseRun,
     pipeline: str | None = None,
-) -> ProcessResult:
+) -> Identification:
     """The calibration of the module docstring from one camera's observations, as ``options``
     asks (its nominal, reference pose, ``camera_setup`` — None: decided from the data —,
     ``refine_intrinsics``, ``holdout`` K over the frames, ``frames``); returns the
-    :class:`~dhlog.identify.stages.ProcessResult` with its ``camera`` and ``cameras`` filled.
+    :class:`~dhlog.identify.stages.Identification` with its ``camera`` and ``cameras`` filled.
     ``start``: the tracker's run on the poses (:func:`dhlog.identify.run.process_poses`)."""
     nominal, reference_pose, setup = options.nominal, options.reference_pose, options.camera_setup
     holdout, frames = options.holdout, options.frames
@@ -149,7 +149,7 @@ def process_observations(
             "--camera-setup eye-to-hand (the camera fixed, the board on the flange) or "
             "eye-in-hand (the camera on the flange), or --nominal."
         )
-    starts: dict[str, ProcessResult | DhlogError] = {}
+    starts: dict[str, Identification | DhlogError] = {}
     for s in candidates:
         log = pose_log(obs, T_cb, s, use)
         try:
@@ -172,7 +172,7 @@ def process_observations(
     usable = {
         s: r
         for s, r in starts.items()
-        if isinstance(r, ProcessResult) and r.whole is not None and r.validation is not None
+        if isinstance(r, Identification) and r.whole is not None and r.validation is not None
     }
     fk_rms = {s: r.validation.rms for s, r in usable.items() if r.validation is not None}
     if not usable:
@@ -240,13 +240,13 @@ def process_observations(
     elif extra_cameras:
         rest = [o if frames is None else of_frames(o, frames) for o in observations[1:]]
         result = _several_cameras(result, fit, [obs, *rest], holdout, progress)
-    assert isinstance(result, ProcessResult)
+    assert isinstance(result, Identification)
     return result
 
 
 def _adopt(
-    result: ProcessResult, whole: WholeFit
-) -> tuple[ProcessResult, Extraction, Uncertainty, Extractor]:
+    result: Identification, whole: WholeFit
+) -> tuple[Identification, Extraction, Uncertainty, Extractor]:
     """``result`` with the pixel fit ``whole`` in it: its DH model read off as for a tracker,
     the covariance and what is fixed, the FK check against the PnP poses. Returns that result,
     the extraction, the uncertainty and the extraction's function."""
@@ -289,14 +289,14 @@ def _adopt(
 
 
 def _pixel_stage(
-    result: ProcessResult,
+    result: Identification,
     obs: Observations,
     T_cb: FloatArray,
     placed: AxisModel | None,
     chosen: tuple[str, str],
     options: ProcessOptions,
     progress: Callable[[str, float], None] | None,
-) -> tuple[ProcessResult, PixelFit]:
+) -> tuple[Identification, PixelFit]:
     """Refit ``result``'s whole model in pixels (and from ``placed``, the nominal placed on
     the corners, when given) in the set-up ``chosen`` (its name and why), with the intrinsics
     refined and the frames cross-validated as ``options`` asks; returns the result with the DH
@@ -380,12 +380,12 @@ def _cost(fit: PixelFit, limit: float) -> float:
 
 
 def _several_cameras(
-    result: ProcessResult,
+    result: Identification,
     first: PixelFit,
     observations: list[Observations],
     holdout: int,
     progress: Callable[[str, float], None] | None,
-) -> ProcessResult:
+) -> Identification:
     """``result`` with the whole model fitted to every camera's corners at once
     (:class:`CamerasModel`: M the first camera's frame, each further camera's pose fitted with
     it), starting from the first

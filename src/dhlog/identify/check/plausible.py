@@ -1,4 +1,4 @@
-"""What makes dhlog judge a tracker calibration implausible (``ProcessResult.implausible``):
+"""What makes dhlog judge a tracker calibration implausible (``Identification.implausible``):
 its lengths all one factor times the nominal's (a unit slip, :func:`length_slip`), or its FK
 check far above both the noise and the nominal's own miss of the same points
 (:func:`fk_beyond`). Each finding is one sentence naming the evidence and the fix; the result is
@@ -214,7 +214,7 @@ def slip_notes(
 
 
 def judge(result: Any) -> Any:
-    """A tracker run's ``ProcessResult`` with what makes it implausible added to its
+    """A tracker run's ``Identification`` with what makes it implausible added to its
     ``implausible`` — lengths all k times the nominal's (:func:`length_slip`), an FK check far
     above the noise and the nominal's own miss (:func:`fk_beyond`) — and to its warnings what
     the misses say short of that (:func:`slip_notes`)."""

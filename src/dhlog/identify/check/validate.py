@@ -23,7 +23,7 @@ from dhlog.model.fk import fk_point, fk_points_chunked
 
 
 class Identified(Protocol):
-    """What :func:`fk_prediction_std` reads of a run's result (``identify.run.ProcessResult``):
+    """What :func:`fk_prediction_std` reads of a run's result (``identify.run.Identification``):
     the whole-model fit, else the extraction and its propagated covariance."""
 
     @property

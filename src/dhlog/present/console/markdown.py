@@ -7,13 +7,13 @@ from __future__ import annotations
 import math
 
 from dhlog.identify.model.beyond import determined
-from dhlog.identify.run import ProcessResult
+from dhlog.identify.run import Identification
 from dhlog.present.console.layout import decimals, scales, table_title, value_cells
 from dhlog.present.console.notes import clock_line, held_lines, method_line
 from dhlog.result.document import display_rows, frame_1_origin, nominal_difference
 
 
-def _terms_markdown(result: ProcessResult, length: float, lu: str) -> list[str]:
+def _terms_markdown(result: Identification, length: float, lu: str) -> list[str]:
     """The models tried beyond the geometry and the chosen terms with σ, as Markdown."""
     selection = result.selection
     if selection is None:
@@ -52,7 +52,7 @@ def _markdown_cell(value: str, sigma: str) -> str:
     return f"{value} {sigma}".strip()
 
 
-def result_markdown(result: ProcessResult, *, units: str = "mm") -> str:
+def result_markdown(result: Identification, *, units: str = "mm") -> str:
     """The DH tables and fit summary as Markdown (for the recording's text view)."""
     length, angle, lu, au = scales(units)
     rows = display_rows(result, units)

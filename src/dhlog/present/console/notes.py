@@ -8,12 +8,12 @@ from rich.console import Console
 from rich.markup import escape
 from rich.table import Table
 
-from dhlog.identify.run import ProcessResult
+from dhlog.identify.run import Identification
 from dhlog.present.console.layout import literal
 from dhlog.result.document import DisplayRow
 
 
-def held_lines(result: ProcessResult, rows: list[DisplayRow]) -> list[str]:
+def held_lines(result: Identification, rows: list[DisplayRow]) -> list[str]:
     """One line per reason: the parameters held by it (the names of the shown ``rows``)."""
     fixed = result.conditioned.fixed if result.conditioned is not None else result.fixed
     if not fixed or result.extraction is None:
@@ -35,7 +35,7 @@ def held_lines(result: ProcessResult, rows: list[DisplayRow]) -> list[str]:
     return [f"{', '.join(names)}: {why}" for why, names in by_reason.items()]
 
 
-def clock_line(result: ProcessResult) -> str:
+def clock_line(result: Identification) -> str:
     """The clock offset of the joint states against the tracker, and where it comes from."""
     t = result.timing
     if t is None:
@@ -53,7 +53,7 @@ def clock_line(result: ProcessResult) -> str:
     return f"joint-state stamps {ms} (the pipeline's clock_offset; {why})"
 
 
-def method_line(result: ProcessResult, length: float, lu: str) -> str:
+def method_line(result: Identification, length: float, lu: str) -> str:
     """How the table was found: the whole-model fit (samples, noise model, χ²/dof) or the seed
     method."""
     w = result.whole

@@ -17,7 +17,7 @@ from rich.table import Table
 
 from dhlog.geometry._checks import FloatArray, roll_pitch_yaw
 from dhlog.identify.model.beyond import determined
-from dhlog.identify.run import ProcessResult
+from dhlog.identify.run import Identification
 from dhlog.present.console.layout import (
     NAME_WIDTH,
     decimals,
@@ -32,7 +32,7 @@ from dhlog.present.console.notes import clock_line, held_lines, method_line, pro
 from dhlog.result.document import DisplayRow, display_rows, frame_1_origin, nominal_difference
 
 
-def print_result(console: Console, result: ProcessResult, *, units: str = "mm") -> None:
+def print_result(console: Console, result: Identification, *, units: str = "mm") -> None:
     """The DH table (±1σ), measured − nominal, the fits, tool and base, how the table was found,
     the FK check, what is held by convention, notes and warnings."""
     length, _, lu, au = scales(units)
@@ -83,7 +83,7 @@ def print_result(console: Console, result: ProcessResult, *, units: str = "mm") 
 
 
 def _print_nominal(
-    console: Console, result: ProcessResult, rows: list[DisplayRow], units: str
+    console: Console, result: Identification, rows: list[DisplayRow], units: str
 ) -> None:
     diff = nominal_difference(result, shown=True)
     if diff is None or result.nominal is None:
@@ -112,7 +112,7 @@ def _print_nominal(
     console.print(t)
 
 
-def _print_fits(console: Console, result: ProcessResult, units: str) -> None:
+def _print_fits(console: Console, result: Identification, units: str) -> None:
     if all(j.fit is None for j in result.joints) and all(j.ok for j in result.joints):
         return  # no sweep (random static poses): nothing but the whole-model fit to show
     length, angle, lu, au = scales(units)
@@ -158,7 +158,7 @@ def _print_fits(console: Console, result: ProcessResult, units: str) -> None:
         )
 
 
-def _print_tool_and_base(console: Console, result: ProcessResult, units: str) -> None:
+def _print_tool_and_base(console: Console, result: Identification, units: str) -> None:
     """The tool point in the last frame and frame 1 in the measurement frame, with σ."""
     ex, std = result.extraction, result.std
     if ex is None or not result.complete:
@@ -197,7 +197,7 @@ def _print_tool_and_base(console: Console, result: ProcessResult, units: str) ->
     console.print(t)
 
 
-def _print_camera(console: Console, result: ProcessResult, units: str) -> None:
+def _print_camera(console: Console, result: Identification, units: str) -> None:
     """A camera calibration's product: the camera's (or board's) pose in the base frame and
     the mounted part's on the flange with σ, the corners' σ, and the held-out check in pixels
     and in the unit of length."""
@@ -270,7 +270,7 @@ def _print_camera_holdout(console: Console, cam: Any, units: str) -> None:
     console.print(t)
 
 
-def _print_holdout(console: Console, result: ProcessResult, units: str) -> None:
+def _print_holdout(console: Console, result: Identification, units: str) -> None:
     """Per held-out check, the position error of the nominal and of the calibrated model at
     poses not used to fit: mean, RMS, 95th percentile, max."""
     if not result.holdout:
@@ -315,7 +315,7 @@ def _print_holdout(console: Console, result: ProcessResult, units: str) -> None:
 
 
 def deflection_lines(
-    result: ProcessResult, length: float, lu: str, digits: int
+    result: Identification, length: float, lu: str, digits: int
 ) -> list[tuple[str, str]]:
     """The "Deflection" line: the terms' largest move per joint and of the target at the
     samples, each with its σ there; one within 2σ of zero (or depending on an undetermined
@@ -358,7 +358,7 @@ def deflection_lines(
     return [("Deflection", text)]
 
 
-def _print_terms(console: Console, result: ProcessResult, units: str) -> None:
+def _print_terms(console: Console, result: Identification, units: str) -> None:
     """The models tried beyond the geometry (``--model``): terms, parameters, BIC, held-out
     RMS, which was chosen and why; then the chosen terms with σ and what they move."""
     selection = result.selection

@@ -17,7 +17,7 @@ from dhlog.present.recording.scene import JOINT_TIMELINE, Shown, joint_color, ti
 
 if TYPE_CHECKING:
     from dhlog.identify.joints.sweeps import JointReport
-    from dhlog.identify.run import ProcessResult
+    from dhlog.identify.run import Identification
 
 
 #: Residual components, in the joint's own directions, and their colours in every plot.
@@ -69,7 +69,7 @@ class Residuals:
         return (lo - pad, hi + pad), (-top, 2.2 * top)
 
 
-def residual_parts(result: ProcessResult, shown: Shown | None = None) -> list[Residuals]:
+def residual_parts(result: Identification, shown: Shown | None = None) -> list[Residuals]:
     """Per joint, signed residual components against the moved joint's encoder value: the fit
     residual (radial and axial across the fitted circle; across a fitted line in two
     directions) and the FK residual the validation reports (radial, axial, tangential)."""

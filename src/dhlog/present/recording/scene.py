@@ -20,7 +20,7 @@ from dhlog.model.dh import JointType
 from dhlog.model.fk import fk_frames
 
 if TYPE_CHECKING:
-    from dhlog.identify.run import ProcessResult
+    from dhlog.identify.run import Identification
 
 
 #: Joint colours, joint k the (k − 1)-th (cycling).
@@ -92,7 +92,7 @@ class Shown:
     :data:`~dhlog.identify.check.validate.SHOWN_SAMPLES`), the DH frames of the shown table, the
     transform from M to the displayed base frame and the scene's sizes."""
 
-    result: ProcessResult
+    result: Identification
     xyz: FloatArray | PerSample
     t: np.ndarray
     q: FloatArray | PerSample | None
@@ -102,7 +102,7 @@ class Shown:
     stride: int = 1
 
     @classmethod
-    def of(cls, result: ProcessResult) -> Shown:
+    def of(cls, result: Identification) -> Shown:
         seg = result.segmentation
         stride = shown_stride(seg.height)
         xyz = PerSample((seg.height, 3), seg.xyz)

@@ -29,10 +29,10 @@ from dhlog.present.recording.spatial import (
 from dhlog.present.recording.stream import recording_file
 
 if TYPE_CHECKING:
-    from dhlog.identify.run import ProcessResult
+    from dhlog.identify.run import Identification
 
 
-def process_recording_blueprint(result: ProcessResult) -> rrb.Blueprint:
+def process_recording_blueprint(result: Identification) -> rrb.Blueprint:
     """The default layout of a processed result's recording (:func:`log_process_recording`)."""
     shown = Shown.of(result)
     cameras = list(getattr(result, "cameras", None) or [])  # a camera calibration's views
@@ -40,9 +40,9 @@ def process_recording_blueprint(result: ProcessResult) -> rrb.Blueprint:
 
 
 def write_process_recording(
-    result: ProcessResult, path: str | Path, *, with_log: bool = False
+    result: Identification, path: str | Path, *, with_log: bool = False
 ) -> None:
-    """Write the recording of a :class:`~dhlog.identify.run.ProcessResult` to ``path`` atomically.
+    """Write the recording of a :class:`~dhlog.identify.run.Identification` to ``path`` atomically.
 
     Each run is its own recording (a new recording id), named by the log, the time of the run
     and the nominal; the log's hash is a property. ``with_log``: the MCAP's own channels are
@@ -57,7 +57,7 @@ def write_process_recording(
 
 
 def log_process_recording(
-    rec: rr.RecordingStream, result: ProcessResult, *, with_log: bool = False
+    rec: rr.RecordingStream, result: Identification, *, with_log: bool = False
 ) -> None:
     """Log a processed result into ``rec`` (a file's stream, or a user's: a notebook's viewer)."""
     from datetime import UTC, datetime
