@@ -120,20 +120,23 @@ def _chain(
 
 def _carried_inward(model: AxisModel, dq: FloatArray, target: FloatArray) -> FloatArray:
     """The target (3, m) moved by the joints' moves ``dq`` (n, m), the last joint first:
-    ``x ← c + R_i (x − c)`` (Rodrigues on the vector: ``r + sin δ ω×r + (1 − cos δ) ω×(ω×r)``)
-    or ``x ← x + d_i δ`` — the position alone, without the prefix motions' (3, 3, m) rotations
-    the Jacobian needs (equal to them to rounding)."""
+    ``x ← c + R_i (x − c)`` (Rodrigues on the vector: ``r + sin δ K r + (1 − cos δ) K² r``,
+    ``K = [ω]×``, each product one matrix product over the samples) or ``x ← x + d_i δ`` — the
+    position alone, without the prefix motions' (3, 3, m) rotations the Jacobian needs (equal
+    to them to rounding)."""
     x = np.array(target, dtype=np.float64)
     for i in range(model.n - 1, -1, -1):
         axis = model.axes[i]
-        wx, wy, wz = (float(v) for v in axis.direction)
         if model.types[i] is JointType.PRISMATIC:
             x += axis.direction[:, None] * dq[i]
             continue
-        r = x - axis.point[:, None]
-        a = np.stack([wy * r[2] - wz * r[1], wz * r[0] - wx * r[2], wx * r[1] - wy * r[0]])
-        b = np.stack([wy * a[2] - wz * a[1], wz * a[0] - wx * a[2], wx * a[1] - wy * a[0]])
-        x += a * np.sin(dq[i]) + b * (1.0 - np.cos(dq[i]))
+        K = skew(axis.direction)
+        a = K @ (x - axis.point[:, None])
+        b = K @ a
+        a *= np.sin(dq[i])
+        b *= 1.0 - np.cos(dq[i])
+        x += a
+        x += b
     return x
 
 
