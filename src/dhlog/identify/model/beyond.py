@@ -175,7 +175,7 @@ DEFLECTION_SIGMA = 2.0
 #: A term whose σ alone moves its joint by more than this (rad) somewhere among the samples is
 #: not measured: what the terms model (gravity deflection, a gear's first harmonic) stays well
 #: below it on any arm (the KR210-sized truth of the README bends 26″ under 150 kg; 0.1° is
-#: 360″), and the issue's Stäubli "deflection" of 1.83 mm at about a metre's reach is this
+#: 360″), and a Stäubli session's reported "deflection" of 1.83 mm at about a metre's reach is this
 #: size. Such a term is held at zero (the nominal has none), as a DH entry beyond 1° is held.
 TERM_BOUND = math.radians(0.1)
 #: The kinds whose terms are lumps of one joint's gravity torque (they can stand for each other).
