@@ -169,6 +169,44 @@ def _frame(origin: FloatArray, x: FloatArray, z: FloatArray) -> FloatArray:
     return T
 
 
+@dataclass(frozen=True)
+class Tolerances:
+    """When the extraction calls two axes parallel or meeting: ``angle_tol`` (rad) and
+    ``distance_tol`` (m), and per pair of neighbouring axes its own (angle, distance) where the
+    fits' uncertainty or a decision from held-out poses gives one (``pair_tolerances[i]``: axes
+    i+1, i+2)."""
+
+    angle_tol: float = ANGLE_TOL
+    distance_tol: float = DISTANCE_TOL
+    pair_tolerances: Sequence[tuple[float, float]] | None = None
+
+    def extract(
+        self,
+        axes: Sequence[Line],
+        joint_types: Sequence[JointType | str],
+        *,
+        target: ArrayLike,
+        reference_pose: ArrayLike,
+        base_plane: Plane | None = None,
+        nominal: StandardDH | None = None,
+    ) -> Extraction:
+        """:func:`extract_dh` with these tolerances."""
+        return extract_dh(
+            axes,
+            joint_types,
+            target=target,
+            reference_pose=reference_pose,
+            base_plane=base_plane,
+            nominal=nominal,
+            tolerances=self,
+        )
+
+
+#: The extraction's default tolerances (:data:`~dhlog.geometry.lines.ANGLE_TOL`,
+#: :data:`~dhlog.geometry.lines.DISTANCE_TOL`, none per pair).
+DEFAULT_TOLERANCES = Tolerances()
+
+
 def extract_dh(
     axes: Sequence[Line],
     joint_types: Sequence[JointType | str],
@@ -177,15 +215,12 @@ def extract_dh(
     reference_pose: ArrayLike,
     base_plane: Plane | None = None,
     nominal: StandardDH | None = None,
-    angle_tol: float = ANGLE_TOL,
-    distance_tol: float = DISTANCE_TOL,
-    pair_tolerances: Sequence[tuple[float, float]] | None = None,
+    tolerances: Tolerances = DEFAULT_TOLERANCES,
 ) -> Extraction:
     """Standard and modified DH tables, base transform and tool point from oriented joint axes.
 
-    ``angle_tol`` (rad) and ``distance_tol`` (m) decide when two axes count as parallel or
-    meeting; ``pair_tolerances[i]`` (angle, distance) overrides them for axes i+1, i+2 (1-based),
-    e.g. with tolerances from the fits' uncertainty.
+    ``tolerances`` decide when two axes count as parallel or meeting (:class:`Tolerances`: an
+    angle and a distance, and per pair its own where the fits' uncertainty gives one).
 
     ``axes``: joint 1 … n axes in the measurement frame M at ``reference_pose`` (n,), each oriented
     along positive joint motion; ``target`` (3,) the target point in M at that pose. Seed 000,
@@ -209,6 +244,8 @@ def extract_dh(
             f"joint types {[t.value for t in types]}",
             [t.value for t in nominal.joint_types],
         )
+    angle_tol, distance_tol = tolerances.angle_tol, tolerances.distance_tol
+    pair_tolerances = tolerances.pair_tolerances
     revolute = [t is JointType.REVOLUTE for t in types]
     if nominal is not None:
         desired_theta = nominal.theta(q_ref)
@@ -216,6 +253,7 @@ def extract_dh(
     else:
         desired_theta = np.where(revolute, q_ref, 0.0)
         nominal_d = np.zeros(n)
+    aim = _Aim(nominal, desired_theta, nominal_d)
     lines: list[Line] = list(axes)
     placed = [revolute[i] for i in range(n)]
 
@@ -273,18 +311,7 @@ def extract_dh(
             line_next = Line(p_target, z_i)
         else:
             if not placed[i + 1]:
-                _place_with_nominal(
-                    i,
-                    lines,
-                    xs,
-                    origins,
-                    z,
-                    nominal,
-                    desired_theta,
-                    nominal_d,
-                    angle_tol,
-                    anchor_place,
-                )
+                _place_with_nominal(i, lines, xs, origins, z, aim, angle_tol, anchor_place)
                 placed[i + 1] = True
             line_next = lines[i + 1]
         a_tol, d_tol = tolerance(i)
@@ -393,22 +420,33 @@ def _frame1_origin(
     return lines[0].project(np.zeros(3))
 
 
+@dataclass(frozen=True)
+class _Aim:
+    """The rows the extraction aims at, at the reference pose: the ``nominal`` table (None:
+    none) and its ``theta`` and ``d`` there (without a nominal: θ the joint values of revolute
+    joints, else 0; d 0)."""
+
+    nominal: StandardDH | None
+    theta: FloatArray
+    d: FloatArray
+
+
 def _place_with_nominal(
     i: int,
     lines: list[Line],
     xs: list[FloatArray | None],
     origins: list[FloatArray | None],
     z: list[FloatArray],
-    nominal: StandardDH | None,
-    desired_theta: FloatArray,
-    nominal_d: FloatArray,
+    aim: _Aim,
     angle_tol: float,
     anchor_place: Callable[[int], None],
 ) -> None:
-    """Place prismatic axis i+1 (0-based) so that row i matches the nominal d_i, a_i, α_i."""
+    """Place prismatic axis i+1 (0-based) so that row i matches the nominal d_i, a_i, α_i (the
+    anchor rule, ``anchor_place``, without a nominal)."""
     o_i = origins[i]
     assert o_i is not None
     z_i, e = z[i], lines[i + 1].direction
+    nominal, desired_theta, nominal_d = aim.nominal, aim.theta, aim.d
     if nominal is None:
         anchor_place(i + 1)
         return
@@ -494,38 +532,3 @@ def hayati_table(
     """The extracted model with ``rows`` (0-based) in the Hayati–Mirmirani form: same frames 1
     and n+1, same forward kinematics (a :class:`HayatiDH`, or the standard table without rows)."""
     return table_from_frames(ex.frames, ex.standard.joint_types, ex.reference_pose, nominal, rows)
-
-
-@dataclass(frozen=True)
-class Tolerances:
-    """When the extraction calls two axes parallel or meeting: ``angle_tol`` (rad) and
-    ``distance_tol`` (m), and per pair of neighbouring axes its own (angle, distance) where the
-    fits' uncertainty or a decision from held-out poses gives one (``pair_tolerances[i]``: axes
-    i+1, i+2)."""
-
-    angle_tol: float = ANGLE_TOL
-    distance_tol: float = DISTANCE_TOL
-    pair_tolerances: Sequence[tuple[float, float]] | None = None
-
-    def extract(
-        self,
-        axes: Sequence[Line],
-        joint_types: Sequence[JointType | str],
-        *,
-        target: ArrayLike,
-        reference_pose: ArrayLike,
-        base_plane: Plane | None = None,
-        nominal: StandardDH | None = None,
-    ) -> Extraction:
-        """:func:`extract_dh` with these tolerances."""
-        return extract_dh(
-            axes,
-            joint_types,
-            target=target,
-            reference_pose=reference_pose,
-            base_plane=base_plane,
-            nominal=nominal,
-            angle_tol=self.angle_tol,
-            distance_tol=self.distance_tol,
-            pair_tolerances=self.pair_tolerances,
-        )
