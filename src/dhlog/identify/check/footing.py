@@ -59,6 +59,7 @@ from dhlog.identify.check.holdout import MIN_POSES, ErrorStats, Holdout
 from dhlog.identify.fit.leaveout import pose_groups, pose_means
 from dhlog.identify.fit.placement import (
     LEVER,
+    Stand,
     angles,
     conditioning,
     place_on,
@@ -278,9 +279,7 @@ def place(
         flange.p,
         P,
         R if oriented else None,
-        T=model.T,
-        tool=model.tool,
-        R_tool=model.R_tool,
+        stand=Stand(model.T, model.tool, model.R_tool),
         base=base,
         point=tool,
         frame=tool and oriented,
