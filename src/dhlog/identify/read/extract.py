@@ -169,44 +169,6 @@ def _frame(origin: FloatArray, x: FloatArray, z: FloatArray) -> FloatArray:
     return T
 
 
-@dataclass(frozen=True)
-class Tolerances:
-    """When the extraction calls two axes parallel or meeting: ``angle_tol`` (rad) and
-    ``distance_tol`` (m), and per pair of neighbouring axes its own (angle, distance) where the
-    fits' uncertainty or a decision from held-out poses gives one (``pair_tolerances[i]``: axes
-    i+1, i+2)."""
-
-    angle_tol: float = ANGLE_TOL
-    distance_tol: float = DISTANCE_TOL
-    pair_tolerances: Sequence[tuple[float, float]] | None = None
-
-    def extract(
-        self,
-        axes: Sequence[Line],
-        joint_types: Sequence[JointType | str],
-        *,
-        target: ArrayLike,
-        reference_pose: ArrayLike,
-        base_plane: Plane | None = None,
-        nominal: StandardDH | None = None,
-    ) -> Extraction:
-        """:func:`extract_dh` with these tolerances."""
-        return extract_dh(
-            axes,
-            joint_types,
-            target=target,
-            reference_pose=reference_pose,
-            base_plane=base_plane,
-            nominal=nominal,
-            tolerances=self,
-        )
-
-
-#: The extraction's default tolerances (:data:`~dhlog.geometry.lines.ANGLE_TOL`,
-#: :data:`~dhlog.geometry.lines.DISTANCE_TOL`, none per pair).
-DEFAULT_TOLERANCES = Tolerances()
-
-
 def extract_dh(
     axes: Sequence[Line],
     joint_types: Sequence[JointType | str],
@@ -215,12 +177,15 @@ def extract_dh(
     reference_pose: ArrayLike,
     base_plane: Plane | None = None,
     nominal: StandardDH | None = None,
-    tolerances: Tolerances = DEFAULT_TOLERANCES,
+    angle_tol: float = ANGLE_TOL,
+    distance_tol: float = DISTANCE_TOL,
+    pair_tolerances: Sequence[tuple[float, float]] | None = None,
 ) -> Extraction:
     """Standard and modified DH tables, base transform and tool point from oriented joint axes.
 
-    ``tolerances`` decide when two axes count as parallel or meeting (:class:`Tolerances`: an
-    angle and a distance, and per pair its own where the fits' uncertainty gives one).
+    ``angle_tol`` (rad) and ``distance_tol`` (m) decide when two axes count as parallel or
+    meeting; ``pair_tolerances[i]`` (angle, distance) overrides them for axes i+1, i+2 (1-based),
+    e.g. with tolerances from the fits' uncertainty.
 
     ``axes``: joint 1 … n axes in the measurement frame M at ``reference_pose`` (n,), each oriented
     along positive joint motion; ``target`` (3,) the target point in M at that pose. Seed 000,
@@ -244,8 +209,6 @@ def extract_dh(
             f"joint types {[t.value for t in types]}",
             [t.value for t in nominal.joint_types],
         )
-    angle_tol, distance_tol = tolerances.angle_tol, tolerances.distance_tol
-    pair_tolerances = tolerances.pair_tolerances
     revolute = [t is JointType.REVOLUTE for t in types]
     if nominal is not None:
         desired_theta = nominal.theta(q_ref)
@@ -532,3 +495,38 @@ def hayati_table(
     """The extracted model with ``rows`` (0-based) in the Hayati–Mirmirani form: same frames 1
     and n+1, same forward kinematics (a :class:`HayatiDH`, or the standard table without rows)."""
     return table_from_frames(ex.frames, ex.standard.joint_types, ex.reference_pose, nominal, rows)
+
+
+@dataclass(frozen=True)
+class Tolerances:
+    """When the extraction calls two axes parallel or meeting: ``angle_tol`` (rad) and
+    ``distance_tol`` (m), and per pair of neighbouring axes its own (angle, distance) where the
+    fits' uncertainty or a decision from held-out poses gives one (``pair_tolerances[i]``: axes
+    i+1, i+2)."""
+
+    angle_tol: float = ANGLE_TOL
+    distance_tol: float = DISTANCE_TOL
+    pair_tolerances: Sequence[tuple[float, float]] | None = None
+
+    def extract(
+        self,
+        axes: Sequence[Line],
+        joint_types: Sequence[JointType | str],
+        *,
+        target: ArrayLike,
+        reference_pose: ArrayLike,
+        base_plane: Plane | None = None,
+        nominal: StandardDH | None = None,
+    ) -> Extraction:
+        """:func:`extract_dh` with these tolerances."""
+        return extract_dh(
+            axes,
+            joint_types,
+            target=target,
+            reference_pose=reference_pose,
+            base_plane=base_plane,
+            nominal=nominal,
+            angle_tol=self.angle_tol,
+            distance_tol=self.distance_tol,
+            pair_tolerances=self.pair_tolerances,
+        )
