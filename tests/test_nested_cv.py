@@ -14,7 +14,12 @@ from dhlog.identify.fit.data import FitData, FitOptions
 from dhlog.identify.fit.leaveout import fold_of_poses, linearise, pose_means
 from dhlog.identify.fit.whole import fit_whole_model
 from dhlog.identify.joints.sweeps import samples_with_encoders
-from dhlog.identify.model.select import ModelRequest, default_gravity, select_model
+from dhlog.identify.model.select import (
+    ModelRequest,
+    TermDesign,
+    default_gravity,
+    select_model,
+)
 from dhlog.identify.run import ProcessOptions, process_data
 from dhlog.io.dhfile import DHModel
 from dhlog.io.memory import log_data_from_session
@@ -117,9 +122,8 @@ def test_the_selection_in_a_fold_is_the_selection_of_its_poses(bending) -> None:
         FitData(Q, P, keep=fold != 0),
         options,
     )
-    alone = select_model(
-        "auto", geometric, FitData(Q, P), options, gravity=default_gravity(geometric)
-    )
+    designed = TermDesign(default_gravity(geometric))
+    alone = select_model("auto", geometric, FitData(Q, P), options, term_design=designed)
     assert alone.chosen.families != ()
     assert sel.fold_choices[0] == alone.chosen.name
 

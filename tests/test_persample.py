@@ -234,6 +234,7 @@ def test_the_start_reads_only_the_further_targets_samples_it_moves_back(
     the target before), and gives the mean of the evenly strided ones as before."""
     from dhlog.geometry.lines import Line
     from dhlog.identify.fit import samples
+    from dhlog.identify.fit.data import FitData
     from dhlog.model.dh import JointType
     from dhlog.model.screws import points_at_reference
 
@@ -259,7 +260,8 @@ def test_the_start_reads_only_the_further_targets_samples_it_moves_back(
 
         return PerSample(values.shape, fetch)
 
-    model = samples.start_model(axes, types, np.zeros(3), ref, counted(Q), counted(P), which, None)
+    data = FitData(counted(Q), counted(P), which=which)
+    model = samples.start_model(axes, types, np.zeros(3), ref, data)
     assert sum(read) < 2 * 2 * 100  # Q and P, two further targets, under 2 x 50 each (of ~1000)
     for k in (1, 2):
         Qk, Pk = Q[which == k], P[which == k]

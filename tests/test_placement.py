@@ -14,6 +14,7 @@ import pytest
 
 from dhlog.geometry._checks import rotation_about, rotation_from_vector
 from dhlog.identify.fit.placement import (
+    Stand,
     closed_form_placements,
     conditioning,
     place_on,
@@ -64,9 +65,8 @@ def test_a_restationed_tracker_and_remounted_probe_are_placed(kind: str) -> None
     orientation varies (random poses: to the truth)."""
     F, f = flanges(kind)
     P, R = measured(F, f)
-    got = place_on(
-        F, f, P, R, tool=ROBOT.tool_point, R_tool=START_R_TOOL, base=True, point=True, frame=True
-    )
+    start = Stand(tool=ROBOT.tool_point, R_tool=START_R_TOOL)
+    got = place_on(F, f, P, R, stand=start, base=True, point=True, frame=True)
     assert got.rms < 1e-9 and got.inliers.all()
     assert got.R_tool is not None
     frames = np.einsum("ij,kjl,lm->kim", np.asarray(got.T[:3, :3]), F, got.R_tool)
@@ -83,7 +83,7 @@ def test_a_planar_curve_fixes_the_rotation_without_orientation() -> None:
     F, f = flanges("curve")
     P, _ = measured(F, f)
     assert conditioning(P).kind == "spread"
-    got = place_on(F, f, P, tool=TRUE_TOOL)
+    got = place_on(F, f, P, stand=Stand(tool=TRUE_TOOL))
     assert got.rms < 1e-9 and np.allclose(got.T[:3, :3], TRUE_T[:3, :3], atol=1e-7)
 
 
@@ -96,7 +96,7 @@ def test_a_line_without_orientation_keeps_the_turn_about_it_at_the_start() -> No
     assert shape.kind == "line" and shape.direction is not None
     start = TRUE_T.copy()
     start[:3, 3] += [0.3, 0.2, -0.1]  # the start's position off, its rotation right
-    got = place_on(F, f, P, T=start, tool=TRUE_TOOL)
+    got = place_on(F, f, P, stand=Stand(start, TRUE_TOOL))
     assert got.rms < 1e-9
     assert np.allclose(got.T[:3, :3], TRUE_T[:3, :3], atol=1e-6)
 

@@ -18,6 +18,7 @@ import numpy as np
 
 from dhlog.errors import DhlogError, GeometryError, Note
 from dhlog.identify.check.footing import (
+    LogSamples,
     NotScoredError,
     Placed,
     Unscored,
@@ -137,15 +138,18 @@ def _validate_log(
     nominal = result.nominal
     own = [result.validation.rms] if result.validation is not None else []
     own += [h.calibrated.rms for h in result.holdout if h.kind == "cross-validation"]
-    check = score_poses(
-        Placed(ex.standard, ex.T_measurement_base, ex.tool_point, result.tool_orientation),
+    samples = LogSamples(
         Q,
         P,
-        path=str(path),
-        nominal=placed()[0],
         rotations=None if rotations is None else rotations[primary],
         table_values=table_values(result, Q),
         nominal_values=None if nominal is None else nominal.joint_values(Q),
+    )
+    check = score_poses(
+        Placed(ex.standard, ex.T_measurement_base, ex.tool_point, result.tool_orientation),
+        samples,
+        path=str(path),
+        nominal=placed()[0],
         own_error=max(own) if own else None,
     )
     if log.point_ids is not None:  # the session's held-out poses by the export's ids

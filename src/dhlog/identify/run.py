@@ -261,10 +261,7 @@ def _partial(
             "samples (random static poses, coupled moves)."
         )
         said.append(Note.warning(needs, "needs-nominal"))
-    table = nominal.table if nominal is not None else None
-    extraction = partial_extraction(
-        list(joints), session.reference_pose, session.base, table, request.tolerances
-    )
+    extraction = partial_extraction(session.axes(request.tolerances))
     return _built(session, head, tuple(said), readout=Readout(extraction))
 
 
@@ -285,23 +282,10 @@ class _AnalyticStart:
 def _analytic_start(session: Session, tolerances: Tolerances, whole_wanted: bool) -> _AnalyticStart:
     """The analytic start (module docstring): the target from every sample (its derivative, for
     the covariance, from an evenly strided subset when the whole model is fitted after)."""
-    seg, joints, ref, base, nominal = (
-        session.segmentation,
-        list(session.joints),
-        session.reference_pose,
-        session.base,
-        session.nominal,
-    )
+    seg, joints, ref = session.segmentation, list(session.joints), session.reference_pose
     target_at = TargetAtReference(seg, joints, ref, START_TARGET_POINTS if whole_wanted else None)
     target, target_cov = target_at()
-    extraction = tolerances.extract(
-        [j.axis for j in joints],  # type: ignore[misc]
-        [j.type for j in joints],  # type: ignore[misc]
-        target=target,
-        reference_pose=ref,
-        base_plane=base.plane if base is not None else None,
-        nominal=nominal.table if nominal is not None else None,
-    )
+    extraction = session.axes(tolerances).extract(target)
     return _AnalyticStart(target_at, whole_wanted, target, target_cov, extraction)
 
 
@@ -316,7 +300,6 @@ def _analytic_result(
     """The analytic start as the result: its covariance propagated from the joints' fits and
     the target's samples, and the FK check of its table on the sweeps."""
     seg, joints, ref = session.segmentation, list(session.joints), session.reference_pose
-    nominal_table = session.nominal.table if session.nominal is not None else None
     # the covariance perturbs every axis: the target's derivative is taken on an evenly strided
     # subset of the samples (the mean's derivative; the target itself is from every sample)
     perturbed = (
@@ -330,13 +313,9 @@ def _analytic_result(
 
     stage("uncertainty", 0.0)
     found = analytic_uncertainty(
-        joints,
-        ref,
+        session.axes(tolerances),
         start.target,
         start.target_cov,
-        session.base,
-        nominal_table,
-        tolerances,
         start.extraction,
         target_of if seg.has_encoders else None,
     )

@@ -34,6 +34,7 @@ from dhlog.identify.fit.whole import WholeFit
 from dhlog.identify.joints.sweeps import JointReport, samples_with_encoders
 from dhlog.identify.model.beyond import Deflection
 from dhlog.identify.model.select import ModelRequest, Selection
+from dhlog.identify.read.analytic import JointAxes
 from dhlog.identify.read.conditioning import Conditioned
 from dhlog.identify.read.extract import Extraction, Tolerances
 from dhlog.identify.read.hayati import HayatiRow
@@ -78,6 +79,12 @@ class Session:
         if self.encoded is not None:
             return self.encoded
         return samples_with_encoders(self.segmentation)
+
+    def axes(self, tolerances: Tolerances) -> JointAxes:
+        """Its joints' axes as the seed method reads them (:class:`JointAxes`: with the
+        reference pose, the base plane, the nominal's table), with ``tolerances``."""
+        table = None if self.nominal is None else self.nominal.table
+        return JointAxes(self.joints, self.reference_pose, self.base, table, tolerances)
 
 
 @dataclass(frozen=True)

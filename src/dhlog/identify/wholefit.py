@@ -307,18 +307,15 @@ def _fit_clocked(
     rows, Q, P = session.samples()
     which = target_labels(seg, rows)
     rotations = measured_rotations(seg, rows)
+    sample_cov = sample_covariance(seg, rows)
     start = start_model(
         [j.axis for j in joints],  # type: ignore[misc]
         types,  # type: ignore[arg-type]
         session.target,
         ref,
-        Q,
-        P,
-        which,
-        rotations,
+        FitData(Q, P, sample_cov, which, rotations),
         frozenset(session.parked),
     )
-    sample_cov = sample_covariance(seg, rows)
     noise = NoiseModel("per-sample") if sample_cov is not None else session.noise
     fit_sigmas = [j.fit.sigma**2 for j in joints if j.fit is not None]
     sigma = math.sqrt(np.mean(fit_sigmas)) if fit_sigmas else 1e-5
@@ -402,7 +399,7 @@ def _cross_validation(
         fit.data,
         replace(fit.options, fit_scales=request.fit_scales),
         request.folds,
-        nominal=None if nominal is None else (nominal.table, nominal.T_base, nominal.tool_point),
+        nominal=nominal,
         fold=outer,
         starts=() if selection is None else selection.fold_starts,
         refine=refine,

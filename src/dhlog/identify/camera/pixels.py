@@ -40,6 +40,7 @@ from numpy.typing import NDArray
 from dhlog.geometry._checks import FloatArray, rotation_from_vector
 from dhlog.identify.fit.axismodel import AxisModel, ParameterLayout
 from dhlog.identify.fit.measure import MeasuredFit, fit_measured, place_by_lm
+from dhlog.identify.fit.placement import Stand
 from dhlog.identify.fit.prediction import predict_columns, predict_orientation, prefix_motions
 from dhlog.model.dh import StandardDH
 from dhlog.vision.camera import Intrinsics
@@ -193,9 +194,7 @@ class PixelModel:
         return place_by_lm(
             table,
             reference_pose,
-            T_measurement_base,
-            tool_point,
-            tool_rotation,
+            Stand(T_measurement_base, tool_point, tool_rotation),
             self,
             data,
             far=far,
@@ -390,9 +389,7 @@ class CamerasModel:
         return place_by_lm(
             table,
             reference_pose,
-            T_measurement_base,
-            tool_point,
-            tool_rotation,
+            Stand(T_measurement_base, tool_point, tool_rotation),
             self,
             data,
             far=far,

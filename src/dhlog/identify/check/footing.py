@@ -59,6 +59,7 @@ from dhlog.identify.check.holdout import MIN_POSES, ErrorStats, Holdout
 from dhlog.identify.fit.leaveout import pose_groups, pose_means
 from dhlog.identify.fit.placement import (
     LEVER,
+    Stand,
     angles,
     conditioning,
     place_on,
@@ -278,9 +279,7 @@ def place(
         flange.p,
         P,
         R if oriented else None,
-        T=model.T,
-        tool=model.tool,
-        R_tool=model.R_tool,
+        stand=Stand(model.T, model.tool, model.R_tool),
         base=base,
         point=tool,
         frame=tool and oriented,
@@ -351,27 +350,37 @@ def nominal_on_session(
     return Placed(table, reg.T_measurement_base, reg.tool_point, R_tool)
 
 
+@dataclass(frozen=True)
+class LogSamples:
+    """A held-out log's samples of its primary target: encoder values ``Q`` (m, n), measured
+    positions ``P`` (m, 3) and orientations ``rotations`` (m, 3, 3; None: none, or a 3-DoF
+    target), and each model's joint values at ``Q`` where they are not ``Q`` (fitted encoder
+    scales, terms beyond the geometry): ``table_values`` the calibrated model's,
+    ``nominal_values`` the nominal's (m, n; None: ``Q``)."""
+
+    Q: FloatArray
+    P: FloatArray
+    rotations: FloatArray | None = None
+    table_values: FloatArray | None = None
+    nominal_values: FloatArray | None = None
+
+
 def score_poses(
     calibrated: Placed,
-    Q: FloatArray,
-    P: FloatArray,
+    samples: LogSamples,
     *,
     path: str,
     nominal: Placed | None = None,
-    rotations: FloatArray | None = None,
-    table_values: FloatArray | None = None,
-    nominal_values: FloatArray | None = None,
     own_error: float | None = None,
 ) -> Holdout:
     """The calibrated model and the nominal (both as they stand in the calibration session's
     frame: the nominal placed there by :func:`nominal_on_session`) at the poses of another
-    session (``Q``, ``P``: its samples of the primary target; ``rotations``: their measured
-    orientations where the probe is 6-DoF), on one footing (see the module docstring).
-    ``table_values`` / ``nominal_values`` (m, n): each model's joint values at ``Q`` when they
-    are not ``Q`` (fitted encoder scales, terms beyond the geometry). ``own_error`` (m): the
-    calibration's own error (its held-out or in-sample FK RMS), against which a footing is
-    judged found (:data:`FAR_RATIO`, :data:`FAR_FLOOR`). Raises :class:`NotScoredError` when
-    the log cannot be scored."""
+    session (its ``samples``, the log at ``path``), on one footing (see the module docstring).
+    ``own_error`` (m): the calibration's own error (its held-out or in-sample FK RMS), against
+    which a footing is judged found (:data:`FAR_RATIO`, :data:`FAR_FLOOR`). Raises
+    :class:`NotScoredError` when the log cannot be scored."""
+    Q, P, rotations = samples.Q, samples.P, samples.rotations
+    table_values, nominal_values = samples.table_values, samples.nominal_values
     groups = pose_groups(Q)
     Qc = Q if table_values is None else table_values
     Qn = Q if nominal_values is None else nominal_values

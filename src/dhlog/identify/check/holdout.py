@@ -39,7 +39,7 @@ from dhlog.identify.fit.prediction import predict
 from dhlog.identify.fit.register import register_nominal
 from dhlog.identify.fit.whole import WholeFit, fit_whole_model
 from dhlog.identify.segment.persample import SampleArray
-from dhlog.model.dh import StandardDH
+from dhlog.io.dhfile import DHModel
 from dhlog.model.fk import fk_point
 
 #: Fewest poses a held-out statistic is given for.
@@ -147,17 +147,16 @@ def cross_validate(
     options: FitOptions,
     folds: int,
     *,
-    nominal: tuple[StandardDH, FloatArray, FloatArray] | None = None,
-    seed: int = 0,
+    nominal: DHModel | None = None,
     fold: NDArray[np.int64] | None = None,
     starts: Sequence[AxisModel] = (),
     refine: Callable[[WholeFit, int], WholeFit] | None = None,
 ) -> Holdout:
     """K-fold cross-validation over poses (see the module docstring) of the fit of ``data``
     weighted by ``options`` (noise, σ, per-sample covariance, orientations, …);
-    ``nominal`` = (table, T_base, tool point) to place on each fold's fitted poses. Only the
+    ``nominal``: its table, base and tool point placed on each fold's fitted poses. Only the
     full fit's inliers are used; with several targets only the primary one is scored.
-    ``fold`` (m,): each sample's fold (default: :func:`fold_of_poses` of its pose, seeded);
+    ``fold`` (m,): each sample's fold (default: :func:`fold_of_poses` of its pose, seed 0);
     ``starts``: per fold, the model to fit to its training poses (default ``whole``'s) — the
     model ``--model auto`` chose from those poses alone; ``refine(fit, k)``: fold k's fit as the
     run would finish it from those poses (its pairs held parallel)."""
@@ -175,7 +174,7 @@ def cross_validate(
             "folds or measure more poses."
         )
     if fold is None:
-        fold = fold_of_poses(groups, folds, seed)
+        fold = fold_of_poses(groups, folds, 0)
     positions, cal_vecs, nom_vecs = [], [], []
     firsts: list[int] = []
     notes: tuple[str, ...] = ()
@@ -193,7 +192,7 @@ def cross_validate(
         positions.append(pos)
         cal_vecs.append(vec)
         if nominal is not None:
-            table, T_base, tool = nominal
+            table, T_base, tool = nominal.table, nominal.T_base, nominal.tool_point
             primary = train if which is None else train & (which == 0)
             reg = register_nominal(table, Q[primary], P[primary], tool_point=tool, T_base=T_base)
             pn = fk_point(table, Q[test], reg.tool_point, T_base=reg.T_measurement_base)  # at test

@@ -42,7 +42,7 @@ from dhlog.errors import DegenerateGeometryError
 from dhlog.geometry._checks import FloatArray, rotation_from_vector
 from dhlog.identify.fit.axismodel import AxisModel, ParameterLayout
 from dhlog.identify.fit.lm import levenberg_marquardt
-from dhlog.identify.fit.placement import place_on
+from dhlog.identify.fit.placement import Stand, place_on
 from dhlog.identify.fit.prediction import predict_columns
 from dhlog.identify.fit.whole import Determined, WholeFit
 from dhlog.model.dh import StandardDH
@@ -167,8 +167,7 @@ class PointMeasurement:
             frames[:, :3, :3],
             frames[:, :3, 3],
             data.P,
-            T=T_measurement_base,
-            tool=tool_point,
+            stand=Stand(T_measurement_base, tool_point),
             point=True,
         )
         model = AxisModel.of_table(
@@ -409,9 +408,7 @@ def fit_measured(
 def place_by_lm(
     table: StandardDH,
     reference_pose: FloatArray,
-    T_measurement_base: FloatArray,
-    tool_point: FloatArray,
-    tool_rotation: FloatArray,
+    stand: Stand,
     measurement: M,
     data: Any,
     *,
@@ -419,18 +416,21 @@ def place_by_lm(
     max_iterations: int = 50,
     far: float = math.inf,
 ) -> tuple[AxisModel, M]:
-    """``table`` placed on the corners, its geometry held: the base's pose in M and the
-    carried frame (``tool_point``, ``tool_rotation``) on the flange — the camera's pose and the
-    board's mount — by Levenberg–Marquardt in pixels along :func:`rigid_directions` (a
-    camera's :meth:`Measurement.place`), the model
-    rebuilt exactly from the table at each step (so the table never drifts); first on every
-    corner, then with the corners beyond ``threshold`` times the robust scale held out (not when the
-    first round's robust scale is ``far`` or more: no placement near the observations). How a
-    nominal is scored on one footing with the calibration."""
+    """``table`` at ``reference_pose`` placed on the corners from ``stand`` (where it stands:
+    its base, tool point and tool frame, which it must have), its geometry held: the base's pose
+    in M and the carried frame on the flange — the camera's pose and the board's mount —
+    by Levenberg–Marquardt in pixels along :func:`rigid_directions` (a camera's
+    :meth:`Measurement.place`), the model rebuilt exactly from the table at each step (so the
+    table never drifts); first on every corner, then with the corners beyond ``threshold``
+    times the robust scale held out (not when the first round's robust scale is ``far`` or
+    more: no placement near the observations). How a nominal is scored on one footing with the
+    calibration."""
     from dhlog.model.fk import fk_frames
 
     meas = measurement
-    state = (T_measurement_base, tool_point, tool_rotation)
+    tool_rotation = stand.R_tool
+    assert tool_rotation is not None, "a camera's placement carries a frame"
+    state = (stand.T, stand.tool, tool_rotation)
 
     def build(st: tuple[FloatArray, FloatArray, FloatArray]) -> AxisModel:
         return AxisModel.of_table(table, reference_pose, st[1], st[0], tool_rotation=st[2])

@@ -35,7 +35,7 @@ Pure numpy/scipy.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from functools import partial
 
 import numpy as np
@@ -75,6 +75,9 @@ LINE_RATIO = 0.01
 #: inliers and RMS are of every pose. A camera log's 10 000 board poses or a long session of
 #: still poses held at 100 Hz otherwise cost seconds of finite differences.
 SOLVED_POSES = 2000
+#: The closed form alternates the tool point and the base's rotation this many times from each
+#: start (where the tool point is placed).
+ALTERNATIONS = 5
 
 
 @dataclass(frozen=True)
@@ -100,6 +103,17 @@ def conditioning(P: FloatArray) -> Conditioning:
     if spread[1] < LINE_RATIO * spread[0]:
         return Conditioning("line", spread, np.asarray(Vt[0], dtype=np.float64))
     return Conditioning("spread", spread)
+
+
+@dataclass(frozen=True)
+class Stand:
+    """Where a model stands in M: its frame 1 ``T`` (4×4), the target in its last frame
+    ``tool`` (m) and the target frame's orientation there ``R_tool`` (None without); by default
+    the identity, the flange's origin and no frame."""
+
+    T: FloatArray = field(default_factory=lambda: np.eye(4))
+    tool: FloatArray = field(default_factory=lambda: np.zeros(3))
+    R_tool: FloatArray | None = None
 
 
 @dataclass(frozen=True)
@@ -314,7 +328,7 @@ def _tool_by_lstsq(pb: _Problem, R_B: FloatArray, tool: FloatArray, c: FloatArra
 
 
 def _closed_form(
-    pb: _Problem, R_B: FloatArray, tool: FloatArray, alternations: int
+    pb: _Problem, R_B: FloatArray, tool: FloatArray
 ) -> tuple[FloatArray, FloatArray, FloatArray]:
     """From the base rotation ``R_B``: the translation and (where placed) the tool point,
     alternated with Kabsch where the positions fix the rotation
@@ -326,7 +340,7 @@ def _closed_form(
         pb.f[None],
         pb.P,
         tool[None],
-        rounds=alternations if pb.point else 0,
+        rounds=ALTERNATIONS if pb.point else 0,
         R_B=R_B[None],
         rotate=conditioning(pb.P).kind == "spread",
         directions=(V @ V.T)[None],
@@ -438,22 +452,19 @@ def place_on(
     P: FloatArray,
     R: FloatArray | None = None,
     *,
-    T: FloatArray | None = None,
-    tool: FloatArray | None = None,
-    R_tool: FloatArray | None = None,
+    stand: Stand | None = None,
     base: bool = True,
     point: bool = False,
     frame: bool = False,
-    alternations: int = 5,
 ) -> Placement:
     """A model placed on measured poses (see the module docstring): ``F`` (k, 3, 3) and ``f``
     (k, 3) its flange's frame at each pose in its frame 1, ``P`` (k, 3) the measured positions,
     ``R`` (k, 3, 3) the measured orientations (a 6-DoF probe; used where the model has a tool
-    frame ``R_tool``). ``T``, ``tool``, ``R_tool``: the model as it stands (its base, tool point
-    and frame; identity, zero and None if not given). ``base``: place ``T``; ``point``: the tool
-    point; ``frame``: the tool frame (with ``R`` and ``R_tool``). Every start is tried and the
-    one leaving the smallest cost (over the poses kept) is returned. Over
-    :data:`SOLVED_POSES` poses, it is solved on that many evenly strided, and judged on all."""
+    frame). ``stand``: the model as it stands (its base, tool point and frame; None:
+    :class:`Stand`'s defaults). ``base``: place its ``T``; ``point``: the tool point;
+    ``frame``: the tool frame (with ``R`` and a ``R_tool``). Every start is tried and the one
+    leaving the smallest cost (over the poses kept) is returned. Over :data:`SOLVED_POSES`
+    poses, it is solved on that many evenly strided, and judged on all."""
     k = P.shape[0]
     if k > SOLVED_POSES:
         pick = np.linspace(0, k - 1, SOLVED_POSES).round().astype(np.intp)
@@ -462,21 +473,19 @@ def place_on(
             f[pick],
             P[pick],
             None if R is None else R[pick],
-            T=T,
-            tool=tool,
-            R_tool=R_tool,
+            stand=stand,
             base=base,
             point=point,
             frame=frame,
-            alternations=alternations,
         )
         dist = np.linalg.norm(_carried(F, f, got.tool) @ got.T[:3, :3].T + got.T[:3, 3] - P, axis=1)
         keep = _inliers(dist)
         rms = float(np.sqrt(np.mean(dist[keep] ** 2))) if np.any(keep) else float("nan")
         return Placement(got.T, got.tool, got.R_tool, dist, keep, rms, got.start)
-    T0 = np.eye(4) if T is None else np.asarray(T, dtype=np.float64)
-    t0 = np.zeros(3) if tool is None else np.asarray(tool, dtype=np.float64)
-    Rt0 = None if R_tool is None else np.asarray(R_tool, dtype=np.float64)
+    stand = Stand() if stand is None else stand
+    T0 = np.asarray(stand.T, dtype=np.float64)
+    t0 = np.asarray(stand.tool, dtype=np.float64)
+    Rt0 = None if stand.R_tool is None else np.asarray(stand.R_tool, dtype=np.float64)
     used = R if (R is not None and Rt0 is not None) else None
     basis = tool_directions(F) if base else np.eye(3)  # a held base: the point is fixed
     pb = _Problem(F, f, P, used, base, point, frame, basis)
@@ -484,7 +493,7 @@ def place_on(
     fits = []
     for name, R_start in _starts(pb, T0, t0, Rt0):
         if base:
-            R_B, c, t = _closed_form(pb, R_start, t0, alternations)
+            R_B, c, t = _closed_form(pb, R_start, t0)
         else:  # the base held: the tool point alone, linear
             R_B, c = T0[:3, :3], T0[:3, 3]
             t = _tool_by_lstsq(pb, R_B, t0, c) if point else t0

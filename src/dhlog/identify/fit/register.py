@@ -20,7 +20,13 @@ from numpy.typing import NDArray
 
 from dhlog.errors import DegenerateGeometryError
 from dhlog.geometry._checks import FloatArray
-from dhlog.identify.fit.placement import OUTLIER_SCALE, ROBUST_SCALE, SCALE_FLOOR, place_on
+from dhlog.identify.fit.placement import (
+    OUTLIER_SCALE,
+    ROBUST_SCALE,
+    SCALE_FLOOR,
+    Stand,
+    place_on,
+)
 from dhlog.model.dh import StandardDH
 from dhlog.model.fk import fk_frames
 
@@ -53,7 +59,6 @@ def register_nominal(
     *,
     tool_point: FloatArray | None = None,
     T_base: FloatArray | None = None,
-    alternations: int = 5,
     fit_tool: bool = True,
 ) -> Registration:
     """Place the nominal ``table`` on the points ``P`` (m, 3) measured at joint vectors ``Q``
@@ -78,5 +83,5 @@ def register_nominal(
             "measure poses that spread in two directions at least."
         )
     T = np.eye(4) if T_base is None else np.asarray(T_base, dtype=np.float64)
-    got = place_on(R_last, p_last, P, T=T, tool=tool, point=fit_tool, alternations=alternations)
+    got = place_on(R_last, p_last, P, stand=Stand(T, tool), point=fit_tool)
     return Registration(got.T, got.tool, got.residuals, got.inliers, got.rms)

@@ -12,6 +12,7 @@ from dhlog.errors import DegenerateGeometryError
 from dhlog.geometry._checks import FloatArray, nearest_rotation
 from dhlog.geometry.lines import Line
 from dhlog.identify.fit.axismodel import AxisModel
+from dhlog.identify.fit.data import FitData
 from dhlog.identify.segment.persample import SampleArray, rows_where
 from dhlog.identify.segment.segment import Segmentation
 from dhlog.model.dh import JointType
@@ -86,15 +87,14 @@ def start_model(
     types: tuple[JointType, ...],
     target: FloatArray,
     ref: FloatArray,
-    Q: SampleArray,
-    P: SampleArray,
-    which: NDArray[np.int64] | None,
-    rotations: FloatArray | None,
+    data: FitData,
     held_axes: frozenset[int] = frozenset(),
 ) -> AxisModel:
     """The whole model's start: ``axes``, ``types`` and ``target`` at the reference pose ``ref``,
-    unit encoder scales, each further target (``which`` > 0) and the target frame's orientation
-    (``rotations``) from the samples ``Q``, ``P`` moved back through the axes."""
+    unit encoder scales, each further target (``data.which`` > 0) and the target frame's
+    orientation (``data.rotations``) from the samples ``data.Q``, ``data.P`` moved back through
+    the axes; ``held_axes`` the joints whose axes the fit holds."""
+    Q, P, which, rotations = data.Q, data.P, data.which, data.rotations
     extra = np.zeros((0, 3))
     if which is not None:  # further targets: their samples moved back to the reference pose
         extra = np.array(

@@ -25,6 +25,7 @@ from dhlog.identify.model.select import (
     SELECT_FOLDS,
     ModelRequest,
     Selection,
+    TermDesign,
     default_gravity,
     select_model,
     selected_terms,
@@ -79,15 +80,14 @@ def beyond_geometry(
         found = refit_with_model_error(whole, data, declared, options)
         if found is not None:
             weighed = replace(data, sample_cov=found.sample_cov)
+    term_design = TermDesign(gravity, request.harmonic_joints, masses)
     selection = select_model(
         request.mode,
         whole,
         weighed,
         options,
-        gravity=gravity,
-        harmonic_joints=request.harmonic_joints,
+        term_design=term_design,
         folds=folds if folds > 1 else SELECT_FOLDS,
-        masses=masses,
         reuse=weighed is data,
         outer=outer,
     )
@@ -98,9 +98,7 @@ def beyond_geometry(
     # the lumps again on the chosen candidate's axes (the geometric fit's may sit off where the
     # terms were missing), its coefficients kept where the terms are the same
     assert chosen.fit is not None
-    again = terms_for(
-        chosen.fit, chosen.families, gravity, request.harmonic_joints, masses, chosen.dropped
-    )
+    again = terms_for(chosen.fit, chosen.families, term_design, chosen.dropped)
     if again is not None and again.names() == terms.names():
         again = again.with_coefficients(terms.coefficients)
     start = replace(whole.model, terms=again)

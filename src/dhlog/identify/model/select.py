@@ -192,16 +192,26 @@ def family_of(kind: str) -> str:
     return "compliance" if kind.startswith("compliance") else "harmonic"
 
 
+@dataclass(frozen=True)
+class TermDesign:
+    """What the terms beyond the geometry are built from besides the fitted axes and target
+    (:func:`dhlog.model.terms.design`): ``gravity`` in M (a unit vector), the harmonics'
+    joints (0-based; None: every revolute) and the links' ``masses`` as lumps in M (empty:
+    lumped gravity terms)."""
+
+    gravity: FloatArray
+    harmonic_joints: tuple[int, ...] | None = None
+    masses: tuple[Lump, ...] = ()
+
+
 def terms_for(
     whole: WholeFit,
     families: tuple[str, ...],
-    gravity: FloatArray,
-    harmonic_joints: tuple[int, ...] | None,
-    masses: tuple[Lump, ...] = (),
+    term_design: TermDesign,
     dropped: frozenset[tuple[str, int]] = frozenset(),
 ) -> Terms | None:
-    """The terms of ``families`` on ``whole``'s axes, without the (family, joint) ``dropped``
-    (None for none)."""
+    """The terms of ``families`` on ``whole``'s axes, built as ``term_design`` says, without
+    the (family, joint) ``dropped`` (None for none)."""
     if not families:
         return None
     model = whole.model
@@ -211,9 +221,9 @@ def terms_for(
         [a.direction for a in model.axes],
         model.target,
         [t is JointType.REVOLUTE for t in model.types],
-        gravity,
-        harmonic_joints,
-        masses,
+        term_design.gravity,
+        term_design.harmonic_joints,
+        term_design.masses,
     )
     return terms.without(lambda t: (family_of(t.kind), t.joint) in dropped)
 
@@ -224,14 +234,13 @@ def select_model(
     data: FitData,
     options: FitOptions,
     *,
-    gravity: FloatArray,
-    harmonic_joints: tuple[int, ...] | None = None,
+    term_design: TermDesign,
     folds: int = SELECT_FOLDS,
-    masses: tuple[Lump, ...] = (),
     reuse: bool = False,
     outer: NDArray[np.int64] | None = None,
 ) -> Selection:
-    """Score the candidates of ``mode`` (see the module docstring) on ``whole``'s inliers.
+    """Score the candidates of ``mode`` (see the module docstring) on ``whole``'s inliers, their
+    terms built as ``term_design`` says, over ``folds`` folds.
     ``data`` and ``options``: the whole fit's samples and weights; ``reuse``: ``whole`` was
     fitted with exactly these, so that on every sample it is
     the geometric candidate itself (no fit again); ``outer`` (m,): each sample's fold of the
@@ -258,7 +267,7 @@ def select_model(
         """The candidate of ``families`` with every joint's terms, fitted to the samples, and
         linearised at its optimum."""
         if families not in parents:
-            terms = terms_for(whole, families, gravity, harmonic_joints, masses)
+            terms = terms_for(whole, families, term_design)
             if terms is None and reuse and stride == 1:
                 fit = whole  # its optimum over its inliers is the candidate's
             else:

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -177,14 +177,36 @@ def prefix_table(table: StandardDH, k: int) -> StandardDH:
     )
 
 
-def partial_extraction(
-    joints: list[JointReport],
-    ref: FloatArray,
-    base: PlaneFit | None,
-    nominal_table: StandardDH | None,
-    tolerances: Tolerances,
-) -> Extraction | None:
+@dataclass(frozen=True)
+class JointAxes:
+    """What the seed method reads the DH model off: each joint's report (its circle or line fit
+    and its axis at the reference pose), the ``reference_pose``, the ``base`` plane's fit (None:
+    none), the ``nominal`` table whose branches the extraction takes (None: none) and the
+    extraction's ``tolerances``."""
+
+    joints: tuple[JointReport, ...]
+    reference_pose: FloatArray
+    base: PlaneFit | None
+    nominal: StandardDH | None
+    tolerances: Tolerances
+
+    def extract(self, target: FloatArray) -> Extraction:
+        """The DH model line geometry reads off the axes (every joint identified), ``target``
+        (m, in M) the target at the reference pose."""
+        joints = self.joints
+        return self.tolerances.extract(
+            [j.axis for j in joints],  # type: ignore[misc]
+            [j.type for j in joints],  # type: ignore[misc]
+            target=target,
+            reference_pose=self.reference_pose,
+            base_plane=self.base.plane if self.base is not None else None,
+            nominal=self.nominal,
+        )
+
+
+def partial_extraction(fitted: JointAxes) -> Extraction | None:
     """The rows that only need the identified prefix of the chain (or None)."""
+    joints, nominal_table = fitted.joints, fitted.nominal
     n = len(joints)
     prefix = 0
     while prefix < n and joints[prefix].ok:
@@ -194,37 +216,38 @@ def partial_extraction(
     pre = joints[:prefix]
     last = pre[-1].fit
     assert last is not None
-    return tolerances.extract(
+    return fitted.tolerances.extract(
         [j.axis for j in pre],  # type: ignore[misc]
         [j.type for j in pre],  # type: ignore[misc]
         target=last.center + last.radius * last.basis[0] + 0.1 * last.basis[1],
-        reference_pose=ref[:prefix],
-        base_plane=base.plane if base is not None else None,
+        reference_pose=fitted.reference_pose[:prefix],
+        base_plane=fitted.base.plane if fitted.base is not None else None,
         nominal=None if nominal_table is None else prefix_table(nominal_table, prefix),
     )
 
 
 def propagate_analytic(
-    joints: list[JointReport],
-    ref: FloatArray,
+    fitted: JointAxes,
     target: FloatArray,
     target_cov: FloatArray,
-    base: PlaneFit | None,
-    nominal: StandardDH | None,
-    tolerances: Tolerances,
     center: Extraction,
     target_of: Callable[[list[Line | None]], FloatArray] | None = None,
     rows: frozenset[int] = frozenset(),
     nominal_rows: StandardDH | None = None,
 ) -> tuple[FloatArray, FloatArray | None]:
-    """First-order covariance of the identified model (:func:`state_vector`, 4n + 9) and, with
-    ``rows``, of the table with those rows in the Hayati–Mirmirani form (:func:`mixed_vector`).
+    """First-order covariance of the ``center`` extraction of the ``fitted`` axes
+    (:func:`state_vector`, 4n + 9) and, with ``rows``, of the table with those rows in the
+    Hayati–Mirmirani form (:func:`mixed_vector`, on ``nominal_rows``' branch); ``target`` (m, in
+    M) the target at the reference pose with its covariance ``target_cov``, ``target_of(axes)``
+    the target for other axes (None: held).
 
     The Jacobian of the extraction with respect to each fitted axis's tilt and shift (4 per axis,
     carried to the reference pose with the axes downstream of it and moving the target with it),
     the base plane (3) and the target's own scatter (3) is taken by central differences; the
     inputs' covariances are the fits' own.
     """
+    joints, ref, base = list(fitted.joints), fitted.reference_pose, fitted.base
+    nominal, tolerances = fitted.nominal, fitted.tolerances
     n = len(joints)
     types = [j.type for j in joints]
     axes = [j.axis for j in joints]

@@ -216,6 +216,7 @@ def extract_dh(
     else:
         desired_theta = np.where(revolute, q_ref, 0.0)
         nominal_d = np.zeros(n)
+    aim = _Aim(nominal, desired_theta, nominal_d)
     lines: list[Line] = list(axes)
     placed = [revolute[i] for i in range(n)]
 
@@ -273,18 +274,7 @@ def extract_dh(
             line_next = Line(p_target, z_i)
         else:
             if not placed[i + 1]:
-                _place_with_nominal(
-                    i,
-                    lines,
-                    xs,
-                    origins,
-                    z,
-                    nominal,
-                    desired_theta,
-                    nominal_d,
-                    angle_tol,
-                    anchor_place,
-                )
+                _place_with_nominal(i, lines, xs, origins, z, aim, angle_tol, anchor_place)
                 placed[i + 1] = True
             line_next = lines[i + 1]
         a_tol, d_tol = tolerance(i)
@@ -393,22 +383,33 @@ def _frame1_origin(
     return lines[0].project(np.zeros(3))
 
 
+@dataclass(frozen=True)
+class _Aim:
+    """The rows the extraction aims at, at the reference pose: the ``nominal`` table (None:
+    none) and its ``theta`` and ``d`` there (without a nominal: θ the joint values of revolute
+    joints, else 0; d 0)."""
+
+    nominal: StandardDH | None
+    theta: FloatArray
+    d: FloatArray
+
+
 def _place_with_nominal(
     i: int,
     lines: list[Line],
     xs: list[FloatArray | None],
     origins: list[FloatArray | None],
     z: list[FloatArray],
-    nominal: StandardDH | None,
-    desired_theta: FloatArray,
-    nominal_d: FloatArray,
+    aim: _Aim,
     angle_tol: float,
     anchor_place: Callable[[int], None],
 ) -> None:
-    """Place prismatic axis i+1 (0-based) so that row i matches the nominal d_i, a_i, α_i."""
+    """Place prismatic axis i+1 (0-based) so that row i matches the nominal d_i, a_i, α_i (the
+    anchor rule, ``anchor_place``, without a nominal)."""
     o_i = origins[i]
     assert o_i is not None
     z_i, e = z[i], lines[i + 1].direction
+    nominal, desired_theta, nominal_d = aim.nominal, aim.theta, aim.d
     if nominal is None:
         anchor_place(i + 1)
         return

@@ -21,8 +21,12 @@ from dhlog.geometry._checks import FloatArray
 from dhlog.geometry.fitting import PlaneFit
 from dhlog.geometry.lines import Line
 from dhlog.identify.fit.whole import WholeFit
-from dhlog.identify.joints.sweeps import JointReport
-from dhlog.identify.read.analytic import hayati_rows, near_parallel, propagate_analytic
+from dhlog.identify.read.analytic import (
+    JointAxes,
+    hayati_rows,
+    near_parallel,
+    propagate_analytic,
+)
 from dhlog.identify.read.conditioning import (
     Conditioned,
     conditioned,
@@ -30,7 +34,7 @@ from dhlog.identify.read.conditioning import (
     near_parallel_pairs,
     nominal_rows,
 )
-from dhlog.identify.read.extract import Extraction, Tolerances
+from dhlog.identify.read.extract import Extraction
 from dhlog.identify.read.hayati import HayatiRow
 from dhlog.identify.read.propagate import Extractor, fixed_reasons, propagate
 from dhlog.model.dh import StandardDH
@@ -61,33 +65,21 @@ class Uncertainty:
 
 
 def analytic_uncertainty(
-    joints: list[JointReport],
-    ref: FloatArray,
+    fitted: JointAxes,
     target: FloatArray,
     target_cov: FloatArray,
-    base: PlaneFit | None,
-    nominal: StandardDH | None,
-    tolerances: Tolerances,
     analytic: Extraction,
     target_of: Callable[[list[Line | None]], FloatArray] | None,
 ) -> Uncertainty:
-    """The uncertainty of the ``analytic`` extraction (:func:`propagate_analytic`), of its
-    table in the Hayati form where pairs are nearly parallel (said in its notes), and what the
-    extraction's conventions fix."""
+    """The uncertainty of the ``analytic`` extraction of the ``fitted`` axes
+    (:func:`propagate_analytic`: ``target`` with its covariance ``target_cov``, ``target_of``
+    the target for other axes), of its table in the Hayati form where pairs are nearly parallel
+    (said in its notes), and what the extraction's conventions fix."""
+    joints, ref, base, nominal = fitted.joints, fitted.reference_pose, fitted.base, fitted.nominal
     rows = hayati_rows(analytic)
     nominal_h = nominal_rows(nominal, ref, rows)
     covariance, mixed_cov = propagate_analytic(
-        joints,
-        ref,
-        target,
-        target_cov,
-        base,
-        nominal,
-        tolerances,
-        analytic,
-        target_of,
-        rows,
-        nominal_h,
+        fitted, target, target_cov, analytic, target_of, rows, nominal_h
     )
     std = np.sqrt(np.clip(np.diag(covariance), 0.0, None))
     fixed = std < 1e-12
