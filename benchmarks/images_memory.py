@@ -4,11 +4,11 @@
     /usr/bin/time -f %M .venv/bin/python benchmarks/images_memory.py read [--frames 300] [--raw]
 
 ``write`` makes (once, cached in $TMPDIR/dhlog-bench) a ROS 2 MCAP of ``--frames`` 1920x1080
-CompressedImage JPEG frames (quality 90; ``--raw``: bgr8 Image frames, 6.2 MB each) at 30 Hz
-and a CameraInfo, as a camera driver records them (the mcap writer's default 1 MiB zstd
-chunks). ``read`` walks the topic with ``dhlog.io.images.ImageStream`` and prints the frames,
-their mean, the file's size, the wall time and the Python heap's peak (tracemalloc is off: it
-would slow the walk; ``/usr/bin/time -f %M`` gives the process's peak RSS in KiB).
+CompressedImage JPEG frames (quality 90; ``--raw``: bgr8 Image frames, 6.2 MB each) at 30 Hz and a
+CameraInfo, as a camera driver records them (the mcap writer's default 1 MiB zstd chunks). ``read``
+walks the topic with ``dhlog.identify.camera.frames.images.ImageStream`` and prints the frames,
+their mean, the file's size, the wall time and the Python heap's peak (tracemalloc is off: it would
+slow the walk; ``/usr/bin/time -f %M`` gives the process's peak RSS in KiB).
 """
 
 from __future__ import annotations
@@ -23,8 +23,8 @@ import cv2
 import numpy as np
 from mcap.writer import CompressionType, Writer
 
+from dhlog.identify.camera.frames.images import ImageStream
 from dhlog.io import ros2
-from dhlog.io.images import ImageStream
 
 S = 1_000_000_000
 

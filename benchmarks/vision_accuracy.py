@@ -66,6 +66,8 @@ def _truth_model(rig: Any, table: Any, n: int, centre: np.ndarray) -> Any:
 
 def one_session(case: str, seed: int, poses: int) -> dict[str, float]:
     from dhlog.identify.camera.flow import process_observations
+    from dhlog.identify.camera.frames.detect import Tally
+    from dhlog.identify.camera.frames.observations import Observations
     from dhlog.identify.camera.pixels import Corners, PixelModel, fit_pixels
     from dhlog.identify.camera.poses import board_centre, corners_of
     from dhlog.identify.fit.prediction import predict
@@ -81,8 +83,6 @@ def one_session(case: str, seed: int, poses: int) -> dict[str, float]:
         simulate_vision,
     )
     from dhlog.simulator.config import SimulationConfig
-    from dhlog.vision.detect import Tally
-    from dhlog.vision.observe import Observations
 
     robot_name, setup, protocol = case.split(":")
     robot = load_robot(robot_name)

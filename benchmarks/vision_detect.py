@@ -5,10 +5,10 @@
 A 1920×1080 camera (f = 1600 px, plumb_bob k1 = −0.1) sees a ChArUco board of about 0.3 m
 (10×7 squares of 30 mm, 22 mm DICT_5X5_100 markers) ``--distance`` m away at random poses
 (tilts up to 35°, any turn), rendered as tests/test_vision.py renders (every pixel undistorted
-onto the board plane, the flat drawing remapped bilinearly), with Gaussian noise of 2 grey
-levels and, with ``--jpeg Q``, a JPEG round trip at quality Q (``cv2.imencode``/``imdecode``,
-as a CompressedImage topic holds it). For each frame ``dhlog.vision.detect.detect`` runs with
-and without the intrinsics; printed: the corners found, their RMS and largest distance (px)
+onto the board plane, the flat drawing remapped bilinearly), with Gaussian noise of 2 grey levels
+and, with ``--jpeg Q``, a JPEG round trip at quality Q (``cv2.imencode``/``imdecode``, as a
+CompressedImage topic holds it). For each frame ``dhlog.identify.camera.frames.detect.detect`` runs
+with and without the intrinsics; printed: the corners found, their RMS and largest distance (px)
 from the true projections, and the median time of a detection (the rendering is not timed).
 Then the time of a frame without the board: a blank one, one of clutter (the first frame cut
 in 60 px tiles and shuffled: pieces of markers and squares, and some whole markers) and one of
@@ -27,9 +27,9 @@ import cv2
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+from dhlog.identify.camera.frames.detect import Detection, detect
 from dhlog.vision.boards import BoardSpec
 from dhlog.vision.camera import Intrinsics
-from dhlog.vision.detect import Detection, detect
 from test_vision import errors, render, rotation
 
 

@@ -11,11 +11,11 @@ it (``dhlog.simulator.camera``: the KR5's ``random-poses`` session, its ChArUco 
 through the plumb_bob camera with blur, noise and exposure, JPEG quality 95; ``full-hd`` is
 issue 32's 1920x1080 camera, f 1600 px, with a 10x7 board of 30 mm squares 2 m away), but
 ``--frames`` long at 30 frames a second: the ``--poses`` (20) rendered frames repeat in turn,
-each held for its frame's 33 ms by joint states at 100 Hz (rendering 10 000 frames would take
-an hour; decoding and detecting a repeated frame costs the same). ``run`` observes it with
-``dhlog.io.observe.observe`` (the shipped ros2_camera pipeline with the preset's board) and
-prints the frames, the wall time, the CPU time of this process and its workers (user + sys),
-frames per second and per CPU second (per core), and the peak RSS of this process and of the
+each held for its frame's 33 ms by joint states at 100 Hz (rendering 10 000 frames would take an
+hour; decoding and detecting a repeated frame costs the same). ``run`` observes it with
+``dhlog.identify.camera.frames.observe.observe`` (the shipped ros2_camera pipeline with the preset's
+board) and prints the frames, the wall time, the CPU time of this process and its workers (user +
+sys), frames per second and per CPU second (per core), and the peak RSS of this process and of the
 largest worker (``resource.getrusage``; the whole command's peak is at most this process's
 plus ``jobs`` times the worker's).
 
@@ -43,8 +43,8 @@ import cv2
 import numpy as np
 from mcap.writer import CompressionType, Writer
 
+from dhlog.identify.camera.frames.observe import observe
 from dhlog.io import ros2
-from dhlog.io.observe import observe
 from dhlog.io.pipeline import pipeline_by_name
 from dhlog.model.robots import load_robot
 from dhlog.simulator.camera import JPEG_QUALITY, PRESETS, TOPICS, render, simulate_vision

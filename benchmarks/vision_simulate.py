@@ -7,7 +7,7 @@ corners lie from the truth's projection.
 
 For each robot and set-up (eye-to-hand, eye-in-hand) ``dhlog.simulator.camera`` simulates a
 vision log of the protocol (seed 0) with the camera preset and writes it; the frames are read
-back by ``io.images.ImageStream`` and ``vision.detect.detect`` runs on each with the
+back by ``frames.images.ImageStream`` and ``frames.detect.detect`` runs on each with the
 intrinsics. Printed: the frames with the board, the corners found of those on the board, their
 RMS and largest distance (px) from ``Intrinsics.project`` of the true board pose, the board's
 distance range, the simulation and the writing (rendering, encoding) times; for a moving
@@ -24,7 +24,8 @@ from pathlib import Path
 
 import numpy as np
 
-from dhlog.io.images import ImageStream
+from dhlog.identify.camera.frames.detect import Detection, detect
+from dhlog.identify.camera.frames.images import ImageStream
 from dhlog.model.robots import load_robot
 from dhlog.simulator.camera import (
     CAMERA_PRESETS,
@@ -34,7 +35,6 @@ from dhlog.simulator.camera import (
     write_vision_log,
 )
 from dhlog.simulator.config import SimulationConfig
-from dhlog.vision.detect import Detection, detect
 
 
 def main() -> None:

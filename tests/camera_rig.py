@@ -1,8 +1,8 @@
 """A camera calibration's inputs for tests, without rendering: the simulator's rig (a KR5 off its
 nominal, its camera and board), still poses where the board is seen, and the corners projected
 through the true chain with Gaussian noise of ``SIGMA_PX`` per coordinate, as
-``vision.observe.Observations`` or ``identify.camera.pixels.Corners``; the model the truth is in
-the fit's frames, and the truth read in the result's DH conventions."""
+``frames.observations.Observations`` or ``identify.camera.pixels.Corners``; the model the truth is
+in the fit's frames, and the truth read in the result's DH conventions."""
 
 from __future__ import annotations
 
@@ -11,6 +11,8 @@ from typing import Any
 
 import numpy as np
 
+from dhlog.identify.camera.frames.detect import Tally
+from dhlog.identify.camera.frames.observations import Observations
 from dhlog.identify.camera.pixels import Corners
 from dhlog.identify.fit.axismodel import AxisModel
 from dhlog.identify.read.extract import extract_dh
@@ -18,8 +20,6 @@ from dhlog.model.robots import load_robot
 from dhlog.simulator.camera import BOARD, CAMERA, Rig, camera_poses, flange_poses, place_rig
 from dhlog.simulator.config import SimulationConfig
 from dhlog.simulator.robot import perturbed
-from dhlog.vision.detect import Tally
-from dhlog.vision.observe import Observations
 
 SIGMA_PX = 0.2
 
@@ -50,7 +50,7 @@ def corners(rig: Rig, true: Any, robot: Any, Q: np.ndarray, rng: np.random.Gener
 
 
 def observations(robot: Any, Q: np.ndarray, ids: Any, uv: Any) -> Observations:
-    """The detections as ``io.observe`` gives them (a frame every 2 s, every frame detected)."""
+    """The detections as ``frames.observe`` gives them (a frame every 2 s, every frame detected)."""
     f = len(Q)
     tally = Tally()
     tally.frames = tally.detected = f

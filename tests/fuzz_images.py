@@ -18,11 +18,11 @@ raw mono8 ``Image`` is written by the mcap writer. The mutations come in four fa
   named wrong, a PNG (8- or 16-bit, BGRA, another size) in its place; a ``CameraInfo`` of
   another size, with NaN, infinite or zero K, 0 to 100 coefficients, an unknown model.
 
-:func:`run_library` reads a case with :class:`dhlog.io.images.ImageStream` (every frame) and
-passes each frame to :func:`dhlog.vision.detect.detect` with the simulator's board, without
-and with the log's intrinsics: frames, counted faults and rejections, or a ``DhlogError`` of
-one line are the only outcomes allowed. :func:`run_cli` runs ``dhlog process`` on it: exit 2
-with one line on stderr, nothing written.
+:func:`run_library` reads a case with :class:`dhlog.identify.camera.frames.images.ImageStream`
+(every frame) and passes each frame to :func:`dhlog.identify.camera.frames.detect.detect` with the
+simulator's board, without and with the log's intrinsics: frames, counted faults and rejections, or
+a ``DhlogError`` of one line are the only outcomes allowed. :func:`run_cli` runs ``dhlog process``
+on it: exit 2 with one line on stderr, nothing written.
 """
 
 from __future__ import annotations
@@ -257,8 +257,8 @@ def _compressed_case(
 
 
 def _info_case(data: bytes, rng: random.Random) -> tuple[str, bytes]:
+    from dhlog.identify.camera.frames.imagedecode import camera_info_cdr
     from dhlog.io import ros2
-    from dhlog.io.imagedecode import camera_info_cdr
 
     info = camera_info_cdr(data)
     w, h, model, d, k = info.width, info.height, info.distortion_model, list(info.d), info.k
@@ -353,9 +353,9 @@ def run_library(case: Case, folder: Path, board: Any) -> Outcome:
     import traceback
 
     from dhlog.errors import DhlogError
-    from dhlog.io.images import ImageStream
+    from dhlog.identify.camera.frames.detect import Detection, Rejected, detect
+    from dhlog.identify.camera.frames.images import ImageStream
     from dhlog.vision.camera import Intrinsics
-    from dhlog.vision.detect import Detection, Rejected, detect
 
     log = folder / "case.mcap"
     log.write_bytes(case.data)

@@ -48,8 +48,8 @@ def test_mutated_vision_logs_through_the_cli(base: Base, tmp_path: Path) -> None
 def test_the_base_logs_read_whole(base: Base, tmp_path: Path) -> None:
     """The unmutated logs: every frame decoded, the board found in some (the fuzz starts from
     logs that exercise the detector, not from frames it rejects outright)."""
-    from dhlog.io.images import ImageStream
-    from dhlog.vision.detect import Detection, detect
+    from dhlog.identify.camera.frames.detect import Detection, detect
+    from dhlog.identify.camera.frames.images import ImageStream
 
     found: list[Any] = []
     for fmt, data in base.logs.items():

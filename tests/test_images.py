@@ -19,9 +19,9 @@ from mcap.writer import CompressionType, Writer
 from numpy.typing import NDArray
 
 from dhlog.errors import InputError, MissingTopicError, NotMcapError
+from dhlog.identify.camera.frames.imagedecode import CameraImage, camera_info_cdr
+from dhlog.identify.camera.frames.images import ImageStream, read_camera_infos
 from dhlog.io import ros2
-from dhlog.io.imagedecode import CameraImage, camera_info_cdr
-from dhlog.io.images import ImageStream, read_camera_infos
 
 S = 1_000_000_000
 K = np.array([[800.0, 0.0, 320.5], [0.0, 805.0, 240.25], [0.0, 0.0, 1.0]])

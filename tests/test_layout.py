@@ -92,6 +92,22 @@ def test_identify_stages_import_only_their_own_or_lower_ones() -> None:
     assert not wrong, "\n".join(wrong)
 
 
+def test_the_camera_is_one_package_read_through_the_result() -> None:
+    """identify/camera/ is the camera's work, from its images to its calibration: only the run
+    hands a log to it; the result document, the export, the certificate and the recording read
+    what it found through the result (vision/'s blocks), never the package itself."""
+    camera = "dhlog.identify.camera"
+    outside = [
+        f"{m} → {t}"
+        for m, ts in sorted(GRAPH.items())
+        for t in ts
+        if (t == camera or t.startswith(camera + "."))
+        and not (m == camera or m.startswith(camera + "."))
+        and m != "dhlog.identify.run"
+    ]
+    assert not outside, "\n".join(outside)
+
+
 def test_the_module_table_names_only_modules_that_exist() -> None:
     """docs/architecture.md's module table ("The modules, floor by floor") describes the house as
     it stands: a row whose module was split, moved or removed is stale."""

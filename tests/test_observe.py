@@ -1,6 +1,6 @@
-"""``dhlog.io.observe.observe`` (issue 32): a simulated vision log read with the camera pipeline —
-the board's corners found in every frame where the truth puts them, the encoders joined at each
-frame's stamp, jobs=2 the same as jobs=1, and each bad input one line.
+"""``dhlog.identify.camera.frames.observe.observe`` (issue 32): a simulated vision log read with the
+camera pipeline — the board's corners found in every frame where the truth puts them, the encoders
+joined at each frame's stamp, jobs=2 the same as jobs=1, and each bad input one line.
 
 The logs are the simulator's (``simulate.camera.simulate_vision`` and ``write_vision_log``: the
 KR5 eye-in-hand, 10 still poses, its camera scaled to 640x400 as tests/fuzz_images.py scales it,
@@ -30,12 +30,12 @@ from mcap.reader import make_reader
 from mcap.writer import CompressionType, Writer
 
 from dhlog.errors import PipelineError
+from dhlog.identify.camera.frames.observations import Decimation, joint_values_at
+from dhlog.identify.camera.frames.observe import VisionLogError, observe
 from dhlog.io import ros2
-from dhlog.io.observe import VisionLogError, observe
 from dhlog.io.pipeline import Pipeline, parse_pipeline, pipeline_by_name
 from dhlog.simulator.camera import TOPICS, VisionSession
 from dhlog.vision.camera import Intrinsics
-from dhlog.vision.observe import Decimation, joint_values_at
 
 POSES = 10
 SCALE = 0.5

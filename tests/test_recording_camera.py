@@ -3,7 +3,7 @@ written with the real Rerun SDK, checked by ``rerun rrd verify`` and read back.
 
 The views are built by hand from frames the simulator renders (the KR5, its ChArUco board and
 plumb_bob camera, eye-to-hand and eye-in-hand), JPEG- and PNG-encoded by OpenCV and detected by
-``vision.detect``; the reprojected corners are the true chain's with the camera moved 1 mm
+``frames.detect``; the reprojected corners are the true chain's with the camera moved 1 mm
 along its x (about 1 px at the board's distance), so every error vector is a real one."""
 
 from __future__ import annotations
@@ -19,6 +19,7 @@ import pytest
 import rerun.blueprint as rrb
 from rerun.chunk import RrdReader
 
+from dhlog.identify.camera.frames.detect import Detection, detect
 from dhlog.identify.run import process_log
 from dhlog.model.robots import load_robot
 from dhlog.present.recording import write_process_recording
@@ -36,7 +37,6 @@ from dhlog.present.recording.scene import Shown
 from dhlog.present.recording.stream import recording_file
 from dhlog.present.render import missing, screenshot
 from dhlog.simulator import camera as sim
-from dhlog.vision.detect import Detection, detect
 from dhlog.vision.view import CameraView, FrameView
 from test_process import SAMPLES, rrd_verify
 

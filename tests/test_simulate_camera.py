@@ -1,6 +1,6 @@
 """``dhlog simulate --instrument camera`` (issue 32, item 8): a vision log read back as a camera
-records it — the images by ``io.images.ImageStream``, the joint states by the mcap reader and
-rosbags' CDR decoder — its board detected by ``vision.detect`` in every frame, and each corner
+records it — the images by ``frames.images.ImageStream``, the joint states by the mcap reader and
+rosbags' CDR decoder — its board detected by ``frames.detect`` in every frame, and each corner
 found where the truth puts it: the truth's DH table at the joint states of the frame, the
 camera's pose, the board's mount and the intrinsics, projected by ``Intrinsics.project``.
 
@@ -35,7 +35,8 @@ from typer.testing import CliRunner
 
 from dhlog.cli.app import app
 from dhlog.cli.common import EXIT_IMPLAUSIBLE, EXIT_USAGE
-from dhlog.io.images import ImageStream
+from dhlog.identify.camera.frames.detect import Detection, detect
+from dhlog.identify.camera.frames.images import ImageStream
 from dhlog.model.dh import JointType, StandardDH
 from dhlog.model.fk import fk_frames
 from dhlog.model.robots import load_robot
@@ -57,7 +58,6 @@ from dhlog.simulator.camera import (
 from dhlog.simulator.config import SimulationConfig
 from dhlog.vision.boards import BoardSpec
 from dhlog.vision.camera import Intrinsics
-from dhlog.vision.detect import Detection, detect
 
 runner = CliRunner()
 POSES = 12

@@ -18,9 +18,16 @@ import numpy as np
 import pytest
 from numpy.typing import NDArray
 
+from dhlog.identify.camera.frames.detect import (
+    REASONS,
+    Detection,
+    Rejected,
+    detect,
+    edge_rise_px,
+    tally,
+)
 from dhlog.vision.boards import BoardError, BoardSpec
 from dhlog.vision.camera import CameraError, Intrinsics
-from dhlog.vision.detect import REASONS, Detection, Rejected, detect, edge_rise_px, tally
 
 K640 = np.array([[800.0, 0.0, 321.3], [0.0, 805.0, 238.7], [0.0, 0.0, 1.0]])
 CAMERAS = {
@@ -368,8 +375,9 @@ def test_board_image_by_width_and_camera_info_from_the_reader() -> None:
     np.testing.assert_allclose(drawn.image_from_board[0, 0], 57 / 0.04)
     with pytest.raises(BoardError, match="needs px_per_m or width_px"):
         board.image()
-    # The reader's CameraInfo (dhlog.io.images) carries the fields from_camera_info takes.
-    from dhlog.io.imagedecode import CameraInfo
+    # The reader's CameraInfo (dhlog.identify.camera.frames.imagedecode) carries the fields
+    # from_camera_info takes.
+    from dhlog.identify.camera.frames.imagedecode import CameraInfo
 
     k = np.array([[810.0, 0, 330], [0, 812.0, 242], [0, 0, 1]])
     info = CameraInfo(

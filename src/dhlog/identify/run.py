@@ -93,7 +93,7 @@ def process_log(
     camera = camera_pipeline(path, pipeline)
     if camera is not None:  # one Observations a camera
         from dhlog.identify.camera.flow import process_observations
-        from dhlog.io.observe import observe
+        from dhlog.identify.camera.frames.observe import observe
 
         digest = sha256_begun(path)  # beside the long walk: the log as it was read
         observations = observe(

@@ -18,7 +18,8 @@ from dhlog.io.pipeline import Pipeline, pipeline_by_name, shipped_pipelines
 IMPORT_METADATA = "dhlog.import"
 
 
-#: the schemas of camera images (those of :mod:`dhlog.io.images`, named here without its cv2)
+#: the schemas of camera images (those of :mod:`dhlog.identify.camera.frames.images`, named here
+#: without its cv2)
 _IMAGE_SCHEMAS = frozenset(
     {
         "sensor_msgs/msg/Image",
@@ -30,11 +31,11 @@ _IMAGE_SCHEMAS = frozenset(
 
 
 def camera_pipeline(path: str | Path, pipeline: Pipeline | None) -> Pipeline | None:
-    """The camera pipeline to read ``path`` with, or None for a tracker log: ``pipeline``
-    when it is a camera's; without one, when the log's channels (the summary's, else those
-    before its 200th message) carry camera images, the shipped camera pipeline whose image
-    topic the log has, else the shipped ``ros2_camera`` (``io.observe`` takes the cameras on
-    topics like its image topic in other namespaces, e.g. ``/camera_1/…``, ``/camera_2/…``)."""
+    """The camera pipeline to read ``path`` with, or None for a tracker log: ``pipeline`` when it is
+    a camera's; without one, when the log's channels (the summary's, else those before its 200th
+    message) carry camera images, the shipped camera pipeline whose image topic the log has, else
+    the shipped ``ros2_camera`` (``identify.camera.frames.observe`` takes the cameras on topics like
+    its image topic in other namespaces, e.g. ``/camera_1/…``, ``/camera_2/…``)."""
     if pipeline is not None:
         return pipeline if pipeline.is_camera else None
     topics = _image_topics(Path(path))
@@ -100,7 +101,7 @@ def choose_pipeline(path: str, channels: dict[int, ChannelInfo]) -> tuple[Pipeli
     """The shipped pipeline that fits the log's topics and encodings best, and why."""
     best: tuple[int, Pipeline] | None = None
     for pipeline in shipped_pipelines():
-        if pipeline.is_camera:  # a camera log is read by io.observe, not here
+        if pipeline.is_camera:  # a camera log is read by identify.camera.frames, not here
             continue
         score = 0
         fits = True

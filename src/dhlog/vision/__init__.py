@@ -1,3 +1,3 @@
-"""A camera as an instrument: the pinhole camera with its lens distortion, the calibration
-targets (ChArUco and ArUco boards, checkerboards) and their detection in images (OpenCV), and
-a calibration's product (`report`)."""
+"""A camera as the pipeline and the result name it: the pinhole camera with its lens distortion
+(`camera`), the calibration targets — ChArUco and ArUco boards, checkerboards — (`boards`;
+OpenCV), and the blocks a calibration's result holds (`report`, `view`)."""

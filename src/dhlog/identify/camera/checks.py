@@ -15,6 +15,7 @@ from numpy.typing import NDArray
 
 from dhlog.errors import DhlogError, Note
 from dhlog.geometry._checks import FloatArray
+from dhlog.identify.camera.frames.observations import Observations
 from dhlog.identify.camera.pixels import Corners, PixelFit, PixelModel
 from dhlog.identify.camera.poses import corners_of
 from dhlog.identify.check.plausible import SCALE_MIN_LENGTH as SCALE_MIN_LENGTH
@@ -23,7 +24,6 @@ from dhlog.identify.fit.axismodel import AxisModel
 from dhlog.identify.read.extract import Extraction
 from dhlog.io.dhfile import DHModel
 from dhlog.model.dh import StandardDH
-from dhlog.vision.observe import Observations
 
 if TYPE_CHECKING:  # the run's result, which this module's checks read (stages is above it)
     from dhlog.identify.stages import Identification

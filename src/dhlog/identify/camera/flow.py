@@ -38,6 +38,7 @@ from dhlog.identify.camera.checks import (
     frame_clustered,
     placed_nominal,
 )
+from dhlog.identify.camera.frames.observations import Observations
 from dhlog.identify.camera.hand_eye import cameras_std, hand_eye
 from dhlog.identify.camera.holdout import cross_validate_cameras, cross_validate_pixels
 from dhlog.identify.camera.pixels import CamerasModel, PixelFit, PixelModel, fit_pixels
@@ -65,7 +66,6 @@ from dhlog.identify.read.uncertainty import Uncertainty, whole_uncertainty
 from dhlog.identify.stages import Identification
 from dhlog.io.dhfile import DHModel
 from dhlog.io.logdata import LogData
-from dhlog.vision.observe import Observations
 from dhlog.vision.report import CameraResult
 
 #: the fewest frames with the board for a calibration

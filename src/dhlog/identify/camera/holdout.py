@@ -11,13 +11,13 @@ from dataclasses import replace
 import numpy as np
 
 from dhlog.geometry._checks import FloatArray
+from dhlog.identify.camera.frames.observations import Observations
 from dhlog.identify.camera.pixels import Corners, PixelFit, fit_pixels
 from dhlog.identify.camera.poses import pnp_points, refined_poses
 from dhlog.identify.fit.leaveout import fold_of_poses
 from dhlog.identify.read.extract import extract_dh
 from dhlog.io.dhfile import DHModel
 from dhlog.model.dh import StandardDH
-from dhlog.vision.observe import Observations
 from dhlog.vision.report import PixelHoldout
 
 

@@ -16,6 +16,7 @@ from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
 
 from dhlog.geometry._checks import FloatArray
+from dhlog.identify.camera.frames.observations import Observations
 from dhlog.identify.camera.pixels import Corners, PixelFit
 from dhlog.identify.fit.axismodel import ParameterLayout
 from dhlog.identify.fit.prediction import predict as predict_points
@@ -23,7 +24,6 @@ from dhlog.identify.fit.prediction import predict_orientation
 from dhlog.io.pipeline import pipeline_by_name
 from dhlog.io.reader import LogData
 from dhlog.vision.camera import Intrinsics
-from dhlog.vision.observe import Observations
 
 #: the largest PnP reprojection RMS (px) a frame's pose may have to enter the start
 PNP_RMS = 5.0
@@ -105,7 +105,7 @@ def pose_log(
     gaps = np.diff(t)
     spacing = float(np.median(gaps)) * 1e-9 if gaps.size else 0.0
     window = max(base.segmentation.motion_window, 1.5 * spacing)
-    # and they were joined at each frame's stamp already (io.observe): no clock offset to find
+    # and they were joined at each frame's stamp already (frames.observe): no clock offset to find
     segmentation = replace(
         base.segmentation,
         motion_window=min(window, 3600.0),

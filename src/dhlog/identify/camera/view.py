@@ -7,12 +7,12 @@ from __future__ import annotations
 import math
 
 from dhlog.geometry._checks import FloatArray
+from dhlog.identify.camera.frames.observations import Observations
 from dhlog.identify.camera.pixels import Corners, PixelFit
 from dhlog.identify.camera.poses import board_centre, shift, transform
 from dhlog.identify.fit.axismodel import ParameterLayout
 from dhlog.identify.fit.prediction import predict as predict_points
 from dhlog.identify.fit.prediction import predict_orientation
-from dhlog.vision.observe import Observations
 from dhlog.vision.report import CameraResult, PixelHoldout
 from dhlog.vision.view import CameraView, FrameView
 

@@ -22,11 +22,11 @@ import numpy as np
 from numpy.typing import NDArray
 
 from dhlog.errors import InputError, MissingTopicError
-from dhlog.io.imagedecode import (
+from dhlog.identify.camera.frames.imagedecode import (
     INFO_SCHEMAS,
     CameraInfo,
 )
-from dhlog.io.images import _log_files, read_camera_infos
+from dhlog.identify.camera.frames.images import _log_files, read_camera_infos
 from dhlog.io.mcapscan import scan_mcap
 from dhlog.io.mcapwalk import ChannelInfo, RawMessages
 from dhlog.io.pipeline import DEFAULT_TOPICS, Pipeline, StreamSpec
@@ -41,7 +41,7 @@ class VisionLogError(InputError):
     than the intrinsics', no frame with the target, no frame with joint values."""
 
 
-@dataclass
+@dataclass(frozen=True)
 class _Small:
     """What the first walk found: the topics present, the joint states (t, q, names), the
     camera infos, warnings."""
@@ -194,14 +194,15 @@ def _cameras(name: str, pipeline: Pipeline, present: list[str]) -> list[_Camera]
 
 
 def _intrinsics(
-    name: str, pipeline: Pipeline, camera: _Camera, small: _Small, warnings: list[str]
-) -> tuple[Intrinsics, str]:
-    """The camera's intrinsics and where they come from (the pipeline's calibration file, or
-    the first camera info on its topic)."""
+    name: str, pipeline: Pipeline, camera: _Camera, small: _Small
+) -> tuple[Intrinsics, str, tuple[str, ...]]:
+    """The camera's intrinsics, where they come from (the pipeline's calibration file, or the
+    first camera info on its topic) and the warning when the camera infos change."""
     assert pipeline.camera is not None
     if camera.info is None:
         assert pipeline.camera.intrinsics is not None
-        return pipeline.camera.intrinsics, f"[camera] calibration {pipeline.camera.calibration}"
+        calibration = f"[camera] calibration {pipeline.camera.calibration}"
+        return pipeline.camera.intrinsics, calibration, ()
     topic = camera.info
     infos = small.infos.get(topic, [])
     if not infos:
@@ -232,10 +233,11 @@ def _intrinsics(
         ),
         None,
     )
-    if changed is not None:
-        warnings.append(
-            f"{where}: the intrinsics change at camera info {changed} of {len(infos)}; "
-            "the first are used for every frame (give a calibration file as [camera] "
-            "calibration to choose them)."
-        )
-    return found, f"camera info on {topic}"
+    if changed is None:
+        return found, f"camera info on {topic}", ()
+    said = (
+        f"{where}: the intrinsics change at camera info {changed} of {len(infos)}; "
+        "the first are used for every frame (give a calibration file as [camera] "
+        "calibration to choose them)."
+    )
+    return found, f"camera info on {topic}", (said,)

@@ -4,15 +4,16 @@ encoders joined at each frame's stamp, a few frames kept for the recording.
 The log is walked first for the small streams — the joint states and every camera info — so
 that a log without intrinsics or encoders is refused before any image is decoded, and every
 frame is detected with the intrinsics; the cameras are the pipeline's image topic and those
-like it in other namespaces (:mod:`dhlog.io.camerafind`). Then the log is walked once a camera
-for its images: their payloads as recorded
-(:meth:`dhlog.io.images.ImageStream.payload_batches`, :data:`PAYLOAD_BATCH_BYTES` at a time),
-decoded and detected in worker processes (:mod:`dhlog.io.framedetect`) and taken back in the
-frames' order. Memory: the walk's queue (:data:`dhlog.io.images.QUEUED` batches of
+like it in other namespaces (:mod:`~dhlog.identify.camera.frames.camerafind`). Then the log is
+walked once a camera for its images: their payloads as recorded
+(:meth:`~dhlog.identify.camera.frames.images.ImageStream.payload_batches`,
+:data:`PAYLOAD_BATCH_BYTES` at a time), decoded and detected in worker processes
+(:mod:`~dhlog.identify.camera.frames.framedetect`) and taken back in the frames' order. Memory:
+the walk's queue (:data:`~dhlog.identify.camera.frames.images.QUEUED` batches of
 :data:`PAYLOAD_BATCH_BYTES`), the tasks in flight, one decoded frame a worker and the
 detections (a few hundred bytes a frame): a 10 000-frame full-HD log is never held. A log that
-cannot be observed as given is a :class:`~dhlog.io.camerafind.VisionLogError` naming what to
-fix.
+cannot be observed as given is a :class:`~dhlog.identify.camera.frames.camerafind.VisionLogError`
+naming what to fix.
 """
 
 from __future__ import annotations
@@ -25,21 +26,28 @@ import numpy as np
 from numpy.typing import NDArray
 
 from dhlog.errors import InputError, PipelineError
-from dhlog.io.camerafind import VisionLogError as VisionLogError
-from dhlog.io.camerafind import _Camera, _cameras, _first_walk, _intrinsics, _joints_spec, _Small
-from dhlog.io.framedetect import _looked, _Setup
-from dhlog.io.images import Faults, ImageStream
-from dhlog.io.pipeline import Pipeline
-from dhlog.model.dh import JointType
-from dhlog.vision.camera import Intrinsics
-from dhlog.vision.detect import REASONS, Detection, Tally
-from dhlog.vision.observe import (
+from dhlog.identify.camera.frames.camerafind import VisionLogError as VisionLogError
+from dhlog.identify.camera.frames.camerafind import (
+    _Camera,
+    _cameras,
+    _first_walk,
+    _intrinsics,
+    _joints_spec,
+    _Small,
+)
+from dhlog.identify.camera.frames.detect import REASONS, Detection, Tally
+from dhlog.identify.camera.frames.framedetect import _looked, _Setup
+from dhlog.identify.camera.frames.images import Faults, ImageStream
+from dhlog.identify.camera.frames.observations import (
     MOVING_SPEED,
     NOMINAL_EXPOSURE_S,
     Decimation,
     Observations,
     joint_values_at,
 )
+from dhlog.io.pipeline import Pipeline
+from dhlog.model.dh import JointType
+from dhlog.vision.camera import Intrinsics
 
 #: Payload bytes a batch of the image walk holds (:meth:`ImageStream.payload_batches`).
 PAYLOAD_BATCH_BYTES = 8 << 20
@@ -150,9 +158,9 @@ def _observe_camera(
 ) -> Observations:
     """One camera's observations (see :func:`observe`)."""
     assert pipeline.target is not None
-    warnings: list[str] = []
     topic = cam.image
-    camera, source = _intrinsics(name, pipeline, cam, small, warnings)
+    camera, source, said = _intrinsics(name, pipeline, cam, small)
+    warnings = list(said)
     setup = _Setup(pipeline.target, camera)
     stream = ImageStream(name, topic, batch_bytes=PAYLOAD_BATCH_BYTES)
     decimation = Decimation(keep_frames)

@@ -1,9 +1,9 @@
 """A camera log's frames looked at (:func:`_looked`): the payloads handed in tasks of
 :data:`TASK_FRAMES` to ``jobs`` worker processes (spawned; one OpenCV thread each; SIGINT left to
 the parent), at most :data:`IN_FLIGHT` tasks a worker waiting, each frame decoded
-(:func:`dhlog.io.imagedecode.decode_payload`) and the board detected in it
-(:func:`dhlog.vision.detect.detect`), the results taken back in the frames' order; with
-``jobs=1`` the same work in the calling process. A frame asked for the recording is kept
+(:func:`~dhlog.identify.camera.frames.imagedecode.decode_payload`) and the board detected in it
+(:func:`~dhlog.identify.camera.frames.detect.detect`), the results taken back in the frames' order;
+with ``jobs=1`` the same work in the calling process. A frame asked for the recording is kept
 JPEG-encoded (:data:`KEPT_JPEG_QUALITY` for a raw one).
 """
 
@@ -22,8 +22,8 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from dhlog.io import ros2
-from dhlog.io.imagedecode import (
+from dhlog.identify.camera.frames.detect import Detection, Rejected, detect
+from dhlog.identify.camera.frames.imagedecode import (
     Decoder,
     ImageFaultError,
     _Cdr,
@@ -33,15 +33,15 @@ from dhlog.io.imagedecode import (
     payload_decoder,
     unzstd_payload,
 )
-from dhlog.io.images import ImagePayload, ImageStream
+from dhlog.identify.camera.frames.images import ImagePayload, ImageStream
+from dhlog.identify.camera.frames.observations import (
+    Decimation,
+)
+from dhlog.io import ros2
 from dhlog.io.mcapwalk import ChannelInfo
 from dhlog.io.safetext import printable
 from dhlog.vision.boards import BoardSpec
 from dhlog.vision.camera import Intrinsics
-from dhlog.vision.detect import Detection, Rejected, detect
-from dhlog.vision.observe import (
-    Decimation,
-)
 
 #: Frames a task carries to a worker, and tasks a worker may have waiting: the bound on the
 #: payloads in flight (a full-HD JPEG is 0.2–0.5 MB, a raw bgr8 frame 6.2 MB).

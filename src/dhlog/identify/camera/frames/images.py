@@ -1,12 +1,12 @@
 """A whole image topic of a log, a block at a time: :class:`ImageStream` walks the MCAP with
 :func:`dhlog.io.mcapscan.scan_mcap` in a thread, its sink decoding each chunk's images as the
-walk meets them (one payload: :mod:`dhlog.io.imagedecode`) and dropping the chunk's bytes, and
-hands the frames on through a queue of at most :data:`QUEUED` batches of at most
+walk meets them (one payload: :mod:`~dhlog.identify.camera.frames.imagedecode`) and dropping the
+chunk's bytes, and hands the frames on through a queue of at most :data:`QUEUED` batches of at most
 :data:`BATCH_BYTES` decoded bytes: the log is never held whole. A frame that cannot be decoded (a
 size that does not match its layout, a corrupt JPEG, an unknown encoding) is a counted fault
 named by its index on the topic, never an exception (:meth:`ImageStream.warning`).
 :meth:`ImageStream.payload_batches` hands on the payloads as recorded instead, for decoding in
-worker processes (:mod:`dhlog.io.observe`).
+worker processes (:mod:`dhlog.identify.camera.frames.observe`).
 
 A ``.mcap.zstd`` is read as :mod:`dhlog.io.mcapscan` reads it; a rosbag2 bag folder's split files
 are walked in order as one log (its ``metadata.yaml`` read by the rosbags library). The camera
@@ -25,7 +25,7 @@ from pathlib import Path
 from typing import TypeVar
 
 from dhlog.errors import InputError, MissingTopicError
-from dhlog.io.imagedecode import (
+from dhlog.identify.camera.frames.imagedecode import (
     INFO_SCHEMAS,
     CameraImage,
     CameraInfo,

@@ -1,13 +1,13 @@
 """What a vision log holds for the calibration: each frame's detected board corners, the joint
 values at its stamp, the camera's intrinsics.
 
-:func:`dhlog.io.observe.observe` reads a camera log with a camera pipeline into
-:class:`Observations`: the images a block at a time (:class:`dhlog.io.images.ImageStream`), the
-board found in each (:func:`dhlog.vision.detect.detect`, in ``jobs`` processes), the encoders
-joined at each frame's stamp, and a few frames kept compressed for the recording. It lives in
-``io/`` because it reads the log (``vision/`` lies below ``io/``: docs/architecture.md); what it
-does that needs no log is here: the encoders at the frames' stamps (:func:`joint_values_at`) and
-the frames kept evenly over a log of unknown length (:class:`Decimation`).
+:func:`observe.observe <dhlog.identify.camera.frames.observe.observe>` reads a camera log with a
+camera pipeline into :class:`Observations`: the images a block at a time
+(:class:`~dhlog.identify.camera.frames.images.ImageStream`), the board found in each
+(:func:`~dhlog.identify.camera.frames.detect.detect`, in ``jobs`` processes), the encoders joined
+at each frame's stamp, and a few frames kept compressed for the recording. What needs no log is
+here: the encoders at the frames' stamps (:func:`joint_values_at`) and the frames kept evenly over
+a log of unknown length (:class:`Decimation`).
 """
 
 from __future__ import annotations
@@ -18,9 +18,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from dhlog.geometry._checks import FloatArray
+from dhlog.identify.camera.frames.detect import Tally
 from dhlog.vision.boards import BoardSpec
 from dhlog.vision.camera import Intrinsics
-from dhlog.vision.detect import Tally
 
 
 @dataclass(frozen=True)
