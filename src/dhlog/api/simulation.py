@@ -16,7 +16,7 @@ from dhlog.errors import DhlogError
 
 if TYPE_CHECKING:
     from dhlog.model.robots import Robot
-    from dhlog.simulator.config import SimulationConfig
+    from dhlog.simulator.config import CameraOptions, SimulationConfig
 
 
 @dataclass(frozen=True)
@@ -75,7 +75,7 @@ def simulate(
     the robot off its nominal, ``clock_offset`` (s), ``outliers``, ``dropouts`` (fractions),
     ``compliance`` ((joint, rad/N·m), …), ``harmonic`` ((joint, a, b), …), ``camera_setup``,
     ``image_format``, … (every field of ``dhlog.simulator.config.SimulationConfig``)."""
-    from dhlog.simulator.config import SimulationConfig
+    from dhlog.simulator.config import CameraOptions, SimulationConfig
 
     known = {f.name for f in dataclasses.fields(SimulationConfig)}
     unknown = sorted(set(options) - known)
@@ -94,10 +94,7 @@ def simulate(
         Path(out),
         encoding=encoding,
         point_type=point_type,
-        camera=camera,
-        frame_rate=frame_rate,
-        cameras=cameras,
-        exposure=exposure,
+        vision=CameraOptions(camera, frame_rate, cameras, exposure),
         overwrite=overwrite,
     )
     from dhlog.errors import give_warning
@@ -114,19 +111,18 @@ def simulate_config(
     *,
     encoding: str = "ros2",
     point_type: str = "point",
-    camera: str = "default",
-    frame_rate: float = 10.0,
-    cameras: int = 1,
-    exposure: float = 0.0,
+    vision: CameraOptions | None = None,
     overwrite: bool = False,
     leica_export: bool = False,
 ) -> Simulation:
     """:func:`simulate` with the simulator's configuration given whole (the command line's
-    path). ``leica_export``: also the session's still poses as a Leica 6-DoF export beside the
-    log (``<stem>.leica.csv``: :mod:`dhlog.simulator.exports`)."""
+    path). ``vision``: the cameras of an ``instrument="camera"`` session (None: the default
+    preset, one camera at the default frame rate, no exposure). ``leica_export``: also the
+    session's still poses as a Leica 6-DoF export beside the log (``<stem>.leica.csv``:
+    :mod:`dhlog.simulator.exports`)."""
     from dhlog._version import __version__
     from dhlog.io.writer import sha256_of, write_session, write_truth
-    from dhlog.simulator.config import config_problems
+    from dhlog.simulator.config import CameraOptions, config_problems
     from dhlog.simulator.protocols import swept_joints
     from dhlog.simulator.session import simulate_session
     from dhlog.simulator.truth import truth_document
@@ -155,7 +151,7 @@ def simulate_config(
         if encoding != "ros2":
             raise UsageError("simulate: a vision log is written in ros2 encoding only, so far.")
         return _simulate_vision(
-            rob, cfg, output, truth_path, camera, frame_rate, cameras, exposure, __version__
+            rob, cfg, output, truth_path, vision or CameraOptions(), __version__
         )
     if cfg.protocol == "iso9283":  # the ISO 9283 test program
         from dhlog.simulator.iso9283 import simulate_iso9283
@@ -232,13 +228,11 @@ def _simulate_vision(
     cfg: SimulationConfig,
     output: Path,
     truth_path: Path,
-    preset: str,
-    frame_rate: float,
-    cameras: int,
-    exposure: float,
+    vision: CameraOptions,
     version: str,
 ) -> Simulation:
-    """``instrument="camera"``: the vision log and its truth (:mod:`dhlog.simulator.camera`)."""
+    """``instrument="camera"``: the vision log of the cameras ``vision`` and its truth
+    (:mod:`dhlog.simulator.camera`)."""
     from dhlog.io.writer import sha256_of, write_truth
     from dhlog.simulator.camera import (
         simulate_vision,
@@ -247,27 +241,27 @@ def _simulate_vision(
         write_vision_log,
     )
 
-    problems = vision_problems(cfg.camera_setup, preset, frame_rate, cameras, exposure)
+    problems = vision_problems(cfg.camera_setup, vision)
     if problems:
         raise UsageError(f"{problems[0]}.")
-    vision = simulate_vision(
+    session = simulate_vision(
         rob,
         cfg,
         cfg.camera_setup,
         cfg.image_format,
-        preset=preset,
-        frame_rate=frame_rate,
-        cameras=cameras,
-        exposure=exposure,
+        preset=vision.preset,
+        frame_rate=vision.frame_rate,
+        cameras=vision.cameras,
+        exposure=vision.exposure,
     )
-    if not vision.frame_t_ns.size:
+    if not session.frame_t_ns.size:
         raise DhlogError(
             f"{rob.name}: the board is seen in no frame; try another --seed, --camera-setup "
             "or --protocol"
         )
-    write_vision_log(vision, output, cfg.seed)
+    write_vision_log(session, output, cfg.seed)
     doc = vision_truth(
-        vision,
+        session,
         source_path=output.name,
         sha256=sha256_of(output),
         pipeline="none (a vision log)",
@@ -275,18 +269,20 @@ def _simulate_vision(
     )
     write_truth(doc, truth_path)
     kind = "Image" if cfg.image_format == "raw" else f"CompressedImage ({cfg.image_format})"
-    frames = " + ".join(str(view.frame_t_ns.size) for view in vision.cameras)
+    frames = " + ".join(str(view.frame_t_ns.size) for view in session.cameras)
     where = (
-        f"{cfg.camera_setup}, {len(vision.cameras)} cameras" if cameras > 1 else cfg.camera_setup
+        f"{cfg.camera_setup}, {len(session.cameras)} cameras"
+        if vision.cameras > 1
+        else cfg.camera_setup
     )
-    states = int(vision.session.joint_t_ns.size)
+    states = int(session.session.joint_t_ns.size)
     return Simulation(
         output,
         truth_path,
-        int(vision.frame_t_ns.size),
+        int(session.frame_t_ns.size),
         states,
         None,
-        [f"{note}." for note in vision.notes],
-        list(vision.warnings),
+        [f"{note}." for note in session.notes],
+        list(session.warnings),
         described=f"{frames} {kind} frames of a ChArUco board, {where}, {states} joint states",
     )

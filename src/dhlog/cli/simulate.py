@@ -308,6 +308,7 @@ def simulate(
     from dhlog.simulator.config import (
         PROTOCOLS,
         SIX_DOF_TOOL_ROTATION,
+        CameraOptions,
         SimulationConfig,
         config_problems,
     )
@@ -420,10 +421,7 @@ def simulate(
             output,
             encoding=encoding,
             point_type=point_type,
-            camera=camera,
-            frame_rate=frame_rate,
-            cameras=cameras,
-            exposure=exposure_ms * 1e-3,
+            vision=CameraOptions(camera, frame_rate, cameras, exposure_ms * 1e-3),
             overwrite=True,  # refused above without --force
             leica_export=leica_export,
         )

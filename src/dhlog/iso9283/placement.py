@@ -61,6 +61,13 @@ BISECTIONS = 7
 STARTS = 15
 
 
+#: The inverse kinematics from afar (a reference pose's seeded starts) and from near (seeded by
+#: a solution nearby: a walk's previous step, the reference pose): more steps and a larger first
+#: damping from afar.
+_FAR = ik.IKSettings(max_iterations=150, damping=1e-3)
+_NEAR = ik.IKSettings(max_iterations=30, damping=1e-8)
+
+
 @dataclass
 class _Setup:
     """What every reachability check needs: the robot, the tool point, the orientation, the
@@ -94,8 +101,7 @@ class _Setup:
             T_base=r.T_base,
             limits=r.limits,
             length=self.reach,
-            max_iterations=150 if far else 30,
-            damping=1e-3 if far else 1e-8,
+            settings=_FAR if far else _NEAR,
         )
         kappa = ik.condition(r.table, sol.q, self.tool, T_base=r.T_base, length=self.reach)
         ok = sol.converged & (kappa < MAX_CONDITION)

@@ -31,6 +31,17 @@ TOLERANCE = 1e-12
 
 
 @dataclass(frozen=True)
+class IKSettings:
+    """How :func:`solve` iterates: ``tol`` the pose error (m and rad) at which a target has
+    converged, at most ``max_iterations`` steps, and ``damping`` the first steps' μ (relative
+    to the mean of JᵀJ's diagonal; small when the start is near the goal)."""
+
+    tol: float = TOLERANCE
+    max_iterations: int = 200
+    damping: float = 1e-3
+
+
+@dataclass(frozen=True)
 class IKSolution:
     """Joint vectors ``q`` (m, n), the remaining position error (m) and rotation error (rad)
     per target (m,), and ``converged`` (m,): both within the tolerance."""
@@ -155,15 +166,14 @@ def solve(
     T_base: ArrayLike | None = None,
     limits: ArrayLike | None = None,
     length: float = 1.0,
-    tol: float = TOLERANCE,
-    max_iterations: int = 200,
-    damping: float = 1e-3,
+    settings: IKSettings = IKSettings(),
 ) -> IKSolution:
     """The joint vectors (m, n) that put the tool frame (``tool``: a point in the last frame) at
     ``goal`` (m, 4, 4, world frame of ``T_base``), from ``start`` (m, n) — see the module
     docstring. ``limits`` (n, 2): every step is clipped into them. ``length`` (m): the scale
-    that makes a position error comparable to a rotation (the robot's reach). ``damping``: the
-    first steps' μ (relative to the mean of JᵀJ's diagonal); small when ``start`` is near."""
+    that makes a position error comparable to a rotation (the robot's reach). ``settings``:
+    the tolerance, the most steps and the first damping (:class:`IKSettings`)."""
+    tol, max_iterations, damping = settings.tol, settings.max_iterations, settings.damping
     G = np.asarray(goal, dtype=np.float64)
     q = np.array(start, dtype=np.float64)
     m, n = q.shape

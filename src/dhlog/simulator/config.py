@@ -141,6 +141,23 @@ class SimulationConfig:
     seed: int = 0
 
 
+#: the camera's frame rate of the moving protocols, Hz
+FRAME_RATE = 10.0
+
+
+@dataclass(frozen=True)
+class CameraOptions:
+    """The cameras a vision log (``instrument="camera"``) is simulated with: the preset's name
+    (:data:`dhlog.simulator.camera.presets.PRESETS`; ``dhlog simulate --camera``), the moving
+    protocols' frame rate (Hz), the number of fixed cameras, and each frame's exposure (s; 0:
+    no motion blur). Checked by :func:`dhlog.simulator.camera.session.vision_problems`."""
+
+    preset: str = "default"
+    frame_rate: float = FRAME_RATE
+    cameras: int = 1
+    exposure: float = 0.0
+
+
 def config_problems(robot: Robot, cfg: SimulationConfig) -> list[str]:
     """What is wrong with ``cfg`` for ``robot`` (empty when it can be simulated): every rate,
     count, fraction, sweep and travel in its range, joints that exist."""

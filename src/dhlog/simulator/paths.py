@@ -13,7 +13,7 @@ import numpy as np
 
 from dhlog.errors import DhlogError
 from dhlog.geometry._checks import FloatArray, rotation_about, rotation_from_vector
-from dhlog.model.ik import solve, tool_poses
+from dhlog.model.ik import IKSettings, solve, tool_poses
 from dhlog.model.robots import Robot
 from dhlog.simulator.config import SimulationConfig
 
@@ -97,7 +97,7 @@ def path_poses(robot: Robot, cfg: SimulationConfig) -> FloatArray:
         robot.tool_point,
         limits=robot.limits,
         length=reach,
-        tol=1e-10,
+        settings=IKSettings(tol=1e-10),
     )
     missed = np.flatnonzero(~found.converged & (found.position_error > 1e-7))
     if missed.size:

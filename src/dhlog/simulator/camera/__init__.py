@@ -31,7 +31,6 @@ from dhlog.simulator.camera.log import (
     write_vision_log,
 )
 from dhlog.simulator.camera.moving import (
-    FRAME_RATE,
     HOME_PROBES,
     MIN_SWEEP_FRAMES,
     MIN_SWEEP_SEEN,
@@ -82,6 +81,7 @@ from dhlog.simulator.camera.rig import (
     seen,
 )
 from dhlog.simulator.camera.session import simulate_vision, vision_problems
+from dhlog.simulator.config import FRAME_RATE
 
 __all__ = [
     "BACKGROUND",

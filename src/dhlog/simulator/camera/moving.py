@@ -1,17 +1,17 @@
 """The moving protocols seen by a camera (``sweeps`` and ``coupled``): frames at the camera's frame
-rate (``frame_rate``, :data:`FRAME_RATE` by default) over the whole session, each at the true
-pose at its stamp, and only the frames where the board is seen kept. The sweeps' home pose and
-the fixed part are chosen together (:func:`place_for_moves`): among the robot's zero pose and
-:data:`HOME_PROBES` random ones, the fixed part placed square to the board (the camera on the
-board's normal, or the board on the camera's axis) and level with or above the workspace's
-centre, the one whose sweeps (each joint alone, and the coupled move) keep the board seen over
-the longest share of the asked sweep. Each sweep is then limited to the part of it where the
-board is seen (a joint's limits narrowed for the session); a sweep the board is never seen in
-keeps its range and is named in a warning (:attr:`VisionSession.warnings`), as is one seen over
-less than :data:`MIN_SWEEP_SEEN` or in fewer than :data:`MIN_SWEEP_FRAMES` frames: the seed
-method cannot fit that joint's circle. Each frame is labelled with the move it was taken in
-(``joint k``, ``joints a+b`` for the coupled move, ``transition``, ``still``). Further cameras
-look at the board's centre at the sweeps' home from :data:`CAMERA_OFFSETS` about the first.
+rate (``frame_rate``, :data:`~dhlog.simulator.config.FRAME_RATE` by default) over the whole
+session, each at the true pose at its stamp, and only the frames where the board is seen kept. The
+sweeps' home pose and the fixed part are chosen together (:func:`place_for_moves`): among the
+robot's zero pose and :data:`HOME_PROBES` random ones, the fixed part placed square to the board
+(the camera on the board's normal, or the board on the camera's axis) and level with or above the
+workspace's centre, the one whose sweeps (each joint alone, and the coupled move) keep the board
+seen over the longest share of the asked sweep. Each sweep is then limited to the part of it where
+the board is seen (a joint's limits narrowed for the session); a sweep the board is never seen in
+keeps its range and is named in a warning (:attr:`VisionSession.warnings`), as is one seen over less
+than :data:`MIN_SWEEP_SEEN` or in fewer than :data:`MIN_SWEEP_FRAMES` frames: the seed method cannot
+fit that joint's circle. Each frame is labelled with the move it was taken in (``joint k``, ``joints
+a+b`` for the coupled move, ``transition``, ``still``). Further cameras look at the board's centre
+at the sweeps' home from :data:`CAMERA_OFFSETS` about the first.
 """
 
 from __future__ import annotations
@@ -29,6 +29,7 @@ from dhlog.model.robots import Robot
 from dhlog.simulator.camera.frames import CameraFrames, VisionSession
 from dhlog.simulator.camera.presets import (
     CAMERA_ON_FLANGE,
+    PRESETS,
     CameraPreset,
     CameraSetup,
     ImageFormat,
@@ -44,7 +45,7 @@ from dhlog.simulator.camera.rig import (
     flange_poses,
     seen,
 )
-from dhlog.simulator.config import SimulationConfig
+from dhlog.simulator.config import CameraOptions, SimulationConfig
 from dhlog.simulator.protocols import joints_at, keyframes, protocol_config, swept_joints
 from dhlog.simulator.robot import perturbed
 from dhlog.simulator.session import START_NS, simulate_session
@@ -62,10 +63,6 @@ MIN_SWEEP_TRAVEL = 0.005
 
 
 MIN_SWEEP_FRAMES = 5
-
-
-#: the camera's frame rate of the moving protocols, Hz
-FRAME_RATE = 10.0
 
 
 @dataclass(frozen=True)
@@ -245,13 +242,13 @@ def _moving_vision(
     cfg: SimulationConfig,
     setup: CameraSetup,
     image_format: ImageFormat,
-    kit: CameraPreset,
-    frame_rate: float,
-    cameras: int,
-    exposure: float = 0.0,
+    options: CameraOptions,
 ) -> VisionSession:
-    """``sweeps`` and ``coupled``: a frame every ``1 / frame_rate`` s where the board is seen,
-    with the poses across its ``exposure`` when that is > 0."""
+    """``sweeps`` and ``coupled``: a frame every ``1 / frame_rate`` s where the board is seen
+    by each of ``options``' cameras (its preset's), with the poses across its ``exposure`` when
+    that is > 0."""
+    kit = PRESETS[options.preset]
+    frame_rate, cameras, exposure = options.frame_rate, options.cameras, options.exposure
     moves = protocol_moves(robot, cfg)
     rig, home, runs = place_for_moves(robot, table, cfg, setup, kit)
     moving = replace(robot, limits=_narrowed_limits(robot, home, moves, runs))

@@ -14,10 +14,7 @@ import numpy as np
 from dhlog.errors import DhlogError
 from dhlog.model.robots import Robot
 from dhlog.simulator.camera.frames import CameraFrames, VisionSession
-from dhlog.simulator.camera.moving import (
-    FRAME_RATE,
-    _moving_vision,
-)
+from dhlog.simulator.camera.moving import _moving_vision
 from dhlog.simulator.camera.presets import (
     CAMERA_PRESETS,
     PRESETS,
@@ -33,15 +30,16 @@ from dhlog.simulator.camera.rig import (
     place_rig,
     seen,
 )
-from dhlog.simulator.config import SimulationConfig
+from dhlog.simulator.config import FRAME_RATE, CameraOptions, SimulationConfig
 from dhlog.simulator.robot import perturbed
 from dhlog.simulator.session import simulate_session
 
 
-def vision_problems(
-    setup: str, preset: str, frame_rate: float, cameras: int, exposure: float = 0.0
-) -> list[str]:
-    """What is wrong with a vision log's camera options (empty when they can be simulated)."""
+def vision_problems(setup: str, options: CameraOptions) -> list[str]:
+    """What is wrong with a vision log's camera ``options`` for the camera set-up ``setup``
+    (empty when they can be simulated)."""
+    preset, frame_rate = options.preset, options.frame_rate
+    cameras, exposure = options.cameras, options.exposure
     out = []
     if not (math.isfinite(exposure) and 0 <= exposure <= 1.0 / max(frame_rate, 1e-9)):
         out.append(
@@ -75,7 +73,8 @@ def simulate_vision(
     for ``sweeps`` and ``coupled`` a frame every ``1 / frame_rate`` s where it is seen;
     ``cameras`` fixed cameras (eye-to-hand), each placed differently; ``exposure`` (s): a
     moving protocol's frames blurred by the motion over that time about their stamps."""
-    problems = vision_problems(setup, preset, frame_rate, cameras, exposure)
+    options = CameraOptions(preset, frame_rate, cameras, exposure)
+    problems = vision_problems(setup, options)
     if problems:
         raise DhlogError(problems[0])
     kit = PRESETS[preset]
@@ -87,9 +86,7 @@ def simulate_vision(
     )
     if cfg.protocol == "random-poses":
         return _still_vision(robot, table, cfg, setup, image_format, kit, cameras)
-    return _moving_vision(
-        robot, table, cfg, setup, image_format, kit, frame_rate, cameras, exposure
-    )
+    return _moving_vision(robot, table, cfg, setup, image_format, options)
 
 
 def _still_vision(
