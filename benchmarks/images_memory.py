@@ -66,7 +66,11 @@ def write(frames: int, raw: bool) -> Path:
                 payload = ros2.encode_compressed_image(t, "camera", jpeg, "jpeg")
             writer.add_message(image, t, payload, t)
             if i % 30 == 0:
-                cam = ros2.encode_camera_info(t, "camera", 1920, 1080, "plumb_bob", [0.0] * 5, k)
+                cam = ros2.encode_camera_info(
+                    ros2.CameraInfo.unrectified(
+                        t, "camera", (1920, 1080), "plumb_bob", [0.0] * 5, k
+                    )
+                )
                 writer.add_message(info, t, cam, t)
         writer.finish()  # type: ignore[no-untyped-call]
     part.rename(path)

@@ -106,7 +106,9 @@ def write(frames: int, preset: str, poses: int) -> Path:
             if i % FPS == 0:
                 c = rig.camera
                 cal = ros2.encode_camera_info(
-                    t, "camera", c.width, c.height, c.model, c.coefficients.tolist(), c.K
+                    ros2.CameraInfo.unrectified(
+                        t, "camera", (c.width, c.height), c.model, c.coefficients.tolist(), c.K
+                    )
                 )
                 writer.add_message(info, t, cal, t)
         writer.finish()  # type: ignore[no-untyped-call]

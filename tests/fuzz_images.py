@@ -278,7 +278,7 @@ def _info_case(data: bytes, rng: random.Random) -> tuple[str, bytes]:
         model = rng.choice(["equidistant", "rational_polynomial", "fisheye", "", "\x00x"])
         kind = f"model={model!r}"
     return f"info_{kind}", ros2.encode_camera_info(
-        info.stamp_ns, info.frame_id, w, h, model, d, k.ravel()
+        ros2.CameraInfo.unrectified(info.stamp_ns, info.frame_id, (w, h), model, d, k.ravel())
     )
 
 

@@ -9,6 +9,7 @@ import base64
 import json
 import struct
 import threading
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -180,9 +181,17 @@ def test_compressed_jpeg_and_png(tmp_path: Path) -> None:
 def test_camera_info_in_the_walk_and_alone(tmp_path: Path) -> None:
     r = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])
     p = np.hstack([K * 1.01, [[1.5], [2.5], [0.0]]])
-    info = ros2.encode_camera_info(7 * S, "cam_optical", 640, 480, "plumb_bob", D, K, r, p)
+    info = ros2.encode_camera_info(
+        replace(
+            ros2.CameraInfo.unrectified(7 * S, "cam_optical", (640, 480), "plumb_bob", D, K),
+            r=r,
+            p=p,
+        )
+    )
     eight = ros2.encode_camera_info(
-        8 * S, "cam_optical", 640, 480, "rational_polynomial", [*D, 0.0, 0.0, 0.001], K
+        ros2.CameraInfo.unrectified(
+            8 * S, "cam_optical", (640, 480), "rational_polynomial", [*D, 0.0, 0.0, 0.001], K
+        )
     )
     path = tmp_path / "info.mcap"
     image = ros2.encode_image(7 * S, "cam_optical", scene(), "bgr8")
@@ -275,7 +284,10 @@ def test_cdr_against_the_rosbags_library() -> None:
     )
     assert msg_c.format == "png" and msg_c.data.tobytes() == png
     msg_i = store.deserialize_cdr(
-        ros2.encode_camera_info(S, "cam", 640, 480, "equidistant", D[:4], K), ros2.CAMERA_INFO
+        ros2.encode_camera_info(
+            ros2.CameraInfo.unrectified(S, "cam", (640, 480), "equidistant", D[:4], K)
+        ),
+        ros2.CAMERA_INFO,
     )
     assert (msg_i.width, msg_i.height, msg_i.distortion_model) == (640, 480, "equidistant")
     np.testing.assert_array_equal(msg_i.d, D[:4])
@@ -294,7 +306,12 @@ def test_cdr_against_the_rosbags_library() -> None:
     for name, payload in [
         (ros2.IMAGE, ros2.encode_image(S, "cam", bgr, "bgr8")),
         (ros2.COMPRESSED_IMAGE, ros2.encode_compressed_image(S, "cam", png, "png")),
-        (ros2.CAMERA_INFO, ros2.encode_camera_info(S, "cam", 640, 480, "plumb_bob", D, K)),
+        (
+            ros2.CAMERA_INFO,
+            ros2.encode_camera_info(
+                ros2.CameraInfo.unrectified(S, "cam", (640, 480), "plumb_bob", D, K)
+            ),
+        ),
     ]:
         info = ChannelInfo(1, "/t", "cdr", name, "ros2msg", ros2.MSGDEFS[name].encode())
         decode = message_decoder(info)
@@ -459,7 +476,12 @@ def test_damaged_payloads_are_faults_never_exceptions(tmp_path: Path) -> None:
         "/raw": (ros2.IMAGE, ros2.encode_image(S, "cam", bgr, "bgr8")),
         "/yuv": (ros2.IMAGE, ros2.encode_image(S, "cam", bgr[:, :, :2], "uyvy")),
         "/c": (ros2.COMPRESSED_IMAGE, ros2.encode_compressed_image(S, "cam", jpeg, "jpeg")),
-        "/i": (ros2.CAMERA_INFO, ros2.encode_camera_info(S, "c", 24, 16, "plumb_bob", D, K)),
+        "/i": (
+            ros2.CAMERA_INFO,
+            ros2.encode_camera_info(
+                ros2.CameraInfo.unrectified(S, "c", (24, 16), "plumb_bob", D, K)
+            ),
+        ),
     }
     topics = {}
     for topic, (schema, payload) in valid.items():
@@ -494,7 +516,7 @@ def test_damaged_payloads_are_faults_never_exceptions(tmp_path: Path) -> None:
 def test_a_missing_or_wrong_topic_is_one_line_naming_it(tmp_path: Path) -> None:
     path = tmp_path / "js.mcap"
     joints = ros2.encode_joint_state([S], ["a1"], np.zeros((1, 1)))
-    info = ros2.encode_camera_info(S, "c", 24, 16, "plumb_bob", D, K)
+    info = ros2.encode_camera_info(ros2.CameraInfo.unrectified(S, "c", (24, 16), "plumb_bob", D, K))
     write_log(
         path, {"/joint_states": (ros2.JOINT_STATE, joints), "/info": (ros2.CAMERA_INFO, [info])}
     )
@@ -546,7 +568,10 @@ def test_a_rosbag2_bag_written_by_rosbags(tmp_path: Path) -> None:
             msg = T[ros2.COMPRESSED_IMAGE](header=header, format="jpeg", data=jpeg)
             writer.write(ic, t, store.serialize_cdr(msg, ros2.COMPRESSED_IMAGE))
         info = store.deserialize_cdr(
-            ros2.encode_camera_info(20 * S, "cam", 64, 48, "plumb_bob", D, K), ros2.CAMERA_INFO
+            ros2.encode_camera_info(
+                ros2.CameraInfo.unrectified(20 * S, "cam", (64, 48), "plumb_bob", D, K)
+            ),
+            ros2.CAMERA_INFO,
         )
         writer.write(cc, 20 * S, store.serialize_cdr(info, ros2.CAMERA_INFO))
     stream = ImageStream(bag, "/cam/compressed", "/cam/camera_info")

@@ -263,7 +263,9 @@ def test_no_intrinsics_one_line_naming_the_pipeline_keys(base: Base, tmp_path: P
 
 def test_images_of_another_size_than_the_intrinsics(base: Base, tmp_path: Path) -> None:
     K = np.array([[900.0, 0, 640], [0, 900, 400], [0, 0, 1]])
-    big = ros2.encode_camera_info(1, "camera", 1280, 800, "plumb_bob", [0.0] * 5, K)
+    big = ros2.encode_camera_info(
+        ros2.CameraInfo.unrectified(1, "camera", (1280, 800), "plumb_bob", [0.0] * 5, K)
+    )
     messages = [dataclasses.replace(m, data=big) if m.topic == INFO else m for m in base.messages]
     with pytest.raises(VisionLogError) as e:
         observe(written(tmp_path, messages), PIPELINE)

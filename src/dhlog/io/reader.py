@@ -34,7 +34,7 @@ from dhlog.io.choose import (
     choose_pipeline,
     import_record,
 )
-from dhlog.io.decode.blocks import Block, decode_stream
+from dhlog.io.decode.blocks import Block, Damaged, Sources, decode_stream
 from dhlog.io.decode.columns import ColumnSink, layout_plan
 from dhlog.io.decode.frames import (
     COVARIANCE_COLUMNS,
@@ -55,7 +55,7 @@ from dhlog.io.logdata import LogData
 from dhlog.io.mcapscan import McapScan, scan_mcap
 from dhlog.io.mcapwalk import ChannelInfo
 from dhlog.io.payloads import _decoded_columns, _read_general, _unzstd_squeezed
-from dhlog.io.pipeline import Pipeline, shipped_pipelines
+from dhlog.io.pipeline import Pipeline, StreamSpec, shipped_pipelines
 from dhlog.io.pointids import POINT_IDS_METADATA, read_point_ids
 
 #: What the rest of dhlog reads from here (the columns of the point table among them).
@@ -232,25 +232,20 @@ def read_log(
         wanted = [c for cs in infos.values() for c in cs] + [c for cs in targets for c in cs]
         general = _read_general(name, wanted)
     set_aside: dict[str, int] = {}
-    damaged: list[tuple[str, int, int, str]] = []
+    damaged: list[Damaged] = []
+    sources = Sources(scan.messages if fast else None, general, decoded)
 
-    with_rot = pipeline.streams["point"].orientation
+    def decoded_as(stream: str, spec: StreamSpec, channels: list[ChannelInfo]) -> list[Block]:
+        done = decode_stream(stream, spec, channels, sources, name)
+        damaged.extend(done.damaged)
+        warnings.extend(done.notes)
+        return done.blocks
 
     def blocks_of(stream: str, channels: list[ChannelInfo] | None = None) -> list[Block]:
-        return decode_stream(
-            stream,
-            infos[stream] if channels is None else channels,
-            scan.messages if fast else None,
-            general,
-            pipeline.streams[stream].fields,
-            name,
-            with_rot,
-            damaged,
-            pipeline.streams[stream].child_frame,
-            warnings,
-            pipeline.streams[stream].pose_index,
-            decoded,
-        )
+        spec = pipeline.streams[stream]
+        return decoded_as(stream, spec, infos[stream] if channels is None else channels)
+
+    with_rot = pipeline.streams["point"].orientation
 
     def points_of(channels: list[ChannelInfo] | None = None) -> pl.DataFrame:
         blocks = blocks_of("point", channels)
@@ -293,20 +288,8 @@ def read_log(
         joints = clean(joints, "joints", set_aside)
     commanded = None
     if "commanded" in infos:  # decoded as the joint states are (a JointState stream)
-        blocks = decode_stream(
-            "joints",
-            infos["commanded"],
-            scan.messages if fast else None,
-            general,
-            pipeline.streams["commanded"].fields,
-            name,
-            False,
-            damaged,
-            "",
-            warnings,
-            0,
-            decoded,
-        )
+        # decoded as the joint states are, with its own stream's fields
+        blocks = decoded_as("joints", pipeline.streams["commanded"], infos["commanded"])
         commanded, _, _ = joints_frame(
             name, infos["commanded"][0].topic, blocks, pipeline, joint_names, joint_source
         )
@@ -327,12 +310,9 @@ def read_log(
             )
             marks = [None if m is not None and m > limit else m for m in marks]
         phase = pl.DataFrame({"t_ns": t, "joint": pl.Series(marks, dtype=pl.Int32)}).sort("t_ns")
-    for topic, bad, total, first in damaged:
-        set_aside["damaged_message"] = set_aside.get("damaged_message", 0) + bad
-        warnings.append(
-            f"{name}: {bad} of {total} message(s) on {topic} could not be decoded and were "
-            f"skipped (first at {first})."
-        )
+    for d in damaged:
+        set_aside["damaged_message"] = set_aside.get("damaged_message", 0) + d.bad
+        warnings.append(d.warning(name))
     point_ids = None
     if POINT_IDS_METADATA in scan.metadata_names:
         point_ids = read_point_ids(path, warnings)

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import struct
 from collections.abc import Sequence
+from dataclasses import dataclass
 from typing import NamedTuple
 
 import numpy as np
@@ -323,31 +324,52 @@ def encode_compressed_image(t_ns: int, frame_id: str, data: bytes, fmt: str) -> 
     return CDR_LE + bytes(body)
 
 
-def encode_camera_info(
-    t_ns: int,
-    frame_id: str,
-    width: int,
-    height: int,
-    distortion_model: str,
-    d: Sequence[float],
-    k: Sequence[float] | NDArray[np.float64],
-    r: Sequence[float] | NDArray[np.float64] | None = None,
-    p: Sequence[float] | NDArray[np.float64] | None = None,
-) -> bytes:
-    """CDR payload of a sensor_msgs/msg/CameraInfo: ``k`` the 3×3 camera matrix (row-major, 9
-    values), ``r`` the rectification (identity when None), ``p`` the 3×4 projection (``[k | 0]``
-    when None); binning 0 and an empty region of interest, as an unrectified camera writes."""
-    k9 = np.asarray(k, dtype="<f8").reshape(9)
-    r9 = np.eye(3, dtype="<f8").reshape(9) if r is None else np.asarray(r, "<f8").reshape(9)
-    p12 = (
-        np.hstack([k9.reshape(3, 3), np.zeros((3, 1))]).astype("<f8").reshape(12)
-        if p is None
-        else np.asarray(p, "<f8").reshape(12)
-    )
-    body = bytearray(_header(t_ns, frame_id))
+@dataclass(frozen=True)
+class CameraInfo:
+    """A camera's intrinsics as recorded (``CameraInfo`` / ``CameraCalibration``): ``k`` (3, 3),
+    ``r`` (3, 3), ``p`` (3, 4), the distortion coefficients ``d`` in the order of
+    ``distortion_model`` (plumb_bob, rational_polynomial, equidistant)."""
+
+    stamp_ns: int
+    frame_id: str
+    width: int
+    height: int
+    distortion_model: str
+    d: tuple[float, ...]
+    k: NDArray[np.float64]
+    r: NDArray[np.float64]
+    p: NDArray[np.float64]
+
+    @classmethod
+    def unrectified(
+        cls,
+        stamp_ns: int,
+        frame_id: str,
+        size: tuple[int, int],
+        distortion_model: str,
+        d: Sequence[float],
+        k: Sequence[float] | NDArray[np.float64],
+    ) -> CameraInfo:
+        """The intrinsics of an unrectified camera of image ``size`` (width, height): ``k``
+        the camera matrix (9 values, row-major), the rectification the identity and the
+        projection ``[k | 0]``."""
+        k33 = np.asarray(k, dtype=np.float64).reshape(3, 3)
+        p34 = np.hstack([k33, np.zeros((3, 1))])
+        d_ = tuple(float(v) for v in d)
+        return cls(stamp_ns, frame_id, size[0], size[1], distortion_model, d_, k33, np.eye(3), p34)
+
+
+def encode_camera_info(info: CameraInfo) -> bytes:
+    """CDR payload of a sensor_msgs/msg/CameraInfo of ``info``; binning 0 and an empty
+    region of interest, as an unrectified camera writes."""
+    k9 = np.asarray(info.k, dtype="<f8").reshape(9)
+    r9 = np.asarray(info.r, dtype="<f8").reshape(9)
+    p12 = np.asarray(info.p, dtype="<f8").reshape(12)
+    d, height, width = info.d, info.height, info.width
+    body = bytearray(_header(info.stamp_ns, info.frame_id))
     _pad(body, 4)
     body += struct.pack("<II", height, width)
-    _cdr_string(body, distortion_model)
+    _cdr_string(body, info.distortion_model)
     _pad(body, 4)
     body += struct.pack("<I", len(d))
     _pad(body, 8)

@@ -11,6 +11,7 @@ from __future__ import annotations
 import math
 import struct
 from collections.abc import Mapping
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -26,6 +27,7 @@ from dhlog.io.decode.messages import (
     message_decoder,
 )
 from dhlog.io.mcapwalk import ChannelInfo, RawMessages
+from dhlog.io.pipeline.spec import StreamSpec
 
 #: A stream's samples from one channel (or one joint-name layout): times (ns) and values.
 Block = tuple[NDArray[np.int64], Any]
@@ -83,29 +85,61 @@ def bulk_decode(layout: str, raw: RawMessages) -> list[Block]:
 _DAMAGED = (Exception,)
 
 
+@dataclass(frozen=True)
+class Sources:
+    """Where a stream's messages come from: the fast path's payloads by channel (``raw``:
+    bulk CDR where the layout allows, per-message decoding otherwise) with the channels
+    already decoded in bulk while the log was walked (``decoded``), or the mcap library's
+    decoded messages by channel (``general``)."""
+
+    raw: dict[int, RawMessages] | None
+    general: dict[int, list[tuple[int, Any]]] | None = None
+    decoded: Mapping[int, list[Block]] | None = None
+
+
+@dataclass(frozen=True)
+class Damaged:
+    """A channel's messages that could not be decoded and were skipped: how many of how
+    many, and the first's log time and reason."""
+
+    topic: str
+    bad: int
+    total: int
+    first: str
+
+    def warning(self, path: str) -> str:
+        """The reader's warning of these messages, in the log ``path``."""
+        return (
+            f"{path}: {self.bad} of {self.total} message(s) on {self.topic} could not be "
+            f"decoded and were skipped (first at {self.first})."
+        )
+
+
+@dataclass(frozen=True)
+class Decoded:
+    """A stream decoded (:func:`decode_stream`): its blocks, the channels with messages
+    skipped, and what the reader is to say (a transform stream's choice of frame)."""
+
+    blocks: list[Block]
+    damaged: tuple[Damaged, ...] = ()
+    notes: tuple[str, ...] = ()
+
+
 def decode_stream(
-    stream: str,
-    infos: list[ChannelInfo],
-    raw_by_channel: dict[int, RawMessages] | None,
-    general: dict[int, list[tuple[int, Any]]] | None,
-    fields: dict[str, str],
-    path: str,
-    orientation: bool = False,
-    damaged: list[tuple[str, int, int, str]] | None = None,
-    child_frame: str = "",
-    notes: list[str] | None = None,
-    pose_index: int = 0,
-    decoded: Mapping[int, list[Block]] | None = None,
-) -> list[Block]:
-    """Blocks of (times, values) of one stream over all its channels.
+    stream: str, spec: StreamSpec, infos: list[ChannelInfo], sources: Sources, path: str
+) -> Decoded:
+    """Blocks of (times, values) of one stream (``spec``: its fields, orientation, child
+    frame and pose index) over its channels ``infos``, read from ``sources``.
 
     Values are an (m, 3) array for point streams, ``(names, (m, k) array)`` for joints and a
-    list for phase markers. ``raw_by_channel`` is the fast path's input (bulk CDR where the
-    layout allows, per-message decoding otherwise); ``general`` the mcap library's messages.
-    Messages that cannot be decoded are skipped and reported in ``damaged`` as (topic, count,
-    total, first reason); when none of a channel's messages can be read, that is an error.
-    ``decoded``: on the fast path, channels already decoded in bulk (while the log was walked).
+    list for phase markers. Messages that cannot be decoded are skipped and reported in the
+    value's ``damaged``; when none of a channel's messages can be read, that is an error.
     """
+    fields, child_frame, pose_index = spec.fields, spec.child_frame, spec.pose_index
+    orientation = spec.orientation and stream == "point"
+    raw_by_channel, general, decoded = sources.raw, sources.general, sources.decoded
+    damaged: list[Damaged] = []
+    notes: list[str] = []
     blocks: list[Block] = []
     for info in infos:
         extract = extractor(stream, info, fields, orientation, child_frame, pose_index)
@@ -188,11 +222,11 @@ def decode_stream(
                 f"{ACCEPTED[stream]} (none of its {total} message(s) could be read; first: "
                 f"{first_bad})",
             )
-        if bad and damaged is not None:
-            damaged.append((info.topic, bad, total, first_bad))
+        if bad:
+            damaged.append(Damaged(info.topic, bad, total, first_bad))
         if isinstance(extract, TransformExtractor):
             frames = ", ".join(sorted(extract.frames)) or "none"
-            if len(extract.frames) > 1 and not child_frame and notes is not None:
+            if len(extract.frames) > 1 and not child_frame:
                 notes.append(
                     f"{path}: {info.topic} carries the frames {frames}; the target is "
                     f"'{extract.chosen}' (set child_frame in [streams.{stream}] to choose)."
@@ -217,7 +251,7 @@ def decode_stream(
                 blocks.append((t[rows_of], (list(names_key), q.reshape(len(rows_of), -1))))
         else:
             blocks.append((t, values))
-    return blocks
+    return Decoded(blocks, tuple(damaged), tuple(notes))
 
 
 def _reason(exc: BaseException) -> str:

@@ -100,8 +100,11 @@ def write_vision_log(vision: VisionSession, path: str | Path, seed: int) -> None
                 payload = ros2.encode_compressed_image(t, frame_id, data.tobytes(), fmt)
             writer.add_message(ch_image, t, payload, t)
             cam = view.rig.camera
+            size = (cam.width, cam.height)
             info = ros2.encode_camera_info(
-                t, frame_id, cam.width, cam.height, cam.model, cam.coefficients.tolist(), cam.K
+                ros2.CameraInfo.unrectified(
+                    t, frame_id, size, cam.model, cam.coefficients.tolist(), cam.K
+                )
             )
             writer.add_message(ch_info, t, info, t)
         writer.add_metadata(

@@ -24,12 +24,12 @@ from numpy.typing import NDArray
 from dhlog.errors import InputError, MissingTopicError
 from dhlog.identify.camera.frames.imagedecode import (
     INFO_SCHEMAS,
-    CameraInfo,
 )
 from dhlog.identify.camera.frames.images import _log_files, read_camera_infos
 from dhlog.io.mcapscan import scan_mcap
 from dhlog.io.mcapwalk import ChannelInfo, RawMessages
 from dhlog.io.pipeline import DEFAULT_TOPICS, Pipeline, StreamSpec
+from dhlog.io.ros2 import CameraInfo
 from dhlog.vision.camera import Intrinsics
 
 if TYPE_CHECKING:
@@ -69,7 +69,7 @@ def _first_walk(
     """The joint states and every camera info of the log (each camera's), walking it once:
     the other channels' payloads (the images) are offered to a sink that drops them."""
     # polars (the joints' table) imported here, not by the workers: 0.15 s a worker
-    from dhlog.io.decode.blocks import decode_stream
+    from dhlog.io.decode.blocks import Damaged, Sources, decode_stream
     from dhlog.io.decode.frames import clean, joints_frame
     from dhlog.io.payloads import _unzstd_squeezed
 
@@ -90,7 +90,7 @@ def _first_walk(
         return taken[cid]
 
     warnings: list[str] = []
-    damaged: list[tuple[str, int, int, str]] = []
+    damaged: list[Damaged] = []
     joint_channels = 0
     with contextlib.ExitStack() as stack:
         paths = _log_files(name, stack)
@@ -107,10 +107,10 @@ def _first_walk(
             channels = [c for c in scan.channels.values() if c.topic == spec.topic]
             joint_channels += len(channels)
             if channels:
-                blocks += decode_stream(
-                    "joints", channels, scan.messages, None, spec.fields, name,
-                    damaged=damaged, notes=warnings,
-                )  # fmt: skip
+                done = decode_stream("joints", spec, channels, Sources(scan.messages), name)
+                blocks += done.blocks
+                damaged.extend(done.damaged)
+                warnings.extend(done.notes)
             for topic in sorted(
                 {
                     c.topic
@@ -122,11 +122,7 @@ def _first_walk(
             del scan
     if not joint_channels:
         raise MissingTopicError(name, "joints", spec.topic, sorted(present))
-    for topic, bad, total, first in damaged:
-        warnings.append(
-            f"{name}: {bad} of {total} message(s) on {topic} could not be decoded and were "
-            f"skipped (first at {first})."
-        )
+    warnings.extend(d.warning(name) for d in damaged)
     frame, names, order = joints_frame(
         name, spec.topic, blocks, pipeline, joint_names, joint_source
     )

@@ -30,6 +30,7 @@ from numpy.typing import NDArray
 from dhlog.io import ros2
 from dhlog.io.mcapscan import ZSTD_MAGIC
 from dhlog.io.mcapwalk import ChannelInfo
+from dhlog.io.ros2 import CameraInfo
 from dhlog.io.safetext import printable
 
 #: (h, w) grey or (h, w, 3) BGR, uint8 or uint16
@@ -96,23 +97,6 @@ class CameraImage:
     frame_id: str
     pixels: Pixels
     index: int = 0
-
-
-@dataclass(frozen=True)
-class CameraInfo:
-    """A camera's intrinsics as recorded (``CameraInfo`` / ``CameraCalibration``): ``k`` (3, 3),
-    ``r`` (3, 3), ``p`` (3, 4), the distortion coefficients ``d`` in the order of
-    ``distortion_model`` (plumb_bob, rational_polynomial, equidistant)."""
-
-    stamp_ns: int
-    frame_id: str
-    width: int
-    height: int
-    distortion_model: str
-    d: tuple[float, ...]
-    k: NDArray[np.float64]
-    r: NDArray[np.float64]
-    p: NDArray[np.float64]
 
 
 class _Cdr:

@@ -28,7 +28,6 @@ from dhlog.errors import InputError, MissingTopicError
 from dhlog.identify.camera.frames.imagedecode import (
     INFO_SCHEMAS,
     CameraImage,
-    CameraInfo,
     Decoder,
     ImageFaultError,
     decode_payload,
@@ -36,6 +35,7 @@ from dhlog.identify.camera.frames.imagedecode import (
 )
 from dhlog.io.mcapscan import McapScan, scan_mcap
 from dhlog.io.mcapwalk import ChannelInfo, RawMessages
+from dhlog.io.ros2 import CameraInfo
 from dhlog.io.safetext import printable
 
 ACCEPTED_IMAGES = (
