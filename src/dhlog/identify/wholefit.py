@@ -189,14 +189,14 @@ def identify_whole(
     )
     notes.extend(said)
 
-    passes: list[tuple[AxisModel, Pass]] = []  # the last pass over every sample, by its model
+    passes: list[tuple[AxisModel, Pass]] = []  # the passes over every sample, by their model
 
     def cost(fit: WholeFit) -> float:
         """The whitened sum of squares of ``whole``'s inliers under ``fit`` (positions)."""
         if fit is clustered and squares is not None:
             return squares
         done = residual_pass(fit, clustered.inliers, Q, P, whiten, which=which, rates=rates)
-        passes[:] = [(fit.model, done)]
+        passes.append((fit.model, done))
         return done.squares
 
     whole, tolerances, said = with_fixed_relations(whole, tolerances, cost)

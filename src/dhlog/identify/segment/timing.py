@@ -112,26 +112,21 @@ class JointRates:
         return np.asarray((column[k + 1] - column[k]) / self.dt[j], dtype=np.float64)
 
     def at(self, t_ns: NDArray[np.int64], joints: list[int] | None = None) -> FloatArray:
-        """Speeds (m, len(joints)) at ``t_ns`` of ``joints`` (0-based; default all)."""
+        """Speeds (m, len(joints)) at ``t_ns`` of ``joints`` (0-based; default all): each
+        joint's differences over the span of midpoints ``t_ns`` falls in, interpolated by
+        ``np.interp`` (0 before the first midpoint and after the last)."""
         cols = range(len(self.q)) if joints is None else joints
         out = np.zeros((t_ns.size, len(cols)))
         mid = self.mid
-        if mid.size < 2:
+        if mid.size < 2 or not t_ns.size:
             return out
         x = t_ns.astype(np.float64)
         j = np.searchsorted(mid, x, side="right") - 1
-        inside = np.flatnonzero((j >= 0) & (j < mid.size - 1))
-        last = np.flatnonzero(x == mid[-1])
-        ji, xi = j[inside], x[inside]
+        # the midpoints around every time asked: those before it, and the one after
+        lo, hi = max(int(j.min()), 0), min(int(j.max()) + 2, mid.size)
+        span = np.arange(lo, hi)
         for k, i in enumerate(cols):
-            f0, f1 = self._speeds(i, ji), self._speeds(i, ji + 1)
-            slope = (f1 - f0) / (mid[ji + 1] - mid[ji])
-            value = slope * (xi - mid[ji]) + f0
-            bad = np.isnan(value)  # np.interp tries the other end
-            value[bad] = slope[bad] * (xi[bad] - mid[ji[bad] + 1]) + f1[bad]
-            out[inside, k] = value
-            if last.size:
-                out[last, k] = self._speeds(i, np.array([mid.size - 1]))[0]
+            out[:, k] = np.interp(x, mid[lo:hi], self._speeds(i, span), left=0.0, right=0.0)
         return out
 
 
