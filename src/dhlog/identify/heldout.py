@@ -28,6 +28,7 @@ from dhlog.identify.check.footing import (
 from dhlog.identify.check.holdout import Holdout
 from dhlog.identify.check.named import pose_names, sample_names
 from dhlog.identify.check.plausible import inlier_picks
+from dhlog.identify.fit.placement import Stand
 from dhlog.identify.fit.samples import measured_rotations
 from dhlog.identify.joints.sweeps import samples_with_encoders, target_labels
 from dhlog.identify.segment.segment import segment_log
@@ -146,7 +147,7 @@ def _validate_log(
         nominal_values=None if nominal is None else nominal.joint_values(Q),
     )
     check = score_poses(
-        Placed(ex.standard, ex.T_measurement_base, ex.tool_point, result.tool_orientation),
+        Placed(ex.standard, Stand(ex.T_measurement_base, ex.tool_point, result.tool_orientation)),
         samples,
         path=str(path),
         nominal=placed()[0],

@@ -39,7 +39,7 @@ from numpy.typing import NDArray
 
 from dhlog.geometry._checks import FloatArray, rotation_from_vector
 from dhlog.identify.fit.axismodel import AxisModel, ParameterLayout
-from dhlog.identify.fit.measure import MeasuredFit, fit_measured, place_by_lm
+from dhlog.identify.fit.measure import BLOCK, MeasuredFit, fit_measured, place_by_lm
 from dhlog.identify.fit.placement import Stand
 from dhlog.identify.fit.prediction import predict_columns, predict_orientation, prefix_motions
 from dhlog.model.dh import StandardDH
@@ -350,6 +350,7 @@ class CamerasModel:
     poses: tuple[FloatArray, ...]
     dim: int = 2
     setup: str = "eye-to-hand"
+    block: ClassVar[int] = BLOCK
 
     @property
     def extra(self) -> int:
@@ -360,6 +361,17 @@ class CamerasModel:
 
     def observed(self, data: Corners, sl: slice) -> FloatArray:
         return data.uv[sl]
+
+    def normal_block(
+        self,
+        model: AxisModel,
+        layout: ParameterLayout,
+        bases: list[tuple[FloatArray, FloatArray]],
+        data: Corners,
+        sl: slice,
+        limit: float,
+    ) -> None:
+        return None  # from the Jacobian
 
     def moved(self, delta: FloatArray) -> CamerasModel:
         poses = [self.poses[0]]

@@ -60,6 +60,7 @@ from dhlog.identify.fit.leaveout import pose_groups, pose_means
 from dhlog.identify.fit.placement import (
     LEVER,
     Stand,
+    Standing,
     angles,
     conditioning,
     place_on,
@@ -130,15 +131,13 @@ class Unscored:
 
 
 @dataclass(frozen=True)
-class Placed:
-    """A model as it stands in a log's frame M: the table, ``T_measurement_base``, the target in
-    the last frame (``tool``, m) and the target frame's orientation there (``R_tool``, None when
-    unknown)."""
+class Placed(Standing):
+    """A model as it stands in a log's frame M: the table and where it stands (``stand``:
+    ``T_measurement_base`` as ``T``, the target in the last frame ``tool``, m, and the target
+    frame's orientation there ``R_tool``, None when unknown; read through)."""
 
     table: StandardDH
-    T: FloatArray
-    tool: FloatArray
-    R_tool: FloatArray | None = None
+    stand: Stand
 
 
 @dataclass(frozen=True)
@@ -279,12 +278,13 @@ def place(
         flange.p,
         P,
         R if oriented else None,
-        stand=Stand(model.T, model.tool, model.R_tool),
+        stand=model.stand,
         base=base,
         point=tool,
         frame=tool and oriented,
     )
-    return replace(model, T=got.T, tool=got.tool, R_tool=got.R_tool if oriented else model.R_tool)
+    R_tool = got.R_tool if oriented else model.R_tool
+    return replace(model, stand=Stand(got.T, got.tool, R_tool))
 
 
 def _error(
@@ -347,7 +347,7 @@ def nominal_on_session(
         inl = reg.inliers
         R_last = np.einsum("ij,kjl->kil", reg.T_measurement_base[:3, :3], flange[inl])
         R_tool = nearest_rotation(np.einsum("kji,kjl->il", R_last, R[inl]))
-    return Placed(table, reg.T_measurement_base, reg.tool_point, R_tool)
+    return Placed(table, Stand(reg.T_measurement_base, reg.tool_point, R_tool))
 
 
 @dataclass(frozen=True)

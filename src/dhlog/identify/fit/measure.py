@@ -33,7 +33,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, Generic, Protocol, TypeVar
+from typing import Any, ClassVar, Generic, Protocol, TypeVar
 
 import numpy as np
 from numpy.typing import NDArray
@@ -71,6 +71,11 @@ class Measurement(Protocol):
         """Parameters of the measurement model itself (0: none fitted)."""
         ...
 
+    @property
+    def block(self) -> int:
+        """Observations a block of the passes over the data."""
+        ...
+
     def count(self, data: Any) -> int:
         """The observations in ``data``."""
         ...
@@ -89,6 +94,20 @@ class Measurement(Protocol):
     ) -> tuple[FloatArray, FloatArray | None]:
         """The predicted observations ``sl`` (c, dim) and, with ``layout``, their Jacobian
         (c, dim, layout.size + extra): the model's local parameters, then its own."""
+        ...
+
+    def normal_block(
+        self,
+        model: AxisModel,
+        layout: ParameterLayout,
+        bases: list[tuple[FloatArray, FloatArray]],
+        data: Any,
+        sl: slice,
+        limit: float,
+    ) -> tuple[FloatArray, FloatArray, FloatArray] | None:
+        """The observations ``sl``' residuals (c, dim) and, over those within ``limit``, their
+        ``JᵀJ`` and ``Jᵀr``, where the measurement sums them itself (a camera: frame by frame);
+        None: the pass forms them from :meth:`predict`'s Jacobian."""
         ...
 
     def moved(self: M, delta: FloatArray) -> M:
@@ -126,9 +145,21 @@ class PointMeasurement:
 
     dim: int = 3
     extra: int = 0
+    block: ClassVar[int] = BLOCK
 
     def count(self, data: Points) -> int:
         return int(data.P.shape[0])
+
+    def normal_block(
+        self,
+        model: AxisModel,
+        layout: ParameterLayout,
+        bases: list[tuple[FloatArray, FloatArray]],
+        data: Points,
+        sl: slice,
+        limit: float,
+    ) -> None:
+        return None  # from the Jacobian
 
     def observed(self, data: Points, sl: slice) -> FloatArray:
         return data.P[sl]
@@ -210,7 +241,7 @@ def residuals(model: AxisModel, measurement: Measurement, data: Any) -> FloatArr
     """Each observation's residual (N, dim) at ``model``: predicted − observed."""
     N = measurement.count(data)
     out = np.empty((N, measurement.dim))
-    step = int(getattr(measurement, "block", BLOCK))
+    step = measurement.block
     for start in range(0, N, step):
         sl = slice(start, min(start + step, N))
         pred, _ = measurement.predict(model, None, None, data, sl)
@@ -236,14 +267,14 @@ def _normal(
     N = measurement.count(data)
     norms = np.empty(N)
     cost, count, chi2 = 0.0, 0, 0.0
-    # a measurement may sum its block's normal equations itself (a camera: frame by frame)
-    block = getattr(measurement, "normal_block", None)
-    step = int(getattr(measurement, "block", BLOCK))
+    step = measurement.block
     for start in range(0, N, step):
         sl = slice(start, min(start + step, N))
         J: FloatArray | None = None
-        if block is not None:
-            r, Hb, gb = block(model, layout, bases, data, sl, limit)
+        # a measurement may sum its block's normal equations itself (a camera: frame by frame)
+        summed = measurement.normal_block(model, layout, bases, data, sl, limit)
+        if summed is not None:
+            r, Hb, gb = summed
         else:
             pred, J = measurement.predict(model, layout, bases, data, sl)
             assert J is not None

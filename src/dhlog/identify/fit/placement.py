@@ -116,17 +116,33 @@ class Stand:
     R_tool: FloatArray | None = None
 
 
+class Standing:
+    """Read-through of a record's ``stand`` (:class:`Stand`): ``T``, ``tool``, ``R_tool``."""
+
+    stand: Stand
+
+    @property
+    def T(self) -> FloatArray:
+        return self.stand.T
+
+    @property
+    def tool(self) -> FloatArray:
+        return self.stand.tool
+
+    @property
+    def R_tool(self) -> FloatArray | None:
+        return self.stand.R_tool
+
+
 @dataclass(frozen=True)
-class Placement:
-    """A model placed on poses: ``T`` (4×4, its frame 1 in M), the target in the last frame
-    (``tool``, m) and the target frame there (``R_tool``, None without), each pose's 3-D
-    position residual (``residuals``, m), the poses kept (``inliers``) and the RMS over them
+class Placement(Standing):
+    """A model placed on poses: where it stands (``stand``: ``T``, its frame 1 in M, the target
+    in the last frame ``tool`` and the target frame there ``R_tool``, read through), each pose's
+    3-D position residual (``residuals``, m), the poses kept (``inliers``) and the RMS over them
     (``rms``); ``start``: the start it was reached from (``"model"``, ``"positions"``,
     ``"orientation"``, ``"line"``)."""
 
-    T: FloatArray
-    tool: FloatArray
-    R_tool: FloatArray | None
+    stand: Stand
     residuals: FloatArray
     inliers: NDArray[np.bool_]
     rms: float
@@ -481,7 +497,7 @@ def place_on(
         dist = np.linalg.norm(_carried(F, f, got.tool) @ got.T[:3, :3].T + got.T[:3, 3] - P, axis=1)
         keep = _inliers(dist)
         rms = float(np.sqrt(np.mean(dist[keep] ** 2))) if np.any(keep) else float("nan")
-        return Placement(got.T, got.tool, got.R_tool, dist, keep, rms, got.start)
+        return Placement(got.stand, dist, keep, rms, got.start)
     stand = Stand() if stand is None else stand
     T0 = np.asarray(stand.T, dtype=np.float64)
     t0 = np.asarray(stand.tool, dtype=np.float64)
@@ -512,4 +528,4 @@ def place_on(
     Tp, tp, Rtp = fit.unpack(x)
     dist = fit.distances(x)
     rms = float(np.sqrt(np.mean(dist[keep] ** 2))) if np.any(keep) else float("nan")
-    return Placement(Tp, tp, Rtp, dist, keep, rms, name)
+    return Placement(Stand(Tp, tp, Rtp), dist, keep, rms, name)

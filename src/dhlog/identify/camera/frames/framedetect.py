@@ -57,7 +57,8 @@ KEPT_JPEG_QUALITY = 90
 
 @dataclass(frozen=True)
 class _Setup:
-    """What every frame is looked at with: the board, the intrinsics and the image size."""
+    """What every frame is looked at with: the board and the intrinsics (their image size the
+    one every frame is held against)."""
 
     board: BoardSpec
     camera: Intrinsics
