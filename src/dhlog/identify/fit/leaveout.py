@@ -21,6 +21,7 @@ Pure numpy.
 
 from __future__ import annotations
 
+import bisect
 import math
 from collections.abc import Iterator
 from dataclasses import dataclass
@@ -227,33 +228,110 @@ def fold_of_poses(groups: NDArray[np.int64], folds: int, seed: int) -> NDArray[n
     return out
 
 
-#: Consecutive samples whose joint values all differ by less than this (rad or m) are one pose.
+#: A pose's samples: consecutive samples whose joint values all stay within this (rad or m) of
+#: the pose's first sample's.
 SAME_POSE = 1e-3
 
 
 def pose_groups(Q: SampleArray) -> NDArray[np.int64]:
-    """A pose index (0, 1, …) per sample of ``Q`` (m, n) in time order: a new pose wherever a
-    joint value moves by :data:`SAME_POSE` or more from the previous sample."""
+    """A pose index (0, 1, …) per sample of ``Q`` (m, n) in time order (:func:`pose_blocks`)."""
     out = scratch.empty(Q.shape[0], np.int64)
     for sl, poses, _ in pose_blocks(Q):
         out[sl] = poses
     return out
 
 
+@dataclass
+class _Open:
+    """The pose open at the end of a block: its first sample's joint values, the path the
+    joints have travelled since (the sum of each step's largest joint move), the previous
+    sample's joint values and the pose's index."""
+
+    anchor: FloatArray
+    path: float
+    previous: FloatArray
+    index: int
+
+
 def pose_blocks(Q: SampleArray) -> Iterator[tuple[slice, NDArray[np.int64], FloatArray]]:
-    """:func:`pose_groups` a block of :data:`POSE_CHUNK` samples at a time: the block, its
-    samples' poses and their joint values."""
-    offset, previous = 0, None
+    """The poses of ``Q`` (m, n) a block of :data:`POSE_CHUNK` samples at a time: the block,
+    its samples' pose indices (0, 1, … in time order) and their joint values.
+
+    A new pose starts wherever a joint moves by :data:`SAME_POSE` or more from the previous
+    sample, or from the pose's first sample: a still pose's samples stay one pose however long
+    it is held, and a joint moving slowly under a fast instrument (steps far below
+    :data:`SAME_POSE` at 1 kHz) makes poses of :data:`SAME_POSE` each, not one pose of the whole
+    motion. Where the joints have travelled less than :data:`SAME_POSE` since the pose began
+    (the sum of the steps bounds the move), no joint can have left it, so only moving stretches
+    are looked at sample by sample."""
+    open_: _Open | None = None
     for sl in blocks(Q.shape[0], POSE_CHUNK):
-        q = Q[sl]
-        step = np.zeros(q.shape[0], dtype=np.int64)
-        if previous is not None:
-            step[0] = np.max(np.abs(q[0] - previous)) >= SAME_POSE
-        if q.shape[0] > 1:
-            step[1:] = np.max(np.abs(q[1:] - q[:-1]), axis=1) >= SAME_POSE
-        poses = offset + np.cumsum(step)
-        offset, previous = int(poses[-1]), q[-1]
-        yield sl, poses, q
+        q = np.asarray(Q[sl], dtype=np.float64)
+        c = q.shape[0]
+        step = np.zeros(c)
+        if c > 1:
+            step[1:] = np.max(np.abs(q[1:] - q[:-1]), axis=1)
+        if open_ is not None:
+            step[0] = float(np.max(np.abs(q[0] - open_.previous)))
+        new = step >= SAME_POSE  # a jump: a new pose
+        new[0] |= open_ is None
+        # the path walked (each step's largest joint move) since the block began, jumps left out
+        walked = np.cumsum(np.where(new, 0.0, step))
+        carried = 0.0 if new[0] else open_.path  # type: ignore[union-attr]
+        starts = np.flatnonzero(new)
+        runs = starts if new[0] else np.r_[0, starts]  # the runs between jumps
+        ends = np.r_[runs[1:], c]
+        gain = walked[ends - 1] - walked[runs]
+        if not new[0]:  # the pose open at the block's start: its path since it began
+            gain[0] = carried + walked[ends[0] - 1]
+        moving = np.flatnonzero(gain >= SAME_POSE).tolist()  # only a moving run can leave
+        path = walked.tolist() if moving else []  # looked up one sample at a time below
+        for r in moving:
+            s, e = int(runs[r]), int(ends[r])
+            if s == 0 and not new[0]:
+                anchor, base, lo = open_.anchor, -carried, 0  # type: ignore[union-attr]
+            else:
+                anchor, base, lo = q[s], path[s], s + 1
+            while True:
+                # no sample before the path reaches SAME_POSE can have left; moving on, the
+                # first it allows usually has
+                first = max(bisect.bisect_left(path, base + SAME_POSE), lo)
+                if first >= e:
+                    break
+                left = first if _left(q[first], anchor) else _left_at(q, anchor, first + 1, e)
+                if left is None:
+                    break
+                new[left] = True
+                anchor, base, lo = q[left], path[left], left + 1
+        poses = np.cumsum(new) + (-1 if open_ is None else open_.index)
+        kept = np.flatnonzero(new)
+        if kept.size:
+            last = int(kept[-1])
+            open_ = _Open(q[last].copy(), float(walked[-1] - walked[last]), q[-1].copy(), 0)
+        else:
+            assert open_ is not None
+            open_ = _Open(open_.anchor, carried + float(walked[-1]), q[-1].copy(), 0)
+        open_.index = int(poses[-1])
+        yield sl, np.asarray(poses, dtype=np.int64), q
+
+
+def _left(row: FloatArray, anchor: FloatArray) -> bool:
+    """Whether a joint of ``row`` is :data:`SAME_POSE` or more from ``anchor`` (on Python
+    floats: a handful of joints, once a pose)."""
+    return any(abs(a - b) >= SAME_POSE for a, b in zip(row.tolist(), anchor.tolist()))
+
+
+def _left_at(q: FloatArray, anchor: FloatArray, start: int, end: int) -> int | None:
+    """The first sample of ``q[start:end]`` with a joint :data:`SAME_POSE` or more from
+    ``anchor`` (None: none), looked at in windows that double."""
+    width = 16
+    while start < end:
+        stop = min(start + width, end)
+        hit = np.flatnonzero(np.max(np.abs(q[start:stop] - anchor), axis=1) >= SAME_POSE)
+        if hit.size:
+            return start + int(hit[0])
+        start, width = stop, width * 2
+    return None
 
 
 #: Samples a chunk in :func:`pose_groups`.
