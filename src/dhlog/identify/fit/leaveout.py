@@ -318,7 +318,7 @@ def pose_blocks(Q: SampleArray) -> Iterator[tuple[slice, NDArray[np.int64], Floa
 def _left(row: FloatArray, anchor: FloatArray) -> bool:
     """Whether a joint of ``row`` is :data:`SAME_POSE` or more from ``anchor`` (on Python
     floats: a handful of joints, once a pose)."""
-    return any(abs(a - b) >= SAME_POSE for a, b in zip(row.tolist(), anchor.tolist()))
+    return any(abs(a - b) >= SAME_POSE for a, b in zip(row.tolist(), anchor.tolist(), strict=True))
 
 
 def _left_at(q: FloatArray, anchor: FloatArray, start: int, end: int) -> int | None:
