@@ -1,10 +1,10 @@
-"""A session's poses (:func:`dhlog.identify.fit.leaveout.pose_groups`): the unit of the design
-effect, of ``--holdout K``'s folds and of a validation log's scoring. A pose is a run of
-consecutive samples whose joint values stay within ``SAME_POSE`` of its first sample's — a
-still pose however long it is held, and poses of ``SAME_POSE`` each along a joint that moves
-slowly under a fast instrument (a tracker at 1 kHz steps far below ``SAME_POSE``): chaining
-step to step made a whole 1 kHz sweep session one pose, its σ scaled by a design effect of
-a million samples a pose and ``--holdout 5`` left with one pose to deal to five folds."""
+"""A session's still poses (:func:`dhlog.identify.fit.leaveout.still_poses`), the unit of the
+design effect: a run of consecutive samples whose joint values stay within ``SAME_POSE`` of
+its first sample's — a still pose however long it is held, and poses of ``SAME_POSE`` each
+along a joint that moves slowly under a fast instrument (a tracker at 1 kHz steps far below
+``SAME_POSE``). Chaining step to step (``pose_groups``, the folds' poses) made a whole 1 kHz
+sweep session one pose: its σ were scaled by a design effect of a million samples a pose,
+and ``--holdout 5`` raised ZeroDivisionError with one pose to deal to five folds."""
 
 from __future__ import annotations
 
@@ -14,7 +14,8 @@ import numpy as np
 import pytest
 
 import dhlog.identify.fit.leaveout as leaveout
-from dhlog.identify.fit.leaveout import SAME_POSE, pose_groups
+from dhlog.errors import InputError
+from dhlog.identify.fit.leaveout import SAME_POSE, still_poses
 from dhlog.identify.run import ProcessOptions, process_data
 from dhlog.io.memory import log_data_from_session
 from dhlog.model.robots import load_robot
@@ -54,14 +55,14 @@ def _session(rng: np.random.Generator, m: int) -> np.ndarray:
 def test_poses_are_the_definition_whatever_the_blocks(
     chunk: int, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    """The block-at-a-time grouping (only moving stretches looked at sample by sample, the
+    """The block-at-a-time still poses (only moving stretches looked at sample by sample, the
     open pose carried across blocks) is the sample-by-sample definition, for blocks of every
     size down to one sample."""
     monkeypatch.setattr(leaveout, "POSE_CHUNK", chunk)
     rng = np.random.default_rng(11)
     for m in (1, 2, 5, 400, 3000):
         Q = _session(rng, m)
-        assert pose_groups(Q).tolist() == _one_by_one(Q).tolist()
+        assert still_poses(Q).tolist() == _one_by_one(Q).tolist()
 
 
 def test_a_slow_move_at_1_khz_is_many_poses_and_a_still_pose_one() -> None:
@@ -71,7 +72,7 @@ def test_a_slow_move_at_1_khz_is_many_poses_and_a_still_pose_one() -> None:
     one pose."""
     Q = np.zeros((100_000, 6))
     Q[:, 1] = np.arange(100_000) * 1.1e-5
-    groups = pose_groups(Q)
+    groups = still_poses(Q)
     count = int(groups[-1]) + 1
     # a pose ends at the first sample SAME_POSE from its first: 91 steps of 11 µrad each
     assert count == math.ceil(100_000 / math.ceil(SAME_POSE / 1.1e-5))
@@ -79,27 +80,41 @@ def test_a_slow_move_at_1_khz_is_many_poses_and_a_still_pose_one() -> None:
     starts = Q[np.flatnonzero(np.diff(groups, prepend=-1)), 1]
     assert np.all(spans - starts < SAME_POSE)
     still = np.random.default_rng(2).normal(0.0, 1e-4, (20_000, 6)).clip(-3e-4, 3e-4)
-    assert pose_groups(still).max() == 0
+    assert still_poses(still).max() == 0
 
 
-def test_a_1_khz_sweep_session_is_neither_one_pose_nor_clustered() -> None:
+def test_a_1_khz_sweep_session_is_not_clustered_and_its_holdout_said_in_one_line() -> None:
     """The seed method's sweeps recorded at 1 kHz (joint states at 250 Hz, 0.4 rad/s: 0.4 mrad
-    a sample): ``--holdout 5`` deals thousands of poses to its folds (it raised
-    ZeroDivisionError, four folds empty), and the white noise of the samples is not taken for
-    a pose's shared error (the design effect of one pose of 30 000 samples scaled every σ by
-    about 3)."""
+    a sample): the white noise of the samples is not taken for a pose's shared error (the
+    design effect of one pose of 30 000 samples scaled every σ by about 3), and ``--holdout 5``
+    stops with the one-line error that says why the motion has no poses to hold out (it raised
+    ZeroDivisionError, four folds empty)."""
     samples = 30_000
     speed = 6 * math.radians(90) * 1.34 / (samples / 1000.0)
     cfg = SimulationConfig(
         noise=1e-5, tracker_rate=1000.0, joint_rate=250.0, speed=speed, base_points=12, seed=7
     )
     log = log_data_from_session(simulate_session(load_robot("kr5"), cfg))
-    result = process_data(log, ProcessOptions(holdout=5))
+    result = process_data(log, ProcessOptions())
     assert result.whole is not None
-    codes = {note.code for note in result.notes}
-    assert "pose-clustered" not in codes
-    (check,) = result.holdout
-    assert check.calibrated.n_poses > 1000
-    # the held-out poses' means carry the noise of ~1/SAME_POSE-long runs of samples, averaged
-    assert result.validation is not None
-    assert check.calibrated.rms < result.validation.rms
+    assert "pose-clustered" not in {note.code for note in result.notes}
+    with pytest.raises(InputError, match="no pose can be held out apart from its neighbours"):
+        process_data(log, ProcessOptions(holdout=5))
+
+
+def test_more_folds_than_poses_is_said_before_the_selection_deals_them() -> None:
+    """30 still poses and ``--holdout 50``: the run stops with the one-line error naming the
+    pose count. It is now said before the model selection deals the poses to the same folds
+    (with a fold's training poses empty, the selection divided by their zero residuals: the
+    1 kHz session above, when it was one pose)."""
+    from dhlog.io.dhfile import DHModel
+
+    robot = load_robot("kr5")
+    names = tuple(f"joint_{i + 1}" for i in range(robot.n))
+    nominal = DHModel(robot.table, robot.T_base, robot.tool_point, names, robot.name)
+    cfg = SimulationConfig(
+        protocol="random-poses", poses=30, noise=1e-5, dwell=0.5, tracker_rate=2.0, seed=3
+    )
+    log = log_data_from_session(simulate_session(robot, cfg))
+    with pytest.raises(InputError, match="--holdout 50: the session has 30 distinct poses"):
+        process_data(log, ProcessOptions(nominal=nominal, holdout=50))

@@ -25,7 +25,7 @@ from numpy.typing import NDArray
 from dhlog.errors import Note
 from dhlog.geometry._checks import FloatArray
 from dhlog.geometry.lines import Line, Plane
-from dhlog.identify.check.holdout import Holdout, cross_validate
+from dhlog.identify.check.holdout import Holdout, cross_validate, enough_poses
 from dhlog.identify.check.named import name_outliers, sample_names
 from dhlog.identify.check.validate import check_residual, table_gap, validate_samples
 from dhlog.identify.fit.axismodel import AxisModel
@@ -133,8 +133,12 @@ def identify_whole(
     assert isinstance(Q, PerSample)  # the session's samples, read a block at a time
     options, sigma = clocked.options, clocked.options.sigma
     outer = None  # --holdout K: each sample's fold, the same for the selection and the check
-    if request.folds > 1:
-        outer = fold_of_poses(pose_groups(Q), request.folds, 0)
+    if request.folds > 1:  # too few poses: said before the selection deals them to folds
+        groups = pose_groups(Q)
+        mine = groups if which is None else groups[which == 0]  # numbered in time order
+        poses = int(np.count_nonzero(np.diff(mine))) + int(mine.size > 0)
+        enough_poses(poses, request.folds, int(mine.size))
+        outer = fold_of_poses(groups, request.folds, 0)
     model_request = request.model
     if session.parked and model_request.harmonic_joints is None:  # none on a parked joint
         revolute = [k for k, t in enumerate(types) if t is JointType.REVOLUTE]

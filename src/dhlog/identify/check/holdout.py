@@ -31,6 +31,7 @@ from dhlog.geometry._checks import FloatArray
 from dhlog.identify.fit.axismodel import AxisModel
 from dhlog.identify.fit.data import FitData, FitOptions
 from dhlog.identify.fit.leaveout import (
+    SAME_POSE,
     fold_of_poses,
     pose_groups,
     pose_means,
@@ -44,6 +45,27 @@ from dhlog.model.fk import fk_point
 
 #: Fewest poses a held-out statistic is given for.
 MIN_POSES = 5
+
+
+def enough_poses(poses: int, folds: int, samples: int = 0) -> None:
+    """An :class:`~dhlog.errors.InputError` where ``poses`` distinct poses (of ``samples``) are
+    too few for ``folds``-fold cross-validation (fewer than the folds, or than
+    :data:`MIN_POSES`)."""
+    from dhlog.errors import InputError
+
+    if poses >= max(folds, MIN_POSES):
+        return
+    if samples >= 100 * max(poses, 1):  # a motion sampled in steps below SAME_POSE
+        raise InputError(
+            f"--holdout {folds}: the session's {samples} samples make {poses} distinct pose(s): "
+            f"its joints move less than {SAME_POSE * 1e3:g} mrad (or mm) from one sample to "
+            "the next (a motion sampled faster than that), so no pose can be held out apart "
+            "from its neighbours; --validate a log of other poses instead."
+        )
+    raise InputError(
+        f"--holdout {folds}: the session has {poses} distinct poses; hold out fewer "
+        "folds or measure more poses."
+    )
 
 
 @dataclass(frozen=True)
@@ -160,19 +182,13 @@ def cross_validate(
     ``starts``: per fold, the model to fit to its training poses (default ``whole``'s) — the
     model ``--model auto`` chose from those poses alone; ``refine(fit, k)``: fold k's fit as the
     run would finish it from those poses (its pairs held parallel)."""
-    from dhlog.errors import InputError
 
     Q, P, which = data.Q, data.P, data.which
     groups = pose_groups(Q)
     usable = whole.inliers.copy()
     if which is not None:
         usable &= which == 0
-    poses = np.unique(groups[usable])
-    if poses.size < max(folds, MIN_POSES):
-        raise InputError(
-            f"--holdout {folds}: the session has {poses.size} distinct poses; hold out fewer "
-            "folds or measure more poses."
-        )
+    enough_poses(int(np.unique(groups[usable]).size), folds)
     if fold is None:
         fold = fold_of_poses(groups, folds, 0)
     positions, cal_vecs, nom_vecs = [], [], []

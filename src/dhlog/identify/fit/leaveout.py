@@ -228,20 +228,44 @@ def fold_of_poses(groups: NDArray[np.int64], folds: int, seed: int) -> NDArray[n
     return out
 
 
-#: A pose's samples: consecutive samples whose joint values all stay within this (rad or m) of
-#: the pose's first sample's.
+#: Consecutive samples whose joint values all differ by less than this (rad or m) are one pose.
 SAME_POSE = 1e-3
 
 
 def pose_groups(Q: SampleArray) -> NDArray[np.int64]:
-    """A pose index (0, 1, …) per sample of ``Q`` (m, n) in time order (:func:`pose_blocks`)."""
+    """A pose index (0, 1, …) per sample of ``Q`` (m, n) in time order: a new pose wherever a
+    joint value moves by :data:`SAME_POSE` or more from the previous sample."""
     out = scratch.empty(Q.shape[0], np.int64)
     for sl, poses, _ in pose_blocks(Q):
         out[sl] = poses
     return out
 
 
-@dataclass
+def pose_blocks(Q: SampleArray) -> Iterator[tuple[slice, NDArray[np.int64], FloatArray]]:
+    """:func:`pose_groups` a block of :data:`POSE_CHUNK` samples at a time: the block, its
+    samples' poses and their joint values."""
+    offset, previous = 0, None
+    for sl in blocks(Q.shape[0], POSE_CHUNK):
+        q = Q[sl]
+        step = np.zeros(q.shape[0], dtype=np.int64)
+        if previous is not None:
+            step[0] = np.max(np.abs(q[0] - previous)) >= SAME_POSE
+        if q.shape[0] > 1:
+            step[1:] = np.max(np.abs(q[1:] - q[:-1]), axis=1) >= SAME_POSE
+        poses = offset + np.cumsum(step)
+        offset, previous = int(poses[-1]), q[-1]
+        yield sl, poses, q
+
+
+def still_poses(Q: SampleArray) -> NDArray[np.int64]:
+    """A still pose's index (0, 1, …) per sample of ``Q`` (m, n) (:func:`still_pose_blocks`)."""
+    out = scratch.empty(Q.shape[0], np.int64)
+    for sl, poses, _ in still_pose_blocks(Q):
+        out[sl] = poses
+    return out
+
+
+@dataclass(frozen=True)
 class _Open:
     """The pose open at the end of a block: its first sample's joint values, the path the
     joints have travelled since (the sum of each step's largest joint move), the previous
@@ -253,17 +277,18 @@ class _Open:
     index: int
 
 
-def pose_blocks(Q: SampleArray) -> Iterator[tuple[slice, NDArray[np.int64], FloatArray]]:
-    """The poses of ``Q`` (m, n) a block of :data:`POSE_CHUNK` samples at a time: the block,
-    its samples' pose indices (0, 1, … in time order) and their joint values.
+def still_pose_blocks(Q: SampleArray) -> Iterator[tuple[slice, NDArray[np.int64], FloatArray]]:
+    """The still poses of ``Q`` (m, n) a block of :data:`POSE_CHUNK` samples at a time: the
+    block, its samples' pose indices (0, 1, … in time order) and their joint values — what the
+    design effect groups (samples that share a still pose's error).
 
     A new pose starts wherever a joint moves by :data:`SAME_POSE` or more from the previous
-    sample, or from the pose's first sample: a still pose's samples stay one pose however long
-    it is held, and a joint moving slowly under a fast instrument (steps far below
-    :data:`SAME_POSE` at 1 kHz) makes poses of :data:`SAME_POSE` each, not one pose of the whole
-    motion. Where the joints have travelled less than :data:`SAME_POSE` since the pose began
-    (the sum of the steps bounds the move), no joint can have left it, so only moving stretches
-    are looked at sample by sample."""
+    sample (as :func:`pose_blocks`), or from the pose's first sample: a still pose's samples
+    stay one pose however long it is held, and a joint moving slowly under a fast instrument
+    (steps far below :data:`SAME_POSE` at 1 kHz) makes poses of :data:`SAME_POSE` each, not one
+    pose of the whole motion. Where the joints have travelled less than :data:`SAME_POSE`
+    since the pose began (the sum of the steps bounds the move), no joint can have left it, so
+    only moving stretches are looked at sample by sample."""
     open_: _Open | None = None
     for sl in blocks(Q.shape[0], POSE_CHUNK):
         q = np.asarray(Q[sl], dtype=np.float64)
@@ -307,11 +332,11 @@ def pose_blocks(Q: SampleArray) -> Iterator[tuple[slice, NDArray[np.int64], Floa
         kept = np.flatnonzero(new)
         if kept.size:
             last = int(kept[-1])
-            open_ = _Open(q[last].copy(), float(walked[-1] - walked[last]), q[-1].copy(), 0)
+            anchor, path = q[last].copy(), float(walked[-1] - walked[last])
         else:
             assert open_ is not None
-            open_ = _Open(open_.anchor, carried + float(walked[-1]), q[-1].copy(), 0)
-        open_.index = int(poses[-1])
+            anchor, path = open_.anchor, carried + float(walked[-1])
+        open_ = _Open(anchor, path, q[-1].copy(), int(poses[-1]))
         yield sl, np.asarray(poses, dtype=np.int64), q
 
 

@@ -28,7 +28,7 @@ from dhlog.errors import Note
 from dhlog.geometry._checks import FloatArray
 from dhlog.identify.fit.axismodel import AxisModel
 from dhlog.identify.fit.data import FitData, FitOptions
-from dhlog.identify.fit.leaveout import pose_blocks
+from dhlog.identify.fit.leaveout import still_pose_blocks
 from dhlog.identify.fit.passes import CHUNK
 from dhlog.identify.fit.prediction import predict
 from dhlog.identify.fit.whole import WholeFit, fit_whole_model
@@ -240,7 +240,9 @@ def design_effect(
     which: NDArray[np.int64] | None = None,
     rates: SampleArray | None = None,
 ) -> DesignEffect:
-    """The design effect of the fit's inliers grouped by pose (module docstring), in one pass
+    """The design effect of the fit's inliers grouped by still pose (module docstring;
+    :func:`~dhlog.identify.fit.leaveout.still_pose_blocks`: within 1 mrad of the pose's first
+    sample, so a slow move under a fast tracker is not one pose), in one pass
     over the samples: a pose's samples are consecutive, so each pose's sum of whitened
     residuals is complete when the next pose starts (only the one open at a block's end is
     carried). ``whiten(points, rows)``: the whitening of the samples ``rows`` (a scalar or
@@ -249,7 +251,7 @@ def design_effect(
     m, g, last = 0, 0, -1
     squares = between = 0.0  # Σ|r|², Σ_pose |Σ r|² / n
     carry_sum, carry_n = np.zeros(3), 0
-    for sl, poses, q in pose_blocks(Q):
+    for sl, poses, q in still_pose_blocks(Q):
         use = np.flatnonzero(whole.inliers[sl])
         if not use.size:
             continue
