@@ -104,17 +104,18 @@ def test_a_1_khz_sweep_session_is_not_clustered_and_its_holdout_said_in_one_line
 
 def test_more_folds_than_poses_is_said_before_the_selection_deals_them() -> None:
     """30 still poses and ``--holdout 50``: the run stops with the one-line error naming the
-    pose count. It is now said before the model selection deals the poses to the same folds
-    (with a fold's training poses empty, the selection divided by their zero residuals: the
-    1 kHz session above, when it was one pose)."""
+    pose count — not the fast-sampled motion's, also where each pose holds 100 samples. It is
+    said before the model selection deals the poses to the same folds (with a fold's training
+    poses empty, the selection divided by their zero residuals: the 1 kHz session above)."""
     from dhlog.io.dhfile import DHModel
 
     robot = load_robot("kr5")
     names = tuple(f"joint_{i + 1}" for i in range(robot.n))
     nominal = DHModel(robot.table, robot.T_base, robot.tool_point, names, robot.name)
-    cfg = SimulationConfig(
-        protocol="random-poses", poses=30, noise=1e-5, dwell=0.5, tracker_rate=2.0, seed=3
-    )
-    log = log_data_from_session(simulate_session(robot, cfg))
-    with pytest.raises(InputError, match="--holdout 50: the session has 30 distinct poses"):
-        process_data(log, ProcessOptions(nominal=nominal, holdout=50))
+    for rate in (2.0, 200.0):  # one sample a pose, and a hundred: still poses either way
+        cfg = SimulationConfig(
+            protocol="random-poses", poses=30, noise=1e-5, dwell=0.5, tracker_rate=rate, seed=3
+        )
+        log = log_data_from_session(simulate_session(robot, cfg))
+        with pytest.raises(InputError, match="--holdout 50: the session has 30 distinct poses"):
+            process_data(log, ProcessOptions(nominal=nominal, holdout=50))

@@ -25,12 +25,12 @@ from numpy.typing import NDArray
 from dhlog.errors import Note
 from dhlog.geometry._checks import FloatArray
 from dhlog.geometry.lines import Line, Plane
-from dhlog.identify.check.holdout import Holdout, cross_validate, enough_poses
+from dhlog.identify.check.holdout import MIN_POSES, Holdout, cross_validate, enough_poses
 from dhlog.identify.check.named import name_outliers, sample_names
 from dhlog.identify.check.validate import check_residual, table_gap, validate_samples
 from dhlog.identify.fit.axismodel import AxisModel
 from dhlog.identify.fit.data import FitData, FitOptions
-from dhlog.identify.fit.leaveout import fold_of_poses, pose_groups
+from dhlog.identify.fit.leaveout import fold_of_poses, pose_groups, still_poses
 from dhlog.identify.fit.prediction import predict
 from dhlog.identify.fit.samples import (
     measured_rotations,
@@ -137,7 +137,8 @@ def identify_whole(
         groups = pose_groups(Q)
         mine = groups if which is None else groups[which == 0]  # numbered in time order
         poses = int(np.count_nonzero(np.diff(mine))) + int(mine.size > 0)
-        enough_poses(poses, request.folds, int(mine.size))
+        if poses < max(request.folds, MIN_POSES):  # a fast-sampled motion, or few still poses
+            enough_poses(poses, request.folds, int(still_poses(Q).max(initial=-1)) + 1)
         outer = fold_of_poses(groups, request.folds, 0)
     model_request = request.model
     if session.parked and model_request.harmonic_joints is None:  # none on a parked joint

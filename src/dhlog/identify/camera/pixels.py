@@ -39,7 +39,7 @@ from numpy.typing import NDArray
 
 from dhlog.geometry._checks import FloatArray, rotation_from_vector
 from dhlog.identify.fit.axismodel import AxisModel, ParameterLayout
-from dhlog.identify.fit.measure import BLOCK, MeasuredFit, fit_measured, place_by_lm
+from dhlog.identify.fit.measure import FromJacobian, MeasuredFit, fit_measured, place_by_lm
 from dhlog.identify.fit.placement import Stand
 from dhlog.identify.fit.prediction import predict_columns, predict_orientation, prefix_motions
 from dhlog.model.dh import StandardDH
@@ -339,7 +339,7 @@ class PixelModel:
 
 
 @dataclass(frozen=True)
-class CamerasModel:
+class CamerasModel(FromJacobian):
     """Several fixed cameras seeing one board on the flange (eye-to-hand), a
     :class:`~dhlog.identify.fit.measure.Measurement`: M is the first camera's frame; camera k ≥ 1
     sits at ``poses[k]`` (4×4, in M), six parameters of its own each (a small rotation about
@@ -350,7 +350,6 @@ class CamerasModel:
     poses: tuple[FloatArray, ...]
     dim: int = 2
     setup: str = "eye-to-hand"
-    block: ClassVar[int] = BLOCK
 
     @property
     def extra(self) -> int:
@@ -361,17 +360,6 @@ class CamerasModel:
 
     def observed(self, data: Corners, sl: slice) -> FloatArray:
         return data.uv[sl]
-
-    def normal_block(
-        self,
-        model: AxisModel,
-        layout: ParameterLayout,
-        bases: list[tuple[FloatArray, FloatArray]],
-        data: Corners,
-        sl: slice,
-        limit: float,
-    ) -> None:
-        return None  # from the Jacobian
 
     def moved(self, delta: FloatArray) -> CamerasModel:
         poses = [self.poses[0]]

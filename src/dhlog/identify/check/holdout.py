@@ -47,17 +47,20 @@ from dhlog.model.fk import fk_point
 MIN_POSES = 5
 
 
-def enough_poses(poses: int, folds: int, samples: int = 0) -> None:
-    """An :class:`~dhlog.errors.InputError` where ``poses`` distinct poses (of ``samples``) are
-    too few for ``folds``-fold cross-validation (fewer than the folds, or than
-    :data:`MIN_POSES`)."""
+def enough_poses(poses: int, folds: int, still: int = 0) -> None:
+    """An :class:`~dhlog.errors.InputError` where ``poses`` distinct poses are too few for
+    ``folds``-fold cross-validation (fewer than the folds, or than :data:`MIN_POSES`);
+    ``still``: the still poses among the same samples
+    (:func:`~dhlog.identify.fit.leaveout.still_poses`), enough of which say that the poses are
+    a motion sampled in steps below :data:`SAME_POSE`, not a few still poses."""
     from dhlog.errors import InputError
 
-    if poses >= max(folds, MIN_POSES):
+    needed = max(folds, MIN_POSES)
+    if poses >= needed:
         return
-    if samples >= 100 * max(poses, 1):  # a motion sampled in steps below SAME_POSE
+    if still >= needed:
         raise InputError(
-            f"--holdout {folds}: the session's {samples} samples make {poses} distinct pose(s): "
+            f"--holdout {folds}: the session's samples make {poses} distinct pose(s): "
             f"its joints move less than {SAME_POSE * 1e3:g} mrad (or mm) from one sample to "
             "the next (a motion sampled faster than that), so no pose can be held out apart "
             "from its neighbours; --validate a log of other poses instead."

@@ -131,6 +131,25 @@ class Measurement(Protocol):
         ...
 
 
+class FromJacobian:
+    """A :class:`Measurement` whose passes form the normal equations from :meth:`predict`'s
+    Jacobian, :data:`BLOCK` observations a block (a tracker's point, several cameras): its
+    ``normal_block`` is None."""
+
+    block: ClassVar[int] = BLOCK
+
+    def normal_block(
+        self,
+        model: AxisModel,
+        layout: ParameterLayout,
+        bases: list[tuple[FloatArray, FloatArray]],
+        data: Any,
+        sl: slice,
+        limit: float,
+    ) -> None:
+        return None
+
+
 @dataclass(frozen=True)
 class Points:
     """A tracker's samples: joint values ``Q`` (m, n), the target's positions ``P`` (m, 3)."""
@@ -140,26 +159,14 @@ class Points:
 
 
 @dataclass(frozen=True)
-class PointMeasurement:
+class PointMeasurement(FromJacobian):
     """A tracker's target point in M (one σ for all: the data's own)."""
 
     dim: int = 3
     extra: int = 0
-    block: ClassVar[int] = BLOCK
 
     def count(self, data: Points) -> int:
         return int(data.P.shape[0])
-
-    def normal_block(
-        self,
-        model: AxisModel,
-        layout: ParameterLayout,
-        bases: list[tuple[FloatArray, FloatArray]],
-        data: Points,
-        sl: slice,
-        limit: float,
-    ) -> None:
-        return None  # from the Jacobian
 
     def observed(self, data: Points, sl: slice) -> FloatArray:
         return data.P[sl]

@@ -121,9 +121,9 @@ class JointRates:
         if mid.size < 2 or not t_ns.size:
             return out
         x = t_ns.astype(np.float64)
-        j = np.searchsorted(mid, x, side="right") - 1
         # the midpoints around every time asked: those before it, and the one after
-        lo, hi = max(int(j.min()), 0), min(int(j.max()) + 2, mid.size)
+        ends = np.searchsorted(mid, [x.min(), x.max()], side="right") - 1
+        lo, hi = max(int(ends[0]), 0), min(int(ends[1]) + 2, mid.size)
         span = np.arange(lo, hi)
         for k, i in enumerate(cols):
             out[:, k] = np.interp(x, mid[lo:hi], self._speeds(i, span), left=0.0, right=0.0)

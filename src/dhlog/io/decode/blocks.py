@@ -145,7 +145,7 @@ def decode_stream(
         extract = extractor(stream, info, fields, orientation, child_frame, pose_index)
         if extract is None:
             accepted = ACCEPTED[stream]
-            if orientation and stream == "point":
+            if orientation:
                 accepted = (
                     "geometry_msgs/msg/PoseStamped, foxglove.PoseInFrame, foxglove.PosesInFrame "
                     "or transforms (the pipeline asks "
