@@ -30,7 +30,7 @@ from dhlog.identify.check.named import name_outliers, sample_names
 from dhlog.identify.check.validate import check_residual, table_gap, validate_samples
 from dhlog.identify.fit.axismodel import AxisModel
 from dhlog.identify.fit.data import FitData, FitOptions
-from dhlog.identify.fit.leaveout import fold_of_poses, pose_groups, still_poses
+from dhlog.identify.fit.leaveout import PoseFolds, pose_groups, still_poses
 from dhlog.identify.fit.prediction import predict
 from dhlog.identify.fit.samples import (
     measured_rotations,
@@ -132,14 +132,15 @@ def identify_whole(
     Q, P, which, rotations, rates = data.Q, data.P, data.which, data.rotations, data.rates
     assert isinstance(Q, PerSample)  # the session's samples, read a block at a time
     options, sigma = clocked.options, clocked.options.sigma
-    outer = None  # --holdout K: each sample's fold, the same for the selection and the check
+    dealt = None  # --holdout K: each sample's pose and fold, the same for selection and check
     if request.folds > 1:  # too few poses: said before the selection deals them to folds
         groups = pose_groups(Q)
         mine = groups if which is None else groups[which == 0]  # numbered in time order
         poses = int(np.count_nonzero(np.diff(mine))) + int(mine.size > 0)
         if poses < max(request.folds, MIN_POSES):  # a fast-sampled motion, or few still poses
             enough_poses(poses, request.folds, int(still_poses(Q).max(initial=-1)) + 1)
-        outer = fold_of_poses(groups, request.folds, 0)
+        dealt = PoseFolds.of(groups, request.folds)
+    outer = None if dealt is None else dealt.fold
     model_request = request.model
     if session.parked and model_request.harmonic_joints is None:  # none on a parked joint
         revolute = [k for k, t in enumerate(types) if t is JointType.REVOLUTE]
@@ -276,10 +277,10 @@ def identify_whole(
         notes.append(Note.warning(departs, "table-gap"))
     notes.extend(check_residual(validation, sigma))
     holdout: tuple[Holdout, ...] = ()
-    if request.folds > 1 and outer is not None:
+    if request.folds > 1 and dealt is not None:
         stage("cross-validating", 0.0)
         final_clock = replace(clocked, data=data, options=final)
-        check = _cross_validation(whole, clustered, session, request, final_clock, outer, selection)
+        check = _cross_validation(whole, clustered, session, request, final_clock, dealt, selection)
         holdout = (_with_notes(check, whole, session, final_clock, names, selection),)
     return ModelFit(
         segmentation=seg,
@@ -371,7 +372,7 @@ def _cross_validation(
     session: Session,
     request: FitRequest,
     fit: _Clocked,
-    outer: NDArray[np.intp],
+    dealt: PoseFolds,
     selection: Selection | None,
 ) -> Holdout:
     """``--holdout K``: the K-fold cross-validation of the whole procedure over the session's
@@ -387,7 +388,7 @@ def _cross_validation(
             request.tolerances.distance_tol,
             fit.data,
             fit.options,
-            outer=outer,
+            outer=dealt.fold,
             folds=request.folds,
         )
 
@@ -405,7 +406,7 @@ def _cross_validation(
         replace(fit.options, fit_scales=request.fit_scales),
         request.folds,
         nominal=nominal,
-        fold=outer,
+        poses=dealt,
         starts=() if selection is None else selection.fold_starts,
         refine=refine,
     )

@@ -32,6 +32,7 @@ from dhlog.identify.fit.axismodel import AxisModel
 from dhlog.identify.fit.data import FitData, FitOptions
 from dhlog.identify.fit.leaveout import (
     SAME_POSE,
+    PoseFolds,
     fold_of_poses,
     pose_groups,
     pose_means,
@@ -173,7 +174,7 @@ def cross_validate(
     folds: int,
     *,
     nominal: DHModel | None = None,
-    fold: NDArray[np.int64] | None = None,
+    poses: PoseFolds | None = None,
     starts: Sequence[AxisModel] = (),
     refine: Callable[[WholeFit, int], WholeFit] | None = None,
 ) -> Holdout:
@@ -181,19 +182,19 @@ def cross_validate(
     weighted by ``options`` (noise, σ, per-sample covariance, orientations, …);
     ``nominal``: its table, base and tool point placed on each fold's fitted poses. Only the
     full fit's inliers are used; with several targets only the primary one is scored.
-    ``fold`` (m,): each sample's fold (default: :func:`fold_of_poses` of its pose, seed 0);
+    ``poses``: each sample's pose and fold (default: :func:`pose_groups` and
+    :func:`fold_of_poses` of them, seed 0);
     ``starts``: per fold, the model to fit to its training poses (default ``whole``'s) — the
     model ``--model auto`` chose from those poses alone; ``refine(fit, k)``: fold k's fit as the
     run would finish it from those poses (its pairs held parallel)."""
 
     Q, P, which = data.Q, data.P, data.which
-    groups = pose_groups(Q)
+    groups = pose_groups(Q) if poses is None else poses.groups
     usable = whole.inliers.copy()
     if which is not None:
         usable &= which == 0
     enough_poses(int(np.unique(groups[usable]).size), folds)
-    if fold is None:
-        fold = fold_of_poses(groups, folds, 0)
+    fold = fold_of_poses(groups, folds, 0) if poses is None else poses.fold
     positions, cal_vecs, nom_vecs = [], [], []
     firsts: list[int] = []
     notes: tuple[str, ...] = ()

@@ -228,6 +228,19 @@ def fold_of_poses(groups: NDArray[np.int64], folds: int, seed: int) -> NDArray[n
     return out
 
 
+@dataclass(frozen=True)
+class PoseFolds:
+    """What ``--holdout K`` deals: each sample's pose (:func:`pose_groups`) and its fold
+    (:func:`fold_of_poses`), found once for the selection, the pairs' decisions and the check."""
+
+    groups: NDArray[np.int64]
+    fold: NDArray[np.int64]
+
+    @staticmethod
+    def of(groups: NDArray[np.int64], folds: int, seed: int = 0) -> PoseFolds:
+        return PoseFolds(groups, fold_of_poses(groups, folds, seed))
+
+
 #: Consecutive samples whose joint values all differ by less than this (rad or m) are one pose.
 SAME_POSE = 1e-3
 
