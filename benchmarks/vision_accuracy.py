@@ -98,8 +98,7 @@ def one_session(case: str, seed: int, poses: int) -> dict[str, float]:
     rng = np.random.default_rng([seed, 99])
     dets = simulate_detections(vision, SIGMA_PX, rng)
     keep = [k for k, (ids, _) in enumerate(dets) if ids.size >= 6]
-    tally = Tally()
-    tally.frames, tally.detected = len(dets), len(keep)
+    tally = Tally(frames=len(dets), detected=len(keep))
     rig = view.rig
     obs = Observations(
         f"{case}:{seed}",

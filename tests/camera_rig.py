@@ -52,8 +52,7 @@ def corners(rig: Rig, true: Any, robot: Any, Q: np.ndarray, rng: np.random.Gener
 def observations(robot: Any, Q: np.ndarray, ids: Any, uv: Any) -> Observations:
     """The detections as ``frames.observe`` gives them (a frame every 2 s, every frame detected)."""
     f = len(Q)
-    tally = Tally()
-    tally.frames = tally.detected = f
+    tally = Tally(frames=f, detected=f)
     return Observations(
         "simulated.mcap",
         "/camera/image_raw/compressed",

@@ -247,17 +247,17 @@ def test_faults_are_counted_and_named_not_raised(tmp_path: Path) -> None:
     frames, stream = read(path, "/raw")
     assert [f.index for f in frames] == [0, 4] and stream.count == 5
     reasons = stream.faults.by_reason
-    assert reasons["size does not match width x height x channels"] == [2]
-    assert reasons["unknown encoding 'yuv444x'"] == [3]
+    assert reasons["size does not match width x height x channels"] == (2,)
+    assert reasons["unknown encoding 'yuv444x'"] == (3,)
     assert sorted(i for indices in reasons.values() for i in indices) == [1, 2, 3]
     line = stream.warning()
     assert line is not None and "\n" not in line and "3 of 5 frame(s) on /raw" in line
     assert "frame 3" in line and str(path) in line
     frames, stream = read(path, "/compressed")
     assert [f.index for f in frames] == [0] and len(stream.faults) == 3
-    assert stream.faults.by_reason["corrupt JPEG"] == [1]
-    assert stream.faults.by_reason["truncated JPEG (no end marker)"] == [2]
-    assert stream.faults.by_reason["corrupt PNG"] == [3]
+    assert stream.faults.by_reason["corrupt JPEG"] == (1,)
+    assert stream.faults.by_reason["truncated JPEG (no end marker)"] == (2,)
+    assert stream.faults.by_reason["corrupt PNG"] == (3,)
 
 
 def test_cdr_against_the_rosbags_library() -> None:
@@ -463,7 +463,7 @@ def test_payloads_compressed_one_by_one(tmp_path: Path) -> None:
     frames, stream = read(path, "/c")
     assert [f.index for f in frames] == [0, 2]
     np.testing.assert_array_equal(frames[0].pixels, bgr)
-    assert stream.faults.by_reason == {"zstd payload that cannot be decompressed": [1]}
+    assert stream.faults.by_reason == {"zstd payload that cannot be decompressed": (1,)}
 
 
 def test_damaged_payloads_are_faults_never_exceptions(tmp_path: Path) -> None:

@@ -150,7 +150,7 @@ def test_every_corner_where_the_truth_puts_it_with_the_pose_s_joints(base: Base)
     (obs,) = observe(base.path, PIPELINE)
     vision = base.vision
     assert obs.camera == IMAGE and obs.intrinsics == vision.rig.camera
-    assert obs.board == PIPELINE.target and obs.warnings == []
+    assert obs.board == PIPELINE.target and obs.warnings == ()
     assert obs.tally.frames == POSES and obs.tally.detected == POSES
     assert obs.frames == POSES and obs.frame.tolist() == list(range(POSES))
     assert obs.t_ns.tolist() == vision.frame_t_ns.tolist()
@@ -193,7 +193,7 @@ def test_decimation_keeps_frames_evenly_over_a_log_of_unknown_length() -> None:
     kept = [k[0] for k in d.frames()]
     assert 100 <= len(kept) <= 200 and kept[0] == 0 and kept[-1] > 9_800 - d.step
     assert set(np.diff(kept)) == {d.step}
-    assert Decimation(0).frames() == [] and not Decimation(0).wanted(0)
+    assert Decimation(0).frames() == () and not Decimation(0).wanted(0)
 
 
 def test_joint_values_interpolated_and_refused_beyond_the_tolerance() -> None:
@@ -321,7 +321,7 @@ def test_several_cameras_each_observed_and_one_without_intrinsics_left_out(
     observed = observe(path, pipeline, jobs=2)
     assert [o.camera for o in observed] == [f"/camera_{k}/image_raw/compressed" for k in (1, 2)]
     for obs, cam in zip(observed, vision.cameras, strict=True):
-        assert obs.intrinsics == cam.rig.camera and obs.warnings == []
+        assert obs.intrinsics == cam.rig.camera and obs.warnings == ()
         assert obs.t_ns.tolist() == cam.frame_t_ns.tolist() and obs.frames >= 4
         np.testing.assert_allclose(obs.q, cam.frame_q, atol=1e-12)
         every = []

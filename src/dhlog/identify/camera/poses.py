@@ -152,12 +152,12 @@ def of_frames(obs: Observations, frames: tuple[int | None, int | None]) -> Obser
         q=obs.q[keep],
         ids=[obs.ids[k] for k in chosen],
         uv=[obs.uv[k] for k in chosen],
-        warnings=[
+        warnings=(
             *obs.warnings,
             f"--frames {'' if frames[0] is None else frames[0]}:"
             f"{'' if frames[1] is None else frames[1]}: {chosen.size} of {obs.frames} frames "
             "with the board kept.",
-        ],
+        ),
     )
 
 

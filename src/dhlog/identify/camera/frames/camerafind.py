@@ -51,7 +51,7 @@ class _Small:
     joint_q: NDArray[np.float64]
     joint_names: list[str]
     infos: dict[str, list[CameraInfo]]
-    warnings: list[str]
+    warnings: tuple[str, ...]
 
 
 def _joints_spec(pipeline: Pipeline) -> StreamSpec:
@@ -137,7 +137,7 @@ def _first_walk(
         )
     t = np.asarray(frame["t_ns"].to_numpy(), dtype=np.int64)
     q = np.column_stack([np.asarray(frame[f"q_{j + 1}"].to_numpy()) for j in range(len(names))])
-    return _Small(sorted(present), t, q.reshape(t.size, len(names)), names, infos, warnings)
+    return _Small(sorted(present), t, q.reshape(t.size, len(names)), names, infos, tuple(warnings))
 
 
 @dataclass(frozen=True)

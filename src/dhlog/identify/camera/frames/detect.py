@@ -9,7 +9,7 @@ over a log. Image coordinates are pixels, the centre of the top-left pixel at (0
 from __future__ import annotations
 
 import functools
-from collections.abc import Iterable
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from typing import Any, Literal, NamedTuple
 
@@ -218,25 +218,33 @@ def _percentile(values: NDArray[Any], q: float, top: float) -> float:
     return float(np.searchsorted(cdf, q)) * top / bins
 
 
-@dataclass
+@dataclass(frozen=True)
 class Tally:
-    """Detections and rejections counted over frames (by their index), with examples."""
+    """Detections and rejections counted over frames (by their index), with the first three
+    frames of each reason (:meth:`of`)."""
 
     frames: int = 0
     detected: int = 0
-    counts: dict[str, int] = field(default_factory=dict)
-    examples: dict[str, list[int]] = field(default_factory=dict)
+    counts: Mapping[str, int] = field(default_factory=dict)
+    examples: Mapping[str, tuple[int, ...]] = field(default_factory=dict)
 
-    def add(self, index: int, outcome: Detection | Rejected) -> None:
-        """Count frame ``index``'s outcome (the first three frames of each reason are kept)."""
-        self.frames += 1
-        if isinstance(outcome, Detection):
-            self.detected += 1
-            return
-        self.counts[outcome.reason] = self.counts.get(outcome.reason, 0) + 1
-        shown = self.examples.setdefault(outcome.reason, [])
-        if len(shown) < 3:
-            shown.append(index)
+    @staticmethod
+    def of(outcomes: Iterable[tuple[int, str | None]]) -> Tally:
+        """The tally of frames ``(index, reason)``: the reason it was rejected, or None where
+        the board was found."""
+        frames = detected = 0
+        counts: dict[str, int] = {}
+        examples: dict[str, tuple[int, ...]] = {}
+        for index, reason in outcomes:
+            frames += 1
+            if reason is None:
+                detected += 1
+                continue
+            counts[reason] = counts.get(reason, 0) + 1
+            shown = examples.get(reason, ())
+            if len(shown) < 3:
+                examples[reason] = (*shown, index)
+        return Tally(frames, detected, counts, examples)
 
     def summary(self) -> str:
         """One line: ``412 of 500 frame(s) with the target; 60 no target (frames 3, 4, 9, …)``."""
@@ -253,10 +261,12 @@ class Tally:
 
 def tally(outcomes: Iterable[Detection | Rejected], *, first_index: int = 0) -> Tally:
     """Count the outcomes of consecutive frames numbered from ``first_index``."""
-    t = Tally()
-    for i, outcome in enumerate(outcomes, start=first_index):
-        t.add(i, outcome)
-    return t
+    return Tally.of((i, reason_of(o)) for i, o in enumerate(outcomes, start=first_index))
+
+
+def reason_of(outcome: Detection | Rejected) -> str | None:
+    """Why a frame was rejected, or None where the board was found."""
+    return None if isinstance(outcome, Detection) else outcome.reason
 
 
 def _gray(image: object) -> NDArray[np.uint8] | Rejected:

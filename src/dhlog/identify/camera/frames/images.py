@@ -19,7 +19,7 @@ import contextlib
 import functools
 import queue
 import threading
-from collections.abc import Callable, Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TypeVar
@@ -50,17 +50,42 @@ BATCH_BYTES = 64 << 20
 QUEUED = 2
 
 
-@dataclass
+@dataclass(frozen=True)
 class Faults:
-    """Frames that could not be decoded: per reason, their indices on the topic."""
+    """Frames that could not be decoded: per reason, their indices on the topic (:meth:`of`)."""
 
-    by_reason: dict[str, list[int]] = field(default_factory=dict)
+    by_reason: Mapping[str, tuple[int, ...]] = field(default_factory=dict)
 
-    def add(self, reason: str, index: int) -> None:
-        self.by_reason.setdefault(reason, []).append(index)
+    @staticmethod
+    def of(faults: Iterable[tuple[str, int]]) -> Faults:
+        """The faults ``(reason, index)`` grouped by reason, in the order met."""
+        by_reason: dict[str, list[int]] = {}
+        for reason, index in faults:
+            by_reason.setdefault(reason, []).append(index)
+        return Faults({reason: tuple(at) for reason, at in by_reason.items()})
 
     def __len__(self) -> int:
         return sum(len(v) for v in self.by_reason.values())
+
+    def warning(self, path: str, topic: str, count: int) -> str | None:
+        """One line naming the frames of ``topic`` (``count`` messages) not decoded, by reason
+        (None when every frame was)."""
+        if not self.by_reason:
+            return None
+        parts = []
+        reasons = sorted(self.by_reason.items(), key=lambda kv: -len(kv[1]))
+        for reason, indices in reasons[:4]:
+            shown = ", ".join(str(i) for i in indices[:5])
+            more = f" and {len(indices) - 5} more" if len(indices) > 5 else ""
+            parts.append(f"{reason}: {len(indices)} (frame {shown}{more})")
+        if len(reasons) > 4:
+            parts.append(
+                f"{sum(len(v) for _, v in reasons[4:])} for {len(reasons) - 4} other reasons"
+            )
+        return (
+            f"{path}: {len(self)} of {count} frame(s) on {printable(topic)} not decoded, "
+            f"skipped — {'; '.join(parts)}."
+        )
 
 
 @dataclass(frozen=True)
@@ -98,7 +123,7 @@ class ImageStream:
         self.path, self.topic, self.info_topic = str(path), topic, info_topic
         self.batch_bytes = batch_bytes or BATCH_BYTES
         self.count = 0
-        self.faults = Faults()
+        self._faulted: list[tuple[str, int]] = []  # (reason, index) of the last walk
         self.infos: list[CameraInfo] = []
         self.warnings: list[str] = []
         self.schema = ""
@@ -141,7 +166,7 @@ class ImageStream:
                 stamp, frame_id, value = decode_payload(decode, buf)
             except ImageFaultError as exc:
                 if is_image:
-                    self.faults.add(str(exc), index)
+                    self._faulted.append((str(exc), index))
                 continue
             stamp = stamp if stamp > 0 else int(raw.log_time[i])  # unset: the log time
             if is_image:
@@ -180,7 +205,7 @@ class ImageStream:
         produce: Callable[[int, ChannelInfo, RawMessages], Iterable[_T]],
         size_of: Callable[[_T], int],
     ) -> Iterator[list[_T]]:
-        self.count, self.faults, self.infos, self.warnings = 0, Faults(), [], []
+        self.count, self._faulted, self.infos, self.warnings = 0, [], [], []
         self.fraction = 0.0
         hand: queue.Queue[list[_T] | BaseException | None] = queue.Queue(QUEUED)
         stop = threading.Event()
@@ -264,25 +289,14 @@ class ImageStream:
         for batch in self.batches():
             yield from batch
 
+    @property
+    def faults(self) -> Faults:
+        """The frames of the last walk that could not be decoded."""
+        return Faults.of(self._faulted)
+
     def warning(self) -> str | None:
         """One line naming the frames not decoded, by reason (None when every frame was)."""
-        if not self.faults.by_reason:
-            return None
-        parts = []
-        reasons = sorted(self.faults.by_reason.items(), key=lambda kv: -len(kv[1]))
-        for reason, indices in reasons[:4]:
-            shown = ", ".join(str(i) for i in indices[:5])
-            more = f" and {len(indices) - 5} more" if len(indices) > 5 else ""
-            parts.append(f"{reason}: {len(indices)} (frame {shown}{more})")
-        if len(reasons) > 4:
-            parts.append(
-                f"{sum(len(v) for _, v in reasons[4:])} for {len(reasons) - 4} other reasons"
-            )
-        topic = printable(self.topic)
-        return (
-            f"{self.path}: {len(self.faults)} of {self.count} frame(s) on {topic} not decoded, "
-            f"skipped — {'; '.join(parts)}."
-        )
+        return self.faults.warning(self.path, self.topic, self.count)
 
 
 def _check_topics(path: str, present: list[str], wanted: list[tuple[str, str | None]]) -> None:

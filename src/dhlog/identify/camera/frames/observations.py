@@ -12,7 +12,7 @@ a log of unknown length (:class:`Decimation`).
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
@@ -48,8 +48,8 @@ class Observations:
     ids: list[NDArray[np.int64]]
     uv: list[FloatArray]
     tally: Tally
-    kept: list[tuple[int, str, bytes]] = field(default_factory=list)
-    warnings: list[str] = field(default_factory=list)
+    kept: tuple[tuple[int, str, bytes], ...] = ()
+    warnings: tuple[str, ...] = ()
 
     @property
     def frames(self) -> int:
@@ -134,6 +134,6 @@ class Decimation:
             self.step *= 2
             self.kept = {i: v for i, v in self.kept.items() if i % self.step == 0}
 
-    def frames(self) -> list[tuple[int, str, bytes]]:
+    def frames(self) -> tuple[tuple[int, str, bytes], ...]:
         """The frames kept, ``(index, format, bytes)`` in index order."""
-        return [(i, *self.kept[i]) for i in sorted(self.kept)]
+        return tuple((i, *self.kept[i]) for i in sorted(self.kept))

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import contextlib
 from collections.abc import Callable, Sequence
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -35,7 +36,7 @@ from dhlog.identify.camera.frames.camerafind import (
     _joints_spec,
     _Small,
 )
-from dhlog.identify.camera.frames.detect import REASONS, Detection, Tally
+from dhlog.identify.camera.frames.detect import REASONS, Detection, Tally, reason_of
 from dhlog.identify.camera.frames.framedetect import _looked, _Setup
 from dhlog.identify.camera.frames.images import Faults, ImageStream
 from dhlog.identify.camera.frames.observations import (
@@ -142,7 +143,8 @@ def observe(
     if not out:  # every camera failed: the first one's reason (the others' are alike)
         more = f" ({len(failed) - 1} other camera(s) failed too)" if len(failed) > 1 else ""
         raise VisionLogError(f"{failed[0]}{more}")
-    out[0].warnings[:0] = [*small.warnings, *(f"{exc} That camera is left out." for exc in failed)]
+    said = (*small.warnings, *(f"{exc} That camera is left out." for exc in failed))
+    out[0] = replace(out[0], warnings=(*said, *out[0].warnings))
     report(1.0)
     return out
 
@@ -164,7 +166,8 @@ def _observe_camera(
     setup = _Setup(pipeline.target, camera)
     stream = ImageStream(name, topic, batch_bytes=PAYLOAD_BATCH_BYTES)
     decimation = Decimation(keep_frames)
-    tally, faults = Tally(), Faults()
+    outcomes: list[tuple[int, str | None]] = []  # every frame's: the reason, None detected
+    faulted: list[tuple[str, int]] = []  # the frames not decoded: (reason, index)
     found: list[tuple[int, int, NDArray[np.int64], NDArray[np.float64]]] = []
     first_detail: dict[str, str] = {}
     with contextlib.closing(_looked(stream, setup, jobs, decimation)) as looked:
@@ -175,10 +178,10 @@ def _observe_camera(
                 raise _size_error(where, len(wrong), wrong[0].size or (0, 0), camera, source)
             for s in seen:
                 if s.fault is not None:
-                    faults.add(s.fault, s.index)
+                    faulted.append((s.fault, s.index))
                     continue
                 assert s.outcome is not None
-                tally.add(s.index, s.outcome)
+                outcomes.append((s.index, reason_of(s.outcome)))
                 if isinstance(s.outcome, Detection):
                     found.append((s.index, s.stamp_ns, s.outcome.ids, s.outcome.corners_px))
                 else:
@@ -187,8 +190,8 @@ def _observe_camera(
                     decimation.add(s.index, *s.kept)
             report(stream.fraction)
     warnings.extend(stream.warnings)
-    stream.faults = faults
-    fault_line = stream.warning()
+    tally = Tally.of(outcomes)
+    fault_line = Faults.of(faulted).warning(name, topic, stream.count)
     if fault_line is not None:
         warnings.append(fault_line)
     if not found:
@@ -242,7 +245,7 @@ def _observe_camera(
         uv=[np.asarray(found[k][3], dtype=np.float64) for k in keep],
         tally=tally,
         kept=decimation.frames(),
-        warnings=warnings,
+        warnings=tuple(warnings),
     )
 
 
