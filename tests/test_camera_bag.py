@@ -17,10 +17,11 @@ runner = CliRunner()
 
 
 def test_a_rosbag2_camera_bag_is_calibrated(tmp_path: Path) -> None:
-    """The simulator's small-camera log (16 poses, PNG) copied message by message into a
-    rosbag2 bag folder by rosbags' writer: dhlog process takes the folder, finds the camera
-    pipeline from its topics and gives the same calibration as from the MCAP file (the camera's
-    position equal to 1 µm: the same messages)."""
+    """The simulator's small-camera log (16 poses, PNG) copied message by message into rosbag2
+    bags by rosbags' writer — MCAP storage, and sqlite3 storage as ROS 2 Humble records by
+    default (the folder, and its ``.db3`` file alone): dhlog process takes each, finds the
+    camera pipeline from its topics and gives the same calibration as from the MCAP file (the
+    camera's position equal to 1 µm: the same messages), naming the bag as its source."""
     from rosbags.rosbag2 import StoragePlugin
     from rosbags.rosbag2 import Writer as BagWriter
     from rosbags.typesys import Stores, get_typestore
@@ -36,19 +37,24 @@ def test_a_rosbag2_camera_bag_is_calibrated(tmp_path: Path) -> None:
     )
     assert made.exit_code == 0, made.output
     store = get_typestore(Stores.ROS2_HUMBLE)
-    bag = tmp_path / "bag"
-    with log.open("rb") as f, BagWriter(bag, version=9, storage_plugin=StoragePlugin.MCAP) as w:
-        reader = make_reader(f)
-        summary = reader.get_summary()
-        assert summary is not None
-        connections = {
-            cid: w.add_connection(
-                channel.topic, summary.schemas[channel.schema_id].name, typestore=store
-            )
-            for cid, channel in summary.channels.items()
-        }
-        for _, channel, message in reader.iter_messages():
-            w.write(connections[channel.id], message.log_time, message.data)
+    bags = {"mcap": tmp_path / "bag", "sqlite3": tmp_path / "humble"}
+    for (kind, bag), plugin in zip(
+        bags.items(), (StoragePlugin.MCAP, StoragePlugin.SQLITE3), strict=True
+    ):
+        version = 9 if kind == "mcap" else 8
+        with log.open("rb") as f, BagWriter(bag, version=version, storage_plugin=plugin) as w:
+            reader = make_reader(f)
+            summary = reader.get_summary()
+            assert summary is not None
+            connections = {
+                cid: w.add_connection(
+                    channel.topic, summary.schemas[channel.schema_id].name, typestore=store
+                )
+                for cid, channel in summary.channels.items()
+            }
+            for _, channel, message in reader.iter_messages():
+                w.write(connections[channel.id], message.log_time, message.data)
+    (db3,) = bags["sqlite3"].glob("*.db3")
     shipped = Path(__file__).parents[1] / "pipelines" / "ros2_camera.toml"
     pipeline = tmp_path / "small_board.toml"
     pipeline.write_text(
@@ -57,7 +63,8 @@ def test_a_rosbag2_camera_bag_is_calibrated(tmp_path: Path) -> None:
         .replace("marker_m = 0.03", "marker_m = 0.045")
     )
     poses = []
-    for source, out in ((log, tmp_path / "from_mcap"), (bag, tmp_path / "from_bag")):
+    for source in (log, bags["mcap"], bags["sqlite3"], db3):
+        out = tmp_path / f"from_{source.name}"
         result = runner.invoke(
             app,
             [
@@ -66,9 +73,18 @@ def test_a_rosbag2_camera_bag_is_calibrated(tmp_path: Path) -> None:
             ],
         )
         assert result.exit_code == 0, result.output
-        assert "Traceback" not in result.output
+        assert "Traceback" not in result.output and "dhlog-db3" not in result.output
         (written,) = out.glob("*.dh.json")
         doc = json.loads(written.read_text())
         assert doc["camera"]["frames"] == 16
+        assert doc["source"]["path"] == source.name and "dhlog-db3" not in written.read_text()
         poses.append(np.array(doc["camera"]["T_base_camera"]))
-    assert np.allclose(poses[0], poses[1], atol=1e-6)
+    for pose in poses[1:]:
+        assert np.allclose(poses[0], pose, atol=1e-6)
+    # without a pipeline the sqlite3 bag is still a camera log (the shipped camera pipeline:
+    # its 40 mm board is not this log's 60 mm one, which the plausibility check names)
+    result = runner.invoke(
+        app, ["process", str(db3), "--nominal", "kr5", "--no-rrd", "--out", str(tmp_path / "x")]
+    )
+    assert result.exit_code == 4, result.output
+    assert "about 60.0 mm" in " ".join(result.output.split())

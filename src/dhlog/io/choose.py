@@ -58,6 +58,10 @@ def _image_topics(path: Path) -> set[str]:
     from mcap.records import Channel, Message, Schema
     from mcap.stream_reader import StreamReader
 
+    from dhlog.io.sqlitebag import sqlite3_storage
+
+    if sqlite3_storage(path):  # its connections' types, from rosbags' reader of the bag
+        return _sqlite3_image_topics(path)
     if path.is_dir():
         files = sorted(path.glob("*.mcap"))
         if not files:
@@ -91,6 +95,18 @@ def _image_topics(path: Path) -> set[str]:
             return found
     except (McapError, OSError, ValueError, KeyError, EOFError, AssertionError, struct.error):
         return set()  # a damaged summary or footer (struct.error from the mcap reader's reads)
+
+
+def _sqlite3_image_topics(path: Path) -> set[str]:
+    """The topics of a rosbag2 bag in sqlite3 storage (a folder or one ``.db3`` file) whose
+    connections carry camera images; an unreadable bag gives none (the reader says why)."""
+    from rosbags.rosbag2 import Reader
+
+    try:
+        with Reader(path) as bag:
+            return {c.topic for c in bag.connections if c.msgtype in _IMAGE_SCHEMAS}
+    except Exception:  # rosbags' errors of a damaged bag or database: the reader names them
+        return set()
 
 
 def _channels_for(scan_channels: dict[int, ChannelInfo], topic: str) -> list[ChannelInfo]:

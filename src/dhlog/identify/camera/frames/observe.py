@@ -47,6 +47,7 @@ from dhlog.identify.camera.frames.observations import (
     joint_values_at,
 )
 from dhlog.io.pipeline import Pipeline
+from dhlog.io.sqlitebag import Copy, as_mcap, sqlite3_storage
 from dhlog.model.dh import JointType
 from dhlog.vision.camera import Intrinsics
 
@@ -115,6 +116,18 @@ def observe(
         )
     if jobs < 1:
         raise InputError(f"jobs is {jobs}; give 1 or more worker processes.")
+    if sqlite3_storage(Path(path)):  # as ROS 2 Humble records by default: read as its MCAP copy
+        with as_mcap(Path(path), progress) as copy:
+            found = observe(
+                copy.path,
+                pipeline,
+                jobs=jobs,
+                keep_frames=keep_frames,
+                progress=copy.reading,
+                joint_names=joint_names,
+                joint_source=joint_source,
+            )
+        return [_of_bag(obs, copy) for obs in found]
 
     done = [0.0]
 
@@ -147,6 +160,17 @@ def observe(
     out[0] = replace(out[0], warnings=(*said, *out[0].warnings))
     report(1.0)
     return out
+
+
+def _of_bag(obs: Observations, copy: Copy) -> Observations:
+    """``obs`` read from a sqlite3 bag's MCAP copy, naming the bag where it named the copy."""
+    intrinsics = replace(obs.intrinsics, where=copy.renamed(obs.intrinsics.where))
+    return replace(
+        obs,
+        path=str(copy.bag),
+        intrinsics=intrinsics,
+        warnings=tuple(copy.renamed(w) for w in obs.warnings),
+    )
 
 
 def _observe_camera(
