@@ -28,8 +28,9 @@ IMAGE_KEYS = ("topic", "required", "alternatives")
 
 
 #: ``[camera]``: the camera-info topic (``CameraInfo`` / ``CameraCalibration``), or a
-#: calibration file (ROS camera_info YAML, OpenCV YAML/XML) held instead.
-CAMERA_KEYS = ("info_topic", "calibration")
+#: calibration file (ROS camera_info YAML, OpenCV YAML/XML) held instead; whether the images are
+#: rectified (their intrinsics the camera info's projection P; default: the image topic's name).
+CAMERA_KEYS = ("info_topic", "calibration", "rectified")
 
 
 #: The largest camera calibration file read (bytes), and the most alternative image topics.
@@ -114,11 +115,22 @@ def _camera_tables(
             "[camera] gives both info_topic and calibration; give the calibration file to hold "
             "its intrinsics, or the camera-info topic to read the log's.",
         )
+    rectified = None
+    if "rectified" in camera_table:
+        rectified = _flag(source, "[camera] rectified", camera_table["rectified"])
     if "calibration" not in camera_table:
         topic = _text(
             source, "[camera] info_topic", camera_table.get("info_topic", DEFAULT_INFO_TOPIC)
         )
-        return target, CameraSpec(info_topic=topic)
+        return target, CameraSpec(info_topic=topic, rectified=rectified)
+    if rectified:
+        raise PipelineError(
+            source,
+            "[camera] rectified = true reads the camera info's projection P; a calibration "
+            "file is taken as the images' own intrinsics: give the rectified images' (their "
+            "camera matrix, no distortion) and leave rectified out, or read the log's camera "
+            "info with info_topic.",
+        )
     given = _text(source, "[camera] calibration", camera_table["calibration"])
     path = Path(given)
     if not path.is_absolute():

@@ -91,11 +91,15 @@ class ImageStreamSpec:
 class CameraSpec:
     """Where a camera pipeline's intrinsics come from: ``info_topic`` (the log's
     ``CameraInfo``), or ``intrinsics`` read from the calibration file ``calibration`` (the
-    path as resolved against the pipeline's folder)."""
+    path as resolved against the pipeline's folder). ``rectified``: whether the images are
+    rectified, their intrinsics the camera info's projection ``P`` without distortion (ROS's
+    convention: ``K`` and ``D`` describe the raw images); None: as the image topic's name says
+    (``image_rect…``, as image_pipeline names them)."""
 
     info_topic: str | None = DEFAULT_INFO_TOPIC
     calibration: str | None = None
     intrinsics: Intrinsics | None = None
+    rectified: bool | None = None
 
 
 @dataclass(frozen=True)

@@ -216,9 +216,16 @@ def _intrinsics(
         )
     first = infos[0]
     where = f"{name}: {topic}"
-    found = Intrinsics.from_camera_info(
-        first.width, first.height, first.distortion_model, first.d, first.k.ravel(), where=where
-    )
+    told = pipeline.camera.rectified
+    rectified = rectified_topic(camera.image) if told is None else told
+    if rectified:
+        found = _projection(first, f"{where} (its projection P: {camera.image} is rectified)")
+        source = f"the projection P of the camera info on {topic}"
+    else:
+        found = Intrinsics.from_camera_info(
+            first.width, first.height, first.distortion_model, first.d, first.k.ravel(), where=where
+        )
+        source = f"camera info on {topic}"
     changed = next(
         (
             k
@@ -226,14 +233,38 @@ def _intrinsics(
             if (info.width, info.height, info.distortion_model, info.d)
             != (first.width, first.height, first.distortion_model, first.d)
             or not np.array_equal(info.k, first.k)
+            or (rectified and not np.array_equal(info.p, first.p))
         ),
         None,
     )
     if changed is None:
-        return found, f"camera info on {topic}", ()
+        return found, source, ()
     said = (
         f"{where}: the intrinsics change at camera info {changed} of {len(infos)}; "
         "the first are used for every frame (give a calibration file as [camera] "
         "calibration to choose them)."
     )
-    return found, f"camera info on {topic}", (said,)
+    return found, source, (said,)
+
+
+def rectified_topic(topic: str) -> bool:
+    """Whether an image topic carries rectified images by image_pipeline's names
+    (``image_rect``, ``image_rect_color``, ``…/image_rect_raw``; any transport after them, e.g.
+    ``/camera/image_rect_color/compressed``)."""
+    return any(part.startswith("image_rect") for part in topic.split("/"))
+
+
+def _projection(info: CameraInfo, where: str) -> Intrinsics:
+    """The intrinsics of rectified images: the camera info's projection ``P``'s left 3×3, no
+    distortion (ROS's ``CameraInfo``: ``K`` and ``D`` are the raw images'). A ``P`` that is
+    not a camera's (zero, as an uncalibrated driver leaves it) is a :class:`VisionLogError`."""
+    P = np.asarray(info.p, dtype=np.float64).reshape(3, 4)
+    if not (np.all(np.isfinite(P)) and P[0, 0] > 0 and P[1, 1] > 0 and P[2, 2] == 1.0):
+        raise VisionLogError(
+            f"{where}: the projection P {np.round(P, 3).tolist()} is not a camera's; give the "
+            "rectified images' calibration as [camera] calibration, or set [camera] rectified "
+            "= false if the images are not rectified."
+        )
+    return Intrinsics.from_camera_info(
+        info.width, info.height, "plumb_bob", np.zeros(5), P[:, :3].ravel(), where=where
+    )
