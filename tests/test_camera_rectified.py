@@ -10,7 +10,8 @@ log gave a reprojection RMS 8x the raw log's, the camera 11 mm from the truth, e
 Tolerances: the raw log's camera lands 0.6 mm from the truth (16 random poses, 0.05 px corner
 noise); resampled into the rectified images the corners lose some of the board's edges
 (alpha 0 crops) and gain interpolation noise, so 1.5 mm and 0.15 px RMS bound the rectified run;
-read with ``K`` and ``D`` its RMS is 0.56 px at 30 poses (this session: above 0.3 px)."""
+read with ``K`` and ``D`` it must miss its corners by more than twice the RMS read with ``P``
+(0.56 px against 0.08 px at 30 poses of the same camera)."""
 
 from __future__ import annotations
 
@@ -197,20 +198,13 @@ def test_rectified_by_image_pipelines_names(topic: str, rectified: bool) -> None
     assert rectified_topic(topic) is rectified
 
 
-@pytest.mark.parametrize(
-    ("extra", "said"),
-    [
-        ("\nrectified = 1", "[camera] rectified"),
-        ('\nrectified = "yes"', "[camera] rectified"),
-    ],
-)
-def test_a_bad_rectified_key_is_one_line(tmp_path: Path, extra: str, said: str) -> None:
+@pytest.mark.parametrize("extra", ["\nrectified = 1", '\nrectified = "yes"'])
+def test_a_bad_rectified_key_is_one_line(tmp_path: Path, extra: str) -> None:
     from dhlog.errors import PipelineError
     from dhlog.io.pipeline import load_pipeline
 
     with pytest.raises(PipelineError, match=r"\[camera\] rectified"):
         load_pipeline(_pipeline(tmp_path, extra))
-    assert said
 
 
 def test_rectified_with_a_calibration_file_is_refused(tmp_path: Path) -> None:
