@@ -3,8 +3,7 @@ design effect: a run of consecutive samples whose joint values stay within ``SAM
 its first sample's — a still pose however long it is held, and poses of ``SAME_POSE`` each
 along a joint that moves slowly under a fast instrument (a tracker at 1 kHz steps far below
 ``SAME_POSE``). Chaining step to step (``pose_groups``, the folds' poses) made a whole 1 kHz
-sweep session one pose: its σ were scaled by a design effect of a million samples a pose,
-and ``--holdout 5`` raised ZeroDivisionError with one pose to deal to five folds."""
+sweep session one pose: its σ were scaled by a design effect of a million samples a pose."""
 
 from __future__ import annotations
 
@@ -83,12 +82,11 @@ def test_a_slow_move_at_1_khz_is_many_poses_and_a_still_pose_one() -> None:
     assert still_poses(still).max() == 0
 
 
-def test_a_1_khz_sweep_session_is_not_clustered_and_its_holdout_said_in_one_line() -> None:
+def test_a_1_khz_sweep_session_is_not_clustered() -> None:
     """The seed method's sweeps recorded at 1 kHz (joint states at 250 Hz, 0.4 rad/s: 0.4 mrad
     a sample): the white noise of the samples is not taken for a pose's shared error (the
-    design effect of one pose of 30 000 samples scaled every σ by about 3), and ``--holdout 5``
-    stops with the one-line error that says why the motion has no poses to hold out (it raised
-    ZeroDivisionError, four folds empty)."""
+    design effect of one pose of 30 000 samples scaled every σ by about 3). Its ``--holdout``:
+    tests/test_holdout_stretches.py."""
     samples = 30_000
     speed = 6 * math.radians(90) * 1.34 / (samples / 1000.0)
     cfg = SimulationConfig(
@@ -98,8 +96,6 @@ def test_a_1_khz_sweep_session_is_not_clustered_and_its_holdout_said_in_one_line
     result = process_data(log, ProcessOptions())
     assert result.whole is not None
     assert "pose-clustered" not in {note.code for note in result.notes}
-    with pytest.raises(InputError, match="no pose can be held out apart from its neighbours"):
-        process_data(log, ProcessOptions(holdout=5))
 
 
 def test_more_folds_than_poses_is_said_before_the_selection_deals_them() -> None:

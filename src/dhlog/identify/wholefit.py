@@ -30,7 +30,15 @@ from dhlog.identify.check.named import name_outliers, sample_names
 from dhlog.identify.check.validate import check_residual, table_gap, validate_samples
 from dhlog.identify.fit.axismodel import AxisModel
 from dhlog.identify.fit.data import FitData, FitOptions
-from dhlog.identify.fit.leaveout import PoseFolds, pose_groups, still_poses
+from dhlog.identify.fit.leaveout import (
+    MOTION_SHARE,
+    SAME_POSE,
+    STRETCHES_PER_FOLD,
+    PoseFolds,
+    motion_share,
+    pose_groups,
+    still_poses,
+)
 from dhlog.identify.fit.prediction import predict
 from dhlog.identify.fit.samples import (
     measured_rotations,
@@ -134,12 +142,7 @@ def identify_whole(
     options, sigma = clocked.options, clocked.options.sigma
     dealt = None  # --holdout K: each sample's pose and fold, the same for selection and check
     if request.folds > 1:  # too few poses: said before the selection deals them to folds
-        groups = pose_groups(Q)
-        mine = groups if which is None else groups[which == 0]  # numbered in time order
-        poses = int(np.count_nonzero(np.diff(mine))) + int(mine.size > 0)
-        if poses < max(request.folds, MIN_POSES):  # a fast-sampled motion, or few still poses
-            enough_poses(poses, request.folds, int(still_poses(Q).max(initial=-1)) + 1)
-        dealt = PoseFolds.of(groups, request.folds)
+        dealt = _dealt(Q, which, request.folds)
     outer = None if dealt is None else dealt.fold
     model_request = request.model
     if session.parked and model_request.harmonic_joints is None:  # none on a parked joint
@@ -281,7 +284,7 @@ def identify_whole(
         stage("cross-validating", 0.0)
         final_clock = replace(clocked, data=data, options=final)
         check = _cross_validation(whole, clustered, session, request, final_clock, dealt, selection)
-        holdout = (_with_notes(check, whole, session, final_clock, names, selection),)
+        holdout = (_with_notes(check, whole, session, final_clock, names, selection, dealt),)
     return ModelFit(
         segmentation=seg,
         timing=clocked.timing,
@@ -299,6 +302,27 @@ def identify_whole(
         ),
         notes=tuple(notes),
     )
+
+
+def _dealt(Q: PerSample, which: NDArray[np.int64] | None, folds: int) -> PoseFolds:
+    """``--holdout K``'s poses and folds: the session's poses dealt one by one, or where most of
+    its samples are a motion sampled in steps below
+    :data:`~dhlog.identify.fit.leaveout.SAME_POSE` (chained into "poses" that span whole
+    sweeps; :func:`~dhlog.identify.fit.leaveout.motion_share`), stretches of the session
+    (:meth:`PoseFolds.of_stretches`). Too few poses either way: the one-line error."""
+    groups = pose_groups(Q)
+    still = still_poses(Q)
+    needed = max(folds, MIN_POSES)
+    mine = groups if which is None else groups[which == 0]  # numbered in time order
+    poses = int(np.count_nonzero(np.diff(mine))) + int(mine.size > 0)
+    share = motion_share(groups, still)
+    if poses >= needed and share < MOTION_SHARE:
+        return PoseFolds.of(groups, folds)
+    mine = still if which is None else still[which == 0]
+    moving = int(np.count_nonzero(np.diff(mine))) + int(mine.size > 0)
+    if moving < needed * STRETCHES_PER_FOLD:
+        enough_poses(poses, folds)  # raises: too few poses, still or moving
+    return PoseFolds.of_stretches(Q, still, folds)
 
 
 def _fit_clocked(
@@ -430,15 +454,33 @@ def _with_notes(
     fit: _Clocked,
     names: Sequence[str],
     selection: Selection | None,
+    dealt: PoseFolds,
 ) -> Holdout:
     """The cross-validation with its poses named by the export's ids, the model's own FK σ
-    over the session's joint ranges, and what a reader should know of its figure: the choice
-    made again in each fold, the share of samples in sweeps of one joint alone."""
+    over the session's joint ranges, and what a reader should know of its figure: stretches
+    of a fast-sampled motion held out in place of poses, the choice made again in each fold,
+    the share of samples in sweeps of one joint alone."""
     notes = list(check.notes)
+    if dealt.stretches:
+        notes.append(
+            f"most samples step less than {SAME_POSE * 1e3:g} mrad (or mm) from the one "
+            "before, so poses chained along them would span whole sweeps and none stands "
+            f"apart from its neighbours: the folds held out {dealt.stretches} stretches of "
+            f"the session instead ({STRETCHES_PER_FOLD} a "
+            f"fold, each {dealt.stretch:.3g} rad (or m) of joint travel), scored at the "
+            f"{check.calibrated.n_poses} still poses ({SAME_POSE * 1e3:g} mrad each) within "
+            "them; a held-out stretch's ends meet fitted samples."
+        )
     pose_names = check.pose_names
     if check.pose_samples is not None and session.log.point_ids is not None:
         pose_names = [names[i] for i in check.pose_samples.tolist()]
-    check = replace(check, pose_names=pose_names, range_sd=range_sd(whole, fit.data.Q))
+    check = replace(
+        check,
+        pose_names=pose_names,
+        range_sd=range_sd(whole, fit.data.Q),
+        stretches=dealt.stretches,
+        stretch_travel=dealt.stretch,
+    )
     assert check.range_sd is not None
     if check.expected_rms is not None and check.range_sd > 0.5 * check.calibrated.rms:
         notes.append(

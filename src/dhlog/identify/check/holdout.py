@@ -1,9 +1,11 @@
 """The error of a calibration at poses not used to fit it, before (the nominal) and after.
 
 Poses, not samples, are held out: consecutive samples whose joint vectors differ by less than
-:data:`SAME_POSE` form one pose (a tracker's dwell at a static pose), so no held-out pose has a
-sample among the fitted ones. A pose's error is the length of the mean of its samples' residual
-vectors (measured − predicted).
+``SAME_POSE`` (:mod:`dhlog.identify.fit.leaveout`) form one pose (a tracker's dwell at a static
+pose), so no held-out pose has a sample among the fitted ones. A motion sampled in steps below
+it (a tracker at 1 kHz along a sweep) is held out in stretches instead, scored at the still
+poses within them (:meth:`~dhlog.identify.fit.leaveout.PoseFolds.of_stretches`). A pose's error
+is the length of the mean of its samples' residual vectors (measured − predicted).
 
 * :func:`cross_validate` (``--holdout K``): the poses split into K folds (seeded); for each fold
   the whole model is fitted again to the other folds (from the full fit, which the fold's
@@ -31,7 +33,6 @@ from dhlog.geometry._checks import FloatArray
 from dhlog.identify.fit.axismodel import AxisModel
 from dhlog.identify.fit.data import FitData, FitOptions
 from dhlog.identify.fit.leaveout import (
-    SAME_POSE,
     PoseFolds,
     fold_of_poses,
     pose_groups,
@@ -48,24 +49,13 @@ from dhlog.model.fk import fk_point
 MIN_POSES = 5
 
 
-def enough_poses(poses: int, folds: int, still: int = 0) -> None:
+def enough_poses(poses: int, folds: int) -> None:
     """An :class:`~dhlog.errors.InputError` where ``poses`` distinct poses are too few for
-    ``folds``-fold cross-validation (fewer than the folds, or than :data:`MIN_POSES`);
-    ``still``: the still poses among the same samples
-    (:func:`~dhlog.identify.fit.leaveout.still_poses`), enough of which say that the poses are
-    a motion sampled in steps below :data:`SAME_POSE`, not a few still poses."""
+    ``folds``-fold cross-validation (fewer than the folds, or than :data:`MIN_POSES`)."""
     from dhlog.errors import InputError
 
-    needed = max(folds, MIN_POSES)
-    if poses >= needed:
+    if poses >= max(folds, MIN_POSES):
         return
-    if still >= needed:
-        raise InputError(
-            f"--holdout {folds}: the session's samples make {poses} distinct pose(s): "
-            f"its joints move less than {SAME_POSE * 1e3:g} mrad (or mm) from one sample to "
-            "the next (a motion sampled faster than that), so no pose can be held out apart "
-            "from its neighbours; --validate a log of other poses instead."
-        )
     raise InputError(
         f"--holdout {folds}: the session has {poses} distinct poses; hold out fewer "
         "folds or measure more poses."
@@ -131,6 +121,10 @@ class Holdout:
     pose_samples: NDArray[np.int64] | None = None
     #: per scored pose, its name (the export's point id of its first sample, else ``#k``)
     pose_names: list[str] | None = None
+    #: a cross-validation of a motion sampled below ``SAME_POSE`` a step: the stretches of it
+    #: the folds held out (0: poses dealt one by one) and a stretch's joint travel (rad or m)
+    stretches: int = 0
+    stretch_travel: float = 0.0
 
     @property
     def expected_rms(self) -> float | None:
@@ -149,6 +143,9 @@ class Holdout:
             doc["registered"] = self.registered
             doc["n_registration_poses"] = self.n_registration_poses
         doc["n_poses"] = self.calibrated.n_poses
+        if self.stretches:
+            doc["stretches"] = self.stretches
+            doc["stretch_travel"] = self.stretch_travel
         doc["nominal"] = None if self.nominal is None else self.nominal.document()
         doc["calibrated"] = self.calibrated.document()
         if self.range_sd is not None:

@@ -231,14 +231,69 @@ def fold_of_poses(groups: NDArray[np.int64], folds: int, seed: int) -> NDArray[n
 @dataclass(frozen=True)
 class PoseFolds:
     """What ``--holdout K`` deals: each sample's pose (:func:`pose_groups`) and its fold
-    (:func:`fold_of_poses`), found once for the selection, the pairs' decisions and the check."""
+    (:func:`fold_of_poses`), found once for the selection, the pairs' decisions and the check.
+
+    A motion sampled in steps below :data:`SAME_POSE` (a tracker at 1 kHz along a sweep) has
+    no poses apart from their neighbours: :meth:`of_stretches` deals ``stretches`` stretches of
+    it instead, each about ``stretch`` (rad or m) of joint travel, and its poses are the still
+    poses (:func:`still_poses`) within them."""
 
     groups: NDArray[np.int64]
     fold: NDArray[np.int64]
+    #: the stretches of the motion dealt to the folds (0: the poses were dealt one by one)
+    stretches: int = 0
+    #: a stretch's joint travel (rad or m: the sum of each step's largest joint move)
+    stretch: float = 0.0
 
     @staticmethod
     def of(groups: NDArray[np.int64], folds: int, seed: int = 0) -> PoseFolds:
         return PoseFolds(groups, fold_of_poses(groups, folds, seed))
+
+    @staticmethod
+    def of_stretches(
+        Q: SampleArray, still: NDArray[np.int64], folds: int, seed: int = 0
+    ) -> PoseFolds:
+        """``folds`` × :data:`STRETCHES_PER_FOLD` stretches of equal joint travel along
+        ``Q`` (m, n), each a run of whole still poses (``still``: each sample's, 0, 1, … in
+        time order, :func:`still_poses`), dealt to the folds as poses are (seeded). The travel
+        is the sum, pose to pose, of the largest joint move between their first samples: a
+        still pose's jitter below :data:`SAME_POSE` travels nothing."""
+        firsts = np.flatnonzero(np.diff(still, prepend=-1))  # each still pose's first sample
+        anchors = np.asarray(Q[firsts], dtype=np.float64)
+        travel = np.zeros(firsts.size)
+        if firsts.size > 1:
+            travel[1:] = np.cumsum(np.max(np.abs(np.diff(anchors, axis=0)), axis=1))
+        count = folds * STRETCHES_PER_FOLD
+        length = float(travel[-1]) / count if firsts.size else 0.0
+        of_pose = np.minimum((travel / max(length, 1e-300)).astype(np.int64), count - 1)
+        stretch = scratch.empty(Q.shape[0], np.int64)
+        for sl in blocks(Q.shape[0]):
+            stretch[sl] = of_pose[still[sl]]
+        return PoseFolds(still, fold_of_poses(stretch, folds, seed), count, length)
+
+
+def motion_share(groups: NDArray[np.int64], still: NDArray[np.int64]) -> float:
+    """The share of the samples whose pose (``groups``: :func:`pose_groups`) is a motion, not a
+    pose: it spans :data:`MOTION_SPAN` or more of the still poses ``still`` (:func:`still_poses`,
+    which refine the poses), steps below :data:`SAME_POSE` chained along it."""
+    m = int(groups.shape[0])
+    if m == 0:
+        return 0.0
+    firsts = np.flatnonzero(np.diff(groups, prepend=groups[0] - 1))
+    ends = np.r_[firsts[1:], m]
+    spans = np.asarray(still[ends - 1]) - np.asarray(still[firsts]) + 1
+    return float(np.sum((ends - firsts)[spans >= MOTION_SPAN])) / m
+
+
+#: Still poses a pose of :func:`pose_groups` spans from which it is a motion (10 mrad at least).
+MOTION_SPAN = 10
+#: Share of the samples in motions (:func:`motion_share`) from which ``--holdout K`` holds out
+#: stretches of the session in place of its poses.
+MOTION_SHARE = 0.5
+
+#: Stretches of a fast-sampled motion each fold of ``--holdout K`` holds out
+#: (:meth:`PoseFolds.of_stretches`).
+STRETCHES_PER_FOLD = 10
 
 
 #: Consecutive samples whose joint values all differ by less than this (rad or m) are one pose.
