@@ -26,11 +26,12 @@ from dhlog.identify.camera.frames.imagedecode import (
     INFO_SCHEMAS,
 )
 from dhlog.identify.camera.frames.images import _log_files, read_camera_infos
+from dhlog.identify.camera.frames.obeyed import Reading
 from dhlog.io.mcapscan import scan_mcap
 from dhlog.io.mcapwalk import ChannelInfo, RawMessages
 from dhlog.io.pipeline import DEFAULT_TOPICS, Pipeline, StreamSpec
 from dhlog.io.ros2 import CameraInfo
-from dhlog.vision.camera import Intrinsics
+from dhlog.vision.camera import CameraError, Intrinsics
 
 if TYPE_CHECKING:
     from dhlog.io.decode.blocks import Block
@@ -245,6 +246,44 @@ def _intrinsics(
         "calibration to choose them)."
     )
     return found, source, (said,)
+
+
+def readings(
+    name: str, pipeline: Pipeline, camera: _Camera, small: _Small, used: Intrinsics
+) -> tuple[Reading, Reading] | None:
+    """The camera info's reading ``used`` (:func:`_intrinsics`'s) and its other one — ``P``
+    with no distortion where ``K`` and ``D`` were read, and the reverse — for
+    :func:`~.obeyed.judged` to hold against the images; None with a calibration file, a ``P``
+    that is not a camera's, or where the two are one (no distortion, ``P``'s 3×3 ``K``)."""
+    assert pipeline.camera is not None
+    infos = [] if camera.info is None else small.infos.get(camera.info, [])
+    if not infos:
+        return None
+    first, where = infos[0], f"{name}: {camera.info}"
+    told = pipeline.camera.rectified
+    rectified = rectified_topic(camera.image) if told is None else told
+    P = np.asarray(first.p, dtype=np.float64).reshape(3, 4)
+    if not np.any(first.d) and np.allclose(P[:, :3], first.k.reshape(3, 3)):
+        return None
+    try:
+        if rectified:
+            other = Intrinsics.from_camera_info(
+                first.width,
+                first.height,
+                first.distortion_model,
+                first.d,
+                first.k.ravel(),
+                where=where,
+            )
+        else:
+            other = _projection(first, where)
+    except (VisionLogError, CameraError):
+        return None
+    projection, lens = "the camera info's P (no distortion)", "the camera info's K and D"
+    return (
+        Reading(used, projection if rectified else lens, rectified),
+        Reading(other, lens if rectified else projection, not rectified),
+    )
 
 
 def rectified_topic(topic: str) -> bool:

@@ -35,10 +35,12 @@ from dhlog.identify.camera.frames.camerafind import (
     _intrinsics,
     _joints_spec,
     _Small,
+    readings,
 )
 from dhlog.identify.camera.frames.detect import REASONS, Detection, Tally, reason_of
 from dhlog.identify.camera.frames.framedetect import _looked, _Setup
 from dhlog.identify.camera.frames.images import Faults, ImageStream
+from dhlog.identify.camera.frames.obeyed import judged
 from dhlog.identify.camera.frames.observations import (
     MOVING_SPEED,
     NOMINAL_EXPOSURE_S,
@@ -220,6 +222,13 @@ def _observe_camera(
         warnings.append(fault_line)
     if not found:
         raise VisionLogError(_nothing_found(name, topic, tally, first_detail, fault_line))
+    both = readings(name, pipeline, cam, small, camera)
+    if both is not None:  # the reading the images obey: K and D, or P (rectified)
+        told = pipeline.camera is not None and pipeline.camera.rectified is not None
+        corners = [(f[2], f[3]) for f in found]
+        obeyed, said = judged(name, pipeline.target, corners, *both, told)
+        camera = obeyed.intrinsics
+        warnings.extend(said)
 
     t = np.array([f[1] for f in found], dtype=np.int64)
     at = joint_values_at(t, small.joint_t, small.joint_q, pipeline.segmentation.join_tolerance)
