@@ -216,7 +216,9 @@ def design(
 ) -> Terms:
     """The terms of ``families`` (``compliance``, ``harmonic``) for a chain whose axes at the
     reference pose are ``axis_points``/``axis_dirs`` (3,) with its target, in one frame with
-    ``gravity``. Compliance: every revolute joint (the first only when not along gravity), with
+    ``gravity``. Compliance: every revolute joint but those along gravity that no joint before
+    can tilt (the first revolute joint along it, and those after it while every revolute axis
+    is along it), with
     a lump on each later axis (its foot on the axis before; for parallel neighbours the foot of
     the previous lump) and at the target, none on the joint's own axis (no lever about it);
     harmonics on ``harmonic_joints`` (0-based; default every revolute joint). With the links'
@@ -227,9 +229,12 @@ def design(
     g = g / np.linalg.norm(g)
     lumps: list[Lump] = []
     terms: list[Term] = []
-    # only the first axis keeps its direction: along gravity, it carries no torque
-    vertical = abs(float(axis_dirs[0] @ g)) > np.cos(VERTICAL)
-    compliant = [i for i in range(n) if revolute[i] and not (i == 0 and vertical)]
+    # an axis along gravity that no joint before it can tilt carries no gravity torque at any
+    # pose: the first revolute joint's (a rotary table behind linear stages too), and a later
+    # one's while every revolute axis before it is along gravity as well (a SCARA's)
+    along = [abs(float(d @ g)) > np.cos(VERTICAL) for d in axis_dirs]
+    upright = [all(along[j] for j in range(i + 1) if revolute[j]) for i in range(n)]
+    compliant = [i for i in range(n) if revolute[i] and not upright[i]]
     if "compliance" in families and masses:
         lumps = [*masses, Lump(-1, np.asarray(target, dtype=np.float64))]
         for i in compliant:

@@ -47,6 +47,8 @@ from dhlog.model.fk import fk_point
 
 #: Fewest poses a held-out statistic is given for.
 MIN_POSES = 5
+#: A fold's fit whose χ²/dof is this many times the session's did not converge from its start.
+BROKEN_FIT = 4.0
 
 
 def enough_poses(poses: int, folds: int) -> None:
@@ -194,6 +196,7 @@ def cross_validate(
     fold = fold_of_poses(groups, folds, 0) if poses is None else poses.fold
     positions, cal_vecs, nom_vecs = [], [], []
     firsts: list[int] = []
+    refitted: list[tuple[int, float, float]] = []  # (fold, χ²/dof from its start, then)
     notes: tuple[str, ...] = ()
     first_of = dict(zip(*np.unique(groups, return_index=True), strict=True))
     for k in range(folds):
@@ -202,6 +205,12 @@ def cross_validate(
         train = whole.inliers & (fold != k)
         start = starts[k] if k < len(starts) else whole.model
         fit = fit_whole_model(start, data.kept(train), options)
+        if start is not whole.model and fit.chi2_dof > BROKEN_FIT * whole.chi2_dof:
+            # the fold's own choice did not converge: the session's model fitted to the fold
+            again = fit_whole_model(whole.model, data.kept(train), options)
+            if again.chi2_dof < fit.chi2_dof:
+                refitted.append((k, fit.chi2_dof, again.chi2_dof))
+                fit = again
         if refine is not None:
             fit = refine(fit, k)
         pred, _ = predict(fit.model, Q[test])
@@ -220,6 +229,14 @@ def cross_validate(
         notes = (
             "the nominal's base and tool point were placed on each fold's fitted poses "
             "(a robust registration), as a calibration would be judged without one.",
+        )
+    if refitted:
+        said = "; ".join(f"fold {k + 1}: χ²/dof {a:.3g}, then {b:.3g}" for k, a, b in refitted)
+        notes = (
+            *notes,
+            f"the fit of {len(refitted)} fold(s) from the model its own training poses chose "
+            f"did not converge ({BROKEN_FIT:g}× the session's χ²/dof {whole.chi2_dof:.3g} or "
+            f"more); the session's own model was fitted to it instead ({said}).",
         )
     return Holdout(
         kind="cross-validation",

@@ -63,6 +63,14 @@ MODELS = {
     "harmonic": ("harmonic",),
     "full": ("compliance", "harmonic"),
 }
+#: Why a family that adds no term on the robot is not taken, by family.
+NO_TERM = {
+    "compliance": (
+        "adds no term: every revolute axis stays along gravity, which exerts no torque "
+        "about it (a SCARA, a rotary table)"
+    ),
+    "harmonic": "adds no term: no revolute joint carries one (prismatic or parked joints)",
+}
 #: Most samples the candidates are fitted and scored on (evenly strided).
 SELECT_SAMPLES = 5000
 #: Folds of the selection's cross-validation when ``--holdout`` does not name K.
@@ -385,6 +393,10 @@ def select_model(
             """Whether ``cand`` lowers both the BIC and the held-out error of ``over`` (its
             ``why`` says how it fared)."""
             cand, over = latest[cand.key], latest[over.key]
+            if cand.terms <= over.terms:  # the family has no joint to carry it on this robot
+                added = [f for f in cand.families if f not in over.families]
+                kept(replace(cand, why=NO_TERM.get(added[0] if added else "", "adds no term")))
+                return False
             if cand.bic >= over.bic:
                 kept(replace(cand, why=f"BIC {cand.bic - over.bic:+.1f} against {over.name}"))
                 return False
