@@ -22,7 +22,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 from numpy.typing import NDArray
 
-from dhlog.errors import Note
+from dhlog.errors import InputError, Note
 from dhlog.geometry._checks import FloatArray
 from dhlog.geometry.lines import Line, Plane
 from dhlog.identify.check.holdout import MIN_POSES, Holdout, cross_validate, enough_poses
@@ -308,21 +308,28 @@ def _dealt(Q: PerSample, which: NDArray[np.int64] | None, folds: int) -> PoseFol
     """``--holdout K``'s poses and folds: the session's poses dealt one by one, or where most of
     its samples are a motion sampled in steps below
     :data:`~dhlog.identify.fit.leaveout.SAME_POSE` (chained into "poses" that span whole
-    sweeps; :func:`~dhlog.identify.fit.leaveout.motion_share`), stretches of the session
-    (:meth:`PoseFolds.of_stretches`). Too few poses either way: the one-line error."""
+    sweeps; :func:`~dhlog.identify.fit.leaveout.motion_share`) or its poses are too few,
+    stretches of its still poses (:meth:`PoseFolds.of_stretches`). Too few poses either way:
+    the one-line error."""
     groups = pose_groups(Q)
     still = still_poses(Q)
     needed = max(folds, MIN_POSES)
     mine = groups if which is None else groups[which == 0]  # numbered in time order
     poses = int(np.count_nonzero(np.diff(mine))) + int(mine.size > 0)
-    share = motion_share(groups, still)
-    if poses >= needed and share < MOTION_SHARE:
+    if poses >= needed and motion_share(groups, still) < MOTION_SHARE:
         return PoseFolds.of(groups, folds)
-    mine = still if which is None else still[which == 0]
-    moving = int(np.count_nonzero(np.diff(mine))) + int(mine.size > 0)
-    if moving < needed * STRETCHES_PER_FOLD:
-        enough_poses(poses, folds)  # raises: too few poses, still or moving
-    return PoseFolds.of_stretches(Q, still, folds)
+    count = folds * STRETCHES_PER_FOLD
+    moving = int(still[still.shape[0] - 1]) + 1 if still.shape[0] else 0
+    if moving < count:
+        enough_poses(max(poses, moving), folds)  # too few poses, chained or still
+        raise InputError(
+            f"--holdout {folds}: the session's motion is sampled in steps below "
+            f"{SAME_POSE * 1e3:g} mrad (or mm), so the folds hold out stretches of its still "
+            f"poses, {STRETCHES_PER_FOLD} a fold; its {moving} still poses are fewer than the "
+            f"{count} stretches of {folds} folds: hold out fewer folds, or --validate a log of "
+            "other poses."
+        )
+    return PoseFolds.of_stretches(still, folds)
 
 
 def _fit_clocked(
@@ -462,15 +469,7 @@ def _with_notes(
     the share of samples in sweeps of one joint alone."""
     notes = list(check.notes)
     if dealt.stretches:
-        notes.append(
-            f"most samples step less than {SAME_POSE * 1e3:g} mrad (or mm) from the one "
-            "before, so poses chained along them would span whole sweeps and none stands "
-            f"apart from its neighbours: the folds held out {dealt.stretches} stretches of "
-            f"the session instead ({STRETCHES_PER_FOLD} a "
-            f"fold, each {dealt.stretch:.3g} rad (or m) of joint travel), scored at the "
-            f"{check.calibrated.n_poses} still poses ({SAME_POSE * 1e3:g} mrad each) within "
-            "them; a held-out stretch's ends meet fitted samples."
-        )
+        notes.append(_stretches_note(check, whole, fit, dealt))
     pose_names = check.pose_names
     if check.pose_samples is not None and session.log.point_ids is not None:
         pose_names = [names[i] for i in check.pose_samples.tolist()]
@@ -479,7 +478,7 @@ def _with_notes(
         pose_names=pose_names,
         range_sd=range_sd(whole, fit.data.Q),
         stretches=dealt.stretches,
-        stretch_travel=dealt.stretch,
+        stretch_poses=dealt.stretch_poses,
     )
     assert check.range_sd is not None
     if check.expected_rms is not None and check.range_sd > 0.5 * check.calibrated.rms:
@@ -504,6 +503,41 @@ def _with_notes(
             "random poses to see it."
         )
     return replace(check, notes=tuple(notes))
+
+
+def _stretches_note(check: Holdout, whole: WholeFit, fit: _Clocked, dealt: PoseFolds) -> str:
+    """What a cross-validation over stretches held out and scored, and how much of its figure
+    the noise of a pose's mean explains (σ √3 / √n, with the fit's isotropic σ)."""
+    said = (
+        f"most samples lie on motions sampled in steps below {SAME_POSE * 1e3:g} mrad (or mm), "
+        "whose poses chained sample to sample would span whole sweeps: the folds held out "
+        f"{dealt.stretches} stretches of the session instead ({STRETCHES_PER_FOLD} a fold, "
+        f"each of about {dealt.stretch_poses:.0f} still poses, the samples within "
+        f"{SAME_POSE * 1e3:g} mrad of a pose's first), scored at the "
+        f"{check.calibrated.n_poses} poses within them; a held-out stretch's ends meet "
+        "fitted samples."
+    )
+    if fit.data.sample_cov is not None:  # declared covariances: no one σ to say it with
+        return said
+    usable = np.asarray(whole.inliers, dtype=bool)
+    if fit.data.which is not None:
+        usable &= fit.data.which == 0
+    counts = np.bincount(np.asarray(dealt.groups)[usable])
+    counts = counts[counts > 0]
+    sigma = fit.options.sigma * math.sqrt(whole.chi2_dof)
+    floor = sigma * math.sqrt(3.0 * float(np.mean(1.0 / counts))) if counts.size else 0.0
+    rms, n = check.calibrated.rms, max(check.calibrated.n_poses, 1)
+    # the spread of a mean square over n poses of 3 components: √(2 / 3n) of it, 3 times
+    excess = rms**2 - floor**2
+    rest = (
+        f"the model's own error there is about {math.sqrt(excess) * 1e3:.4f} mm"
+        if excess > 3.0 * math.sqrt(2.0 / (3.0 * n)) * rms**2
+        else "the rest is within what that noise spreads over the poses"
+    )
+    return (
+        f"{said} Of its {rms * 1e3:.4f} mm RMS, the noise a pose's mean keeps is about "
+        f"{floor * 1e3:.4f} mm (σ √3 / √n over a pose's n samples): {rest}."
+    )
 
 
 def _tally(labels: Sequence[str], sep: str) -> str:

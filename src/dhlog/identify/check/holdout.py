@@ -2,10 +2,11 @@
 
 Poses, not samples, are held out: consecutive samples whose joint vectors differ by less than
 ``SAME_POSE`` (:mod:`dhlog.identify.fit.leaveout`) form one pose (a tracker's dwell at a static
-pose), so no held-out pose has a sample among the fitted ones. A motion sampled in steps below
-it (a tracker at 1 kHz along a sweep) is held out in stretches instead, scored at the still
-poses within them (:meth:`~dhlog.identify.fit.leaveout.PoseFolds.of_stretches`). A pose's error
-is the length of the mean of its samples' residual vectors (measured − predicted).
+pose), so no held-out pose has a sample among the fitted ones; on a motion sampled in steps
+below it (a tracker at 1 kHz along a sweep) the run deals stretches of its still poses instead
+(``identify.wholefit``, :meth:`~dhlog.identify.fit.leaveout.PoseFolds.of_stretches`) and hands
+them in. A pose's error is the length of the mean of its samples' residual vectors (measured −
+predicted).
 
 * :func:`cross_validate` (``--holdout K``): the poses split into K folds (seeded); for each fold
   the whole model is fitted again to the other folds (from the full fit, which the fold's
@@ -124,9 +125,9 @@ class Holdout:
     #: per scored pose, its name (the export's point id of its first sample, else ``#k``)
     pose_names: list[str] | None = None
     #: a cross-validation of a motion sampled below ``SAME_POSE`` a step: the stretches of it
-    #: the folds held out (0: poses dealt one by one) and a stretch's joint travel (rad or m)
+    #: the folds held out (0: poses dealt one by one) and the still poses in one (the mean)
     stretches: int = 0
-    stretch_travel: float = 0.0
+    stretch_poses: float = 0.0
 
     @property
     def expected_rms(self) -> float | None:
@@ -147,7 +148,7 @@ class Holdout:
         doc["n_poses"] = self.calibrated.n_poses
         if self.stretches:
             doc["stretches"] = self.stretches
-            doc["stretch_travel"] = self.stretch_travel
+            doc["stretch_poses"] = self.stretch_poses
         doc["nominal"] = None if self.nominal is None else self.nominal.document()
         doc["calibrated"] = self.calibrated.document()
         if self.range_sd is not None:

@@ -235,41 +235,48 @@ class PoseFolds:
 
     A motion sampled in steps below :data:`SAME_POSE` (a tracker at 1 kHz along a sweep) has
     no poses apart from their neighbours: :meth:`of_stretches` deals ``stretches`` stretches of
-    it instead, each about ``stretch`` (rad or m) of joint travel, and its poses are the still
-    poses (:func:`still_poses`) within them."""
+    it instead, each of ``stretch_poses`` still poses (:func:`still_poses`), and its poses are
+    those still poses (runs of them where they are more than :data:`MAX_SCORED_POSES`)."""
 
     groups: NDArray[np.int64]
     fold: NDArray[np.int64]
-    #: the stretches of the motion dealt to the folds (0: the poses were dealt one by one)
+    #: the stretches of the session dealt to the folds (0: the poses were dealt one by one)
     stretches: int = 0
-    #: a stretch's joint travel (rad or m: the sum of each step's largest joint move)
-    stretch: float = 0.0
+    #: the still poses in a stretch (the mean)
+    stretch_poses: float = 0.0
 
     @staticmethod
     def of(groups: NDArray[np.int64], folds: int, seed: int = 0) -> PoseFolds:
         return PoseFolds(groups, fold_of_poses(groups, folds, seed))
 
     @staticmethod
-    def of_stretches(
-        Q: SampleArray, still: NDArray[np.int64], folds: int, seed: int = 0
-    ) -> PoseFolds:
-        """``folds`` × :data:`STRETCHES_PER_FOLD` stretches of equal joint travel along
-        ``Q`` (m, n), each a run of whole still poses (``still``: each sample's, 0, 1, … in
-        time order, :func:`still_poses`), dealt to the folds as poses are (seeded). The travel
-        is the sum, pose to pose, of the largest joint move between their first samples: a
-        still pose's jitter below :data:`SAME_POSE` travels nothing."""
-        firsts = np.flatnonzero(np.diff(still, prepend=-1))  # each still pose's first sample
-        anchors = np.asarray(Q[firsts], dtype=np.float64)
-        travel = np.zeros(firsts.size)
-        if firsts.size > 1:
-            travel[1:] = np.cumsum(np.max(np.abs(np.diff(anchors, axis=0)), axis=1))
+    def of_stretches(still: NDArray[np.int64], folds: int, seed: int = 0) -> PoseFolds:
+        """``folds`` × :data:`STRETCHES_PER_FOLD` stretches of consecutive still poses, as many
+        poses each, dealt to the folds as poses are (seeded); ``still``: each sample's still pose
+        (0, 1, … in time order, :func:`still_poses`), at least as many as the stretches. A dwell
+        is one still pose however long it is held, and a gap in the samples one step. The poses
+        scored are the still poses, or where they are more than :data:`MAX_SCORED_POSES`, runs
+        of consecutive ones within a stretch."""
+        m = still.shape[0]
+        poses = int(still[m - 1]) + 1 if m else 0
         count = folds * STRETCHES_PER_FOLD
-        length = float(travel[-1]) / count if firsts.size else 0.0
-        of_pose = np.minimum((travel / max(length, 1e-300)).astype(np.int64), count - 1)
-        stretch = scratch.empty(Q.shape[0], np.int64)
-        for sl in blocks(Q.shape[0]):
-            stretch[sl] = of_pose[still[sl]]
-        return PoseFolds(still, fold_of_poses(stretch, folds, seed), count, length)
+        if poses < count:
+            raise ValueError(f"{poses} still poses for {count} stretches")
+        run = -(-poses // MAX_SCORED_POSES)  # still poses a scored pose at most
+        stretch = scratch.empty(m, np.int64)
+        groups = scratch.empty(m, np.int64) if run > 1 else still
+        last, carried = (-1, -1), -1
+        for sl in blocks(m):
+            p = np.asarray(still[sl], dtype=np.int64)
+            k = p * count // poses
+            stretch[sl] = k
+            if run > 1:  # a new scored pose where the stretch or the run of still poses changes
+                r = p // run
+                first = (int(k[0]), int(r[0])) != last
+                new = np.r_[first, (np.diff(k) != 0) | (np.diff(r) != 0)]
+                groups[sl] = carried + np.cumsum(new)
+                last, carried = (int(k[-1]), int(r[-1])), int(groups[sl.stop - 1])
+        return PoseFolds(groups, fold_of_poses(stretch, folds, seed), count, poses / count)
 
 
 def motion_share(groups: NDArray[np.int64], still: NDArray[np.int64]) -> float:
@@ -285,7 +292,8 @@ def motion_share(groups: NDArray[np.int64], still: NDArray[np.int64]) -> float:
     return float(np.sum((ends - firsts)[spans >= MOTION_SPAN])) / m
 
 
-#: Still poses a pose of :func:`pose_groups` spans from which it is a motion (10 mrad at least).
+#: Still poses a pose of :func:`pose_groups` spans from which it is a motion (about 10 mrad of
+#: travel: each still pose but the last spans at least :data:`SAME_POSE`).
 MOTION_SPAN = 10
 #: Share of the samples in motions (:func:`motion_share`) from which ``--holdout K`` holds out
 #: stretches of the session in place of its poses.
@@ -294,6 +302,8 @@ MOTION_SHARE = 0.5
 #: Stretches of a fast-sampled motion each fold of ``--holdout K`` holds out
 #: (:meth:`PoseFolds.of_stretches`).
 STRETCHES_PER_FOLD = 10
+#: Most poses a cross-validation over stretches scores (runs of still poses beyond it).
+MAX_SCORED_POSES = 100_000
 
 
 #: Consecutive samples whose joint values all differ by less than this (rad or m) are one pose.
