@@ -159,12 +159,16 @@ def test_rectified_images_are_read_with_the_projection(
     code, output, doc = _process(rect, told, tmp_path / "told")
     assert code in (0, 4), output
     assert doc["camera"]["reprojection_rms_px"] > 2 * camera["reprojection_rms_px"]
-    # read as told, and warned that the boards say otherwise
-    assert "the images look rectified, though the pipeline's" in " ".join(output.split())
+    # read as told, warned that the boards say otherwise, and that the fit misses its corners
+    # far beyond the boards' own RMS
+    line = " ".join(output.split())
+    assert "though the pipeline's [camera] rectified chose K and D" in line
+    assert "the frames disagree beyond the corners' noise" in line
     code, output, doc = _process(raw, pipeline, tmp_path / "raw")  # the raw log: K and D
     assert code == 0, output
     assert doc["camera"]["intrinsics"]["K"][0][0] == 900.0
-    assert "whatever their topic" not in " ".join(output.split())
+    line = " ".join(output.split())
+    assert "whatever their topic" not in line and "frames disagree" not in line
 
 
 def test_rectified_images_on_a_raw_topic_are_read_with_the_projection(
@@ -173,14 +177,16 @@ def test_rectified_images_on_a_raw_topic_are_read_with_the_projection(
     """A driver that undistorts on board and publishes on ``image_raw`` (or a republisher that
     names its output freely): the boards placed by PnP in the frames fit P with no distortion
     (0.068 px RMS against 0.098 px with K and D: the corners' noise, and the lens's unmodelled
-    part), so the log is read with P and a warning says why. Read with K and D it put the camera
-    19 mm from the truth, exit 0; read with P as the rectified topic's run is (1.5 mm)."""
+    part), so the log is read with P, its corners detected again with it, and a warning says
+    why. Read with K and D it put the camera 19 mm from the truth, exit 0; read with P, as the
+    rectified topic's run is bounded (1.5 mm; 0.26 mm measured)."""
     raw, _, K_rect, truth = logs
     onraw = tmp_path / "onraw.mcap"
     _rectified(raw, onraw, topic=RAW)
     code, output, doc = _process(onraw, _pipeline(tmp_path), tmp_path / "onraw")
     assert code == 0, output
-    assert "the images are rectified, whatever their topic's name says" in " ".join(output.split())
+    line = " ".join(output.split())
+    assert "fit P (no distortion) better than K and D, whatever their topic's name says" in line
     camera = doc["camera"]
     assert np.allclose(camera["intrinsics"]["K"], K_rect)
     assert not np.any(camera["intrinsics"]["D"])
@@ -254,3 +260,34 @@ def test_rectified_with_a_calibration_file_is_refused(tmp_path: Path) -> None:
     )
     with pytest.raises(PipelineError, match="calibration file is taken as the images' own"):
         load_pipeline(path)
+
+
+def test_the_readings_are_compared_on_enough_corners_and_not_for_a_fisheye() -> None:
+    """Fewer than MIN_DOF residuals beyond the boards' poses: the reading in use is kept,
+    whatever the boards say; a fisheye's readings are not compared; told by the pipeline, the
+    reading in use is kept with a warning."""
+    from dhlog.identify.camera.frames.obeyed import MIN_DOF, Reading, judged
+    from dhlog.vision.boards import BoardSpec
+    from dhlog.vision.camera import Intrinsics
+
+    board = BoardSpec(kind="checkerboard", squares=(9, 6), square_m=0.03)
+    obj = board.object_points()
+    K = np.array([[900.0, 0, 320], [0, 900, 200], [0, 0, 1]])
+    raw = Intrinsics(640, 400, K, "plumb_bob", np.array([-0.3, 0.1, 0, 0, 0]))
+    rect = Intrinsics(640, 400, K, "plumb_bob", np.zeros(5))
+    frames = []
+    for k in range(8):  # the board seen undistorted (rectified images) from eight poses
+        rvec = np.array([0.3 * np.sin(k), 0.3 * np.cos(k), 0.1 * k])
+        tvec = np.array([-0.1 + 0.02 * k, -0.07, 0.45])
+        uv, _ = cv2.projectPoints(obj, rvec, tvec, K, np.zeros(5))
+        frames.append((np.arange(obj.shape[0]), uv.reshape(-1, 2)))
+    used, other = Reading(raw, "K and D", False), Reading(rect, "P", True)
+    chosen, said = judged("log", board, frames, used, other, told=False)
+    assert chosen is other and said
+    kept, warned = judged("log", board, frames, used, other, told=True)
+    assert kept is used and "set [camera] rectified = true" in warned[0]
+    few = [(ids[:8], uv[:8]) for ids, uv in frames[:3]]
+    assert sum(2 * 8 - 6 for _ in few) < MIN_DOF
+    assert judged("log", board, few, used, other, told=False) == (used, ())
+    fisheye = Reading(Intrinsics(640, 400, K, "equidistant", np.zeros(4)), "K and D", False)
+    assert judged("log", board, frames, fisheye, other, told=False) == (fisheye, ())

@@ -36,6 +36,7 @@ from dhlog.identify.camera.checks import (
     board_scale,
     camera_moved,
     frame_clustered,
+    frames_disagree,
     placed_nominal,
 )
 from dhlog.identify.camera.frames.observations import Observations
@@ -221,6 +222,9 @@ def process_observations(
     result = replace(result, notes=(begun, *notes, *kept))
     placement = placements.get(chosen) or placed_nominal(result, nominal, obs)
     result, fit = _pixel_stage(result, obs, T_cb, placement[1], (chosen, reason), options, progress)
+    disagree = frames_disagree(obs, pnp_rms, use, fit.rms)
+    if disagree is not None and not any(n.code == "camera-moved" for n in result.notes):
+        result = result.said(Note.warning(disagree, "frames-disagree"))  # a cause not yet named
     placed_px = placement[0]
     if setup and nominal is not None and not placed_px < FAR_PX:
         # a set-up given wrongly fits by a free fit on sweeps, and shows only here

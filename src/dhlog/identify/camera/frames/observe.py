@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import contextlib
 from collections.abc import Callable, Sequence
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -188,47 +188,19 @@ def _observe_camera(
     assert pipeline.target is not None
     topic = cam.image
     camera, source, said = _intrinsics(name, pipeline, cam, small)
-    warnings = list(said)
-    setup = _Setup(pipeline.target, camera)
-    stream = ImageStream(name, topic, batch_bytes=PAYLOAD_BATCH_BYTES)
-    decimation = Decimation(keep_frames)
-    outcomes: list[tuple[int, str | None]] = []  # every frame's: the reason, None detected
-    faulted: list[tuple[str, int]] = []  # the frames not decoded: (reason, index)
-    found: list[tuple[int, int, NDArray[np.int64], NDArray[np.float64]]] = []
-    first_detail: dict[str, str] = {}
-    with contextlib.closing(_looked(stream, setup, jobs, decimation)) as looked:
-        for seen in looked:
-            wrong = [s for s in seen if s.size is not None]
-            if wrong:
-                where = f"{name}: {_frames([s.index for s in wrong])} on {topic}"
-                raise _size_error(where, len(wrong), wrong[0].size or (0, 0), camera, source)
-            for s in seen:
-                if s.fault is not None:
-                    faulted.append((s.fault, s.index))
-                    continue
-                assert s.outcome is not None
-                outcomes.append((s.index, reason_of(s.outcome)))
-                if isinstance(s.outcome, Detection):
-                    found.append((s.index, s.stamp_ns, s.outcome.ids, s.outcome.corners_px))
-                else:
-                    first_detail.setdefault(s.outcome.reason, s.outcome.detail)
-                if s.kept is not None:
-                    decimation.add(s.index, *s.kept)
-            report(stream.fraction)
-    warnings.extend(stream.warnings)
-    tally = Tally.of(outcomes)
-    fault_line = Faults.of(faulted).warning(name, topic, stream.count)
-    if fault_line is not None:
-        warnings.append(fault_line)
-    if not found:
-        raise VisionLogError(_nothing_found(name, topic, tally, first_detail, fault_line))
+    walked = _walk(name, topic, _Setup(pipeline.target, camera), source, jobs, keep_frames, report)
     both = readings(name, pipeline, cam, small, camera)
+    obeyed: tuple[str, ...] = ()
     if both is not None:  # the reading the images obey: K and D, or P (rectified)
         told = pipeline.camera is not None and pipeline.camera.rectified is not None
-        corners = [(f[2], f[3]) for f in found]
-        obeyed, said = judged(name, pipeline.target, corners, *both, told)
-        camera = obeyed.intrinsics
-        warnings.extend(said)
+        corners = [(f[2], f[3]) for f in walked.found]
+        reading, obeyed = judged(name, pipeline.target, corners, *both, told=told)
+        if reading.intrinsics != camera:  # detected again: the corners placed with its lens
+            camera, source = reading.intrinsics, reading.source
+            setup = _Setup(pipeline.target, camera)
+            walked = _walk(name, topic, setup, source, jobs, keep_frames, report)
+    warnings = [*said, *walked.warnings, *obeyed]
+    found, tally, decimation = walked.found, walked.tally, walked.decimation
 
     t = np.array([f[1] for f in found], dtype=np.int64)
     at = joint_values_at(t, small.joint_t, small.joint_q, pipeline.segmentation.join_tolerance)
@@ -280,6 +252,64 @@ def _observe_camera(
         kept=decimation.frames(),
         warnings=tuple(warnings),
     )
+
+
+@dataclass(frozen=True)
+class _Walked:
+    """One walk over a camera's images: the frames with the board (index, stamp, corner ids,
+    corners in px), the tally of every frame, the frames kept for the recording and the walk's
+    warnings (damaged images, frames not decoded)."""
+
+    found: list[tuple[int, int, NDArray[np.int64], NDArray[np.float64]]]
+    tally: Tally
+    decimation: Decimation
+    warnings: tuple[str, ...]
+
+
+def _walk(
+    name: str,
+    topic: str,
+    setup: _Setup,
+    source: str,
+    jobs: int,
+    keep_frames: int,
+    report: Callable[[float], None],
+) -> _Walked:
+    """The board looked for in every image on ``topic`` with ``setup`` (the board and the
+    intrinsics from ``source``); images of another size than the intrinsics', or no frame with
+    the board, are a :class:`VisionLogError`."""
+    stream = ImageStream(name, topic, batch_bytes=PAYLOAD_BATCH_BYTES)
+    decimation = Decimation(keep_frames)
+    outcomes: list[tuple[int, str | None]] = []  # every frame's: the reason, None detected
+    faulted: list[tuple[str, int]] = []  # the frames not decoded: (reason, index)
+    found: list[tuple[int, int, NDArray[np.int64], NDArray[np.float64]]] = []
+    first_detail: dict[str, str] = {}
+    with contextlib.closing(_looked(stream, setup, jobs, decimation)) as looked:
+        for seen in looked:
+            wrong = [s for s in seen if s.size is not None]
+            if wrong:
+                where = f"{name}: {_frames([s.index for s in wrong])} on {topic}"
+                size = wrong[0].size or (0, 0)
+                raise _size_error(where, len(wrong), size, setup.camera, source)
+            for s in seen:
+                if s.fault is not None:
+                    faulted.append((s.fault, s.index))
+                    continue
+                assert s.outcome is not None
+                outcomes.append((s.index, reason_of(s.outcome)))
+                if isinstance(s.outcome, Detection):
+                    found.append((s.index, s.stamp_ns, s.outcome.ids, s.outcome.corners_px))
+                else:
+                    first_detail.setdefault(s.outcome.reason, s.outcome.detail)
+                if s.kept is not None:
+                    decimation.add(s.index, *s.kept)
+            report(stream.fraction)
+    tally = Tally.of(outcomes)
+    fault_line = Faults.of(faulted).warning(name, topic, stream.count)
+    if not found:
+        raise VisionLogError(_nothing_found(name, topic, tally, first_detail, fault_line))
+    warnings = (*stream.warnings, *(() if fault_line is None else (fault_line,)))
+    return _Walked(found, tally, decimation, warnings)
 
 
 def _size_error(
