@@ -31,6 +31,7 @@ from dhlog.identify.check.plausible import inlier_picks
 from dhlog.identify.fit.placement import Stand
 from dhlog.identify.fit.samples import measured_rotations
 from dhlog.identify.joints.sweeps import samples_with_encoders, target_labels
+from dhlog.identify.segment.clocks import on_one_clock
 from dhlog.identify.segment.segment import segment_log
 from dhlog.identify.stages import Identification, table_values
 from dhlog.io.pipeline import Pipeline
@@ -123,6 +124,7 @@ def _validate_log(
         if named and result.nominal is not None
         else f"{result.path} (the calibrated log)",
     )
+    log, _, moved = on_one_clock(log)  # its joint states seconds off the tracker's: moved
     seg = segment_log(log, joint_types=list(ex.standard.joint_types))
     if seg.n_joints != ex.standard.n or not seg.has_encoders:
         raise NotScoredError(
@@ -153,6 +155,8 @@ def _validate_log(
         nominal=placed()[0],
         own_error=max(own) if own else None,
     )
+    if moved:
+        check = replace(check, notes=(*check.notes, *(note.text for note in moved)))
     if log.point_ids is not None:  # the session's held-out poses by the export's ids
         mine = rows if which is None else rows[primary]
         names = sample_names(np.asarray(seg.column("t_ns", mine), np.int64), mine, log.point_ids)

@@ -174,7 +174,7 @@ def process_data(
             progress(what, fraction)
 
     cut = segmented(log, options, stage)
-    session, said = session_of(log, cut, options, stage)
+    session, said = session_of(cut.log or log, cut, options, stage)
     notes = [*cut.notes, *said]  # the run's notes, in the order said
     head = _Head(sha256, options.holdout, options.model, cut.implausible)
     request = _request(session, options)

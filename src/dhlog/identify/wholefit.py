@@ -388,7 +388,7 @@ def _fit_clocked(
         if abs(delta) <= max(REJOIN_BELOW * sd, REJOIN_FIT) or attempt == MAX_REJOINS:
             break  # below REJOIN_FIT the fit's first-order move Q − δ q̇ is exact enough
         # join the encoders again at the fitted offset and fit once more from there
-        seg = rejoin(seg, session.log, offset - timing.pipeline)
+        seg = rejoin(seg, session.log, offset - timing.pipeline - timing.coarse)
         rows, Q, P = samples_with_encoders(seg)
         which = target_labels(seg, rows)
         rotations = measured_rotations(seg, rows)

@@ -191,6 +191,7 @@ def result_document(result: Identification) -> dict[str, Any]:
             "source": t.source,
             "pipeline_clock_offset": t.pipeline,
             **({"reason": t.reason} if t.reason else {}),
+            **({"coarse_offset": t.coarse} if t.coarse else {}),
         }
     if result.base is not None:
         doc["base"]["plane"] = {

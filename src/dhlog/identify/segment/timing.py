@@ -75,6 +75,10 @@ class Timing:
     source: str
     pipeline: float
     reason: str = ""
+    #: the offset (s) the joint states were moved by before the log was segmented, where
+    #: their clock was seconds off the tracker's (:mod:`dhlog.identify.segment.clocks`); part
+    #: of ``offset``
+    coarse: float = 0.0
 
 
 class JointRates:
@@ -292,11 +296,12 @@ def _sweep_lag(
 
 
 def clock_start(
-    seg: Segmentation, log: LogData, phases: list[SweepPhase] | None = None
+    seg: Segmentation, log: LogData, phases: list[SweepPhase] | None = None, coarse: float = 0.0
 ) -> tuple[Segmentation, Timing | None, tuple[Note, ...]]:
     """The clock offset's start estimate from the sweeps' phases (:func:`phase_lag`), the
     encoders joined again at it; the pipeline's offset where it is fixed or cannot be told
-    (a step-and-measure log: a note, ``clock-offset``)."""
+    (a step-and-measure log: a note, ``clock-offset``). ``coarse``: what ``log``'s joint states
+    were moved by already (:mod:`dhlog.identify.segment.clocks`), part of the offset given."""
     pipe = log.pipeline.segmentation
     if not seg.has_encoders or log.joints is None:
         return seg, None, ()
@@ -318,6 +323,14 @@ def clock_start(
             "between tracker and joint states has no effect and is not estimated.",
             "clock-offset",
         )
-        timing = Timing(pipe.clock_offset, None, "pipeline", pipe.clock_offset, "step-and-measure")
+        timing = Timing(
+            pipe.clock_offset + coarse,
+            None,
+            "pipeline",
+            pipe.clock_offset,
+            "step-and-measure",
+            coarse,
+        )
         return seg, timing, (said,)
-    return seg, Timing(pipe.clock_offset + total, std, "estimated", pipe.clock_offset), ()
+    offset = pipe.clock_offset + coarse + total
+    return seg, Timing(offset, std, "estimated", pipe.clock_offset, coarse=coarse), ()

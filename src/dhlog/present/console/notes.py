@@ -9,6 +9,7 @@ from rich.markup import escape
 from rich.table import Table
 
 from dhlog.identify.run import Identification
+from dhlog.identify.segment.clocks import COARSE_STEP
 from dhlog.present.console.layout import literal
 from dhlog.result.document import DisplayRow
 
@@ -50,6 +51,12 @@ def clock_line(result: Identification) -> str:
         "fixed": "clock_offset_fixed in the pipeline",
         "step-and-measure": "not estimated: samples taken while still (step-and-measure)",
     }.get(t.reason, t.reason)
+    if t.coarse:  # matched where each stream moves, then no finer estimate
+        return (
+            f"joint-state stamps {ms} onto the tracker's clock (matched where each stream "
+            f"moves, to about {COARSE_STEP * 1e3:g} ms; the pipeline's clock_offset: "
+            f"{t.pipeline * 1e3:+.4f} ms; {why.replace('not estimated', 'not estimated finer')})"
+        )
     return f"joint-state stamps {ms} (the pipeline's clock_offset; {why})"
 
 

@@ -1,0 +1,326 @@
+"""Joint states whose clock is seconds off the tracker's — two computers without a common time,
+a bridge that stamps with its own — moved onto the tracker's clock before the log is segmented
+(:func:`on_one_clock`). The fine estimate (:mod:`dhlog.identify.segment.timing`) models the lag
+linearly and needs a start within a fraction of a second; here each stream's motion is found on
+a grid — the target's speed from its samples, the joints' from their states; a tracker
+triggered at the stops is silent while the robot moves — and the offset at which they agree
+best is taken (:func:`coarse_offset`), where the agreement stands out, or the nominal placed on
+the points (or the sweeps' points on their curves) tells the near-equal candidates apart.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import replace
+
+import numpy as np
+import polars as pl
+from numpy.typing import NDArray
+
+from dhlog.errors import Note
+from dhlog.geometry._checks import FloatArray
+from dhlog.identify.segment.timing import MOVING_SPEED
+from dhlog.io.reader import LogData
+
+#: The grid (s) the streams' motion is compared on (at least the tracker's interval), and the
+#: half-window (s, at least a step) of the central difference that gives each one's speed.
+COARSE_STEP = 0.01
+COARSE_HALF = 0.05
+#: Steps of the running median the target's positions go through (its gross outliers out).
+COARSE_MEDIAN = 5
+#: The largest offset looked for (s), and at most this share of the span both streams cover;
+#: an offset is judged where the streams, moved by it, overlap in COARSE_OVERLAP of the
+#: steps the shorter one is known at.
+COARSE_RANGE = 60.0
+COARSE_SHARE = 0.5
+COARSE_OVERLAP = 0.8
+#: The streams' motion must agree this well at the offset found (a correlation), and better by
+#: this than at any offset more than COARSE_APART from it, for it to be taken.
+COARSE_AGREE = 0.5
+COARSE_MARGIN = 0.1
+COARSE_APART = 0.5
+#: The target moves where its speed is above this share of its 95th percentile, or where
+#: the tracker is silent for longer than COARSE_SILENT (s; at least ten of its intervals).
+COARSE_MOVING = 0.005
+COARSE_SILENT = 0.2
+#: ... and above this many times the speed the points' noise alone gives.
+COARSE_NOISE = 5.0
+#: A stretch in which one joint alone moves for this long (s) judges an offset by its points;
+#: of the offsets whose motion agrees within COARSE_MARGIN of the best, the one the nominal (or
+#: the sweeps' curves) misses COARSE_CLEARER times less than the next is taken.
+COARSE_SWEEP = 0.5
+COARSE_CLEARER = 3.0
+#: Offsets found below this (s) are left to the fine estimate (:func:`clock_start`), which
+#: needs no more start than that.
+COARSE_BELOW = 0.1
+
+
+def on_one_clock(
+    log: LogData, judge: Callable[[float], float] | None = None
+) -> tuple[LogData, float, tuple[Note, ...]]:
+    """``log`` with its joint states (and commanded joints) moved onto the tracker's clock
+    where :func:`coarse_offset` finds them :data:`COARSE_BELOW` or more off it, the move
+    (s), and the note that says so; ``log`` itself where the pipeline fixes the offset or none
+    is found. ``judge``: :func:`coarse_offset`'s."""
+    if log.pipeline.segmentation.clock_offset_fixed or log.joints is None:
+        return log, 0.0, ()
+    found = coarse_offset(log, judge)
+    if found is None or abs(found) < COARSE_BELOW:
+        return log, 0.0, ()
+    step = round(found * 1e9)
+
+    def moved(frame: pl.DataFrame | None) -> pl.DataFrame | None:
+        return None if frame is None else frame.with_columns(pl.col("t_ns") + step)
+
+    said = (
+        f"the joint states' stamps are {found:+.2f} s off the tracker's (where each stream "
+        "moves, matched over the session; a step-and-measure tracker's silences are the "
+        "moves): they were moved by that before the sweeps were found (the Clock line gives "
+        "the offset used); a clock this far apart — two computers without a common time — is "
+        "better fixed at the source, or given as [segmentation] clock_offset."
+    )
+    joined = replace(log, joints=moved(log.joints), commanded=moved(log.commanded))
+    return joined, found, (Note.info(said, "clock-coarse"),)
+
+
+def coarse_offset(log: LogData, judge: Callable[[float], float] | None = None) -> float | None:
+    """The clock offset (s, added to the joint-state stamps) at which the joints' motion and
+    the target's line up best, where the points confirm it: whether each stream moves on a
+    grid of :data:`COARSE_STEP` or the tracker's interval (the target's from the means of its
+    samples in each step through a running median, a tracker triggered at the stops moving
+    where it is silent; the joints' fastest), and their correlation (Pearson's) at every
+    offset within :data:`COARSE_RANGE`. Offsets the motion cannot tell apart (the seed
+    method's sweeps are alike: one sweep's time off matches nearly as well) are told by
+    ``judge(offset)`` — the nominal's miss of the points joined at it (m) — or else by how far
+    the points of each single-joint sweep miss a circle (a line) in its joint: one
+    :data:`COARSE_CLEARER` times better than the next. An offset of :data:`COARSE_BELOW` or
+    more is returned only where the same measure puts it :data:`COARSE_CLEARER` times better
+    than none. None where neither stream shows motion, they barely overlap, nothing stands out
+    (:data:`COARSE_AGREE`, :data:`COARSE_MARGIN`) or nothing confirms it. A clock seconds off
+    — a tracker's computer and the robot's without a common time — leaves the fine estimate's
+    linear model (:mod:`dhlog.identify.segment.timing`) far behind: sweeps labelled with
+    another joint's samples."""
+    joints, points = log.joints, log.points
+    if joints is None or joints.height < 4 or points.height < 4:
+        return None
+    if "target" in points.columns:
+        points = points.filter(pl.col("target") == 0)
+    t_p = points["t_ns"].to_numpy().astype(np.float64) * 1e-9
+    t_j = joints["t_ns"].to_numpy().astype(np.float64) * 1e-9
+    lo, hi = min(t_p[0], t_j[0]), max(t_p[-1], t_j[-1])
+    span = min(t_p[-1], t_j[-1]) - max(t_p[0], t_j[0])
+    # a step of the grid holds a sample of the target at least, about
+    step = max(COARSE_STEP, float(np.median(np.diff(t_p))))
+    if not span > 0.0 or hi - lo > 1e6 or (hi - lo) / step > 1 << 26:
+        return None
+    size = int((hi - lo) / step) + 1
+    # the target's mean position in each step (NaN without a sample), its gross outliers
+    # taken out by a running median
+    k = np.minimum(((t_p - lo) / step).astype(np.int64), size - 1)
+    count = np.bincount(k, minlength=size).astype(np.float64)
+    xyz = [points[c].to_numpy().astype(np.float64) for c in ("x", "y", "z")]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        mean = np.column_stack(
+            [_running_median(np.bincount(k, weights=v, minlength=size) / count) for v in xyz]
+        )
+    target = _speed(mean, step)
+    grid = lo + np.arange(size) * step
+    q = np.column_stack(
+        [
+            np.interp(grid, t_j, joints[c].to_numpy().astype(np.float64), left=np.nan, right=np.nan)
+            for c in joints.columns
+            if c != "t_ns"
+        ]
+    )
+    # whether each stream moves, not how fast: the target's speed is the joints' times a lever
+    # that differs from sweep to sweep, and would pull the match towards another sweep
+    known_t = np.isfinite(target)
+    if not np.any(known_t):
+        return None
+    top = float(np.percentile(target[known_t], 95))
+    floor = COARSE_NOISE * _noise_speed(mean, step)
+    moves_t = np.where(
+        known_t, (target > max(COARSE_MOVING * top, floor)).astype(np.float64), np.nan
+    )
+    # a tracker triggered at the stops (step-and-measure) is silent while the robot moves: its
+    # long silences count as motion
+    gaps = np.diff(t_p)
+    long = max(COARSE_SILENT, 10.0 * float(np.median(gaps)))
+    for start in np.flatnonzero(gaps > long):
+        first = int((t_p[start] - lo) / step) + _half(step) + 1
+        last = int((t_p[start + 1] - lo) / step) - _half(step)
+        moves_t[first:last] = 1.0
+    joint = _speed(q, step, each=True)
+    moves_j = np.where(np.isfinite(joint), (joint > MOVING_SPEED).astype(np.float64), np.nan)
+    if not (_varies(moves_t) and _varies(moves_j)):
+        return None
+    reach = int(min(COARSE_RANGE, COARSE_SHARE * (hi - lo)) / step)
+    corr = _masked_correlation(moves_t, moves_j, reach)
+    if corr is None:
+        return None
+    lags = np.arange(-reach, reach + 1) * step
+    peaks = _peaks(corr, int(COARSE_APART / step))
+    if not peaks or corr[peaks[0]] < COARSE_AGREE:
+        return None
+    # what the points say of an offset: the nominal placed on them (m), else the single-joint
+    # sweeps' points off their curves; None where neither can
+    score: Callable[[float], float] | None = judge
+    if score is None:
+        sweeps, at = _single_joint_moves(joints, t_j), np.column_stack(xyz)
+        if sweeps:
+
+            def score(lag: float) -> float:
+                return _arc_misfit(t_p, at, t_j, sweeps, lag)
+
+    close = [float(lags[k]) for k in peaks if corr[k] >= corr[peaks[0]] - COARSE_MARGIN]
+    if len(close) > 1:  # a motion of even sweeps cannot tell these apart (a sweep's time off)
+        if score is None:
+            return None
+        misfit = [score(lag) for lag in close]
+        order = np.argsort(misfit)
+        if not misfit[order[0]] * COARSE_CLEARER <= misfit[order[1]]:
+            return None
+        close = [close[int(order[0])]]
+    found = close[0]
+    if abs(found) < COARSE_BELOW:
+        return found
+    # a move is taken only where the points say it is better than none: the motion alone has
+    # matched a coupled session's stops ten seconds off
+    if score is None:
+        return None
+    moved, kept = score(found), score(0.0)
+    if math.isfinite(moved) and math.isfinite(kept) and moved * COARSE_CLEARER <= kept:
+        return found
+    return None
+
+
+def _peaks(corr: FloatArray, apart: int) -> list[int]:
+    """The local maxima of ``corr`` (NaN: none there) at least ``apart`` steps from a higher
+    one, highest first."""
+    order = np.argsort(np.nan_to_num(corr, nan=-np.inf))[::-1]
+    taken: list[int] = []
+    for k in order.tolist():
+        if not np.isfinite(corr[k]) or len(taken) >= 8:
+            break
+        if all(abs(k - j) > apart for j in taken):
+            taken.append(k)
+    return taken
+
+
+def _single_joint_moves(
+    joints: pl.DataFrame, t_j: FloatArray
+) -> list[tuple[float, float, int, FloatArray]]:
+    """The stretches (start, end in s on the joints' clock; the joint; its values at the joint
+    states' times) of at least :data:`COARSE_SWEEP` s in which one joint alone moves."""
+    q = np.column_stack([joints[c].to_numpy().astype(np.float64) for c in joints.columns[1:]])
+    if q.shape[0] < 3:
+        return []
+    dt = np.diff(t_j)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        rate = np.abs(np.diff(q, axis=0)) / dt[:, None]
+    moving = rate > MOVING_SPEED
+    alone = np.where(moving.sum(axis=1) == 1, np.argmax(moving, axis=1), -1)
+    out = []
+    cuts = np.flatnonzero(np.diff(alone)) + 1
+    for a, b in zip(np.r_[0, cuts], np.r_[cuts, alone.size], strict=True):
+        j = int(alone[a])
+        if j >= 0 and t_j[b] - t_j[a] >= COARSE_SWEEP:
+            out.append((float(t_j[a]), float(t_j[b]), j, q[:, j]))
+    return out
+
+
+def _arc_misfit(
+    t_p: FloatArray,
+    xyz: FloatArray,
+    t_j: FloatArray,
+    sweeps: list[tuple[float, float, int, FloatArray]],
+    lag: float,
+) -> float:
+    """With the joint states moved by ``lag`` s: the median over ``sweeps`` of the RMS (m) by
+    which the target's samples ``xyz`` at ``t_p`` (s, in time order) in each miss the best
+    curve through them in its joint ``q`` — ``c + u cos q + v sin q + w q`` (a circle about
+    any axis, or a line for a prismatic joint), fitted by least squares; inf without a sweep
+    to judge."""
+    misses = []
+    for start, end, _, values in sweeps:
+        a, b = np.searchsorted(t_p, [start + lag, end + lag], side="left")
+        if b - a < 20:
+            continue
+        inside = np.arange(a, b, -(-(b - a) // 2000))
+        q = np.interp(t_p[inside] - lag, t_j, values)
+        basis = np.column_stack([np.ones(q.size), np.cos(q), np.sin(q), q])
+        coef, *_ = np.linalg.lstsq(basis, xyz[inside], rcond=None)
+        misses.append(float(np.sqrt(np.mean((xyz[inside] - basis @ coef) ** 2))))
+    return float(np.median(misses)) if misses else math.inf
+
+
+def _speed(x: FloatArray, step: float, *, each: bool = False) -> FloatArray:
+    """The speed (per s) of the rows of ``x`` (grid of ``step`` s, d) by central differences
+    over :data:`COARSE_HALF` each side: the length of the move (a point's), or with ``each``
+    the largest column's (the joints'); NaN where a row it needs is."""
+    h = _half(step)
+    out = np.full(x.shape[0], np.nan)
+    if x.shape[0] > 2 * h:
+        move = x[2 * h :] - x[: -2 * h]
+        size = np.max(np.abs(move), axis=1) if each else np.sqrt(np.sum(move**2, axis=1))
+        out[h:-h] = size / (2 * h * step)
+    return out
+
+
+def _running_median(x: FloatArray) -> FloatArray:
+    """``x`` through a running median of :data:`COARSE_MEDIAN` steps (NaN: no value; NaN where
+    the window holds none)."""
+    series = pl.Series(x, nan_to_null=True)
+    kept = series.rolling_median(COARSE_MEDIAN, min_samples=1, center=True)
+    return np.asarray(kept.fill_null(np.nan).to_numpy(), dtype=np.float64)
+
+
+def _noise_speed(x: FloatArray, step: float) -> float:
+    """The speed :func:`_speed` reads off the noise of the points ``x`` (grid, 3) alone: their
+    σ per coordinate from the median second difference of consecutive steps (which a steady
+    motion cancels; σ √6 for white noise), carried through the central difference."""
+    second = x[2:] - 2.0 * x[1:-1] + x[:-2]
+    ok = np.all(np.isfinite(second), axis=1)
+    if not np.any(ok):
+        return 0.0
+    sigma = float(np.median(np.abs(second[ok]))) / (0.6745 * math.sqrt(6.0))
+    return math.sqrt(3.0 * 2.0) * sigma / (2 * _half(step) * step)
+
+
+def _half(step: float) -> int:
+    """:data:`COARSE_HALF` in steps of ``step`` s (one at least)."""
+    return max(1, round(COARSE_HALF / step))
+
+
+def _varies(s: FloatArray) -> bool:
+    """Whether ``s`` (NaN: unknown) takes two values at ten steps or more."""
+    v = s[np.isfinite(s)]
+    return v.size >= 10 and float(np.min(v)) != float(np.max(v))
+
+
+def _masked_correlation(a: FloatArray, b: FloatArray, reach: int) -> FloatArray | None:
+    """Per lag L in −reach … reach steps, the correlation (Pearson's) of ``a(t)`` with
+    ``b(t − L)`` over the steps where both are known (NaN: unknown), by FFT; NaN where they
+    overlap in fewer than :data:`COARSE_OVERLAP` of the steps the shorter one is known at."""
+    n = a.size
+    size = 1 << int(np.ceil(np.log2(2 * n)))
+    ma, mb = np.isfinite(a).astype(np.float64), np.isfinite(b).astype(np.float64)
+    a0, b0 = np.nan_to_num(a), np.nan_to_num(b)
+    fa, fb = np.fft.rfft(a0, size), np.fft.rfft(b0, size)
+    fma, fmb = np.fft.rfft(ma, size), np.fft.rfft(mb, size)
+    faa, fbb = np.fft.rfft(a0 * a0, size), np.fft.rfft(b0 * b0, size)
+
+    def lagged(u: NDArray[np.complex128], v: NDArray[np.complex128]) -> FloatArray:
+        full = np.fft.irfft(u * np.conj(v), size)
+        return np.r_[full[-reach:], full[: reach + 1]] if reach else full[:1]
+
+    count = lagged(fma, fmb)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        sa, sb = lagged(fa, fmb) / count, lagged(fma, fb) / count
+        cov = lagged(fa, fb) / count - sa * sb
+        va = lagged(faa, fmb) / count - sa * sa
+        vb = lagged(fma, fbb) / count - sb * sb
+        corr = cov / np.sqrt(va * vb)
+    corr[(count < COARSE_OVERLAP * min(ma.sum(), mb.sum())) | ~(va > 1e-9) | ~(vb > 1e-9)] = np.nan
+    return None if not np.any(np.isfinite(corr)) else corr
