@@ -33,6 +33,8 @@ COARSE_MEDIAN = 5
 #: an offset is judged where the streams, moved by it, overlap in COARSE_OVERLAP of the
 #: steps the shorter one is known at.
 COARSE_RANGE = 60.0
+#: The first seconds of the target's samples (and the joint states around them) matched.
+COARSE_WINDOW = 300.0
 COARSE_SHARE = 0.5
 COARSE_OVERLAP = 0.8
 #: The streams' motion must agree this well at the offset found (a correlation), and better by
@@ -106,12 +108,22 @@ def coarse_offset(log: LogData, judge: Callable[[float], float] | None = None) -
         return None
     if "target" in points.columns:
         points = points.filter(pl.col("target") == 0)
-    t_p = points["t_ns"].to_numpy().astype(np.float64) * 1e-9
-    t_j = joints["t_ns"].to_numpy().astype(np.float64) * 1e-9
+    # the session's first COARSE_WINDOW s tell the offset as well as the whole
+    ns = points["t_ns"].to_numpy()
+    points = points.head(int(np.searchsorted(ns, ns[0] + round(COARSE_WINDOW * 1e9))))
+    ns_j = joints["t_ns"].to_numpy()
+    reach_ns = round(COARSE_RANGE * 1e9)
+    a, b = np.searchsorted(ns_j, [ns[0] - reach_ns, ns[points.height - 1] + reach_ns])
+    joints = joints.slice(int(a), int(b - a))
+    if joints.height < 4 or points.height < 4:
+        return None
+    t_p = points["t_ns"].to_numpy() * 1e-9
+    t_j = joints["t_ns"].to_numpy() * 1e-9
     lo, hi = min(t_p[0], t_j[0]), max(t_p[-1], t_j[-1])
     span = min(t_p[-1], t_j[-1]) - max(t_p[0], t_j[0])
+    gaps = np.diff(t_p)
     # a step of the grid holds a sample of the target at least, about
-    step = max(COARSE_STEP, float(np.median(np.diff(t_p))))
+    step = max(COARSE_STEP, float(np.median(gaps)))
     if not span > 0.0 or hi - lo > 1e6 or (hi - lo) / step > 1 << 26:
         return None
     size = int((hi - lo) / step) + 1
@@ -119,7 +131,7 @@ def coarse_offset(log: LogData, judge: Callable[[float], float] | None = None) -
     # taken out by a running median
     k = np.minimum(((t_p - lo) / step).astype(np.int64), size - 1)
     count = np.bincount(k, minlength=size).astype(np.float64)
-    xyz = [points[c].to_numpy().astype(np.float64) for c in ("x", "y", "z")]
+    xyz = [np.asarray(points[c].to_numpy(), dtype=np.float64) for c in ("x", "y", "z")]
     with np.errstate(invalid="ignore", divide="ignore"):
         mean = np.column_stack(
             [_running_median(np.bincount(k, weights=v, minlength=size) / count) for v in xyz]
@@ -128,7 +140,9 @@ def coarse_offset(log: LogData, judge: Callable[[float], float] | None = None) -
     grid = lo + np.arange(size) * step
     q = np.column_stack(
         [
-            np.interp(grid, t_j, joints[c].to_numpy().astype(np.float64), left=np.nan, right=np.nan)
+            np.interp(
+                grid, t_j, np.asarray(joints[c].to_numpy(), np.float64), left=np.nan, right=np.nan
+            )
             for c in joints.columns
             if c != "t_ns"
         ]
@@ -145,9 +159,10 @@ def coarse_offset(log: LogData, judge: Callable[[float], float] | None = None) -
     )
     # a tracker triggered at the stops (step-and-measure) is silent while the robot moves: its
     # long silences count as motion
-    gaps = np.diff(t_p)
     long = max(COARSE_SILENT, 10.0 * float(np.median(gaps)))
-    for start in np.flatnonzero(gaps > long):
+    silent = np.flatnonzero(gaps > long)
+    del gaps
+    for start in silent:
         first = int((t_p[start] - lo) / step) + _half(step) + 1
         last = int((t_p[start + 1] - lo) / step) - _half(step)
         moves_t[first:last] = 1.0
@@ -163,17 +178,20 @@ def coarse_offset(log: LogData, judge: Callable[[float], float] | None = None) -
     peaks = _peaks(corr, int(COARSE_APART / step))
     if not peaks or corr[peaks[0]] < COARSE_AGREE:
         return None
+    close = [float(lags[k]) for k in peaks if corr[k] >= corr[peaks[0]] - COARSE_MARGIN]
+    if len(close) == 1 and abs(close[0]) < COARSE_BELOW:
+        return close[0]
     # what the points say of an offset: the nominal placed on them (m), else the single-joint
     # sweeps' points off their curves; None where neither can
-    score: Callable[[float], float] | None = judge
-    if score is None:
-        sweeps, at = _single_joint_moves(joints, t_j), np.column_stack(xyz)
-        if sweeps:
+    said: dict[float, float] = {}
+    sweeps = [] if judge is not None else _single_joint_moves(joints, t_j)
 
-            def score(lag: float) -> float:
-                return _arc_misfit(t_p, at, t_j, sweeps, lag)
+    def scored(lag: float) -> float:
+        if lag not in said:
+            said[lag] = judge(lag) if judge is not None else _arc_misfit(t_p, xyz, t_j, sweeps, lag)
+        return said[lag]
 
-    close = [float(lags[k]) for k in peaks if corr[k] >= corr[peaks[0]] - COARSE_MARGIN]
+    score = scored if judge is not None or sweeps else None
     if len(close) > 1:  # a motion of even sweeps cannot tell these apart (a sweep's time off)
         if score is None:
             return None
@@ -232,13 +250,14 @@ def _single_joint_moves(
 
 def _arc_misfit(
     t_p: FloatArray,
-    xyz: FloatArray,
+    xyz: list[FloatArray],
     t_j: FloatArray,
     sweeps: list[tuple[float, float, int, FloatArray]],
     lag: float,
 ) -> float:
     """With the joint states moved by ``lag`` s: the median over ``sweeps`` of the RMS (m) by
-    which the target's samples ``xyz`` at ``t_p`` (s, in time order) in each miss the best
+    which the target's samples (``xyz``: its x, y, z columns) at ``t_p`` (s, in time order) in
+    each miss the best
     curve through them in its joint ``q`` — ``c + u cos q + v sin q + w q`` (a circle about
     any axis, or a line for a prismatic joint), fitted by least squares; inf without a sweep
     to judge."""
@@ -250,8 +269,9 @@ def _arc_misfit(
         inside = np.arange(a, b, -(-(b - a) // 2000))
         q = np.interp(t_p[inside] - lag, t_j, values)
         basis = np.column_stack([np.ones(q.size), np.cos(q), np.sin(q), q])
-        coef, *_ = np.linalg.lstsq(basis, xyz[inside], rcond=None)
-        misses.append(float(np.sqrt(np.mean((xyz[inside] - basis @ coef) ** 2))))
+        at = np.column_stack([c[inside] for c in xyz])
+        coef, *_ = np.linalg.lstsq(basis, at, rcond=None)
+        misses.append(float(np.sqrt(np.mean((at - basis @ coef) ** 2))))
     return float(np.median(misses)) if misses else math.inf
 
 
