@@ -1,9 +1,9 @@
 """Joint states whose clock is seconds off the tracker's — two computers without a common time,
 a bridge that stamps with its own — are moved onto the tracker's clock before the log is
-segmented (:func:`dhlog.identify.segment.timing.coarse_offset`: where each stream moves,
-matched over the session), and the offset estimated finely from there. The fine estimate alone
-(a linear model of the lag) lost the offset beyond half a second: on the KR5 session off its
-nominal, 1 s gave an FK RMS of 2.2 mm, 2 s 169 mm with exit 0."""
+segmented (:func:`dhlog.identify.segment.clocks.coarse_offset`: where each stream moves,
+matched from the joints' first move), and the offset estimated finely from there. The fine
+estimate alone (a linear model of the lag) lost the offset beyond half a second: on the KR5
+session off its nominal, 1 s gave an FK RMS of 2.2 mm, 2 s 169 mm with exit 0."""
 
 from __future__ import annotations
 
@@ -13,9 +13,9 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
+from dhlog.identify.check.plausible import clock_judge
 from dhlog.identify.run import ProcessOptions, process_data
 from dhlog.identify.segment.clocks import coarse_offset
-from dhlog.identify.session import _nominal_miss
 from dhlog.io.dhfile import DHModel
 from dhlog.io.memory import log_data_from_session
 from dhlog.model.fk import fk_point
@@ -91,7 +91,7 @@ def test_a_step_and_measure_tracker_is_matched_by_its_silences() -> None:
     log = log_data_from_session(late)
     # without the nominal nothing confirms the match (the tracker is silent on the sweeps)
     assert coarse_offset(log) is None
-    found = coarse_offset(log, _nominal_miss(log, NOMINAL))
+    found = coarse_offset(log, clock_judge(log, NOMINAL))
     assert found is not None and abs(found - 2.0) < 0.02
     results = [
         process_data(log_data_from_session(s), ProcessOptions(nominal=NOMINAL))
@@ -112,3 +112,27 @@ def test_a_fixed_offset_is_taken_at_its_word() -> None:
     result = process_data(fixed, ProcessOptions(nominal=NOMINAL))
     assert "clock-coarse" not in {n.code for n in result.notes}
     assert result.timing is not None and result.timing.offset == 0.0
+
+
+def test_an_idle_start_does_not_hide_the_offset() -> None:
+    """Five minutes and more of set-up before the joints first move (the tracker started
+    early): the match starts where the joints first move, so the offset is found as without
+    them; the nominal's judge counts every sample but the worst tenth, so the still ones,
+    which no offset changes, do not outvote the misjoined moves."""
+    import polars as pl
+
+    log = log_data_from_session(_session(2.0))
+    assert log.joints is not None
+    idle = 320 * 10**9
+    first_p, first_j = log.points.row(0, named=True), log.joints.row(0, named=True)
+    t_p = np.arange(log.points["t_ns"][0] - idle, log.points["t_ns"][0], 10**7)
+    t_j = np.arange(log.joints["t_ns"][0] - idle, log.joints["t_ns"][0], 4 * 10**6)
+    before_p = pl.DataFrame({c: np.full(t_p.size, first_p[c]) for c in log.points.columns})
+    before_p = before_p.with_columns(pl.Series("t_ns", t_p))
+    before_j = pl.DataFrame({c: np.full(t_j.size, first_j[c]) for c in log.joints.columns})
+    before_j = before_j.with_columns(pl.Series("t_ns", t_j))
+    points = pl.concat([before_p.cast(log.points.schema), log.points])
+    joints = pl.concat([before_j.cast(log.joints.schema), log.joints])
+    late = replace(log, points=points, joints=joints)
+    found = coarse_offset(late, clock_judge(late, NOMINAL))
+    assert found is not None and abs(found - 2.0) < 0.02

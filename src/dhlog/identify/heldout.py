@@ -27,7 +27,7 @@ from dhlog.identify.check.footing import (
 )
 from dhlog.identify.check.holdout import Holdout
 from dhlog.identify.check.named import pose_names, sample_names
-from dhlog.identify.check.plausible import inlier_picks
+from dhlog.identify.check.plausible import clock_judge, inlier_picks
 from dhlog.identify.fit.placement import Stand
 from dhlog.identify.fit.samples import measured_rotations
 from dhlog.identify.joints.sweeps import samples_with_encoders, target_labels
@@ -124,7 +124,9 @@ def _validate_log(
         if named and result.nominal is not None
         else f"{result.path} (the calibrated log)",
     )
-    log, _, moved = on_one_clock(log)  # its joint states seconds off the tracker's: moved
+    # its joint states seconds off the tracker's: moved, as the nominal placed on it confirms
+    judge = None if result.nominal is None else clock_judge(log, result.nominal)
+    log, _, moved = on_one_clock(log, judge)
     seg = segment_log(log, joint_types=list(ex.standard.joint_types))
     if seg.n_joints != ex.standard.n or not seg.has_encoders:
         raise NotScoredError(

@@ -11,19 +11,17 @@ the sweeps, decide the type, fit the axis robustly, bring it to the reference po
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable
 from dataclasses import dataclass, replace
 
 import numpy as np
-import polars as pl
 
 from dhlog.errors import GeometryError, Note
 from dhlog.geometry._checks import FloatArray
 from dhlog.geometry.fitting import fit_plane
 from dhlog.identify.check.permutation import suspected_permutation
+from dhlog.identify.check.plausible import clock_judge
 from dhlog.identify.check.validate import shown_stride
-from dhlog.identify.fit.register import register_nominal
 from dhlog.identify.joints.checks import check_fit_noise, check_sizes, check_units
 from dhlog.identify.joints.sweeps import JointReport, fit_joint, samples_with_encoders
 from dhlog.identify.model.parked import (
@@ -37,7 +35,6 @@ from dhlog.identify.segment.clocks import on_one_clock
 from dhlog.identify.segment.segment import Segmentation, segment_log
 from dhlog.identify.segment.timing import Timing, clock_start, sweep_phases
 from dhlog.identify.stages import Session
-from dhlog.io.dhfile import DHModel
 from dhlog.io.reader import LogData
 
 #: Largest number of samples per joint the per-joint fits (the whole-model fit's start) use.
@@ -58,7 +55,7 @@ class Segmented:
     implausible: tuple[str, ...]
     notes: tuple[Note, ...]
     #: the log as segmented: its joint states moved onto the tracker's clock where they were
-    #: seconds off it (:func:`~dhlog.identify.segment.timing.coarse_offset`), else the log read
+    #: seconds off it (:func:`~dhlog.identify.segment.clocks.coarse_offset`), else the log read
     log: LogData | None = None
 
 
@@ -71,7 +68,7 @@ def segmented(log: LogData, options: ProcessOptions, stage: Stage) -> Segmented:
     if types_hint is None and nominal is not None:
         types_hint = list(nominal.table.joint_types)
     stage("segmenting", 0.0)
-    log, coarse, said = on_one_clock(log, None if nominal is None else _nominal_miss(log, nominal))
+    log, coarse, said = on_one_clock(log, None if nominal is None else clock_judge(log, nominal))
     seg = segment_log(log, joint_types=types_hint, reference_pose=reference_pose)
     n = seg.n_joints
     notes = [*said, *seg.notes]
@@ -106,45 +103,6 @@ def segmented(log: LogData, options: ProcessOptions, stage: Stage) -> Segmented:
         )
         notes.append(Note.info(said_ref, "no-encoders"))
     return Segmented(seg, timing, ref, tuple(implausible), tuple(notes), log)
-
-
-#: Samples the nominal is placed on to judge a clock offset (evenly strided).
-JUDGE_SAMPLES = 400
-
-
-def _nominal_miss(log: LogData, nominal: DHModel) -> Callable[[float], float] | None:
-    """``miss(offset)``: the RMS (m) by which ``nominal``, placed on the log's target samples
-    (at most :data:`JUDGE_SAMPLES`) with the joint states moved by ``offset`` s, misses them;
-    inf where too few samples have joint states or it cannot be placed."""
-    joints, points = log.joints, log.points
-    if joints is None or joints.width - 1 != nominal.table.n:
-        return None
-    if "target" in points.columns:
-        points = points.filter(pl.col("target") == 0)
-    pick = slice(None, None, max(1, -(-points.height // JUDGE_SAMPLES)))
-    t_p = points["t_ns"].to_numpy()[pick].astype(np.float64) * 1e-9
-    P = np.column_stack([points[c].to_numpy()[pick].astype(np.float64) for c in "xyz"])
-    t_j = joints["t_ns"].to_numpy().astype(np.float64) * 1e-9
-    q = [joints[c].to_numpy().astype(np.float64) for c in joints.columns[1:]]
-
-    def miss(offset: float) -> float:
-        Q = np.column_stack([np.interp(t_p - offset, t_j, v, left=np.nan, right=np.nan) for v in q])
-        ok = np.isfinite(Q).all(axis=1)
-        if np.count_nonzero(ok) < 20:
-            return math.inf
-        try:
-            reg = register_nominal(
-                nominal.table,
-                nominal.joint_values(Q[ok]),
-                P[ok],
-                tool_point=nominal.tool_point,
-                T_base=nominal.T_base,
-            )
-        except (GeometryError, np.linalg.LinAlgError):
-            return math.inf
-        return float(reg.rms)
-
-    return miss
 
 
 def session_of(

@@ -217,8 +217,8 @@ def design(
     """The terms of ``families`` (``compliance``, ``harmonic``) for a chain whose axes at the
     reference pose are ``axis_points``/``axis_dirs`` (3,) with its target, in one frame with
     ``gravity``. Compliance: every revolute joint but those along gravity that no joint before
-    can tilt (the first revolute joint along it, and those after it while every revolute axis
-    is along it), with
+    can tilt (the first revolute joint when it is along gravity, and each later one while every
+    revolute axis up to it is), with
     a lump on each later axis (its foot on the axis before; for parallel neighbours the foot of
     the previous lump) and at the target, none on the joint's own axis (no lever about it);
     harmonics on ``harmonic_joints`` (0-based; default every revolute joint). With the links'

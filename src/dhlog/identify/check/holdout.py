@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import NDArray
@@ -207,8 +207,8 @@ def cross_validate(
         start = starts[k] if k < len(starts) else whole.model
         fit = fit_whole_model(start, data.kept(train), options)
         if start is not whole.model and fit.chi2_dof > BROKEN_FIT * whole.chi2_dof:
-            # the fold's own choice did not converge: the session's model fitted to the fold
-            again = fit_whole_model(whole.model, data.kept(train), options)
+            # the fold's own choice did not converge: the geometry alone fitted to the fold
+            again = fit_whole_model(replace(whole.model, terms=None), data.kept(train), options)
             if again.chi2_dof < fit.chi2_dof:
                 refitted.append((k, fit.chi2_dof, again.chi2_dof))
                 fit = again
@@ -236,8 +236,10 @@ def cross_validate(
         notes = (
             *notes,
             f"the fit of {len(refitted)} fold(s) from the model its own training poses chose "
-            f"did not converge ({BROKEN_FIT:g}× the session's χ²/dof {whole.chi2_dof:.3g} or "
-            f"more); the session's own model was fitted to it instead ({said}).",
+            f"did not converge, or fits its training poses {BROKEN_FIT:g}× worse than the "
+            f"session's model does (χ²/dof {whole.chi2_dof:.3g}); the geometry alone was fitted "
+            f"to it instead ({said}), so for those folds the figure is not quite the whole "
+            "procedure's.",
         )
     return Holdout(
         kind="cross-validation",

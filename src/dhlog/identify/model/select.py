@@ -66,10 +66,11 @@ MODELS = {
 #: Why a family that adds no term on the robot is not taken, by family.
 NO_TERM = {
     "compliance": (
-        "adds no term: every revolute axis stays along gravity, which exerts no torque "
-        "about it (a SCARA, a rotary table)"
+        "adds no term: every revolute axis stays along gravity (as assumed: along the first "
+        "revolute axis unless --gravity says), which exerts no torque about it (a SCARA, a "
+        "rotary table)"
     ),
-    "harmonic": "adds no term: no revolute joint carries one (prismatic or parked joints)",
+    "harmonic": "adds no term: no revolute joint carries one",
 }
 #: Most samples the candidates are fitted and scored on (evenly strided).
 SELECT_SAMPLES = 5000

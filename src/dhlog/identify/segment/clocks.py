@@ -29,12 +29,14 @@ COARSE_STEP = 0.01
 COARSE_HALF = 0.05
 #: Steps of the running median the target's positions go through (its gross outliers out).
 COARSE_MEDIAN = 5
-#: The largest offset looked for (s), and at most this share of the span both streams cover;
+#: The largest offset looked for (s), and at most this share of the span either stream covers;
 #: an offset is judged where the streams, moved by it, overlap in COARSE_OVERLAP of the
 #: steps the shorter one is known at.
 COARSE_RANGE = 60.0
-#: The first seconds of the target's samples (and the joint states around them) matched.
+#: The seconds of the target's samples matched (and the joint states around them), from
+#: COARSE_RANGE before the joints first move by COARSE_FIRST (rad or m).
 COARSE_WINDOW = 300.0
+COARSE_FIRST = 1e-2
 COARSE_SHARE = 0.5
 COARSE_OVERLAP = 0.8
 #: The streams' motion must agree this well at the offset found (a correlation), and better by
@@ -75,12 +77,15 @@ def on_one_clock(
     def moved(frame: pl.DataFrame | None) -> pl.DataFrame | None:
         return None if frame is None else frame.with_columns(pl.col("t_ns") + step)
 
+    given = log.pipeline.segmentation.clock_offset
     said = (
-        f"the joint states' stamps are {found:+.2f} s off the tracker's (where each stream "
-        "moves, matched over the session; a step-and-measure tracker's silences are the "
-        "moves): they were moved by that before the sweeps were found (the Clock line gives "
-        "the offset used); a clock this far apart — two computers without a common time — is "
-        "better fixed at the source, or given as [segmentation] clock_offset."
+        f"the joint states' stamps ran {abs(found):.2f} s "
+        f"{'behind' if found > 0 else 'ahead of'} the tracker's clock (where each stream moves, "
+        "matched from the joints' first move; a step-and-measure tracker's silences are the "
+        f"moves): {found:+.2f} s were added to them before the sweeps were found (the Clock "
+        "line gives the offset used). A clock this far apart — two computers without a common "
+        "time — is better fixed at the source, or given as [segmentation] clock_offset = "
+        f"{given + found:.2f}."
     )
     joined = replace(log, joints=moved(log.joints), commanded=moved(log.commanded))
     return joined, found, (Note.info(said, "clock-coarse"),)
@@ -106,22 +111,35 @@ def coarse_offset(log: LogData, judge: Callable[[float], float] | None = None) -
     joints, points = log.joints, log.points
     if joints is None or joints.height < 4 or points.height < 4:
         return None
+    # the tracker's silences from every target's stamps (reflectors measured in turn); the
+    # positions from the first target's
+    every = points["t_ns"].to_numpy()
     if "target" in points.columns:
         points = points.filter(pl.col("target") == 0)
-    # the session's first COARSE_WINDOW s tell the offset as well as the whole
-    ns = points["t_ns"].to_numpy()
-    points = points.head(int(np.searchsorted(ns, ns[0] + round(COARSE_WINDOW * 1e9))))
-    ns_j = joints["t_ns"].to_numpy()
-    reach_ns = round(COARSE_RANGE * 1e9)
-    a, b = np.searchsorted(ns_j, [ns[0] - reach_ns, ns[points.height - 1] + reach_ns])
-    joints = joints.slice(int(a), int(b - a))
-    if joints.height < 4 or points.height < 4:
+    if points.height < 4:
         return None
-    t_p = points["t_ns"].to_numpy() * 1e-9
+    # COARSE_WINDOW s from where the joints first move (less the range looked over) tell the
+    # offset as well as the whole session: its idle start (set-up, a tracker started early)
+    # tells nothing
+    ns, ns_j = points["t_ns"].to_numpy(), joints["t_ns"].to_numpy()
+    reach_ns = round(COARSE_RANGE * 1e9)
+    start = max(int(ns[0]), first_move(joints) - reach_ns)
+    a, b = np.searchsorted(ns, [start, start + round(COARSE_WINDOW * 1e9)])
+    points = points.slice(int(a), int(b - a))
+    if points.height < 4:
+        return None
+    ns = points["t_ns"].to_numpy()
+    a, b = np.searchsorted(ns_j, [ns[0] - reach_ns, ns[-1] + reach_ns])
+    joints = joints.slice(int(a), int(b - a))
+    if joints.height < 4:
+        return None
+    a, b = np.searchsorted(every, [ns[0], ns[-1]], side="right")
+    t_p = ns * 1e-9
     t_j = joints["t_ns"].to_numpy() * 1e-9
     lo, hi = min(t_p[0], t_j[0]), max(t_p[-1], t_j[-1])
     span = min(t_p[-1], t_j[-1]) - max(t_p[0], t_j[0])
     gaps = np.diff(t_p)
+    every_t = every[max(int(a) - 1, 0) : int(b)] * 1e-9
     # a step of the grid holds a sample of the target at least, about
     step = max(COARSE_STEP, float(np.median(gaps)))
     if not span > 0.0 or hi - lo > 1e6 or (hi - lo) / step > 1 << 26:
@@ -160,12 +178,11 @@ def coarse_offset(log: LogData, judge: Callable[[float], float] | None = None) -
     # a tracker triggered at the stops (step-and-measure) is silent while the robot moves: its
     # long silences count as motion
     long = max(COARSE_SILENT, 10.0 * float(np.median(gaps)))
-    silent = np.flatnonzero(gaps > long)
     del gaps
-    for start in silent:
-        first = int((t_p[start] - lo) / step) + _half(step) + 1
-        last = int((t_p[start + 1] - lo) / step) - _half(step)
-        moves_t[first:last] = 1.0
+    for k in np.flatnonzero(np.diff(every_t) > long):
+        first = int((every_t[k] - lo) / step) + _half(step) + 1
+        last = int((every_t[k + 1] - lo) / step) - _half(step)
+        moves_t[max(first, 0) : max(last, 0)] = 1.0
     joint = _speed(q, step, each=True)
     moves_j = np.where(np.isfinite(joint), (joint > MOVING_SPEED).astype(np.float64), np.nan)
     if not (_varies(moves_t) and _varies(moves_j)):
@@ -213,9 +230,21 @@ def coarse_offset(log: LogData, judge: Callable[[float], float] | None = None) -
     return None
 
 
+def first_move(joints: pl.DataFrame) -> int:
+    """The stamp (ns) of the first joint state at which a joint has moved from the first by
+    more than :data:`COARSE_FIRST` (rad or m); the last stamp where none has."""
+    t = joints["t_ns"].to_numpy()
+    for c in joints.columns[1:]:
+        q = np.asarray(joints[c].to_numpy(), dtype=np.float64)
+        away = np.flatnonzero(np.abs(q - q[0]) > COARSE_FIRST)
+        if away.size:
+            t = t[: int(away[0]) + 1]
+    return int(t[-1])
+
+
 def _peaks(corr: FloatArray, apart: int) -> list[int]:
-    """The local maxima of ``corr`` (NaN: none there) at least ``apart`` steps from a higher
-    one, highest first."""
+    """The highest values of ``corr`` (NaN: none there), each at least ``apart`` steps from a
+    higher one kept, highest first (at most eight)."""
     order = np.argsort(np.nan_to_num(corr, nan=-np.inf))[::-1]
     taken: list[int] = []
     for k in order.tolist():

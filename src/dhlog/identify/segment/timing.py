@@ -320,7 +320,10 @@ def clock_start(
     if std is None:
         said = Note.info(
             "no sweep moves while the tracker samples it (step-and-measure): a clock offset "
-            "between tracker and joint states has no effect and is not estimated.",
+            "between tracker and joint states has no effect and is not estimated."
+            if not coarse
+            else "no sweep moves while the tracker samples it (step-and-measure): the offset "
+            "is not estimated finer than the match of when each stream moves.",
             "clock-offset",
         )
         timing = Timing(

@@ -54,7 +54,8 @@ def clock_line(result: Identification) -> str:
     if t.coarse:  # matched where each stream moves, then no finer estimate
         return (
             f"joint-state stamps {ms} onto the tracker's clock (matched where each stream "
-            f"moves, to about {COARSE_STEP * 1e3:g} ms; the pipeline's clock_offset: "
+            f"moves, to about a step of {COARSE_STEP * 1e3:g} ms or the tracker's interval; "
+            "the pipeline's clock_offset: "
             f"{t.pipeline * 1e3:+.4f} ms; {why.replace('not estimated', 'not estimated finer')})"
         )
     return f"joint-state stamps {ms} (the pipeline's clock_offset; {why})"
