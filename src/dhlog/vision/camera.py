@@ -358,3 +358,20 @@ def _matrix(fs: cv2.FileStorage, where: str, key: str) -> FloatArray:
             raise CameraError(where, f"{key}.data[{i}]", "is not a number", "write numbers only")
         values.append(float(item.real()))
     return np.asarray(values, dtype=np.float64)
+
+
+def planar_pose(
+    obj: FloatArray, img: FloatArray, K: FloatArray, D: FloatArray
+) -> tuple[FloatArray, FloatArray] | None:
+    """A planar board's pose in the camera from its points ``obj`` (k, 3, m) seen at ``img``
+    (k, 1, 2, px) through ``K``, ``D``: OpenCV's IPPE, refined by Levenberg–Marquardt; the
+    rotation (3×3) and translation (3,), or None where OpenCV finds none."""
+    try:
+        ok, rvec, tvec = cv2.solvePnP(obj, img, K, D, flags=cv2.SOLVEPNP_IPPE)
+        if not ok:
+            return None
+        rvec, tvec = cv2.solvePnPRefineLM(obj, img, K, D, rvec, tvec)
+    except cv2.error:
+        return None
+    R = np.asarray(cv2.Rodrigues(rvec)[0], dtype=np.float64)
+    return R, np.asarray(tvec, dtype=np.float64).ravel()

@@ -23,7 +23,7 @@ from dhlog.identify.fit.prediction import predict as predict_points
 from dhlog.identify.fit.prediction import predict_orientation
 from dhlog.io.pipeline import pipeline_by_name
 from dhlog.io.reader import LogData
-from dhlog.vision.camera import Intrinsics
+from dhlog.vision.camera import Intrinsics, planar_pose
 
 #: the largest PnP reprojection RMS (px) a frame's pose may have to enter the start
 PNP_RMS = 5.0
@@ -62,16 +62,12 @@ def board_poses(obs: Observations, intrinsics: Intrinsics) -> tuple[FloatArray, 
             img = norm
         else:
             K, D, img = intrinsics.K, intrinsics.coefficients, uv
-        try:
-            ok, rvec, tvec = cv2.solvePnP(obj, img, K, D, flags=cv2.SOLVEPNP_IPPE)
-            if not ok:
-                continue
-            rvec, tvec = cv2.solvePnPRefineLM(obj, img, K, D, rvec, tvec)
-        except cv2.error:
+        pose = planar_pose(obj, np.asarray(img, dtype=np.float64), K, D)
+        if pose is None:
             continue
-        R = np.asarray(cv2.Rodrigues(rvec)[0], dtype=np.float64)
-        T[k] = transform(R, np.asarray(tvec, dtype=np.float64).ravel())
-        X = obj @ R.T + tvec.ravel()
+        R, t = pose
+        T[k] = transform(R, t)
+        X = obj @ R.T + t
         pred = intrinsics.project(X)
         rms[k] = float(np.sqrt(np.nanmean(np.sum((pred - obs.uv[k]) ** 2, axis=1))))
     return T, rms

@@ -17,13 +17,12 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
-import cv2
 import numpy as np
 from numpy.typing import NDArray
 
 from dhlog.geometry._checks import FloatArray
 from dhlog.vision.boards import BoardSpec
-from dhlog.vision.camera import Intrinsics
+from dhlog.vision.camera import Intrinsics, planar_pose
 
 #: Frames (those with the most corners) the board is placed in under each reading.
 CHECK_FRAMES = 50
@@ -74,17 +73,11 @@ def board_fits(
     for k, (ids, uv) in enumerate(frames):
         obj = points[ids].astype(np.float64)
         img = np.asarray(uv, dtype=np.float64).reshape(-1, 1, 2)
-        K, D = camera.K, camera.coefficients
-        try:
-            ok, rvec, tvec = cv2.solvePnP(obj, img, K, D, flags=cv2.SOLVEPNP_IPPE)
-            if not ok:
-                continue
-            rvec, tvec = cv2.solvePnPRefineLM(obj, img, K, D, rvec, tvec)
-        except cv2.error:
+        pose = planar_pose(obj, img, camera.K, camera.coefficients)
+        if pose is None:
             continue
-        R = np.asarray(cv2.Rodrigues(rvec)[0], dtype=np.float64)
-        pred = camera.project(obj @ R.T + np.asarray(tvec, dtype=np.float64).ravel())
-        squares[k] = float(np.sum((pred - uv) ** 2))
+        R, t = pose
+        squares[k] = float(np.sum((camera.project(obj @ R.T + t) - uv) ** 2))
     return squares, counts
 
 
