@@ -20,6 +20,7 @@ from dhlog.io.dhfile import DHModel
 from dhlog.io.memory import log_data_from_session
 from dhlog.model.fk import fk_point
 from dhlog.model.robots import load_robot
+from dhlog.result.document import result_document
 from dhlog.simulator.config import SimulationConfig
 from dhlog.simulator.session import simulate_session
 
@@ -79,6 +80,8 @@ def test_joint_states_seconds_off_are_put_on_the_trackers_clock(
     assert "clock-coarse" in {n.code for n in result.notes}
     assert not result.implausible
     assert _fk_error(result, session) < 1.1 * in_time
+    timing = result_document(result)["timing"]  # the part matched, in the JSON
+    assert abs(timing["coarse_offset"] - offset) < 0.02 and timing["source"] == "estimated"
 
 
 def test_a_step_and_measure_tracker_is_matched_by_its_silences() -> None:

@@ -271,6 +271,12 @@ def _measurement(f: FieldReader, doc: dict[str, Any]) -> list[tuple[str, str]]:
         if sd is not None:
             text += f" ± {sd * 1e3:.4f} ms"
         text += f" onto the tracker's clock ({source}" + (f": {reason})" if reason else ")")
+        coarse = f.get_number(timing, "coarse_offset", "timing", required=False)
+        if coarse:
+            text += (
+                f"; {coarse:+.2f} s of it matched by when each stream moves (the joint states' "
+                "clock was seconds off the tracker's)"
+            )
         lines.append(("Clock offset", text))
     base = f.get_obj(doc, "base", required=False)
     if base is not None:
