@@ -10,7 +10,7 @@ than 50 ms from the simulated one; with ``--offset 0``, any move of 0.1 s or mor
 
 2026-12-04, this machine: with the nominal, ``--offset 2``: 132 of 132 found, none wrong;
 ``--offset 0``: none moved. Without it: ``--offset 2`` 28 found (the KR5's and the SCARA's
-sweeps), none wrong; ``--offset 0`` none moved.
+sweeps, mostly), none wrong; ``--offset 0`` none moved.
 """
 
 from __future__ import annotations
