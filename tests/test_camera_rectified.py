@@ -281,7 +281,7 @@ def test_the_readings_are_compared_on_enough_corners_and_not_for_a_fisheye() -> 
         tvec = np.array([-0.1 + 0.02 * k, -0.07, 0.45])
         uv, _ = cv2.projectPoints(obj, rvec, tvec, K, np.zeros(5))
         frames.append((np.arange(obj.shape[0]), uv.reshape(-1, 2)))
-    used, other = Reading(raw, "K and D", False), Reading(rect, "P", True)
+    used, other = Reading(raw, False), Reading(rect, True)
     chosen, said = judged("log", board, frames, used, other, told=False)
     assert chosen is other and said
     kept, warned = judged("log", board, frames, used, other, told=True)
@@ -289,5 +289,5 @@ def test_the_readings_are_compared_on_enough_corners_and_not_for_a_fisheye() -> 
     few = [(ids[:8], uv[:8]) for ids, uv in frames[:3]]
     assert sum(2 * 8 - 6 for _ in few) < MIN_DOF
     assert judged("log", board, few, used, other, told=False) == (used, ())
-    fisheye = Reading(Intrinsics(640, 400, K, "equidistant", np.zeros(4)), "K and D", False)
+    fisheye = Reading(Intrinsics(640, 400, K, "equidistant", np.zeros(4)), False)
     assert judged("log", board, frames, fisheye, other, told=False) == (fisheye, ())

@@ -30,7 +30,6 @@ from dhlog.identify.segment.clocks import COARSE_RANGE, COARSE_WINDOW, first_mov
 from dhlog.io.dhfile import DHModel
 from dhlog.io.logdata import LogData
 from dhlog.model.dh import StandardDH
-from dhlog.model.fk import fk_point
 
 #: The FK check is implausible beyond this many times the noise's 3-D RMS (√3 σ) ...
 FAR_NOISE = 10.0
@@ -293,10 +292,7 @@ def clock_judge(log: LogData, nominal: DHModel) -> Callable[[float], float] | No
             )
         except (GeometryError, np.linalg.LinAlgError):
             return math.inf
-        d = np.linalg.norm(
-            fk_point(nominal.table, table_q, reg.tool_point, T_base=reg.T_measurement_base) - P[ok],
-            axis=1,
-        )
+        d = np.asarray(reg.residuals, dtype=np.float64)  # every sample's, inliers or not
         kept = np.sort(d)[: max(1, round((1.0 - JUDGE_TRIM) * d.size))]
         return float(np.sqrt(np.mean(kept**2)))
 

@@ -279,11 +279,7 @@ def readings(
             other = _projection(first, where)
     except (VisionLogError, CameraError):
         return None
-    projection, lens = "the camera info's P (no distortion)", "the camera info's K and D"
-    return (
-        Reading(used, projection if rectified else lens, rectified),
-        Reading(other, lens if rectified else projection, not rectified),
-    )
+    return Reading(used, rectified), Reading(other, not rectified)
 
 
 def rectified_topic(topic: str) -> bool:

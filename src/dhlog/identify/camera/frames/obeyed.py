@@ -45,12 +45,15 @@ Corners = tuple[NDArray[np.int64], NDArray[np.float64]]
 
 @dataclass(frozen=True)
 class Reading:
-    """One reading of the camera info: its intrinsics, where they come from, and whether it is
-    the rectified images' (``P``, no distortion)."""
+    """One reading of the camera info: its intrinsics, and whether it is the rectified
+    images' (``P``, no distortion) or the raw images' (``K`` and ``D``)."""
 
     intrinsics: Intrinsics
-    source: str
     rectified: bool
+
+    @property
+    def source(self) -> str:
+        return f"the camera info's {self.short}"
 
     @property
     def short(self) -> str:
