@@ -19,7 +19,7 @@ import argparse
 import itertools
 import math
 
-from dhlog.identify.check.plausible import clock_judge
+from dhlog.identify.fit.register import clock_judge
 from dhlog.identify.segment.clocks import COARSE_BELOW, coarse_offset
 from dhlog.io.dhfile import DHModel
 from dhlog.io.memory import log_data_from_session

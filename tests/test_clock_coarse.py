@@ -13,7 +13,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from dhlog.identify.check.plausible import clock_judge
+from dhlog.identify.fit.register import clock_judge
 from dhlog.identify.run import ProcessOptions, process_data
 from dhlog.identify.segment.clocks import coarse_offset
 from dhlog.io.dhfile import DHModel

@@ -27,8 +27,9 @@ from dhlog.identify.check.footing import (
 )
 from dhlog.identify.check.holdout import Holdout
 from dhlog.identify.check.named import pose_names, sample_names
-from dhlog.identify.check.plausible import clock_judge, inlier_picks
+from dhlog.identify.check.plausible import inlier_picks
 from dhlog.identify.fit.placement import Stand
+from dhlog.identify.fit.register import clock_judge
 from dhlog.identify.fit.samples import measured_rotations
 from dhlog.identify.joints.sweeps import samples_with_encoders, target_labels
 from dhlog.identify.segment.clocks import on_one_clock

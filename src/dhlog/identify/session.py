@@ -20,8 +20,8 @@ from dhlog.errors import GeometryError, Note
 from dhlog.geometry._checks import FloatArray
 from dhlog.geometry.fitting import fit_plane
 from dhlog.identify.check.permutation import suspected_permutation
-from dhlog.identify.check.plausible import clock_judge
 from dhlog.identify.check.validate import shown_stride
+from dhlog.identify.fit.register import clock_judge
 from dhlog.identify.joints.checks import check_fit_noise, check_sizes, check_units
 from dhlog.identify.joints.sweeps import JointReport, fit_joint, samples_with_encoders
 from dhlog.identify.model.parked import (

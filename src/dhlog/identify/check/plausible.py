@@ -14,21 +14,17 @@ than the nominal does — and by far more than the noise — was fitted to input
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
 from dataclasses import replace
 from typing import Any
 
 import numpy as np
-import polars as pl
 from numpy.typing import NDArray
 
 from dhlog.errors import GeometryError, Note
 from dhlog.identify.fit.register import register_nominal
 from dhlog.identify.joints.checks import FIT_SLIP, LIKELY_SLIPS, MODEL_ERROR_SLIP, NOMINAL_SLIP
 from dhlog.identify.joints.sweeps import samples_with_encoders, target_labels
-from dhlog.identify.segment.clocks import COARSE_RANGE, COARSE_WINDOW, first_move
 from dhlog.io.dhfile import DHModel
-from dhlog.io.logdata import LogData
 from dhlog.model.dh import StandardDH
 
 #: The FK check is implausible beyond this many times the noise's 3-D RMS (√3 σ) ...
@@ -240,60 +236,3 @@ def judge(result: Any) -> Any:
     slips = slip_notes(miss, val.rms, result.noise.model_error, bool(implausible))
     told = tuple(Note.warning(slip, "input-slip") for slip in slips)
     return replace(result, implausible=tuple(implausible), notes=(*result.notes, *told))
-
-
-#: Samples the nominal is placed on to judge a clock offset (evenly strided).
-JUDGE_SAMPLES = 400
-#: The share of those samples the judge's miss leaves out, the worst (the tracker's gross
-#: outliers); the rest, misjoined samples among them, all count.
-JUDGE_TRIM = 0.1
-
-
-def clock_judge(log: LogData, nominal: DHModel) -> Callable[[float], float] | None:
-    """``miss(offset)``: with the joint states moved by ``offset`` s, ``nominal`` placed on the
-    log's first target's samples (at most :data:`JUDGE_SAMPLES`) and the RMS (m) by which it
-    misses them, every sample counted but the worst :data:`JUDGE_TRIM` (the placement's own
-    RMS is over its inliers, and a wrong offset makes outliers of the samples it misjoins);
-    inf where too few samples have joint states or it cannot be placed. None where the log's
-    joints are not the nominal's."""
-    joints, points = log.joints, log.points
-    if joints is None or joints.width - 1 != nominal.table.n:
-        return None
-    if "target" in points.columns:
-        points = points.filter(pl.col("target") == 0)
-    # the samples the match reads: from where the joints first move (an idle start misjoins
-    # nothing and would outvote the samples that tell the offset)
-    ns = points["t_ns"].to_numpy()
-    start = first_move(joints) - round(COARSE_RANGE * 1e9)
-    a, b = np.searchsorted(ns, [start, start + round((COARSE_WINDOW + COARSE_RANGE) * 1e9)])
-    points = points.slice(int(a), int(b - a))
-    if points.height < 20:
-        return None
-    pick = slice(None, None, max(1, -(-points.height // JUDGE_SAMPLES)))
-    t_p = np.asarray(points["t_ns"].to_numpy()[pick], dtype=np.float64) * 1e-9
-    P = np.column_stack([np.asarray(points[c].to_numpy()[pick], np.float64) for c in "xyz"])
-    stream = joints  # its columns read when first judged: an offset found, or in doubt
-
-    def miss(offset: float) -> float:
-        t_j = stream["t_ns"].to_numpy() * 1e-9
-        Q = np.column_stack(
-            [
-                np.interp(t_p - offset, t_j, stream[c].to_numpy(), left=np.nan, right=np.nan)
-                for c in stream.columns[1:]
-            ]
-        )
-        ok = np.isfinite(Q).all(axis=1)
-        if np.count_nonzero(ok) < 20:
-            return math.inf
-        table_q = nominal.joint_values(Q[ok])
-        try:
-            reg = register_nominal(
-                nominal.table, table_q, P[ok], tool_point=nominal.tool_point, T_base=nominal.T_base
-            )
-        except (GeometryError, np.linalg.LinAlgError):
-            return math.inf
-        d = np.asarray(reg.residuals, dtype=np.float64)  # every sample's, inliers or not
-        kept = np.sort(d)[: max(1, round((1.0 - JUDGE_TRIM) * d.size))]
-        return float(np.sqrt(np.mean(kept**2)))
-
-    return miss

@@ -13,12 +13,14 @@ Pure numpy/scipy.
 
 from __future__ import annotations
 
+import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
 
-from dhlog.errors import DegenerateGeometryError
+from dhlog.errors import DegenerateGeometryError, GeometryError
 from dhlog.geometry._checks import FloatArray
 from dhlog.identify.fit.placement import (
     OUTLIER_SCALE,
@@ -27,6 +29,9 @@ from dhlog.identify.fit.placement import (
     Stand,
     place_on,
 )
+from dhlog.identify.segment.clocks import matched_points
+from dhlog.io.dhfile import DHModel
+from dhlog.io.logdata import LogData
 from dhlog.model.dh import StandardDH
 from dhlog.model.fk import fk_frames
 
@@ -85,3 +90,52 @@ def register_nominal(
     T = np.eye(4) if T_base is None else np.asarray(T_base, dtype=np.float64)
     got = place_on(R_last, p_last, P, stand=Stand(T, tool), point=fit_tool)
     return Registration(got.T, got.tool, got.residuals, got.inliers, got.rms)
+
+
+#: Samples the nominal is placed on to judge a clock offset (evenly strided).
+JUDGE_SAMPLES = 400
+#: The share of those samples the judge's miss leaves out, the worst (the tracker's gross
+#: outliers); the rest, misjoined samples among them, all count.
+JUDGE_TRIM = 0.1
+
+
+def clock_judge(log: LogData, nominal: DHModel) -> Callable[[float], float] | None:
+    """``miss(offset)``: with the joint states moved by ``offset`` s, ``nominal`` placed on the
+    log's first target's samples (at most :data:`JUDGE_SAMPLES`) and the RMS (m) by which it
+    misses them, every sample counted but the worst :data:`JUDGE_TRIM` (the placement's own
+    RMS is over its inliers, and a wrong offset makes outliers of the samples it misjoins);
+    inf where too few samples have joint states or it cannot be placed. None where the log's
+    joints are not the nominal's."""
+    joints, points = log.joints, matched_points(log)  # the samples the match reads
+    if joints is None or joints.width - 1 != nominal.table.n or points is None:
+        return None
+    if points.height < 20:
+        return None
+    pick = slice(None, None, max(1, -(-points.height // JUDGE_SAMPLES)))
+    t_p = np.asarray(points["t_ns"].to_numpy()[pick], dtype=np.float64) * 1e-9
+    P = np.column_stack([np.asarray(points[c].to_numpy()[pick], np.float64) for c in "xyz"])
+    stream = joints  # its columns read when first judged: an offset found, or in doubt
+
+    def miss(offset: float) -> float:
+        t_j = stream["t_ns"].to_numpy() * 1e-9
+        Q = np.column_stack(
+            [
+                np.interp(t_p - offset, t_j, stream[c].to_numpy(), left=np.nan, right=np.nan)
+                for c in stream.columns[1:]
+            ]
+        )
+        ok = np.isfinite(Q).all(axis=1)
+        if np.count_nonzero(ok) < 20:
+            return math.inf
+        table_q = nominal.joint_values(Q[ok])
+        try:
+            reg = register_nominal(
+                nominal.table, table_q, P[ok], tool_point=nominal.tool_point, T_base=nominal.T_base
+            )
+        except (GeometryError, np.linalg.LinAlgError):
+            return math.inf
+        d = np.asarray(reg.residuals, dtype=np.float64)  # every sample's, inliers or not
+        kept = np.sort(d)[: max(1, round((1.0 - JUDGE_TRIM) * d.size))]
+        return float(np.sqrt(np.mean(kept**2)))
+
+    return miss

@@ -108,27 +108,14 @@ def coarse_offset(log: LogData, judge: Callable[[float], float] | None = None) -
     — a tracker's computer and the robot's without a common time — leaves the fine estimate's
     linear model (:mod:`dhlog.identify.segment.timing`) far behind: sweeps labelled with
     another joint's samples."""
-    joints, points = log.joints, log.points
-    if joints is None or joints.height < 4 or points.height < 4:
+    joints = log.joints
+    points = matched_points(log)
+    if joints is None or joints.height < 4 or points is None or points.height < 4:
         return None
-    # the tracker's silences from every target's stamps (reflectors measured in turn); the
-    # positions from the first target's
-    every = points["t_ns"].to_numpy()
-    if "target" in points.columns:
-        points = points.filter(pl.col("target") == 0)
-    if points.height < 4:
-        return None
-    # COARSE_WINDOW s from where the joints first move (less the range looked over) tell the
-    # offset as well as the whole session: its idle start (set-up, a tracker started early)
-    # tells nothing
+    # the tracker's silences from every target's stamps (reflectors measured in turn)
+    every = log.points["t_ns"].to_numpy()
     ns, ns_j = points["t_ns"].to_numpy(), joints["t_ns"].to_numpy()
     reach_ns = round(COARSE_RANGE * 1e9)
-    start = max(int(ns[0]), first_move(joints) - reach_ns)
-    a, b = np.searchsorted(ns, [start, start + round(COARSE_WINDOW * 1e9)])
-    points = points.slice(int(a), int(b - a))
-    if points.height < 4:
-        return None
-    ns = points["t_ns"].to_numpy()
     a, b = np.searchsorted(ns_j, [ns[0] - reach_ns, ns[-1] + reach_ns])
     joints = joints.slice(int(a), int(b - a))
     if joints.height < 4:
@@ -228,6 +215,24 @@ def coarse_offset(log: LogData, judge: Callable[[float], float] | None = None) -
     if math.isfinite(moved) and math.isfinite(kept) and moved * COARSE_CLEARER <= kept:
         return found
     return None
+
+
+def matched_points(log: LogData) -> pl.DataFrame | None:
+    """The first target's samples the match reads: :data:`COARSE_WINDOW` s from
+    :data:`COARSE_RANGE` before the joints first move (an idle start — set-up, a tracker started
+    early — tells nothing, and would outvote the samples that do); None without joint states or
+    a first target's samples."""
+    joints, points = log.joints, log.points
+    if joints is None or joints.height < 2:
+        return None
+    if "target" in points.columns:
+        points = points.filter(pl.col("target") == 0)
+    if points.height == 0:
+        return None
+    ns = points["t_ns"].to_numpy()
+    start = max(int(ns[0]), first_move(joints) - round(COARSE_RANGE * 1e9))
+    a, b = np.searchsorted(ns, [start, start + round(COARSE_WINDOW * 1e9)])
+    return points.slice(int(a), int(b - a))
 
 
 def first_move(joints: pl.DataFrame) -> int:
