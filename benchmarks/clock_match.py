@@ -19,7 +19,7 @@ import argparse
 import itertools
 import math
 
-from dhlog.identify.fit.register import clock_judge
+from dhlog.identify.fit.register import nominal_judge
 from dhlog.identify.segment.clocks import COARSE_BELOW, coarse_offset
 from dhlog.io.dhfile import DHModel
 from dhlog.io.memory import log_data_from_session
@@ -59,7 +59,7 @@ def main() -> None:
             **({"poses": 30} if protocol == "random-poses" else {}),  # type: ignore[arg-type]
         )
         log = log_data_from_session(simulate_session(robot, cfg))
-        found = coarse_offset(log, None if args.without_nominal else clock_judge(log, nominal))
+        found = coarse_offset(log, None if args.without_nominal else nominal_judge(log, nominal))
         total += 1
         if found is None or abs(found) < COARSE_BELOW:
             continue

@@ -13,7 +13,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from dhlog.identify.fit.register import clock_judge
+from dhlog.identify.fit.register import nominal_judge
 from dhlog.identify.run import ProcessOptions, process_data
 from dhlog.identify.segment.clocks import coarse_offset
 from dhlog.io.dhfile import DHModel
@@ -94,7 +94,7 @@ def test_a_step_and_measure_tracker_is_matched_by_its_silences() -> None:
     log = log_data_from_session(late)
     # without the nominal nothing confirms the match (the tracker is silent on the sweeps)
     assert coarse_offset(log) is None
-    found = coarse_offset(log, clock_judge(log, NOMINAL))
+    found = coarse_offset(log, nominal_judge(log, NOMINAL))
     assert found is not None and abs(found - 2.0) < 0.02
     results = [
         process_data(log_data_from_session(s), ProcessOptions(nominal=NOMINAL))
@@ -137,5 +137,5 @@ def test_an_idle_start_does_not_hide_the_offset() -> None:
     points = pl.concat([before_p.cast(log.points.schema), log.points])
     joints = pl.concat([before_j.cast(log.joints.schema), log.joints])
     late = replace(log, points=points, joints=joints)
-    found = coarse_offset(late, clock_judge(late, NOMINAL))
+    found = coarse_offset(late, nominal_judge(late, NOMINAL))
     assert found is not None and abs(found - 2.0) < 0.02

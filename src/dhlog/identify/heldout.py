@@ -10,11 +10,13 @@ warning; one that cannot be placed or read makes the result implausible.
 from __future__ import annotations
 
 import functools
+import math
 from collections.abc import Callable
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
+from numpy.typing import NDArray
 
 from dhlog.errors import DhlogError, GeometryError, Note
 from dhlog.identify.check.footing import (
@@ -32,11 +34,15 @@ from dhlog.identify.fit.placement import Stand
 from dhlog.identify.fit.register import clock_judge
 from dhlog.identify.fit.samples import measured_rotations
 from dhlog.identify.joints.sweeps import samples_with_encoders, target_labels
-from dhlog.identify.segment.clocks import on_one_clock
-from dhlog.identify.segment.segment import segment_log
+from dhlog.identify.segment.clocks import nearest_offset, on_one_clock, shifted
+from dhlog.identify.segment.persample import blocks
+from dhlog.identify.segment.segment import Segmentation, segment_log
+from dhlog.identify.segment.timing import MOVING_SPEED, STEP_FRACTION, JointRates
 from dhlog.identify.stages import Identification, table_values
+from dhlog.io.logdata import LogData
 from dhlog.io.pipeline import Pipeline
 from dhlog.io.reader import read_log
+from dhlog.model.dh import StandardDH
 
 #: Largest number of the session's samples the nominal is placed on.
 NOMINAL_SAMPLES = 20000
@@ -125,48 +131,137 @@ def _validate_log(
         if named and result.nominal is not None
         else f"{result.path} (the calibrated log)",
     )
-    # its joint states seconds off the tracker's: moved, as the nominal placed on it confirms
-    judge = None if result.nominal is None else clock_judge(log, result.nominal)
-    log, _, moved = on_one_clock(log, judge)
-    seg = segment_log(log, joint_types=list(ex.standard.joint_types))
-    if seg.n_joints != ex.standard.n or not seg.has_encoders:
-        raise NotScoredError(
-            f"{path}: has {seg.n_joints} joints{'' if seg.has_encoders else ' and no encoders'}; "
-            f"--validate needs a log of the same robot ({ex.standard.n} joints) with encoder "
-            "values.",
-            unplaced=True,
-        )
+    calibrated = Placed(
+        ex.standard, Stand(ex.T_measurement_base, ex.tool_point, result.tool_orientation)
+    )
+    # its joint states on a clock of their own (another session): moved, as the calibrated
+    # model placed on its samples confirms
+    judge = clock_judge(log, ex.standard, functools.partial(table_values, result), calibrated.stand)
+    log, coarse, moved = on_one_clock(log, judge)
+    seg = _segmented(log, path, ex.standard)
     rows, Qs, Ps = samples_with_encoders(seg)
+    clock = _own_clock(log, seg, rows, judge, coarse)
+    if clock.offset != coarse:  # joined again where its clock puts the joint states
+        seg = _segmented(shifted(log, clock.offset - coarse), path, ex.standard)
+        rows, Qs, Ps = samples_with_encoders(seg)
     which = target_labels(seg, rows)
+    kept = np.ones(rows.size, dtype=bool) if which is None else which == 0
+    if clock.moving is not None:  # a static-pose log: scored at its stops
+        kept &= ~clock.moving
     rotations = measured_rotations(seg, rows)
-    primary = slice(None) if which is None else which == 0
-    Q, P = Qs[primary], Ps[primary]  # a session scored: its own poses, whole
+    Q, P = Qs[kept], Ps[kept]  # a session scored: its own poses, whole
     nominal = result.nominal
     own = [result.validation.rms] if result.validation is not None else []
     own += [h.calibrated.rms for h in result.holdout if h.kind == "cross-validation"]
     samples = LogSamples(
         Q,
         P,
-        rotations=None if rotations is None else rotations[primary],
+        rotations=None if rotations is None else rotations[kept],
         table_values=table_values(result, Q),
         nominal_values=None if nominal is None else nominal.joint_values(Q),
     )
     check = score_poses(
-        Placed(ex.standard, Stand(ex.T_measurement_base, ex.tool_point, result.tool_orientation)),
+        calibrated,
         samples,
         path=str(path),
         nominal=placed()[0],
         own_error=max(own) if own else None,
     )
-    if moved:
-        check = replace(check, notes=(*check.notes, *(note.text for note in moved)))
+    check = replace(
+        check,
+        notes=(*check.notes, *(note.text for note in moved), *clock.notes),
+        clock_offset=clock.offset if clock.checked else None,
+        moving_left_out=clock.left_out(which),
+    )
     if log.point_ids is not None:  # the session's held-out poses by the export's ids
-        mine = rows if which is None else rows[primary]
+        mine = rows[kept]
         names = sample_names(np.asarray(seg.column("t_ns", mine), np.int64), mine, log.point_ids)
         check = replace(
             check, pose_names=pose_names(np.asarray(Q), np.asarray(P), names, check.positions)
         )
     return check
+
+
+def _segmented(log: LogData, path: str | Path, table: StandardDH) -> Segmentation:
+    """A held-out log segmented with the calibrated table's joint types; raises
+    :class:`NotScoredError` unless it is the same robot with encoder values."""
+    seg = segment_log(log, joint_types=list(table.joint_types))
+    if seg.n_joints != table.n or not seg.has_encoders:
+        raise NotScoredError(
+            f"{path}: has {seg.n_joints} joints{'' if seg.has_encoders else ' and no encoders'}; "
+            f"--validate needs a log of the same robot ({table.n} joints) with encoder "
+            "values.",
+            unplaced=True,
+        )
+    return seg
+
+
+@dataclass(frozen=True)
+class _OwnClock:
+    """A held-out log's clock as its scoring found it: the ``offset`` (s) added to its joint
+    states' stamps, whether it was ``checked`` against the calibrated model, the samples taken
+    while the joints moved where the log is a static-pose one (``moving``, over the rows with
+    encoder values: left out; None: a moving log, scored whole) and what to say of it."""
+
+    offset: float
+    checked: bool
+    moving: NDArray[np.bool_] | None
+    notes: tuple[str, ...]
+
+    def left_out(self, which: NDArray[np.int64] | None) -> int:
+        """The first target's samples left out as taken while the joints moved."""
+        if self.moving is None:
+            return 0
+        return int(np.count_nonzero(self.moving if which is None else self.moving & (which == 0)))
+
+
+def _own_clock(
+    log: LogData,
+    seg: Segmentation,
+    rows: NDArray[np.intp],
+    judge: Callable[[float], float] | None,
+    coarse: float,
+) -> _OwnClock:
+    """Where a held-out log's joint states join its points. A log taken mostly at stops
+    (fewer than :data:`~dhlog.identify.segment.timing.STEP_FRACTION` of its samples while the
+    joints move) is scored at them: its samples taken in motion are transit, which an offset
+    between the clocks misjoins — left out. A moving log is joined at its own clock offset:
+    the one at which the calibrated model placed on its samples misses them least
+    (:func:`~dhlog.identify.segment.clocks.nearest_offset`), where the pipeline does not fix
+    it."""
+    assert seg.encoders is not None
+    speeds = JointRates(seg.encoders)
+    moving = np.zeros(rows.size, dtype=bool)
+    for sl in blocks(rows.size):
+        moving[sl] = np.max(np.abs(speeds.at(seg.t_ns[rows[sl]])), axis=1) > MOVING_SPEED
+    if np.count_nonzero(moving) < STEP_FRACTION * rows.size:
+        left = int(np.count_nonzero(moving))
+        said = (
+            f"scored at its stops: the {left} sample(s) taken while the joints moved were left "
+            "out (a static-pose log's moves are transit between its poses, and an offset "
+            "between the joint states' clock and the tracker's misjoins them)."
+        )
+        return _OwnClock(coarse, False, moving, (said,) if left else ())
+    if judge is None or log.pipeline.segmentation.clock_offset_fixed:
+        return _OwnClock(coarse, False, None, ())
+    found = nearest_offset(judge, coarse)
+    if found is None:
+        if math.isfinite(judge(coarse)):
+            return _OwnClock(coarse, True, None, ())
+        said = (
+            "its joint states' clock could not be checked against the tracker's (the calibrated "
+            "model cannot be placed on its samples alone: poses on one line?): scored as joined, "
+            "where a clock offset shows as an error along the motion."
+        )
+        return _OwnClock(coarse, False, None, (said,))
+    said = (
+        f"its joint states' stamps ran {abs(found) * 1e3:.3f} ms "
+        f"{'behind' if found > 0 else 'ahead of'} the tracker's clock (a session's clock is its "
+        "own): the offset at which the calibrated model, placed on its samples, misses them "
+        f"least ({judge(coarse) * 1e3:.4f} → {judge(found) * 1e3:.4f} mm RMS), taken out "
+        "before it was scored."
+    )
+    return _OwnClock(found, True, None, (said,))
 
 
 def _nominal_on_session(result: Identification) -> tuple[Placed | None, str | None]:

@@ -21,7 +21,7 @@ from dhlog.geometry._checks import FloatArray
 from dhlog.geometry.fitting import fit_plane
 from dhlog.identify.check.permutation import suspected_permutation
 from dhlog.identify.check.validate import shown_stride
-from dhlog.identify.fit.register import clock_judge
+from dhlog.identify.fit.register import nominal_judge
 from dhlog.identify.joints.checks import check_fit_noise, check_sizes, check_units
 from dhlog.identify.joints.sweeps import JointReport, fit_joint, samples_with_encoders
 from dhlog.identify.model.parked import (
@@ -68,7 +68,7 @@ def segmented(log: LogData, options: ProcessOptions, stage: Stage) -> Segmented:
     if types_hint is None and nominal is not None:
         types_hint = list(nominal.table.joint_types)
     stage("segmenting", 0.0)
-    log, coarse, said = on_one_clock(log, None if nominal is None else clock_judge(log, nominal))
+    log, coarse, said = on_one_clock(log, None if nominal is None else nominal_judge(log, nominal))
     seg = segment_log(log, joint_types=types_hint, reference_pose=reference_pose)
     n = seg.n_joints
     notes = [*said, *seg.notes]

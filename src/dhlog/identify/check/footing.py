@@ -88,15 +88,25 @@ DECISION_POSES = 3000
 class LogHoldout(Holdout):
     """A held-out log's check: beyond :class:`~dhlog.identify.check.holdout.Holdout`'s, whether the
     tool was placed again (``tool_replaced``: the probe was re-mounted) and which components of
-    the errors are scored (``components``: ``"3-D"`` or ``"across the line"``)."""
+    the errors are scored (``components``: ``"3-D"`` or ``"across the line"``), the offset (s)
+    added to its joint states' stamps where its clock was checked (``clock_offset``; None: a
+    static-pose log, scored at its stops, or a clock that could not be checked) and the samples
+    taken while the joints moved that a static-pose log's scoring left out
+    (``moving_left_out``)."""
 
     tool_replaced: bool = False
     components: str = "3-D"
+    clock_offset: float | None = None
+    moving_left_out: int = 0
 
     def document(self) -> dict[str, object]:
         doc = super().document()
         doc["tool_replaced"] = self.tool_replaced
         doc["components"] = self.components
+        if self.clock_offset is not None:
+            doc["clock_offset"] = self.clock_offset
+        if self.moving_left_out:
+            doc["moving_left_out"] = self.moving_left_out
         return doc
 
 
@@ -372,7 +382,7 @@ def score_poses(
     path: str,
     nominal: Placed | None = None,
     own_error: float | None = None,
-) -> Holdout:
+) -> LogHoldout:
     """The calibrated model and the nominal (both as they stand in the calibration session's
     frame: the nominal placed there by :func:`nominal_on_session`) at the poses of another
     session (its ``samples``, the log at ``path``), on one footing (see the module docstring).

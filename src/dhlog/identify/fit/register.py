@@ -99,19 +99,28 @@ JUDGE_SAMPLES = 400
 JUDGE_TRIM = 0.1
 
 
-def clock_judge(log: LogData, nominal: DHModel) -> Callable[[float], float] | None:
-    """``miss(offset)``: with the joint states moved by ``offset`` s, ``nominal`` placed on the
-    log's first target's samples (at most :data:`JUDGE_SAMPLES`) and the RMS (m) by which it
+def clock_judge(
+    log: LogData,
+    table: StandardDH,
+    values: Callable[[FloatArray], FloatArray],
+    stand: Stand,
+    *,
+    samples: int = JUDGE_SAMPLES,
+) -> Callable[[float], float] | None:
+    """``miss(offset)``: with the joint states moved by ``offset`` s, the model — ``table``, its
+    joint values ``values(encoders)``, standing at ``stand`` (a start of the search) — placed
+    on the log's first target's samples (at most ``samples``) and the RMS (m) by which it
     misses them, every sample counted but the worst :data:`JUDGE_TRIM` (the placement's own
     RMS is over its inliers, and a wrong offset makes outliers of the samples it misjoins);
     inf where too few samples have joint states or it cannot be placed. None where the log's
-    joints are not the nominal's."""
+    joints are not the model's. The nominal judges a session's clock, the calibrated model a
+    held-out log's."""
     joints, points = log.joints, matched_points(log)  # the samples the match reads
-    if joints is None or joints.width - 1 != nominal.table.n or points is None:
+    if joints is None or joints.width - 1 != table.n or points is None:
         return None
     if points.height < 20:
         return None
-    pick = slice(None, None, max(1, -(-points.height // JUDGE_SAMPLES)))
+    pick = slice(None, None, max(1, -(-points.height // samples)))
     t_p = np.asarray(points["t_ns"].to_numpy()[pick], dtype=np.float64) * 1e-9
     P = np.column_stack([np.asarray(points[c].to_numpy()[pick], np.float64) for c in "xyz"])
     stream = joints  # its columns read when first judged: an offset found, or in doubt
@@ -127,10 +136,9 @@ def clock_judge(log: LogData, nominal: DHModel) -> Callable[[float], float] | No
         ok = np.isfinite(Q).all(axis=1)
         if np.count_nonzero(ok) < 20:
             return math.inf
-        table_q = nominal.joint_values(Q[ok])
         try:
             reg = register_nominal(
-                nominal.table, table_q, P[ok], tool_point=nominal.tool_point, T_base=nominal.T_base
+                table, values(Q[ok]), P[ok], tool_point=stand.tool, T_base=stand.T
             )
         except (GeometryError, np.linalg.LinAlgError):
             return math.inf
@@ -139,3 +147,10 @@ def clock_judge(log: LogData, nominal: DHModel) -> Callable[[float], float] | No
         return float(np.sqrt(np.mean(kept**2)))
 
     return miss
+
+
+def nominal_judge(log: LogData, nominal: DHModel) -> Callable[[float], float] | None:
+    """:func:`clock_judge` with the nominal as it stands (its base and tool point)."""
+    return clock_judge(
+        log, nominal.table, nominal.joint_values, Stand(nominal.T_base, nominal.tool_point)
+    )

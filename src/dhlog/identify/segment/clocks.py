@@ -17,6 +17,7 @@ from dataclasses import replace
 import numpy as np
 import polars as pl
 from numpy.typing import NDArray
+from scipy.optimize import minimize_scalar
 
 from dhlog.errors import Note
 from dhlog.geometry._checks import FloatArray
@@ -58,6 +59,15 @@ COARSE_CLEARER = 3.0
 #: Offsets found below this (s) are left to the fine estimate (:func:`clock_start`), which
 #: needs no more start than that.
 COARSE_BELOW = 0.1
+#: A held-out log's own offset is looked for within this (s) of where the coarse match left
+#: it (beyond COARSE_BELOW: a sweep's misjoin at its ends, past the linear range), on a grid of
+#: FINE_STEP, to FINE_TOLERANCE, and taken where the model misses the points FINE_CLEARER times
+#: less than there: 0.1 ms misjoins a target moving at 0.2 m/s by 20 µm, which stands out of
+#: a tracker's noise by more than that.
+FINE_REACH = 0.15
+FINE_STEP = 0.03
+FINE_TOLERANCE = 1e-6
+FINE_CLEARER = 1.1
 
 
 def on_one_clock(
@@ -72,11 +82,6 @@ def on_one_clock(
     found = coarse_offset(log, judge)
     if found is None or abs(found) < COARSE_BELOW:
         return log, 0.0, ()
-    step = round(found * 1e9)
-
-    def moved(frame: pl.DataFrame | None) -> pl.DataFrame | None:
-        return None if frame is None else frame.with_columns(pl.col("t_ns") + step)
-
     given = log.pipeline.segmentation.clock_offset
     said = (
         f"the joint states' stamps ran {abs(found):.2f} s "
@@ -87,8 +92,46 @@ def on_one_clock(
         "time — is better fixed at the source, or given as [segmentation] clock_offset = "
         f"{given + found:.2f}."
     )
-    joined = replace(log, joints=moved(log.joints), commanded=moved(log.commanded))
-    return joined, found, (Note.info(said, "clock-coarse"),)
+    return shifted(log, found), found, (Note.info(said, "clock-coarse"),)
+
+
+def shifted(log: LogData, seconds: float) -> LogData:
+    """``log`` with ``seconds`` added to the stamps of its joint states (and commanded
+    joints)."""
+    step = round(seconds * 1e9)
+
+    def moved(frame: pl.DataFrame | None) -> pl.DataFrame | None:
+        return None if frame is None else frame.with_columns(pl.col("t_ns") + step)
+
+    return replace(log, joints=moved(log.joints), commanded=moved(log.commanded))
+
+
+def nearest_offset(miss: Callable[[float], float], around: float = 0.0) -> float | None:
+    """The clock offset (s) within :data:`FINE_REACH` of ``around`` at which ``miss(offset)``
+    — a model's miss of the points joined at it (``fit.register.clock_judge``) — is least:
+    the best of a grid of :data:`FINE_STEP`, refined by Brent's method within a step of it to
+    :data:`FINE_TOLERANCE`; None where it does not miss :data:`FINE_CLEARER` times less than
+    at ``around`` (the log is on one clock as it stands, or the model cannot be placed on its
+    samples). Another session's log, scored by a calibration, has a clock of its own: its
+    offset can be anything the fine estimate of its own session would have found."""
+    grid = around + np.arange(-FINE_REACH, FINE_REACH + FINE_STEP / 2, FINE_STEP)
+    misses = np.array([miss(float(t)) for t in grid])
+    if not np.any(np.isfinite(misses)):
+        return None
+    best = float(grid[int(np.argmin(misses))])
+    found = minimize_scalar(
+        miss,
+        bounds=(best - FINE_STEP, best + FINE_STEP),
+        method="bounded",
+        options={"xatol": FINE_TOLERANCE},
+    )
+    at, there = float(found.x), float(found.fun)
+    if not there <= float(np.min(misses)):
+        at, there = best, float(np.min(misses))
+    kept = miss(around)
+    if math.isfinite(there) and (not math.isfinite(kept) or there * FINE_CLEARER <= kept):
+        return at
+    return None
 
 
 def coarse_offset(log: LogData, judge: Callable[[float], float] | None = None) -> float | None:
