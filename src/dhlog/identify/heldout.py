@@ -17,8 +17,10 @@ from pathlib import Path
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy.ndimage import median_filter
 
 from dhlog.errors import DhlogError, GeometryError, Note
+from dhlog.geometry._checks import FloatArray
 from dhlog.identify.check.footing import (
     LogSamples,
     NotScoredError,
@@ -31,7 +33,7 @@ from dhlog.identify.check.holdout import Holdout
 from dhlog.identify.check.named import pose_names, sample_names
 from dhlog.identify.check.plausible import inlier_picks
 from dhlog.identify.fit.placement import Stand
-from dhlog.identify.fit.register import clock_judge
+from dhlog.identify.fit.register import clock_judge, register_nominal
 from dhlog.identify.fit.samples import measured_rotations
 from dhlog.identify.joints.sweeps import samples_with_encoders, target_labels
 from dhlog.identify.segment.clocks import nearest_offset, on_one_clock, shifted
@@ -43,9 +45,17 @@ from dhlog.io.logdata import LogData
 from dhlog.io.pipeline import Pipeline
 from dhlog.io.reader import read_log
 from dhlog.model.dh import StandardDH
+from dhlog.model.fk import fk_point
 
 #: Largest number of the session's samples the nominal is placed on.
 NOMINAL_SAMPLES = 20000
+#: A held-out sample is a gross outlier where the calibrated model's residual there is off the
+#: running median of GROSS_WINDOW samples around it by more than GROSS_RATIO times the median
+#: such distance (a tracker's noise alone reaches about 4× over thousands of samples).
+GROSS_WINDOW = 5
+GROSS_RATIO = 10.0
+#: ... where each sample of the window is within GROSS_SPAN (rad or m, every joint) of it.
+GROSS_SPAN = 0.05
 
 
 def validated(
@@ -149,6 +159,8 @@ def _validate_log(
     if clock.moving is not None:  # a static-pose log: scored at its stops
         kept &= ~clock.moving
     rotations = measured_rotations(seg, rows)
+    gross = _gross_outliers(result, Qs[kept], Ps[kept])
+    kept[np.flatnonzero(kept)[gross]] = False
     Q, P = Qs[kept], Ps[kept]  # a session scored: its own poses, whole
     nominal = result.nominal
     own = [result.validation.rms] if result.validation is not None else []
@@ -169,9 +181,10 @@ def _validate_log(
     )
     check = replace(
         check,
-        notes=(*check.notes, *(note.text for note in moved), *clock.notes),
+        notes=(*check.notes, *(note.text for note in moved), *clock.notes, *_gross_note(gross)),
         clock_offset=clock.offset if clock.checked else None,
         moving_left_out=clock.left_out(which),
+        outliers_left_out=int(np.count_nonzero(gross)),
     )
     if log.point_ids is not None:  # the session's held-out poses by the export's ids
         mine = rows[kept]
@@ -180,6 +193,52 @@ def _validate_log(
             check, pose_names=pose_names(np.asarray(Q), np.asarray(P), names, check.positions)
         )
     return check
+
+
+def _gross_outliers(result: Identification, Q: FloatArray, P: FloatArray) -> NDArray[np.bool_]:
+    """The gross outliers among a held-out log's samples ``Q``, ``P`` (time order): where the
+    calibrated model's residual, placed on them (robustly: the outliers set aside; as it
+    stands where the flange keeps to one line), is off the running median of its neighbours'
+    (:data:`GROSS_WINDOW` samples) by more than :data:`GROSS_RATIO` times the median such
+    distance. A tracker's gross outlier (a beam break, a stray reflection) is one sample's;
+    the model's errors, a moved tracker's and a re-mounted probe's vary smoothly along the
+    log, so none of them is taken for one; a sample whose neighbours are of other poses
+    (:data:`GROSS_SPAN` away) is not judged."""
+    ex = result.extraction
+    assert ex is not None
+    if P.shape[0] < GROSS_WINDOW:
+        return np.zeros(P.shape[0], dtype=bool)
+    values, P = table_values(result, Q), np.asarray(P, dtype=np.float64)
+    T, tool = ex.T_measurement_base, ex.tool_point
+    try:  # placed robustly on the samples, so a moved tracker's rotation leaves no curvature
+        reg = register_nominal(ex.standard, values, P, tool_point=tool, T_base=T)
+        T, tool = reg.T_measurement_base, reg.tool_point
+    except (GeometryError, np.linalg.LinAlgError):
+        pass  # the flange on one line: as it stands
+    residual = P - fk_point(ex.standard, values, tool, T_base=T)
+    around = median_filter(residual, size=(GROSS_WINDOW, 1), mode="nearest")
+    off = np.linalg.norm(residual - around, axis=1)
+    # only where the neighbours are of one motion: across poses apart (one sample a pose) the
+    # model's own errors jump, and a pose it misses would be taken for an outlier
+    near = np.ones(P.shape[0], dtype=bool)
+    for k in range(1, GROSS_WINDOW // 2 + 1):
+        step = np.max(np.abs(values[k:] - values[:-k]), axis=1) <= GROSS_SPAN
+        near[k:] &= step
+        near[:-k] &= step
+    typical = float(np.median(off[near])) if np.any(near) else 0.0
+    return np.asarray(near & (off > GROSS_RATIO * typical), dtype=bool)
+
+
+def _gross_note(gross: NDArray[np.bool_]) -> tuple[str, ...]:
+    """What a held-out log's scoring says of the gross outliers it left out."""
+    count = int(np.count_nonzero(gross))
+    if not count:
+        return ()
+    return (
+        f"{count} gross outlier(s) of the tracker left out of {gross.size} samples (each off "
+        f"its neighbours along the log by more than {GROSS_RATIO:g}× the median: a beam break "
+        "or a stray reflection, not the robot); both models are scored without them.",
+    )
 
 
 def _segmented(log: LogData, path: str | Path, table: StandardDH) -> Segmentation:

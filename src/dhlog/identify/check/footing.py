@@ -92,12 +92,13 @@ class LogHoldout(Holdout):
     added to its joint states' stamps where its clock was checked (``clock_offset``; None: a
     static-pose log, scored at its stops, or a clock that could not be checked) and the samples
     taken while the joints moved that a static-pose log's scoring left out
-    (``moving_left_out``)."""
+    (``moving_left_out``), and the tracker's gross outliers left out (``outliers_left_out``)."""
 
     tool_replaced: bool = False
     components: str = "3-D"
     clock_offset: float | None = None
     moving_left_out: int = 0
+    outliers_left_out: int = 0
 
     def document(self) -> dict[str, object]:
         doc = super().document()
@@ -107,6 +108,8 @@ class LogHoldout(Holdout):
             doc["clock_offset"] = self.clock_offset
         if self.moving_left_out:
             doc["moving_left_out"] = self.moving_left_out
+        if self.outliers_left_out:
+            doc["outliers_left_out"] = self.outliers_left_out
         return doc
 
 
