@@ -139,3 +139,31 @@ def test_an_idle_start_does_not_hide_the_offset() -> None:
     late = replace(log, points=points, joints=joints)
     found = coarse_offset(late, nominal_judge(late, NOMINAL))
     assert found is not None and abs(found - 2.0) < 0.02
+
+
+def test_a_clock_nothing_confirms_is_named_when_the_run_goes_wrong(tmp_path) -> None:  # type: ignore[no-untyped-def]
+    """A UR5's sweeps are alike in time: 2 s off and without a nominal, nothing tells the
+    offsets the motion matches apart, the log is left as read and joints fail (exit 3) —
+    before with no word of the clock. Now a warning names the offsets the motion lines up
+    at, the one written among them, and the ways to settle it. The same robot in time with
+    a joint skipped (a partial run for another cause) says nothing of the clock."""
+    from dhlog.identify.run import process_log
+    from dhlog.io.writer import write_session
+
+    ur5 = load_robot("ur5")
+    runs = {}
+    for name, more in {"late": {"clock_offset": 2.0}, "skipped": {"skip_joints": (3,)}}.items():
+        cfg = SimulationConfig(
+            perturb_length=5e-4,
+            perturb_angle=math.radians(0.05),
+            seed=13,
+            **more,  # type: ignore[arg-type]
+        )
+        write_session(simulate_session(ur5, cfg), tmp_path / f"{name}.mcap")
+        runs[name] = process_log(tmp_path / f"{name}.mcap", ProcessOptions())
+    late, skipped = runs["late"], runs["skipped"]
+    assert not late.complete and not skipped.complete
+    hints = [n.text for n in late.notes if n.code == "clock-unconfirmed"]
+    assert len(hints) == 1, hints
+    assert "+1.99" in hints[0] or "+2.00" in hints[0], hints
+    assert "clock-unconfirmed" not in {n.code for n in skipped.notes}

@@ -56,6 +56,7 @@ from dhlog.identify.read.analytic import (
 )
 from dhlog.identify.read.extract import Extraction, Tolerances
 from dhlog.identify.read.uncertainty import analytic_uncertainty
+from dhlog.identify.segment.clocks import COARSE_BELOW, motion_lags
 from dhlog.identify.session import Stage, segmented, session_of
 from dhlog.identify.stages import (
     Checks,
@@ -134,6 +135,7 @@ def process_log(
         joint_source="model" if nominal is None else nominal.source,
     )
     result = process_data(log, options, sha256=sha256_of(path), progress=progress)  # 0.03 s/55 MB
+    result = _clock_hint(result, log)
     result = judge(result)  # implausible lengths or FK check (a camera's: in its pixel fit)
     return validated(result, list(validate), pipeline, fast)
 
@@ -152,6 +154,31 @@ def process_poses(
     takes as ``start``."""
     asked = ProcessOptions(nominal=nominal, reference_pose=reference_pose, model=model)
     return process_data(log, asked, sha256=sha256, progress=progress)
+
+
+def _clock_hint(result: Identification, log: LogData) -> Identification:
+    """``result`` with a warning naming the clock as a likely cause where the run went wrong —
+    joints not identified, or a target turning far from once per encoder unit — the joint
+    states were not moved, and the joints' motion and the target's line up only at offsets of
+    :data:`~dhlog.identify.segment.clocks.COARSE_BELOW` or more, which nothing confirmed
+    (without a nominal, sweeps alike in time cannot be told apart)."""
+    timing = result.timing
+    trouble = not result.complete or any(note.code == "encoder-slope" for note in result.notes)
+    if not trouble or log.joints is None or log.pipeline.segmentation.clock_offset_fixed:
+        return result
+    if timing is not None and timing.coarse:
+        return result
+    lags = motion_lags(log)
+    if not lags or any(abs(lag) < COARSE_BELOW for lag in lags):
+        return result
+    said = (
+        "the joints' motion and the target's line up only with the joint states' stamps moved "
+        f"by {', '.join(f'{lag:+.2f}' for lag in lags)} s, which the points could not tell "
+        "apart or confirm: the two clocks may be that far apart (two computers without a common "
+        "time). Give the robot's nominal (--nominal), which tells them apart, or the offset as "
+        "[segmentation] clock_offset, or fix the clocks at the source."
+    )
+    return result.said(Note.warning(said, "clock-unconfirmed"))
 
 
 def process_data(

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 import polars as pl
@@ -151,6 +151,59 @@ def coarse_offset(log: LogData, judge: Callable[[float], float] | None = None) -
     — a tracker's computer and the robot's without a common time — leaves the fine estimate's
     linear model (:mod:`dhlog.identify.segment.timing`) far behind: sweeps labelled with
     another joint's samples."""
+    match = _motion_match(log)
+    if match is None:
+        return None
+    close, joints, t_p, xyz, t_j = match.close, match.joints, match.t_p, match.xyz, match.t_j
+    if len(close) == 1 and abs(close[0]) < COARSE_BELOW:
+        return close[0]
+    # what the points say of an offset: the nominal placed on them (m), else the single-joint
+    # sweeps' points off their curves; None where neither can
+    said: dict[float, float] = {}
+    sweeps = [] if judge is not None else _single_joint_moves(joints, t_j)
+
+    def scored(lag: float) -> float:
+        if lag not in said:
+            said[lag] = judge(lag) if judge is not None else _arc_misfit(t_p, xyz, t_j, sweeps, lag)
+        return said[lag]
+
+    score = scored if judge is not None or sweeps else None
+    if len(close) > 1:  # a motion of even sweeps cannot tell these apart (a sweep's time off)
+        if score is None:
+            return None
+        misfit = [score(lag) for lag in close]
+        order = np.argsort(misfit)
+        if not misfit[order[0]] * COARSE_CLEARER <= misfit[order[1]]:
+            return None
+        close = [close[int(order[0])]]
+    found = close[0]
+    if abs(found) < COARSE_BELOW:
+        return found
+    # a move is taken only where the points say it is better than none: the motion alone has
+    # matched a coupled session's stops ten seconds off
+    if score is None:
+        return None
+    moved, kept = score(found), score(0.0)
+    if math.isfinite(moved) and math.isfinite(kept) and moved * COARSE_CLEARER <= kept:
+        return found
+    return None
+
+
+@dataclass(frozen=True)
+class _Match:
+    """The offsets (s) at which the two streams' motion agrees within :data:`COARSE_MARGIN` of
+    the best (the best first), and what the points' judgement of them reads: the joint states
+    around the matched samples, the samples' times (s) and positions, the joints' times (s)."""
+
+    close: list[float]
+    joints: pl.DataFrame
+    t_p: FloatArray
+    xyz: list[FloatArray]
+    t_j: FloatArray
+
+
+def _motion_match(log: LogData) -> _Match | None:
+    """:func:`coarse_offset`'s match of the streams' motion, before the points judge it."""
     joints = log.joints
     points = matched_points(log)
     if joints is None or joints.height < 4 or points is None or points.height < 4:
@@ -226,38 +279,16 @@ def coarse_offset(log: LogData, judge: Callable[[float], float] | None = None) -
     if not peaks or corr[peaks[0]] < COARSE_AGREE:
         return None
     close = [float(lags[k]) for k in peaks if corr[k] >= corr[peaks[0]] - COARSE_MARGIN]
-    if len(close) == 1 and abs(close[0]) < COARSE_BELOW:
-        return close[0]
-    # what the points say of an offset: the nominal placed on them (m), else the single-joint
-    # sweeps' points off their curves; None where neither can
-    said: dict[float, float] = {}
-    sweeps = [] if judge is not None else _single_joint_moves(joints, t_j)
+    return _Match(close, joints, t_p, xyz, t_j)
 
-    def scored(lag: float) -> float:
-        if lag not in said:
-            said[lag] = judge(lag) if judge is not None else _arc_misfit(t_p, xyz, t_j, sweeps, lag)
-        return said[lag]
 
-    score = scored if judge is not None or sweeps else None
-    if len(close) > 1:  # a motion of even sweeps cannot tell these apart (a sweep's time off)
-        if score is None:
-            return None
-        misfit = [score(lag) for lag in close]
-        order = np.argsort(misfit)
-        if not misfit[order[0]] * COARSE_CLEARER <= misfit[order[1]]:
-            return None
-        close = [close[int(order[0])]]
-    found = close[0]
-    if abs(found) < COARSE_BELOW:
-        return found
-    # a move is taken only where the points say it is better than none: the motion alone has
-    # matched a coupled session's stops ten seconds off
-    if score is None:
-        return None
-    moved, kept = score(found), score(0.0)
-    if math.isfinite(moved) and math.isfinite(kept) and moved * COARSE_CLEARER <= kept:
-        return found
-    return None
+def motion_lags(log: LogData) -> list[float]:
+    """The offsets (s) at which the joints' motion and the target's line up within
+    :data:`COARSE_MARGIN` of the best, confirmed or not (:func:`coarse_offset` takes one only
+    where the points confirm it), the best first: what a run that went wrong can name as a
+    likely cause. Empty where the motion does not line up."""
+    match = _motion_match(log)
+    return [] if match is None else match.close
 
 
 def matched_points(log: LogData) -> pl.DataFrame | None:
