@@ -17,7 +17,6 @@ from pathlib import Path
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.ndimage import median_filter
 
 from dhlog.errors import DhlogError, GeometryError, Note
 from dhlog.geometry._checks import FloatArray
@@ -204,6 +203,8 @@ def _gross_outliers(result: Identification, Q: FloatArray, P: FloatArray) -> NDA
     the model's errors, a moved tracker's and a re-mounted probe's vary smoothly along the
     log, so none of them is taken for one; a sample whose neighbours are of other poses
     (:data:`GROSS_SPAN` away) is not judged."""
+    from scipy.ndimage import median_filter
+
     ex = result.extraction
     assert ex is not None
     if P.shape[0] < GROSS_WINDOW:

@@ -17,7 +17,6 @@ from dataclasses import dataclass, replace
 import numpy as np
 import polars as pl
 from numpy.typing import NDArray
-from scipy.optimize import minimize_scalar
 
 from dhlog.errors import Note
 from dhlog.geometry._checks import FloatArray
@@ -114,6 +113,8 @@ def nearest_offset(miss: Callable[[float], float], around: float = 0.0) -> float
     at ``around`` (the log is on one clock as it stands, or the model cannot be placed on its
     samples). Another session's log, scored by a calibration, has a clock of its own: its
     offset can be anything the fine estimate of its own session would have found."""
+    from scipy.optimize import minimize_scalar  # scipy.optimize costs 0.35 s to import
+
     grid = around + np.arange(-FINE_REACH, FINE_REACH + FINE_STEP / 2, FINE_STEP)
     misses = np.array([miss(float(t)) for t in grid])
     if not np.any(np.isfinite(misses)):
