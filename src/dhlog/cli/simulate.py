@@ -239,6 +239,13 @@ def simulate(
             "the clock offset a pipeline would need."
         ),
     ] = 0.0,
+    clock_drift_ppm: Annotated[
+        float,
+        typer.Option(
+            help="The joint-state clock runs this many ppm fast against the tracker's from the "
+            "session's start (two computers without a common time drift by 10-50)."
+        ),
+    ] = 0.0,
     start_day: Annotated[
         float,
         typer.Option(help="Days after 2025-11-21 04:40 UTC the session starts (a series)."),
@@ -396,6 +403,7 @@ def simulate(
             skip_joints=tuple(joint_numbers(skip_joints, "--skip-joints")),
             parked=parked_joints(park_joints),
             clock_offset=clock_offset_ms * 1e-3,
+            clock_drift=clock_drift_ppm * 1e-6,
             start_day=start_day,
             compliance=tuple(compliant),
             payload=payload_kg,

@@ -31,9 +31,9 @@ from dhlog.identify.model.parked import (
     parked_pose,
 )
 from dhlog.identify.options import ProcessOptions
-from dhlog.identify.segment.clocks import on_one_clock
+from dhlog.identify.segment.clocks import drifted, on_one_clock
 from dhlog.identify.segment.segment import Segmentation, segment_log
-from dhlog.identify.segment.timing import Timing, clock_start, sweep_phases
+from dhlog.identify.segment.timing import Drift, Timing, clock_start, phase_drift, sweep_phases
 from dhlog.identify.stages import Session
 from dhlog.io.reader import LogData
 
@@ -74,7 +74,20 @@ def segmented(log: LogData, options: ProcessOptions, stage: Stage) -> Segmented:
     notes = [*said, *seg.notes]
     phases = sweep_phases(seg, log, types_hint) if seg.has_encoders else []
     notes.extend(check_units(seg, log, phases))
+    drift = None
+    for _ in range(DRIFT_MAPS if not log.pipeline.segmentation.clock_offset_fixed else 0):
+        found = phase_drift(phases)  # the joint states' clock at its own rate: mapped, read
+        if found is None:
+            break
+        log = drifted(log, found.rate, found.t_ref_ns)
+        seg = segment_log(log, joint_types=types_hint, reference_pose=reference_pose)
+        phases = sweep_phases(seg, log, types_hint)
+        drift = found if drift is None else replace(found, rate=drift.rate + found.rate)
+    if drift is not None:
+        notes.append(_drift_note(drift))
     seg, timing, said = clock_start(seg, log, phases, coarse)
+    if drift is not None and timing is not None:
+        timing = replace(timing, drift=drift.rate, drift_ref_ns=drift.t_ref_ns)
     notes.extend(said)
     check_sizes(log.path, n, nominal, reference_pose)
     implausible = []
@@ -103,6 +116,26 @@ def segmented(log: LogData, options: ProcessOptions, stage: Stage) -> Segmented:
         )
         notes.append(Note.info(said_ref, "no-encoders"))
     return Segmented(seg, timing, ref, tuple(implausible), tuple(notes), log)
+
+
+#: The joint states' stamps are mapped by the drift their sweeps show at most this many times
+#: (each reading of the sweeps' lags is blurred by the drift within each sweep).
+DRIFT_MAPS = 4
+
+
+def _drift_note(drift: Drift) -> Note:
+    """What the run says of the joint states' clock drift it took out."""
+    ppm = drift.rate * 1e6
+    return Note.warning(
+        f"the joint states' clock ran {abs(ppm):.1f} ppm ({drift.std * 1e6:.1f} ppm σ) "
+        f"{'fast' if ppm < 0 else 'slow'} against the tracker's: their offset moved "
+        f"{abs(drift.rate) * drift.span * 1e3:.2f} ms over the {drift.span:.0f} s the sweeps "
+        "span (the sweeps' lags against when each was swept), so their stamps were mapped "
+        "onto the tracker's clock before the sweeps were read again (the Clock line gives the "
+        "offset at the sweeps' mean time). Two computers without a common time drift so: "
+        "synchronise their clocks (PTP, chrony) for the next session.",
+        "clock-drift",
+    )
 
 
 def session_of(

@@ -184,15 +184,7 @@ def result_document(result: Identification) -> dict[str, Any]:
     if ex is not None:
         doc["base"]["frame_1_origin"] = frame_1_origin(result)
     if result.timing is not None:
-        t = result.timing
-        doc["timing"] = {
-            "clock_offset": t.offset,
-            "std": t.std,
-            "source": t.source,
-            "pipeline_clock_offset": t.pipeline,
-            **({"reason": t.reason} if t.reason else {}),
-            **({"coarse_offset": t.coarse} if t.coarse else {}),
-        }
+        doc["timing"] = result.timing.document()
     if result.base is not None:
         doc["base"]["plane"] = {
             "point": result.base.plane.point.tolist(),

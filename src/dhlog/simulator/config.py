@@ -75,6 +75,9 @@ class SimulationConfig:
     #: seconds the joint-state clock runs behind the tracker's: the stamps are written that much
     #: early, so a pipeline needs ``clock_offset`` = this value to put them right
     clock_offset: float = 0.0
+    #: the joint-state clock's drift (s gained a second, ppm × 1e-6): its stamps run this much
+    #: fast from the session's start (two computers without a common time)
+    clock_drift: float = 0.0
     skip_joints: tuple[int, ...] = ()
     #: joints parked all session (a torso, a rail, an external axis that stays where it is):
     #: (joint, value in rad or m); never swept, the same in every random pose but for a servo's
@@ -174,6 +177,7 @@ def config_problems(robot: Robot, cfg: SimulationConfig) -> list[str]:
         cfg.sweep,
         cfg.travel,
         cfg.clock_offset,
+        cfg.clock_drift,
         cfg.start_day,
         cfg.model_error,
         cfg.orientation_noise,
@@ -208,6 +212,10 @@ def config_problems(robot: Robot, cfg: SimulationConfig) -> list[str]:
         (
             abs(cfg.clock_offset) <= 10.0,
             f"the clock offset must be within ±10 s (got {cfg.clock_offset:g} s)",
+        ),
+        (
+            abs(cfg.clock_drift) <= 1e-2,
+            f"the clock drift must be within ±10 000 ppm (got {cfg.clock_drift * 1e6:g} ppm)",
         ),
         (
             0 <= cfg.start_day <= 36_500,

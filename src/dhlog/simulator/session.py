@@ -167,7 +167,10 @@ def simulate_session(
         joint_types=table.joint_types,
         point_t_ns=t_trk_ns[keep],
         point_xyz=np.asarray(xyz[keep], dtype=np.float64),
-        joint_t_ns=start_ns + ((t_enc + base_time - cfg.clock_offset) * 1e9).astype(np.int64)
+        joint_t_ns=start_ns
+        + (((t_enc + base_time) * (1.0 + cfg.clock_drift) - cfg.clock_offset) * 1e9).astype(
+            np.int64
+        )
         if cfg.encoders
         else np.zeros(0, dtype=np.int64),
         joint_q=q_enc if cfg.encoders else np.zeros((0, robot.n)),

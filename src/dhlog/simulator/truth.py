@@ -69,6 +69,7 @@ def truth_document(
             "phase": cfg.phase,
             "seed": cfg.seed,
             "clock_offset_s": cfg.clock_offset,
+            "clock_drift": cfg.clock_drift,
             "joint_sweeps": [float(v) for v in session.sweeps],
             "perturb_length_m": cfg.perturb_length,
             "perturb_angle_rad": cfg.perturb_angle,

@@ -105,6 +105,20 @@ def shifted(log: LogData, seconds: float) -> LogData:
     return replace(log, joints=moved(log.joints), commanded=moved(log.commanded))
 
 
+def drifted(log: LogData, rate: float, t_ref_ns: int) -> LogData:
+    """``log`` with its joint states' (and commanded joints') stamps ``t`` moved by
+    ``rate (t − t_ref)``: onto the tracker's clock where theirs runs ``rate`` s a second off
+    it (:func:`~dhlog.identify.segment.timing.phase_drift`)."""
+
+    def moved(frame: pl.DataFrame | None) -> pl.DataFrame | None:
+        if frame is None:
+            return None
+        since = (pl.col("t_ns") - t_ref_ns).cast(pl.Float64)
+        return frame.with_columns(pl.col("t_ns") + (since * rate).round().cast(pl.Int64))
+
+    return replace(log, joints=moved(log.joints), commanded=moved(log.commanded))
+
+
 def nearest_offset(miss: Callable[[float], float], around: float = 0.0) -> float | None:
     """The clock offset (s) within :data:`FINE_REACH` of ``around`` at which ``miss(offset)``
     — a model's miss of the points joined at it (``fit.register.clock_judge``) — is least:

@@ -62,6 +62,10 @@ REJOIN_FIT = 1e-4
 REJOIN_START = REJOIN_FIT
 #: The start estimate of the clock offset joins the encoders again at most this many times.
 START_REJOINS = 4
+#: A clock drift is estimated from this many sweeps that time their lag at least, and taken
+#: where it stands this many σ clear of none.
+DRIFT_SWEEPS = 3
+DRIFT_SIGMAS = 5.0
 
 
 @dataclass(frozen=True)
@@ -79,6 +83,27 @@ class Timing:
     #: their clock was seconds off the tracker's (:mod:`dhlog.identify.segment.clocks`); part
     #: of ``offset``
     coarse: float = 0.0
+    #: the joint states' clock drift (s gained a second; :class:`Drift`) their stamps were
+    #: mapped by before the log was segmented again (0: none found), ``offset`` read at
+    #: ``drift_ref_ns``
+    drift: float = 0.0
+    drift_ref_ns: int = 0
+
+    def document(self) -> dict[str, object]:
+        """The result JSON's ``timing`` block."""
+        return {
+            "clock_offset": self.offset,
+            "std": self.std,
+            "source": self.source,
+            "pipeline_clock_offset": self.pipeline,
+            **({"reason": self.reason} if self.reason else {}),
+            **({"coarse_offset": self.coarse} if self.coarse else {}),
+            **(
+                {"clock_drift": self.drift, "drift_reference_ns": self.drift_ref_ns}
+                if self.drift
+                else {}
+            ),
+        }
 
 
 class JointRates:
@@ -165,7 +190,8 @@ def rejoin(seg: Segmentation, log: LogData, extra: float) -> Segmentation:
 class SweepPhase:
     """What one sweep's points say of its encoder: the joint (1-based), the slope of the
     points' angle (position) over the encoder value (1 when both are in the same unit), and the
-    lag ``δ`` with its σ (None when the sweep barely moves while sampled)."""
+    lag ``δ`` with its σ (None when the sweep barely moves while sampled), when it was swept
+    (``t_ns``)."""
 
     joint: int
     slope: float
@@ -173,6 +199,8 @@ class SweepPhase:
     std: float | None
     moving: int
     samples: int
+    #: the mean stamp of the samples it was read from (ns)
+    t_ns: int = 0
 
 
 def sweep_phases(
@@ -205,8 +233,63 @@ def sweep_phases(
         )
         if one is not None:
             slope, delta, std = one
-            out.append(SweepPhase(j + 1, slope, delta, std, moving, int(rows.size)))
+            when = int(np.mean(seg.t_ns[rows].astype(np.float64)))
+            out.append(SweepPhase(j + 1, slope, delta, std, moving, int(rows.size), when))
     return out
+
+
+def _timed(phases: list[SweepPhase]) -> list[SweepPhase]:
+    """The phases that time their sweep (a lag with its σ, the encoder's slope near 1), where
+    the sweeps move while the tracker samples them (not step-and-measure); else none."""
+    timed = [
+        p for p in phases if p.delta is not None and p.std is not None and 0.5 < abs(p.slope) < 2.0
+    ]
+    moving = sum(p.moving for p in phases)
+    total = sum(p.samples for p in phases)
+    return timed if moving >= STEP_FRACTION * total else []
+
+
+@dataclass(frozen=True)
+class Drift:
+    """The joint states' clock running at another rate than the tracker's: the ``rate`` (s of
+    offset gained a second) and its σ, from the sweeps' lags against when they were swept;
+    ``t_ref_ns`` the stamp the offset is read at (the sweeps' weighted mean time), ``span`` (s)
+    the time the sweeps cover."""
+
+    rate: float
+    std: float
+    t_ref_ns: int
+    span: float
+
+
+def phase_drift(phases: list[SweepPhase]) -> Drift | None:
+    """The clock drift the sweeps' lags show (:class:`Drift`: a line through each sweep's lag
+    against its time, weighted by their σ, its σ widened by the scatter about it), where at
+    least :data:`DRIFT_SWEEPS` sweeps time it, the rate stands :data:`DRIFT_SIGMAS` σ clear of
+    none and it moves the offset by more than :data:`REJOIN_START` across them; else None.
+    Two computers' crystals differ by 10-50 ppm: 12 ms over a 10-minute session at 20 ppm,
+    which misjoins a sweep's target by millimetres at its ends; a constant offset cannot."""
+    timed = _timed(phases)
+    if len(timed) < DRIFT_SWEEPS:
+        return None
+    t = np.array([p.t_ns for p in timed], dtype=np.float64) * 1e-9
+    d = np.array([p.delta for p in timed], dtype=np.float64)
+    w = 1.0 / np.array([p.std for p in timed], dtype=np.float64) ** 2
+    t_ref = float(np.sum(w * t) / np.sum(w))
+    x = t - t_ref
+    sxx = float(np.sum(w * x**2))
+    span = float(t.max() - t.min())
+    if not sxx > 0.0 or not span > 0.0:
+        return None
+    rate = float(np.sum(w * x * d) / sxx)
+    mean = float(np.sum(w * d) / np.sum(w))
+    chi2 = (
+        float(np.sum(w * (d - mean - rate * x) ** 2)) / (len(timed) - 2) if len(timed) > 2 else 1.0
+    )
+    std = math.sqrt(max(chi2, 1.0) / sxx)
+    if abs(rate) < DRIFT_SIGMAS * std or abs(rate) * span <= REJOIN_START:
+        return None
+    return Drift(rate, std, round(t_ref * 1e9), span)
 
 
 def phase_lag(
@@ -215,16 +298,10 @@ def phase_lag(
     """The residual offset ``δ`` (s) and its σ from the sweeps' phases (see the module), or
     None when no sweep moves enough samples to tell (step-and-measure)."""
     phases = sweep_phases(seg, log) if phases is None else phases
-    estimates = [
-        (p.delta, p.std)
-        for p in phases
-        if p.delta is not None and p.std is not None and 0.5 < abs(p.slope) < 2.0
-    ]
-    moving = sum(p.moving for p in phases)
-    total = sum(p.samples for p in phases)
     # step-and-measure: the samples were taken at the stops; the few that the offset joins to
     # the start of the next move are not a timing signal to trust
-    if not estimates or moving < STEP_FRACTION * total:
+    estimates = [(p.delta, p.std) for p in _timed(phases)]
+    if not estimates:
         return None
     values = np.array([e[0] for e in estimates])
     weights = 1.0 / np.array([e[1] for e in estimates]) ** 2

@@ -277,6 +277,12 @@ def _measurement(f: FieldReader, doc: dict[str, Any]) -> list[tuple[str, str]]:
                 f"; {coarse:+.2f} s of it matched by when each stream moves (the joint states' "
                 "clock was seconds off the tracker's)"
             )
+        drift = f.get_number(timing, "clock_drift", "timing", required=False)
+        if drift:
+            text += (
+                f"; at the sweeps' mean time, the joint states' clock drifting {drift * 1e6:+.1f} "
+                "ppm against the tracker's (their stamps mapped by it)"
+            )
         lines.append(("Clock offset", text))
     base = f.get_obj(doc, "base", required=False)
     if base is not None:

@@ -43,8 +43,13 @@ def clock_line(result: Identification) -> str:
         return ""
     ms = f"{t.offset * 1e3:+.4f} ms"
     if t.source == "estimated" and t.std is not None:
+        drift = (
+            f", at the sweeps' mean time, their clock drifting {t.drift * 1e6:+.1f} ppm (mapped)"
+            if t.drift
+            else ""
+        )
         return (
-            f"joint-state stamps {ms} ± {t.std * 1e3:.4f} ms onto the tracker's clock "
+            f"joint-state stamps {ms} ± {t.std * 1e3:.4f} ms onto the tracker's clock{drift} "
             f"(estimated from the data; the pipeline's clock_offset: {t.pipeline * 1e3:+.4f} ms)"
         )
     why = {
