@@ -53,8 +53,9 @@ NOMINAL_SAMPLES = 20000
 #: such distance (a tracker's noise alone reaches about 4× over thousands of samples).
 GROSS_WINDOW = 5
 GROSS_RATIO = 10.0
-#: ... where each sample of the window is within GROSS_SPAN (rad or m, every joint) of it.
-GROSS_SPAN = 0.05
+#: ... where each sample of the window is within GROSS_SPAN (rad or m, every joint) of it: a
+#: sweep under a 10 Hz tracker steps 0.05 rad a sample, random poses lie a radian apart.
+GROSS_SPAN = 0.2
 
 
 def validated(
@@ -180,8 +181,15 @@ def _validate_log(
     )
     check = replace(
         check,
-        notes=(*check.notes, *(note.text for note in moved), *clock.notes, *_gross_note(gross)),
-        clock_offset=clock.offset if clock.checked else None,
+        notes=(
+            *check.notes,
+            *(note.text for note in moved),
+            *clock.said(which),
+            *_gross_note(gross),
+        ),
+        clock_offset=log.pipeline.segmentation.clock_offset + clock.offset
+        if clock.checked or clock.offset
+        else None,
         moving_left_out=clock.left_out(which),
         outliers_left_out=int(np.count_nonzero(gross)),
     )
@@ -199,7 +207,8 @@ def _gross_outliers(result: Identification, Q: FloatArray, P: FloatArray) -> NDA
     calibrated model's residual, placed on them (robustly: the outliers set aside; as it
     stands where the flange keeps to one line), is off the running median of its neighbours'
     (:data:`GROSS_WINDOW` samples) by more than :data:`GROSS_RATIO` times the median such
-    distance. A tracker's gross outlier (a beam break, a stray reflection) is one sample's;
+    distance, and than as many times the calibration's own FK RMS. A tracker's gross outlier
+    (a beam break, a stray reflection) is one sample's;
     the model's errors, a moved tracker's and a re-mounted probe's vary smoothly along the
     log, so none of them is taken for one; a sample whose neighbours are of other poses
     (:data:`GROSS_SPAN` away) is not judged."""
@@ -227,7 +236,10 @@ def _gross_outliers(result: Identification, Q: FloatArray, P: FloatArray) -> NDA
         near[k:] &= step
         near[:-k] &= step
     typical = float(np.median(off[near])) if np.any(near) else 0.0
-    return np.asarray(near & (off > GROSS_RATIO * typical), dtype=bool)
+    # a tracker that rounds below its noise leaves most samples on their median: the floor
+    # is the calibration's own error, which no gross outlier comes near
+    own = result.validation.rms if result.validation is not None else 0.0
+    return np.asarray(near & (off > GROSS_RATIO * max(typical, own)), dtype=bool)
 
 
 def _gross_note(gross: NDArray[np.bool_]) -> tuple[str, ...]:
@@ -237,7 +249,8 @@ def _gross_note(gross: NDArray[np.bool_]) -> tuple[str, ...]:
         return ()
     return (
         f"{count} gross outlier(s) of the tracker left out of {gross.size} samples (each off "
-        f"its neighbours along the log by more than {GROSS_RATIO:g}× the median: a beam break "
+        f"its neighbours along the log by more than {GROSS_RATIO:g}× the median and the "
+        "calibration's own FK RMS: a beam break "
         "or a stray reflection, not the robot); both models are scored without them.",
     )
 
@@ -274,6 +287,18 @@ class _OwnClock:
             return 0
         return int(np.count_nonzero(self.moving if which is None else self.moving & (which == 0)))
 
+    def said(self, which: NDArray[np.int64] | None) -> tuple[str, ...]:
+        """What the scoring says of the log's clock."""
+        left = self.left_out(which)
+        if not left:
+            return self.notes
+        return (
+            *self.notes,
+            f"scored at its stops: the {left} sample(s) taken while the joints moved were left "
+            "out (a static-pose log's moves are transit between its poses, and an offset "
+            "between the joint states' clock and the tracker's misjoins them).",
+        )
+
 
 def _own_clock(
     log: LogData,
@@ -295,15 +320,16 @@ def _own_clock(
     for sl in blocks(rows.size):
         moving[sl] = np.max(np.abs(speeds.at(seg.t_ns[rows[sl]])), axis=1) > MOVING_SPEED
     if np.count_nonzero(moving) < STEP_FRACTION * rows.size:
-        left = int(np.count_nonzero(moving))
-        said = (
-            f"scored at its stops: the {left} sample(s) taken while the joints moved were left "
-            "out (a static-pose log's moves are transit between its poses, and an offset "
-            "between the joint states' clock and the tracker's misjoins them)."
-        )
-        return _OwnClock(coarse, False, moving, (said,) if left else ())
-    if judge is None or log.pipeline.segmentation.clock_offset_fixed:
+        return _OwnClock(coarse, False, moving, ())
+    if log.pipeline.segmentation.clock_offset_fixed:
         return _OwnClock(coarse, False, None, ())
+    if judge is None:
+        said = (
+            "its joint states' clock could not be checked against the tracker's (too few of its "
+            "first target's samples have joint states to place the calibrated model on): "
+            "scored as joined."
+        )
+        return _OwnClock(coarse, False, None, (said,))
     found = nearest_offset(judge, coarse)
     if found is None:
         if math.isfinite(judge(coarse)):
@@ -314,12 +340,23 @@ def _own_clock(
             "where a clock offset shows as an error along the motion."
         )
         return _OwnClock(coarse, False, None, (said,))
+    fine, given = found - coarse, log.pipeline.segmentation.clock_offset
+    beyond = [
+        *([f"the coarse match's {coarse:+.2f} s"] if coarse else []),
+        *([f"the pipeline's clock_offset of {given * 1e3:+.3f} ms"] if given else []),
+    ]
+    before = judge(coarse)
+    misses = (
+        f"{before * 1e3:.4f} → {judge(found) * 1e3:.4f} mm RMS"
+        if math.isfinite(before)
+        else f"{judge(found) * 1e3:.4f} mm RMS; as joined it could not be placed"
+    )
     said = (
-        f"its joint states' stamps ran {abs(found) * 1e3:.3f} ms "
-        f"{'behind' if found > 0 else 'ahead of'} the tracker's clock (a session's clock is its "
-        "own): the offset at which the calibrated model, placed on its samples, misses them "
-        f"least ({judge(coarse) * 1e3:.4f} → {judge(found) * 1e3:.4f} mm RMS), taken out "
-        "before it was scored."
+        f"its joint states' stamps ran {abs(fine) * 1e3:.3f} ms "
+        f"{'behind' if fine > 0 else 'ahead of'} the tracker's clock"
+        + (f" beyond {' and '.join(beyond)}" if beyond else "")
+        + " (a session's clock is its own): the offset at which the calibrated model, placed on "
+        f"its samples, misses them least ({misses}), taken out before it was scored."
     )
     return _OwnClock(found, True, None, (said,))
 

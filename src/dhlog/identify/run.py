@@ -171,12 +171,15 @@ def _clock_hint(result: Identification, log: LogData) -> Identification:
     lags = motion_lags(log)
     if not lags or any(abs(lag) < COARSE_BELOW for lag in lags):
         return result
+    given = log.pipeline.segmentation.clock_offset
     said = (
         "the joints' motion and the target's line up only with the joint states' stamps moved "
-        f"by {', '.join(f'{lag:+.2f}' for lag in lags)} s, which the points could not tell "
-        "apart or confirm: the two clocks may be that far apart (two computers without a common "
-        "time). Give the robot's nominal (--nominal), which tells them apart, or the offset as "
-        "[segmentation] clock_offset, or fix the clocks at the source."
+        f"by {', '.join(f'{lag:+.2f}' for lag in lags)} s"
+        + (f" beyond the pipeline's clock_offset of {given:+.3f} s" if given else "")
+        + ", which the points could not tell apart or confirm: the two clocks may be that far "
+        "apart (two computers without a common time). Give the robot's nominal (--nominal), "
+        "which tells them apart, or the offset as [segmentation] clock_offset (then "
+        f"{', '.join(f'{given + lag:.2f}' for lag in lags)}), or fix the clocks at the source."
     )
     return result.said(Note.warning(said, "clock-unconfirmed"))
 

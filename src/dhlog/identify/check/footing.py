@@ -89,8 +89,9 @@ class LogHoldout(Holdout):
     """A held-out log's check: beyond :class:`~dhlog.identify.check.holdout.Holdout`'s, whether the
     tool was placed again (``tool_replaced``: the probe was re-mounted) and which components of
     the errors are scored (``components``: ``"3-D"`` or ``"across the line"``), the offset (s)
-    added to its joint states' stamps where its clock was checked (``clock_offset``; None: a
-    static-pose log, scored at its stops, or a clock that could not be checked) and the samples
+    its joint states were scored at, added to their stamps as the log has them, the pipeline's
+    ``clock_offset`` included, where its clock was checked or moved (``clock_offset``; None: a
+    static-pose log in time, scored at its stops, or a clock not checked) and the samples
     taken while the joints moved that a static-pose log's scoring left out
     (``moving_left_out``), and the tracker's gross outliers left out (``outliers_left_out``)."""
 
