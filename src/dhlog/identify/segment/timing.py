@@ -233,7 +233,11 @@ def sweep_phases(
         )
         if one is not None:
             slope, delta, std = one
-            when = int(np.mean(seg.t_ns[rows].astype(np.float64)))
+            # the lag is read where the joint moves: the time it holds at weighs each sample
+            # as the regression's speed column does
+            t = seg.t_ns[rows].astype(np.float64)
+            speed2 = rate**2
+            when = int(np.sum(speed2 * t) / np.sum(speed2)) if np.sum(speed2) > 0 else int(t.mean())
             out.append(SweepPhase(j + 1, slope, delta, std, moving, int(rows.size), when))
     return out
 
