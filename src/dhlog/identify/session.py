@@ -61,7 +61,8 @@ class Segmented:
     implausible: tuple[str, ...]
     notes: tuple[Note, ...]
     #: the log as segmented: its joint states moved onto the tracker's clock where they were
-    #: seconds off it (:func:`~dhlog.identify.segment.clocks.coarse_offset`), else the log read
+    #: seconds off it (:func:`~dhlog.identify.segment.clocks.coarse_offset`) and mapped where
+    #: their clock drifts (:func:`~dhlog.identify.segment.timing.phase_drift`), else the log read
     log: LogData | None = None
 
 
@@ -82,13 +83,19 @@ def segmented(log: LogData, options: ProcessOptions, stage: Stage) -> Segmented:
     notes.extend(check_units(seg, log, phases))
     drift = None
     for _ in range(DRIFT_MAPS if not log.pipeline.segmentation.clock_offset_fixed else 0):
-        found = phase_drift(phases)  # the joint states' clock at its own rate: mapped, read
+        # the joint states' clock at its own rate: mapped and read again, each refinement about
+        # the first reading's time, so the offset estimated after holds there
+        found = phase_drift(phases, refine=drift is not None)
         if found is None:
             break
-        log = drifted(log, found.rate, found.t_ref_ns)
+        drift = (
+            found
+            if drift is None
+            else replace(drift, rate=(1 + drift.rate) * (1 + found.rate) - 1, std=found.std)
+        )
+        log = drifted(log, found.rate, drift.t_ref_ns)
         seg = segment_log(log, joint_types=types_hint, reference_pose=reference_pose)
         phases = sweep_phases(seg, log, types_hint)
-        drift = found if drift is None else replace(found, rate=drift.rate + found.rate)
     if drift is not None:
         notes.append(_drift_note(drift))
     seg, timing, said = clock_start(seg, log, phases, coarse)

@@ -75,8 +75,10 @@ class SimulationConfig:
     #: seconds the joint-state clock runs behind the tracker's: the stamps are written that much
     #: early, so a pipeline needs ``clock_offset`` = this value to put them right
     clock_offset: float = 0.0
-    #: the joint-state clock's drift (s gained a second, ppm × 1e-6): its stamps run this much
-    #: fast from the session's start (two computers without a common time)
+    #: the joint-state clock's drift (ppm × 1e-6): its stamps run this much fast a second from
+    #: the session's start (two computers without a common time); dhlog's ``timing.clock_drift``
+    #: (what is added to the stamps a second, the pipeline's sign) reads −clock_drift / (1 +
+    #: clock_drift). Sweeps and still poses only (not the camera's, nor the iso9283 protocol)
     clock_drift: float = 0.0
     skip_joints: tuple[int, ...] = ()
     #: joints parked all session (a torso, a rail, an external axis that stays where it is):
@@ -378,6 +380,7 @@ def _iso9283_problems(cfg: SimulationConfig) -> list[str]:
         (bool(cfg.skip_joints or cfg.coupled), "--skip-joints"),
         (cfg.instrument != "tracker", "--instrument camera"),
         (cfg.restation or cfg.remount, "--restation/--remount"),
+        (cfg.clock_drift != 0.0, "--clock-drift-ppm"),
     ]
     out += [
         f"{what} is not simulated with the iso9283 protocol (it runs the ISO 9283 test program)"
@@ -415,6 +418,7 @@ def _camera_problems(cfg: SimulationConfig) -> list[str]:
         (not cfg.encoders, "--no-encoders"),
         (cfg.protocol in PATH_PROTOCOLS, "a path protocol"),
         (cfg.restation or cfg.remount, "--restation/--remount"),
+        (cfg.clock_drift != 0.0, "--clock-drift-ppm"),
     ]
     out += [
         f"{what} is for tracker logs; a camera is simulated without it"

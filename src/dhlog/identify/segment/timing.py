@@ -62,10 +62,17 @@ REJOIN_FIT = 1e-4
 REJOIN_START = REJOIN_FIT
 #: The start estimate of the clock offset joins the encoders again at most this many times.
 START_REJOINS = 4
+#: A sweep's samples whose angle misses its regression by more than this many robust σ are
+#: gross outliers, left out of its lag.
+LAG_OUTLIER = 5.0
 #: A clock drift is estimated from this many sweeps that time their lag at least, and taken
 #: where it stands this many σ clear of none.
 DRIFT_SWEEPS = 3
 DRIFT_SIGMAS = 5.0
+#: ... and where it moves the offset by more than this (s) across them: the sweeps' lags of a
+#: clock in time differ one joint from another by up to 0.05 ms, a slope of a few ppm over a
+#: simulated 30 s session; a real one of ten minutes at 20 ppm moves it 12 ms.
+DRIFT_FLOOR = 2e-4
 
 
 @dataclass(frozen=True)
@@ -199,8 +206,12 @@ class SweepPhase:
     std: float | None
     moving: int
     samples: int
-    #: the mean stamp of the samples it was read from (ns)
+    #: the stamp (ns) its lag holds at: its samples' weighed as the regression's speed column
     t_ns: int = 0
+    #: its lag and σ with the tracker's gross outliers left out (:data:`LAG_OUTLIER`), which
+    #: the drift reads
+    drift_delta: float | None = None
+    drift_std: float | None = None
 
 
 def sweep_phases(
@@ -228,17 +239,30 @@ def sweep_phases(
         moving = int(np.count_nonzero(np.abs(rate) > MOVING_SPEED))
         kind = joint_types[j] if joint_types is not None and j < len(joint_types) else None
         prismatic = None if kind is None else kind is JointType.PRISMATIC
-        one = _sweep_lag(
-            seg.xyz(rows), seg.q(rows, [j])[:, 0], rate, moving >= MIN_MOVING, prismatic
-        )
+        points, q = seg.xyz(rows), seg.q(rows, [j])[:, 0]
+        one = _sweep_lag(points, q, rate, moving >= MIN_MOVING, prismatic)
         if one is not None:
             slope, delta, std = one
+            robust = _sweep_lag(points, q, rate, moving >= MIN_MOVING, prismatic, robust=True)
             # the lag is read where the joint moves: the time it holds at weighs each sample
             # as the regression's speed column does
             t = seg.t_ns[rows].astype(np.float64)
             speed2 = rate**2
             when = int(np.sum(speed2 * t) / np.sum(speed2)) if np.sum(speed2) > 0 else int(t.mean())
-            out.append(SweepPhase(j + 1, slope, delta, std, moving, int(rows.size), when))
+            _, drift_delta, drift_std = robust if robust is not None else (None, None, None)
+            out.append(
+                SweepPhase(
+                    j + 1,
+                    slope,
+                    delta,
+                    std,
+                    moving,
+                    int(rows.size),
+                    when,
+                    drift_delta,
+                    drift_std,
+                )
+            )
     return out
 
 
@@ -266,19 +290,21 @@ class Drift:
     span: float
 
 
-def phase_drift(phases: list[SweepPhase]) -> Drift | None:
+def phase_drift(phases: list[SweepPhase], *, refine: bool = False) -> Drift | None:
     """The clock drift the sweeps' lags show (:class:`Drift`: a line through each sweep's lag
     against its time, weighted by their σ, its σ widened by the scatter about it), where at
     least :data:`DRIFT_SWEEPS` sweeps time it, the rate stands :data:`DRIFT_SIGMAS` σ clear of
-    none and it moves the offset by more than :data:`REJOIN_START` across them; else None.
+    none and it moves the offset by more than :data:`DRIFT_FLOOR` across them (the sweeps' lags
+    in time differ one joint from another by up to 0.05 ms); else None. ``refine``: a drift
+    already found and mapped, refined at any σ beyond :data:`REJOIN_START` across them.
     Two computers' crystals differ by 10-50 ppm: 12 ms over a 10-minute session at 20 ppm,
     which misjoins a sweep's target by millimetres at its ends; a constant offset cannot."""
-    timed = _timed(phases)
+    timed = [p for p in _timed(phases) if p.drift_delta is not None and p.drift_std]
     if len(timed) < DRIFT_SWEEPS:
         return None
     t = np.array([p.t_ns for p in timed], dtype=np.float64) * 1e-9
-    d = np.array([p.delta for p in timed], dtype=np.float64)
-    w = 1.0 / np.array([p.std for p in timed], dtype=np.float64) ** 2
+    d = np.array([p.drift_delta for p in timed], dtype=np.float64)
+    w = 1.0 / np.array([p.drift_std for p in timed], dtype=np.float64) ** 2
     t_ref = float(np.sum(w * t) / np.sum(w))
     x = t - t_ref
     sxx = float(np.sum(w * x**2))
@@ -291,7 +317,11 @@ def phase_drift(phases: list[SweepPhase]) -> Drift | None:
         float(np.sum(w * (d - mean - rate * x) ** 2)) / (len(timed) - 2) if len(timed) > 2 else 1.0
     )
     std = math.sqrt(max(chi2, 1.0) / sxx)
-    if abs(rate) < DRIFT_SIGMAS * std or abs(rate) * span <= REJOIN_START:
+    if refine:
+        return (
+            Drift(rate, std, round(t_ref * 1e9), span) if abs(rate) * span > REJOIN_START else None
+        )
+    if abs(rate) < DRIFT_SIGMAS * std or abs(rate) * span <= DRIFT_FLOOR:
         return None
     return Drift(rate, std, round(t_ref * 1e9), span)
 
@@ -347,6 +377,8 @@ def _sweep_lag(
     rate: FloatArray,
     timed: bool,
     prismatic: bool | None = None,
+    *,
+    robust: bool = False,
 ) -> tuple[float, float | None, float | None] | None:
     """Slope, ``δ`` and σ of one sweep: its points' angle (position) regressed on ``1, Q, q̇``
     (on ``1, Q`` alone when it barely moves while sampled: ``timed`` False); positions along
@@ -357,6 +389,14 @@ def _sweep_lag(
     columns = [np.ones(q.size), q - q.mean()] + ([rate] if timed else [])
     A = np.column_stack(columns)
     coef, *_ = np.linalg.lstsq(A, phi, rcond=None)
+    # ``robust``: the tracker's gross outliers out (beyond LAG_OUTLIER robust σ), fitted again:
+    # they widen the lag's σ, which hides a drift the sweeps' lags show
+    resid = phi - A @ coef
+    scale = 1.4826 * float(np.median(np.abs(resid - np.median(resid))))
+    keep = np.abs(resid) <= LAG_OUTLIER * scale if scale > 0 else np.ones(q.size, dtype=bool)
+    if robust and A.shape[1] < np.count_nonzero(keep) < q.size:
+        A, phi, q = A[keep], phi[keep], q[keep]
+        coef, *_ = np.linalg.lstsq(A, phi, rcond=None)
     b = float(coef[1])
     if not timed:
         return (b, None, None) if math.isfinite(b) else None

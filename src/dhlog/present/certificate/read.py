@@ -280,8 +280,9 @@ def _measurement(f: FieldReader, doc: dict[str, Any]) -> list[tuple[str, str]]:
         drift = f.get_number(timing, "clock_drift", "timing", required=False)
         if drift:
             text += (
-                f"; at the sweeps' mean time, the joint states' clock drifting {drift * 1e6:+.1f} "
-                "ppm against the tracker's (their stamps mapped by it)"
+                f"; the offset at the sweeps' mean time, the joint states' clock running "
+                f"{abs(drift) * 1e6:.1f} ppm {'fast' if drift < 0 else 'slow'} against the "
+                "tracker's (their stamps mapped by it)"
             )
         lines.append(("Clock offset", text))
     base = f.get_obj(doc, "base", required=False)

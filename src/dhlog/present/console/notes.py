@@ -44,7 +44,8 @@ def clock_line(result: Identification) -> str:
     ms = f"{t.offset * 1e3:+.4f} ms"
     if t.source == "estimated" and t.std is not None:
         drift = (
-            f", at the sweeps' mean time, their clock drifting {t.drift * 1e6:+.1f} ppm (mapped)"
+            f" at the sweeps' mean time, their clock running {abs(t.drift) * 1e6:.1f} ppm "
+            f"{'fast' if t.drift < 0 else 'slow'} (mapped)"
             if t.drift
             else ""
         )
