@@ -42,6 +42,7 @@ LOGS: dict[str, tuple[str, float, float, dict[str, float]]] = {
     "sweeps_outliers": ("sweeps", 0.025, 0.05, {}),
     "sweeps_10hz_outliers": ("sweeps", 0.0, 0.05, {"tracker_rate": 10.0}),
     "sweeps_quiet": ("sweeps", 0.0, 0.0, {"noise": 3e-8}),
+    "sweeps_drifting": ("sweeps", 0.01, 0.0, {"clock_drift": 1e-3}),
     "poses": ("random-poses", 0.0, 0.0, {}),
     "poses_behind": ("random-poses", 0.1, 0.0, {}),
 }
@@ -152,3 +153,15 @@ def test_a_log_s_gross_outliers_are_left_out(
     # the rule judged a fifth of them, and the log was not scored)
     slow = checks["sweeps_10hz_outliers"]
     assert slow.outliers_left_out == pytest.approx(written["sweeps_10hz_outliers"], rel=0.1)
+
+
+def test_a_moving_log_s_drifting_clock_is_mapped(checks: dict[str, LogHoldout]) -> None:
+    """Its joint states' clock 1 000 ppm fast (25 ms over its sweeps, as 40 ppm over ten
+    minutes) and 10 ms behind: before, no footing placed it (exit 4; 50 ppm scored 0.094 mm for
+    0.017 mm). The drift is read off its sweeps' lags (within 1 %: ±10 ppm), the stamps mapped,
+    and it scores as the log in time (within 2 %)."""
+    check, in_time = checks["sweeps_drifting"], checks["sweeps"]
+    assert check.clock_drift is not None
+    assert check.clock_drift == pytest.approx(-1e-3 / (1 + 1e-3), rel=0.01)
+    assert in_time.clock_drift is None
+    assert check.calibrated.rms == pytest.approx(in_time.calibrated.rms, rel=0.02)

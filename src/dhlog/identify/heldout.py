@@ -35,10 +35,16 @@ from dhlog.identify.fit.placement import Stand
 from dhlog.identify.fit.register import clock_judge, register_nominal
 from dhlog.identify.fit.samples import measured_rotations
 from dhlog.identify.joints.sweeps import samples_with_encoders, target_labels
-from dhlog.identify.segment.clocks import nearest_offset, on_one_clock, shifted
+from dhlog.identify.segment.clocks import at_one_rate, nearest_offset, on_one_clock, shifted
 from dhlog.identify.segment.persample import blocks
 from dhlog.identify.segment.segment import Segmentation, segment_log
-from dhlog.identify.segment.timing import MOVING_SPEED, STEP_FRACTION, JointRates
+from dhlog.identify.segment.timing import (
+    MOVING_SPEED,
+    STEP_FRACTION,
+    Drift,
+    JointRates,
+    sweep_phases,
+)
 from dhlog.identify.stages import Identification, table_values
 from dhlog.io.logdata import LogData
 from dhlog.io.pipeline import Pipeline
@@ -149,6 +155,18 @@ def _validate_log(
     judge = clock_judge(log, ex.standard, functools.partial(table_values, result), calibrated.stand)
     log, coarse, moved = on_one_clock(log, judge)
     seg = _segmented(log, path, ex.standard)
+    types = list(ex.standard.joint_types)
+    log, seg, _, drift = at_one_rate(  # a clock that drifts: its stamps mapped
+        log,
+        seg,
+        sweep_phases(seg, log, types),
+        lambda mapped: _segmented(mapped, path, ex.standard),
+        types,
+    )
+    if coarse or drift is not None:  # judged as the log is joined now
+        judge = clock_judge(
+            log, ex.standard, functools.partial(table_values, result), calibrated.stand
+        )
     rows, Qs, Ps = samples_with_encoders(seg)
     clock = _own_clock(log, seg, rows, judge, coarse)
     if clock.offset != coarse:  # joined again where its clock puts the joint states
@@ -184,9 +202,11 @@ def _validate_log(
         notes=(
             *check.notes,
             *(note.text for note in moved),
+            *(() if drift is None else (_drift_said(drift),)),
             *clock.said(which),
             *_gross_note(gross),
         ),
+        clock_drift=None if drift is None else drift.rate,
         clock_offset=log.pipeline.segmentation.clock_offset + clock.offset
         if clock.checked or clock.offset
         else None,
@@ -240,6 +260,17 @@ def _gross_outliers(result: Identification, Q: FloatArray, P: FloatArray) -> NDA
     # is the calibration's own error, which no gross outlier comes near
     own = result.validation.rms if result.validation is not None else 0.0
     return np.asarray(near & (off > GROSS_RATIO * max(typical, own)), dtype=bool)
+
+
+def _drift_said(drift: Drift) -> str:
+    """What a held-out log's scoring says of its clock's drift."""
+    ppm = drift.rate * 1e6
+    return (
+        f"its joint states' clock ran {abs(ppm):.1f} ppm {'fast' if ppm < 0 else 'slow'} against "
+        f"the tracker's (its offset moved {abs(drift.rate) * drift.span * 1e3:.2f} ms over the "
+        f"{drift.span:.0f} s its sweeps span): their stamps were mapped by it before it was "
+        "scored."
+    )
 
 
 def _gross_note(gross: NDArray[np.bool_]) -> tuple[str, ...]:
@@ -330,9 +361,9 @@ def _own_clock(
             "scored as joined."
         )
         return _OwnClock(coarse, False, None, (said,))
-    found = nearest_offset(judge, coarse)
-    if found is None:
-        if math.isfinite(judge(coarse)):
+    fine = nearest_offset(judge)  # the judge reads the log as it is joined now
+    if fine is None:
+        if math.isfinite(judge(0.0)):
             return _OwnClock(coarse, True, None, ())
         said = (
             "its joint states' clock could not be checked against the tracker's (the calibrated "
@@ -340,16 +371,16 @@ def _own_clock(
             "where a clock offset shows as an error along the motion."
         )
         return _OwnClock(coarse, False, None, (said,))
-    fine, given = found - coarse, log.pipeline.segmentation.clock_offset
+    found, given = coarse + fine, log.pipeline.segmentation.clock_offset
     beyond = [
         *([f"the coarse match's {coarse:+.2f} s"] if coarse else []),
         *([f"the pipeline's clock_offset of {given * 1e3:+.3f} ms"] if given else []),
     ]
-    before = judge(coarse)
+    before = judge(0.0)
     misses = (
-        f"{before * 1e3:.4f} → {judge(found) * 1e3:.4f} mm RMS"
+        f"{before * 1e3:.4f} → {judge(fine) * 1e3:.4f} mm RMS"
         if math.isfinite(before)
-        else f"{judge(found) * 1e3:.4f} mm RMS; as joined it could not be placed"
+        else f"{judge(fine) * 1e3:.4f} mm RMS; as joined it could not be placed"
     )
     said = (
         f"its joint states' stamps ran {abs(fine) * 1e3:.3f} ms "

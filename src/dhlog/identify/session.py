@@ -31,13 +31,12 @@ from dhlog.identify.model.parked import (
     parked_pose,
 )
 from dhlog.identify.options import ProcessOptions
-from dhlog.identify.segment.clocks import drifted, on_one_clock
+from dhlog.identify.segment.clocks import at_one_rate, on_one_clock
 from dhlog.identify.segment.segment import Segmentation, segment_log
 from dhlog.identify.segment.timing import (
     Drift,
     Timing,
     clock_start,
-    phase_drift,
     sweep_phases,
 )
 from dhlog.identify.stages import Session
@@ -80,22 +79,14 @@ def segmented(log: LogData, options: ProcessOptions, stage: Stage) -> Segmented:
     n = seg.n_joints
     notes = [*said, *seg.notes]
     phases = sweep_phases(seg, log, types_hint) if seg.has_encoders else []
-    notes.extend(check_units(seg, log, phases))
-    drift = None
-    for _ in range(DRIFT_MAPS if not log.pipeline.segmentation.clock_offset_fixed else 0):
-        # the joint states' clock at its own rate: mapped and read again, each refinement about
-        # the first reading's time, so the offset estimated after holds there
-        found = phase_drift(phases, refine=drift is not None)
-        if found is None:
-            break
-        drift = (
-            found
-            if drift is None
-            else replace(drift, rate=(1 + drift.rate) * (1 + found.rate) - 1, std=found.std)
-        )
-        log = drifted(log, found.rate, drift.t_ref_ns)
-        seg = segment_log(log, joint_types=types_hint, reference_pose=reference_pose)
-        phases = sweep_phases(seg, log, types_hint)
+    notes.extend(check_units(seg, log, phases))  # before a drift's map: a unit slip is no drift
+    log, seg, phases, drift = at_one_rate(
+        log,
+        seg,
+        phases,
+        lambda mapped: segment_log(mapped, joint_types=types_hint, reference_pose=reference_pose),
+        types_hint,
+    )
     if drift is not None:
         notes.append(_drift_note(drift))
     seg, timing, said = clock_start(seg, log, phases, coarse)
@@ -129,11 +120,6 @@ def segmented(log: LogData, options: ProcessOptions, stage: Stage) -> Segmented:
         )
         notes.append(Note.info(said_ref, "no-encoders"))
     return Segmented(seg, timing, ref, tuple(implausible), tuple(notes), log)
-
-
-#: The joint states' stamps are mapped by the drift their sweeps show at most this many times
-#: (each reading of the sweeps' lags is blurred by the drift within each sweep).
-DRIFT_MAPS = 4
 
 
 def _drift_note(drift: Drift) -> Note:

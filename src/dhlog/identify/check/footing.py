@@ -93,13 +93,15 @@ class LogHoldout(Holdout):
     ``clock_offset`` included, where its clock was checked or moved (``clock_offset``; None: a
     static-pose log in time, scored at its stops, or a clock not checked) and the samples
     taken while the joints moved that a static-pose log's scoring left out
-    (``moving_left_out``), and the tracker's gross outliers left out (``outliers_left_out``)."""
+    (``moving_left_out``), the tracker's gross outliers left out (``outliers_left_out``) and
+    the drift its joint states' stamps were mapped by (``clock_drift``, s a second)."""
 
     tool_replaced: bool = False
     components: str = "3-D"
     clock_offset: float | None = None
     moving_left_out: int = 0
     outliers_left_out: int = 0
+    clock_drift: float | None = None
 
     def document(self) -> dict[str, object]:
         doc = super().document()
@@ -111,6 +113,8 @@ class LogHoldout(Holdout):
             doc["moving_left_out"] = self.moving_left_out
         if self.outliers_left_out:
             doc["outliers_left_out"] = self.outliers_left_out
+        if self.clock_drift is not None:
+            doc["clock_drift"] = self.clock_drift
         return doc
 
 

@@ -11,7 +11,7 @@ the points (or the sweeps' points on their curves) tells the near-equal candidat
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -20,8 +20,10 @@ from numpy.typing import NDArray
 
 from dhlog.errors import Note
 from dhlog.geometry._checks import FloatArray
-from dhlog.identify.segment.timing import MOVING_SPEED
+from dhlog.identify.segment.segment import Segmentation
+from dhlog.identify.segment.timing import MOVING_SPEED, Drift, SweepPhase, phase_drift, sweep_phases
 from dhlog.io.reader import LogData
+from dhlog.model.dh import JointType
 
 #: The grid (s) the streams' motion is compared on (at least the tracker's interval), and the
 #: half-window (s, at least a step) of the central difference that gives each one's speed.
@@ -58,6 +60,9 @@ COARSE_CLEARER = 3.0
 #: Offsets found below this (s) are left to the fine estimate (:func:`clock_start`), which
 #: needs no more start than that.
 COARSE_BELOW = 0.1
+#: A drifting clock's stamps are mapped by the drift their sweeps show at most this many times
+#: (each reading of the sweeps' lags is blurred by the drift within each sweep).
+DRIFT_MAPS = 4
 #: A held-out log's own offset is looked for within this (s) of where the coarse match left
 #: it (beyond COARSE_BELOW: a sweep's misjoin at its ends, past the linear range), on a grid of
 #: FINE_STEP, to FINE_TOLERANCE, and taken where the model misses the points FINE_CLEARER times
@@ -117,6 +122,35 @@ def drifted(log: LogData, rate: float, t_ref_ns: int) -> LogData:
         return frame.with_columns(pl.col("t_ns") + (since * rate).round().cast(pl.Int64))
 
     return replace(log, joints=moved(log.joints), commanded=moved(log.commanded))
+
+
+def at_one_rate(
+    log: LogData,
+    seg: Segmentation,
+    phases: list[SweepPhase],
+    segment: Callable[[LogData], Segmentation],
+    joint_types: Sequence[JointType | None] | None = None,
+) -> tuple[LogData, Segmentation, list[SweepPhase], Drift | None]:
+    """``log``, its segmentation ``seg`` and its sweeps' ``phases``; where those show the joint
+    states' clock drifting (:func:`~dhlog.identify.segment.timing.phase_drift`), its joint states'
+    stamps mapped onto the tracker's clock and the log segmented and its sweeps read again, the
+    drift refined so up to :data:`DRIFT_MAPS` times, each refinement about the first reading's
+    time (so an offset estimated after holds there): the log, its segmentation, its sweeps'
+    phases and the drift (None: none found, or the pipeline fixes the clock)."""
+    drift = None
+    for _ in range(0 if log.pipeline.segmentation.clock_offset_fixed else DRIFT_MAPS):
+        found = phase_drift(phases, refine=drift is not None)
+        if found is None:
+            break
+        drift = (
+            found
+            if drift is None
+            else replace(drift, rate=(1 + drift.rate) * (1 + found.rate) - 1, std=found.std)
+        )
+        log = drifted(log, found.rate, drift.t_ref_ns)
+        seg = segment(log)
+        phases = sweep_phases(seg, log, joint_types)
+    return log, seg, phases, drift
 
 
 def nearest_offset(miss: Callable[[float], float], around: float = 0.0) -> float | None:
