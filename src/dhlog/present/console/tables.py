@@ -308,8 +308,10 @@ def _print_holdout(console: Console, result: Identification, units: str) -> None
         notes.insert(
             0,
             f"in-sample FK RMS {in_sample.rms * length:.{digits}f} {lu} over "
-            f"{in_sample.n_points} samples (the fitted ones); a held-out error far above it "
-            "means the model fits the session better than it predicts the robot.",
+            f"{in_sample.n_points} samples (the fitted ones, each sample's error); a held-out "
+            "error far above it means the model fits the session better than it predicts the "
+            "robot. A held-out pose's error is that of its samples' mean, which keeps σ/√n of "
+            "the noise: where poses hold many samples, it can lie below the in-sample figure.",
         )
     prose(console, [("Held out", n) for n in dict.fromkeys(notes)])
 
