@@ -207,8 +207,9 @@ def _validate_log(
             *_gross_note(gross),
         ),
         clock_drift=None if drift is None else drift.rate,
+        drift_reference_ns=0 if drift is None else drift.t_ref_ns,
         clock_offset=log.pipeline.segmentation.clock_offset + clock.offset
-        if clock.checked or clock.offset
+        if clock.checked or clock.offset or drift is not None
         else None,
         moving_left_out=clock.left_out(which),
         outliers_left_out=int(np.count_nonzero(gross)),
@@ -269,7 +270,7 @@ def _drift_said(drift: Drift) -> str:
         f"its joint states' clock ran {abs(ppm):.1f} ppm {'fast' if ppm < 0 else 'slow'} against "
         f"the tracker's (its offset moved {abs(drift.rate) * drift.span * 1e3:.2f} ms over the "
         f"{drift.span:.0f} s its sweeps span): their stamps were mapped by it before it was "
-        "scored."
+        "scored (its clock offset holds at the sweeps' mean time)."
     )
 
 

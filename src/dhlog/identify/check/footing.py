@@ -94,7 +94,8 @@ class LogHoldout(Holdout):
     static-pose log in time, scored at its stops, or a clock not checked) and the samples
     taken while the joints moved that a static-pose log's scoring left out
     (``moving_left_out``), the tracker's gross outliers left out (``outliers_left_out``) and
-    the drift its joint states' stamps were mapped by (``clock_drift``, s a second)."""
+    the drift its joint states' stamps were mapped by (``clock_drift``, s a second; the offset
+    then holds at ``drift_reference_ns``)."""
 
     tool_replaced: bool = False
     components: str = "3-D"
@@ -102,6 +103,7 @@ class LogHoldout(Holdout):
     moving_left_out: int = 0
     outliers_left_out: int = 0
     clock_drift: float | None = None
+    drift_reference_ns: int = 0
 
     def document(self) -> dict[str, object]:
         doc = super().document()
@@ -115,6 +117,7 @@ class LogHoldout(Holdout):
             doc["outliers_left_out"] = self.outliers_left_out
         if self.clock_drift is not None:
             doc["clock_drift"] = self.clock_drift
+            doc["drift_reference_ns"] = self.drift_reference_ns
         return doc
 
 

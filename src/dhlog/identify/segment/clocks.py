@@ -21,7 +21,16 @@ from numpy.typing import NDArray
 from dhlog.errors import Note
 from dhlog.geometry._checks import FloatArray
 from dhlog.identify.segment.segment import Segmentation
-from dhlog.identify.segment.timing import MOVING_SPEED, Drift, SweepPhase, phase_drift, sweep_phases
+from dhlog.identify.segment.timing import (
+    MOVING_SPEED,
+    REJOIN_START,
+    Drift,
+    SweepPhase,
+    phase_drift,
+    phase_lag,
+    rejoin,
+    sweep_phases,
+)
 from dhlog.io.reader import LogData
 from dhlog.model.dh import JointType
 
@@ -139,7 +148,7 @@ def at_one_rate(
     phases and the drift (None: none found, or the pipeline fixes the clock)."""
     drift = None
     for _ in range(0 if log.pipeline.segmentation.clock_offset_fixed else DRIFT_MAPS):
-        found = phase_drift(phases, refine=drift is not None)
+        found = _drift_read(log, seg, phases, joint_types, refine=drift is not None)
         if found is None:
             break
         drift = (
@@ -151,6 +160,24 @@ def at_one_rate(
         seg = segment(log)
         phases = sweep_phases(seg, log, joint_types)
     return log, seg, phases, drift
+
+
+def _drift_read(
+    log: LogData,
+    seg: Segmentation,
+    phases: list[SweepPhase],
+    joint_types: Sequence[JointType | None] | None,
+    *,
+    refine: bool,
+) -> Drift | None:
+    """The drift the sweeps show, read with the encoders joined near the sweeps' mean lag
+    (:func:`~dhlog.identify.segment.timing.rejoin`): each lag is read by a model linear in it,
+    which misreads a misjoin of tens of ms by a different amount for each joint — swept in
+    turn, a slope (11 ppm at 50 ms off, none in time)."""
+    lag = phase_lag(seg, log, phases)
+    if lag is not None and abs(lag[0]) > REJOIN_START:
+        phases = sweep_phases(rejoin(seg, log, lag[0]), log, joint_types)
+    return phase_drift(phases, refine=refine)
 
 
 def nearest_offset(miss: Callable[[float], float], around: float = 0.0) -> float | None:
