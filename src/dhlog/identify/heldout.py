@@ -265,12 +265,9 @@ def _gross_outliers(result: Identification, Q: FloatArray, P: FloatArray) -> NDA
 
 def _drift_said(drift: Drift) -> str:
     """What a held-out log's scoring says of its clock's drift."""
-    ppm = drift.rate * 1e6
     return (
-        f"its joint states' clock ran {abs(ppm):.1f} ppm {'fast' if ppm < 0 else 'slow'} against "
-        f"the tracker's (its offset moved {abs(drift.rate) * drift.span * 1e3:.2f} ms over the "
-        f"{drift.span:.0f} s its sweeps span): their stamps were mapped by it before it was "
-        "scored (its clock offset holds at the sweeps' mean time)."
+        f"its joint states' clock {drift.described}: their stamps were mapped by it before it "
+        "was scored (its clock offset holds at the sweeps' mean time)."
     )
 
 

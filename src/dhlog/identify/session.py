@@ -124,14 +124,10 @@ def segmented(log: LogData, options: ProcessOptions, stage: Stage) -> Segmented:
 
 def _drift_note(drift: Drift) -> Note:
     """What the run says of the joint states' clock drift it took out."""
-    ppm = drift.rate * 1e6
     return Note.warning(
-        f"the joint states' clock ran {abs(ppm):.1f} ppm ({drift.std * 1e6:.1f} ppm σ) "
-        f"{'fast' if ppm < 0 else 'slow'} against the tracker's: their offset moved "
-        f"{abs(drift.rate) * drift.span * 1e3:.2f} ms over the {drift.span:.0f} s the sweeps "
-        "span (the sweeps' lags against when each was swept), so their stamps were mapped "
-        "onto the tracker's clock before the sweeps were read again (the Clock line gives the "
-        "offset at the sweeps' mean time). Two computers without a common time drift so: "
+        f"the joint states' clock {drift.described}, so their stamps were mapped onto the "
+        "tracker's clock before the sweeps were read again (the Clock line gives the offset "
+        "at the sweeps' mean time). Two computers without a common time drift so: "
         "synchronise their clocks (PTP, chrony) for the next session.",
         "clock-drift",
     )

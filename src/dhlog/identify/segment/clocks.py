@@ -28,7 +28,6 @@ from dhlog.identify.segment.timing import (
     SweepPhase,
     phase_drift,
     phase_lag,
-    rejoin,
     sweep_phases,
 )
 from dhlog.io.reader import LogData
@@ -170,13 +169,15 @@ def _drift_read(
     *,
     refine: bool,
 ) -> Drift | None:
-    """The drift the sweeps show, read with the encoders joined near the sweeps' mean lag
-    (:func:`~dhlog.identify.segment.timing.rejoin`): each lag is read by a model linear in it,
-    which misreads a misjoin of tens of ms by a different amount for each joint — swept in
-    turn, a slope (11 ppm at 50 ms off, none in time)."""
+    """The drift the sweeps show, read with the encoders joined near the sweeps' mean lag: each
+    lag is read by a model linear in it, which misreads a misjoin of tens of ms by a different
+    amount for each joint — swept in turn, a slope (11 ppm at 50 ms off, none in time). Only
+    the encoders are moved (not the sweeps' labels, which the phases do not need), so no pass
+    over every sample is made."""
     lag = phase_lag(seg, log, phases)
-    if lag is not None and abs(lag[0]) > REJOIN_START:
-        phases = sweep_phases(rejoin(seg, log, lag[0]), log, joint_types)
+    if lag is not None and abs(lag[0]) > REJOIN_START and seg.encoders is not None:
+        near = replace(seg, encoders=seg.encoders.shifted(round(lag[0] * 1e9)))
+        phases = sweep_phases(near, log, joint_types)
     return phase_drift(phases, refine=refine)
 
 

@@ -289,6 +289,21 @@ class Drift:
     t_ref_ns: int
     span: float
 
+    @property
+    def described(self) -> str:
+        """How the clock ran and how far its offset moved, as the notes say it."""
+        return (
+            f"ran {pace(self.rate)} ({self.std * 1e6:.1f} ppm σ) against the tracker's: its "
+            f"offset moved {abs(self.rate) * self.span * 1e3:.2f} ms over the {self.span:.0f} s "
+            "the sweeps span (their lags against when each was swept)"
+        )
+
+
+def pace(rate: float) -> str:
+    """A clock drift ``rate`` (s added to the stamps a second, the pipeline's sign) as a clock
+    running fast or slow: ``"52.3 ppm fast"``."""
+    return f"{abs(rate) * 1e6:.1f} ppm {'fast' if rate < 0 else 'slow'}"
+
 
 def phase_drift(phases: list[SweepPhase], *, refine: bool = False) -> Drift | None:
     """The clock drift the sweeps' lags show (:class:`Drift`: a line through each sweep's lag

@@ -10,6 +10,7 @@ from rich.table import Table
 
 from dhlog.identify.run import Identification
 from dhlog.identify.segment.clocks import COARSE_STEP
+from dhlog.identify.segment.timing import pace
 from dhlog.present.console.layout import literal
 from dhlog.result.document import DisplayRow
 
@@ -44,8 +45,7 @@ def clock_line(result: Identification) -> str:
     ms = f"{t.offset * 1e3:+.4f} ms"
     if t.source == "estimated" and t.std is not None:
         drift = (
-            f" at the sweeps' mean time, their clock running {abs(t.drift) * 1e6:.1f} ppm "
-            f"{'fast' if t.drift < 0 else 'slow'} (mapped)"
+            f" at the sweeps' mean time, their clock running {pace(t.drift)} (mapped)"
             if t.drift
             else ""
         )
