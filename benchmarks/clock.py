@@ -38,6 +38,11 @@ CASES: dict[str, dict[str, object]] = {
         "tracker_rate": 1000.0,
     },
     "+30 ms, step-and-measure (8 stops)": {"clock_offset": 0.03, "motion": "step", "steps": 8},
+    "+50 ms, 28.6°/s, 100 Hz": {"clock_offset": 0.05},
+    "+70 ms, 28.6°/s, 100 Hz": {"clock_offset": 0.07},
+    "−70 ms, 28.6°/s, 100 Hz": {"clock_offset": -0.07},
+    "+90 ms, 28.6°/s, 100 Hz": {"clock_offset": 0.09},
+    "+60 ms, 28.6°/s, 1 kHz tracker": {"clock_offset": 0.06, "tracker_rate": 1000.0},
 }
 
 

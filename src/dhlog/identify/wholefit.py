@@ -74,6 +74,7 @@ from dhlog.identify.read.uncertainty import whole_uncertainty
 from dhlog.identify.segment.persample import PerSample, SampleArray, blocks
 from dhlog.identify.segment.segment import Segmentation
 from dhlog.identify.segment.timing import (
+    FIRST_ORDER,
     MAX_REJOINS,
     REJOIN_BELOW,
     REJOIN_FIT,
@@ -386,14 +387,20 @@ def _fit_clocked(
         offset = timing.offset + delta
         timing = replace(timing, offset=offset, std=sd)
         if abs(delta) <= max(REJOIN_BELOW * sd, REJOIN_FIT) or attempt == MAX_REJOINS:
-            break  # below REJOIN_FIT the fit's first-order move Q − δ q̇ is exact enough
+            break  # below REJOIN_FIT the encoders as joined misplace the target by microns
         # join the encoders again at the fitted offset and fit once more from there
         seg = rejoin(seg, session.log, offset - timing.pipeline - timing.coarse)
-        rows, Q, P = samples_with_encoders(seg)
-        which = target_labels(seg, rows)
-        rotations = measured_rotations(seg, rows)
-        sample_cov = sample_covariance(seg, rows)
+        joined, Q, P = samples_with_encoders(seg)
+        which = target_labels(seg, joined)
+        rotations = measured_rotations(seg, joined)
+        sample_cov = sample_covariance(seg, joined)
         start = replace(whole.model, clock=0.0)
+        if abs(delta) <= FIRST_ORDER and np.array_equal(joined, rows):
+            # the fit moved the encoders so already, to first order: kept, on them as joined
+            data = FitData(Q, P, sample_cov, which, rotations, data.rates)
+            whole = replace(whole, model=start)
+            break
+        rows = joined
     return _Clocked(whole, seg, rows, data, options, timing)
 
 

@@ -22,8 +22,8 @@ from dhlog.errors import Note
 from dhlog.geometry._checks import FloatArray
 from dhlog.identify.segment.segment import Segmentation
 from dhlog.identify.segment.timing import (
+    DRIFT_NEAR,
     MOVING_SPEED,
-    REJOIN_START,
     Drift,
     SweepPhase,
     phase_drift,
@@ -175,7 +175,7 @@ def _drift_read(
     the encoders are moved (not the sweeps' labels, which the phases do not need), so no pass
     over every sample is made."""
     lag = phase_lag(seg, log, phases)
-    if lag is not None and abs(lag[0]) > REJOIN_START and seg.encoders is not None:
+    if lag is not None and abs(lag[0]) > DRIFT_NEAR and seg.encoders is not None:
         near = replace(seg, encoders=seg.encoders.shifted(round(lag[0] * 1e9)))
         phases = sweep_phases(near, log, joint_types)
     return phase_drift(phases, refine=refine)

@@ -54,12 +54,27 @@ STEP_FRACTION = 0.5
 #: many of its σ from the offset they were joined at (at most MAX_REJOINS times).
 REJOIN_BELOW = 0.25
 MAX_REJOINS = 2
-#: ... and by more than this (s): below it, the fit's own first-order move of the encoders
-#: (``Q − δ q̇``) errs by ``δ² q̈ / 2``, under 10⁻⁸ rad at 1 rad/s².
-REJOIN_FIT = 1e-4
-#: The start estimate joins the encoders again only for a move beyond this (s): the fit
-#: carries the rest.
+#: ... and by more than this (s): the fit carries a smaller lag in its clock term
+#: (``Q − δ q̇``), but the per-joint fits and the FK check read the encoders as joined, and a
+#: target moving at 1 m/s is misjoined by 2 µm here, a fifth of a 10 µm tracker's noise (2 %
+#: in quadrature). At 0.1 ms, as it was, KR5 sessions 50-90 ms off were fitted from a start
+#: 70 µs off: the per-joint fits' σ 23 µm for 10, the FK check 0.032 mm for 0.0175 and the
+#: error against the truth up to 3x that of the session in time.
+REJOIN_FIT = 2e-6
+#: Below this (s) the fit's own first-order move of the encoders errs by ``δ² q̈ / 2``, under
+#: 10⁻⁸ rad at 1 rad/s²: a fit whose offset moved less is kept, its samples joined again at it
+#: and its clock term set to none, not fitted again.
+FIRST_ORDER = 1e-4
+#: The start estimate joins the encoders again for a move beyond :data:`REJOIN_FIT` that
+#: stands this many of its σ clear of none, or beyond :data:`FIRST_ORDER` (a start read on
+#: a few thousand samples a sweep can be tens of µs uncertain where the fit is one).
+START_SIGMAS = 3.0
 REJOIN_START = REJOIN_FIT
+#: A drift already mapped is refined only where it moves the offset by more than this (s)
+#: across the sweeps, and the sweeps' lags are read for a drift with the encoders joined near
+#: their mean lag where it is more than this off (:func:`~dhlog.identify.segment.clocks
+#: .at_one_rate`).
+DRIFT_NEAR = 1e-4
 #: The start estimate of the clock offset joins the encoders again at most this many times.
 START_REJOINS = 4
 #: A sweep's samples whose angle misses its regression by more than this many robust σ are
@@ -311,7 +326,7 @@ def phase_drift(phases: list[SweepPhase], *, refine: bool = False) -> Drift | No
     least :data:`DRIFT_SWEEPS` sweeps time it, the rate stands :data:`DRIFT_SIGMAS` σ clear of
     none and it moves the offset by more than :data:`DRIFT_FLOOR` across them (the sweeps' lags
     in time differ one joint from another by up to 0.05 ms); else None. ``refine``: a drift
-    already found and mapped, refined at any σ beyond :data:`REJOIN_START` across them.
+    already found and mapped, refined at any σ beyond :data:`DRIFT_NEAR` across them.
     Two computers' crystals differ by 10-50 ppm: 12 ms over a 10-minute session at 20 ppm,
     which misjoins a sweep's target by millimetres at its ends; a constant offset cannot."""
     timed = [p for p in _timed(phases) if p.drift_delta is not None and p.drift_std]
@@ -333,9 +348,7 @@ def phase_drift(phases: list[SweepPhase], *, refine: bool = False) -> Drift | No
     )
     std = math.sqrt(max(chi2, 1.0) / sxx)
     if refine:
-        return (
-            Drift(rate, std, round(t_ref * 1e9), span) if abs(rate) * span > REJOIN_START else None
-        )
+        return Drift(rate, std, round(t_ref * 1e9), span) if abs(rate) * span > DRIFT_NEAR else None
     if abs(rate) < DRIFT_SIGMAS * std or abs(rate) * span <= DRIFT_FLOOR:
         return None
     return Drift(rate, std, round(t_ref * 1e9), span)
@@ -449,7 +462,8 @@ def clock_start(
         if lag is None:
             break
         delta, std = lag
-        if abs(delta) <= max(REJOIN_BELOW * std, REJOIN_START):
+        clear = abs(delta) > START_SIGMAS * std or abs(delta) > FIRST_ORDER
+        if not clear or abs(delta) <= REJOIN_START:
             break
         total += delta
         seg = rejoin(seg, log, total)
