@@ -53,8 +53,8 @@ def test_no_modules_import_each_other_in_a_circle() -> None:
 #: identify/ by stage (docs/architecture.md, "Layers"): a stage imports its own folder and the
 #: stages below it; model/ and check/ stand side by side (neither imports the other), as do
 #: options.py (what a run is asked) and stages.py (the frozen stage values and the result), then
-#: camera/, the session (session.py), the fit of the whole model (wholefit.py) and the held-out
-#: logs (heldout.py); run.py on top.
+#: the first fit as the clock leaves it (clocked.py), then camera/, the session (session.py), the
+#: fit of the whole model (wholefit.py) and the held-out logs (heldout.py); run.py on top.
 IDENTIFY_FLOORS = {
     "segment": 0,
     "joints": 1,
@@ -64,11 +64,12 @@ IDENTIFY_FLOORS = {
     "check": 4,
     "options": 5,
     "stages": 5,
-    "camera": 6,
-    "wholefit": 6,
-    "heldout": 6,
-    "session": 6,
-    "run": 7,
+    "clocked": 6,
+    "camera": 7,
+    "wholefit": 7,
+    "heldout": 7,
+    "session": 7,
+    "run": 8,
 }
 
 

@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, replace
+from dataclasses import replace
 
 import numpy as np
 from numpy.typing import NDArray
@@ -28,8 +28,8 @@ from dhlog.geometry.lines import Line, Plane
 from dhlog.identify.check.holdout import MIN_POSES, Holdout, cross_validate, enough_poses
 from dhlog.identify.check.named import name_outliers, sample_names
 from dhlog.identify.check.validate import check_residual, table_gap, validate_samples
+from dhlog.identify.clocked import Clocked, fit_clocked
 from dhlog.identify.fit.axismodel import AxisModel
-from dhlog.identify.fit.data import FitData, FitOptions
 from dhlog.identify.fit.leaveout import (
     MOTION_SHARE,
     SAME_POSE,
@@ -40,11 +40,6 @@ from dhlog.identify.fit.leaveout import (
     still_poses,
 )
 from dhlog.identify.fit.prediction import predict
-from dhlog.identify.fit.samples import (
-    measured_rotations,
-    sample_covariance,
-    start_model,
-)
 from dhlog.identify.fit.variance import (
     Pass,
     pose_clustered,
@@ -53,9 +48,8 @@ from dhlog.identify.fit.variance import (
     whitening,
     with_model_error,
 )
-from dhlog.identify.fit.whole import CHI3_MEDIAN, WholeFit, fit_whole_model
+from dhlog.identify.fit.whole import WholeFit, fit_whole_model
 from dhlog.identify.joints.checks import check_noise_model
-from dhlog.identify.joints.sweeps import samples_with_encoders, target_labels
 from dhlog.identify.model.beyond import (
     beyond_geometry,
     deflections,
@@ -73,15 +67,6 @@ from dhlog.identify.read.extract import Extraction
 from dhlog.identify.read.uncertainty import whole_uncertainty
 from dhlog.identify.segment.persample import PerSample, SampleArray, blocks
 from dhlog.identify.segment.segment import Segmentation
-from dhlog.identify.segment.timing import (
-    FIRST_ORDER,
-    MAX_REJOINS,
-    REJOIN_BELOW,
-    REJOIN_FIT,
-    JointRates,
-    Timing,
-    rejoin,
-)
 from dhlog.identify.stages import (
     Checks,
     FitRequest,
@@ -92,7 +77,6 @@ from dhlog.identify.stages import (
 )
 from dhlog.model.dh import JointType
 from dhlog.model.fk import fk_frames
-from dhlog.model.noise import NoiseModel
 from dhlog.model.terms import to_table
 
 #: ``stage(what, fraction)``: told as each stage advances.
@@ -101,20 +85,6 @@ Stage = Callable[[str, float], None]
 #: Share of the fitted samples in single-joint sweeps above which the cross-validation's note
 #: says its poses lie on the sweeps.
 SWEPT_SHARE = 0.5
-
-
-@dataclass(frozen=True)
-class _Clocked:
-    """The fit as the clock left it: the fit, the segmentation and its rows the samples are
-    (joined again when the offset moved), the samples and weights every later fit takes, and
-    the clock."""
-
-    whole: WholeFit
-    segmentation: Segmentation
-    rows: NDArray[np.intp]
-    data: FitData
-    options: FitOptions
-    timing: Timing | None
 
 
 def identify_whole(
@@ -136,7 +106,8 @@ def identify_whole(
     notes: list[Note] = []  # this stage's notes, in the order said, returned in its value
     types = tuple(j.type for j in joints)
     assert session.target is not None and all(t is not None for t in types)
-    clocked = _fit_clocked(session, analytic, request.fit_scales, stage)
+    clocked = fit_clocked(session, analytic, request.fit_scales, stage)
+    notes.extend(clocked.notes)
     whole, seg, rows, data = clocked.whole, clocked.segmentation, clocked.rows, clocked.data
     Q, P, which, rotations, rates = data.Q, data.P, data.which, data.rotations, data.rates
     assert isinstance(Q, PerSample)  # the session's samples, read a block at a time
@@ -333,83 +304,12 @@ def _dealt(Q: PerSample, which: NDArray[np.int64] | None, folds: int) -> PoseFol
     return PoseFolds.of_stretches(still, folds)
 
 
-def _fit_clocked(
-    session: Session, analytic: Extraction | None, fit_scales: bool, stage: Stage
-) -> _Clocked:
-    """The first fit of the whole model from the session's start; with a clock offset
-    estimated from the data, the encoders joined again at the fitted offset and the fit
-    repeated while the offset moves (at most :data:`MAX_REJOINS` times)."""
-    seg, joints, ref = session.segmentation, session.joints, session.reference_pose
-    types = tuple(j.type for j in joints)
-    assert session.target is not None
-    rows, Q, P = session.samples()
-    which = target_labels(seg, rows)
-    rotations = measured_rotations(seg, rows)
-    sample_cov = sample_covariance(seg, rows)
-    start = start_model(
-        [j.axis for j in joints],  # type: ignore[misc]
-        types,  # type: ignore[arg-type]
-        session.target,
-        ref,
-        FitData(Q, P, sample_cov, which, rotations),
-        frozenset(session.parked),
-    )
-    noise = NoiseModel("per-sample") if sample_cov is not None else session.noise
-    fit_sigmas = [j.fit.sigma**2 for j in joints if j.fit is not None]
-    sigma = math.sqrt(np.mean(fit_sigmas)) if fit_sigmas else 1e-5
-    stage("identifying", 0.1)
-    timing = session.timing
-    clocked = timing is not None and timing.source == "estimated"
-    speeds = JointRates(seg.encoders) if clocked and seg.encoders is not None else None
-    options = FitOptions(noise, sigma, sigma_rotation=noise.orientation, fit_scales=fit_scales)
-    for attempt in range(MAX_REJOINS + 1):
-        rates = None if speeds is None else _rates(speeds, seg, rows)
-        data = FitData(Q, P, sample_cov, which, rotations, rates)
-        whole = fit_whole_model(
-            start,
-            data,
-            replace(options, threshold=math.inf if analytic is None else 5.0),
-            progress=lambda f: stage("identifying", 0.1 + 0.9 * f),
-        )
-        if analytic is None:
-            # started from the nominal (or a coupled move's circle): the start misses the
-            # samples it did not see by far more than the noise, so the first fit judged no
-            # sample an outlier; judge them at its optimum, on the noise's own scale
-            if not fit_sigmas:
-                norms = residual_norms(whole.model, Q, P, which=which, rates=rates)
-                options = replace(options, sigma=max(float(np.median(norms)) / CHI3_MEDIAN, 1e-9))
-            whole = fit_whole_model(whole.model, data, options)
-        if not clocked or timing is None:
-            break
-        at = whole.layout.clock_at
-        assert at is not None
-        delta, sd = whole.model.clock, math.sqrt(max(float(whole.covariance[at, at]), 0.0))
-        offset = timing.offset + delta
-        timing = replace(timing, offset=offset, std=sd)
-        if abs(delta) <= max(REJOIN_BELOW * sd, REJOIN_FIT) or attempt == MAX_REJOINS:
-            break  # below REJOIN_FIT the encoders as joined misplace the target by microns
-        # join the encoders again at the fitted offset and fit once more from there
-        seg = rejoin(seg, session.log, offset - timing.pipeline - timing.coarse)
-        joined, Q, P = samples_with_encoders(seg)
-        which = target_labels(seg, joined)
-        rotations = measured_rotations(seg, joined)
-        sample_cov = sample_covariance(seg, joined)
-        start = replace(whole.model, clock=0.0)
-        if abs(delta) <= FIRST_ORDER and np.array_equal(joined, rows):
-            # the fit moved the encoders so already, to first order: kept, on them as joined
-            data = FitData(Q, P, sample_cov, which, rotations, data.rates)
-            whole = replace(whole, model=start)
-            break
-        rows = joined
-    return _Clocked(whole, seg, rows, data, options, timing)
-
-
 def _cross_validation(
     whole: WholeFit,
     clustered: WholeFit,
     session: Session,
     request: FitRequest,
-    fit: _Clocked,
+    fit: Clocked,
     dealt: PoseFolds,
     selection: Selection | None,
 ) -> Holdout:
@@ -465,7 +365,7 @@ def _with_notes(
     check: Holdout,
     whole: WholeFit,
     session: Session,
-    fit: _Clocked,
+    fit: Clocked,
     names: Sequence[str],
     selection: Selection | None,
     dealt: PoseFolds,
@@ -512,7 +412,7 @@ def _with_notes(
     return replace(check, notes=tuple(notes))
 
 
-def _stretches_note(check: Holdout, whole: WholeFit, fit: _Clocked, dealt: PoseFolds) -> str:
+def _stretches_note(check: Holdout, whole: WholeFit, fit: Clocked, dealt: PoseFolds) -> str:
     """What a cross-validation over stretches held out and scored, and how much of its figure
     the noise of a pose's mean explains (σ √3 / √n, with the fit's isotropic σ)."""
     said = (
@@ -573,10 +473,3 @@ def swept_share(seg: Segmentation, rows: NDArray[np.intp]) -> float:
     for sl in blocks(rows.size):
         inside += int(np.count_nonzero(seg.joint(rows[sl]) > 0))
     return inside / max(rows.size, 1)
-
-
-def _rates(speeds: JointRates, seg: Segmentation, rows: NDArray[np.intp]) -> PerSample:
-    """The joints' speeds (m, n) at the samples ``rows``, read a block at a time."""
-    return PerSample(
-        (rows.size, seg.n_joints), lambda index: speeds.at(seg.t_ns[rows[index]])
-    ).filled()

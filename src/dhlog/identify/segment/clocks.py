@@ -181,11 +181,13 @@ def _drift_read(
     return phase_drift(phases, refine=refine)
 
 
-def nearest_offset(miss: Callable[[float], float], around: float = 0.0) -> float | None:
+def nearest_offset(
+    miss: Callable[[float], float], around: float = 0.0, *, clearer: float = FINE_CLEARER
+) -> float | None:
     """The clock offset (s) within :data:`FINE_REACH` of ``around`` at which ``miss(offset)``
     — a model's miss of the points joined at it (``fit.register.clock_judge``) — is least:
     the best of a grid of :data:`FINE_STEP`, refined by Brent's method within a step of it to
-    :data:`FINE_TOLERANCE`; None where it does not miss :data:`FINE_CLEARER` times less than
+    :data:`FINE_TOLERANCE`; None where it does not miss ``clearer`` times less than
     at ``around`` (the log is on one clock as it stands, or the model cannot be placed on its
     samples). Another session's log, scored by a calibration, has a clock of its own: its
     offset can be anything the fine estimate of its own session would have found."""
@@ -206,7 +208,7 @@ def nearest_offset(miss: Callable[[float], float], around: float = 0.0) -> float
     if not there <= float(np.min(misses)):
         at, there = best, float(np.min(misses))
     kept = miss(around)
-    if math.isfinite(there) and (not math.isfinite(kept) or there * FINE_CLEARER <= kept):
+    if math.isfinite(there) and (not math.isfinite(kept) or there * clearer <= kept):
         return at
     return None
 

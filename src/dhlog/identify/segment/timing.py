@@ -75,6 +75,9 @@ REJOIN_START = REJOIN_FIT
 #: their mean lag where it is more than this off (:func:`~dhlog.identify.segment.clocks
 #: .at_one_rate`).
 DRIFT_NEAR = 1e-4
+#: ``Timing.reason`` of a step-and-measure session's offset found at its stops' edges
+#: (:func:`~dhlog.identify.clocked.fit_clocked`; ``std`` None).
+STOPS = "stops"
 #: The start estimate of the clock offset joins the encoders again at most this many times.
 START_REJOINS = 4
 #: A sweep's samples whose angle misses its regression by more than this many robust σ are
@@ -469,8 +472,9 @@ def clock_start(
         seg = rejoin(seg, log, total)
     if std is None:
         said = Note.info(
-            "no sweep moves while the tracker samples it (step-and-measure): a clock offset "
-            "between tracker and joint states has no effect and is not estimated."
+            "no sweep moves while the tracker samples it (step-and-measure): the clock offset "
+            "is not estimated from the sweeps; it moves only the samples taken as the robot "
+            "arrives at or leaves a stop, and is looked for there by the first fit."
             if not coarse
             else "no sweep moves while the tracker samples it (step-and-measure): the offset "
             "is not estimated finer than the match of when each stream moves.",

@@ -10,7 +10,7 @@ from rich.table import Table
 
 from dhlog.identify.run import Identification
 from dhlog.identify.segment.clocks import COARSE_STEP
-from dhlog.identify.segment.timing import pace
+from dhlog.identify.segment.timing import STOPS, pace
 from dhlog.present.console.layout import literal
 from dhlog.result.document import DisplayRow
 
@@ -52,6 +52,12 @@ def clock_line(result: Identification) -> str:
         return (
             f"joint-state stamps {ms} ± {t.std * 1e3:.4f} ms onto the tracker's clock{drift} "
             f"(estimated from the data; the pipeline's clock_offset: {t.pipeline * 1e3:+.4f} ms)"
+        )
+    if t.reason == STOPS:  # found at the stops' edges, no σ
+        return (
+            f"joint-state stamps {ms} onto the tracker's clock (step-and-measure: found where "
+            "the first fit misses the samples at the stops' edges least; the pipeline's "
+            f"clock_offset: {t.pipeline * 1e3:+.4f} ms)"
         )
     why = {
         "fixed": "clock_offset_fixed in the pipeline",
