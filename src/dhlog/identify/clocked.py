@@ -23,6 +23,7 @@ from dhlog.identify.fit.whole import CHI3_MEDIAN, WholeFit, fit_whole_model
 from dhlog.identify.joints.sweeps import samples_with_encoders, target_labels
 from dhlog.identify.read.extract import Extraction
 from dhlog.identify.segment.clocks import nearest_offset
+from dhlog.identify.segment.encoders import Encoders
 from dhlog.identify.segment.persample import PerSample
 from dhlog.identify.segment.segment import Segmentation
 from dhlog.identify.segment.timing import (
@@ -33,6 +34,7 @@ from dhlog.identify.segment.timing import (
     STOPS,
     JointRates,
     Timing,
+    pace,
     rejoin,
 )
 from dhlog.identify.stages import Session
@@ -43,6 +45,20 @@ Stage = Callable[[str, float], None]
 
 #: The samples a step-and-measure session's clock is judged on (evenly strided).
 STOPS_SAMPLES = 20_000
+#: ... taken where it misses them this many times less than the offset as joined: only the
+#: samples at the stops' edges move with it (20 ms off at stops held 1 s, 1 kHz: 8 % less).
+STOPS_CLEARER = 1.02
+#: A step-and-measure session's drift: its offset found in this many stretches of it in time,
+#: taken where a line through them moves it by more than STOPS_DRIFT (s) and this many times
+#: their scatter about the line (within the stops' margins each is found to a few ms).
+STOPS_WINDOWS = 6
+STOPS_DRIFT = 0.03
+STOPS_DRIFT_CLEAR = 10.0
+#: ... mapped by it and found again at most this many times (each line through six stretches
+#: found to a few ms leaves part of a large drift: 200 ppm over 27 min read as 222).
+STOPS_DRIFT_MAPS = 3
+#: Fewest samples with joint states a step-and-measure session's clock is judged at.
+MIN_JUDGED = 20
 
 
 @dataclass(frozen=True)
@@ -129,26 +145,70 @@ def fit_clocked(
             break
         rows = joined
     if timing is not None and timing.reason == "step-and-measure" and seg.encoders is not None:
-        at_stops = _at_stops(seg, rows, whole.model)
-        if at_stops is not None:  # the samples at the stops' edges joined there, fitted again
-            seg = rejoin(seg, session.log, seg.encoders.shift_ns * 1e-9 + at_stops)
-            rows, Q, P = samples_with_encoders(seg)
-            which = target_labels(seg, rows)
-            data = FitData(Q, P, sample_covariance(seg, rows), which, measured_rotations(seg, rows))
-            whole = fit_whole_model(whole.model, data, options)
-            timing = replace(
-                timing, offset=timing.offset + at_stops, source="estimated", reason=STOPS
-            )
-            said = (
-                f"the joint states' stamps were {at_stops * 1e3:+.1f} ms off (beyond the "
-                "pipeline's clock_offset): found where the first fit misses the tracker's "
-                "samples least, those taken as the robot arrives at or leaves a stop, which an "
-                "offset joins to the joints' values of the move; joined there and fitted again."
-            )
-            return Clocked(
-                whole, seg, rows, data, options, timing, (Note.info(said, "clock-stops"),)
-            )
+        return _joined_at_stops(session, seg, rows, whole, options, timing) or Clocked(
+            whole, seg, rows, data, options, timing
+        )
     return Clocked(whole, seg, rows, data, options, timing)
+
+
+def _joined_at_stops(
+    session: Session,
+    seg: Segmentation,
+    rows: NDArray[np.intp],
+    whole: WholeFit,
+    options: FitOptions,
+    timing: Timing,
+) -> Clocked | None:
+    """A step-and-measure session joined again at the offset, and the drift, its stops' edges
+    show (:func:`_at_stops`, :func:`_drift_at_stops`) and fitted again, with the note that
+    says so; None where they show none."""
+    first = seg.encoders
+    assert first is not None
+    at = _at_stops(seg, rows, whole.model)
+    rate, t_ref, span, notes = 0.0, 0, 0.0, []
+    for _ in range(STOPS_DRIFT_MAPS):
+        around = 0.0 if rate else (at or 0.0)  # once mapped, about none
+        found = _drift_at_stops(seg, rows, whole.model, around)
+        if found is None:
+            break
+        more, shift, t_ref, span = found  # the stamps mapped: t + shift + more (t − t_ref)
+        encoders = seg.encoders
+        assert encoders is not None
+        t = encoders.t_ns
+        mapped = t + np.round(shift * 1e9 + more * (t - t_ref).astype(np.float64))
+        moved = Encoders(mapped.astype(np.int64), encoders.q, encoders.tol_ns, encoders.shift_ns)
+        seg = replace(seg, encoders=moved)
+        at = shift if not rate else (at or 0.0) + shift  # each found about the last map
+        rate += more
+    if rate:
+        timing = replace(timing, drift=rate, drift_ref_ns=t_ref)
+        said = (
+            f"the joint states' clock ran {pace(rate)} against the tracker's: the offset its "
+            f"stops' edges show moved {abs(rate) * span * 1e3:.1f} ms over {span:.0f} s "
+            f"({STOPS_WINDOWS} stretches of them, each found as below); their stamps were "
+            "mapped by it. Two computers without a common time drift so: synchronise their "
+            "clocks (PTP, chrony) for the next session."
+        )
+        notes.append(Note.warning(said, "clock-drift"))
+    elif at is not None:
+        seg = rejoin(seg, session.log, first.shift_ns * 1e-9 + at)
+    else:
+        return None
+    assert at is not None
+    rows, Q, P = samples_with_encoders(seg)
+    which = target_labels(seg, rows)
+    data = FitData(Q, P, sample_covariance(seg, rows), which, measured_rotations(seg, rows))
+    whole = fit_whole_model(whole.model, data, options)
+    timing = replace(timing, offset=timing.offset + at, source="estimated", reason=STOPS)
+    said = (
+        f"the joint states' stamps were {at * 1e3:+.1f} ms off"
+        + (" at the stops' mean time" if rate else "")
+        + " (beyond the pipeline's clock_offset): found where the first fit misses the "
+        "tracker's samples least, those taken as the robot arrives at or leaves a stop, which "
+        "an offset joins to the joints' values of the move; joined there and fitted again."
+    )
+    notes.append(Note.info(said, "clock-stops"))
+    return Clocked(whole, seg, rows, data, options, timing, tuple(notes))
 
 
 def _rates(speeds: JointRates, seg: Segmentation, rows: NDArray[np.intp]) -> PerSample:
@@ -158,35 +218,68 @@ def _rates(speeds: JointRates, seg: Segmentation, rows: NDArray[np.intp]) -> Per
     ).filled()
 
 
-def _at_stops(seg: Segmentation, rows: NDArray[np.intp], model: AxisModel) -> float | None:
+def _at_stops(
+    seg: Segmentation,
+    rows: NDArray[np.intp],
+    model: AxisModel,
+    *,
+    around: float = 0.0,
+    clearer: float = STOPS_CLEARER,
+    samples: int = STOPS_SAMPLES,
+) -> float | None:
     """A step-and-measure session's clock offset (s) beyond the one its encoders are joined at:
-    where ``model`` (its first fit) misses the samples ``rows`` (at most
-    :data:`STOPS_SAMPLES`, evenly strided) least, the RMS of every one counted
-    (:func:`~dhlog.identify.segment.clocks.nearest_offset`); None where none misses clearly
-    less. No sweep times the offset, but the tracker's samples as the robot arrives at a stop
-    and leaves it are joined to the joints' values that long before or after: a KR5 off its
-    nominal at 40 random poses held 1 s, 90 ms off, was fitted with 2 192 of them set aside and
-    an error against the truth 4.7x that in time."""
+    where ``model`` (its first fit) misses the samples ``rows`` (at most ``samples``, evenly
+    strided) least, the RMS of every one counted, within reach of ``around``
+    (:func:`~dhlog.identify.segment.clocks.nearest_offset`); None where none misses
+    ``clearer`` times less than there. No sweep times the offset, but the tracker's samples as
+    the robot arrives at a stop and leaves it are joined to the joints' values that long before
+    or after: a KR5 off its nominal at 40 random poses held 1 s, 90 ms off, was fitted with
+    2 192 of them set aside and an error against the truth 3.7x that in time."""
     encoders = seg.encoders
     assert encoders is not None
-    pick = rows[:: max(1, -(-rows.size // STOPS_SAMPLES))]
-    P = seg.xyz(pick)
+    pick = rows[:: max(1, -(-rows.size // samples))]
+    P, t = seg.xyz(pick), seg.t_ns[pick]
     which = target_labels(seg, pick)
 
     def miss(offset: float) -> float:
-        moved = replace(seg, encoders=encoders.shifted(encoders.shift_ns + round(offset * 1e9)))
-        Q = moved.q(pick)
+        Q = encoders.at(t - round(offset * 1e9))  # the stream's stamps moved by ``offset``
         ok = np.isfinite(Q).all(axis=1)
         if np.count_nonzero(ok) < MIN_JUDGED:
             return math.inf
         d = residual_norms(model, Q[ok], P[ok], which=None if which is None else which[ok])
         return float(np.sqrt(np.mean(d**2)))
 
-    return nearest_offset(miss, clearer=STOPS_CLEARER)
+    return nearest_offset(miss, around, clearer=clearer)
 
 
-#: ... taken where it misses them this many times less than the offset as joined: only the
-#: samples at the stops' edges move with it (20 ms off at stops held 1 s, 1 kHz: 8 % less).
-STOPS_CLEARER = 1.02
-#: Fewest samples with joint states a step-and-measure session's clock is judged at.
-MIN_JUDGED = 20
+def _drift_at_stops(
+    seg: Segmentation, rows: NDArray[np.intp], model: AxisModel, around: float
+) -> tuple[float, float, int, float] | None:
+    """A step-and-measure session's clock drift: its offset found again in
+    :data:`STOPS_WINDOWS` stretches of its samples in time (:func:`_at_stops`, the best each
+    gives), a line through them against time — (rate, the offset at the reference, the
+    reference stamp (ns), the span in s) — where it moves the offset by more than
+    :data:`STOPS_DRIFT` across them and :data:`STOPS_DRIFT_CLEAR` times the line's scatter;
+    else None. A constant offset misjoins the stops' edges alike; a drifting clock (two
+    computers without a common time, 10-50 ppm) misjoins the late stops by more than the
+    early ones, and no one offset joins both."""
+    if rows.size < STOPS_WINDOWS * MIN_JUDGED * 10:
+        return None
+    t_s, found = [], []
+    for part in np.array_split(rows, STOPS_WINDOWS):
+        at = _at_stops(
+            seg, part, model, around=around, clearer=1.0, samples=STOPS_SAMPLES // STOPS_WINDOWS
+        )
+        if at is None:
+            return None
+        t_s.append(float(np.mean(seg.t_ns[part[[0, -1]]].astype(np.float64))) * 1e-9)
+        found.append(at)
+    t, o = np.array(t_s), np.array(found)
+    t_ref = float(np.mean(t))
+    rate, mean = np.polyfit(t - t_ref, o, 1)
+    span = float(t[-1] - t[0])
+    scatter = float(np.sqrt(np.mean((o - mean - rate * (t - t_ref)) ** 2)))
+    moved = abs(float(rate)) * span
+    if moved <= STOPS_DRIFT or moved <= STOPS_DRIFT_CLEAR * scatter:
+        return None
+    return float(rate), float(mean), round(t_ref * 1e9), span
