@@ -54,10 +54,11 @@ def clock_line(result: Identification) -> str:
             f"(estimated from the data; the pipeline's clock_offset: {t.pipeline * 1e3:+.4f} ms)"
         )
     if t.reason == STOPS:  # found at the stops' edges, no σ
+        drift = f" at the stops' mean time, their clock running {pace(t.drift)} (mapped)"
         return (
-            f"joint-state stamps {ms} onto the tracker's clock (step-and-measure: found where "
-            "the first fit misses the samples at the stops' edges least; the pipeline's "
-            f"clock_offset: {t.pipeline * 1e3:+.4f} ms)"
+            f"joint-state stamps {ms} onto the tracker's clock{drift if t.drift else ''} "
+            "(step-and-measure: found where the first fit misses the samples at the stops' "
+            f"edges least; the pipeline's clock_offset: {t.pipeline * 1e3:+.4f} ms)"
         )
     why = {
         "fixed": "clock_offset_fixed in the pipeline",
