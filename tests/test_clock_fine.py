@@ -58,12 +58,14 @@ def in_time() -> tuple[Session, Identification]:
 def test_a_session_tens_of_ms_off_calibrates_as_in_time(
     offset: float, in_time: tuple[Session, Identification]
 ) -> None:
-    """50 and 70 ms behind, 70 ms ahead: the offset within 5 µs, each joint's own fit's σ, the
+    """50 and 70 ms behind, 70 ms ahead: the offset as in time, each joint's own fit's σ, the
     FK check and the FK error against the truth as the session in time gives them."""
     session, result = _run(offset)
     truth_session, truth_result = in_time
     assert result.timing is not None and truth_result.timing is not None
-    assert abs(result.timing.offset - truth_result.timing.offset - offset) < 5e-6
+    # the joints' speeds read as joined: the offset found as in time (0.47-0.63 µs off when
+    # they were read on the log's own stamps, tens of ms from the encoders as joined)
+    assert abs(result.timing.offset - truth_result.timing.offset - offset) < 0.2e-6
     for joint, alike in zip(result.joints, truth_result.joints, strict=True):
         assert joint.fit is not None and alike.fit is not None
         assert joint.fit.sigma < 1.1 * alike.fit.sigma, joint.name

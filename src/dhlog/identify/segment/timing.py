@@ -138,7 +138,7 @@ class JointRates:
     stream is kept beyond its midpoints and steps."""
 
     def __init__(self, encoders: Encoders) -> None:
-        t_ns = encoders.log_t_ns
+        t_ns = encoders.t_ns  # as joined: the speeds are asked for at the tracker's times
         pairs = max(t_ns.size - 1, 0)
         ok = scratch.empty(pairs, np.bool_)
         for sl in blocks(pairs):
