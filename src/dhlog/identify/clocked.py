@@ -23,7 +23,6 @@ from dhlog.identify.fit.whole import CHI3_MEDIAN, WholeFit, fit_whole_model
 from dhlog.identify.joints.sweeps import samples_with_encoders, target_labels
 from dhlog.identify.read.extract import Extraction
 from dhlog.identify.segment.clocks import nearest_offset
-from dhlog.identify.segment.encoders import Encoders
 from dhlog.identify.segment.persample import PerSample
 from dhlog.identify.segment.segment import Segmentation
 from dhlog.identify.segment.timing import (
@@ -165,22 +164,18 @@ def _joined_at_stops(
     first = seg.encoders
     assert first is not None
     at = _at_stops(seg, rows, whole.model)
-    rate, t_ref, span, notes = 0.0, 0, 0.0, []
+    rate, moved, t_ref, span, notes = 0.0, 0.0, 0, 0.0, []
     for _ in range(STOPS_DRIFT_MAPS):
-        around = 0.0 if rate else (at or 0.0)  # once mapped, about none
-        found = _drift_at_stops(seg, rows, whole.model, around)
+        found = _drift_at_stops(seg, rows, whole.model, 0.0 if rate else (at or 0.0))
         if found is None:
             break
-        more, shift, t_ref, span = found  # the stamps mapped: t + shift + more (t − t_ref)
+        more, shift, t_ref, span = found  # each found about the last map (the same stretches)
         encoders = seg.encoders
         assert encoders is not None
-        t = encoders.t_ns
-        mapped = t + np.round(shift * 1e9 + more * (t - t_ref).astype(np.float64))
-        moved = Encoders(mapped.astype(np.int64), encoders.q, encoders.tol_ns, encoders.shift_ns)
-        seg = replace(seg, encoders=moved)
-        at = shift if not rate else (at or 0.0) + shift  # each found about the last map
-        rate += more
+        seg = replace(seg, encoders=encoders.drifted(shift, more, t_ref))
+        rate, moved = rate + more, moved + shift
     if rate:
+        at = moved  # the offset at the reference
         timing = replace(timing, drift=rate, drift_ref_ns=t_ref)
         said = (
             f"the joint states' clock ran {pace(rate)} against the tracker's: the offset its "

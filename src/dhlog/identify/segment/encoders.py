@@ -44,17 +44,24 @@ class Encoders:
         q = tuple(np.asarray(joints[f"q_{j + 1}"].to_numpy(), dtype=np.float64) for j in range(n))
         return cls(t, q, tol_ns)
 
-    @property
-    def log_t_ns(self) -> NDArray[np.int64]:
-        """The stamps as the log has them."""
-        shift = self.shift_ns
-        return self.t_ns if shift == 0 else scratch.mapped(self.t_ns, lambda t: t - shift)
-
     def shifted(self, shift_ns: int) -> Encoders:
         """The stream with its stamps moved by ``shift_ns`` from the log's."""
         step = shift_ns - self.shift_ns
         t_ns = scratch.mapped(self.t_ns, lambda t: t + step)
         return Encoders(t_ns, self.q, self.tol_ns, shift_ns)
+
+    def drifted(self, offset: float, rate: float, t_ref_ns: int) -> Encoders:
+        """The stream with each stamp ``t`` moved by ``offset + rate (t − t_ref)`` s: onto the
+        tracker's clock where the joint states' clock runs ``rate`` s a second off it (its
+        ``shift_ns`` kept: a later :meth:`shifted` moves it on from there)."""
+        t_ns = scratch.mapped(
+            self.t_ns,
+            lambda t: (
+                t
+                + np.round(offset * 1e9 + rate * (t - t_ref_ns).astype(np.float64)).astype(np.int64)
+            ),
+        )
+        return Encoders(t_ns, self.q, self.tol_ns, self.shift_ns)
 
     def neighbours(self, t: NDArray[np.int64]) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
         """The encoder samples before and after each time ``t`` (-1 where missing: then both)."""
