@@ -1,6 +1,6 @@
 """Clock offsets between tracker and joint states: recovered offset and FK error, over sessions.
 
-    .venv/bin/python benchmarks/clock.py [--sessions 10] [--workers 2] [--points 300]
+    .venv/bin/python benchmarks/clock.py [--sessions 10] [--workers 2] [--points 300] [--only TEXT]
 
 For each case (a KR5 off its nominal: lengths σ 0.2 mm, angles σ 0.02°; tracker σ 10 µm) and
 seeded session, the same motion is simulated twice: joint-state stamps right, and written early
@@ -67,6 +67,19 @@ CASES: dict[str, dict[str, object]] = {
         "protocol": "random-poses",
         "poses": 200,
     },
+    "300 ppm, 200 random poses (27 min), 100 Hz": {
+        "clock_offset": 0.0,
+        "clock_drift": 300e-6,
+        "protocol": "random-poses",
+        "poses": 200,
+    },
+    "1 000 ppm, 60 random poses held 1 s (8 min), 100 Hz": {
+        "clock_offset": 0.0,
+        "clock_drift": 1000e-6,
+        "protocol": "random-poses",
+        "poses": 60,
+        "dwell": 1.0,
+    },
     "+90 ms, 40 random poses held 1 s, 1 kHz": {
         "clock_offset": 0.09,
         "protocol": "random-poses",
@@ -115,8 +128,10 @@ def main() -> None:
     parser.add_argument("--sessions", type=int, default=10)
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--points", type=int, default=300)
+    parser.add_argument("--only", default="", help="the cases whose name holds this text")
     args = parser.parse_args()
-    jobs = [(case, seed, args.points) for case in CASES for seed in range(args.sessions)]
+    cases = [case for case in CASES if args.only in case]
+    jobs = [(case, seed, args.points) for case in cases for seed in range(args.sessions)]
     start = time.time()
     with ProcessPoolExecutor(args.workers) as pool:
         rows = list(pool.map(one, jobs))
@@ -126,7 +141,7 @@ def main() -> None:
         "| FK RMS with offset (µm) | without (µm) | ratio |"
     )
     print("|---|---|---|---|---|---|---|")
-    for case in CASES:
+    for case in cases:
         mine = [r for r in rows if r[0] == case]
         with_, without = (math.sqrt(np.mean([r[k] for r in mine])) * 1e6 for k in (4, 5))
         found = [r for r in mine if r[2] is not None]

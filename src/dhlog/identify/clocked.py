@@ -22,7 +22,7 @@ from dhlog.identify.fit.variance import residual_norms
 from dhlog.identify.fit.whole import CHI3_MEDIAN, WholeFit, fit_whole_model
 from dhlog.identify.joints.sweeps import samples_with_encoders, target_labels
 from dhlog.identify.read.extract import Extraction
-from dhlog.identify.segment.clocks import nearest_offset
+from dhlog.identify.segment.clocks import FINE_REACH, nearest_offset
 from dhlog.identify.segment.persample import PerSample
 from dhlog.identify.segment.segment import Segmentation
 from dhlog.identify.segment.timing import (
@@ -58,6 +58,10 @@ STOPS_DRIFT_CLEAR = 10.0
 STOPS_DRIFT_MAPS = 3
 #: Fewest samples with joint states a step-and-measure session's clock is judged at.
 MIN_JUDGED = 20
+#: Where the least miss lies at the edge of the search's reach (the offset beyond it), the
+#: search is made again around it at most this many times: a clock drifting 1 000 ppm moves
+#: the offset 0.5 s over a 60-pose session, 0.08 s from one stretch of it to the next.
+STOPS_FOLLOW = 4
 
 
 @dataclass(frozen=True)
@@ -165,15 +169,27 @@ def _joined_at_stops(
     assert first is not None
     at = _at_stops(seg, rows, whole.model)
     rate, moved, t_ref, span, notes = 0.0, 0.0, 0, 0.0, []
+    fitted = None
     for _ in range(STOPS_DRIFT_MAPS):
         found = _drift_at_stops(seg, rows, whole.model, 0.0 if rate else (at or 0.0))
         if found is None:
             break
-        more, shift, t_ref, span = found  # each found about the last map (the same stretches)
+        pace_more, shift, t_ref, span = found  # each about the last map (the same stretches)
         encoders = seg.encoders
         assert encoders is not None
-        seg = replace(seg, encoders=encoders.drifted(shift, more, t_ref))
-        rate, moved = rate + more, moved + shift
+        seg = replace(seg, encoders=encoders.drifted(shift, pace_more, t_ref))
+        rate, moved = rate + pace_more, moved + shift
+        # fitted again on the stamps as mapped, so the next search judges them by a model
+        # that misjoined samples did not bend (stops held 0.3 s, 1 000 ppm: all of them)
+        fitted = _fitted(seg, whole.model, options)
+        whole = fitted[2]
+    left = _at_stops(seg, rows, whole.model) if rate else None
+    if left is not None:  # the offset the line left, found by the fit on the stamps as mapped
+        encoders = seg.encoders
+        assert encoders is not None
+        seg = replace(seg, encoders=encoders.drifted(left, 0.0, t_ref))
+        moved += left
+        fitted = _fitted(seg, whole.model, options)
     if rate:
         at = moved  # the offset at the reference
         timing = replace(timing, drift=rate, drift_ref_ns=t_ref)
@@ -187,13 +203,10 @@ def _joined_at_stops(
         notes.append(Note.warning(said, "clock-drift"))
     elif at is not None:
         seg = rejoin(seg, session.log, first.shift_ns * 1e-9 + at)
-    else:
+        fitted = _fitted(seg, whole.model, options)
+    if fitted is None or at is None:
         return None
-    assert at is not None
-    rows, Q, P = samples_with_encoders(seg)
-    which = target_labels(seg, rows)
-    data = FitData(Q, P, sample_covariance(seg, rows), which, measured_rotations(seg, rows))
-    whole = fit_whole_model(whole.model, data, options)
+    rows, data, whole = fitted
     timing = replace(timing, offset=timing.offset + at, source="estimated", reason=STOPS)
     said = (
         f"the joint states' stamps were {at * 1e3:+.1f} ms off"
@@ -204,6 +217,17 @@ def _joined_at_stops(
     )
     notes.append(Note.info(said, "clock-stops"))
     return Clocked(whole, seg, rows, data, options, timing, tuple(notes))
+
+
+def _fitted(
+    seg: Segmentation, start: AxisModel, options: FitOptions
+) -> tuple[NDArray[np.intp], FitData, WholeFit]:
+    """The whole model fitted from ``start`` on the samples as ``seg`` joins them: their rows,
+    the samples and the fit."""
+    rows, Q, P = samples_with_encoders(seg)
+    which = target_labels(seg, rows)
+    data = FitData(Q, P, sample_covariance(seg, rows), which, measured_rotations(seg, rows))
+    return rows, data, fit_whole_model(start, data, options)
 
 
 def _rates(speeds: JointRates, seg: Segmentation, rows: NDArray[np.intp]) -> PerSample:
@@ -230,6 +254,22 @@ def _at_stops(
     the robot arrives at a stop and leaves it are joined to the joints' values that long before
     or after: a KR5 off its nominal at 40 random poses held 1 s, 90 ms off, was fitted with
     2 192 of them set aside and an error against the truth 3.7x that in time."""
+    miss = _stops_miss(seg, rows, model, samples)
+    at = nearest_offset(miss, around, clearer=clearer)
+    for _ in range(STOPS_FOLLOW):
+        if at is None or abs(at - around) < FINE_REACH:
+            break
+        around = at  # the least miss at the edge of the reach: the offset lies beyond
+        at = nearest_offset(miss, around, clearer=1.0)
+    return at
+
+
+def _stops_miss(
+    seg: Segmentation, rows: NDArray[np.intp], model: AxisModel, samples: int
+) -> Callable[[float], float]:
+    """``miss(offset)``: the RMS (m) by which ``model`` misses the samples ``rows`` (at most
+    ``samples``, evenly strided) with the encoders of ``seg`` read ``offset`` (s) later, every
+    one counted; infinite where fewer than :data:`MIN_JUDGED` have joint states there."""
     encoders = seg.encoders
     assert encoders is not None
     pick = rows[:: max(1, -(-rows.size // samples))]
@@ -244,7 +284,7 @@ def _at_stops(
         d = residual_norms(model, Q[ok], P[ok], which=None if which is None else which[ok])
         return float(np.sqrt(np.mean(d**2)))
 
-    return nearest_offset(miss, around, clearer=clearer)
+    return miss
 
 
 def _drift_at_stops(
@@ -254,20 +294,30 @@ def _drift_at_stops(
     :data:`STOPS_WINDOWS` stretches of its samples in time (:func:`_at_stops`, the best each
     gives), a line through them against time — (rate, the offset at the reference, the
     reference stamp (ns), the span in s) — where it moves the offset by more than
-    :data:`STOPS_DRIFT` across them and :data:`STOPS_DRIFT_CLEAR` times the line's scatter;
-    else None. A constant offset misjoins the stops' edges alike; a drifting clock (two
+    :data:`STOPS_DRIFT` across them and either :data:`STOPS_DRIFT_CLEAR` times the line's
+    scatter or, mapped by it, the samples are missed :data:`STOPS_CLEARER` times less than at
+    ``around`` (the one offset that joins them best); else None. Each stretch is searched
+    about the line through the two before it, so the search follows a drift beyond its reach.
+    A constant offset misjoins the stops' edges alike; a drifting clock (two
     computers without a common time, 10-50 ppm) misjoins the late stops by more than the
     early ones, and no one offset joins both."""
     if rows.size < STOPS_WINDOWS * MIN_JUDGED * 10:
         return None
-    t_s, found = [], []
+    best = around  # the one offset that joins them best (none after a map)
+    t_s: list[float] = []
+    found: list[float] = []
     for part in np.array_split(rows, STOPS_WINDOWS):
+        t_s.append(float(np.mean(seg.t_ns[part[[0, -1]]].astype(np.float64))) * 1e-9)
+        if len(found) >= 2:  # each stretch searched about the line through the last two
+            slope = (found[-1] - found[-2]) / (t_s[-2] - t_s[-3])
+            around = found[-1] + slope * (t_s[-1] - t_s[-2])
+        elif found:
+            around = found[-1]
         at = _at_stops(
             seg, part, model, around=around, clearer=1.0, samples=STOPS_SAMPLES // STOPS_WINDOWS
         )
         if at is None:
             return None
-        t_s.append(float(np.mean(seg.t_ns[part[[0, -1]]].astype(np.float64))) * 1e-9)
         found.append(at)
     t, o = np.array(t_s), np.array(found)
     t_ref = float(np.mean(t))
@@ -275,6 +325,17 @@ def _drift_at_stops(
     span = float(t[-1] - t[0])
     scatter = float(np.sqrt(np.mean((o - mean - rate * (t - t_ref)) ** 2)))
     moved = abs(float(rate)) * span
-    if moved <= STOPS_DRIFT or moved <= STOPS_DRIFT_CLEAR * scatter:
+    if moved <= STOPS_DRIFT:
         return None
-    return float(rate), float(mean), round(t_ref * 1e9), span
+    t_ref_ns = round(t_ref * 1e9)
+    if moved <= STOPS_DRIFT_CLEAR * scatter:
+        # the stretches scatter about the line (a few stops each, held briefly, judged by a
+        # first fit the misjoins bent): taken where the map joins the samples better than the
+        # best single offset does, on the samples' own miss
+        encoders = seg.encoders
+        assert encoders is not None
+        mapped = replace(seg, encoders=encoders.drifted(float(mean), float(rate), t_ref_ns))
+        drifted = _stops_miss(mapped, rows, model, STOPS_SAMPLES)(0.0)
+        if not drifted * STOPS_CLEARER <= _stops_miss(seg, rows, model, STOPS_SAMPLES)(best):
+            return None
+    return float(rate), float(mean), t_ref_ns, span
