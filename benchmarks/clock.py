@@ -80,6 +80,12 @@ CASES: dict[str, dict[str, object]] = {
         "poses": 60,
         "dwell": 1.0,
     },
+    "1 000 ppm, 60 random poses held 0.3 s (7 min), 100 Hz": {
+        "clock_offset": 0.0,
+        "clock_drift": 1000e-6,
+        "protocol": "random-poses",
+        "poses": 60,
+    },
     "+90 ms, 40 random poses held 1 s, 1 kHz": {
         "clock_offset": 0.09,
         "protocol": "random-poses",
