@@ -33,6 +33,7 @@ from dhlog.identify.model.parked import (
 from dhlog.identify.options import ProcessOptions
 from dhlog.identify.segment.clocks import at_one_rate, on_one_clock
 from dhlog.identify.segment.segment import Segmentation, segment_log
+from dhlog.identify.segment.steps import at_one_step, step_note
 from dhlog.identify.segment.timing import (
     Drift,
     Timing,
@@ -80,6 +81,15 @@ def segmented(log: LogData, options: ProcessOptions, stage: Stage) -> Segmented:
     notes = [*said, *seg.notes]
     phases = sweep_phases(seg, log, types_hint) if seg.has_encoders else []
     notes.extend(check_units(seg, log, phases))  # before a drift's map: a unit slip is no drift
+    log, seg, phases, step = at_one_step(
+        log,
+        seg,
+        phases,
+        lambda mapped: segment_log(mapped, joint_types=types_hint, reference_pose=reference_pose),
+        types_hint,
+    )
+    if step is not None:
+        notes.append(step_note(step))
     log, seg, phases, drift = at_one_rate(
         log,
         seg,
@@ -92,6 +102,8 @@ def segmented(log: LogData, options: ProcessOptions, stage: Stage) -> Segmented:
     seg, timing, said = clock_start(seg, log, phases, coarse)
     if drift is not None and timing is not None:
         timing = replace(timing, drift=drift.rate, drift_ref_ns=drift.t_ref_ns)
+    if step is not None and timing is not None:
+        timing = replace(timing, step=step.seconds, step_at_ns=step.at_ns)
     notes.extend(said)
     check_sizes(log.path, n, nominal, reference_pose)
     implausible = []

@@ -113,6 +113,10 @@ class Timing:
     #: ``drift_ref_ns``
     drift: float = 0.0
     drift_ref_ns: int = 0
+    #: a step of the joint states' clock mid-session (:mod:`dhlog.identify.segment.steps`): s
+    #: added to their stamps from the one logged at ``step_at_ns`` on (0: none found)
+    step: float = 0.0
+    step_at_ns: int = 0
 
     def document(self) -> dict[str, object]:
         """The result JSON's ``timing`` block."""
@@ -128,6 +132,7 @@ class Timing:
                 if self.drift
                 else {}
             ),
+            **({"clock_step": self.step, "clock_step_at_ns": self.step_at_ns} if self.step else {}),
         }
 
 
@@ -284,7 +289,7 @@ def sweep_phases(
     return out
 
 
-def _timed(phases: list[SweepPhase]) -> list[SweepPhase]:
+def timed_phases(phases: list[SweepPhase]) -> list[SweepPhase]:
     """The phases that time their sweep (a lag with its σ, the encoder's slope near 1), where
     the sweeps move while the tracker samples them (not step-and-measure); else none."""
     timed = [
@@ -332,7 +337,7 @@ def phase_drift(phases: list[SweepPhase], *, refine: bool = False) -> Drift | No
     already found and mapped, refined at any σ beyond :data:`DRIFT_NEAR` across them.
     Two computers' crystals differ by 10-50 ppm: 12 ms over a 10-minute session at 20 ppm,
     which misjoins a sweep's target by millimetres at its ends; a constant offset cannot."""
-    timed = [p for p in _timed(phases) if p.drift_delta is not None and p.drift_std]
+    timed = [p for p in timed_phases(phases) if p.drift_delta is not None and p.drift_std]
     if len(timed) < DRIFT_SWEEPS:
         return None
     t = np.array([p.t_ns for p in timed], dtype=np.float64) * 1e-9
@@ -365,7 +370,7 @@ def phase_lag(
     phases = sweep_phases(seg, log) if phases is None else phases
     # step-and-measure: the samples were taken at the stops; the few that the offset joins to
     # the start of the next move are not a timing signal to trust
-    estimates = [(p.delta, p.std) for p in _timed(phases)]
+    estimates = [(p.delta, p.std) for p in timed_phases(phases)]
     if not estimates:
         return None
     values = np.array([e[0] for e in estimates])

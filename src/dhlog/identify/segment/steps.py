@@ -1,0 +1,197 @@
+"""A step of the joint states' clock in the middle of a session (:func:`at_one_step`): a time
+daemon (ntpd beyond 128 ms, chrony's ``makestep``, Windows' time service) sets the clock of the
+computer that stamps them, and every stamp after it is that much off those before. The sweeps'
+lags (:func:`~dhlog.identify.segment.timing.sweep_phases`) then fall in two groups about no one
+line; the stamps themselves show where, as an interval unlike the stream's others (a stamp
+before the last one where the clock went back). The stamps from there on are moved by the
+difference of the lags either side, where that leaves the lags on a line.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, replace
+
+import numpy as np
+import polars as pl
+
+from dhlog.errors import Note
+from dhlog.identify.segment.segment import Segmentation
+from dhlog.identify.segment.timing import SweepPhase, sweep_phases, timed_phases
+from dhlog.io.reader import LogData
+from dhlog.model.dh import JointType
+
+#: The sweeps' lags scatter about their line by more than this (s, RMS) before a step
+#: is looked for: in time they differ one joint from another by up to 0.05 ms, and a drift is
+#: a line.
+STEP_FLOOR = 1e-3
+#: ... and a step is taken where, the stamps moved by it, they scatter this many times less.
+STEP_CLEARER = 5.0
+#: The stream's intervals most unlike the others tried as the step's place (a dropout is one
+#: too: the lags either side of it agree, and it is not taken).
+STEP_CANDIDATES = 3
+#: Fewest timed sweeps either side of a step.
+STEP_SWEEPS = 1
+#: The interval's own step is taken for the lags' where the stream's intervals scatter less than
+#: the lags' step is known, and the two agree within this many of its σ (at least 0.1 ms).
+STEP_AGREE = 5.0
+#: Readings of the step's size: the lags read a misjoin of tens of ms a little short, and a
+#: sweep the step falls in between the two.
+STEP_READINGS = 3
+
+
+@dataclass(frozen=True)
+class ClockStep:
+    """A step of the joint states' clock: ``seconds`` added to their stamps from the
+    ``index``-th (0-based, in the order logged), whose stamp as logged is ``at_ns``."""
+
+    index: int
+    at_ns: int
+    seconds: float
+
+    @property
+    def described(self) -> str:
+        """The step in words: how far the clock was set, and which way."""
+        return f"was set {abs(self.seconds) * 1e3:.1f} ms {'back' if self.seconds > 0 else 'on'}"
+
+
+def lag_misfit(phases: list[SweepPhase]) -> float | None:
+    """The RMS (s) of the timed sweeps' lags about their weighted line in time, each sweep
+    counted alike (the line goes through the sweeps whose lags are sharpest: those the others
+    miss it by are the step's); None with fewer than three."""
+    timed = timed_phases(phases)
+    if len(timed) < 3:
+        return None
+    t = np.array([p.t_ns for p in timed], dtype=np.float64) * 1e-9
+    d = np.array([p.delta for p in timed], dtype=np.float64)
+    w = 1.0 / np.array([p.std for p in timed], dtype=np.float64) ** 2
+    x = t - float(np.sum(w * t) / np.sum(w))
+    sxx = float(np.sum(w * x**2))
+    mean = float(np.sum(w * d) / np.sum(w))
+    rate = float(np.sum(w * x * d) / sxx) if sxx > 0.0 else 0.0
+    return math.sqrt(float(np.mean((d - mean - rate * x) ** 2)))  # each sweep alike
+
+
+@dataclass(frozen=True)
+class _Place:
+    """Where the stream's stamps may step: the index of the joint state after an odd interval
+    (in the order logged), the interval less the stream's median (s) and the intervals'
+    scatter (s, robust σ: how sharply one interval tells a step)."""
+
+    index: int
+    odd: float
+    jitter: float
+
+
+def _places(log: LogData) -> list[_Place]:
+    """The joint states after the :data:`STEP_CANDIDATES` intervals least like the stream's
+    median one, beyond :data:`STEP_FLOOR` from it."""
+    assert log.joints is not None
+    t = log.joints["t_ns"].to_numpy()
+    if t.size < 3:
+        return []
+    gaps = np.diff(t).astype(np.float64) * 1e-9
+    odd = gaps - float(np.median(gaps))
+    jitter = 1.4826 * float(np.median(np.abs(odd)))
+    order = np.argsort(-np.abs(odd))[:STEP_CANDIDATES]
+    return [_Place(int(k) + 1, float(odd[k]), jitter) for k in order if abs(odd[k]) > STEP_FLOOR]
+
+
+def _size(phases: list[SweepPhase], at_ns: int) -> tuple[float, float] | None:
+    """What the timed sweeps' lags from ``at_ns`` on are off those before (s) and its σ: the
+    step of a line with one (least squares, each sweep alike: a drift is the line); None with
+    fewer than :data:`STEP_SWEEPS` sweeps either side or four in all. A sweep the step falls in
+    reads a lag between the two; moved at the step's place, it reads as the others, and the
+    next reading takes up what it bent. The σ is the lags' scatter about the model: they differ
+    one joint from another by up to 0.05 ms in time."""
+    timed = [p for p in timed_phases(phases) if p.delta is not None]
+    after = np.array([p.t_ns >= at_ns for p in timed])
+    if len(timed) < 4 or min(np.count_nonzero(after), np.count_nonzero(~after)) < STEP_SWEEPS:
+        return None
+    t = np.array([p.t_ns for p in timed], dtype=np.float64) * 1e-9
+    d = np.array([p.delta for p in timed], dtype=np.float64)
+    A = np.column_stack([np.ones_like(t), t - t.mean(), after.astype(np.float64)])
+    x, *_ = np.linalg.lstsq(A, d, rcond=None)
+    var = float(np.sum((d - A @ x) ** 2)) / (len(timed) - 3)
+    cov = np.linalg.pinv(A.T @ A) * var
+    return float(x[2]), math.sqrt(max(float(cov[2, 2]), 0.0))
+
+
+def stepped(log: LogData, index: int, seconds: float) -> LogData:
+    """``log`` with ``seconds`` added to its joint states' stamps from the ``index``-th on (in
+    the order logged), and to its commanded joints' after the last stamp before it."""
+    assert log.joints is not None
+    step = round(seconds * 1e9)
+    last = int(log.joints["t_ns"][index - 1])
+    joints = log.joints.with_columns(
+        pl.when(pl.int_range(pl.len()) >= index)
+        .then(pl.col("t_ns") + step)
+        .otherwise(pl.col("t_ns"))
+        .alias("t_ns")
+    )
+    commanded = log.commanded
+    if commanded is not None:
+        commanded = commanded.with_columns(
+            pl.when(pl.col("t_ns") > last)
+            .then(pl.col("t_ns") + step)
+            .otherwise(pl.col("t_ns"))
+            .alias("t_ns")
+        )
+    return replace(log, joints=joints, commanded=commanded)
+
+
+def at_one_step(
+    log: LogData,
+    seg: Segmentation,
+    phases: list[SweepPhase],
+    segment: Callable[[LogData], Segmentation],
+    joint_types: Sequence[JointType | None] | None = None,
+) -> tuple[LogData, Segmentation, list[SweepPhase], ClockStep | None]:
+    """``log``, its segmentation ``seg`` and its sweeps' ``phases``; where the lags scatter
+    about their line beyond :data:`STEP_FLOOR` and one of the stream's odd intervals
+    (:func:`_places`) explains it — the stamps after it moved by the lags' difference either
+    side (read :data:`STEP_READINGS` times), the lags scatter :data:`STEP_CLEARER` times less —
+    the log so mapped, segmented and its sweeps read again, and the step (None: none found, or
+    the pipeline fixes the clock)."""
+    if log.pipeline.segmentation.clock_offset_fixed or log.joints is None:
+        return log, seg, phases, None
+    misfit = lag_misfit(phases)
+    if misfit is None or misfit <= STEP_FLOOR:
+        return log, seg, phases, None
+    best: tuple[float, LogData, Segmentation, list[SweepPhase], ClockStep] | None = None
+    for place in _places(log):
+        index = place.index
+        at_ns = int(log.joints["t_ns"][index])
+        mapped, got, total, sd = log, (seg, phases), 0.0, math.inf
+        for _ in range(STEP_READINGS):
+            read = _size(got[1], at_ns)
+            if read is None:
+                break
+            total += read[0]  # a lag is what the stamps need added: theirs after, less before
+            sd = read[1]
+            if place.jitter < sd and abs(-place.odd - total) <= STEP_AGREE * max(sd, 1e-4):
+                total = -place.odd  # the interval tells the step sharper than the lags do
+            mapped = stepped(log, index, total)
+            new_seg = segment(mapped)
+            got = (new_seg, sweep_phases(new_seg, mapped, joint_types))
+        left = lag_misfit(got[1])
+        if total and left is not None and left * STEP_CLEARER <= misfit:
+            if best is None or left < best[0]:
+                best = (left, mapped, got[0], got[1], ClockStep(index, at_ns, total))
+    if best is None:
+        return log, seg, phases, None
+    return best[1], best[2], best[3], best[4]
+
+
+def step_note(step: ClockStep) -> Note:
+    """What the run says of the step of the joint states' clock it took out."""
+    return Note.warning(
+        f"the joint states' clock {step.described} during the session (at their stamp "
+        f"{step.at_ns} ns as logged): the sweeps either side lag the tracker by that much apart, "
+        f"so the stamps from there on were moved {step.seconds * 1e3:+.1f} ms before the sweeps "
+        "were read again. A time daemon setting the clock mid-session does so: let it slew "
+        "(chrony's makestep only at boot) or synchronise the computers (PTP) for the next "
+        "session.",
+        "clock-step",
+    )
