@@ -246,6 +246,17 @@ def simulate(
             "session's start (two computers without a common time drift by 10-50)."
         ),
     ] = 0.0,
+    clock_step_ms: Annotated[
+        float,
+        typer.Option(
+            help="The joint-state clock is set this many ms on mid-session (a time daemon "
+            "stepping it; negative: set back)."
+        ),
+    ] = 0.0,
+    clock_step_at: Annotated[
+        float,
+        typer.Option(help="Where the clock step falls: a share of the motion, in (0, 1)."),
+    ] = 0.5,
     start_day: Annotated[
         float,
         typer.Option(help="Days after 2025-11-21 04:40 UTC the session starts (a series)."),
@@ -404,6 +415,8 @@ def simulate(
             parked=parked_joints(park_joints),
             clock_offset=clock_offset_ms * 1e-3,
             clock_drift=clock_drift_ppm * 1e-6,
+            clock_step=clock_step_ms * 1e-3,
+            clock_step_at=clock_step_at,
             start_day=start_day,
             compliance=tuple(compliant),
             payload=payload_kg,

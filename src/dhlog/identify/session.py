@@ -89,7 +89,7 @@ def segmented(log: LogData, options: ProcessOptions, stage: Stage) -> Segmented:
         types_hint,
     )
     if step is not None:
-        notes.append(step_note(step))
+        notes.append(step_note(step, as_logged=log.clock_set_back is not None))
     log, seg, phases, drift = at_one_rate(
         log,
         seg,

@@ -37,3 +37,6 @@ class LogData:
     joint_order: ChainOrder | None = None
     #: the export's point ids by stamp (``dhlog import``'s ``dhlog.point_ids``), or None
     point_ids: dict[int, str] | None = None
+    #: the joint states' clock set back mid-session (:mod:`dhlog.io.decode.setback`): their
+    #: first stamp after it as logged, and the ns added to it and every one after; None: none
+    clock_set_back: tuple[int, int] | None = None

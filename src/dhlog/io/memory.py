@@ -9,6 +9,7 @@ from __future__ import annotations
 import numpy as np
 import polars as pl
 
+from dhlog.io.decode.setback import unfolded
 from dhlog.io.pipeline import Pipeline, pipeline_by_name
 from dhlog.io.reader import LogData
 from dhlog.io.streams import RecordedStreams
@@ -40,7 +41,7 @@ def log_data_from_session(session: RecordedStreams, pipeline: Pipeline | None = 
             )
             frames.append(frame.with_columns(pl.lit(k + 1, dtype=pl.Int32).alias("target")))
         points = pl.concat(frames).sort("t_ns", maintain_order=True)
-    joints = None
+    joints, set_back = None, None
     if has_encoders:
         joints = pl.DataFrame(
             {
@@ -48,6 +49,7 @@ def log_data_from_session(session: RecordedStreams, pipeline: Pipeline | None = 
                 **{f"q_{j + 1}": session.joint_q[:, j] for j in range(session.joint_q.shape[1])},
             }
         )
+        joints, set_back = unfolded(joints)
     base = pl.DataFrame(
         {
             "t_ns": session.base_t_ns,
@@ -65,5 +67,12 @@ def log_data_from_session(session: RecordedStreams, pipeline: Pipeline | None = 
             }
         )
     return LogData(
-        f"{session.robot_name}.mcap", pipe, points, joints, list(session.joint_names), base, phase
+        f"{session.robot_name}.mcap",
+        pipe,
+        points,
+        joints,
+        list(session.joint_names),
+        base,
+        phase,
+        clock_set_back=set_back,
     )

@@ -51,6 +51,7 @@ from dhlog.io.decode.messages import (
     TRANSFORM_SCHEMAS,
     phase_value,
 )
+from dhlog.io.decode.setback import unfolded
 from dhlog.io.logdata import LogData
 from dhlog.io.mcapscan import McapScan, scan_mcap
 from dhlog.io.mcapwalk import ChannelInfo
@@ -272,6 +273,7 @@ def read_log(
         base = clean(points_frame(blocks_of("base"), pipeline.length_scale), "base", set_aside)
     release("joints", "phase", "commanded")
     joints, chain, order = None, list(pipeline.joint_names or []), None
+    set_back = None
     if "joints" in infos:
         topic = infos["joints"][0].topic
         joints, chain, order = joints_frame(
@@ -285,6 +287,7 @@ def read_log(
         )
         if order.note:
             warnings.append(f"{name}: {order.note}")
+        joints, set_back = unfolded(joints)
         joints = clean(joints, "joints", set_aside)
     commanded = None
     if "commanded" in infos:  # decoded as the joint states are (a JointState stream)
@@ -330,6 +333,7 @@ def read_log(
         commanded,
         order,
         point_ids,
+        set_back,
     )
 
 

@@ -16,6 +16,7 @@ Files are written to a temporary name beside the target and renamed into place.
 
 from __future__ import annotations
 
+import heapq
 import json
 import os
 import tempfile
@@ -237,18 +238,20 @@ def _commands(session: RecordedStreams) -> tuple[NDArray[np.int64], NDArray[np.f
 
 
 def _events(session: RecordedStreams, *, extras: bool = False) -> list[tuple[int, str, int]]:
-    """(time, stream, index) of every message, in time order (with the further targets')."""
-    ev: list[tuple[int, str, int]] = []
-    ev += [(int(t), "base", i) for i, t in enumerate(session.base_t_ns)]
-    ev += [(int(t), "point", i) for i, t in enumerate(session.point_t_ns)]
+    """(time, stream, index) of every message (with the further targets'), in the order a
+    recorder receives them: the streams merged by time, each in its own order — a stream whose
+    stamps fall (its clock set back mid-session) is written as it was sent, as rosbag2 does."""
+    streams: list[list[tuple[int, str, int]]] = [
+        [(int(t), "base", i) for i, t in enumerate(session.base_t_ns)],
+        [(int(t), "point", i) for i, t in enumerate(session.point_t_ns)],
+    ]
     if extras:
         for stream in _extra_streams(session):
-            ev += [(int(t), stream, i) for i, t in enumerate(session.point_t_ns)]
-    ev += [(int(t), "joints", i) for i, t in enumerate(session.joint_t_ns)]
-    ev += [(t, "phase", i) for i, (t, _) in enumerate(session.phase)]
-    ev += [(int(t), "command", i) for i, t in enumerate(_commands(session)[0])]
-    ev.sort(key=lambda e: e[0])
-    return ev
+            streams.append([(int(t), stream, i) for i, t in enumerate(session.point_t_ns)])
+    streams.append([(int(t), "joints", i) for i, t in enumerate(session.joint_t_ns)])
+    streams.append([(t, "phase", i) for i, (t, _) in enumerate(session.phase)])
+    streams.append([(int(t), "command", i) for i, t in enumerate(_commands(session)[0])])
+    return list(heapq.merge(*streams, key=lambda e: e[0]))
 
 
 def _quaternions(session: RecordedStreams) -> NDArray[np.float64] | None:

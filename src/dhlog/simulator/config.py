@@ -80,6 +80,12 @@ class SimulationConfig:
     #: (what is added to the stamps a second, the pipeline's sign) reads −clock_drift / (1 +
     #: clock_drift). Sweeps and still poses only (not the camera's, nor the iso9283 protocol)
     clock_drift: float = 0.0
+    #: seconds the joint-state clock is set on at ``clock_step_at`` (a share of the motion) —
+    #: a time daemon stepping it mid-session; negative: set back, the stamps after it before
+    #: the last ones. dhlog's ``timing.clock_step`` reads −clock_step. Sweeps and still poses
+    #: only, as the drift
+    clock_step: float = 0.0
+    clock_step_at: float = 0.5
     skip_joints: tuple[int, ...] = ()
     #: joints parked all session (a torso, a rail, an external axis that stays where it is):
     #: (joint, value in rad or m); never swept, the same in every random pose but for a servo's
@@ -180,6 +186,8 @@ def config_problems(robot: Robot, cfg: SimulationConfig) -> list[str]:
         cfg.travel,
         cfg.clock_offset,
         cfg.clock_drift,
+        cfg.clock_step,
+        cfg.clock_step_at,
         cfg.start_day,
         cfg.model_error,
         cfg.orientation_noise,
@@ -218,6 +226,14 @@ def config_problems(robot: Robot, cfg: SimulationConfig) -> list[str]:
         (
             abs(cfg.clock_drift) <= 1e-2,
             f"the clock drift must be within ±10 000 ppm (got {cfg.clock_drift * 1e6:g} ppm)",
+        ),
+        (
+            abs(cfg.clock_step) <= 10.0,
+            f"the clock step must be within ±10 s (got {cfg.clock_step:g} s)",
+        ),
+        (
+            0 < cfg.clock_step_at < 1,
+            f"the clock step's place must be in (0, 1) of the motion (got {cfg.clock_step_at:g})",
         ),
         (
             0 <= cfg.start_day <= 36_500,
@@ -381,6 +397,7 @@ def _iso9283_problems(cfg: SimulationConfig) -> list[str]:
         (cfg.instrument != "tracker", "--instrument camera"),
         (cfg.restation or cfg.remount, "--restation/--remount"),
         (cfg.clock_drift != 0.0, "--clock-drift-ppm"),
+        (cfg.clock_step != 0.0, "--clock-step-ms"),
     ]
     out += [
         f"{what} is not simulated with the iso9283 protocol (it runs the ISO 9283 test program)"
@@ -419,6 +436,7 @@ def _camera_problems(cfg: SimulationConfig) -> list[str]:
         (cfg.protocol in PATH_PROTOCOLS, "a path protocol"),
         (cfg.restation or cfg.remount, "--restation/--remount"),
         (cfg.clock_drift != 0.0, "--clock-drift-ppm"),
+        (cfg.clock_step != 0.0, "--clock-step-ms"),
     ]
     out += [
         f"{what} is for tracker logs; a camera is simulated without it"

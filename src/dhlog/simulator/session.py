@@ -168,9 +168,14 @@ def simulate_session(
         point_t_ns=t_trk_ns[keep],
         point_xyz=np.asarray(xyz[keep], dtype=np.float64),
         joint_t_ns=start_ns
-        + (((t_enc + base_time) * (1.0 + cfg.clock_drift) - cfg.clock_offset) * 1e9).astype(
-            np.int64
-        )
+        + (
+            (
+                (t_enc + base_time) * (1.0 + cfg.clock_drift)
+                - cfg.clock_offset
+                + np.where(t_enc > cfg.clock_step_at * duration, cfg.clock_step, 0.0)
+            )
+            * 1e9
+        ).astype(np.int64)
         if cfg.encoders
         else np.zeros(0, dtype=np.int64),
         joint_q=q_enc if cfg.encoders else np.zeros((0, robot.n)),

@@ -70,6 +70,11 @@ def truth_document(
             "seed": cfg.seed,
             "clock_offset_s": cfg.clock_offset,
             "clock_drift": cfg.clock_drift,
+            **(
+                {"clock_step_s": cfg.clock_step, "clock_step_at": cfg.clock_step_at}
+                if cfg.clock_step
+                else {}
+            ),
             "joint_sweeps": [float(v) for v in session.sweeps],
             "perturb_length_m": cfg.perturb_length,
             "perturb_angle_rad": cfg.perturb_angle,

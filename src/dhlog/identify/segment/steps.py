@@ -18,7 +18,7 @@ import polars as pl
 
 from dhlog.errors import Note
 from dhlog.identify.segment.segment import Segmentation
-from dhlog.identify.segment.timing import SweepPhase, sweep_phases, timed_phases
+from dhlog.identify.segment.timing import SweepPhase, set_by, sweep_phases, timed_phases
 from dhlog.io.reader import LogData
 from dhlog.model.dh import JointType
 
@@ -53,7 +53,7 @@ class ClockStep:
     @property
     def described(self) -> str:
         """The step in words: how far the clock was set, and which way."""
-        return f"was set {abs(self.seconds) * 1e3:.1f} ms {'back' if self.seconds > 0 else 'on'}"
+        return f"was {set_by(self.seconds)}"
 
 
 def lag_misfit(phases: list[SweepPhase]) -> float | None:
@@ -156,6 +156,8 @@ def at_one_step(
     the pipeline fixes the clock)."""
     if log.pipeline.segmentation.clock_offset_fixed or log.joints is None:
         return log, seg, phases, None
+    if log.clock_set_back is not None:  # the stamps fell as logged: moved on reading
+        return _set_back(log, seg, phases, segment, joint_types)
     misfit = lag_misfit(phases)
     if misfit is None or misfit <= STEP_FLOOR:
         return log, seg, phases, None
@@ -184,8 +186,45 @@ def at_one_step(
     return best[1], best[2], best[3], best[4]
 
 
-def step_note(step: ClockStep) -> Note:
-    """What the run says of the step of the joint states' clock it took out."""
+def _set_back(
+    log: LogData,
+    seg: Segmentation,
+    phases: list[SweepPhase],
+    segment: Callable[[LogData], Segmentation],
+    joint_types: Sequence[JointType | None] | None,
+) -> tuple[LogData, Segmentation, list[SweepPhase], ClockStep]:
+    """A clock set back, its stamps moved on reading to follow on at the stream's interval
+    (:mod:`dhlog.io.decode.setback`): that is right to the intervals' jitter, a few tenths of
+    a ms; where the sweeps' lags either side still differ by more than :data:`STEP_AGREE` σ
+    the stamps after it are moved by that too (up to :data:`STEP_READINGS` times)."""
+    assert log.clock_set_back is not None and log.joints is not None
+    at_ns, added = log.clock_set_back
+    index = int(np.searchsorted(log.joints["t_ns"].to_numpy(), at_ns + added))
+    total, mapped = 0.0, log
+    for _ in range(STEP_READINGS):
+        read = _size(phases, at_ns + added)
+        if read is None or abs(read[0]) <= STEP_AGREE * read[1]:
+            break
+        total += read[0]
+        mapped = stepped(log, index, total)
+        seg = segment(mapped)
+        phases = sweep_phases(seg, mapped, joint_types)
+    return mapped, seg, phases, ClockStep(index, at_ns, added * 1e-9 + total)
+
+
+def step_note(step: ClockStep, *, as_logged: bool = False) -> Note:
+    """What the run says of the step of the joint states' clock it took out (``as_logged``:
+    their stamps fell in the order logged, and were moved on reading)."""
+    if as_logged:
+        return Note.warning(
+            f"the joint states' clock {step.described} during the session (their stamps fall "
+            f"in the order logged, at {step.at_ns} ns): the stamps from there on were moved "
+            f"{step.seconds * 1e3:+.1f} ms to follow the one before at the stream's interval, "
+            "so the two stretches do not interleave. A time daemon setting the clock "
+            "mid-session does so: let it slew (chrony's makestep only at boot) or synchronise "
+            "the computers (PTP) for the next session.",
+            "clock-step",
+        )
     return Note.warning(
         f"the joint states' clock {step.described} during the session (at their stamp "
         f"{step.at_ns} ns as logged): the sweeps either side lag the tracker by that much apart, "

@@ -328,6 +328,12 @@ def pace(rate: float) -> str:
     return f"{abs(rate) * 1e6:.1f} ppm {'fast' if rate < 0 else 'slow'}"
 
 
+def set_by(step: float) -> str:
+    """A step of the joint states' clock (s added to the stamps after it) as the clock set back
+    or on: ``"set 20.0 ms back"``."""
+    return f"set {abs(step) * 1e3:.1f} ms {'back' if step > 0 else 'on'}"
+
+
 def phase_drift(phases: list[SweepPhase], *, refine: bool = False) -> Drift | None:
     """The clock drift the sweeps' lags show (:class:`Drift`: a line through each sweep's lag
     against its time, weighted by their σ, its σ widened by the scatter about it), where at

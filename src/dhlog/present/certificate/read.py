@@ -13,6 +13,7 @@ import numpy as np
 
 from dhlog.errors import InputError
 from dhlog.geometry._checks import roll_pitch_yaw
+from dhlog.identify.segment.timing import set_by
 from dhlog.io.pointids import MAX_ID, listed
 from dhlog.present.certificate.camera import read_camera
 from dhlog.present.certificate.shown import (
@@ -283,6 +284,12 @@ def _measurement(f: FieldReader, doc: dict[str, Any]) -> list[tuple[str, str]]:
                 f"; the offset at the sweeps' mean time, the joint states' clock running "
                 f"{abs(drift) * 1e6:.1f} ppm {'fast' if drift < 0 else 'slow'} against the "
                 "tracker's (their stamps mapped by it)"
+            )
+        step = f.get_number(timing, "clock_step", "timing", required=False)
+        if step:
+            text += (
+                f"; the joint states' clock {set_by(step)} mid-session (their stamps after it "
+                "moved by that)"
             )
         lines.append(("Clock offset", text))
     base = f.get_obj(doc, "base", required=False)

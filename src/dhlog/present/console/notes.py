@@ -10,7 +10,7 @@ from rich.table import Table
 
 from dhlog.identify.run import Identification
 from dhlog.identify.segment.clocks import COARSE_STEP
-from dhlog.identify.segment.timing import STOPS, pace
+from dhlog.identify.segment.timing import STOPS, pace, set_by
 from dhlog.present.console.layout import literal
 from dhlog.result.document import DisplayRow
 
@@ -49,6 +49,10 @@ def clock_line(result: Identification) -> str:
             if t.drift
             else ""
         )
+        if t.step:
+            drift += (
+                f", their clock {set_by(t.step)} mid-session (the stamps after it moved by that)"
+            )
         return (
             f"joint-state stamps {ms} ± {t.std * 1e3:.4f} ms onto the tracker's clock{drift} "
             f"(estimated from the data; the pipeline's clock_offset: {t.pipeline * 1e3:+.4f} ms)"
