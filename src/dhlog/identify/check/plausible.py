@@ -149,10 +149,13 @@ def nominal_miss(result: Any) -> float | None:
 
 def noise_rms(result: Any) -> float | None:
     """The tracker's noise as a 3-D RMS (m, √3 σ) from what measures it apart from the model:
-    the per-joint circle fits' σ, else the pipeline's declared σ; None when neither exists."""
+    the sharpest per-joint circle fit's σ (the tracker is no noisier than its sharpest joint's
+    points lie on their circle; joints misjoined by a clock or read wrong show millimetres
+    there, and their mean would hide an FK check as far off), else the pipeline's declared σ;
+    None when neither exists."""
     sigmas = [j.fit.sigma for j in result.joints if j.fit is not None]
     if sigmas:
-        return math.sqrt(3.0 * float(np.mean(np.square(sigmas))))
+        return math.sqrt(3.0) * float(min(sigmas))
     declared = result.noise.sigma
     return None if declared is None else math.sqrt(3.0) * float(declared)
 
