@@ -7,7 +7,7 @@ processed as ``dhlog process --nominal`` does; the FK error against the truth at
 joint vectors within the limits, beside the same session in time (the same motion and
 noise), and the step found against the one written.
 
-    .venv/bin/python benchmarks/clock_step.py [--ms -200 -20 5 20 50] [--seeds 3]
+    .venv/bin/python benchmarks/clock_step.py [--ms -200 -20 5 20 50] [--seeds 3] [--robots kr5 …]
 
 2026-12-05, this machine, the defaults (the figures in docs/accuracy.md): see the printed
 table.
@@ -47,10 +47,11 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--ms", type=float, nargs="+", default=[-200.0, -20.0, 5.0, 20.0, 50.0])
     parser.add_argument("--seeds", type=int, default=3)
+    parser.add_argument("--robots", nargs="+", default=["kr5", "ur5", "puma560"])
     args = parser.parse_args()
     print("robot      ms   error / in time, median [max]   step found − written (ms, max)   found")
     with tempfile.TemporaryDirectory() as tmp:
-        for name in ("kr5", "ur5", "puma560"):
+        for name in args.robots:
             robot = load_robot(name)
             names = tuple(f"joint_{i + 1}" for i in range(robot.n))
             nominal = DHModel(robot.table, robot.T_base, robot.tool_point, names, name)

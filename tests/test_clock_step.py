@@ -8,9 +8,11 @@ stream's odd interval tell the step (``identify.segment.steps``): the stamps fro
 moved by it, and the fit is as in time.
 
 The sessions stepped and in time are the same motion and noise (one seed), only the joint
-states' stamps after mid-session moved, so what differs is the join alone: the tolerance on
-the error against the truth is 1.2x that in time (the step is read from the lags to their σ,
-10-30 µs, and the fit's one clock offset cannot take up what is left on one side)."""
+states' stamps after mid-session moved, so what differs is the join alone. The lags read the
+step to their σ (10-100 µs: 0.1 ms misjoins a target swept at 1 m/s by 0.1 mm, ten times the
+noise); the fit then sizes it again to a few µs (3.8 µs here), so the error against the truth
+is held to 1.05x that in time (1.007x measured; the lags' reading alone left 1.0-1.1x here
+and up to 9x on a UR5, benchmarks/clock_step.py) and the step to 20 µs."""
 
 from __future__ import annotations
 
@@ -86,7 +88,7 @@ def test_a_clock_set_mid_session_is_taken_out(
     session = _stepped(truth_session, seconds)
     result = _run(session)
     t = result.timing
-    assert t is not None and abs(t.step + seconds) < 1e-4  # the step taken out: −seconds
+    assert t is not None and abs(t.step + seconds) < 2e-5  # the step taken out: −seconds
     assert t.document()["clock_step"] == t.step
     assert any(n.code == "clock-step" for n in result.notes)
     said = f"set {abs(seconds) * 1e3:.1f} ms {'on' if seconds > 0 else 'back'}"
@@ -99,7 +101,7 @@ def test_a_clock_set_mid_session_is_taken_out(
     assert said in shown["Clock offset"]  # the certificate's, read from the JSON
     assert result.validation is not None and truth.validation is not None
     assert result.validation.rms < 1.05 * truth.validation.rms
-    assert _fk_error(result, session) < 1.2 * _fk_error(truth, truth_session)
+    assert _fk_error(result, session) < 1.05 * _fk_error(truth, truth_session)
 
 
 def test_dropouts_are_no_step() -> None:
@@ -127,10 +129,10 @@ def test_a_clock_set_mid_session_in_a_bag(
     assert (log.clock_set_back is not None) == (seconds < 0)
     assert log.joints is not None and bool(log.joints["t_ns"].diff().min() > 0)  # type: ignore[operator]
     result = process_data(log, ProcessOptions())
-    assert result.timing is not None and abs(result.timing.step + seconds) < 1e-4
+    assert result.timing is not None and abs(result.timing.step + seconds) < 2e-5
     assert result.validation is not None and truth.validation is not None
     assert result.validation.rms < 1.05 * truth.validation.rms
-    assert _fk_error(result, session) < 1.2 * _fk_error(truth, truth_session)
+    assert _fk_error(result, session) < 1.05 * _fk_error(truth, truth_session)
 
 
 def _stamps(t_ms: list[float]) -> pl.DataFrame:

@@ -103,7 +103,7 @@ def segmented(log: LogData, options: ProcessOptions, stage: Stage) -> Segmented:
     if drift is not None and timing is not None:
         timing = replace(timing, drift=drift.rate, drift_ref_ns=drift.t_ref_ns)
     if step is not None and timing is not None:
-        timing = replace(timing, step=step.seconds, step_at_ns=step.at_ns)
+        timing = replace(timing, step=step.seconds, step_at_ns=step.at_ns, step_index=step.index)
     notes.extend(said)
     check_sizes(log.path, n, nominal, reference_pose)
     implausible = []

@@ -63,6 +63,13 @@ class Encoders:
         )
         return Encoders(t_ns, self.q, self.tol_ns, self.shift_ns)
 
+    def stepped(self, index: int, seconds: float) -> Encoders:
+        """The stream with its stamps from the ``index``-th on moved by ``seconds`` (a clock
+        set mid-session, sized again: less than an interval, so they stay in order)."""
+        step = round(seconds * 1e9)
+        t_ns = np.concatenate([self.t_ns[:index], self.t_ns[index:] + step])
+        return Encoders(t_ns, self.q, self.tol_ns, self.shift_ns)
+
     def neighbours(self, t: NDArray[np.int64]) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
         """The encoder samples before and after each time ``t`` (-1 where missing: then both)."""
         t_enc, tol = self.t_ns, self.tol_ns

@@ -117,6 +117,8 @@ class Timing:
     #: added to their stamps from the one logged at ``step_at_ns`` on (0: none found)
     step: float = 0.0
     step_at_ns: int = 0
+    #: the first joint state the step moved, by its row in the joint-state table (-1: none)
+    step_index: int = -1
 
     def document(self) -> dict[str, object]:
         """The result JSON's ``timing`` block."""
