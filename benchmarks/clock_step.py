@@ -8,6 +8,7 @@ joint vectors within the limits, beside the same session in time (the same motio
 noise), and the step found against the one written.
 
     .venv/bin/python benchmarks/clock_step.py [--ms -200 -20 5 20 50] [--seeds 3] [--robots kr5 …]
+        [--outliers 0.05]
 
 2026-12-05, this machine, the defaults (the figures in docs/accuracy.md): see the printed
 table.
@@ -48,6 +49,7 @@ def main() -> None:
     parser.add_argument("--ms", type=float, nargs="+", default=[-200.0, -20.0, 5.0, 20.0, 50.0])
     parser.add_argument("--seeds", type=int, default=3)
     parser.add_argument("--robots", nargs="+", default=["kr5", "ur5", "puma560"])
+    parser.add_argument("--outliers", type=float, default=0.0, help="share of gross outliers")
     args = parser.parse_args()
     print("robot      ms   error / in time, median [max]   step found − written (ms, max)   found")
     with tempfile.TemporaryDirectory() as tmp:
@@ -69,6 +71,7 @@ def main() -> None:
                         "perturb_length": 5e-4,
                         "perturb_angle": math.radians(0.05),
                         "seed": seed,
+                        "outliers": args.outliers,
                     }
                     runs = [] if seed in in_time else [(0.0, True)]
                     for step, reference in [*runs, (ms * 1e-3, False)]:

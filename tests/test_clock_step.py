@@ -104,6 +104,17 @@ def test_a_clock_set_mid_session_is_taken_out(
     assert _fk_error(result, session) < 1.05 * _fk_error(truth, truth_session)
 
 
+def test_a_clock_set_among_gross_outliers() -> None:
+    """5 % gross outliers (mm each): the step is sized again on the fit's inliers (their RMS
+    over every sample was flat about it: 0.19 ms left, 2.7x the error in time)."""
+    truth_session = _session(outliers=0.05)
+    truth = _run(truth_session)
+    session = _stepped(truth_session, 0.02)
+    result = _run(session)
+    assert result.timing is not None and abs(result.timing.step + 0.02) < 2e-5
+    assert _fk_error(result, session) < 1.05 * _fk_error(truth, truth_session)
+
+
 def test_dropouts_are_no_step() -> None:
     """A stream with gaps where messages were lost (2 % dropped) and a clock that runs on: the
     odd intervals are tried, the lags either side agree, and no step is taken."""

@@ -238,7 +238,7 @@ def _joined_at_step(
     speeds: JointRates,
 ) -> tuple[Segmentation, NDArray[np.intp], FitData, WholeFit, Timing]:
     """A clock set mid-session (``timing.step``, read from the sweeps' lags to some 10-100 µs)
-    sized again where the fit misses the samples after it least, its own clock offset
+    sized again where the fit misses its inliers after it least, its own clock offset
     included (:func:`_after_step_miss`, within :data:`STEP_REACH`): the joint states from the
     step on moved by that and the model fitted again, up to :data:`STEP_REFITS` times. A
     misjoin of 0.1 ms moves a target swept at 1 m/s by 0.1 mm, ten times the noise; the fit's
@@ -250,8 +250,11 @@ def _joined_at_step(
         encoders = seg.encoders
         if encoders is None or not 0 < index < encoders.t_ns.size:
             break
-        after = rows[seg.t_ns[rows] >= encoders.t_ns[index] + encoders.tol_ns]
-        if after.size < MIN_JUDGED * 10 or after.size == rows.size:
+        later = seg.t_ns[rows] >= encoders.t_ns[index] + encoders.tol_ns
+        if np.count_nonzero(later) == rows.size:
+            break
+        after = rows[later & whole.inliers]  # gross outliers (5 %: mm each) flatten the miss
+        if after.size < MIN_JUDGED * 10:
             break
         miss = _after_step_miss(seg, after, whole.model, speeds)
         found = minimize_scalar(
