@@ -56,6 +56,15 @@ class ClockStep:
         return f"was {set_by(self.seconds)}"
 
 
+def _lag(phase: SweepPhase) -> tuple[float, float]:
+    """A sweep's lag (s) and its σ read without its gross outliers where it has them
+    (``drift_delta``: 5 % of outliers bend the plain reading by up to 1.6 ms), else as read."""
+    if phase.drift_delta is not None and phase.drift_std:
+        return phase.drift_delta, phase.drift_std
+    assert phase.delta is not None and phase.std is not None
+    return phase.delta, phase.std
+
+
 def lag_misfit(phases: list[SweepPhase]) -> float | None:
     """The RMS (s) of the timed sweeps' lags about their weighted line in time, each sweep
     counted alike (the line goes through the sweeps whose lags are sharpest: those the others
@@ -64,8 +73,8 @@ def lag_misfit(phases: list[SweepPhase]) -> float | None:
     if len(timed) < 3:
         return None
     t = np.array([p.t_ns for p in timed], dtype=np.float64) * 1e-9
-    d = np.array([p.delta for p in timed], dtype=np.float64)
-    w = 1.0 / np.array([p.std for p in timed], dtype=np.float64) ** 2
+    d, sd = np.array([_lag(p) for p in timed], dtype=np.float64).T
+    w = 1.0 / sd**2
     x = t - float(np.sum(w * t) / np.sum(w))
     sxx = float(np.sum(w * x**2))
     mean = float(np.sum(w * d) / np.sum(w))
@@ -110,7 +119,7 @@ def _size(phases: list[SweepPhase], at_ns: int) -> tuple[float, float] | None:
     if len(timed) < 4 or min(np.count_nonzero(after), np.count_nonzero(~after)) < STEP_SWEEPS:
         return None
     t = np.array([p.t_ns for p in timed], dtype=np.float64) * 1e-9
-    d = np.array([p.delta for p in timed], dtype=np.float64)
+    d = np.array([_lag(p)[0] for p in timed], dtype=np.float64)
     A = np.column_stack([np.ones_like(t), t - t.mean(), after.astype(np.float64)])
     x, *_ = np.linalg.lstsq(A, d, rcond=None)
     var = float(np.sum((d - A @ x) ** 2)) / (len(timed) - 3)
@@ -153,7 +162,8 @@ def at_one_step(
     (:func:`_places`) explains it — the stamps after it moved by the lags' difference either
     side (read :data:`STEP_READINGS` times), the lags scatter :data:`STEP_CLEARER` times less —
     the log so mapped, segmented and its sweeps read again, and the step (None: none found, or
-    the pipeline fixes the clock)."""
+    the pipeline fixes the clock). The lags are read without their sweeps' gross outliers
+    (:func:`_lag`)."""
     if log.pipeline.segmentation.clock_offset_fixed or log.joints is None:
         return log, seg, phases, None
     if log.clock_set_back is not None:  # the stamps fell as logged: moved on reading
