@@ -32,13 +32,14 @@ from dhlog.io.decode.setback import unfolded
 from dhlog.io.memory import log_data_from_session
 from dhlog.io.reader import read_log
 from dhlog.io.writer import write_session
-from dhlog.model.fk import fk_point
 from dhlog.model.robots import load_robot
 from dhlog.present.certificate.read import read_result
 from dhlog.present.console.notes import clock_line
 from dhlog.result.document import result_document
 from dhlog.simulator.config import SimulationConfig
 from dhlog.simulator.session import Session, simulate_session
+
+from chains import fk_error
 
 ROBOT = load_robot("kr5")
 OFF = {"noise": 1e-5, "perturb_length": 5e-4, "perturb_angle": math.radians(0.05)}
@@ -62,12 +63,8 @@ def _run(session: Session) -> Identification:
 
 def _fk_error(result: Identification, session: Session) -> float:
     """RMS FK error (m) against the truth at 300 random joint vectors within the limits."""
-    ex = result.extraction
-    assert ex is not None
     Q = np.random.default_rng(0).uniform(ROBOT.limits[:, 0], ROBOT.limits[:, 1], (300, 6))
-    got = fk_point(ex.standard, Q, ex.tool_point, T_base=ex.T_measurement_base)
-    want = fk_point(session.table, Q, session.tool_point, T_base=session.T_measurement_base)
-    return float(np.sqrt(np.mean(np.sum((got - want) ** 2, axis=1))))
+    return float(np.sqrt(np.mean(fk_error(result, session, Q) ** 2)))
 
 
 @pytest.fixture(scope="module")

@@ -239,10 +239,11 @@ def _joined_at_step(
 ) -> tuple[Segmentation, NDArray[np.intp], FitData, WholeFit, Timing]:
     """A clock set mid-session (``timing.step``, read from the sweeps' lags to some 10-100 µs)
     sized again where the fit misses its inliers after it least, its own clock offset
-    included (:func:`_after_step_miss`, within :data:`STEP_REACH`): the joint states from the
-    step on moved by that and the model fitted again, up to :data:`STEP_REFITS` times. A
-    misjoin of 0.1 ms moves a target swept at 1 m/s by 0.1 mm, ten times the noise; the fit's
-    one clock offset takes up the mean of the two sides, not their difference."""
+    included (:func:`_stops_miss` with the joints' speeds, within :data:`STEP_REACH`): the
+    joint states from the step on moved by that and the model fitted again, up to
+    :data:`STEP_REFITS` times. A misjoin of 0.1 ms moves a target swept at 1 m/s by 0.1 mm,
+    ten times the noise; the fit's one clock offset takes up the mean of the two sides, not
+    their difference."""
     from scipy.optimize import minimize_scalar  # scipy.optimize costs 0.35 s to import
 
     index, moved = timing.step_index, 0.0
@@ -256,7 +257,7 @@ def _joined_at_step(
         after = rows[later & whole.inliers]  # gross outliers (5 %: mm each) flatten the miss
         if after.size < MIN_JUDGED * 10:
             break
-        miss = _after_step_miss(seg, after, whole.model, speeds)
+        miss = _stops_miss(seg, after, whole.model, STOPS_SAMPLES, speeds)
         found = minimize_scalar(
             miss, bounds=(-STEP_REACH, STEP_REACH), method="bounded", options={"xatol": 1e-7}
         )
@@ -282,32 +283,6 @@ def _joined_at_step(
         offset = timing.offset - clock + whole.model.clock
         timing = replace(timing, offset=offset, std=sd if sd is not None else timing.std)
     return seg, rows, data, whole, replace(timing, step=timing.step + moved)
-
-
-def _after_step_miss(
-    seg: Segmentation, rows: NDArray[np.intp], model: AxisModel, speeds: JointRates
-) -> Callable[[float], float]:
-    """``miss(offset)``: the RMS (m) by which ``model``, its clock offset included, misses the
-    samples ``rows`` (at most :data:`STOPS_SAMPLES`, evenly strided) with the encoders of
-    ``seg`` read ``offset`` (s) later, every one counted."""
-    encoders = seg.encoders
-    assert encoders is not None
-    pick = rows[:: max(1, -(-rows.size // STOPS_SAMPLES))]
-    P, t = seg.xyz(pick), seg.t_ns[pick]
-    which = target_labels(seg, pick)
-
-    def miss(offset: float) -> float:
-        moved = t - round(offset * 1e9)
-        Q, rates = encoders.at(moved), speeds.at(moved)
-        ok = np.isfinite(Q).all(axis=1) & np.isfinite(rates).all(axis=1)
-        if np.count_nonzero(ok) < MIN_JUDGED:
-            return math.inf
-        d = residual_norms(
-            model, Q[ok], P[ok], which=None if which is None else which[ok], rates=rates[ok]
-        )
-        return float(np.sqrt(np.mean(d**2)))
-
-    return miss
 
 
 def _fitted(
@@ -356,11 +331,16 @@ def _at_stops(
 
 
 def _stops_miss(
-    seg: Segmentation, rows: NDArray[np.intp], model: AxisModel, samples: int
+    seg: Segmentation,
+    rows: NDArray[np.intp],
+    model: AxisModel,
+    samples: int,
+    speeds: JointRates | None = None,
 ) -> Callable[[float], float]:
     """``miss(offset)``: the RMS (m) by which ``model`` misses the samples ``rows`` (at most
     ``samples``, evenly strided) with the encoders of ``seg`` read ``offset`` (s) later, every
-    one counted; infinite where fewer than :data:`MIN_JUDGED` have joint states there."""
+    one counted — with the joints' ``speeds``, the model's own clock offset included —;
+    infinite where fewer than :data:`MIN_JUDGED` have joint states there."""
     encoders = seg.encoders
     assert encoders is not None
     pick = rows[:: max(1, -(-rows.size // samples))]
@@ -368,11 +348,21 @@ def _stops_miss(
     which = target_labels(seg, pick)
 
     def miss(offset: float) -> float:
-        Q = encoders.at(t - round(offset * 1e9))  # the stream's stamps moved by ``offset``
+        moved = t - round(offset * 1e9)  # the stream's stamps moved by ``offset``
+        Q = encoders.at(moved)
+        rates = None if speeds is None else speeds.at(moved)
         ok = np.isfinite(Q).all(axis=1)
+        if rates is not None:
+            ok &= np.isfinite(rates).all(axis=1)
         if np.count_nonzero(ok) < MIN_JUDGED:
             return math.inf
-        d = residual_norms(model, Q[ok], P[ok], which=None if which is None else which[ok])
+        d = residual_norms(
+            model,
+            Q[ok],
+            P[ok],
+            which=None if which is None else which[ok],
+            rates=None if rates is None else rates[ok],
+        )
         return float(np.sqrt(np.mean(d**2)))
 
     return miss
