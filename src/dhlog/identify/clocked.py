@@ -25,6 +25,7 @@ from dhlog.identify.read.extract import Extraction
 from dhlog.identify.segment.clocks import FINE_REACH, nearest_offset
 from dhlog.identify.segment.persample import PerSample
 from dhlog.identify.segment.segment import Segmentation
+from dhlog.identify.segment.steps import STEP_REACH
 from dhlog.identify.segment.timing import (
     FIRST_ORDER,
     MAX_REJOINS,
@@ -62,9 +63,8 @@ MIN_JUDGED = 20
 #: search is made again around it at most this many times: a clock drifting 1 000 ppm moves
 #: the offset 0.5 s over a 60-pose session, 0.08 s from one stretch of it to the next.
 STOPS_FOLLOW = 4
-#: A clock set mid-session is sized again within this (s) of where the lags put it ...
-STEP_REACH = 1e-3
-#: ... fitted again so up to this many times, until it moves by less than this (s).
+#: A clock set mid-session, sized again within STEP_REACH of where the lags put it, is
+#: fitted again so up to this many times, until it moves by less than this (s).
 STEP_REFITS = 3
 STEP_SETTLED = 1e-6
 

@@ -38,6 +38,7 @@ from dhlog.identify.joints.sweeps import samples_with_encoders, target_labels
 from dhlog.identify.segment.clocks import at_one_rate, nearest_offset, on_one_clock, shifted
 from dhlog.identify.segment.persample import blocks
 from dhlog.identify.segment.segment import Segmentation, segment_log
+from dhlog.identify.segment.steps import STEP_REACH, ClockStep, at_one_step, stepped
 from dhlog.identify.segment.timing import (
     MOVING_SPEED,
     STEP_FRACTION,
@@ -156,21 +157,31 @@ def _validate_log(
     log, coarse, moved = on_one_clock(log, judge)
     seg = _segmented(log, path, ex.standard)
     types = list(ex.standard.joint_types)
-    log, seg, _, drift = at_one_rate(  # a clock that drifts: its stamps mapped
+    log, seg, phases, step = at_one_step(  # a clock set mid-session: the stamps after moved
         log,
         seg,
         sweep_phases(seg, log, types),
         lambda mapped: _segmented(mapped, path, ex.standard),
         types,
     )
-    if coarse or drift is not None:  # judged as the log is joined now
+    log, seg, _, drift = at_one_rate(  # a clock that drifts: its stamps mapped
+        log,
+        seg,
+        phases,
+        lambda mapped: _segmented(mapped, path, ex.standard),
+        types,
+    )
+    if coarse or drift is not None or step is not None:  # judged as the log is joined now
         judge = clock_judge(
             log, ex.standard, functools.partial(table_values, result), calibrated.stand
         )
     rows, Qs, Ps = samples_with_encoders(seg)
     clock = _own_clock(log, seg, rows, judge, coarse)
-    if clock.offset != coarse:  # joined again where its clock puts the joint states
-        seg = _segmented(shifted(log, clock.offset - coarse), path, ex.standard)
+    joined = shifted(log, clock.offset - coarse) if clock.offset != coarse else log
+    if step is not None and clock.checked:  # the step sized again, as the log is joined
+        joined, step = _step_sized(joined, step, result, calibrated.stand)
+    if joined is not log:  # joined again where its clock puts the joint states
+        seg = _segmented(joined, path, ex.standard)
         rows, Qs, Ps = samples_with_encoders(seg)
     which = target_labels(seg, rows)
     kept = np.ones(rows.size, dtype=bool) if which is None else which == 0
@@ -202,10 +213,13 @@ def _validate_log(
         notes=(
             *check.notes,
             *(note.text for note in moved),
+            *(() if step is None else (_step_said(step),)),
             *(() if drift is None else (_drift_said(drift),)),
             *clock.said(which),
             *_gross_note(gross),
         ),
+        clock_step=None if step is None else step.seconds,
+        clock_step_at_ns=0 if step is None else step.at_ns,
         clock_drift=None if drift is None else drift.rate,
         drift_reference_ns=0 if drift is None else drift.t_ref_ns,
         clock_offset=log.pipeline.segmentation.clock_offset + clock.offset
@@ -261,6 +275,42 @@ def _gross_outliers(result: Identification, Q: FloatArray, P: FloatArray) -> NDA
     # is the calibration's own error, which no gross outlier comes near
     own = result.validation.rms if result.validation is not None else 0.0
     return np.asarray(near & (off > GROSS_RATIO * max(typical, own)), dtype=bool)
+
+
+def _step_sized(
+    log: LogData, step: ClockStep, result: Identification, stand: Stand
+) -> tuple[LogData, ClockStep]:
+    """A held-out log's clock step, read from its sweeps' lags (as joined then: a log tens of
+    ms off reads them to 0.1 ms), sized again where the calibrated model placed on the samples
+    after it misses them least (within :data:`~dhlog.identify.segment.steps.STEP_REACH`): the
+    log with the stamps after it moved by that, and the step."""
+    from scipy.optimize import minimize_scalar  # scipy.optimize costs 0.35 s to import
+
+    ex = result.extraction
+    assert ex is not None and log.joints is not None
+    margin = round(log.pipeline.segmentation.join_tolerance * 1e9)  # joint states after it only
+    since = int(log.joints["t_ns"][step.index]) + margin
+    later = clock_judge(
+        log, ex.standard, functools.partial(table_values, result), stand, since_ns=since
+    )
+    if later is None:
+        return log, step
+    found = minimize_scalar(
+        later, bounds=(-STEP_REACH, STEP_REACH), method="bounded", options={"xatol": 1e-7}
+    )
+    if not float(found.fun) < later(0.0):
+        return log, step
+    at = float(found.x)
+    return stepped(log, step.index, at), replace(step, seconds=step.seconds + at)
+
+
+def _step_said(step: ClockStep) -> str:
+    """What a held-out log's scoring says of its clock set mid-session."""
+    return (
+        f"its joint states' clock {step.described} during the session (at their stamp "
+        f"{step.at_ns} ns as logged): their stamps from there on were moved "
+        f"{step.seconds * 1e3:+.3f} ms before it was scored."
+    )
 
 
 def _drift_said(drift: Drift) -> str:

@@ -95,7 +95,8 @@ class LogHoldout(Holdout):
     taken while the joints moved that a static-pose log's scoring left out
     (``moving_left_out``), the tracker's gross outliers left out (``outliers_left_out``) and
     the drift its joint states' stamps were mapped by (``clock_drift``, s a second; the offset
-    then holds at ``drift_reference_ns``)."""
+    then holds at ``drift_reference_ns``) and the step of their clock mid-session taken out
+    (``clock_step``, s added to the stamps from the one logged at ``clock_step_at_ns`` on)."""
 
     tool_replaced: bool = False
     components: str = "3-D"
@@ -104,6 +105,8 @@ class LogHoldout(Holdout):
     outliers_left_out: int = 0
     clock_drift: float | None = None
     drift_reference_ns: int = 0
+    clock_step: float | None = None
+    clock_step_at_ns: int = 0
 
     def document(self) -> dict[str, object]:
         doc = super().document()
@@ -118,6 +121,9 @@ class LogHoldout(Holdout):
         if self.clock_drift is not None:
             doc["clock_drift"] = self.clock_drift
             doc["drift_reference_ns"] = self.drift_reference_ns
+        if self.clock_step is not None:
+            doc["clock_step"] = self.clock_step
+            doc["clock_step_at_ns"] = self.clock_step_at_ns
         return doc
 
 

@@ -18,6 +18,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
+import polars as pl
 from numpy.typing import NDArray
 
 from dhlog.errors import DegenerateGeometryError, GeometryError
@@ -106,6 +107,7 @@ def clock_judge(
     stand: Stand,
     *,
     samples: int = JUDGE_SAMPLES,
+    since_ns: int | None = None,
 ) -> Callable[[float], float] | None:
     """``miss(offset)``: with the joint states moved by ``offset`` s, the model — ``table``, its
     joint values ``values(encoders)``, standing at ``stand`` (a start of the search) — placed
@@ -114,10 +116,13 @@ def clock_judge(
     RMS is over its inliers, and a wrong offset makes outliers of the samples it misjoins);
     inf where too few samples have joint states or it cannot be placed. None where the log's
     joints are not the model's. The nominal judges a session's clock, the calibrated model a
-    held-out log's."""
+    held-out log's; ``since_ns``: only the samples stamped from then on (those after a clock
+    set mid-session)."""
     joints, points = log.joints, matched_points(log)  # the samples the match reads
     if joints is None or joints.width - 1 != table.n or points is None:
         return None
+    if since_ns is not None:
+        points = points.filter(pl.col("t_ns") >= since_ns)
     if points.height < 20:
         return None
     pick = slice(None, None, max(1, -(-points.height // samples)))

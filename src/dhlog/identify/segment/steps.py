@@ -36,6 +36,9 @@ STEP_SWEEPS = 1
 #: The interval's own step is taken for the lags' where the stream's intervals scatter less than
 #: the lags' step is known, and the two agree within this many of its σ (at least 0.1 ms).
 STEP_AGREE = 5.0
+#: The step read by the lags is sized again (by the fit, or a held-out log's by the
+#: calibrated model) within this (s) of where they put it.
+STEP_REACH = 1e-3
 #: Readings of the step's size: the lags read a misjoin of tens of ms a little short, and a
 #: sweep the step falls in between the two.
 STEP_READINGS = 3
