@@ -73,12 +73,14 @@ def in_time() -> tuple[Session, Identification]:
     return session, _run(session)
 
 
-@pytest.mark.parametrize("seconds", [0.03, -0.02, -0.2])
+@pytest.mark.parametrize("seconds", [0.03, -0.02, -0.2, 1.0])
 def test_a_clock_set_mid_session_is_taken_out(
     seconds: float, in_time: tuple[Session, Identification]
 ) -> None:
-    """Set on 30 ms (a gap in the stamps), back 20 ms and 200 ms (stamps before the last
-    ones): found to a fraction of a ms, the stamps moved back by it, the fit as in time."""
+    """Set on 30 ms (a gap in the stamps) or 1 s, back 20 ms and 200 ms (stamps before the
+    last ones): found to a few µs, the stamps moved back by it, the fit as in time, and the
+    encoders' slopes judged as the sweeps read with the step taken out (1 s misjoined read
+    three joints' slopes far from 1: warned before)."""
     truth_session, truth = in_time
     assert truth.timing is not None and truth.timing.step == 0.0
     assert not any(n.code == "clock-step" for n in truth.notes)
@@ -88,6 +90,7 @@ def test_a_clock_set_mid_session_is_taken_out(
     assert t is not None and abs(t.step + seconds) < 2e-5  # the step taken out: −seconds
     assert t.document()["clock_step"] == t.step
     assert any(n.code == "clock-step" for n in result.notes)
+    assert not any(n.code == "encoder-slope" for n in result.notes)
     said = f"set {abs(seconds) * 1e3:.1f} ms {'on' if seconds > 0 else 'back'}"
     assert said in clock_line(result)  # the console's Clock line
     document = json.loads(json.dumps(result_document(result)))
@@ -113,6 +116,41 @@ def test_a_clock_set_among_gross_outliers(seconds: float) -> None:
     result = _run(session)
     assert result.timing is not None and abs(result.timing.step + seconds) < 2e-5
     assert _fk_error(result, session) < 1.05 * _fk_error(truth, truth_session)
+
+
+@pytest.mark.parametrize(("seconds", "at"), [(1.0, 0.3), (3.0, 0.45)])
+def test_a_clock_set_seconds_on(
+    seconds: float, at: float, in_time: tuple[Session, Identification]
+) -> None:
+    """Set on 1 s with 70 % of the session after it: the coarse match moved the whole stream
+    by −1.01 s to the majority, the step then moved the rest as far again, and nothing was
+    identified (the stream is matched again without the step). Set on 3 s while the robot
+    sweeps: no lag reads seconds, but the joints' values run on across the gap as between any
+    two messages, and lost messages do not."""
+    truth_session, truth = in_time
+    session = _stepped(truth_session, seconds, at)
+    result = _run(session)
+    assert result.timing is not None and abs(result.timing.step + seconds) < 2e-5
+    assert result.timing.coarse == 0.0
+    assert _fk_error(result, session) < 1.05 * _fk_error(truth, truth_session)
+
+
+@pytest.mark.parametrize(("span", "at"), [(0.3, 0.5), (1.0, 0.45)])
+def test_lost_messages_are_no_step(
+    span: float, at: float, in_time: tuple[Session, Identification]
+) -> None:
+    """``span`` s of joint states lost (a driver's or a network's hiccup): a gap in the stamps
+    as a clock set on leaves, but the joints' values change across it by the gap's motion
+    (while sweeping) or a move begins in it (0.3 s at mid-session: taken for a step by a first
+    rule, 54x the error in time); no step is taken."""
+    truth_session, truth = in_time
+    t = truth_session.joint_t_ns
+    start = t[0] + int((t[-1] - t[0]) * at)
+    kept = (t < start) | (t > start + int(span * 1e9))
+    session = replace(truth_session, joint_t_ns=t[kept], joint_q=truth_session.joint_q[kept])
+    result = _run(session)
+    assert result.timing is not None and result.timing.step == 0.0
+    assert _fk_error(result, session) < 1.2 * _fk_error(truth, truth_session)
 
 
 def test_dropouts_are_no_step() -> None:

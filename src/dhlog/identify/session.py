@@ -31,7 +31,7 @@ from dhlog.identify.model.parked import (
     parked_pose,
 )
 from dhlog.identify.options import ProcessOptions
-from dhlog.identify.segment.clocks import at_one_rate, on_one_clock
+from dhlog.identify.segment.clocks import at_one_rate, on_one_clock, shifted
 from dhlog.identify.segment.segment import Segmentation, segment_log
 from dhlog.identify.segment.steps import at_one_step, step_note
 from dhlog.identify.segment.timing import (
@@ -77,10 +77,8 @@ def segmented(log: LogData, options: ProcessOptions, stage: Stage) -> Segmented:
     stage("segmenting", 0.0)
     log, coarse, said = on_one_clock(log, None if nominal is None else nominal_judge(log, nominal))
     seg = segment_log(log, joint_types=types_hint, reference_pose=reference_pose)
-    n = seg.n_joints
-    notes = [*said, *seg.notes]
     phases = sweep_phases(seg, log, types_hint) if seg.has_encoders else []
-    notes.extend(check_units(seg, log, phases))  # before a drift's map: a unit slip is no drift
+    units = check_units(seg, log, phases)  # before a drift's map: a unit slip is no drift
     log, seg, phases, step = at_one_step(
         log,
         seg,
@@ -89,7 +87,18 @@ def segmented(log: LogData, options: ProcessOptions, stage: Stage) -> Segmented:
         types_hint,
     )
     if step is not None:
-        notes.append(step_note(step, as_logged=log.clock_set_back is not None))
+        if coarse:  # matched with the step in the stream (a second on 70 % of it): again
+            unmoved = shifted(log, -coarse)
+            step = replace(step, at_ns=step.at_ns - round(coarse * 1e9))  # as logged
+            judge = None if nominal is None else nominal_judge(unmoved, nominal)
+            log, coarse, said = on_one_clock(unmoved, judge)
+            seg = segment_log(log, joint_types=types_hint, reference_pose=reference_pose)
+            phases = sweep_phases(seg, log, types_hint)
+        units = check_units(seg, log, phases)  # the slopes as the sweeps read without the step
+    n = seg.n_joints
+    notes = [*said, *seg.notes, *units]
+    if step is not None:
+        notes.append(step_note(step))
     log, seg, phases, drift = at_one_rate(
         log,
         seg,

@@ -18,7 +18,13 @@ import polars as pl
 
 from dhlog.errors import Note
 from dhlog.identify.segment.segment import Segmentation
-from dhlog.identify.segment.timing import SweepPhase, set_by, sweep_phases, timed_phases
+from dhlog.identify.segment.timing import (
+    MOVING_SPEED,
+    SweepPhase,
+    set_by,
+    sweep_phases,
+    timed_phases,
+)
 from dhlog.io.reader import LogData
 from dhlog.model.dh import JointType
 
@@ -39,6 +45,12 @@ STEP_AGREE = 5.0
 #: The step read by the lags is sized again (by the fit, or a held-out log's by the
 #: calibrated model) within this (s) of where they put it.
 STEP_REACH = 1e-3
+#: A gap of this many of the stream's intervals or more, across which the joint states'
+#: values run on by one interval's motion and after which this many intervals run at the
+#: stream's rate, is the clock set on (a step of a second leaves the sweeps after it untimed:
+#: their encoders' slopes read far from 1).
+STEP_GAP = 3.0
+STEP_RUN = 20
 #: Readings of the step's size: the lags read a misjoin of tens of ms a little short, and a
 #: sweep the step falls in between the two.
 STEP_READINGS = 3
@@ -52,6 +64,10 @@ class ClockStep:
     index: int
     at_ns: int
     seconds: float
+    #: how it was told: ``lags`` (the sweeps' lags either side), ``gap`` (a gap the joints'
+    #: values run on across), ``retimed`` (the sweeps after it timed only without it) or
+    #: ``set back`` (the stamps fell in the order logged)
+    told: str = "lags"
 
     @property
     def described(self) -> str:
@@ -94,6 +110,8 @@ class _Place:
     index: int
     odd: float
     jitter: float
+    #: the stream's median interval (s)
+    interval: float = 0.0
 
 
 def _places(log: LogData) -> list[_Place]:
@@ -107,7 +125,36 @@ def _places(log: LogData) -> list[_Place]:
     odd = gaps - float(np.median(gaps))
     jitter = 1.4826 * float(np.median(np.abs(odd)))
     order = np.argsort(-np.abs(odd))[:STEP_CANDIDATES]
-    return [_Place(int(k) + 1, float(odd[k]), jitter) for k in order if abs(odd[k]) > STEP_FLOOR]
+    median = float(np.median(gaps))
+    return [
+        _Place(int(k) + 1, float(odd[k]), jitter, median) for k in order if abs(odd[k]) > STEP_FLOOR
+    ]
+
+
+def _runs_on(log: LogData, place: _Place) -> bool:
+    """Whether the joint states across a gap of ``place`` (:data:`STEP_GAP` intervals or more)
+    are consecutive — their values change across it by one interval's motion, not the gap's,
+    and the stamps after it run on at the stream's rate (no burst catching up a delay) —: the
+    clock set on there, not messages lost. Unknown (False) where the fastest joint does not
+    move steadily across it (still, or a move begun in the gap: lost messages then change it by
+    little too)."""
+    assert log.joints is not None
+    i, dt = place.index, place.interval
+    t = log.joints["t_ns"].to_numpy()
+    if dt <= 0 or place.odd < (STEP_GAP - 1.0) * dt or not 2 <= i < t.size - STEP_RUN:
+        return False
+    if abs((t[i + STEP_RUN] - t[i]) * 1e-9 - STEP_RUN * dt) > dt:
+        return False
+    q = log.joints.select(log.joints.columns[1:]).slice(i - 2, 4).to_numpy()
+    before, across, after = q[1] - q[0], q[2] - q[1], q[3] - q[2]
+    speed = 0.5 * (before + after)  # the motion of one interval about the gap
+    j = int(np.argmax(np.abs(speed)))
+    if not min(abs(before[j]), abs(after[j])) > MOVING_SPEED * dt:
+        return False
+    if abs(before[j] - after[j]) > 0.5 * abs(speed[j]):  # not steady: a move begun or ended
+        return False
+    intervals = (t[i] - t[i - 1]) * 1e-9 / dt  # what a gap of lost messages would move
+    return bool(abs(across[j]) < 0.5 * (1.0 + intervals) * abs(speed[j]))
 
 
 def _size(phases: list[SweepPhase], at_ns: int) -> tuple[float, float] | None:
@@ -166,11 +213,23 @@ def at_one_step(
     side (read :data:`STEP_READINGS` times), the lags scatter :data:`STEP_CLEARER` times less —
     the log so mapped, segmented and its sweeps read again, and the step (None: none found, or
     the pipeline fixes the clock). The lags are read without their sweeps' gross outliers
-    (:func:`_lag`)."""
+    (:func:`_lag`). A step the lags cannot read — a gap the joints' values run on across
+    (:func:`_runs_on`), or one that leaves sweeps after it untimed (:func:`_retimed`) — is
+    taken at the gap's own size."""
     if log.pipeline.segmentation.clock_offset_fixed or log.joints is None:
         return log, seg, phases, None
     if log.clock_set_back is not None:  # the stamps fell as logged: moved on reading
         return _set_back(log, seg, phases, segment, joint_types)
+    for place in _places(log):  # a gap the joint states' values run on across: the clock
+        if _runs_on(log, place):
+            mapped = stepped(log, place.index, -place.odd)
+            new_seg = segment(mapped)
+            at_ns = int(log.joints["t_ns"][place.index])
+            step = ClockStep(place.index, at_ns, -place.odd, "gap")
+            return mapped, new_seg, sweep_phases(new_seg, mapped, joint_types), step
+    found = _retimed(log, phases, segment, joint_types)
+    if found is not None:
+        return found
     misfit = lag_misfit(phases)
     if misfit is None or misfit <= STEP_FLOOR:
         return log, seg, phases, None
@@ -199,6 +258,43 @@ def at_one_step(
     return best[1], best[2], best[3], best[4]
 
 
+def _untimed(phases: list[SweepPhase]) -> int:
+    """The sweeps that read a lag but do not time it (their encoders' slope far from 1: a
+    sweep misjoined by a second reads its joint half still), where some sweeps time theirs."""
+    timed = timed_phases(phases)
+    lagged = sum(p.delta is not None and p.std is not None for p in phases)
+    return lagged - len(timed) if timed else 0
+
+
+def _retimed(
+    log: LogData,
+    phases: list[SweepPhase],
+    segment: Callable[[LogData], Segmentation],
+    joint_types: Sequence[JointType | None] | None,
+) -> tuple[LogData, Segmentation, list[SweepPhase], ClockStep] | None:
+    """Where some sweeps do not time their lag and the stream has a gap of :data:`STEP_GAP`
+    intervals or more: the stamps after it moved back by the gap, taken where more sweeps then
+    time their lag and the lags lie on their line within :data:`STEP_FLOOR` (a clock set on a
+    second while the robot stood still: no lag after it to read the step, and no motion across
+    the gap to tell it from lost messages); else None. Lost messages moved so misjoin the
+    sweeps after them, and fewer time their lag."""
+    assert log.joints is not None
+    untimed = _untimed(phases)
+    if not untimed:
+        return None
+    for place in _places(log):
+        if place.odd < (STEP_GAP - 1.0) * place.interval:
+            continue
+        mapped = stepped(log, place.index, -place.odd)
+        new_seg = segment(mapped)
+        got = sweep_phases(new_seg, mapped, joint_types)
+        left = lag_misfit(got)
+        if _untimed(got) < untimed and left is not None and left <= STEP_FLOOR:
+            at_ns = int(log.joints["t_ns"][place.index])
+            return mapped, new_seg, got, ClockStep(place.index, at_ns, -place.odd, "retimed")
+    return None
+
+
 def _set_back(
     log: LogData,
     seg: Segmentation,
@@ -222,28 +318,31 @@ def _set_back(
         mapped = stepped(log, index, total)
         seg = segment(mapped)
         phases = sweep_phases(seg, mapped, joint_types)
-    return mapped, seg, phases, ClockStep(index, at_ns, added * 1e-9 + total)
+    return mapped, seg, phases, ClockStep(index, at_ns, added * 1e-9 + total, "set back")
 
 
-def step_note(step: ClockStep, *, as_logged: bool = False) -> Note:
-    """What the run says of the step of the joint states' clock it took out (``as_logged``:
-    their stamps fell in the order logged, and were moved on reading)."""
-    if as_logged:
-        return Note.warning(
-            f"the joint states' clock {step.described} during the session (their stamps fall "
-            f"in the order logged, at {step.at_ns} ns): the stamps from there on were moved "
-            f"{step.seconds * 1e3:+.1f} ms to follow the one before at the stream's interval, "
-            "so the two stretches do not interleave. A time daemon setting the clock "
-            "mid-session does so: let it slew (chrony's makestep only at boot) or synchronise "
-            "the computers (PTP) for the next session.",
-            "clock-step",
-        )
+#: How a step was told, in the note's words.
+_TOLD = {
+    "lags": "the sweeps either side lag the tracker by that much apart",
+    "gap": "the stamps jump by that much where the joints' values run on as between any two",
+    "retimed": (
+        "the stamps jump by that much between two sweeps, and the sweeps after it time their "
+        "lag only without it"
+    ),
+    "set back": (
+        "their stamps fall by that much in the order logged, and were moved to follow the one "
+        "before at the stream's interval on reading, so the two stretches do not interleave"
+    ),
+}
+
+
+def step_note(step: ClockStep) -> Note:
+    """What the run says of the step of the joint states' clock it took out."""
     return Note.warning(
         f"the joint states' clock {step.described} during the session (at their stamp "
-        f"{step.at_ns} ns as logged): the sweeps either side lag the tracker by that much apart, "
-        f"so the stamps from there on were moved {step.seconds * 1e3:+.1f} ms before the sweeps "
-        "were read again. A time daemon setting the clock mid-session does so: let it slew "
-        "(chrony's makestep only at boot) or synchronise the computers (PTP) for the next "
-        "session.",
+        f"{step.at_ns} ns as logged): {_TOLD[step.told]}; the stamps from there on were moved "
+        f"{step.seconds * 1e3:+.1f} ms before the sweeps were read again. A time daemon "
+        "setting the clock mid-session does so: let it slew (chrony's makestep only at boot) "
+        "or synchronise the computers (PTP) for the next session.",
         "clock-step",
     )
