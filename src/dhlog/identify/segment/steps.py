@@ -51,6 +51,9 @@ STEP_REACH = 1e-3
 #: their encoders' slopes read far from 1).
 STEP_GAP = 3.0
 STEP_RUN = 20
+#: A clock set back in a stream sorted by stamp leaves a stretch as long as the step this many
+#: times denser than the stream's rate (twice, where both sides run at it).
+STEP_DENSER = 1.5
 #: Readings of the step's size: the lags read a misjoin of tens of ms a little short, and a
 #: sweep the step falls in between the two.
 STEP_READINGS = 3
@@ -65,8 +68,9 @@ class ClockStep:
     at_ns: int
     seconds: float
     #: how it was told: ``lags`` (the sweeps' lags either side), ``gap`` (a gap the joints'
-    #: values run on across), ``retimed`` (the sweeps after it timed only without it) or
-    #: ``set back`` (the stamps fell in the order logged)
+    #: values run on across), ``retimed`` (the sweeps after it timed only without it),
+    #: ``interleaved`` (set back in a stream sorted by stamp: the stretch holding both sides
+    #: left out) or ``set back`` (the stamps fell in the order logged)
     told: str = "lags"
 
     @property
@@ -255,7 +259,45 @@ def at_one_step(
                 best = (left, mapped, got[0], got[1], ClockStep(index, at_ns, total))
     if best is None:
         return log, seg, phases, None
+    if best[4].seconds > 0:  # set back, in a stream the store gave sorted by stamp
+        unmixed = _unmixed(log, best[4], segment, joint_types)
+        if unmixed is not None:
+            return unmixed
     return best[1], best[2], best[3], best[4]
+
+
+def _unmixed(
+    log: LogData,
+    step: ClockStep,
+    segment: Callable[[LogData], Segmentation],
+    joint_types: Sequence[JointType | None] | None,
+) -> tuple[LogData, Segmentation, list[SweepPhase], ClockStep] | None:
+    """A clock set back ``step.seconds`` whose stamps the store gave sorted (rosbags reads a
+    sqlite3 bag by stamp): the stretch that long where the stream is denser than
+    :data:`STEP_DENSER` times its rate holds the joint states of both sides, interleaved, and
+    no one place moves them apart. Its joint states are left out (the tracker's samples there
+    have none: set aside), those after it moved by the step; None where no stretch is so
+    dense (the lags' place stands)."""
+    assert log.joints is not None
+    t = log.joints["t_ns"].to_numpy()
+    width = round(step.seconds * 1e9)
+    if t.size < 3 or width <= 0:
+        return None
+    interval = float(np.median(np.diff(t)))
+    ends = np.searchsorted(t, t + width, side="left")
+    counts = ends - np.arange(t.size)
+    k = int(np.argmax(counts))
+    if interval <= 0 or counts[k] < STEP_DENSER * width / interval:
+        return None
+    end = int(ends[k])
+    rows = pl.int_range(pl.len())
+    joints = log.joints.with_columns(
+        pl.when(rows >= end).then(pl.col("t_ns") + width).otherwise(pl.col("t_ns")).alias("t_ns")
+    ).filter((rows < k) | (rows >= end))
+    mapped = replace(log, joints=joints)
+    new_seg = segment(mapped)
+    found = ClockStep(k, int(t[k]), step.seconds, "interleaved")
+    return mapped, new_seg, sweep_phases(new_seg, mapped, joint_types), found
 
 
 def _untimed(phases: list[SweepPhase]) -> int:
@@ -328,6 +370,11 @@ _TOLD = {
     "retimed": (
         "the stamps jump by that much between two sweeps, and the sweeps after it time their "
         "lag only without it"
+    ),
+    "interleaved": (
+        "the sweeps either side lag the tracker by that much apart, and the stamps that long "
+        "before it hold the joint states of both sides (a store that gives them sorted by "
+        "stamp): those were left out"
     ),
     "set back": (
         "their stamps fall by that much in the order logged, and were moved to follow the one "
