@@ -273,23 +273,26 @@ def _unmixed(
     joint_types: Sequence[JointType | None] | None,
 ) -> tuple[LogData, Segmentation, list[SweepPhase], ClockStep] | None:
     """A clock set back ``step.seconds`` whose stamps the store gave sorted (rosbags reads a
-    sqlite3 bag by stamp): the stretch that long where the stream is denser than
-    :data:`STEP_DENSER` times its rate holds the joint states of both sides, interleaved, and
-    no one place moves them apart. Its joint states are left out (the tracker's samples there
-    have none: set aside), those after it moved by the step; None where no stretch is so
-    dense (the lags' place stands)."""
+    sqlite3 bag by stamp): the stretch that long about the lags' place where the stream is
+    denser than :data:`STEP_DENSER` times its rate holds the joint states of both sides,
+    interleaved, and no one place moves them apart. Its joint states are left out (the
+    tracker's samples there have none: set aside), those after it moved by the step; None
+    where no stretch is so dense (the lags' place stands)."""
     assert log.joints is not None
     t = log.joints["t_ns"].to_numpy()
     width = round(step.seconds * 1e9)
     if t.size < 3 or width <= 0:
         return None
     interval = float(np.median(np.diff(t)))
-    ends = np.searchsorted(t, t + width, side="left")
-    counts = ends - np.arange(t.size)
-    k = int(np.argmax(counts))
-    if interval <= 0 or counts[k] < STEP_DENSER * width / interval:
+    # the stretches that long about the lags' place (its odd interval lies in the stretch)
+    lo = int(np.searchsorted(t, t[step.index] - width, side="left"))
+    starts = np.arange(lo, step.index + 1)
+    ends = np.searchsorted(t, t[starts] + width, side="left")
+    counts = ends - starts
+    best = int(np.argmax(counts))
+    k, end = int(starts[best]), int(ends[best])
+    if interval <= 0 or counts[best] < STEP_DENSER * width / interval or end <= step.index:
         return None
-    end = int(ends[k])
     rows = pl.int_range(pl.len())
     joints = log.joints.with_columns(
         pl.when(rows >= end).then(pl.col("t_ns") + width).otherwise(pl.col("t_ns")).alias("t_ns")
