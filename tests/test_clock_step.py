@@ -213,13 +213,15 @@ def _stamps(t_ms: list[float]) -> pl.DataFrame:
 
 def test_only_a_fall_of_the_stamps_beyond_two_intervals_is_a_set_back() -> None:
     """A clock set back 50 ms among 10 ms intervals is moved to follow on at the median
-    interval; two messages swapped (a fall of one interval), one message sent 50 ms late, or
-    stamps falling at two places (two publishers) are left to the sort."""
+    interval; two messages swapped (a fall of one interval), one message sent 50 ms late, one
+    stamp damaged far ahead (moving the rest after it would put them all past 2262), or stamps
+    falling at two places (two publishers) are left to the sort."""
     back = [0.0, 10.0, 20.0, 30.0, -20.0, -10.0, 0.0, 10.0]
     moved, found = unfolded(_stamps(back))
     assert found == (-20_000_000, 60_000_000)
     assert moved["t_ns"].to_list() == [round(v * 1e6) for v in range(0, 80, 10)]
     swapped, late = [0.0, 10.0, 30.0, 20.0, 40.0, 50.0], [30.0, 40.0, 50.0, 60.0, 0.0, 70.0, 80.0]
-    for stamps in (swapped, late, [0.0, 10.0, -40.0, -30.0, 20.0, -50.0, -40.0, 30.0]):
+    damaged = [0.0, 10.0, 20.0, 9e12, 30.0, 40.0, 50.0]  # one stamp far ahead: set aside after
+    for stamps in (swapped, late, damaged, [0.0, 10.0, -40.0, -30.0, 20.0, -50.0, -40.0, 30.0]):
         same, none = unfolded(_stamps(stamps))
         assert none is None and same["t_ns"].to_list() == _stamps(stamps)["t_ns"].to_list()

@@ -186,7 +186,7 @@ def stepped(log: LogData, index: int, seconds: float) -> LogData:
     the order logged), and to its commanded joints' after the last stamp before it."""
     assert log.joints is not None
     step = round(seconds * 1e9)
-    last = int(log.joints["t_ns"][index - 1])
+    last = int(log.joints["t_ns"][index - 1]) if index > 0 else int(log.joints["t_ns"][0]) - 1
     joints = log.joints.with_columns(
         pl.when(pl.int_range(pl.len()) >= index)
         .then(pl.col("t_ns") + step)

@@ -8,7 +8,8 @@ the stamps from the fall on are moved to follow the last one before it at the st
 interval (:func:`unfolded`), and the log keeps what was added
 (:attr:`dhlog.io.logdata.LogData.clock_set_back`) for the run to report. A stream whose stamps
 fall in more than one place (two publishers on one topic), by an interval or two (messages
-swapped) or for one message only (one sent late) is sorted as before.
+swapped), for one message only (one sent late) or from one stamp far ahead of the one before
+(damage: :func:`~dhlog.io.decode.frames.clean` sets it aside) is sorted as before.
 """
 
 from __future__ import annotations
@@ -45,6 +46,8 @@ def unfolded(frame: pl.DataFrame) -> tuple[pl.DataFrame, tuple[int, int] | None]
     if added <= max(SET_BACK_FLOOR_NS, SET_BACK_INTERVALS * step):
         return frame, None
     if k + 1 < t.size and t[k + 1] >= t[k - 1]:  # one message sent late, not a clock set back
+        return frame, None
+    if k >= 2 and not 0 < d[k - 2] <= SET_BACK_INTERVALS * step:  # one stamp damaged high
         return frame, None
     moved = frame.with_columns(
         pl.when(pl.int_range(pl.len()) >= k)
